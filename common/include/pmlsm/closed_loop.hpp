@@ -1,0 +1,94 @@
+// The whole control cascade in one process, without DDS: the reference model,
+// the encoder velocity, the Kalman filter, the velocity PI (1 ms) and the
+// drive's current loop (31.25 us) around the nonlinear plant (10 us RK4).
+// The distributed nodes run these same components; this loop is their
+// reference trace.
+//
+// One tick k (t_k = k T):
+//   1. read the encoder and the currents of the plant at t_k;
+//   2. v_M,meas = encoder difference; V_ref = reference model (command c(t_k));
+//   3. Kalman step with y = v_M,meas and u = the force applied over the last tick;
+//   4. force F_k = velocity PI(V_ref, v_M,meas, compensation);
+//   5. 32 current-loop periods: voltages from the current controller, plant integrated.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "pmlsm/current_controller.hpp"
+#include "pmlsm/encoder_velocity.hpp"
+#include "pmlsm/kalman_filter.hpp"
+#include "pmlsm/plant.hpp"
+#include "pmlsm/reference_model.hpp"
+#include "pmlsm/scenario.hpp"
+#include "pmlsm/system_params.hpp"
+#include "pmlsm/velocity_pi.hpp"
+
+namespace pmlsm {
+
+/// What happened at one control tick: the state at t_k and the commands computed at t_k.
+struct TickRecord {
+  std::uint64_t tick = 0;
+  double time_s = 0;
+  double command_mps = 0;          ///< raw command c(t_k)
+  double v_ref_mps = 0;            ///< reference model output
+  double encoder_position_m = 0;
+  double motor_velocity_measured_mps = 0;
+  double motor_position_m = 0;     ///< true
+  double motor_velocity_mps = 0;   ///< true
+  double load_position_m = 0;      ///< true
+  double load_velocity_mps = 0;    ///< true
+  double load_accel_mps2 = 0;      ///< true
+  double spring_force_n = 0;       ///< true F_s
+  double est_motor_velocity_mps = 0;
+  double est_load_velocity_mps = 0;
+  double est_spring_force_n = 0;
+  double est_load_accel_mps2 = 0;
+  double force_command_n = 0;      ///< velocity loop output F_k
+  double thrust_n = 0;             ///< true F_dx at t_k
+  double ripple_n = 0;
+  double friction_n = 0;
+  double i_q_a = 0;
+  double u_q_v = 0;                ///< last q-axis voltage of the previous tick
+};
+
+class ClosedLoop {
+ public:
+  /// @throws std::invalid_argument from any component or the scenario.
+  ClosedLoop(const SystemParams& params, const Scenario& scenario);
+
+  /// Runs one control tick and returns its record. compensation_force_n is
+  /// added to the PI output inside its saturation (the hybrid controller, Fig. 4).
+  TickRecord step(double compensation_force_n = 0.0);
+
+  std::uint64_t tick() const { return tick_; }
+  std::uint64_t total_ticks() const { return total_ticks_; }
+  bool done() const { return tick_ >= total_ticks_; }
+
+  const Plant& plant() const { return plant_; }
+  const CurrentController& current_controller() const { return current_; }
+  const VelocityPi& velocity_pi() const { return velocity_; }
+  const KalmanFilter& kalman() const { return kalman_; }
+  const ReferenceModel& reference() const { return reference_; }
+
+ private:
+  SystemParams params_;
+  Scenario scenario_;
+  Plant plant_;
+  CurrentController current_;
+  VelocityPi velocity_;
+  ReferenceModel reference_;
+  KalmanFilter kalman_;
+  EncoderVelocity encoder_velocity_;
+  int current_steps_per_tick_;
+  std::uint64_t tick_ = 0;
+  std::uint64_t total_ticks_ = 0;
+  double last_force_n_ = 0;
+  double last_u_q_v_ = 0;
+  PlantMeasurement last_measurement_;
+};
+
+/// Runs a scenario to its end; the trace is reserved up front (no allocation per tick).
+std::vector<TickRecord> run_scenario(const SystemParams& params, const Scenario& scenario);
+
+}  // namespace pmlsm

@@ -1,0 +1,243 @@
+// Nonlinear plant: permanent-magnet linear synchronous motor (PMLSM) in the
+// d-q frame with damper windings, driving a load through a spring (two-mass
+// system), as modelled by Yousefi et al. (2008), eqs. (1)-(13).
+//
+// States (fluxes are integrated, currents follow from them):
+//   psi_d, psi_q   armature flux linkages [Wb]
+//   psi_D, psi_Q   damper-winding flux linkages [Wb]
+//   x_m, v_m       motor (mover) position [m] and velocity [m/s]
+//   x_l, v_l       load position [m] and velocity [m/s]
+//
+// Electrical, with w_s = pi v_m / tau (2):
+//   dpsi_d/dt = u_d - R i_d + w_s psi_q          (1)
+//   dpsi_q/dt = u_q - R i_q - w_s psi_d          (2)
+//   dpsi_D/dt = -R_D i_D,  dpsi_Q/dt = -R_Q i_Q  (3), (4)
+//   [psi_d - psi_pm; psi_D - psi_pm] = [L_ad L_md; L_md L_D] [i_d; i_D]   (5), (7)
+//   [psi_q; psi_Q]                   = [L_aq L_mq; L_mq L_Q] [i_q; i_Q]   (6), (8)
+//   F_dx = (3p/2)(pi/tau)(psi_d i_q - psi_q i_d)                        (9)
+// psi_pm is not a free parameter: it follows from the motor constant,
+// K_m = (3p/2)(pi/tau) psi_pm, so that with i_d = 0 and no damper current the
+// steady thrust is exactly K_m i_q (i_q in amplitude-invariant, peak amperes).
+//
+// Disturbances (12): F_dist = F_ripple + F_friction with
+//   F_ripple = K_s A_r1 sin(phi_1 x_m) [A_r1 + A_r2 sin(phi_2 x_m)]        (10)
+//   F_friction = -(F_c s(v_m) + F_v v_m)                                     (11)
+// where s(v) replaces sign(v) inside a narrow band |v| < v_eps only:
+//   s(v) = u (3 - u^2) / 2,  u = clamp(v / v_eps, -1, 1),
+// a cubic that equals sign(v) exactly for |v| >= v_eps and joins it with a
+// continuous slope. (11) is thus exact away from zero velocity, and a
+// fixed-step integrator does not chatter at v = 0: the slope through zero,
+// 1.5 F_c / v_eps, is a stiff but integrable viscous friction. A mover held
+// by a force |F| < F_c creeps at below v_eps instead of sticking. The sign
+// is chosen so friction opposes the motion (the paper writes F_T = F + F_dist
+// without fixing the sign).
+//
+// Mechanics (13), dx = x_l - x_m, dv = v_l - v_m:
+//   m_M a_m =  k dx + b dv + F_dx + F_dist
+//   m_L a_l = -k dx - b dv + F_load_ext
+//
+// Inverter: an ideal voltage source whose voltage vector is limited to
+// |u_dq| <= V_dc / sqrt(3) (the largest phase amplitude of space-vector PWM).
+//
+// Integration: classical fourth-order Runge-Kutta or Heun's second-order
+// method (a config choice, `integrator`). step(input, dt) splits dt
+// into the fewest equal sub-steps no longer than max_step_s (10 us in the
+// paper); the input voltage is held over dt (zero-order hold, as a PWM
+// inverter holds its duty cycle). tests/unit/plant_test.cpp measures the
+// order and the error against a fine-step reference.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <random>
+#include <string>
+
+namespace pmlsm {
+
+struct MotorElectricalParams {
+  double resistance_ohm = 0;             ///< R, armature resistance per phase
+  double armature_d_inductance_h = 0;    ///< L_ad
+  double armature_q_inductance_h = 0;    ///< L_aq
+  double mutual_d_inductance_h = 0;      ///< L_md, armature-damper magnetising inductance
+  double mutual_q_inductance_h = 0;      ///< L_mq
+  double damper_d_inductance_h = 0;      ///< L_D
+  double damper_q_inductance_h = 0;      ///< L_Q
+  double damper_d_resistance_ohm = 0;    ///< R_D
+  double damper_q_resistance_ohm = 0;    ///< R_Q
+  double motor_constant_n_per_a = 0;     ///< K_m, thrust per q-axis (peak) ampere
+  double pole_pitch_m = 0;               ///< tau
+  double pole_pairs = 0;                 ///< p in (9)
+  void validate() const;
+  /// psi_pm = K_m / ((3p/2)(pi/tau)).
+  double permanent_magnet_flux_wb() const;
+  /// (3p/2)(pi/tau): thrust per (flux * current).
+  double thrust_factor_per_m() const;
+};
+
+struct RippleParams {
+  double scale_n = 0;            ///< K_s
+  double amplitude_1 = 0;        ///< A_r1
+  double amplitude_2 = 0;        ///< A_r2
+  double spatial_freq_1_rad_per_m = 0;  ///< phi_1
+  double spatial_freq_2_rad_per_m = 0;  ///< phi_2
+  void validate() const;
+};
+
+struct FrictionParams {
+  double coulomb_n = 0;                       ///< F_coulomb
+  double viscous_n_s_per_m = 0;               ///< F_viscous
+  double regularisation_velocity_mps = 0;     ///< v_eps: half-width of the smoothed band of s(v)
+  void validate() const;
+};
+
+struct MechanicsParams {
+  double motor_mass_kg = 0;        ///< m_M
+  double load_mass_kg = 0;         ///< m_L
+  double spring_n_per_m = 0;       ///< k
+  double damping_n_s_per_m = 0;    ///< b
+  void validate() const;
+};
+
+struct InverterParams {
+  double dc_bus_v = 0;
+  void validate() const;
+  double voltage_limit_v() const;  ///< V_dc / sqrt(3)
+};
+
+struct EncoderParams {
+  double resolution_m = 0;          ///< quantisation step of the position reading
+  double position_noise_std_m = 0;  ///< optional white noise added before quantisation
+  std::uint64_t noise_seed = 0;
+  void validate() const;
+};
+
+/// Fixed-step explicit integrators; tests/unit/plant_test.cpp measures their order and error.
+enum class Integrator { kRk4, kHeun };
+const char* to_string(Integrator integrator);
+/// @throws std::invalid_argument on an unknown name.
+Integrator integrator_from_string(const std::string& name);
+
+struct PlantParams {
+  MotorElectricalParams electrical;
+  RippleParams ripple;
+  FrictionParams friction;
+  MechanicsParams mechanics;
+  InverterParams inverter;
+  EncoderParams encoder;
+  double max_step_s = 0;  ///< longest integrator step
+  Integrator integrator = Integrator::kRk4;
+  void validate() const;
+};
+
+/// The integrated state; see the class comment for the meaning of each entry.
+struct PlantState {
+  double psi_d_wb = 0, psi_q_wb = 0, psi_dd_wb = 0, psi_qq_wb = 0;
+  double motor_position_m = 0, motor_velocity_mps = 0;
+  double load_position_m = 0, load_velocity_mps = 0;
+};
+
+/// Initial mechanical condition; the electrical state starts at rest (no current).
+struct PlantInitialCondition {
+  double motor_position_m = 0, motor_velocity_mps = 0;
+  double load_position_m = 0, load_velocity_mps = 0;
+};
+
+/// Inputs held over one step() call.
+struct PlantInput {
+  double u_d_v = 0;              ///< requested d-axis voltage (limited by the inverter)
+  double u_q_v = 0;              ///< requested q-axis voltage
+  double load_force_n = 0;       ///< external force on the load (a disturbance test input)
+};
+
+/// What a drive measures after a step: phase currents (as d-q) and the encoder.
+struct PlantMeasurement {
+  double i_d_a = 0;
+  double i_q_a = 0;
+  double encoder_position_m = 0;  ///< quantised (and noisy if configured)
+};
+
+/// Everything about the plant that no controller may read: for evaluation and tests.
+struct PlantTruth {
+  PlantState state;
+  double i_d_a = 0, i_q_a = 0, i_dd_a = 0, i_qq_a = 0;  ///< armature and damper currents
+  double thrust_n = 0;            ///< F_dx (9)
+  double ripple_n = 0;            ///< F_ripple (10)
+  double friction_n = 0;          ///< F_friction (11), opposing motion
+  double spring_force_n = 0;      ///< F_s = k (x_m - x_l) + b (v_m - v_l), the Kalman state
+  double motor_accel_mps2 = 0;
+  double load_accel_mps2 = 0;
+};
+
+struct PlantCounters {
+  std::uint64_t steps = 0;              ///< step() calls accepted
+  std::uint64_t rejected_inputs = 0;    ///< step() calls with a non-finite input or dt
+  std::uint64_t voltage_limited = 0;    ///< step() calls whose voltage the inverter limited
+};
+
+class Plant {
+ public:
+  /// @throws std::invalid_argument naming the first invalid parameter.
+  explicit Plant(const PlantParams& params);
+
+  void reset(const PlantInitialCondition& initial);
+
+  /// Integrates over dt_s with the input held. A non-finite input or a dt_s
+  /// that is not finite and positive is rejected: the last accepted input is
+  /// applied instead (for a bad dt nothing moves) and the rejection counted.
+  PlantMeasurement step(const PlantInput& input, double dt_s);
+
+  /// Encoder and current reading of the present state (draws noise if configured).
+  PlantMeasurement measure();
+
+  PlantTruth truth() const;
+  const PlantState& state() const { return state_; }
+  const PlantParams& params() const { return params_; }
+  const PlantCounters& counters() const { return counters_; }
+
+ private:
+  using StateVector = std::array<double, 8>;
+  /// Right-hand side of the state equation plus the forces it computed on the
+  /// way. Left uninitialised on purpose: rhs() writes every member, and zeroing
+  /// four of them per RK4 step was a measurable share of the step's cost.
+  struct Rhs {
+    StateVector derivative;
+    double i_d, i_q, i_dd, i_qq;
+    double thrust, ripple, friction, spring;
+  };
+  /// sin/cos of the ripple's two spatial phases at the start of an RK4 step.
+  struct RippleAnchor {
+    double x0 = 0, s1 = 0, c1 = 0, s2 = 0, c2 = 0;
+  };
+  static StateVector to_vector(const PlantState& s);
+  static PlantState from_vector(const StateVector& v);
+  RippleAnchor anchor_at(double x) const;
+  /// Moves ripple_phase_ to the present motor position: a rotation by the
+  /// (small) distance travelled, recomputed exactly every kResyncSteps steps
+  /// so the rounding of the recurrence cannot accumulate.
+  void advance_ripple_phase();
+  static constexpr int kResyncSteps = 256;
+  void rhs(const StateVector& s, double u_d, double u_q, double load_force,
+           const RippleAnchor& anchor, Rhs& out) const;
+  void integrate(double u_d, double u_q, double load_force, double h, int substeps);
+
+  PlantParams params_;
+  // Derived constants, computed once.
+  double psi_pm_wb_ = 0;
+  double thrust_factor_ = 0;
+  double electrical_rad_per_m_ = 0;  // pi / tau
+  double inv_ld_[2][2] = {};         // inverse of [L_ad L_md; L_md L_D]
+  double inv_lq_[2][2] = {};         // inverse of [L_aq L_mq; L_mq L_Q]
+  double voltage_limit_v_ = 0;
+  double inv_motor_mass_ = 0, inv_load_mass_ = 0, inv_friction_band_ = 0;
+  double inv_encoder_resolution_ = 0;
+
+  PlantState state_;
+  RippleAnchor ripple_phase_;
+  int steps_since_resync_ = 0;
+  PlantInput last_input_;
+  PlantCounters counters_;
+  std::mt19937_64 noise_rng_;
+  std::normal_distribution<double> noise_;
+};
+
+}  // namespace pmlsm

@@ -1,0 +1,56 @@
+// Motor-side velocity loop (Table 3): a discrete PI run every T_v = 1 ms,
+//   F_k = sat(Kp e_k + I_k + F_ff,k, +-F_max),  e_k = v_ref,k - v_meas,k,
+//   I_{k+1} = I_k + Ki T_v e_k   unless the output is saturated and e_k pushes
+//                               it further into saturation (conditional
+//                               integration anti-windup).
+// F_ff is an added force (the vibration compensator's output, Fig. 4); it is
+// inside the saturation so the total force request never exceeds F_max.
+#pragma once
+
+#include <cstdint>
+
+namespace pmlsm {
+
+struct VelocityPiParams {
+  double kp_n_s_per_m = 0;
+  double ki_n_per_m = 0;
+  double period_s = 0;
+  double force_limit_n = 0;
+  void validate() const;
+};
+
+struct VelocityPiInput {
+  double velocity_reference_mps = 0;
+  double velocity_measured_mps = 0;
+  double feedforward_force_n = 0;
+};
+
+struct VelocityPiOutput {
+  double force_n = 0;
+  bool saturated = false;
+};
+
+struct VelocityPiCounters {
+  std::uint64_t steps = 0;
+  std::uint64_t rejected_inputs = 0;  ///< non-finite input: last output held
+  std::uint64_t saturated = 0;
+};
+
+class VelocityPi {
+ public:
+  /// @throws std::invalid_argument naming the first invalid parameter.
+  explicit VelocityPi(const VelocityPiParams& params);
+  void reset();
+  VelocityPiOutput step(const VelocityPiInput& input);
+  double integral_n() const { return integral_n_; }
+  const VelocityPiParams& params() const { return params_; }
+  const VelocityPiCounters& counters() const { return counters_; }
+
+ private:
+  VelocityPiParams params_;
+  double integral_n_ = 0;
+  VelocityPiOutput last_output_;
+  VelocityPiCounters counters_;
+};
+
+}  // namespace pmlsm

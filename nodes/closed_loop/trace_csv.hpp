@@ -1,0 +1,14 @@
+// CSV trace of a closed-loop run: one row per control tick, SI units in the header.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "pmlsm/closed_loop.hpp"
+
+namespace pmlsm {
+
+/// Writes atomically (a temporary file renamed into place). @throws std::runtime_error on I/O failure.
+void write_trace_csv(const std::string& path, const std::vector<TickRecord>& trace);
+
+}  // namespace pmlsm
