@@ -222,6 +222,14 @@ SystemParams parse_system_params(const std::string& yaml_text, const std::string
 
   Section plant = top.child("plant");
   p.plant.max_step_s = plant.number("max_step_s");
+  const std::string integrator = plant.text("integrator");
+  validate_in(origin, [&] {
+    try {
+      p.plant.integrator = integrator_from_string(integrator);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("plant.integrator: ") + e.what());
+    }
+  });
   Section el = plant.child("electrical");
   auto& e = p.plant.electrical;
   e.resistance_ohm = el.number("resistance_ohm");

@@ -142,26 +142,40 @@ Plant::Plant(const PlantParams& params)
     : params_(params), noise_rng_(params.encoder.noise_seed), noise_(0.0, 1.0) {
   params_.validate();
   const auto& e = params_.electrical;
-  thrust_factor_ = e.thrust_factor_per_m();
-  psi_pm_wb_ = e.permanent_magnet_flux_wb();
-  electrical_rad_per_m_ = kPi / e.pole_pitch_m;
+  Coefficients& c = coeff_;
+  c.psi_pm = e.permanent_magnet_flux_wb();
+  c.thrust_factor = e.thrust_factor_per_m();
+  c.electrical_rad_per_m = kPi / e.pole_pitch_m;
   invert_2x2(e.armature_d_inductance_h, e.mutual_d_inductance_h, e.mutual_d_inductance_h,
-             e.damper_d_inductance_h, inv_ld_);
+             e.damper_d_inductance_h, c.inv_ld);
   invert_2x2(e.armature_q_inductance_h, e.mutual_q_inductance_h, e.mutual_q_inductance_h,
-             e.damper_q_inductance_h, inv_lq_);
+             e.damper_q_inductance_h, c.inv_lq);
+  c.r = e.resistance_ohm;
+  c.r_dd = e.damper_d_resistance_ohm;
+  c.r_qq = e.damper_q_resistance_ohm;
+  c.phi1 = params_.ripple.spatial_freq_1_rad_per_m;
+  c.phi2 = params_.ripple.spatial_freq_2_rad_per_m;
+  c.ripple_gain = params_.ripple.scale_n * params_.ripple.amplitude_1;
+  c.a_r1 = params_.ripple.amplitude_1;
+  c.a_r2 = params_.ripple.amplitude_2;
+  c.coulomb = params_.friction.coulomb_n;
+  c.viscous = params_.friction.viscous_n_s_per_m;
+  c.inv_friction_band = 1.0 / params_.friction.regularisation_velocity_mps;
+  c.k = params_.mechanics.spring_n_per_m;
+  c.b = params_.mechanics.damping_n_s_per_m;
+  c.inv_motor_mass = 1.0 / params_.mechanics.motor_mass_kg;
+  c.inv_load_mass = 1.0 / params_.mechanics.load_mass_kg;
   voltage_limit_v_ = params_.inverter.voltage_limit_v();
-  inv_motor_mass_ = 1.0 / params_.mechanics.motor_mass_kg;
-  inv_load_mass_ = 1.0 / params_.mechanics.load_mass_kg;
-  inv_friction_band_ = 1.0 / params_.friction.regularisation_velocity_mps;
   inv_encoder_resolution_ = 1.0 / params_.encoder.resolution_m;
+  inv_max_step_ = 1.0 / params_.max_step_s;
   reset(PlantInitialCondition{});
 }
 
 void Plant::reset(const PlantInitialCondition& initial) {
   state_ = PlantState{};
   // No current: psi_d = psi_D = psi_pm by (5), (7); q-axis fluxes zero.
-  state_.psi_d_wb = psi_pm_wb_;
-  state_.psi_dd_wb = psi_pm_wb_;
+  state_.psi_d_wb = coeff_.psi_pm;
+  state_.psi_dd_wb = coeff_.psi_pm;
   state_.motor_position_m = initial.motor_position_m;
   state_.motor_velocity_mps = initial.motor_velocity_mps;
   state_.load_position_m = initial.load_position_m;
@@ -201,10 +215,9 @@ Plant::RippleAnchor Plant::anchor_at(double x) const {
 }
 
 PMLSM_ALWAYS_INLINE void Plant::advance_ripple_phase() {
-  const auto& r = params_.ripple;
   const double x = state_.motor_position_m;
-  const double a1 = r.spatial_freq_1_rad_per_m * (x - ripple_phase_.x0);
-  const double a2 = r.spatial_freq_2_rad_per_m * (x - ripple_phase_.x0);
+  const double a1 = coeff_.phi1 * (x - ripple_phase_.x0);
+  const double a2 = coeff_.phi2 * (x - ripple_phase_.x0);
   if (++steps_since_resync_ >= kResyncSteps || std::abs(a1) > kMaxExpansionRad ||
       std::abs(a2) > kMaxExpansionRad) {
     ripple_phase_ = anchor_at(x);
@@ -220,75 +233,74 @@ PMLSM_ALWAYS_INLINE void Plant::advance_ripple_phase() {
   ripple_phase_ = next;
 }
 
-PMLSM_ALWAYS_INLINE void Plant::rhs(const StateVector& s, double u_d, double u_q,
-                                    double load_force, const RippleAnchor& anchor,
-                                    Rhs& out) const {
-  const auto& e = params_.electrical;
-  const auto& r = params_.ripple;
-  const auto& f = params_.friction;
-  const auto& m = params_.mechanics;
-
+PMLSM_ALWAYS_INLINE void Plant::rhs(const Coefficients& c, const StateVector& s, double u_d,
+                                    double u_q, double load_force, const RippleAnchor& anchor,
+                                    Rhs& out) {
   // Currents from fluxes, inverting (5)-(8).
-  const double fd = s[kPsiD] - psi_pm_wb_;
-  const double fdd = s[kPsiDD] - psi_pm_wb_;
-  out.i_d = inv_ld_[0][0] * fd + inv_ld_[0][1] * fdd;
-  out.i_dd = inv_ld_[1][0] * fd + inv_ld_[1][1] * fdd;
-  out.i_q = inv_lq_[0][0] * s[kPsiQ] + inv_lq_[0][1] * s[kPsiQQ];
-  out.i_qq = inv_lq_[1][0] * s[kPsiQ] + inv_lq_[1][1] * s[kPsiQQ];
+  const double fd = s[kPsiD] - c.psi_pm;
+  const double fdd = s[kPsiDD] - c.psi_pm;
+  out.i_d = c.inv_ld[0][0] * fd + c.inv_ld[0][1] * fdd;
+  out.i_dd = c.inv_ld[1][0] * fd + c.inv_ld[1][1] * fdd;
+  out.i_q = c.inv_lq[0][0] * s[kPsiQ] + c.inv_lq[0][1] * s[kPsiQQ];
+  out.i_qq = c.inv_lq[1][0] * s[kPsiQ] + c.inv_lq[1][1] * s[kPsiQQ];
 
   const double v_m = s[kVm];
-  const double w_s = electrical_rad_per_m_ * v_m;  // (2)
-  out.derivative[kPsiD] = u_d - e.resistance_ohm * out.i_d + w_s * s[kPsiQ];   // (1)
-  out.derivative[kPsiQ] = u_q - e.resistance_ohm * out.i_q - w_s * s[kPsiD];   // (2)
-  out.derivative[kPsiDD] = -e.damper_d_resistance_ohm * out.i_dd;              // (3)
-  out.derivative[kPsiQQ] = -e.damper_q_resistance_ohm * out.i_qq;              // (4)
+  const double w_s = c.electrical_rad_per_m * v_m;  // (2)
+  out.derivative[kPsiD] = u_d - c.r * out.i_d + w_s * s[kPsiQ];   // (1)
+  out.derivative[kPsiQ] = u_q - c.r * out.i_q - w_s * s[kPsiD];   // (2)
+  out.derivative[kPsiDD] = -c.r_dd * out.i_dd;                    // (3)
+  out.derivative[kPsiQQ] = -c.r_qq * out.i_qq;                    // (4)
 
-  out.thrust = thrust_factor_ * (s[kPsiD] * out.i_q - s[kPsiQ] * out.i_d);  // (9)
+  out.thrust = c.thrust_factor * (s[kPsiD] * out.i_q - s[kPsiQ] * out.i_d);  // (9)
 
   const double dx = s[kXm] - anchor.x0;
-  const double sin1 = sin_near(anchor.s1, anchor.c1, r.spatial_freq_1_rad_per_m * dx);
-  const double sin2 = sin_near(anchor.s2, anchor.c2, r.spatial_freq_2_rad_per_m * dx);
-  out.ripple = r.scale_n * r.amplitude_1 * sin1 * (r.amplitude_1 + r.amplitude_2 * sin2);  // (10)
+  const double sin1 = sin_near(anchor.s1, anchor.c1, c.phi1 * dx);
+  const double sin2 = sin_near(anchor.s2, anchor.c2, c.phi2 * dx);
+  out.ripple = c.ripple_gain * sin1 * (c.a_r1 + c.a_r2 * sin2);  // (10), ripple_gain = K_s A_r1
 
   // (11) with sign(v) smoothed inside |v| < v_eps only: s(u) = u (3 - u^2) / 2 on the
   // clamped u = v / v_eps, which is exactly sign(v) for |v| >= v_eps and C1 at
   // the joins. Friction opposes the motion.
-  const double u = std::clamp(v_m * inv_friction_band_, -1.0, 1.0);
-  out.friction = -(f.coulomb_n * u * (1.5 - 0.5 * u * u) + f.viscous_n_s_per_m * v_m);
+  const double u = std::min(1.0, std::max(-1.0, v_m * c.inv_friction_band));
+  out.friction = -(c.coulomb * u * (1.5 - 0.5 * u * u) + c.viscous * v_m);
 
-  // (13) with dx = x_l - x_m; spring_force is the Kalman filter's F_s = -(k dx + b dv).
+  // (13) with dx = x_l - x_m; spring is the Kalman filter's F_s = -(k dx + b dv).
   const double stretch = s[kXl] - s[kXm];
   const double stretch_rate = s[kVl] - v_m;
-  out.spring = -(m.spring_n_per_m * stretch + m.damping_n_s_per_m * stretch_rate);
+  out.spring = -(c.k * stretch + c.b * stretch_rate);
   out.derivative[kXm] = v_m;
-  out.derivative[kVm] = (-out.spring + out.thrust + out.ripple + out.friction) * inv_motor_mass_;
+  out.derivative[kVm] = (-out.spring + out.thrust + out.ripple + out.friction) * c.inv_motor_mass;
   out.derivative[kXl] = s[kVl];
-  out.derivative[kVl] = (out.spring + load_force) * inv_load_mass_;
+  out.derivative[kVl] = (out.spring + load_force) * c.inv_load_mass;
 }
 
 // The state lives in a local array across all sub-steps of one step() call;
 // rhs() is forced inline so the stages stay in registers. Both methods use
 // the ripple phase anchored at the start of each sub-step.
 void Plant::integrate(double u_d, double u_q, double load_force, double h, int substeps) {
+  // A local copy of the constants: the compiler then knows the stage stores
+  // cannot alias them and keeps them in registers.
+  const Coefficients c = coeff_;
+  const bool heun = params_.integrator == Integrator::kHeun;
   StateVector y = to_vector(state_);
   Rhs k1, k2, k3, k4;
   StateVector stage;
   for (int n = 0; n < substeps; ++n) {
     const RippleAnchor& anchor = ripple_phase_;
-    rhs(y, u_d, u_q, load_force, anchor, k1);
-    if (params_.integrator == Integrator::kHeun) {
+    rhs(c, y, u_d, u_q, load_force, anchor, k1);
+    if (heun) {
       // Heun (explicit trapezoid), second order.
       for (int i = 0; i < 8; ++i) stage[i] = y[i] + h * k1.derivative[i];
-      rhs(stage, u_d, u_q, load_force, anchor, k2);
+      rhs(c, stage, u_d, u_q, load_force, anchor, k2);
       for (int i = 0; i < 8; ++i) y[i] += 0.5 * h * (k1.derivative[i] + k2.derivative[i]);
     } else {
       // Classical Runge-Kutta, fourth order.
       for (int i = 0; i < 8; ++i) stage[i] = y[i] + 0.5 * h * k1.derivative[i];
-      rhs(stage, u_d, u_q, load_force, anchor, k2);
+      rhs(c, stage, u_d, u_q, load_force, anchor, k2);
       for (int i = 0; i < 8; ++i) stage[i] = y[i] + 0.5 * h * k2.derivative[i];
-      rhs(stage, u_d, u_q, load_force, anchor, k3);
+      rhs(c, stage, u_d, u_q, load_force, anchor, k3);
       for (int i = 0; i < 8; ++i) stage[i] = y[i] + h * k3.derivative[i];
-      rhs(stage, u_d, u_q, load_force, anchor, k4);
+      rhs(c, stage, u_d, u_q, load_force, anchor, k4);
       for (int i = 0; i < 8; ++i) {
         y[i] += h / 6.0 *
                 (k1.derivative[i] + 2.0 * k2.derivative[i] + 2.0 * k3.derivative[i] +
@@ -321,7 +333,10 @@ PlantMeasurement Plant::step(const PlantInput& input, double dt_s) {
   last_input_ = applied;
   ++counters_.steps;
 
-  const int substeps = static_cast<int>(std::ceil(dt_s / params_.max_step_s - 1e-9));
+  // Fewest equal sub-steps no longer than max_step_s (ceil without a libm call).
+  const double ratio = dt_s * inv_max_step_;
+  int substeps = static_cast<int>(ratio);
+  if (substeps < 1 || static_cast<double>(substeps) < ratio - 1e-9) ++substeps;
   const double h = dt_s / substeps;
   integrate(applied.u_d_v, applied.u_q_v, applied.load_force_n, h, substeps);
   return measure();
@@ -339,15 +354,15 @@ PlantMeasurement Plant::measure() {
   if (static_cast<double>(whole) > counts) --whole;
   out.encoder_position_m = static_cast<double>(whole) * enc.resolution_m;
   // Armature currents by (5), (6) inverted; the drive measures them exactly.
-  out.i_d_a = inv_ld_[0][0] * (state_.psi_d_wb - psi_pm_wb_) +
-              inv_ld_[0][1] * (state_.psi_dd_wb - psi_pm_wb_);
-  out.i_q_a = inv_lq_[0][0] * state_.psi_q_wb + inv_lq_[0][1] * state_.psi_qq_wb;
+  out.i_d_a = coeff_.inv_ld[0][0] * (state_.psi_d_wb - coeff_.psi_pm) +
+              coeff_.inv_ld[0][1] * (state_.psi_dd_wb - coeff_.psi_pm);
+  out.i_q_a = coeff_.inv_lq[0][0] * state_.psi_q_wb + coeff_.inv_lq[0][1] * state_.psi_qq_wb;
   return out;
 }
 
 PlantTruth Plant::truth() const {
   Rhs r;
-  rhs(to_vector(state_), last_input_.u_d_v, last_input_.u_q_v, last_input_.load_force_n,
+  rhs(coeff_, to_vector(state_), last_input_.u_d_v, last_input_.u_q_v, last_input_.load_force_n,
       ripple_phase_, r);
   PlantTruth t;
   t.state = state_;

@@ -204,6 +204,16 @@ class Plant {
     double i_d, i_q, i_dd, i_qq;
     double thrust, ripple, friction, spring;
   };
+  /// Constants of the right-hand side, derived once from the parameters.
+  struct Coefficients {
+    double psi_pm, thrust_factor, electrical_rad_per_m;
+    double inv_ld[2][2];  // inverse of [L_ad L_md; L_md L_D]
+    double inv_lq[2][2];  // inverse of [L_aq L_mq; L_mq L_Q]
+    double r, r_dd, r_qq;
+    double phi1, phi2, ripple_gain, a_r1, a_r2;
+    double coulomb, viscous, inv_friction_band;
+    double k, b, inv_motor_mass, inv_load_mass;
+  };
   /// sin/cos of the ripple's two spatial phases at the start of an RK4 step.
   struct RippleAnchor {
     double x0 = 0, s1 = 0, c1 = 0, s2 = 0, c2 = 0;
@@ -216,21 +226,15 @@ class Plant {
   /// so the rounding of the recurrence cannot accumulate.
   void advance_ripple_phase();
   static constexpr int kResyncSteps = 256;
-  void rhs(const StateVector& s, double u_d, double u_q, double load_force,
-           const RippleAnchor& anchor, Rhs& out) const;
+  static void rhs(const Coefficients& c, const StateVector& s, double u_d, double u_q,
+                  double load_force, const RippleAnchor& anchor, Rhs& out);
   void integrate(double u_d, double u_q, double load_force, double h, int substeps);
 
   PlantParams params_;
-  // Derived constants, computed once.
-  double psi_pm_wb_ = 0;
-  double thrust_factor_ = 0;
-  double electrical_rad_per_m_ = 0;  // pi / tau
-  double inv_ld_[2][2] = {};         // inverse of [L_ad L_md; L_md L_D]
-  double inv_lq_[2][2] = {};         // inverse of [L_aq L_mq; L_mq L_Q]
+  Coefficients coeff_{};
   double voltage_limit_v_ = 0;
-  double inv_motor_mass_ = 0, inv_load_mass_ = 0, inv_friction_band_ = 0;
   double inv_encoder_resolution_ = 0;
-
+  double inv_max_step_ = 0;
   PlantState state_;
   RippleAnchor ripple_phase_;
   int steps_since_resync_ = 0;

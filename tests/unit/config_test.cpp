@@ -1,0 +1,415 @@
+// The config loader's rules (pmlsm/config.hpp), one table row per rule: each
+// bad input must raise a ConfigError whose message names the origin, the full
+// key path and the offending value. Bad inputs are the shipped files with
+// small YAML edits, so the tests follow the files as they evolve.
+#include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
+
+#include <fstream>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "pmlsm/config.hpp"
+
+namespace pmlsm {
+namespace {
+
+constexpr const char* kOrigin = "test.yaml";
+constexpr double kControlPeriod = 1e-3;
+
+std::string source_path(const std::string& relative) {
+  return std::string(PMLSM_SOURCE_DIR) + "/" + relative;
+}
+
+std::string read_text(const std::string& relative) {
+  std::ifstream in(source_path(relative));
+  if (!in) throw std::runtime_error("cannot read " + source_path(relative));
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+const std::string& system_text() {
+  static const std::string text = read_text("configs/system.yaml");
+  return text;
+}
+const std::string& pulse_text() {
+  static const std::string text = read_text("configs/scenarios/pulse.yaml");
+  return text;
+}
+const std::string& free_vibration_text() {
+  static const std::string text = read_text("configs/scenarios/free_vibration.yaml");
+  return text;
+}
+
+/// Sets the node at a dotted key path to a YAML text (adding the last key if
+/// new), or removes the key when yaml is empty.
+struct Edit {
+  std::string path;
+  std::optional<std::string> yaml;
+};
+
+std::string edited(const std::string& text, const std::vector<Edit>& edits) {
+  YAML::Node root = YAML::Load(text);
+  for (const Edit& e : edits) {
+    std::vector<std::string> keys;
+    std::stringstream parts(e.path);
+    for (std::string k; std::getline(parts, k, '.');) keys.push_back(k);
+    YAML::Node parent = root;
+    for (std::size_t i = 0; i + 1 < keys.size(); ++i) {
+      // A missing parent would silently become an unknown-key test instead.
+      if (!parent[keys[i]]) throw std::logic_error("edit path not in file: " + e.path);
+      parent.reset(parent[keys[i]]);  // reset, not =: assigning a Node overwrites what it refers to
+    }
+    if (e.yaml) {
+      parent[keys.back()] = YAML::Load(*e.yaml);
+    } else if (!parent.remove(keys.back())) {
+      throw std::logic_error("edit path not in file: " + e.path);
+    }
+  }
+  YAML::Emitter out;
+  out << root;
+  return out.c_str();
+}
+
+/// The ConfigError message of `load`, or "" with a test failure when it throws none.
+template <typename F>
+std::string error_of(F&& load) {
+  try {
+    load();
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "no ConfigError thrown";
+  return "";
+}
+
+std::string system_error(const std::vector<Edit>& edits,
+                         const std::vector<ConfigOverride>& overrides = {}) {
+  const std::string text = edited(system_text(), edits);
+  return error_of([&] { parse_system_params(text, kOrigin, overrides); });
+}
+
+std::string scenario_error(const std::vector<Edit>& edits,
+                           const std::vector<ConfigOverride>& overrides = {}) {
+  const std::string text = edited(pulse_text(), edits);
+  return error_of([&] { parse_scenario(text, kOrigin, kControlPeriod, overrides); });
+}
+
+/// Checks that the message starts with the origin and contains every part.
+void expect_names(const std::string& message, const std::string& origin,
+                  const std::vector<std::string>& parts) {
+  EXPECT_EQ(message.rfind(origin + ": ", 0), 0u) << "origin not first in: " << message;
+  for (const std::string& part : parts) {
+    EXPECT_NE(message.find(part), std::string::npos) << "'" << part << "' not in: " << message;
+  }
+}
+
+struct Case {
+  const char* what;
+  std::vector<Edit> edits;
+  std::vector<std::string> expected;  ///< substrings: key path, value, reason
+};
+
+void expect_system_rejects(const std::vector<Case>& cases) {
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.what);
+    expect_names(system_error(c.edits), kOrigin, c.expected);
+  }
+}
+
+void expect_scenario_rejects(const std::vector<Case>& cases) {
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.what);
+    expect_names(scenario_error(c.edits), kOrigin, c.expected);
+  }
+}
+
+/// "paper ..." or "chosen:" followed by a reason that is not blank.
+bool is_valid_source(const std::string& source) {
+  if (source.rfind("paper", 0) == 0) return true;
+  return source.rfind("chosen:", 0) == 0 &&
+         source.find_first_not_of(" \t", 7) != std::string::npos;
+}
+
+// ---------------------------------------------------------------- shipped files
+
+TEST(ConfigShipped, SystemAndScenariosLoad) {
+  const SystemParams p = load_system_params(source_path("configs/system.yaml"));
+  EXPECT_EQ(p.timing.current_steps_per_tick(), 32);
+  const Scenario pulse = load_scenario(source_path("configs/scenarios/pulse.yaml"),
+                                       p.timing.control_period_s);
+  EXPECT_EQ(pulse.name, "pulse");
+  EXPECT_EQ(pulse.shape, CommandShape::kPulse);
+  const Scenario free = load_scenario(source_path("configs/scenarios/free_vibration.yaml"),
+                                      p.timing.control_period_s);
+  EXPECT_EQ(free.name, "free_vibration");
+  EXPECT_EQ(free.shape, CommandShape::kZero);
+}
+
+// The edits below re-emit the file; an unedited re-emission must still load,
+// or every rejection could come from the emitter rather than the rule.
+TEST(ConfigShipped, ReemittedFilesLoad) {
+  EXPECT_NO_THROW(parse_system_params(edited(system_text(), {}), kOrigin));
+  EXPECT_NO_THROW(parse_scenario(edited(pulse_text(), {}), kOrigin, kControlPeriod));
+}
+
+TEST(ConfigShipped, EveryLeafHasAPaperOrChosenSource) {
+  struct File {
+    const char* name;
+    const std::string& text;
+  };
+  for (const File& f : {File{"system", system_text()}, File{"pulse", pulse_text()},
+                        File{"free_vibration", free_vibration_text()}}) {
+    SCOPED_TRACE(f.name);
+    const auto leaves = list_leaf_sources(f.text, f.name);
+    EXPECT_GE(leaves.size(), 8u);
+    for (const SourcedLeaf& leaf : leaves) {
+      if (leaf.key_path == "name") continue;  // a scenario's identifier, not a parameter
+      EXPECT_TRUE(is_valid_source(leaf.source)) << leaf.key_path << ": '" << leaf.source << "'";
+    }
+  }
+}
+
+TEST(ConfigShipped, ValuesMatchThePaper) {
+  const SystemParams p = parse_system_params(system_text(), kOrigin);
+  EXPECT_DOUBLE_EQ(p.plant.mechanics.motor_mass_kg, 20.0);     // Table 2
+  EXPECT_DOUBLE_EQ(p.plant.mechanics.load_mass_kg, 4.0);
+  EXPECT_DOUBLE_EQ(p.plant.mechanics.spring_n_per_m, 13700.0);
+  EXPECT_DOUBLE_EQ(p.plant.electrical.motor_constant_n_per_a, 94.0);  // Table 3
+  EXPECT_DOUBLE_EQ(p.plant.electrical.resistance_ohm, 4.8);
+  EXPECT_DOUBLE_EQ(p.plant.electrical.pole_pitch_m, 0.015);
+  EXPECT_DOUBLE_EQ(p.velocity_loop.kp_n_s_per_m, 10000.0);
+  EXPECT_DOUBLE_EQ(p.velocity_loop.ki_n_per_m, 0.01);
+  EXPECT_DOUBLE_EQ(p.reference_model.natural_frequency_rad_s, 100.0);  // eq. 25
+  EXPECT_DOUBLE_EQ(p.reference_model.damping_ratio, 1.732);
+  EXPECT_DOUBLE_EQ(p.kalman.process_noise_diag(0), 100.0);  // eq. 35
+  EXPECT_DOUBLE_EQ(p.kalman.process_noise_diag(1), 10.0);
+  EXPECT_DOUBLE_EQ(p.kalman.process_noise_diag(2), 1.0);
+  EXPECT_DOUBLE_EQ(p.kalman.measurement_noise, 0.01);
+  EXPECT_DOUBLE_EQ(p.timing.control_period_s, 1e-3);  // section 4.1
+  EXPECT_DOUBLE_EQ(p.timing.current_loop_period_s, 31.25e-6);
+  EXPECT_DOUBLE_EQ(p.plant.max_step_s, 1e-5);
+
+  const Scenario pulse = parse_scenario(pulse_text(), kOrigin, kControlPeriod);  // section 4.2
+  EXPECT_DOUBLE_EQ(pulse.amplitude_mps, 0.2);
+  EXPECT_DOUBLE_EQ(pulse.frequency_hz, 1.0);
+  EXPECT_DOUBLE_EQ(pulse.cost_window_s, 1.0);
+  const Scenario free = parse_scenario(free_vibration_text(), kOrigin, kControlPeriod);
+  EXPECT_DOUBLE_EQ(free.initial_load_displacement_m, 0.02);
+  EXPECT_DOUBLE_EQ(free.amplitude_mps, 0.0);
+}
+
+// ---------------------------------------------------------------- rejections
+
+TEST(ConfigRejects, UnknownKey) {
+  expect_system_rejects({
+      {"top level", {{"gearbox", "1"}}, {"gearbox: unknown key"}},
+      {"nested", {{"plant.mechanics.extra_mass_kg", "{value: 1, source: paper}"}},
+       {"plant.mechanics.extra_mass_kg: unknown key"}},
+      {"nested section", {{"plant.gearbox", "{ratio: 1}"}}, {"plant.gearbox: unknown key"}},
+      {"inside a sourced leaf",
+       {{"plant.mechanics.load_mass_kg", "{value: 1, source: paper, units: x}"}},
+       {"plant.mechanics.load_mass_kg.units: unknown key"}},
+  });
+  expect_scenario_rejects({
+      {"scenario nested", {{"command.phase_rad", "0"}}, {"command.phase_rad: unknown key"}},
+  });
+}
+
+TEST(ConfigRejects, MissingKey) {
+  expect_system_rejects({
+      {"leaf", {{"plant.mechanics.load_mass_kg", std::nullopt}},
+       {"plant.mechanics.load_mass_kg: missing key"}},
+      {"section", {{"kalman", std::nullopt}}, {"kalman: missing key"}},
+      {"nested section", {{"plant.mechanics", std::nullopt}}, {"plant.mechanics: missing key"}},
+  });
+  expect_scenario_rejects({
+      {"scenario leaf", {{"command.duty_cycle", std::nullopt}}, {"command.duty_cycle: missing key"}},
+  });
+}
+
+TEST(ConfigRejects, WrongType) {
+  const std::string mass = "plant.mechanics.load_mass_kg";
+  expect_system_rejects({
+      {"string for a number", {{mass + ".value", "abc"}}, {mass + ": expected a number", "'abc'"}},
+      {"boolean for a number", {{mass + ".value", "true"}}, {mass + ": expected a number", "'true'"}},
+      {"list for a number", {{mass + ".value", "[4]"}}, {mass + ": expected a number", "[4]"}},
+      {"map as a sourced value", {{mass + ".value", "{a: 1}"}}, {mass + ": expected a number", "a: 1"}},
+      {"map for a value", {{mass, "{a: 1}"}}, {mass + ": expected a value, got a section"}},
+      {"value for a section", {{"plant.mechanics", "5"}}, {"plant.mechanics: must be a mapping", "5"}},
+      {"list of 2", {{"kalman.process_noise_diag.value", "[100, 10]"}},
+       {"kalman.process_noise_diag: expected a list of 3 numbers", "[100, 10]"}},
+      {"list of 4", {{"kalman.process_noise_diag.value", "[100, 10, 1, 1]"}},
+       {"kalman.process_noise_diag: expected a list of 3 numbers", "[100, 10, 1, 1]"}},
+      {"scalar for a list", {{"kalman.process_noise_diag.value", "100"}},
+       {"kalman.process_noise_diag: expected a list of 3 numbers", "100"}},
+      {"string in a list", {{"kalman.process_noise_diag.value", "[100, x, 1]"}},
+       {"kalman.process_noise_diag[1]: expected a number", "'x'"}},
+      {"negative seed", {{"plant.encoder.noise_seed.value", "-1"}},
+       {"plant.encoder.noise_seed: expected a non-negative integer", "'-1'"}},
+      {"fractional seed", {{"plant.encoder.noise_seed.value", "1.5"}},
+       {"plant.encoder.noise_seed: expected a non-negative integer", "'1.5'"}},
+  });
+  expect_scenario_rejects({
+      {"scenario string for a number", {{"command.amplitude_mps.value", "fast"}},
+       {"command.amplitude_mps: expected a number", "'fast'"}},
+  });
+}
+
+TEST(ConfigRejects, NonFinite) {
+  const std::string mass = "plant.mechanics.load_mass_kg";
+  const std::string q = "kalman.process_noise_diag";
+  expect_system_rejects({
+      {"nan", {{mass + ".value", ".nan"}}, {mass + ": must be finite", ".nan"}},
+      {"inf", {{mass + ".value", ".inf"}}, {mass + ": must be finite", ".inf"}},
+      {"-inf", {{mass + ".value", "-.inf"}}, {mass + ": must be finite", "-.inf"}},
+      {"nan in list", {{q + ".value", "[100, .nan, 1]"}}, {q + "[1]: must be finite", ".nan"}},
+      {"inf in list", {{q + ".value", "[.inf, 10, 1]"}}, {q + "[0]: must be finite", ".inf"}},
+      {"-inf in list", {{q + ".value", "[100, 10, -.inf]"}}, {q + "[2]: must be finite", "-.inf"}},
+  });
+  expect_scenario_rejects({
+      {"scenario nan", {{"duration_s.value", ".nan"}}, {"duration_s: must be finite", ".nan"}},
+  });
+}
+
+TEST(ConfigRejects, OutOfRange) {
+  expect_system_rejects({
+      {"negative load mass", {{"plant.mechanics.load_mass_kg.value", "-4"}},
+       {"plant.mechanics.load_mass_kg: must be > 0", "got -4"}},
+      {"negative motor mass", {{"plant.mechanics.motor_mass_kg.value", "-20"}},
+       {"plant.mechanics.motor_mass_kg: must be > 0", "got -20"}},
+      {"zero resistance", {{"plant.electrical.resistance_ohm.value", "0"}},
+       {"plant.electrical.resistance_ohm: must be > 0", "got 0"}},
+      {"zero damping ratio", {{"reference_model.damping_ratio.value", "0"}},
+       {"reference_model.damping_ratio: must be > 0", "got 0"}},
+      {"negative damping ratio", {{"reference_model.damping_ratio.value", "-1.5"}},
+       {"reference_model.damping_ratio: must be > 0", "got -1.5"}},
+      // L_md^2 = L_ad L_D exactly (0.02^2 both sides): the boundary is excluded.
+      {"L_md^2 = L_ad L_D",
+       {{"plant.electrical.mutual_d_inductance_h.value", "0.02"},
+        {"plant.electrical.damper_d_inductance_h.value", "0.02"}},
+       {"plant.electrical.mutual_d_inductance_h: must satisfy L_md^2 < L_ad L_D", "got 0.02"}},
+      {"L_md^2 > L_ad L_D", {{"plant.electrical.mutual_d_inductance_h.value", "0.5"}},
+       {"plant.electrical.mutual_d_inductance_h: must satisfy L_md^2 < L_ad L_D", "got 0.5"}},
+      // 1 ms / 0.25 ms would divide; 1 ms / 0.4 ms = 2.5 does not.
+      {"current period not dividing", {{"timing.current_loop_period_s.value", "0.0004"}},
+       {"timing.current_loop_period_s: must divide control_period_s", "got 0.0004"}},
+      {"current period above control period", {{"timing.current_loop_period_s.value", "0.002"}},
+       {"timing.current_loop_period_s: must be in", "got 0.002"}},
+  });
+  expect_scenario_rejects({
+      {"duty cycle above 1", {{"command.duty_cycle.value", "1.5"}},
+       {"command.duty_cycle: must be in [0, 1]", "got 1.5"}},
+      {"unknown shape", {{"command.shape.value", "ramp"}},
+       {"command.shape", "'ramp'", "zero, step, pulse, sine"}},
+  });
+}
+
+TEST(ConfigRejects, SourcedLeafWithoutValidSource) {
+  const std::string mass = "plant.mechanics.load_mass_kg";
+  expect_system_rejects({
+      {"no source", {{mass, "{value: 4}"}}, {mass + ".source: missing"}},
+      {"source is a list", {{mass, "{value: 4, source: [paper]}"}}, {mass + ".source: missing"}},
+      {"neither paper nor chosen", {{mass + ".source", "Table 2"}},
+       {mass + ".source: must start with 'paper' or 'chosen: <reason>'", "'Table 2'"}},
+      {"empty source", {{mass + ".source", "''"}}, {mass + ".source: must start with", "''"}},
+      {"chosen without reason", {{mass + ".source", "'chosen:'"}},
+       {mass + ".source: must start with", "'chosen:'"}},
+      {"chosen with a blank reason", {{mass + ".source", "'chosen:     '"}},
+       {mass + ".source: must start with", "'chosen:     '"}},
+  });
+  // list_leaf_sources applies the same check.
+  const std::string text = edited(system_text(), {{mass + ".source", "Table 2"}});
+  expect_names(error_of([&] { list_leaf_sources(text, kOrigin); }), kOrigin,
+               {mass + ".source", "'Table 2'"});
+}
+
+TEST(ConfigRejects, MalformedYamlAndNonMappingTopLevel) {
+  const std::vector<std::pair<std::string, std::string>> texts = {
+      {"parse error", "timing: {control_period_s: [1\n"},
+      {"parse error, bad indent", "timing:\n  a: 1\n b: 2\n"},
+      {"list", "- 1\n- 2\n"},
+      {"scalar", "42\n"},
+      {"empty", ""},
+  };
+  for (const auto& [what, text] : texts) {
+    SCOPED_TRACE(what);
+    const std::string expected = what.rfind("parse error", 0) == 0 ? "YAML parse error"
+                                                                    : "top level must be a mapping";
+    expect_names(error_of([&] { parse_system_params(text, kOrigin); }), kOrigin, {expected});
+    expect_names(error_of([&] { parse_scenario(text, kOrigin, kControlPeriod); }), kOrigin,
+                 {expected});
+    expect_names(error_of([&] { list_leaf_sources(text, kOrigin); }), kOrigin, {expected});
+  }
+  // The parse error says where.
+  expect_names(error_of([&] { parse_system_params(texts[1].second, kOrigin); }), kOrigin,
+               {"line 3"});
+}
+
+// ---------------------------------------------------------------- overrides and files
+
+TEST(ConfigOverrides, ParsesKeyPathAndValue) {
+  const ConfigOverride o = ConfigOverride::parse("a.b=1");
+  EXPECT_EQ(o.key_path, "a.b");
+  EXPECT_EQ(o.value, "1");
+  EXPECT_EQ(ConfigOverride::parse("a=x=y").value, "x=y");  // split at the first '='
+}
+
+TEST(ConfigOverrides, RejectsTextWithoutKeyOrEquals) {
+  for (const std::string text : {"a.b", "=1", ""}) {
+    SCOPED_TRACE(text);
+    const std::string message = error_of([&] { ConfigOverride::parse(text); });
+    EXPECT_NE(message.find("'" + text + "'"), std::string::npos) << message;
+  }
+}
+
+TEST(ConfigOverrides, ChangesTheValue) {
+  const auto p = parse_system_params(system_text(), kOrigin,
+                                     {ConfigOverride::parse("plant.mechanics.load_mass_kg=5"),
+                                      ConfigOverride::parse("kalman.process_noise_diag=[1, 2, 3]")});
+  EXPECT_DOUBLE_EQ(p.plant.mechanics.load_mass_kg, 5.0);
+  EXPECT_DOUBLE_EQ(p.kalman.process_noise_diag(2), 3.0);
+  const auto s = parse_scenario(pulse_text(), kOrigin, kControlPeriod,
+                                {ConfigOverride::parse("command.amplitude_mps=0.5")});
+  EXPECT_DOUBLE_EQ(s.amplitude_mps, 0.5);
+}
+
+TEST(ConfigOverrides, RejectsUnknownPathOrSection) {
+  expect_names(system_error({}, {ConfigOverride::parse("plant.mechanics.nonexistent_key=1")}),
+               kOrigin, {"plant.mechanics.nonexistent_key"});
+  expect_names(system_error({}, {ConfigOverride::parse("nonexistent.load_mass_kg=1")}), kOrigin,
+               {"nonexistent.load_mass_kg"});
+  expect_names(system_error({}, {ConfigOverride::parse("plant.mechanics=1")}), kOrigin,
+               {"plant.mechanics", "section"});
+}
+
+TEST(ConfigOverrides, RejectsBadValueWithKeyPath) {
+  expect_names(system_error({}, {ConfigOverride::parse("plant.mechanics.load_mass_kg=-4")}),
+               kOrigin, {"plant.mechanics.load_mass_kg: must be > 0", "got -4"});
+  expect_names(system_error({}, {ConfigOverride::parse("plant.mechanics.load_mass_kg=abc")}),
+               kOrigin, {"plant.mechanics.load_mass_kg: expected a number", "'abc'"});
+  expect_names(scenario_error({}, {ConfigOverride::parse("command.duty_cycle=1.5")}), kOrigin,
+               {"command.duty_cycle", "got 1.5"});
+  // A value that is not YAML at all (an unclosed list) must still be a ConfigError.
+  expect_names(system_error({}, {ConfigOverride::parse("plant.mechanics.load_mass_kg=[1")}),
+               kOrigin, {"plant.mechanics.load_mass_kg", "[1"});
+}
+
+TEST(ConfigFiles, ErrorsNameTheFilePath) {
+  const std::string missing = source_path("configs/no_such_file.yaml");
+  expect_names(error_of([&] { load_system_params(missing); }), missing, {"cannot open"});
+  expect_names(error_of([&] { load_scenario(missing, kControlPeriod); }), missing, {"cannot open"});
+  // A rule broken in a real file is reported against its path.
+  const std::string shipped = source_path("configs/system.yaml");
+  expect_names(error_of([&] {
+                 load_system_params(shipped, {ConfigOverride::parse("plant.mechanics.load_mass_kg=-4")});
+               }),
+               shipped, {"plant.mechanics.load_mass_kg", "-4"});
+}
+
+}  // namespace
+}  // namespace pmlsm
