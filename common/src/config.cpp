@@ -49,7 +49,8 @@ void check_sourced_leaf(const YAML::Node& node, const std::string& origin, const
   }
   const auto source = node["source"].as<std::string>();
   const bool from_paper = source.rfind("paper", 0) == 0;
-  const bool chosen = source.rfind("chosen:", 0) == 0 && source.size() > 9;
+  const bool chosen = source.rfind("chosen:", 0) == 0 &&
+                      source.find_first_not_of(" \t", 7) != std::string::npos;
   if (!from_paper && !chosen) {
     throw ConfigError(origin + ": " + path + ".source: must start with 'paper' or 'chosen: <reason>', got '" + source + "'");
   }
@@ -71,13 +72,21 @@ void apply_overrides(YAML::Node& root, const std::vector<ConfigOverride>& overri
       }
       node.reset(node[keys[i]]);
     }
-    if (is_sourced_leaf(node)) {
-      node["value"] = YAML::Load(o.value);
-      node["source"] = "chosen: set on the command line";
-    } else if (node.IsMap()) {
+    if (node.IsMap() && !is_sourced_leaf(node)) {
       throw ConfigError(origin + ": override " + o.key_path + ": is a section, not a value");
+    }
+    YAML::Node value;
+    try {
+      value = YAML::Load(o.value);
+    } catch (const YAML::Exception& e) {
+      throw ConfigError(origin + ": override " + o.key_path + ": value '" + o.value +
+                        "' is not YAML: " + e.what());
+    }
+    if (is_sourced_leaf(node)) {
+      node["value"] = value;
+      node["source"] = "chosen: set on the command line";
     } else {
-      node = YAML::Load(o.value);
+      node = value;
     }
   }
 }
@@ -88,7 +97,7 @@ class Section {
  public:
   Section(YAML::Node node, std::string origin, std::string path)
       : node_(std::move(node)), origin_(std::move(origin)), path_(std::move(path)) {
-    if (!node_.IsMap()) fail(path_, "must be a mapping of keys");
+    if (!node_.IsMap()) fail(path_, "must be a mapping of keys, got '" + describe(node_) + "'");
   }
 
   Section child(const std::string& key) {
@@ -177,7 +186,7 @@ class Section {
       check_sourced_leaf(v, origin_, join(path_, key));
       return v["value"];
     }
-    if (v.IsMap()) fail(join(path_, key), "expected a value, got a section");
+    if (v.IsMap()) fail(join(path_, key), "expected a value, got a section '" + describe(v) + "'");
     return v;
   }
 
@@ -312,6 +321,9 @@ Scenario parse_scenario(const std::string& yaml_text, const std::string& origin,
   Section top(root, origin, "");
   Scenario s;
   s.name = top.text("name");
+  if (s.name.empty() || s.name.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-") != std::string::npos) {
+    throw ConfigError(origin + ": name: must be letters, digits, '_' or '-' (it names output files), got '" + s.name + "'");
+  }
   s.duration_s = top.number("duration_s");
   Section cmd = top.child("command");
   const std::string shape = cmd.text("shape");

@@ -102,6 +102,7 @@ std::string scenario_error(const std::vector<Edit>& edits,
 /// Checks that the message starts with the origin and contains every part.
 void expect_names(const std::string& message, const std::string& origin,
                   const std::vector<std::string>& parts) {
+  if (message.empty()) return;  // error_of has reported the missing error
   EXPECT_EQ(message.rfind(origin + ": ", 0), 0u) << "origin not first in: " << message;
   for (const std::string& part : parts) {
     EXPECT_NE(message.find(part), std::string::npos) << "'" << part << "' not in: " << message;
@@ -239,7 +240,7 @@ TEST(ConfigRejects, WrongType) {
       {"boolean for a number", {{mass + ".value", "true"}}, {mass + ": expected a number", "'true'"}},
       {"list for a number", {{mass + ".value", "[4]"}}, {mass + ": expected a number", "[4]"}},
       {"map as a sourced value", {{mass + ".value", "{a: 1}"}}, {mass + ": expected a number", "a: 1"}},
-      {"map for a value", {{mass, "{a: 1}"}}, {mass + ": expected a value, got a section"}},
+      {"map for a value", {{mass, "{a: 1}"}}, {mass + ": expected a value, got a section", "a: 1"}},
       {"value for a section", {{"plant.mechanics", "5"}}, {"plant.mechanics: must be a mapping", "5"}},
       {"list of 2", {{"kalman.process_noise_diag.value", "[100, 10]"}},
        {"kalman.process_noise_diag: expected a list of 3 numbers", "[100, 10]"}},

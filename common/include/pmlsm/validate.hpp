@@ -6,18 +6,23 @@
 #pragma once
 
 #include <cmath>
+#include <cstdlib>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 
 namespace pmlsm {
 
-/// Formats a double with enough digits to round-trip, for error messages.
+/// Formats a double in the fewest of 15 or 17 significant digits that read
+/// back to the same value, for error messages ("0.0004", not "0.00040000000000000002").
 inline std::string format_value(double value) {
-  std::ostringstream out;
-  out.precision(17);
-  out << value;
-  return out.str();
+  for (int digits : {15, 17}) {
+    std::ostringstream out;
+    out.precision(digits);
+    out << value;
+    if (digits == 17 || std::strtod(out.str().c_str(), nullptr) == value) return out.str();
+  }
+  return {};
 }
 
 inline void require_finite(const char* name, double value) {
