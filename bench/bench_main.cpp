@@ -54,6 +54,22 @@ void BM_PlantOneMillisecond(benchmark::State& state) {
 }
 BENCHMARK(BM_PlantOneMillisecond)->Apply(name_integrator);
 
+// The same plant driven by one step() call per millisecond (100 sub-steps of
+// 10 us inside): the integrator's own speed, without the per-call input checks
+// and encoder reading.
+void BM_PlantOneCallPerMillisecond(benchmark::State& state) {
+  const pmlsm::SystemParams p = params_with(state);
+  pmlsm::Plant plant(p.plant);
+  plant.reset({0.0, 0.0, 0.01, 0.0});
+  const pmlsm::PlantInput input{0.0, 20.0, 0.0};
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(plant.step(input, 1e-3));
+    if (plant.state().motor_position_m > 0.4) plant.reset({0.0, 0.0, 0.01, 0.0});
+  }
+  report_realtime_factor(state, 1e-3);
+}
+BENCHMARK(BM_PlantOneCallPerMillisecond)->Apply(name_integrator);
+
 // The closed loop on the pulse scenario: one control tick (1 ms) per iteration.
 void BM_ClosedLoopTick(benchmark::State& state) {
   const pmlsm::SystemParams p = params_with(state);

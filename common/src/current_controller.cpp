@@ -51,9 +51,10 @@ CurrentControllerOutput CurrentController::step(const CurrentControllerInput& in
   double u_d = p.kp_v_per_a * e_d + integral_d_v_ + ff_d;
   double u_q = p.kp_v_per_a * e_q + integral_q_v_ + ff_q;
 
-  const double magnitude = std::hypot(u_d, u_q);
-  if (magnitude > p.voltage_limit_v) {
-    const double scale = p.voltage_limit_v / magnitude;
+  // Squared magnitudes: std::hypot is a slow libm call, and these volts cannot overflow.
+  const double magnitude_sq = u_d * u_d + u_q * u_q;
+  if (magnitude_sq > p.voltage_limit_v * p.voltage_limit_v) {
+    const double scale = p.voltage_limit_v / std::sqrt(magnitude_sq);
     u_d *= scale;
     u_q *= scale;
     out.voltage_limited = true;

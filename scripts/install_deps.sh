@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages the project builds and runs with (as root,
+# or with sudo when it is there). Safe to run again: apt-get skips what is there.
+set -euo pipefail
+
+packages=(
+  build-essential cmake           # compiler, make, cpp (fastddsgen preprocesses IDL with it)
+  libfastrtps-dev libfastcdr-dev  # Fast DDS 2.9 and its CDR serialisation
+  fastddsgen                      # IDL -> C++ type support, run at build time
+  libeigen3-dev                   # matrices, matrix exponential (exact discretisation)
+  libyaml-cpp-dev                 # configs/*.yaml
+  libcli11-dev                    # command lines
+  libgtest-dev                    # unit tests
+  libbenchmark-dev                # speed benchmark
+  gnuplot-nox                     # PNG plots of the traces
+)
+
+sudo_cmd=()
+if [ "$(id -u)" -ne 0 ]; then
+  command -v sudo >/dev/null || { echo "install_deps: run as root or install sudo" >&2; exit 1; }
+  sudo_cmd=(sudo)
+fi
+
+export DEBIAN_FRONTEND=noninteractive
+"${sudo_cmd[@]}" apt-get update -qq
+"${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${packages[@]}" >/dev/null
+echo "install_deps: ${#packages[@]} packages present"
