@@ -54,14 +54,6 @@ double cos_near(double s, double c, double a) {
 // Beyond this phase step the expansions above lose accuracy: recompute exactly.
 constexpr double kMaxExpansionRad = 0.05;
 
-template <typename F>
-void with_prefix(const char* section, F&& check) {
-  try {
-    check();
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(std::string(section) + "." + e.what());
-  }
-}
 }  // namespace
 
 void MotorElectricalParams::validate() const {
@@ -129,12 +121,12 @@ void EncoderParams::validate() const {
 }
 
 void PlantParams::validate() const {
-  with_prefix("electrical", [&] { electrical.validate(); });
-  with_prefix("ripple", [&] { ripple.validate(); });
-  with_prefix("friction", [&] { friction.validate(); });
-  with_prefix("mechanics", [&] { mechanics.validate(); });
-  with_prefix("inverter", [&] { inverter.validate(); });
-  with_prefix("encoder", [&] { encoder.validate(); });
+  validate_section("electrical", [&] { electrical.validate(); });
+  validate_section("ripple", [&] { ripple.validate(); });
+  validate_section("friction", [&] { friction.validate(); });
+  validate_section("mechanics", [&] { mechanics.validate(); });
+  validate_section("inverter", [&] { inverter.validate(); });
+  validate_section("encoder", [&] { encoder.validate(); });
   require_in_range("max_step_s", max_step_s, 1e-9, 1e-3);
 }
 

@@ -8,17 +8,6 @@
 
 namespace pmlsm {
 
-namespace {
-template <typename F>
-void with_prefix(const char* section, F&& check) {
-  try {
-    check();
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(std::string(section) + "." + e.what());
-  }
-}
-}  // namespace
-
 void TimingParams::validate() const {
   require_in_range("control_period_s", control_period_s, 1e-5, 1.0);
   require_in_range("current_loop_period_s", current_loop_period_s, 1e-7, control_period_s);
@@ -78,13 +67,13 @@ KalmanParams SystemParams::kalman_params() const {
 }
 
 void SystemParams::validate() const {
-  with_prefix("timing", [&] { timing.validate(); });
-  with_prefix("plant", [&] { plant.validate(); });
-  with_prefix("current_loop", [&] { current_loop.validate(); });
-  with_prefix("current_loop", [&] { current_controller_params().validate(); });
-  with_prefix("velocity_loop", [&] { velocity_pi_params().validate(); });
-  with_prefix("reference_model", [&] { reference_model_params().validate(); });
-  with_prefix("kalman", [&] { kalman_params().validate(); });
+  validate_section("timing", [&] { timing.validate(); });
+  validate_section("plant", [&] { plant.validate(); });
+  validate_section("current_loop", [&] { current_loop.validate(); });
+  validate_section("current_loop", [&] { current_controller_params().validate(); });
+  validate_section("velocity_loop", [&] { velocity_pi_params().validate(); });
+  validate_section("reference_model", [&] { reference_model_params().validate(); });
+  validate_section("kalman", [&] { kalman_params().validate(); });
 }
 
 }  // namespace pmlsm

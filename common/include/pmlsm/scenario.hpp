@@ -23,7 +23,7 @@ struct Scenario {
   void validate(double control_period_s) const;
   /// Raw command c(t) before the reference model.
   double command_mps(double time_s) const;
-  /// Times at which the command jumps, within [0, duration_s), for the settling metric.
+  /// True when the command jumps (step, pulse): the settling metric then works per constant segment.
   bool has_edges() const { return shape == CommandShape::kStep || shape == CommandShape::kPulse; }
 };
 

@@ -53,6 +53,17 @@ inline void require_in_range(const char* name, double value, double lo, double h
   }
 }
 
+/// Runs a sub-section's checks and puts the section's name in front of the
+/// parameter name of any error: "mechanics." + "load_mass_kg: ...".
+template <typename F>
+void validate_section(const char* section, F&& check) {
+  try {
+    check();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string(section) + "." + e.what());
+  }
+}
+
 /// True when every argument is finite; used by step() functions to reject inputs.
 template <typename... T>
 constexpr bool all_finite(T... values) {
