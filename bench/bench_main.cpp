@@ -23,14 +23,18 @@ const pmlsm::SystemParams& shipped_params() {
 }
 
 // The shipped parameters with the integrator chosen by the benchmark's argument.
-pmlsm::SystemParams params_with(const benchmark::State& state) {
+pmlsm::SystemParams params_with(benchmark::State& state) {
   pmlsm::SystemParams p = shipped_params();
-  p.plant.integrator = state.range(0) == 0 ? pmlsm::Integrator::kRk4 : pmlsm::Integrator::kHeun;
+  const pmlsm::Integrator methods[] = {pmlsm::Integrator::kRk4, pmlsm::Integrator::kHeun,
+                                       pmlsm::Integrator::kAdamsBashforth2};
+  p.plant.integrator = methods[state.range(0)];
+  state.SetLabel(pmlsm::to_string(p.plant.integrator));
   return p;
 }
 
+// Argument: 0 rk4, 1 heun, 2 ab2 (the label says which).
 void name_integrator(benchmark::internal::Benchmark* b) {
-  b->ArgName("heun")->Arg(0)->Arg(1);
+  b->ArgName("integrator")->Arg(0)->Arg(1)->Arg(2);
 }
 
 // Reports simulated seconds per wall second as "x_realtime".
@@ -39,20 +43,25 @@ void report_realtime_factor(benchmark::State& state, double simulated_s_per_iter
       simulated_s_per_iteration * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 
-// The plant alone, driven by a fixed voltage at its 10 us step: 1 ms per iteration.
-void BM_PlantOneMillisecond(benchmark::State& state) {
+// The plant alone as the drive's current loop uses it: one step() per
+// 31.25 us period (sub-steps of at most 10 us) with a voltage that changes
+// every period. 32 periods (1 ms) per iteration.
+void BM_PlantCurrentLoopPeriods(benchmark::State& state) {
   const pmlsm::SystemParams p = params_with(state);
   pmlsm::Plant plant(p.plant);
   plant.reset({0.0, 0.0, 0.01, 0.0});
-  const pmlsm::PlantInput input{0.0, 20.0, 0.0};
-  const double step = p.plant.max_step_s;
+  const double period = p.timing.current_loop_period_s;
+  double u_q = 20.0;
   for (auto _ : state) {
-    for (int i = 0; i < 100; ++i) benchmark::DoNotOptimize(plant.step(input, step));
+    for (int i = 0; i < 32; ++i) {
+      u_q = u_q > 30.0 ? 10.0 : u_q + 0.01;
+      benchmark::DoNotOptimize(plant.step({1.0, u_q, 0.0}, period));
+    }
     if (plant.state().motor_position_m > 0.4) plant.reset({0.0, 0.0, 0.01, 0.0});
   }
-  report_realtime_factor(state, 100 * step);
+  report_realtime_factor(state, 32 * period);
 }
-BENCHMARK(BM_PlantOneMillisecond)->Apply(name_integrator);
+BENCHMARK(BM_PlantCurrentLoopPeriods)->Apply(name_integrator);
 
 // The same plant driven by one step() call per millisecond (100 sub-steps of
 // 10 us inside): the integrator's own speed, without the per-call input checks

@@ -16,13 +16,19 @@
 namespace pmlsm {
 
 const char* to_string(Integrator integrator) {
-  return integrator == Integrator::kHeun ? "heun" : "rk4";
+  switch (integrator) {
+    case Integrator::kRk4: return "rk4";
+    case Integrator::kHeun: return "heun";
+    case Integrator::kAdamsBashforth2: return "ab2";
+  }
+  return "?";
 }
 
 Integrator integrator_from_string(const std::string& name) {
-  if (name == "rk4") return Integrator::kRk4;
-  if (name == "heun") return Integrator::kHeun;
-  throw std::invalid_argument("must be one of rk4, heun, got '" + name + "'");
+  for (Integrator i : {Integrator::kRk4, Integrator::kHeun, Integrator::kAdamsBashforth2}) {
+    if (name == to_string(i)) return i;
+  }
+  throw std::invalid_argument("must be one of rk4, heun, ab2, got '" + name + "'");
 }
 
 namespace {
@@ -174,6 +180,7 @@ void Plant::reset(const PlantInitialCondition& initial) {
   state_.load_velocity_mps = initial.load_velocity_mps;
   ripple_phase_ = anchor_at(state_.motor_position_m);
   steps_since_resync_ = 0;
+  history_valid_ = false;
   last_input_ = PlantInput{};
 }
 
@@ -273,18 +280,37 @@ void Plant::integrate(double u_d, double u_q, double load_force, double h, int s
   // A local copy of the constants: the compiler then knows the stage stores
   // cannot alias them and keeps them in registers.
   const Coefficients c = coeff_;
-  const bool heun = params_.integrator == Integrator::kHeun;
+  const Integrator method = params_.integrator;
   StateVector y = to_vector(state_);
   Rhs k1, k2, k3, k4;
   StateVector stage;
+
+  if (method == Integrator::kAdamsBashforth2 && history_valid_ && h == history_step_s_) {
+    // The inputs enter the right-hand side additively (f = g(y) + B u), so the
+    // stored f_{n-1} is moved to the new input exactly: the history then
+    // belongs to the ODE being integrated now.
+    previous_derivative_[kPsiD] += u_d - history_input_.u_d_v;
+    previous_derivative_[kPsiQ] += u_q - history_input_.u_q_v;
+    previous_derivative_[kVl] += (load_force - history_input_.load_force_n) * c.inv_load_mass;
+  } else {
+    history_valid_ = false;
+  }
+
   for (int n = 0; n < substeps; ++n) {
     const RippleAnchor& anchor = ripple_phase_;
     rhs(c, y, u_d, u_q, load_force, anchor, k1);
-    if (heun) {
-      // Heun (explicit trapezoid), second order.
+    if (method == Integrator::kAdamsBashforth2 && history_valid_) {
+      // Two-step Adams-Bashforth, second order, one evaluation per step:
+      // y_{n+1} = y_n + h (3 f_n - f_{n-1}) / 2.
+      for (int i = 0; i < 8; ++i) y[i] += 0.5 * h * (3.0 * k1.derivative[i] - previous_derivative_[i]);
+      previous_derivative_ = k1.derivative;
+    } else if (method != Integrator::kRk4) {
+      // Heun (explicit trapezoid), second order; also AB2's first step.
       for (int i = 0; i < 8; ++i) stage[i] = y[i] + h * k1.derivative[i];
       rhs(c, stage, u_d, u_q, load_force, anchor, k2);
       for (int i = 0; i < 8; ++i) y[i] += 0.5 * h * (k1.derivative[i] + k2.derivative[i]);
+      previous_derivative_ = k1.derivative;
+      history_valid_ = true;
     } else {
       // Classical Runge-Kutta, fourth order.
       for (int i = 0; i < 8; ++i) stage[i] = y[i] + 0.5 * h * k1.derivative[i];
@@ -302,6 +328,8 @@ void Plant::integrate(double u_d, double u_q, double load_force, double h, int s
     state_.motor_position_m = y[kXm];
     advance_ripple_phase();
   }
+  history_step_s_ = h;
+  history_input_ = PlantInput{u_d, u_q, load_force};
   state_ = from_vector(y);
 }
 

@@ -256,7 +256,7 @@ TEST(PlantIntegrator, ErrorAt10MicrosecondsAndConvergenceOrder) {
   // The order is read off two larger steps, where the error is far above
   // rounding (RK4's error at 10 us is already near 1e-13).
   const PlantState reference = run_reference_trajectory(Integrator::kRk4, 1e-5 / 64);
-  for (Integrator integrator : {Integrator::kRk4, Integrator::kHeun}) {
+  for (Integrator integrator : {Integrator::kRk4, Integrator::kHeun, Integrator::kAdamsBashforth2}) {
     const bool rk4 = integrator == Integrator::kRk4;
     const StateError at_10us = difference(run_reference_trajectory(integrator, 1e-5), reference);
     const double h = rk4 ? 31.25e-6 : 15.625e-6;  // whole fractions of the 31.25 us input period
