@@ -3,8 +3,8 @@
 // in-process closed loop (plant + current loop + velocity loop + Kalman
 // filter + reference model), on one core. Figures only; nothing is asserted.
 //
-//   ./build/bench/pmlsm_bench                # all
-//   ./build/bench/pmlsm_bench --benchmark_filter=Plant
+//   ./build/bin/pmlsm_bench                # all
+//   ./build/bin/pmlsm_bench --benchmark_filter=Plant
 #include <benchmark/benchmark.h>
 
 #include <memory>

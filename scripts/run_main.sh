@@ -6,7 +6,7 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$root/scripts/install_deps.sh"
 "$root/scripts/build.sh" >/dev/null
 cd "$root"
-./build/nodes/closed_loop/closed_loop \
+./build/bin/closed_loop \
   -c configs/system.yaml \
   -s configs/scenarios/pulse.yaml -s configs/scenarios/free_vibration.yaml \
   -o out "$@"
