@@ -15,14 +15,11 @@
 #include <cstdint>
 #include <vector>
 
-#include "pmlsm/current_controller.hpp"
-#include "pmlsm/encoder_velocity.hpp"
 #include "pmlsm/kalman_filter.hpp"
-#include "pmlsm/plant.hpp"
-#include "pmlsm/reference_model.hpp"
 #include "pmlsm/scenario.hpp"
+#include "pmlsm/simulated_drive.hpp"
 #include "pmlsm/system_params.hpp"
-#include "pmlsm/velocity_pi.hpp"
+#include "pmlsm/velocity_controller.hpp"
 
 namespace pmlsm {
 
@@ -65,28 +62,30 @@ class ClosedLoop {
   std::uint64_t total_ticks() const { return total_ticks_; }
   bool done() const { return tick_ >= total_ticks_; }
 
-  const Plant& plant() const { return plant_; }
-  const CurrentController& current_controller() const { return current_; }
-  const VelocityPi& velocity_pi() const { return velocity_; }
+  const Plant& plant() const { return drive_.plant(); }
+  const SimulatedDrive& drive() const { return drive_; }
+  const VelocityController& controller() const { return controller_; }
   const KalmanFilter& kalman() const { return kalman_; }
-  const ReferenceModel& reference() const { return reference_; }
 
  private:
   SystemParams params_;
   Scenario scenario_;
-  Plant plant_;
-  CurrentController current_;
-  VelocityPi velocity_;
-  ReferenceModel reference_;
+  SimulatedDrive drive_;
+  VelocityController controller_;
   KalmanFilter kalman_;
-  EncoderVelocity encoder_velocity_;
-  int current_steps_per_tick_;
   std::uint64_t tick_ = 0;
   std::uint64_t total_ticks_ = 0;
   double last_force_n_ = 0;
-  double last_u_q_v_ = 0;
-  PlantMeasurement last_measurement_;
 };
+
+/// Ticks in a scenario: duration / control period.
+std::uint64_t scenario_ticks(const Scenario& scenario, double control_period_s);
+
+/// The initial condition a scenario sets.
+PlantInitialCondition scenario_initial_condition(const Scenario& scenario);
+
+/// Fills the true-plant fields of a record from the plant at t_k.
+void record_truth(const PlantTruth& truth, TickRecord& rec);
 
 /// Runs a scenario to its end; the trace is reserved up front (no allocation per tick).
 std::vector<TickRecord> run_scenario(const SystemParams& params, const Scenario& scenario);

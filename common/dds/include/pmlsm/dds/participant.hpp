@@ -1,0 +1,163 @@
+// Thin typed layer over Fast DDS: a participant made from an XML profile,
+// writers and readers whose QoS come from named XML profiles, and a Wakeup
+// that a node's loop thread waits on while readers' listeners signal it.
+//
+// Following the Fast DDS examples: entities are created in order and every
+// null is an error (std::runtime_error naming what failed); the participant
+// deletes its contained entities on destruction. Following the realtime
+// demos: listeners only signal; the loop thread takes the samples.
+#pragma once
+
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/publisher/DataWriter.hpp>
+#include <fastdds/dds/publisher/Publisher.hpp>
+#include <fastdds/dds/subscriber/DataReader.hpp>
+#include <fastdds/dds/subscriber/DataReaderListener.hpp>
+#include <fastdds/dds/subscriber/SampleInfo.hpp>
+#include <fastdds/dds/subscriber/Subscriber.hpp>
+#include <fastdds/dds/topic/Topic.hpp>
+#include <fastdds/dds/topic/TypeSupport.hpp>
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "pmlsm/dds/topics.hpp"
+
+namespace pmlsm::dds {
+
+/// Signalled by readers' listeners when data arrives; the loop thread waits on it.
+class Wakeup {
+ public:
+  /// A counter read before draining the readers; wait_for() returns at once if
+  /// anything arrived after it was read, so no notification is lost.
+  std::uint64_t generation() const;
+  /// Waits until the generation moves past `seen` or the timeout passes.
+  /// @return false on timeout.
+  bool wait_for(std::uint64_t seen, std::chrono::nanoseconds timeout);
+  void notify();
+
+ private:
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;
+  std::uint64_t generation_ = 0;
+};
+
+struct ParticipantOptions {
+  std::string profiles_file = "configs/dds/profiles.xml";
+  std::string participant_profile = "pmlsm_default";
+  int domain_id = 0;
+  std::string node_name;
+};
+
+class Participant;
+
+template <typename PubSubType>
+class Writer {
+ public:
+  using Message = typename PubSubType::type;
+  /// @return false when Fast DDS refuses the sample (counted by the caller).
+  bool write(const Message& sample) {
+    return writer_->write(const_cast<Message*>(&sample));
+  }
+  eprosima::fastdds::dds::DataWriter* entity() { return writer_; }
+  /// Number of matched readers, for waiting on discovery.
+  std::size_t matched_readers() const;
+
+ private:
+  friend class Participant;
+  explicit Writer(eprosima::fastdds::dds::DataWriter* writer) : writer_(writer) {}
+  eprosima::fastdds::dds::DataWriter* writer_;
+};
+
+template <typename PubSubType>
+class Reader {
+ public:
+  using Message = typename PubSubType::type;
+  /// Takes the next valid sample, if any, without blocking.
+  bool take(Message& out) {
+    eprosima::fastdds::dds::SampleInfo info;
+    while (reader_->take_next_sample(&out, &info) ==
+           eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+      if (info.valid_data) return true;
+    }
+    return false;
+  }
+  std::size_t matched_writers() const;
+  eprosima::fastdds::dds::DataReader* entity() { return reader_; }
+
+ private:
+  friend class Participant;
+  explicit Reader(eprosima::fastdds::dds::DataReader* reader) : reader_(reader) {}
+  eprosima::fastdds::dds::DataReader* reader_;
+};
+
+class Participant {
+ public:
+  /// Loads the XML profiles and creates the participant.
+  /// @throws std::runtime_error naming the file or profile that failed.
+  explicit Participant(const ParticipantOptions& options);
+  ~Participant();
+  Participant(const Participant&) = delete;
+  Participant& operator=(const Participant&) = delete;
+
+  template <typename PubSubType>
+  Writer<PubSubType> make_writer(const TopicSpec& spec) {
+    return Writer<PubSubType>(create_writer(topic_for<PubSubType>(spec), spec.qos_profile));
+  }
+
+  /// The reader's listener notifies `wakeup` on every arrival.
+  template <typename PubSubType>
+  Reader<PubSubType> make_reader(const TopicSpec& spec, Wakeup& wakeup) {
+    return Reader<PubSubType>(create_reader(topic_for<PubSubType>(spec), spec.qos_profile, wakeup));
+  }
+
+  eprosima::fastdds::dds::DomainParticipant* entity() { return participant_; }
+  const std::string& node_name() const { return node_name_; }
+
+ private:
+  class NotifyingListener;
+
+  template <typename PubSubType>
+  eprosima::fastdds::dds::Topic* topic_for(const TopicSpec& spec) {
+    auto found = topics_.find(spec.name);
+    if (found != topics_.end()) return found->second;
+    eprosima::fastdds::dds::TypeSupport type(new PubSubType());  // TypeSupport owns it
+    return create_topic(spec.name, type);
+  }
+  eprosima::fastdds::dds::Topic* create_topic(const std::string& name,
+                                              eprosima::fastdds::dds::TypeSupport type);
+  eprosima::fastdds::dds::DataWriter* create_writer(eprosima::fastdds::dds::Topic* topic,
+                                                    const std::string& profile);
+  eprosima::fastdds::dds::DataReader* create_reader(eprosima::fastdds::dds::Topic* topic,
+                                                    const std::string& profile, Wakeup& wakeup);
+
+  std::string node_name_;
+  eprosima::fastdds::dds::DomainParticipant* participant_ = nullptr;
+  eprosima::fastdds::dds::Publisher* publisher_ = nullptr;
+  eprosima::fastdds::dds::Subscriber* subscriber_ = nullptr;
+  std::map<std::string, eprosima::fastdds::dds::Topic*> topics_;
+  std::vector<std::unique_ptr<NotifyingListener>> listeners_;
+};
+
+template <typename PubSubType>
+std::size_t Writer<PubSubType>::matched_readers() const {
+  eprosima::fastdds::dds::PublicationMatchedStatus status;
+  writer_->get_publication_matched_status(status);
+  return static_cast<std::size_t>(status.current_count);
+}
+
+template <typename PubSubType>
+std::size_t Reader<PubSubType>::matched_writers() const {
+  eprosima::fastdds::dds::SubscriptionMatchedStatus status;
+  reader_->get_subscription_matched_status(status);
+  return static_cast<std::size_t>(status.current_count);
+}
+
+}  // namespace pmlsm::dds

@@ -1,0 +1,27 @@
+// Topic names and the QoS profile (configs/dds/profiles.xml) each one uses.
+// Names follow the ROS 2 convention ("rt/" prefix) so ROS 2 and Foxglove
+// tools list them under /pmlsm/...
+#pragma once
+
+namespace pmlsm::dds {
+
+struct TopicSpec {
+  const char* name;
+  const char* qos_profile;
+};
+
+namespace topics {
+inline constexpr TopicSpec kMotorFeedback{"rt/pmlsm/motor_feedback", "pmlsm_control"};
+inline constexpr TopicSpec kForceCommand{"rt/pmlsm/force_command", "pmlsm_control"};
+inline constexpr TopicSpec kCurrentFeedback{"rt/pmlsm/current_feedback", "pmlsm_control"};
+inline constexpr TopicSpec kVoltageCommand{"rt/pmlsm/voltage_command", "pmlsm_control"};
+inline constexpr TopicSpec kPlantTruth{"rt/pmlsm/plant_truth", "pmlsm_observe"};
+inline constexpr TopicSpec kVelocityReference{"rt/pmlsm/velocity_reference", "pmlsm_observe"};
+inline constexpr TopicSpec kEstimatedState{"rt/pmlsm/estimated_state", "pmlsm_observe"};
+inline constexpr TopicSpec kCompensatorOutput{"rt/pmlsm/compensator_output", "pmlsm_control"};
+inline constexpr TopicSpec kNodeStatus{"rt/pmlsm/node_status", "pmlsm_observe"};
+inline constexpr TopicSpec kNetworkWeights{"rt/pmlsm/network_weights", "pmlsm_latched"};
+inline constexpr TopicSpec kTrainerProgress{"rt/pmlsm/trainer_progress", "pmlsm_observe"};
+}  // namespace topics
+
+}  // namespace pmlsm::dds

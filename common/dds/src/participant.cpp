@@ -1,0 +1,100 @@
+#include "pmlsm/dds/participant.hpp"
+
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+
+namespace pmlsm::dds {
+
+using eprosima::fastdds::dds::DomainParticipantFactory;
+using ReturnCode = eprosima::fastrtps::types::ReturnCode_t;
+
+std::uint64_t Wakeup::generation() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return generation_;
+}
+
+bool Wakeup::wait_for(std::uint64_t seen, std::chrono::nanoseconds timeout) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  return cv_.wait_for(lock, timeout, [&] { return generation_ != seen; });
+}
+
+void Wakeup::notify() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++generation_;
+  }
+  cv_.notify_all();
+}
+
+class Participant::NotifyingListener : public eprosima::fastdds::dds::DataReaderListener {
+ public:
+  explicit NotifyingListener(Wakeup& wakeup) : wakeup_(wakeup) {}
+  void on_data_available(eprosima::fastdds::dds::DataReader*) override { wakeup_.notify(); }
+  void on_subscription_matched(eprosima::fastdds::dds::DataReader*,
+                               const eprosima::fastdds::dds::SubscriptionMatchedStatus&) override {
+    wakeup_.notify();
+  }
+
+ private:
+  Wakeup& wakeup_;
+};
+
+Participant::Participant(const ParticipantOptions& options) : node_name_(options.node_name) {
+  auto* factory = DomainParticipantFactory::get_instance();
+  if (factory->load_XML_profiles_file(options.profiles_file) != ReturnCode::RETCODE_OK) {
+    throw std::runtime_error("cannot load DDS profiles from '" + options.profiles_file + "'");
+  }
+  participant_ = factory->create_participant_with_profile(
+      static_cast<eprosima::fastdds::dds::DomainId_t>(options.domain_id), options.participant_profile);
+  if (participant_ == nullptr) {
+    throw std::runtime_error("cannot create participant with profile '" + options.participant_profile +
+                             "' on domain " + std::to_string(options.domain_id));
+  }
+  publisher_ = participant_->create_publisher(eprosima::fastdds::dds::PUBLISHER_QOS_DEFAULT);
+  subscriber_ = participant_->create_subscriber(eprosima::fastdds::dds::SUBSCRIBER_QOS_DEFAULT);
+  if (publisher_ == nullptr || subscriber_ == nullptr) {
+    factory->delete_participant(participant_);
+    throw std::runtime_error("cannot create publisher/subscriber");
+  }
+}
+
+Participant::~Participant() {
+  if (participant_ == nullptr) return;
+  participant_->delete_contained_entities();
+  DomainParticipantFactory::get_instance()->delete_participant(participant_);
+}
+
+eprosima::fastdds::dds::Topic* Participant::create_topic(const std::string& name,
+                                                         eprosima::fastdds::dds::TypeSupport type) {
+  if (type.register_type(participant_) != ReturnCode::RETCODE_OK) {
+    throw std::runtime_error("cannot register type '" + type.get_type_name() + "'");
+  }
+  auto* topic = participant_->create_topic(name, type.get_type_name(),
+                                           eprosima::fastdds::dds::TOPIC_QOS_DEFAULT);
+  if (topic == nullptr) throw std::runtime_error("cannot create topic '" + name + "'");
+  topics_[name] = topic;
+  return topic;
+}
+
+eprosima::fastdds::dds::DataWriter* Participant::create_writer(eprosima::fastdds::dds::Topic* topic,
+                                                               const std::string& profile) {
+  auto* writer = publisher_->create_datawriter_with_profile(topic, profile);
+  if (writer == nullptr) {
+    throw std::runtime_error("cannot create writer on '" + topic->get_name() + "' with profile '" +
+                             profile + "'");
+  }
+  return writer;
+}
+
+eprosima::fastdds::dds::DataReader* Participant::create_reader(eprosima::fastdds::dds::Topic* topic,
+                                                               const std::string& profile,
+                                                               Wakeup& wakeup) {
+  listeners_.push_back(std::make_unique<NotifyingListener>(wakeup));
+  auto* reader = subscriber_->create_datareader_with_profile(topic, profile, listeners_.back().get());
+  if (reader == nullptr) {
+    throw std::runtime_error("cannot create reader on '" + topic->get_name() + "' with profile '" +
+                             profile + "'");
+  }
+  return reader;
+}
+
+}  // namespace pmlsm::dds
