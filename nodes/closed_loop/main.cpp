@@ -12,18 +12,8 @@
 #include "pmlsm/closed_loop.hpp"
 #include "pmlsm/config.hpp"
 #include "pmlsm/metrics.hpp"
+#include "results_table.hpp"
 #include "trace_csv.hpp"
-
-namespace {
-
-std::string seconds_or_never(double s) {
-  if (!std::isfinite(s)) return "not settled";
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3f", s);
-  return buf;
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"In-process closed loop of the PMLSM two-mass system: plant, current loop, "
@@ -50,22 +40,15 @@ int main(int argc, char** argv) {
     for (const auto& path : scenario_paths) scenarios.push_back(pmlsm::load_scenario(path, period));
     std::filesystem::create_directories(out_dir);
 
-    std::printf("%-16s %10s %10s %14s %14s %12s %12s %14s\n", "scenario", "cost_true",
-                "cost_est", "vib_rms_mm/s", "track_rms_mm/s", "settle_2%_s", "peak_F_N",
-                "est_vL_err_mm/s");
+    pmlsm::node::print_results_header();
     for (const pmlsm::Scenario& scenario : scenarios) {
       const auto trace = pmlsm::run_scenario(params, scenario);
       const auto m = pmlsm::compute_metrics(trace, scenario, period);
       const std::string csv = out_dir + "/" + scenario.name + ".csv";
       pmlsm::write_trace_csv(csv, trace);
-      std::printf("%-16s %10.3f %10.3f %14.3f %14.3f %12s %12.1f %14.3f\n", scenario.name.c_str(),
-                  m.cost_true, m.cost_estimated, 1e3 * m.load_vibration_rms_mps,
-                  1e3 * m.load_tracking_rms_mps, seconds_or_never(m.load_settling_time_s).c_str(),
-                  m.peak_force_command_n, 1e3 * m.est_load_velocity_rms_error_mps);
+      pmlsm::node::print_results_row(scenario.name, m);
     }
-    std::printf("cost = sum over the first %s of |V_ref - v_L| (eq. 23), true and Kalman-estimated "
-                "v_L; traces in %s/\n",
-                "second", out_dir.c_str());
+    pmlsm::node::print_results_footer(out_dir);
   } catch (const pmlsm::ConfigError& e) {
     std::fprintf(stderr, "config error: %s\n", e.what());
     return 2;

@@ -1,0 +1,110 @@
+// controller: the motor-side velocity loop on DDS. For every MotorFeedback
+// tick it runs the reference model (25) on the scenario's command and the
+// velocity PI, and answers with ForceCommand (feedback_tick = that tick); it
+// also publishes VelocityReference. It is event-driven: the same code serves
+// the lockstep and the realtime clock.
+#include <cmath>
+#include <cstdio>
+
+#include "ForceCommandPubSubTypes.h"
+#include "MotorFeedbackPubSubTypes.h"
+#include "VelocityReferencePubSubTypes.h"
+#include "node_support.hpp"
+#include "pmlsm/closed_loop.hpp"
+#include "pmlsm/velocity_controller.hpp"
+
+namespace {
+
+using namespace pmlsm;
+namespace pdds = pmlsm::dds;
+namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
+
+int run(int argc, char** argv) {
+  CLI::App app{"Velocity loop (reference model + PI) of the PMLSM on DDS"};
+  node::CommonOptions common;
+  node::add_common_options(app, common);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? node::kOk : node::kBadConfig;
+  }
+  const node::LoadedConfig cfg = node::load_config(common);
+  const double period = cfg.params.timing.control_period_s;
+  common.dds.node_name = "controller";
+
+  pdds::Participant participant(common.dds);
+  pdds::Wakeup wakeup;
+  auto feedback_reader = participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, wakeup);
+  auto command_writer = participant.make_writer<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand);
+  auto reference_writer = participant.make_writer<pmlsm_msgs::msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference);
+  node::StatusPublisher status(participant, "controller");
+
+  VelocityController controller(cfg.params, cfg.scenario);
+  const std::uint64_t ticks = scenario_ticks(cfg.scenario, period);
+  status.publish(node_state::STATE_RUNNING, 0, period, "running");
+
+  pmlsm_msgs::msg::MotorFeedback feedback;
+  pmlsm_msgs::msg::ForceCommand command;
+  pmlsm_msgs::msg::VelocityReference reference;
+  std::uint64_t next_tick = 0;
+  std::uint64_t rejected = 0;
+  double last_velocity = 0.0;
+  const auto peer_timeout = std::chrono::duration<double>(common.peer_timeout_s);
+  int exit_code = node::kOk;
+
+  while (next_tick < ticks && !pdds::stop_requested()) {
+    bool got = false;
+    const bool ok = node::wait_until(wakeup, peer_timeout, [&] {
+      while (!got && feedback_reader.take(feedback)) {
+        if (feedback.stamp().tick() < next_tick) {
+          ++rejected;  // a tick already answered: duplicate or out of order
+          continue;
+        }
+        got = true;
+      }
+      return got;
+    });
+    if (!ok) {
+      if (pdds::stop_requested()) break;
+      std::fprintf(stderr, "controller: no MotorFeedback after tick %llu for %.1f s: plant lost\n",
+                   static_cast<unsigned long long>(next_tick), common.peer_timeout_s);
+      exit_code = node::kPeerLost;
+      break;
+    }
+    const std::uint64_t k = feedback.stamp().tick();
+    double velocity = feedback.velocity_mps();
+    if (!std::isfinite(velocity)) {
+      ++rejected;  // answer with the last good measurement rather than pass a NaN on
+      velocity = last_velocity;
+    }
+    last_velocity = velocity;
+    const VelocityControllerOutput out = controller.step(k, velocity, 0.0);
+
+    reference.stamp(node::make_stamp(k, period));
+    reference.velocity_command_mps(out.command_mps);
+    reference.v_ref_mps(out.v_ref_mps);
+    reference.a_ref_mps2(out.a_ref_mps2);
+    reference_writer.write(reference);
+
+    command.stamp(reference.stamp());
+    command.feedback_tick(k);
+    command.force_n(out.force_n);
+    command.pi_force_n(out.force_n);
+    command.compensation_force_n(0.0);
+    command.velocity_error_mps(out.velocity_error_mps);
+    command.saturated(out.saturated);
+    command_writer.write(command);
+    next_tick = k + 1;
+  }
+  status.status().rejected(rejected);
+  status.publish(node_state::STATE_STOPPING, next_tick, period, "done");
+  std::printf("controller: %llu ticks answered, %llu rejected\n",
+              static_cast<unsigned long long>(next_tick), static_cast<unsigned long long>(rejected));
+  return exit_code;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return pmlsm::node::run_node("controller", [&] { return run(argc, argv); });
+}

@@ -1,0 +1,152 @@
+// evaluator: the rig's scope. Collects every tick of MotorFeedback,
+// PlantTruth, VelocityReference, ForceCommand and EstimatedState into the
+// same records the in-process loop writes, and when the scenario's last tick
+// is complete prints the results table and writes <out>/<scenario>.csv.
+// It reads PlantTruth, which no controller may: evaluation only.
+#include <cstdio>
+#include <filesystem>
+#include <vector>
+
+#include "EstimatedStatePubSubTypes.h"
+#include "ForceCommandPubSubTypes.h"
+#include "MotorFeedbackPubSubTypes.h"
+#include "PlantTruthPubSubTypes.h"
+#include "VelocityReferencePubSubTypes.h"
+#include "node_support.hpp"
+#include "pmlsm/closed_loop.hpp"
+#include "pmlsm/metrics.hpp"
+#include "results_table.hpp"
+#include "trace_csv.hpp"
+
+namespace {
+
+using namespace pmlsm;
+namespace pdds = pmlsm::dds;
+namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
+
+enum Part : unsigned { kFeedback = 1, kTruth = 2, kReference = 4, kCommand = 8, kEstimate = 16, kAll = 31 };
+
+int run(int argc, char** argv) {
+  CLI::App app{"Collects a distributed run's topics per tick, prints the results table, writes the CSV trace"};
+  node::CommonOptions common;
+  std::string out_dir = "out";
+  bool print_header = true;
+  node::add_common_options(app, common);
+  app.add_option("-o,--out", out_dir, "Folder for the CSV trace");
+  app.add_option("--header", print_header, "Print the table header (true/false)");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? node::kOk : node::kBadConfig;
+  }
+  const node::LoadedConfig cfg = node::load_config(common);
+  const double period = cfg.params.timing.control_period_s;
+  common.dds.node_name = "evaluator";
+
+  pdds::Participant participant(common.dds);
+  pdds::Wakeup wakeup;
+  auto feedback_reader = participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, wakeup);
+  auto truth_reader = participant.make_reader<pmlsm_msgs::msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth, wakeup);
+  auto reference_reader = participant.make_reader<pmlsm_msgs::msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference, wakeup);
+  auto command_reader = participant.make_reader<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand, wakeup);
+  auto estimate_reader = participant.make_reader<pmlsm_msgs::msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState, wakeup);
+  node::StatusPublisher status(participant, "evaluator");
+  status.publish(node_state::STATE_RUNNING, 0, period, "collecting");
+
+  const std::uint64_t ticks = scenario_ticks(cfg.scenario, period);
+  std::vector<TickRecord> trace(ticks);
+  std::vector<unsigned> parts(ticks, 0);
+  std::uint64_t complete = 0;
+  std::uint64_t rejected = 0;
+
+  auto mark = [&](std::uint64_t tick, Part part) -> TickRecord* {
+    if (tick >= ticks || (parts[tick] & part) != 0) {
+      ++rejected;  // outside the scenario or a duplicate
+      return nullptr;
+    }
+    parts[tick] |= part;
+    if (parts[tick] == kAll) ++complete;
+    TickRecord& r = trace[tick];
+    r.tick = tick;
+    r.time_s = static_cast<double>(tick) * period;
+    return &r;
+  };
+
+  pmlsm_msgs::msg::MotorFeedback feedback;
+  pmlsm_msgs::msg::PlantTruth truth;
+  pmlsm_msgs::msg::VelocityReference reference;
+  pmlsm_msgs::msg::ForceCommand command;
+  pmlsm_msgs::msg::EstimatedState estimate;
+  auto drain = [&] {
+    while (feedback_reader.take(feedback)) {
+      if (TickRecord* r = mark(feedback.stamp().tick(), kFeedback)) {
+        r->encoder_position_m = feedback.position_m();
+        r->motor_velocity_measured_mps = feedback.velocity_mps();
+      }
+    }
+    while (truth_reader.take(truth)) {
+      if (TickRecord* r = mark(truth.stamp().tick(), kTruth)) {
+        r->motor_position_m = truth.motor_position_m();
+        r->motor_velocity_mps = truth.motor_velocity_mps();
+        r->load_position_m = truth.load_position_m();
+        r->load_velocity_mps = truth.load_velocity_mps();
+        r->load_accel_mps2 = truth.load_acceleration_mps2();
+        r->spring_force_n = truth.spring_force_n();
+        r->thrust_n = truth.thrust_force_n();
+        r->ripple_n = truth.ripple_force_n();
+        r->friction_n = truth.friction_force_n();
+        r->i_q_a = truth.i_q_a();
+        r->u_q_v = truth.u_q_v();
+      }
+    }
+    while (reference_reader.take(reference)) {
+      if (TickRecord* r = mark(reference.stamp().tick(), kReference)) {
+        r->command_mps = reference.velocity_command_mps();
+        r->v_ref_mps = reference.v_ref_mps();
+      }
+    }
+    while (command_reader.take(command)) {
+      if (TickRecord* r = mark(command.feedback_tick(), kCommand)) r->force_command_n = command.force_n();
+    }
+    while (estimate_reader.take(estimate)) {
+      if (TickRecord* r = mark(estimate.feedback_tick(), kEstimate)) {
+        r->est_motor_velocity_mps = estimate.v_motor_mps();
+        r->est_load_velocity_mps = estimate.v_load_mps();
+        r->est_spring_force_n = estimate.spring_force_n();
+        r->est_load_accel_mps2 = estimate.a_load_mps2();
+      }
+    }
+    return complete == ticks;
+  };
+
+  // Done when every tick is complete; a stall longer than the peer timeout ends it.
+  std::uint64_t last_complete = 0;
+  while (!pdds::stop_requested()) {
+    if (node::wait_until(wakeup, std::chrono::duration<double>(common.peer_timeout_s), drain)) break;
+    if (complete == last_complete) break;
+    last_complete = complete;
+  }
+
+  if (complete < ticks) {
+    std::fprintf(stderr, "evaluator: only %llu of %llu ticks complete (%s); no results\n",
+                 static_cast<unsigned long long>(complete), static_cast<unsigned long long>(ticks),
+                 pdds::stop_requested() ? "stopped" : "peers silent");
+    status.publish(node_state::STATE_ERROR, complete, period, "incomplete run");
+    return pdds::stop_requested() ? node::kOk : node::kPeerLost;
+  }
+  const ScenarioMetrics m = compute_metrics(trace, cfg.scenario, period);
+  std::filesystem::create_directories(out_dir);
+  write_trace_csv(out_dir + "/" + cfg.scenario.name + ".csv", trace);
+  if (print_header) node::print_results_header();
+  node::print_results_row(cfg.scenario.name, m);
+  std::fflush(stdout);
+  status.status().rejected(rejected);
+  status.publish(node_state::STATE_STOPPING, ticks, period, "done");
+  return node::kOk;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return pmlsm::node::run_node("evaluator", [&] { return run(argc, argv); });
+}

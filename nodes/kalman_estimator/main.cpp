@@ -1,0 +1,96 @@
+// kalman_estimator: the Kalman filter of section 3.5 on DDS. For every
+// MotorFeedback tick k it predicts with the force the drive applied over the
+// last tick (MotorFeedback.applied_force_n, u_{k-1}) and updates with the
+// measured motor velocity, then publishes EstimatedState (v_M, v_L, F_s, a_L).
+#include <cmath>
+#include <cstdio>
+
+#include "EstimatedStatePubSubTypes.h"
+#include "MotorFeedbackPubSubTypes.h"
+#include "node_support.hpp"
+#include "pmlsm/closed_loop.hpp"
+#include "pmlsm/kalman_filter.hpp"
+
+namespace {
+
+using namespace pmlsm;
+namespace pdds = pmlsm::dds;
+namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
+
+int run(int argc, char** argv) {
+  CLI::App app{"Kalman estimator of the load velocity and spring force on DDS"};
+  node::CommonOptions common;
+  node::add_common_options(app, common);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? node::kOk : node::kBadConfig;
+  }
+  const node::LoadedConfig cfg = node::load_config(common);
+  const double period = cfg.params.timing.control_period_s;
+  common.dds.node_name = "kalman_estimator";
+
+  pdds::Participant participant(common.dds);
+  pdds::Wakeup wakeup;
+  auto feedback_reader = participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, wakeup);
+  auto estimate_writer = participant.make_writer<pmlsm_msgs::msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState);
+  node::StatusPublisher status(participant, "kalman_estimator");
+
+  KalmanFilter filter(cfg.params.kalman_params());
+  const std::uint64_t ticks = scenario_ticks(cfg.scenario, period);
+  status.publish(node_state::STATE_RUNNING, 0, period, "running");
+
+  pmlsm_msgs::msg::MotorFeedback feedback;
+  pmlsm_msgs::msg::EstimatedState estimate;
+  std::uint64_t next_tick = 0;
+  std::uint64_t rejected = 0;
+  const auto peer_timeout = std::chrono::duration<double>(common.peer_timeout_s);
+  int exit_code = node::kOk;
+
+  while (next_tick < ticks && !pdds::stop_requested()) {
+    bool got = false;
+    const bool ok = node::wait_until(wakeup, peer_timeout, [&] {
+      while (!got && feedback_reader.take(feedback)) {
+        if (feedback.stamp().tick() < next_tick) {
+          ++rejected;
+          continue;
+        }
+        got = true;
+      }
+      return got;
+    });
+    if (!ok) {
+      if (pdds::stop_requested()) break;
+      std::fprintf(stderr, "kalman_estimator: no MotorFeedback after tick %llu for %.1f s: plant lost\n",
+                   static_cast<unsigned long long>(next_tick), common.peer_timeout_s);
+      exit_code = node::kPeerLost;
+      break;
+    }
+    const std::uint64_t k = feedback.stamp().tick();
+    // The filter itself rejects (and counts) a non-finite measurement or input.
+    const KalmanEstimate e = filter.step({feedback.velocity_mps(), feedback.applied_force_n()});
+    estimate.stamp(node::make_stamp(k, period));
+    estimate.feedback_tick(k);
+    estimate.v_motor_mps(e.motor_velocity_mps);
+    estimate.v_load_mps(e.load_velocity_mps);
+    estimate.spring_force_n(e.spring_force_n);
+    estimate.a_load_mps2(e.load_accel_mps2);
+    estimate.input_force_n(feedback.applied_force_n());
+    estimate.innovation_mps(e.innovation_mps);
+    estimate.covariance_diag({e.covariance_diag(0), e.covariance_diag(1), e.covariance_diag(2)});
+    estimate_writer.write(estimate);
+    next_tick = k + 1;
+  }
+  const auto& c = filter.counters();
+  status.status().rejected(rejected + c.rejected_measurements + c.rejected_inputs);
+  status.publish(node_state::STATE_STOPPING, next_tick, period, "done");
+  std::printf("kalman_estimator: %llu ticks, %llu rejected\n", static_cast<unsigned long long>(next_tick),
+              static_cast<unsigned long long>(rejected + c.rejected_measurements + c.rejected_inputs));
+  return exit_code;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return pmlsm::node::run_node("kalman_estimator", [&] { return run(argc, argv); });
+}

@@ -1,0 +1,401 @@
+#include "launch_file.hpp"
+
+#include <sys/stat.h>
+#include <unistd.h>
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace pmlsm::launch {
+
+namespace {
+
+const std::vector<std::string> kTopKeys = {"name", "hosts", "nodes", "args"};
+const std::vector<std::string> kNodeKeys = {"name", "executable", "host",
+                                            "args", "env",        "ends_launch"};
+
+std::string join(const std::vector<std::string>& items, const char* sep = ", ") {
+  std::string out;
+  for (const auto& item : items) out += (out.empty() ? "" : sep) + item;
+  return out;
+}
+
+template <typename Map>
+std::string join_keys(const Map& map) {
+  std::vector<std::string> keys;
+  for (const auto& kv : map) keys.push_back(kv.first);
+  return keys.empty() ? std::string("none") : join(keys);
+}
+
+bool matches(const std::string& text, bool (*allowed)(char)) {
+  if (text.empty()) return false;
+  for (char c : text) {
+    if (!allowed(c)) return false;
+  }
+  return true;
+}
+
+bool is_alnum(char c) {
+  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9');
+}
+bool node_name_char(char c) { return is_alnum(c) || c == '_' || c == '-'; }
+bool host_name_char(char c) { return node_name_char(c) || c == '.'; }
+bool identifier_char(char c) { return is_alnum(c) || c == '_'; }
+bool is_identifier(const std::string& s) {
+  return matches(s, identifier_char) && !(s[0] >= '0' && s[0] <= '9');
+}
+
+// Describes a YAML value for messages, quoting scalars.
+std::string describe(const YAML::Node& node) {
+  switch (node.Type()) {
+    case YAML::NodeType::Null: return "null";
+    case YAML::NodeType::Scalar: return "'" + node.Scalar() + "'";
+    case YAML::NodeType::Sequence: return "a list";
+    case YAML::NodeType::Map: return "a map";
+    default: return "nothing";
+  }
+}
+
+// Where a value sits: "file:line:col: key.path", the prefix of every message.
+class Location {
+ public:
+  explicit Location(const std::string& source) : source_(source) {}
+
+  std::string at(const YAML::Node& node, const std::string& path) const {
+    std::string out = source_;
+    const YAML::Mark mark = node.Mark();
+    if (!mark.is_null()) {
+      out += ":" + std::to_string(mark.line + 1) + ":" + std::to_string(mark.column + 1);
+    }
+    return path.empty() ? out : out + ": " + path;
+  }
+
+  [[noreturn]] void fail(const YAML::Node& node, const std::string& path,
+                         const std::string& what) const {
+    throw LaunchFileError(at(node, path) + ": " + what);
+  }
+
+ private:
+  const std::string& source_;
+};
+
+// The keys of a map in file order, each checked against `allowed` and for duplicates.
+std::vector<std::pair<std::string, YAML::Node>> checked_fields(
+    const Location& loc, const YAML::Node& map, const std::string& path,
+    const std::vector<std::string>& allowed) {
+  std::vector<std::pair<std::string, YAML::Node>> fields;
+  std::set<std::string> seen;
+  const std::string prefix = path.empty() ? "" : path + ".";
+  for (const auto& kv : map) {
+    if (!kv.first.IsScalar()) loc.fail(kv.first, path, "keys must be strings, got " + describe(kv.first));
+    const std::string key = kv.first.Scalar();
+    if (!allowed.empty()) {
+      bool known = false;
+      for (const auto& a : allowed) known = known || a == key;
+      if (!known) loc.fail(kv.first, prefix + key, "unknown key (allowed: " + join(allowed) + ")");
+    }
+    if (!seen.insert(key).second) loc.fail(kv.first, prefix + key, "duplicate key");
+    fields.emplace_back(key, kv.second);
+  }
+  return fields;
+}
+
+const YAML::Node* find(const std::vector<std::pair<std::string, YAML::Node>>& fields,
+                       const std::string& key) {
+  for (const auto& kv : fields) {
+    if (kv.first == key) return &kv.second;
+  }
+  return nullptr;
+}
+
+const YAML::Node& require(const Location& loc, const YAML::Node& map,
+                          const std::vector<std::pair<std::string, YAML::Node>>& fields,
+                          const std::string& path, const std::string& key) {
+  const YAML::Node* node = find(fields, key);
+  if (node == nullptr) {
+    loc.fail(map, path.empty() ? "" : path, "missing required key '" + key + "'");
+  }
+  return *node;
+}
+
+std::string string_value(const Location& loc, const YAML::Node& node, const std::string& path) {
+  if (!node.IsScalar()) loc.fail(node, path, "must be a string, got " + describe(node));
+  return node.Scalar();
+}
+
+std::string non_empty_string(const Location& loc, const YAML::Node& node, const std::string& path) {
+  std::string value = string_value(loc, node, path);
+  if (value.empty()) loc.fail(node, path, "must not be empty");
+  return value;
+}
+
+bool bool_value(const Location& loc, const YAML::Node& node, const std::string& path) {
+  if (node.IsScalar()) {
+    const std::string& v = node.Scalar();
+    if (v == "true" || v == "True" || v == "TRUE") return true;
+    if (v == "false" || v == "False" || v == "FALSE") return false;
+  }
+  loc.fail(node, path, "must be true or false, got " + describe(node));
+}
+
+std::vector<std::string> parse_hosts(const Location& loc, const YAML::Node& node) {
+  if (!node.IsSequence()) loc.fail(node, "hosts", "must be a list of host names, got " + describe(node));
+  if (node.size() == 0) loc.fail(node, "hosts", "must not be empty (leave it out for one host 'local')");
+  std::vector<std::string> hosts;
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    const std::string path = "hosts[" + std::to_string(i) + "]";
+    std::string host = string_value(loc, node[i], path);
+    if (!matches(host, host_name_char)) {
+      loc.fail(node[i], path, "'" + host + "' is not a host name ([A-Za-z0-9_.-]+)");
+    }
+    for (const auto& h : hosts) {
+      if (h == host) loc.fail(node[i], path, "'" + host + "' is listed twice");
+    }
+    hosts.push_back(std::move(host));
+  }
+  return hosts;
+}
+
+std::map<std::string, std::string> parse_args(const Location& loc, const YAML::Node& node) {
+  if (!node.IsMap()) loc.fail(node, "args", "must be a map of arg names to default values, got " + describe(node));
+  std::map<std::string, std::string> args;
+  for (const auto& [key, value] : checked_fields(loc, node, "args", {})) {
+    const std::string path = "args." + key;
+    if (!is_identifier(key)) loc.fail(value, path, "'" + key + "' is not an arg name ([A-Za-z_][A-Za-z0-9_]*)");
+    args[key] = string_value(loc, value, path);
+  }
+  return args;
+}
+
+NodeSpec parse_node(const Location& loc, const YAML::Node& node, const std::string& path,
+                    const std::vector<std::string>& hosts,
+                    const std::map<std::string, std::string>& args) {
+  if (!node.IsMap()) loc.fail(node, path, "must be a map with at least name and executable, got " + describe(node));
+  const auto fields = checked_fields(loc, node, path, kNodeKeys);
+  NodeSpec spec;
+
+  const YAML::Node& name = require(loc, node, fields, path, "name");
+  spec.name = string_value(loc, name, path + ".name");
+  if (!matches(spec.name, node_name_char)) {
+    loc.fail(name, path + ".name", "'" + spec.name + "' is not a node name ([A-Za-z0-9_-]+)");
+  }
+  if (spec.name == "launcher") {
+    loc.fail(name, path + ".name", "'launcher' is reserved for the launcher's own messages");
+  }
+
+  const YAML::Node& exe = require(loc, node, fields, path, "executable");
+  const std::string exe_path = path + ".executable";
+  spec.executable =
+      substitute_args(non_empty_string(loc, exe, exe_path), args, loc.at(exe, exe_path));
+  if (spec.executable.empty()) loc.fail(exe, exe_path, "is empty after substitution");
+
+  spec.host = hosts.front();
+  if (const YAML::Node* host = find(fields, "host")) {
+    spec.host = string_value(loc, *host, path + ".host");
+    bool known = false;
+    for (const auto& h : hosts) known = known || h == spec.host;
+    if (!known) {
+      loc.fail(*host, path + ".host",
+               "'" + spec.host + "' is not among hosts [" + join(hosts) + "]");
+    }
+  }
+
+  if (const YAML::Node* list = find(fields, "args")) {
+    if (!list->IsSequence()) {
+      loc.fail(*list, path + ".args", "must be a list of strings, got " + describe(*list));
+    }
+    for (std::size_t i = 0; i < list->size(); ++i) {
+      const std::string item_path = path + ".args[" + std::to_string(i) + "]";
+      const YAML::Node item = (*list)[i];
+      spec.args.push_back(
+          substitute_args(string_value(loc, item, item_path), args, loc.at(item, item_path)));
+    }
+  }
+
+  if (const YAML::Node* env = find(fields, "env")) {
+    if (!env->IsMap()) {
+      loc.fail(*env, path + ".env", "must be a map of variable names to strings, got " + describe(*env));
+    }
+    for (const auto& [key, value] : checked_fields(loc, *env, path + ".env", {})) {
+      const std::string var_path = path + ".env." + key;
+      if (!is_identifier(key)) {
+        loc.fail(value, var_path, "'" + key + "' is not an environment variable name ([A-Za-z_][A-Za-z0-9_]*)");
+      }
+      spec.env.emplace_back(
+          key, substitute_args(string_value(loc, value, var_path), args, loc.at(value, var_path)));
+    }
+  }
+
+  if (const YAML::Node* ends = find(fields, "ends_launch")) {
+    spec.ends_launch = bool_value(loc, *ends, path + ".ends_launch");
+  }
+  return spec;
+}
+
+}  // namespace
+
+LaunchDescription parse_launch(const std::string& text, const std::string& source,
+                               const ArgOverrides& overrides) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::ParserException& e) {
+    throw LaunchFileError(source + ":" + std::to_string(e.mark.line + 1) + ":" +
+                          std::to_string(e.mark.column + 1) + ": invalid YAML: " + e.msg);
+  } catch (const YAML::Exception& e) {
+    throw LaunchFileError(source + ": invalid YAML: " + e.what());
+  }
+  const Location loc(source);
+  if (!root.IsMap()) {
+    loc.fail(root, "", "the top level must be a map with name and nodes, got " + describe(root));
+  }
+  const auto fields = checked_fields(loc, root, "", kTopKeys);
+
+  LaunchDescription launch;
+  launch.source = source;
+  launch.name = non_empty_string(loc, require(loc, root, fields, "", "name"), "name");
+
+  if (const YAML::Node* args = find(fields, "args")) launch.args = parse_args(loc, *args);
+  for (const auto& [key, value] : overrides) {
+    auto it = launch.args.find(key);
+    if (it == launch.args.end()) {
+      throw LaunchFileError(source + ": --arg " + key + "=" + value + ": no arg '" + key +
+                            "' is declared (declared: " + join_keys(launch.args) + ")");
+    }
+    it->second = value;
+  }
+
+  launch.hosts = {"local"};
+  if (const YAML::Node* hosts = find(fields, "hosts")) launch.hosts = parse_hosts(loc, *hosts);
+
+  const YAML::Node& nodes = require(loc, root, fields, "", "nodes");
+  if (!nodes.IsSequence()) loc.fail(nodes, "nodes", "must be a list of nodes, got " + describe(nodes));
+  if (nodes.size() == 0) loc.fail(nodes, "nodes", "must list at least one node");
+  std::map<std::string, std::size_t> index_of;
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    const std::string path = "nodes[" + std::to_string(i) + "]";
+    NodeSpec spec = parse_node(loc, nodes[i], path, launch.hosts, launch.args);
+    const auto [it, inserted] = index_of.emplace(spec.name, i);
+    if (!inserted) {
+      loc.fail(nodes[i]["name"], path + ".name",
+               "'" + spec.name + "' is already the name of nodes[" + std::to_string(it->second) + "]");
+    }
+    launch.nodes.push_back(std::move(spec));
+  }
+  return launch;
+}
+
+LaunchDescription load_launch_file(const std::string& path, const ArgOverrides& overrides) {
+  std::ifstream in(path);
+  if (!in) throw LaunchFileError(path + ": cannot open launch file: " + std::strerror(errno));
+  std::ostringstream text;
+  text << in.rdbuf();
+  return parse_launch(text.str(), path, overrides);
+}
+
+std::pair<std::string, std::string> parse_arg_override(const std::string& text) {
+  const auto eq = text.find('=');
+  if (eq == std::string::npos || eq == 0) {
+    throw LaunchFileError("--arg '" + text + "': expected NAME=VALUE");
+  }
+  return {text.substr(0, eq), text.substr(eq + 1)};
+}
+
+std::string substitute_args(const std::string& text, const std::map<std::string, std::string>& args,
+                            const std::string& where) {
+  std::string out;
+  std::size_t pos = 0;
+  for (;;) {
+    const std::size_t open = text.find("$(", pos);
+    if (open == std::string::npos) break;
+    out.append(text, pos, open - pos);
+    const std::size_t close = text.find(')', open);
+    if (close == std::string::npos) {
+      throw LaunchFileError(where + ": '" + text + "': '$(' without a closing ')'");
+    }
+    std::istringstream inner(text.substr(open + 2, close - open - 2));
+    std::string kind, name, extra;
+    inner >> kind >> name >> extra;
+    if (kind != "arg" || name.empty() || !extra.empty()) {
+      throw LaunchFileError(where + ": '" + text + "': unknown substitution '" +
+                            text.substr(open, close - open + 1) + "' (only $(arg NAME) exists)");
+    }
+    const auto it = args.find(name);
+    if (it == args.end()) {
+      throw LaunchFileError(where + ": '" + text + "': unknown arg '" + name +
+                            "' (declared: " + join_keys(args) + ")");
+    }
+    out += it->second;
+    pos = close + 1;
+  }
+  out.append(text, pos, std::string::npos);
+  return out;
+}
+
+std::vector<NodeSpec> select_nodes(const LaunchDescription& launch,
+                                   const std::optional<std::string>& host) {
+  if (!host) return launch.nodes;
+  bool known = false;
+  for (const auto& h : launch.hosts) known = known || h == *host;
+  if (!known) {
+    throw LaunchFileError(launch.source + ": --host '" + *host + "': unknown host (known: " +
+                          join(launch.hosts) + ")");
+  }
+  std::vector<NodeSpec> selected;
+  for (const auto& node : launch.nodes) {
+    if (node.host == *host) selected.push_back(node);
+  }
+  return selected;
+}
+
+std::string resolve_executable(const std::string& executable, const std::string& bin_dir,
+                               const std::string& path_env) {
+  const auto usable = [](const std::string& path) {
+    struct stat st {};
+    return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) && ::access(path.c_str(), X_OK) == 0;
+  };
+  if (executable.find('/') != std::string::npos) {
+    if (usable(executable)) return executable;
+    std::error_code ec;
+    const std::string cwd = std::filesystem::current_path(ec).string();
+    struct stat st {};
+    const bool exists = ::stat(executable.c_str(), &st) == 0;
+    throw ExecutableNotFound("executable '" + executable + "' " +
+                             (exists ? "is not an executable file" : "not found") +
+                             (executable[0] == '/' ? std::string() : " (relative to " + cwd + ")"));
+  }
+  std::vector<std::string> dirs;
+  if (!bin_dir.empty()) dirs.push_back(bin_dir);
+  std::size_t start = 0;
+  while (!path_env.empty()) {
+    const std::size_t colon = path_env.find(':', start);
+    const std::string dir = path_env.substr(start, colon == std::string::npos ? colon : colon - start);
+    // POSIX: an empty PATH entry means the current directory.
+    const std::string entry = dir.empty() ? "." : dir;
+    if (std::find(dirs.begin(), dirs.end(), entry) == dirs.end()) dirs.push_back(entry);
+    if (colon == std::string::npos) break;
+    start = colon + 1;
+  }
+  for (const auto& dir : dirs) {
+    const std::string candidate = dir + "/" + executable;
+    if (usable(candidate)) return candidate;
+  }
+  throw ExecutableNotFound("executable '" + executable + "' not found (looked in " + join(dirs) + ")");
+}
+
+std::string shell_quote(const std::string& word) {
+  static const std::string plain =
+      "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_@%+=:,./-";
+  if (!word.empty() && word.find_first_not_of(plain) == std::string::npos) return word;
+  std::string out = "'";
+  for (char c : word) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+}  // namespace pmlsm::launch

@@ -1,0 +1,154 @@
+// launcher: starts the nodes of a launch description (all of them, or one
+// host's slice) and supervises them until the run is over. See launch/README.md.
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "launch_file.hpp"
+#include "supervisor.hpp"
+
+namespace {
+
+using pmlsm::launch::ProcessSpec;
+
+constexpr int kBadInput = 2;
+constexpr int kMaxMs = 24 * 3600 * 1000;
+
+// The folder of the running program: the nodes are built beside it.
+std::string own_folder() {
+  std::error_code ec;
+  const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  return ec ? std::string() : exe.parent_path().string();
+}
+
+std::string quoted_command(const ProcessSpec& p) {
+  std::string out;
+  for (const auto& word : p.argv) out += (out.empty() ? "" : " ") + pmlsm::launch::shell_quote(word);
+  return out;
+}
+
+void print_dry_run(const pmlsm::launch::NodeSpec& node, const ProcessSpec* process,
+                   const std::string& not_found) {
+  std::cout << node.name << " (host " << node.host << (node.ends_launch ? ", ends the launch" : "")
+            << ")\n";
+  for (const auto& [key, value] : node.env) {
+    std::cout << "  env: " << key << "=" << pmlsm::launch::shell_quote(value) << "\n";
+  }
+  if (process != nullptr) {
+    std::cout << "  cmd: " << quoted_command(*process) << "\n";
+  } else {
+    std::cout << "  cmd: <" << not_found << ">\n";
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Starts the nodes of a launch description and supervises them: output prefixed "
+               "with the node's name, SIGINT/SIGTERM forwarded, every exit reported."};
+  std::string file;
+  std::string host;
+  std::string bin_dir;
+  bool dry_run = false;
+  int start_grace_ms = 1000;
+  int stop_timeout_ms = 5000;
+  std::vector<std::string> arg_texts;
+  app.add_option("file", file, "Launch description (YAML)")->required();
+  auto* host_option = app.add_option("--host", host, "Start only the nodes of this host");
+  app.add_option("--bin-dir", bin_dir,
+                 "Where node executables are looked up first (default: the launcher's folder)")
+      ->check(CLI::ExistingDirectory);
+  app.add_flag("--dry-run", dry_run, "Print each node's command line and environment, start nothing");
+  app.add_option("--start-grace-ms", start_grace_ms,
+                 "A node failing this soon after its start fails the launch (0: off)")
+      ->check(CLI::Range(0, kMaxMs))
+      ->capture_default_str();
+  app.add_option("--stop-timeout-ms", stop_timeout_ms, "Time from SIGINT to SIGKILL when stopping nodes")
+      ->check(CLI::Range(0, kMaxMs))
+      ->capture_default_str();
+  app.add_option("--arg", arg_texts, "Set a launch arg: NAME=VALUE (repeatable)")
+      ->type_size(1)
+      ->allow_extra_args(false);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : kBadInput;
+  }
+
+  pmlsm::launch::LaunchDescription launch;
+  std::vector<pmlsm::launch::NodeSpec> nodes;
+  try {
+    pmlsm::launch::ArgOverrides overrides;
+    for (const auto& text : arg_texts) {
+      const auto [key, value] = pmlsm::launch::parse_arg_override(text);
+      overrides[key] = value;
+    }
+    launch = pmlsm::launch::load_launch_file(file, overrides);
+    std::optional<std::string> selected_host;
+    if (host_option->count() > 0) selected_host = host;
+    nodes = pmlsm::launch::select_nodes(launch, selected_host);
+  } catch (const pmlsm::launch::LaunchFileError& e) {
+    std::cerr << "[launcher] error: " << e.what() << "\n";
+    return kBadInput;
+  }
+  const std::string slice = host_option->count() > 0 ? "host " + host : "all hosts";
+
+  if (bin_dir.empty()) bin_dir = own_folder();
+  const char* path_env = std::getenv("PATH");
+  std::vector<ProcessSpec> processes;
+  std::vector<std::string> not_found(nodes.size());
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    const auto& node = nodes[i];
+    try {
+      ProcessSpec p;
+      p.name = node.name;
+      p.path = pmlsm::launch::resolve_executable(node.executable, bin_dir,
+                                                 path_env != nullptr ? path_env : "/usr/bin:/bin");
+      p.argv.push_back(p.path);
+      p.argv.insert(p.argv.end(), node.args.begin(), node.args.end());
+      p.env = node.env;
+      p.ends_launch = node.ends_launch;
+      processes.push_back(std::move(p));
+    } catch (const pmlsm::launch::ExecutableNotFound& e) {
+      not_found[i] = e.what();
+    }
+  }
+  bool any_missing = false;
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    if (!not_found[i].empty()) {
+      std::cerr << "[launcher] node '" << nodes[i].name << "': " << not_found[i] << "\n";
+      any_missing = true;
+    }
+  }
+
+  if (dry_run) {
+    std::cout << "# " << launch.name << " (" << launch.source << "), " << slice << ": "
+              << nodes.size() << (nodes.size() == 1 ? " node\n" : " nodes\n");
+    std::size_t next = 0;
+    for (std::size_t i = 0; i < nodes.size(); ++i) {
+      print_dry_run(nodes[i], not_found[i].empty() ? &processes[next++] : nullptr, not_found[i]);
+    }
+    return any_missing ? 1 : 0;
+  }
+  if (any_missing) {
+    std::cerr << "[launcher] " << launch.name << ": nothing started\n";
+    return 1;
+  }
+  if (processes.empty()) {
+    std::cerr << "[launcher] " << launch.name << ": no nodes on " << slice << "; nothing to start\n";
+    return 0;
+  }
+  std::cerr << "[launcher] " << launch.name << ": starting " << processes.size()
+            << (processes.size() == 1 ? " node" : " nodes") << " (" << slice << ")" << std::endl;
+
+  pmlsm::launch::SupervisorOptions options;
+  options.start_grace = std::chrono::milliseconds(start_grace_ms);
+  options.stop_timeout = std::chrono::milliseconds(stop_timeout_ms);
+  return pmlsm::launch::supervise(processes, options);
+}

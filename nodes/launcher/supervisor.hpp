@@ -1,0 +1,62 @@
+// Process supervision for the launcher: starts each node in its own process
+// group, relays its output line by line with a "[name] " prefix, forwards a
+// stop request (SIGINT, then SIGKILL after a timeout) and reports every exit.
+#pragma once
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstddef>
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace pmlsm::launch {
+
+struct ProcessSpec {
+  std::string name;
+  std::string path;               // what execve runs
+  std::vector<std::string> argv;  // argv[0] first
+  std::vector<std::pair<std::string, std::string>> env;  // set on top of the launcher's own
+  bool ends_launch = false;       // its exit stops the others
+};
+
+struct SupervisorOptions {
+  // A node failing within this time of its start fails the launch; 0 turns the check off.
+  std::chrono::milliseconds start_grace{1000};
+  // Time between the SIGINT of a stop and the SIGKILL.
+  std::chrono::milliseconds stop_timeout{5000};
+  int out_fd = STDOUT_FILENO;  // nodes' stdout lines
+  int err_fd = STDERR_FILENO;  // nodes' stderr lines and the launcher's own messages
+};
+
+// Cuts a byte stream into lines and passes each on as "PREFIXline\n" in one
+// piece, so lines from several nodes never mix. A line longer than max_line is
+// passed on in max_line pieces, to bound the memory a runaway node can take.
+class LineRelay {
+ public:
+  using Sink = std::function<void(const std::string&)>;
+  LineRelay(std::string prefix, Sink sink, std::size_t max_line = 64 * 1024);
+  void feed(const char* data, std::size_t size);
+  // Passes on a last line that has no '\n' (call at end of stream).
+  void finish();
+
+ private:
+  void emit(const char* data, std::size_t size);
+  std::string prefix_;
+  Sink sink_;
+  std::size_t max_line_;
+  std::string partial_;
+};
+
+// Starts `processes` in order and supervises them until all have exited. Stops
+// them all (SIGINT; SIGKILL after options.stop_timeout) when the launcher gets
+// SIGINT, SIGTERM or SIGHUP (a second one sends SIGKILL at once), when a node with
+// ends_launch exits, or when a node fails to start or dies within
+// options.start_grace. Uses SIGCHLD itself: call it from a single-threaded
+// process. Returns 0 when every node exited with code 0, or was stopped and
+// ended by that SIGINT or with code 0; otherwise 1.
+int supervise(const std::vector<ProcessSpec>& processes, const SupervisorOptions& options);
+
+}  // namespace pmlsm::launch

@@ -1,0 +1,271 @@
+// plant_sim: the simulated servo drive on DDS. Publishes MotorFeedback (what
+// the drive measures) and PlantTruth (for evaluation only) every control tick
+// and applies ForceCommand through the drive's own current loop.
+//
+// Clocks:
+//  - lockstep: the plant is the clock. It publishes tick k and integrates to
+//    k+1 only when the command answering tick k has arrived: deterministic,
+//    as fast as the machine goes.
+//  - realtime: ticks on absolute time (no drift). The plant never waits past
+//    --command-deadline-us into the tick: it applies the newest command
+//    (zero-order hold), counts late ones, and after --watchdog-ms without a
+//    command goes to its safe state (zero force), latched until restart.
+#include <time.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "ForceCommandPubSubTypes.h"
+#include "MotorFeedbackPubSubTypes.h"
+#include "PlantTruthPubSubTypes.h"
+#include "node_support.hpp"
+#include "pmlsm/closed_loop.hpp"
+#include "pmlsm/simulated_drive.hpp"
+
+namespace {
+
+using namespace pmlsm;
+namespace pdds = pmlsm::dds;
+using pmlsm_msgs::msg::ForceCommand;
+using pmlsm_msgs::msg::MotorFeedback;
+using pmlsm_msgs::msg::PlantTruth;
+namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
+namespace flags = pmlsm_msgs::msg::MotorFeedback_Constants;
+
+struct PlantOptions {
+  int peers = 2;
+  double watchdog_ms = 3.0;
+  double command_deadline_us = 500.0;
+};
+
+void fill_truth(const SimulatedDrive& drive, double force_n, PlantTruth& out) {
+  const pmlsm::PlantTruth t = drive.plant().truth();
+  out.motor_position_m(t.state.motor_position_m);
+  out.motor_velocity_mps(t.state.motor_velocity_mps);
+  out.motor_acceleration_mps2(t.motor_accel_mps2);
+  out.load_position_m(t.state.load_position_m);
+  out.load_velocity_mps(t.state.load_velocity_mps);
+  out.load_acceleration_mps2(t.load_accel_mps2);
+  out.spring_force_n(t.spring_force_n);
+  out.thrust_force_n(t.thrust_n);
+  out.ripple_force_n(t.ripple_n);
+  out.friction_force_n(t.friction_n);
+  out.command_force_n(force_n);
+  out.psi_d_wb(t.state.psi_d_wb);
+  out.psi_q_wb(t.state.psi_q_wb);
+  out.psi_damper_d_wb(t.state.psi_dd_wb);
+  out.psi_damper_q_wb(t.state.psi_qq_wb);
+  out.i_d_a(t.i_d_a);
+  out.i_q_a(t.i_q_a);
+  out.i_damper_d_a(t.i_dd_a);
+  out.i_damper_q_a(t.i_qq_a);
+  out.u_d_v(drive.last_u_d_v());
+  out.u_q_v(drive.last_u_q_v());
+}
+
+struct Counters {
+  std::uint64_t late = 0;       // ticks whose command missed them (realtime) or stale answers (lockstep)
+  std::uint64_t rejected = 0;   // non-finite or out-of-order commands
+  std::uint64_t deadline_misses = 0;
+};
+
+// A command is applied only if finite and newer than the last applied one.
+bool acceptable(const ForceCommand& cmd, std::uint64_t last_tick, bool any_yet) {
+  return std::isfinite(cmd.force_n()) && (!any_yet || cmd.feedback_tick() > last_tick);
+}
+
+timespec add_ns(timespec t, std::int64_t ns) {
+  t.tv_nsec += ns;
+  while (t.tv_nsec >= 1000000000L) {
+    t.tv_nsec -= 1000000000L;
+    ++t.tv_sec;
+  }
+  return t;
+}
+
+std::int64_t diff_ns(const timespec& a, const timespec& b) {
+  return (static_cast<std::int64_t>(a.tv_sec) - b.tv_sec) * 1000000000LL + (a.tv_nsec - b.tv_nsec);
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"Simulated PMLSM servo drive (plant + drive current loop) on DDS"};
+  node::CommonOptions common;
+  PlantOptions opt;
+  node::add_common_options(app, common);
+  app.add_option("--peers", opt.peers, "MotorFeedback readers to wait for before tick 0")
+      ->check(CLI::Range(1, 64));
+  app.add_option("--watchdog-ms", opt.watchdog_ms, "realtime: no command for this long -> safe state")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--command-deadline-us", opt.command_deadline_us,
+                 "realtime: how long into a tick the plant waits for that tick's command")
+      ->check(CLI::Range(0.0, 1e6));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? node::kOk : node::kBadConfig;
+  }
+  const node::LoadedConfig cfg = node::load_config(common);
+  const double period = cfg.params.timing.control_period_s;
+  common.dds.node_name = "plant_sim";
+
+  pdds::Participant participant(common.dds);
+  pdds::Wakeup wakeup;
+  auto feedback_writer = participant.make_writer<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback);
+  auto truth_writer = participant.make_writer<pmlsm_msgs::msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth);
+  auto command_reader = participant.make_reader<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand, wakeup);
+  node::StatusPublisher status(participant, "plant_sim");
+
+  SimulatedDrive drive(cfg.params, scenario_initial_condition(cfg.scenario));
+  const std::uint64_t ticks = scenario_ticks(cfg.scenario, period);
+  const double km = cfg.params.plant.electrical.motor_constant_n_per_a;
+
+  status.publish(node_state::STATE_WAITING, 0, period, "waiting for peers");
+  const auto peer_timeout = std::chrono::duration<double>(common.peer_timeout_s);
+  if (!node::wait_until(wakeup, peer_timeout, [&] {
+        return feedback_writer.matched_readers() >= static_cast<std::size_t>(opt.peers) &&
+               command_reader.matched_writers() >= 1;
+      })) {
+    if (pdds::stop_requested()) return node::kOk;
+    std::fprintf(stderr, "plant_sim: peers missing after %.1f s: %zu of %d MotorFeedback readers, %zu ForceCommand writers\n",
+                 common.peer_timeout_s, feedback_writer.matched_readers(), opt.peers,
+                 command_reader.matched_writers());
+    return node::kPeerMissing;
+  }
+  std::printf("plant_sim: %s clock, %llu ticks of %.3g ms, scenario %s\n",
+              cfg.clock == node::Clock::kLockstep ? "lockstep" : "realtime",
+              static_cast<unsigned long long>(ticks), period * 1e3, cfg.scenario.name.c_str());
+  std::fflush(stdout);
+  status.publish(node_state::STATE_RUNNING, 0, period, "running");
+
+  MotorFeedback feedback;
+  PlantTruth truth;
+  ForceCommand command;
+  Counters counters;
+  double force_n = 0.0;          // zero-order hold of the applied command
+  std::uint64_t applied_tick = 0;
+  bool any_command = false;
+  bool safe_state = false;
+  int exit_code = node::kOk;
+
+  timespec next_tick{};
+  clock_gettime(CLOCK_MONOTONIC, &next_tick);
+  const auto period_ns = static_cast<std::int64_t>(std::llround(period * 1e9));
+  timespec last_command_time = next_tick;
+
+  std::uint64_t k = 0;
+  for (; k < ticks && !pdds::stop_requested(); ++k) {
+    const DriveFeedback fb = drive.sample();
+    std::uint32_t status_bits = flags::STATUS_SIMULATED;
+    if (safe_state) status_bits |= flags::STATUS_SAFE_STATE | flags::STATUS_WATCHDOG_TRIPPED;
+    feedback.stamp(node::make_stamp(k, period));
+    feedback.position_m(fb.encoder_position_m);
+    feedback.velocity_mps(fb.velocity_mps);
+    feedback.i_d_a(fb.i_d_a);
+    feedback.i_q_a(fb.i_q_a);
+    feedback.thrust_force_n(km * fb.i_q_a);
+    feedback.applied_force_n(force_n);
+    feedback.applied_command_tick(applied_tick);
+    feedback.status(status_bits);
+    fill_truth(drive, force_n, truth);
+    truth.stamp(feedback.stamp());
+    feedback_writer.write(feedback);
+    truth_writer.write(truth);
+
+    if (cfg.clock == node::Clock::kLockstep) {
+      bool answered = false;
+      const bool ok = node::wait_until(wakeup, peer_timeout, [&] {
+        while (!answered && command_reader.take(command)) {
+          if (command.feedback_tick() != k) {
+            ++counters.late;  // an answer to another tick: stale or out of order
+          } else if (!std::isfinite(command.force_n())) {
+            ++counters.rejected;  // held: the last finite force stays applied
+            answered = true;
+          } else {
+            force_n = command.force_n();
+            applied_tick = k;
+            any_command = true;
+            answered = true;
+          }
+        }
+        return answered;
+      });
+      if (!ok) {
+        if (pdds::stop_requested()) break;
+        std::fprintf(stderr, "plant_sim: no ForceCommand for tick %llu within %.1f s: controller lost; safe state\n",
+                     static_cast<unsigned long long>(k), common.peer_timeout_s);
+        status.publish(node_state::STATE_SAFE, k, period, "controller lost");
+        exit_code = node::kPeerLost;
+        break;
+      }
+    } else {
+      // Wait into the tick for its command, then apply the newest acceptable one.
+      const timespec command_deadline =
+          add_ns(next_tick, static_cast<std::int64_t>(opt.command_deadline_us * 1e3));
+      bool fresh = false;
+      auto drain = [&] {
+        while (command_reader.take(command)) {
+          if (!acceptable(command, applied_tick, any_command)) {
+            ++counters.rejected;
+            continue;
+          }
+          force_n = command.force_n();
+          applied_tick = command.feedback_tick();
+          any_command = true;
+          fresh = fresh || command.feedback_tick() == k;
+          clock_gettime(CLOCK_MONOTONIC, &last_command_time);
+        }
+        return fresh;
+      };
+      timespec now{};
+      clock_gettime(CLOCK_MONOTONIC, &now);
+      const double wait_s = std::max(0.0, static_cast<double>(diff_ns(command_deadline, now)) * 1e-9);
+      node::wait_until(wakeup, std::chrono::duration<double>(wait_s), drain);
+      drain();
+      if (!fresh) ++counters.late;
+      clock_gettime(CLOCK_MONOTONIC, &now);
+      if (!safe_state && any_command &&
+          static_cast<double>(diff_ns(now, last_command_time)) > opt.watchdog_ms * 1e6) {
+        safe_state = true;
+        std::fprintf(stderr, "plant_sim: watchdog: no command for %.1f ms at tick %llu: safe state (zero force)\n",
+                     opt.watchdog_ms, static_cast<unsigned long long>(k));
+        status.publish(node_state::STATE_SAFE, k, period, "watchdog: no command, zero force");
+      }
+      if (safe_state) force_n = 0.0;
+    }
+
+    drive.apply_force(force_n);
+
+    if (cfg.clock == node::Clock::kRealtime) {
+      next_tick = add_ns(next_tick, period_ns);
+      timespec now{};
+      clock_gettime(CLOCK_MONOTONIC, &now);
+      if (diff_ns(now, next_tick) > 0) ++counters.deadline_misses;
+      clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next_tick, nullptr);
+    }
+    if (k % 1000 == 999) {
+      auto& s = status.status();
+      s.late(counters.late);
+      s.rejected(counters.rejected);
+      s.deadline_misses(counters.deadline_misses);
+      status.publish(safe_state ? node_state::STATE_SAFE : node_state::STATE_RUNNING, k, period);
+    }
+  }
+
+  auto& s = status.status();
+  s.late(counters.late);
+  s.rejected(counters.rejected);
+  s.deadline_misses(counters.deadline_misses);
+  status.publish(node_state::STATE_STOPPING, k, period, "done");
+  std::printf("plant_sim: %llu ticks, late %llu, rejected %llu, deadline misses %llu%s\n",
+              static_cast<unsigned long long>(k), static_cast<unsigned long long>(counters.late),
+              static_cast<unsigned long long>(counters.rejected),
+              static_cast<unsigned long long>(counters.deadline_misses), safe_state ? ", ended in safe state" : "");
+  return exit_code;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return pmlsm::node::run_node("plant_sim", [&] { return run(argc, argv); });
+}

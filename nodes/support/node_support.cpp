@@ -1,0 +1,82 @@
+#include "node_support.hpp"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <ctime>
+#include <exception>
+
+#include "pmlsm/dds/shutdown.hpp"
+
+namespace pmlsm::node {
+
+void add_common_options(CLI::App& app, CommonOptions& o) {
+  app.add_option("-c,--config", o.config_path, "System parameters (YAML)")->check(CLI::ExistingFile);
+  app.add_option("-s,--scenario", o.scenario_path, "Scenario (YAML)")->check(CLI::ExistingFile);
+  app.add_option("--set", o.overrides, "Override a system parameter: key.path=value")->take_all();
+  app.add_option("--profiles", o.dds.profiles_file, "Fast DDS XML profiles")->check(CLI::ExistingFile);
+  app.add_option("--participant-profile", o.dds.participant_profile, "Participant profile in --profiles");
+  app.add_option("--domain", o.dds.domain_id, "DDS domain id")->check(CLI::Range(0, 232));
+  app.add_option("--clock", o.clock, "lockstep (deterministic, as fast as possible) or realtime")
+      ->check(CLI::IsMember({"lockstep", "realtime"}));
+  app.add_option("--peer-timeout-s", o.peer_timeout_s,
+                 "How long to wait for a peer, at start and between lockstep ticks")
+      ->check(CLI::PositiveNumber);
+}
+
+LoadedConfig load_config(const CommonOptions& o) {
+  std::vector<ConfigOverride> overrides;
+  for (const auto& text : o.overrides) overrides.push_back(ConfigOverride::parse(text));
+  LoadedConfig c;
+  c.params = load_system_params(o.config_path, overrides);
+  c.scenario = load_scenario(o.scenario_path, c.params.timing.control_period_s);
+  c.clock = o.clock == "realtime" ? Clock::kRealtime : Clock::kLockstep;
+  return c;
+}
+
+int run_node(const std::string& node_name, const std::function<int()>& body) {
+  dds::install_shutdown_handlers();
+  try {
+    return body();
+  } catch (const ConfigError& e) {
+    std::fprintf(stderr, "%s: config error: %s\n", node_name.c_str(), e.what());
+    return kBadConfig;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: error: %s\n", node_name.c_str(), e.what());
+    return kError;
+  }
+}
+
+std::int64_t wall_time_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
+}
+
+pmlsm_msgs::msg::Stamp make_stamp(std::uint64_t tick, double control_period_s) {
+  pmlsm_msgs::msg::Stamp s;
+  s.tick(tick);
+  s.sim_time_ns(static_cast<std::int64_t>(static_cast<double>(tick) * control_period_s * 1e9 + 0.5));
+  s.source_time_ns(wall_time_ns());
+  return s;
+}
+
+StatusPublisher::StatusPublisher(dds::Participant& participant, const std::string& node_name)
+    : writer_(participant.make_writer<pmlsm_msgs::msg::NodeStatusPubSubType>(dds::topics::kNodeStatus)) {
+  char host[64] = {};
+  gethostname(host, sizeof host - 1);
+  status_.node_name(node_name);
+  status_.host_name(host);
+  status_.pid(static_cast<std::uint32_t>(getpid()));
+}
+
+void StatusPublisher::publish(std::uint8_t state, std::uint64_t tick, double control_period_s,
+                              const std::string& message) {
+  status_.stamp(make_stamp(tick, control_period_s));
+  status_.state(state);
+  status_.ticks(tick);
+  if (!message.empty()) status_.message(message);
+  writer_.write(status_);
+}
+
+}  // namespace pmlsm::node

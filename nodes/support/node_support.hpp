@@ -1,0 +1,97 @@
+// What every node shares: the common command-line options, config loading
+// with the exit codes the launcher reports, stamps, and the NodeStatus
+// heartbeat. Nodes stay thin: parse, load, wire topics, run the loop.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "NodeStatusPubSubTypes.h"
+#include "StampPubSubTypes.h"
+#include "pmlsm/config.hpp"
+#include "pmlsm/dds/participant.hpp"
+#include "pmlsm/dds/shutdown.hpp"
+
+namespace pmlsm::node {
+
+/// Exit codes, the same for every node.
+enum ExitCode : int {
+  kOk = 0,
+  kError = 1,        ///< DDS or I/O failure
+  kBadConfig = 2,    ///< config or command line rejected
+  kPeerMissing = 3,  ///< a peer never appeared (discovery timeout)
+  kPeerLost = 4,     ///< a peer stopped answering mid-run (lockstep timeout)
+};
+
+enum class Clock { kLockstep, kRealtime };
+
+struct CommonOptions {
+  std::string config_path = "configs/system.yaml";
+  std::string scenario_path = "configs/scenarios/pulse.yaml";
+  std::vector<std::string> overrides;
+  dds::ParticipantOptions dds;
+  std::string clock = "lockstep";
+  double peer_timeout_s = 10.0;
+};
+
+/// Adds --config, --scenario, --set, --profiles, --participant-profile, --domain, --clock, --peer-timeout-s.
+void add_common_options(CLI::App& app, CommonOptions& options);
+
+struct LoadedConfig {
+  SystemParams params;
+  Scenario scenario;
+  Clock clock = Clock::kLockstep;
+};
+
+/// @throws ConfigError naming the file, key path and value.
+LoadedConfig load_config(const CommonOptions& options);
+
+/// Runs a node's body and maps its failures to exit codes with a one-line
+/// message on stderr: ConfigError -> 2, anything else -> 1.
+int run_node(const std::string& node_name, const std::function<int()>& body);
+
+/// Wall-clock time in ns (CLOCK_REALTIME), for stamps across hosts.
+std::int64_t wall_time_ns();
+
+pmlsm_msgs::msg::Stamp make_stamp(std::uint64_t tick, double control_period_s);
+
+/// Polls `ready` until it holds, waking on DDS activity; false after the timeout
+/// or on a stop request. A template, not std::function: it runs every tick and
+/// must not allocate.
+template <typename Ready>
+bool wait_until(dds::Wakeup& wakeup, std::chrono::duration<double> timeout, Ready&& ready) {
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::duration_cast<std::chrono::steady_clock::duration>(timeout);
+  while (!dds::stop_requested()) {
+    const std::uint64_t seen = wakeup.generation();
+    if (ready()) return true;
+    const auto now = std::chrono::steady_clock::now();
+    if (now >= deadline) return false;
+    // Bounded waits, so a stop request is seen within 50 ms.
+    wakeup.wait_for(seen, std::min<std::chrono::nanoseconds>(
+                              std::chrono::duration_cast<std::chrono::nanoseconds>(deadline - now),
+                              std::chrono::milliseconds(50)));
+  }
+  return false;
+}
+
+/// Publishes NodeStatus with this node's counters.
+class StatusPublisher {
+ public:
+  StatusPublisher(dds::Participant& participant, const std::string& node_name);
+  pmlsm_msgs::msg::NodeStatus& status() { return status_; }
+  void publish(std::uint8_t state, std::uint64_t tick, double control_period_s,
+               const std::string& message = "");
+
+ private:
+  dds::Writer<pmlsm_msgs::msg::NodeStatusPubSubType> writer_;
+  pmlsm_msgs::msg::NodeStatus status_;
+};
+
+}  // namespace pmlsm::node
