@@ -1,0 +1,125 @@
+// The control loop as separate processes on real DDS (loopback, shared memory).
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "child_process.hpp"
+#include "pmlsm/closed_loop.hpp"
+#include "pmlsm/config.hpp"
+#include "trace_csv.hpp"
+
+namespace pmlsm {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string bin(const std::string& name) { return std::string(PMLSM_BIN_DIR) + "/" + name; }
+std::string source(const std::string& rel) { return std::string(PMLSM_SOURCE_DIR) + "/" + rel; }
+
+// A domain of its own per test process, so tests running in parallel never meet.
+std::string test_domain(int offset) { return std::to_string(100 + (getpid() * 7 + offset) % 120); }
+
+std::string read_file(const fs::path& p) {
+  std::ifstream in(p);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::vector<std::string> node_args(const std::string& exe, const std::string& domain,
+                                   const std::string& scenario, std::vector<std::string> extra = {}) {
+  std::vector<std::string> a{bin(exe),        "--domain", domain, "--config", source("configs/system.yaml"),
+                             "--scenario",    scenario,   "--profiles", source("configs/dds/profiles.xml")};
+  a.insert(a.end(), extra.begin(), extra.end());
+  return a;
+}
+
+class DistributedLockstep : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(DistributedLockstep, TraceEqualsTheInProcessLoop) {
+  const std::string name = GetParam();
+  const std::string scenario = source("configs/scenarios/" + name + ".yaml");
+  const fs::path dir = fs::temp_directory_path() / ("pmlsm_dist_" + std::to_string(getpid()) + "_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string domain = test_domain(name.size());
+
+  test::ChildProcess evaluator(node_args("evaluator", domain, scenario, {"--out", dir.string()}), (dir / "evaluator.log").string());
+  test::ChildProcess estimator(node_args("kalman_estimator", domain, scenario), (dir / "estimator.log").string());
+  test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
+  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "3"}), (dir / "plant.log").string());
+
+  for (auto* p : {&plant, &controller, &estimator, &evaluator}) {
+    const auto code = p->wait_for(std::chrono::seconds(60));
+    ASSERT_TRUE(code.has_value()) << "still running:\n" << p->output();
+    EXPECT_EQ(*code, 0) << p->output();
+  }
+
+  const SystemParams params = load_system_params(source("configs/system.yaml"));
+  const Scenario sc = load_scenario(scenario, params.timing.control_period_s);
+  write_trace_csv((dir / "in_process.csv").string(), run_scenario(params, sc));
+  const std::string distributed = read_file(dir / (name + ".csv"));
+  ASSERT_FALSE(distributed.empty()) << evaluator.output();
+  EXPECT_TRUE(distributed == read_file(dir / "in_process.csv"))
+      << "the distributed trace differs from the in-process one (" << dir << ")";
+  EXPECT_NE(plant.output().find("late 0, rejected 0"), std::string::npos) << plant.output();
+  fs::remove_all(dir);
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenarios, DistributedLockstep, ::testing::Values("pulse", "free_vibration"));
+
+TEST(DistributedFailures, LockstepPlantReportsALostControllerAndStops) {
+  const std::string scenario = source("configs/scenarios/free_vibration.yaml");
+  const fs::path dir = fs::temp_directory_path() / ("pmlsm_lost_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  const std::string domain = test_domain(31);
+  test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
+  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "1", "--peer-timeout-s", "1"}),
+                           (dir / "plant.log").string());
+  ASSERT_TRUE(plant.wait_for_output("lockstep clock", std::chrono::seconds(30))) << plant.output();
+  controller.signal(SIGKILL);
+  const auto code = plant.wait_for(std::chrono::seconds(30));
+  ASSERT_TRUE(code.has_value());
+  EXPECT_EQ(*code, 4) << plant.output();  // kPeerLost
+  EXPECT_NE(plant.output().find("controller lost; safe state"), std::string::npos) << plant.output();
+  fs::remove_all(dir);
+}
+
+TEST(DistributedFailures, RealtimeWatchdogPutsThePlantInItsSafeState) {
+  const std::string scenario = source("configs/scenarios/pulse.yaml");
+  const fs::path dir = fs::temp_directory_path() / ("pmlsm_watchdog_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  const std::string domain = test_domain(47);
+  test::ChildProcess controller(node_args("controller", domain, scenario, {"--clock", "realtime"}),
+                                (dir / "controller.log").string());
+  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "1", "--clock", "realtime"}),
+                           (dir / "plant.log").string());
+  ASSERT_TRUE(plant.wait_for_output("realtime clock", std::chrono::seconds(30))) << plant.output();
+  controller.signal(SIGKILL);
+  const auto code = plant.wait_for(std::chrono::seconds(30));
+  ASSERT_TRUE(code.has_value());
+  EXPECT_EQ(*code, 0) << plant.output();  // it finishes the run, safely
+  const std::string out = plant.output();
+  EXPECT_NE(out.find("watchdog: no command for 3.0 ms"), std::string::npos) << out;
+  EXPECT_NE(out.find("ended in safe state"), std::string::npos) << out;
+  fs::remove_all(dir);
+}
+
+TEST(DistributedFailures, NodesRejectABadConfigWithExitCode2) {
+  for (const char* exe : {"plant_sim", "controller", "kalman_estimator", "evaluator"}) {
+    const fs::path log = fs::temp_directory_path() / ("pmlsm_badcfg_" + std::to_string(getpid()) + exe);
+    test::ChildProcess p(node_args(exe, "0", source("configs/scenarios/pulse.yaml"),
+                                   {"--set", "plant.mechanics.load_mass_kg=-4"}),
+                         log.string());
+    const auto code = p.wait_for(std::chrono::seconds(30));
+    ASSERT_TRUE(code.has_value()) << exe;
+    EXPECT_EQ(*code, 2) << exe << ": " << p.output();
+    EXPECT_NE(p.output().find("plant.mechanics.load_mass_kg"), std::string::npos) << p.output();
+    fs::remove(log);
+  }
+}
+
+}  // namespace
+}  // namespace pmlsm
