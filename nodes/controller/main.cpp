@@ -98,6 +98,8 @@ int run(int argc, char** argv) {
   }
   status.status().rejected(rejected);
   status.publish(node_state::STATE_STOPPING, next_tick, period, "done");
+  command_writer.wait_for_acknowledgments(peer_timeout);
+  reference_writer.wait_for_acknowledgments(peer_timeout);
   std::printf("controller: %llu ticks answered, %llu rejected\n",
               static_cast<unsigned long long>(next_tick), static_cast<unsigned long long>(rejected));
   return exit_code;

@@ -45,11 +45,11 @@ int run(int argc, char** argv) {
 
   pdds::Participant participant(common.dds);
   pdds::Wakeup wakeup;
-  auto feedback_reader = participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, wakeup);
-  auto truth_reader = participant.make_reader<pmlsm_msgs::msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth, wakeup);
-  auto reference_reader = participant.make_reader<pmlsm_msgs::msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference, wakeup);
-  auto command_reader = participant.make_reader<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand, wakeup);
-  auto estimate_reader = participant.make_reader<pmlsm_msgs::msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState, wakeup);
+  auto feedback_reader = participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, wakeup, pdds::kObserverProfile);
+  auto truth_reader = participant.make_reader<pmlsm_msgs::msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth, wakeup, pdds::kObserverProfile);
+  auto reference_reader = participant.make_reader<pmlsm_msgs::msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference, wakeup, pdds::kObserverProfile);
+  auto command_reader = participant.make_reader<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand, wakeup, pdds::kObserverProfile);
+  auto estimate_reader = participant.make_reader<pmlsm_msgs::msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState, wakeup, pdds::kObserverProfile);
   node::StatusPublisher status(participant, "evaluator");
   status.publish(node_state::STATE_RUNNING, 0, period, "collecting");
 

@@ -93,7 +93,8 @@ std::vector<std::pair<std::string, YAML::Node>> checked_fields(
   std::set<std::string> seen;
   const std::string prefix = path.empty() ? "" : path + ".";
   for (const auto& kv : map) {
-    if (!kv.first.IsScalar()) loc.fail(kv.first, path, "keys must be strings, got " + describe(kv.first));
+    if (!kv.first.IsScalar())
+      loc.fail(kv.first, path, "keys must be strings, got " + describe(kv.first));
     const std::string key = kv.first.Scalar();
     if (!allowed.empty()) {
       bool known = false;
@@ -119,7 +120,7 @@ const YAML::Node& require(const Location& loc, const YAML::Node& map,
                           const std::string& path, const std::string& key) {
   const YAML::Node* node = find(fields, key);
   if (node == nullptr) {
-    loc.fail(map, path.empty() ? "" : path, "missing required key '" + key + "'");
+    loc.fail(map, path, "missing required key '" + key + "'");
   }
   return *node;
 }
@@ -145,8 +146,10 @@ bool bool_value(const Location& loc, const YAML::Node& node, const std::string& 
 }
 
 std::vector<std::string> parse_hosts(const Location& loc, const YAML::Node& node) {
-  if (!node.IsSequence()) loc.fail(node, "hosts", "must be a list of host names, got " + describe(node));
-  if (node.size() == 0) loc.fail(node, "hosts", "must not be empty (leave it out for one host 'local')");
+  if (!node.IsSequence())
+    loc.fail(node, "hosts", "must be a list of host names, got " + describe(node));
+  if (node.size() == 0)
+    loc.fail(node, "hosts", "must not be empty (leave it out for one host 'local')");
   std::vector<std::string> hosts;
   for (std::size_t i = 0; i < node.size(); ++i) {
     const std::string path = "hosts[" + std::to_string(i) + "]";
@@ -163,11 +166,13 @@ std::vector<std::string> parse_hosts(const Location& loc, const YAML::Node& node
 }
 
 std::map<std::string, std::string> parse_args(const Location& loc, const YAML::Node& node) {
-  if (!node.IsMap()) loc.fail(node, "args", "must be a map of arg names to default values, got " + describe(node));
+  if (!node.IsMap())
+    loc.fail(node, "args", "must be a map of arg names to default values, got " + describe(node));
   std::map<std::string, std::string> args;
   for (const auto& [key, value] : checked_fields(loc, node, "args", {})) {
     const std::string path = "args." + key;
-    if (!is_identifier(key)) loc.fail(value, path, "'" + key + "' is not an arg name ([A-Za-z_][A-Za-z0-9_]*)");
+    if (!is_identifier(key))
+      loc.fail(value, path, "'" + key + "' is not an arg name ([A-Za-z_][A-Za-z0-9_]*)");
     args[key] = string_value(loc, value, path);
   }
   return args;
@@ -176,7 +181,8 @@ std::map<std::string, std::string> parse_args(const Location& loc, const YAML::N
 NodeSpec parse_node(const Location& loc, const YAML::Node& node, const std::string& path,
                     const std::vector<std::string>& hosts,
                     const std::map<std::string, std::string>& args) {
-  if (!node.IsMap()) loc.fail(node, path, "must be a map with at least name and executable, got " + describe(node));
+  if (!node.IsMap())
+    loc.fail(node, path, "must be a map with at least name and executable, got " + describe(node));
   const auto fields = checked_fields(loc, node, path, kNodeKeys);
   NodeSpec spec;
 
@@ -220,12 +226,14 @@ NodeSpec parse_node(const Location& loc, const YAML::Node& node, const std::stri
 
   if (const YAML::Node* env = find(fields, "env")) {
     if (!env->IsMap()) {
-      loc.fail(*env, path + ".env", "must be a map of variable names to strings, got " + describe(*env));
+      loc.fail(*env, path + ".env",
+               "must be a map of variable names to strings, got " + describe(*env));
     }
     for (const auto& [key, value] : checked_fields(loc, *env, path + ".env", {})) {
       const std::string var_path = path + ".env." + key;
       if (!is_identifier(key)) {
-        loc.fail(value, var_path, "'" + key + "' is not an environment variable name ([A-Za-z_][A-Za-z0-9_]*)");
+        loc.fail(value, var_path,
+                 "'" + key + "' is not an environment variable name ([A-Za-z_][A-Za-z0-9_]*)");
       }
       spec.env.emplace_back(
           key, substitute_args(string_value(loc, value, var_path), args, loc.at(value, var_path)));
@@ -275,7 +283,8 @@ LaunchDescription parse_launch(const std::string& text, const std::string& sourc
   if (const YAML::Node* hosts = find(fields, "hosts")) launch.hosts = parse_hosts(loc, *hosts);
 
   const YAML::Node& nodes = require(loc, root, fields, "", "nodes");
-  if (!nodes.IsSequence()) loc.fail(nodes, "nodes", "must be a list of nodes, got " + describe(nodes));
+  if (!nodes.IsSequence())
+    loc.fail(nodes, "nodes", "must be a list of nodes, got " + describe(nodes));
   if (nodes.size() == 0) loc.fail(nodes, "nodes", "must list at least one node");
   std::map<std::string, std::size_t> index_of;
   for (std::size_t i = 0; i < nodes.size(); ++i) {
@@ -283,8 +292,9 @@ LaunchDescription parse_launch(const std::string& text, const std::string& sourc
     NodeSpec spec = parse_node(loc, nodes[i], path, launch.hosts, launch.args);
     const auto [it, inserted] = index_of.emplace(spec.name, i);
     if (!inserted) {
-      loc.fail(nodes[i]["name"], path + ".name",
-               "'" + spec.name + "' is already the name of nodes[" + std::to_string(it->second) + "]");
+      loc.fail(
+          nodes[i]["name"], path + ".name",
+          "'" + spec.name + "' is already the name of nodes[" + std::to_string(it->second) + "]");
     }
     launch.nodes.push_back(std::move(spec));
   }
@@ -344,8 +354,8 @@ std::vector<NodeSpec> select_nodes(const LaunchDescription& launch,
   bool known = false;
   for (const auto& h : launch.hosts) known = known || h == *host;
   if (!known) {
-    throw LaunchFileError(launch.source + ": --host '" + *host + "': unknown host (known: " +
-                          join(launch.hosts) + ")");
+    throw LaunchFileError(launch.source + ": --host '" + *host +
+                          "': unknown host (known: " + join(launch.hosts) + ")");
   }
   std::vector<NodeSpec> selected;
   for (const auto& node : launch.nodes) {
@@ -358,7 +368,8 @@ std::string resolve_executable(const std::string& executable, const std::string&
                                const std::string& path_env) {
   const auto usable = [](const std::string& path) {
     struct stat st {};
-    return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) && ::access(path.c_str(), X_OK) == 0;
+    return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) &&
+           ::access(path.c_str(), X_OK) == 0;
   };
   if (executable.find('/') != std::string::npos) {
     if (usable(executable)) return executable;
@@ -375,7 +386,8 @@ std::string resolve_executable(const std::string& executable, const std::string&
   std::size_t start = 0;
   while (!path_env.empty()) {
     const std::size_t colon = path_env.find(':', start);
-    const std::string dir = path_env.substr(start, colon == std::string::npos ? colon : colon - start);
+    const std::string dir =
+        path_env.substr(start, colon == std::string::npos ? colon : colon - start);
     // POSIX: an empty PATH entry means the current directory.
     const std::string entry = dir.empty() ? "." : dir;
     if (std::find(dirs.begin(), dirs.end(), entry) == dirs.end()) dirs.push_back(entry);
@@ -386,7 +398,8 @@ std::string resolve_executable(const std::string& executable, const std::string&
     const std::string candidate = dir + "/" + executable;
     if (usable(candidate)) return candidate;
   }
-  throw ExecutableNotFound("executable '" + executable + "' not found (looked in " + join(dirs) + ")");
+  throw ExecutableNotFound("executable '" + executable + "' not found (looked in " + join(dirs) +
+                           ")");
 }
 
 std::string shell_quote(const std::string& word) {

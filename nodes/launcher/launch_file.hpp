@@ -29,8 +29,8 @@ struct NodeSpec {
   std::string name;        // unique, [A-Za-z0-9_-]+
   std::string executable;  // as written, after substitution
   std::string host;
-  std::vector<std::string> args;                            // after substitution
-  std::vector<std::pair<std::string, std::string>> env;     // in file order, after substitution
+  std::vector<std::string> args;                         // after substitution
+  std::vector<std::pair<std::string, std::string>> env;  // in file order, after substitution
   bool ends_launch = false;
 };
 

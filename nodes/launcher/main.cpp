@@ -1,8 +1,8 @@
 // launcher: starts the nodes of a launch description (all of them, or one
 // host's slice) and supervises them until the run is over. See launch/README.md.
 #include <CLI/CLI.hpp>
-
-#include <cstdio>
+#include <algorithm>
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
@@ -29,19 +29,20 @@ std::string own_folder() {
 
 std::string quoted_command(const ProcessSpec& p) {
   std::string out;
-  for (const auto& word : p.argv) out += (out.empty() ? "" : " ") + pmlsm::launch::shell_quote(word);
+  for (const auto& word : p.argv)
+    out += (out.empty() ? "" : " ") + pmlsm::launch::shell_quote(word);
   return out;
 }
 
-void print_dry_run(const pmlsm::launch::NodeSpec& node, const ProcessSpec* process,
+void print_dry_run(const pmlsm::launch::NodeSpec& node, const ProcessSpec& process,
                    const std::string& not_found) {
   std::cout << node.name << " (host " << node.host << (node.ends_launch ? ", ends the launch" : "")
             << ")\n";
   for (const auto& [key, value] : node.env) {
     std::cout << "  env: " << key << "=" << pmlsm::launch::shell_quote(value) << "\n";
   }
-  if (process != nullptr) {
-    std::cout << "  cmd: " << quoted_command(*process) << "\n";
+  if (not_found.empty()) {
+    std::cout << "  cmd: " << quoted_command(process) << "\n";
   } else {
     std::cout << "  cmd: <" << not_found << ">\n";
   }
@@ -50,8 +51,9 @@ void print_dry_run(const pmlsm::launch::NodeSpec& node, const ProcessSpec* proce
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"Starts the nodes of a launch description and supervises them: output prefixed "
-               "with the node's name, SIGINT/SIGTERM forwarded, every exit reported."};
+  CLI::App app{
+      "Starts the nodes of a launch description and supervises them: output prefixed "
+      "with the node's name, SIGINT/SIGTERM forwarded, every exit reported."};
   std::string file;
   std::string host;
   std::string bin_dir;
@@ -64,12 +66,14 @@ int main(int argc, char** argv) {
   app.add_option("--bin-dir", bin_dir,
                  "Where node executables are looked up first (default: the launcher's folder)")
       ->check(CLI::ExistingDirectory);
-  app.add_flag("--dry-run", dry_run, "Print each node's command line and environment, start nothing");
+  app.add_flag("--dry-run", dry_run,
+               "Print each node's command line and environment, start nothing");
   app.add_option("--start-grace-ms", start_grace_ms,
                  "A node failing this soon after its start fails the launch (0: off)")
       ->check(CLI::Range(0, kMaxMs))
       ->capture_default_str();
-  app.add_option("--stop-timeout-ms", stop_timeout_ms, "Time from SIGINT to SIGKILL when stopping nodes")
+  app.add_option("--stop-timeout-ms", stop_timeout_ms,
+                 "Time from SIGINT to SIGKILL when stopping nodes")
       ->check(CLI::Range(0, kMaxMs))
       ->capture_default_str();
   app.add_option("--arg", arg_texts, "Set a launch arg: NAME=VALUE (repeatable)")
@@ -101,39 +105,34 @@ int main(int argc, char** argv) {
 
   if (bin_dir.empty()) bin_dir = own_folder();
   const char* path_env = std::getenv("PATH");
+  // Without PATH, the system default search path (as the shell uses).
+  const std::string search_path = path_env != nullptr ? path_env : "/usr/bin:/bin";
   std::vector<ProcessSpec> processes;
-  std::vector<std::string> not_found(nodes.size());
+  std::vector<std::string> not_found(nodes.size());  // empty when found
   for (std::size_t i = 0; i < nodes.size(); ++i) {
     const auto& node = nodes[i];
+    ProcessSpec p;
     try {
-      ProcessSpec p;
-      p.name = node.name;
-      p.path = pmlsm::launch::resolve_executable(node.executable, bin_dir,
-                                                 path_env != nullptr ? path_env : "/usr/bin:/bin");
-      p.argv.push_back(p.path);
-      p.argv.insert(p.argv.end(), node.args.begin(), node.args.end());
-      p.env = node.env;
-      p.ends_launch = node.ends_launch;
-      processes.push_back(std::move(p));
+      p.path = pmlsm::launch::resolve_executable(node.executable, bin_dir, search_path);
     } catch (const pmlsm::launch::ExecutableNotFound& e) {
       not_found[i] = e.what();
+      std::cerr << "[launcher] node '" << node.name << "': " << not_found[i] << "\n";
     }
+    p.name = node.name;
+    p.argv.push_back(p.path);
+    p.argv.insert(p.argv.end(), node.args.begin(), node.args.end());
+    p.env = node.env;
+    p.ends_launch = node.ends_launch;
+    processes.push_back(std::move(p));
   }
-  bool any_missing = false;
-  for (std::size_t i = 0; i < nodes.size(); ++i) {
-    if (!not_found[i].empty()) {
-      std::cerr << "[launcher] node '" << nodes[i].name << "': " << not_found[i] << "\n";
-      any_missing = true;
-    }
-  }
+  const bool any_missing =
+      std::any_of(not_found.begin(), not_found.end(), [](const auto& m) { return !m.empty(); });
 
   if (dry_run) {
     std::cout << "# " << launch.name << " (" << launch.source << "), " << slice << ": "
               << nodes.size() << (nodes.size() == 1 ? " node\n" : " nodes\n");
-    std::size_t next = 0;
-    for (std::size_t i = 0; i < nodes.size(); ++i) {
-      print_dry_run(nodes[i], not_found[i].empty() ? &processes[next++] : nullptr, not_found[i]);
-    }
+    for (std::size_t i = 0; i < nodes.size(); ++i)
+      print_dry_run(nodes[i], processes[i], not_found[i]);
     return any_missing ? 1 : 0;
   }
   if (any_missing) {
@@ -141,7 +140,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (processes.empty()) {
-    std::cerr << "[launcher] " << launch.name << ": no nodes on " << slice << "; nothing to start\n";
+    std::cerr << "[launcher] " << launch.name << ": no nodes on " << slice
+              << "; nothing to start\n";
     return 0;
   }
   std::cerr << "[launcher] " << launch.name << ": starting " << processes.size()

@@ -20,7 +20,9 @@ extern char** environ;
 namespace pmlsm::launch {
 
 LineRelay::LineRelay(std::string prefix, Sink sink, std::size_t max_line)
-    : prefix_(std::move(prefix)), sink_(std::move(sink)), max_line_(std::max<std::size_t>(max_line, 1)) {}
+    : prefix_(std::move(prefix)),
+      sink_(std::move(sink)),
+      max_line_(std::max<std::size_t>(max_line, 1)) {}
 
 void LineRelay::feed(const char* data, std::size_t size) {
   std::size_t start = 0;
@@ -50,10 +52,15 @@ void LineRelay::finish() {
 }
 
 void LineRelay::emit(const char* data, std::size_t size) {
-  std::string line;
-  line.reserve(prefix_.size() + size + 1);
-  line.append(prefix_).append(data, size).push_back('\n');
-  sink_(line);
+  std::size_t done = 0;
+  do {
+    const std::size_t piece = std::min(size - done, max_line_);
+    std::string line;
+    line.reserve(prefix_.size() + piece + 1);
+    line.append(prefix_).append(data + done, piece).push_back('\n');
+    sink_(line);
+    done += piece;
+  } while (done < size);
 }
 
 namespace {
@@ -128,10 +135,21 @@ class SignalChannel {
  public:
   SignalChannel() {
     sigemptyset(&set_);
-    for (int sig : {SIGCHLD, SIGINT, SIGTERM, SIGHUP}) sigaddset(&set_, sig);
+    // Linux queues a blocked signal even when it is ignored, so SIGINT works for a
+    // launcher started with '&' from a script; an ignored SIGHUP is left alone,
+    // though: that is nohup asking to outlive the terminal.
+    struct sigaction hup {};
+    ::sigaction(SIGHUP, nullptr, &hup);
+    for (int sig : {SIGCHLD, SIGINT, SIGTERM}) sigaddset(&set_, sig);
+    if (hup.sa_handler != SIG_IGN) sigaddset(&set_, SIGHUP);
     ::sigprocmask(SIG_BLOCK, &set_, &old_mask_);
     fd_.reset(::signalfd(-1, &set_, SFD_NONBLOCK | SFD_CLOEXEC));
     if (!fd_.open()) error_ = errno;
+    // An inherited SIG_IGN for SIGCHLD would make the kernel reap the nodes
+    // itself, and their exit statuses would be lost.
+    struct sigaction dfl {};
+    dfl.sa_handler = SIG_DFL;
+    ::sigaction(SIGCHLD, &dfl, &old_chld_);
     // A reader that goes away must not kill the launcher while nodes run.
     struct sigaction ignore {};
     ignore.sa_handler = SIG_IGN;
@@ -144,6 +162,7 @@ class SignalChannel {
     }
     fd_.reset();
     ::sigaction(SIGPIPE, &old_pipe_, nullptr);
+    ::sigaction(SIGCHLD, &old_chld_, nullptr);
     ::sigprocmask(SIG_SETMASK, &old_mask_, nullptr);
   }
   bool ok() const { return fd_.open(); }
@@ -152,13 +171,15 @@ class SignalChannel {
   // The next pending signal, if any.
   std::optional<int> next() {
     signalfd_siginfo info{};
-    if (::read(fd_.get(), &info, sizeof info) != static_cast<ssize_t>(sizeof info)) return std::nullopt;
+    if (::read(fd_.get(), &info, sizeof info) != static_cast<ssize_t>(sizeof info))
+      return std::nullopt;
     return static_cast<int>(info.ssi_signo);
   }
 
  private:
   sigset_t set_{};
   sigset_t old_mask_{};
+  struct sigaction old_chld_ {};
   struct sigaction old_pipe_ {};
   Fd fd_;
   int error_ = 0;
@@ -166,7 +187,9 @@ class SignalChannel {
 
 struct Child {
   Child(const ProcessSpec& spec, const LineRelay::Sink& out_sink, const LineRelay::Sink& err_sink)
-      : spec(&spec), out_relay("[" + spec.name + "] ", out_sink), err_relay("[" + spec.name + "] ", err_sink) {}
+      : spec(&spec),
+        out_relay("[" + spec.name + "] ", out_sink),
+        err_relay("[" + spec.name + "] ", err_sink) {}
   const ProcessSpec* spec;
   pid_t pid = -1;  // >0 from fork until reaped
   Clock::time_point started;
@@ -207,8 +230,12 @@ class Supervisor {
  public:
   Supervisor(const std::vector<ProcessSpec>& processes, const SupervisorOptions& options)
       : options_(options), buffer_(64 * 1024) {
-    const LineRelay::Sink out_sink = [this](const std::string& line) { write_all(options_.out_fd, line); };
-    const LineRelay::Sink err_sink = [this](const std::string& line) { write_all(options_.err_fd, line); };
+    const LineRelay::Sink out_sink = [this](const std::string& line) {
+      write_all(options_.out_fd, line);
+    };
+    const LineRelay::Sink err_sink = [this](const std::string& line) {
+      write_all(options_.err_fd, line);
+    };
     children_.reserve(processes.size());
     for (const auto& spec : processes) children_.emplace_back(spec, out_sink, err_sink);
   }
@@ -236,7 +263,8 @@ class Supervisor {
   }
 
   bool any_running() const {
-    return std::any_of(children_.begin(), children_.end(), [](const Child& c) { return c.running; });
+    return std::any_of(children_.begin(), children_.end(),
+                       [](const Child& c) { return c.running; });
   }
 
   bool start(Child& child, int dev_null) {
@@ -313,7 +341,8 @@ class Supervisor {
     // Ignored signals and the blocked mask survive exec: give the node a clean slate.
     struct sigaction dfl {};
     dfl.sa_handler = SIG_DFL;
-    for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGCHLD, SIGPIPE, SIGQUIT}) ::sigaction(sig, &dfl, nullptr);
+    for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGCHLD, SIGPIPE, SIGQUIT})
+      ::sigaction(sig, &dfl, nullptr);
     sigset_t none;
     sigemptyset(&none);
     ::sigprocmask(SIG_SETMASK, &none, nullptr);
@@ -338,7 +367,8 @@ class Supervisor {
     }
     int timeout_ms = -1;
     if (kill_deadline_) {
-      const auto left = std::chrono::ceil<std::chrono::milliseconds>(*kill_deadline_ - Clock::now());
+      const auto left =
+          std::chrono::ceil<std::chrono::milliseconds>(*kill_deadline_ - Clock::now());
       timeout_ms = static_cast<int>(std::clamp<long long>(left.count(), 0, INT_MAX));
     }
     const int ready = ::poll(fds.data(), fds.size(), timeout_ms);
@@ -365,8 +395,8 @@ class Supervisor {
       kill_deadline_.reset();
       for (Child& c : children_) {
         if (c.running && !c.kill_sent) {
-          report(c.spec->name + " did not stop within " + std::to_string(options_.stop_timeout.count()) +
-                 " ms of SIGINT; sending SIGKILL");
+          report(c.spec->name + " did not stop within " +
+                 std::to_string(options_.stop_timeout.count()) + " ms of SIGINT; sending SIGKILL");
           send(c, SIGKILL);
         }
       }
@@ -420,12 +450,14 @@ class Supervisor {
     report(c.spec->name + " " + how);
     c.outcome = how;
     const bool exited_zero = WIFEXITED(status) && WEXITSTATUS(status) == 0;
-    const bool ended_by_our_sigint = c.stop_sent && !c.kill_sent && WIFSIGNALED(status) &&
-                                     WTERMSIG(status) == SIGINT;
+    const bool ended_by_our_sigint =
+        c.stop_sent && !c.kill_sent && WIFSIGNALED(status) && WTERMSIG(status) == SIGINT;
     c.clean = exited_zero || ended_by_our_sigint;
-    if (!c.clean && !c.stop_sent && options_.start_grace.count() > 0 && lived < options_.start_grace) {
-      const std::string detail = WIFEXITED(status) ? "exit code " + std::to_string(WEXITSTATUS(status))
-                                                   : "killed by signal " + std::to_string(WTERMSIG(status));
+    if (!c.clean && !c.stop_sent && options_.start_grace.count() > 0 &&
+        lived < options_.start_grace) {
+      const std::string detail = WIFEXITED(status)
+                                     ? "exit code " + std::to_string(WEXITSTATUS(status))
+                                     : "killed by signal " + std::to_string(WTERMSIG(status));
       report("node '" + c.spec->name + "' died at start (" + detail + ")");
       failed_ = true;
       request_stop();

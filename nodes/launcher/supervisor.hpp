@@ -16,10 +16,10 @@ namespace pmlsm::launch {
 
 struct ProcessSpec {
   std::string name;
-  std::string path;               // what execve runs
-  std::vector<std::string> argv;  // argv[0] first
+  std::string path;                                      // what execve runs
+  std::vector<std::string> argv;                         // argv[0] first
   std::vector<std::pair<std::string, std::string>> env;  // set on top of the launcher's own
-  bool ends_launch = false;       // its exit stops the others
+  bool ends_launch = false;                              // its exit stops the others
 };
 
 struct SupervisorOptions {
@@ -50,13 +50,14 @@ class LineRelay {
   std::string partial_;
 };
 
-// Starts `processes` in order and supervises them until all have exited. Stops
-// them all (SIGINT; SIGKILL after options.stop_timeout) when the launcher gets
-// SIGINT, SIGTERM or SIGHUP (a second one sends SIGKILL at once), when a node with
-// ends_launch exits, or when a node fails to start or dies within
-// options.start_grace. Uses SIGCHLD itself: call it from a single-threaded
-// process. Returns 0 when every node exited with code 0, or was stopped and
-// ended by that SIGINT or with code 0; otherwise 1.
+// Starts `processes` in order and supervises them until all have exited.
+// Stops them all (SIGINT; SIGKILL after options.stop_timeout) when the launcher
+// gets SIGINT, SIGTERM or SIGHUP (unless SIGHUP is ignored, as under nohup; a
+// second signal sends SIGKILL at once), when a node with ends_launch exits, or
+// when a node fails to start or dies within options.start_grace. Takes over
+// SIGCHLD and reaps every child: call it from a single-threaded process.
+// Returns 0 when every node exited with code 0, or was stopped and ended by that
+// SIGINT or with code 0; otherwise 1.
 int supervise(const std::vector<ProcessSpec>& processes, const SupervisorOptions& options);
 
 }  // namespace pmlsm::launch

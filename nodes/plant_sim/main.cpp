@@ -9,7 +9,8 @@
 //  - realtime: ticks on absolute time (no drift). The plant never waits past
 //    --command-deadline-us into the tick: it applies the newest command
 //    (zero-order hold), counts late ones, and after --watchdog-ms without a
-//    command goes to its safe state (zero force), latched until restart.
+//    command (counted from the start of the run) goes to its safe state
+//    (zero force), latched until restart.
 #include <time.h>
 
 #include <chrono>
@@ -224,8 +225,7 @@ int run(int argc, char** argv) {
       drain();
       if (!fresh) ++counters.late;
       clock_gettime(CLOCK_MONOTONIC, &now);
-      if (!safe_state && any_command &&
-          static_cast<double>(diff_ns(now, last_command_time)) > opt.watchdog_ms * 1e6) {
+      if (!safe_state && static_cast<double>(diff_ns(now, last_command_time)) > opt.watchdog_ms * 1e6) {
         safe_state = true;
         std::fprintf(stderr, "plant_sim: watchdog: no command for %.1f ms at tick %llu: safe state (zero force)\n",
                      opt.watchdog_ms, static_cast<unsigned long long>(k));
@@ -257,6 +257,8 @@ int run(int argc, char** argv) {
   s.rejected(counters.rejected);
   s.deadline_misses(counters.deadline_misses);
   status.publish(node_state::STATE_STOPPING, k, period, "done");
+  feedback_writer.wait_for_acknowledgments(peer_timeout);
+  truth_writer.wait_for_acknowledgments(peer_timeout);
   std::printf("plant_sim: %llu ticks, late %llu, rejected %llu, deadline misses %llu%s\n",
               static_cast<unsigned long long>(k), static_cast<unsigned long long>(counters.late),
               static_cast<unsigned long long>(counters.rejected),

@@ -36,6 +36,8 @@ LoadedConfig load_config(const CommonOptions& o) {
 
 int run_node(const std::string& node_name, const std::function<int()>& body) {
   dds::install_shutdown_handlers();
+  // Line-buffered even into the launcher's pipe, so lines appear as they happen.
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);
   try {
     return body();
   } catch (const ConfigError& e) {

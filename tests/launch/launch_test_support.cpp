@@ -40,7 +40,8 @@ std::string read_text(const std::string& path) {
 
 ScratchDir::ScratchDir() {
   const char* tmp = std::getenv("TMPDIR");
-  std::string templ = std::string(tmp != nullptr && *tmp != '\0' ? tmp : "/tmp") + "/launch_test.XXXXXX";
+  std::string templ =
+      std::string(tmp != nullptr && *tmp != '\0' ? tmp : "/tmp") + "/launch_test.XXXXXX";
   if (::mkdtemp(templ.data()) == nullptr) throw std::runtime_error("mkdtemp failed for " + templ);
   path_ = templ;
 }
@@ -52,20 +53,24 @@ ScratchDir::~ScratchDir() {
     const pid_t pid = static_cast<pid_t>(std::atol(read_text(entry.path().string()).c_str()));
     // Only a process that is still ours: a PID may have been reused since.
     const std::string cmdline = read_text("/proc/" + std::to_string(pid) + "/cmdline");
-    const bool ours = cmdline.find(path_.string()) != std::string::npos || cmdline.rfind("sleep", 0) == 0;
+    const bool ours =
+        cmdline.find(path_.string()) != std::string::npos || cmdline.rfind("sleep", 0) == 0;
     if (pid > 0 && ours) ::kill(pid, SIGKILL);
   }
   std::filesystem::remove_all(path_, ec);
 }
 
-std::string ScratchDir::write(const std::string& name, const std::string& text, bool executable) const {
+std::string ScratchDir::write(const std::string& name, const std::string& text,
+                              bool executable) const {
   const std::string path = file(name);
   std::ofstream(path) << text;
   if (executable) ::chmod(path.c_str(), 0755);
   return path;
 }
 
-bool ScratchDir::exists(const std::string& name) const { return std::filesystem::exists(path_ / name); }
+bool ScratchDir::exists(const std::string& name) const {
+  return std::filesystem::exists(path_ / name);
+}
 
 std::optional<pid_t> ScratchDir::pid_of(const std::string& name) const {
   const std::string text = read_text(file(name + ".pid"));
@@ -84,14 +89,12 @@ std::string publish_pid(const ScratchDir& dir, const std::string& name) {
 }  // namespace
 
 std::string waits_for_sigint(const ScratchDir& dir, const std::string& name, int code) {
-  // The sleep runs in the background because a trap only runs once the
-  // foreground command is over, while 'wait' is cut short by it.
+  // Short foreground sleeps rather than one long one: the trap runs once the
+  // current sleep is over, and nothing outlives the script by more than 50 ms.
   return "#!/bin/sh\n"
-         "trap 'kill $s 2>/dev/null; echo \"" + name + " stopping on SIGINT\"; exit " +
-         std::to_string(code) + "' INT\n"
-         "sleep 30 & s=$!\n"
-         "echo $s > '" + dir.file(name + ".sleep.pid") + "'\n" +
-         publish_pid(dir, name) + "wait $s\n";
+         "trap 'echo \"" +
+         name + " stopping on SIGINT\"; exit " + std::to_string(code) + "' INT\n" +
+         publish_pid(dir, name) + "while :; do sleep 0.05; done\n";
 }
 
 std::string ignores_sigint(const ScratchDir& dir, const std::string& name) {
@@ -106,17 +109,23 @@ std::string exits_after(const ScratchDir& dir, const std::string& name, const st
                         int code) {
   return "#!/bin/sh\n" + publish_pid(dir, name) +
          "i=0\n"
-         "while [ ! -f '" + dir.file(other + ".pid") + "' ]; do\n"
+         "while [ ! -f '" +
+         dir.file(other + ".pid") +
+         "' ]; do\n"
          "  i=$((i + 1)); [ $i -gt 1000 ] && exit 99\n"
          "  sleep 0.01\n"
          "done\n"
-         "echo \"" + name + " done\"\n"
-         "exit " + std::to_string(code) + "\n";
+         "echo \"" +
+         name +
+         " done\"\n"
+         "exit " +
+         std::to_string(code) + "\n";
 }
 
 }  // namespace script
 
-LauncherProcess::LauncherProcess(const ScratchDir& dir, const std::vector<std::string>& args)
+LauncherProcess::LauncherProcess(const ScratchDir& dir, const std::vector<std::string>& args,
+                                 const std::vector<int>& ignored)
     : dir_(dir) {
   std::vector<std::string> argv_store{LAUNCHER_PATH};
   argv_store.insert(argv_store.end(), args.begin(), args.end());
@@ -140,6 +149,7 @@ LauncherProcess::LauncherProcess(const ScratchDir& dir, const std::vector<std::s
     struct sigaction dfl {};
     dfl.sa_handler = SIG_DFL;
     for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGCHLD, SIGPIPE}) ::sigaction(sig, &dfl, nullptr);
+    for (int sig : ignored) ::signal(sig, SIG_IGN);
     sigset_t none;
     sigemptyset(&none);
     ::sigprocmask(SIG_SETMASK, &none, nullptr);

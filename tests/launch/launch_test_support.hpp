@@ -23,8 +23,8 @@ bool wait_until(const std::function<bool()>& condition, std::chrono::millisecond
 bool process_exists(pid_t pid);
 
 // A fresh folder under $TMPDIR (or /tmp). On destruction it SIGKILLs every process
-// named in a *.pid file in it that is still one of its scripts (or their sleep),
-// then removes the folder, so a failing test leaves nothing behind.
+// named in a *.pid file in it that is still one of its scripts (or a sleep they
+// became), then removes the folder, so a failing test leaves nothing behind.
 class ScratchDir {
  public:
   ScratchDir();
@@ -35,7 +35,8 @@ class ScratchDir {
   const std::filesystem::path& path() const { return path_; }
   std::string file(const std::string& name) const { return (path_ / name).string(); }
   // Writes `text` to `name`; `executable` sets mode 0755.
-  std::string write(const std::string& name, const std::string& text, bool executable = false) const;
+  std::string write(const std::string& name, const std::string& text,
+                    bool executable = false) const;
   bool exists(const std::string& name) const;
   // The PID in `name`.pid, once a script has written it.
   std::optional<pid_t> pid_of(const std::string& name) const;
@@ -59,10 +60,13 @@ std::string exits_after(const ScratchDir& dir, const std::string& name, const st
 }  // namespace script
 
 // The launcher under test, run in `dir` with stdout and stderr in files there.
-// Destruction SIGKILLs and reaps it if it is still running.
+// `ignored` signals are set to SIG_IGN for it, as a script's `launcher &`
+// (SIGINT) or nohup (SIGHUP) do. Destruction SIGKILLs and reaps it if it is
+// still running.
 class LauncherProcess {
  public:
-  LauncherProcess(const ScratchDir& dir, const std::vector<std::string>& args);
+  LauncherProcess(const ScratchDir& dir, const std::vector<std::string>& args,
+                  const std::vector<int>& ignored = {});
   ~LauncherProcess();
   LauncherProcess(const LauncherProcess&) = delete;
   LauncherProcess& operator=(const LauncherProcess&) = delete;

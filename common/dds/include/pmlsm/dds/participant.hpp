@@ -67,6 +67,15 @@ class Writer {
     return writer_->write(const_cast<Message*>(&sample));
   }
   eprosima::fastdds::dds::DataWriter* entity() { return writer_; }
+  /// Blocks until every matched reliable reader acknowledged all samples, or
+  /// the timeout passes. Call before exiting: a writer deleted with samples
+  /// still unacknowledged takes them with it (the last tick's command, say).
+  bool wait_for_acknowledgments(std::chrono::duration<double> timeout) {
+    const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(timeout).count();
+    const eprosima::fastrtps::Duration_t t(static_cast<std::int32_t>(ns / 1000000000),
+                                           static_cast<std::uint32_t>(ns % 1000000000));
+    return writer_->wait_for_acknowledgments(t) == eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK;
+  }
   /// Number of matched readers, for waiting on discovery.
   std::size_t matched_readers() const;
 
@@ -112,10 +121,12 @@ class Participant {
     return Writer<PubSubType>(create_writer(topic_for<PubSubType>(spec), spec.qos_profile));
   }
 
-  /// The reader's listener notifies `wakeup` on every arrival.
+  /// The reader's listener notifies `wakeup` on every arrival. `qos_profile`
+  /// replaces the topic's own, e.g. the deep observer profile for a monitor.
   template <typename PubSubType>
-  Reader<PubSubType> make_reader(const TopicSpec& spec, Wakeup& wakeup) {
-    return Reader<PubSubType>(create_reader(topic_for<PubSubType>(spec), spec.qos_profile, wakeup));
+  Reader<PubSubType> make_reader(const TopicSpec& spec, Wakeup& wakeup, const char* qos_profile = nullptr) {
+    return Reader<PubSubType>(create_reader(topic_for<PubSubType>(spec),
+                                            qos_profile != nullptr ? qos_profile : spec.qos_profile, wakeup));
   }
 
   eprosima::fastdds::dds::DomainParticipant* entity() { return participant_; }

@@ -10,6 +10,10 @@ struct TopicSpec {
   const char* qos_profile;
 };
 
+/// Reader profile of observers (evaluator, recorder) on every topic: deep
+/// history, so a reader that falls behind a fast lockstep run loses nothing.
+inline constexpr const char* kObserverProfile = "pmlsm_observe";
+
 namespace topics {
 inline constexpr TopicSpec kMotorFeedback{"rt/pmlsm/motor_feedback", "pmlsm_control"};
 inline constexpr TopicSpec kForceCommand{"rt/pmlsm/force_command", "pmlsm_control"};
