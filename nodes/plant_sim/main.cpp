@@ -9,8 +9,9 @@
 //  - realtime: ticks on absolute time (no drift). The plant never waits past
 //    --command-deadline-us into the tick: it applies the newest command
 //    (zero-order hold), counts late ones, and after --watchdog-ms without a
-//    command (counted from the start of the run) goes to its safe state
-//    (zero force), latched until restart.
+//    command goes to its safe state (zero force), latched until restart. The
+//    watchdog arms with the first command, as a drive's does when enabled;
+//    until then the force is zero anyway.
 #include <time.h>
 
 #include <chrono>
@@ -154,6 +155,7 @@ int run(int argc, char** argv) {
   const auto period_ns = static_cast<std::int64_t>(std::llround(period * 1e9));
   timespec last_command_time = next_tick;
 
+  const auto loop_start = std::chrono::steady_clock::now();
   std::uint64_t k = 0;
   for (; k < ticks && !pdds::stop_requested(); ++k) {
     const DriveFeedback fb = drive.sample();
@@ -210,6 +212,10 @@ int run(int argc, char** argv) {
             ++counters.rejected;
             continue;
           }
+          if (!any_command) {
+            std::printf("plant_sim: first command applied at tick %llu; watchdog armed\n",
+                        static_cast<unsigned long long>(k));
+          }
           force_n = command.force_n();
           applied_tick = command.feedback_tick();
           any_command = true;
@@ -225,7 +231,8 @@ int run(int argc, char** argv) {
       drain();
       if (!fresh) ++counters.late;
       clock_gettime(CLOCK_MONOTONIC, &now);
-      if (!safe_state && static_cast<double>(diff_ns(now, last_command_time)) > opt.watchdog_ms * 1e6) {
+      if (!safe_state && any_command &&
+          static_cast<double>(diff_ns(now, last_command_time)) > opt.watchdog_ms * 1e6) {
         safe_state = true;
         std::fprintf(stderr, "plant_sim: watchdog: no command for %.1f ms at tick %llu: safe state (zero force)\n",
                      opt.watchdog_ms, static_cast<unsigned long long>(k));
@@ -259,8 +266,10 @@ int run(int argc, char** argv) {
   status.publish(node_state::STATE_STOPPING, k, period, "done");
   feedback_writer.wait_for_acknowledgments(peer_timeout);
   truth_writer.wait_for_acknowledgments(peer_timeout);
-  std::printf("plant_sim: %llu ticks, late %llu, rejected %llu, deadline misses %llu%s\n",
-              static_cast<unsigned long long>(k), static_cast<unsigned long long>(counters.late),
+  const double loop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - loop_start).count();
+  std::printf("plant_sim: %llu ticks in %.3f s (%.1fx real time), late %llu, rejected %llu, deadline misses %llu%s\n",
+              static_cast<unsigned long long>(k), loop_s, static_cast<double>(k) * period / loop_s,
+              static_cast<unsigned long long>(counters.late),
               static_cast<unsigned long long>(counters.rejected),
               static_cast<unsigned long long>(counters.deadline_misses), safe_state ? ", ended in safe state" : "");
   return exit_code;

@@ -96,7 +96,7 @@ TEST(DistributedFailures, RealtimeWatchdogPutsThePlantInItsSafeState) {
                                 (dir / "controller.log").string());
   test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "1", "--clock", "realtime"}),
                            (dir / "plant.log").string());
-  ASSERT_TRUE(plant.wait_for_output("realtime clock", std::chrono::seconds(30))) << plant.output();
+  ASSERT_TRUE(plant.wait_for_output("watchdog armed", std::chrono::seconds(30))) << plant.output();
   controller.signal(SIGKILL);
   const auto code = plant.wait_for(std::chrono::seconds(30));
   ASSERT_TRUE(code.has_value());
