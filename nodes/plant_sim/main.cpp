@@ -16,7 +16,9 @@
 
 #include <chrono>
 #include <cmath>
+#include <algorithm>
 #include <cstdio>
+#include <vector>
 
 #include "ForceCommandPubSubTypes.h"
 #include "MotorFeedbackPubSubTypes.h"
@@ -155,6 +157,9 @@ int run(int argc, char** argv) {
   const auto period_ns = static_cast<std::int64_t>(std::llround(period * 1e9));
   timespec last_command_time = next_tick;
 
+  // Chain latency per tick: MotorFeedback written -> its ForceCommand taken.
+  std::vector<double> latency_us;
+  latency_us.reserve(ticks);
   const auto loop_start = std::chrono::steady_clock::now();
   std::uint64_t k = 0;
   for (; k < ticks && !pdds::stop_requested(); ++k) {
@@ -172,6 +177,7 @@ int run(int argc, char** argv) {
     feedback.status(status_bits);
     fill_truth(drive, force_n, truth);
     truth.stamp(feedback.stamp());
+    const auto published = std::chrono::steady_clock::now();
     feedback_writer.write(feedback);
     truth_writer.write(truth);
 
@@ -189,6 +195,7 @@ int run(int argc, char** argv) {
             applied_tick = k;
             any_command = true;
             answered = true;
+            latency_us.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - published).count());
           }
         }
         return answered;
@@ -219,7 +226,10 @@ int run(int argc, char** argv) {
           force_n = command.force_n();
           applied_tick = command.feedback_tick();
           any_command = true;
-          fresh = fresh || command.feedback_tick() == k;
+          if (command.feedback_tick() == k) {
+            fresh = true;
+            latency_us.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - published).count());
+          }
           clock_gettime(CLOCK_MONOTONIC, &last_command_time);
         }
         return fresh;
@@ -267,6 +277,12 @@ int run(int argc, char** argv) {
   feedback_writer.wait_for_acknowledgments(peer_timeout);
   truth_writer.wait_for_acknowledgments(peer_timeout);
   const double loop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - loop_start).count();
+  if (!latency_us.empty()) {
+    std::sort(latency_us.begin(), latency_us.end());
+    auto at = [&](double q) { return latency_us[static_cast<std::size_t>(q * static_cast<double>(latency_us.size() - 1))]; };
+    std::printf("plant_sim: chain latency feedback -> command over %zu ticks: p50 %.1f us, p99 %.1f us, max %.1f us\n",
+                latency_us.size(), at(0.5), at(0.99), latency_us.back());
+  }
   std::printf("plant_sim: %llu ticks in %.3f s (%.1fx real time), late %llu, rejected %llu, deadline misses %llu%s\n",
               static_cast<unsigned long long>(k), loop_s, static_cast<double>(k) * period / loop_s,
               static_cast<unsigned long long>(counters.late),
