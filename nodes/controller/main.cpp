@@ -22,6 +22,7 @@ namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
 int run(int argc, char** argv) {
   CLI::App app{"Velocity loop (reference model + PI) of the PMLSM on DDS"};
   node::CommonOptions common;
+  common.spin_us = 200.0;
   node::add_common_options(app, common);
   try {
     app.parse(argc, argv);
@@ -33,7 +34,7 @@ int run(int argc, char** argv) {
   common.dds.node_name = "controller";
 
   pdds::Participant participant(common.dds);
-  pdds::Wakeup wakeup;
+  pdds::Wakeup wakeup(node::spin_time(common));
   auto feedback_reader = participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, wakeup);
   auto command_writer = participant.make_writer<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand);
   auto reference_writer = participant.make_writer<pmlsm_msgs::msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference);

@@ -29,6 +29,7 @@ enum Part : unsigned { kFeedback = 1, kTruth = 2, kReference = 4, kCommand = 8, 
 int run(int argc, char** argv) {
   CLI::App app{"Collects a distributed run's topics per tick, prints the results table, writes the CSV trace"};
   node::CommonOptions common;
+  common.spin_us = 0.0;
   std::string out_dir = "out";
   bool print_header = true;
   node::add_common_options(app, common);
@@ -44,7 +45,7 @@ int run(int argc, char** argv) {
   common.dds.node_name = "evaluator";
 
   pdds::Participant participant(common.dds);
-  pdds::Wakeup wakeup;
+  pdds::Wakeup wakeup(node::spin_time(common));
   auto feedback_reader = participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, wakeup, pdds::kObserverProfile);
   auto truth_reader = participant.make_reader<pmlsm_msgs::msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth, wakeup, pdds::kObserverProfile);
   auto reference_reader = participant.make_reader<pmlsm_msgs::msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference, wakeup, pdds::kObserverProfile);

@@ -20,6 +20,7 @@ namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
 int run(int argc, char** argv) {
   CLI::App app{"Kalman estimator of the load velocity and spring force on DDS"};
   node::CommonOptions common;
+  common.spin_us = 0.0;
   node::add_common_options(app, common);
   try {
     app.parse(argc, argv);
@@ -31,7 +32,7 @@ int run(int argc, char** argv) {
   common.dds.node_name = "kalman_estimator";
 
   pdds::Participant participant(common.dds);
-  pdds::Wakeup wakeup;
+  pdds::Wakeup wakeup(node::spin_time(common));
   auto feedback_reader = participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, wakeup);
   auto estimate_writer = participant.make_writer<pmlsm_msgs::msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState);
   node::StatusPublisher status(participant, "kalman_estimator");

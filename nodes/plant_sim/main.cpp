@@ -95,6 +95,7 @@ std::int64_t diff_ns(const timespec& a, const timespec& b) {
 int run(int argc, char** argv) {
   CLI::App app{"Simulated PMLSM servo drive (plant + drive current loop) on DDS"};
   node::CommonOptions common;
+  common.spin_us = 200.0;
   PlantOptions opt;
   node::add_common_options(app, common);
   app.add_option("--peers", opt.peers, "MotorFeedback readers to wait for before tick 0")
@@ -114,7 +115,7 @@ int run(int argc, char** argv) {
   common.dds.node_name = "plant_sim";
 
   pdds::Participant participant(common.dds);
-  pdds::Wakeup wakeup;
+  pdds::Wakeup wakeup(node::spin_time(common));
   auto feedback_writer = participant.make_writer<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback);
   auto truth_writer = participant.make_writer<pmlsm_msgs::msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth);
   auto command_reader = participant.make_reader<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand, wakeup);

@@ -22,6 +22,13 @@ void add_common_options(CLI::App& app, CommonOptions& o) {
   app.add_option("--peer-timeout-s", o.peer_timeout_s,
                  "How long to wait for a peer, at start and between lockstep ticks")
       ->check(CLI::PositiveNumber);
+  app.add_option("--spin-us", o.spin_us, "Poll this long for an answer before sleeping (latency vs CPU)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 10000.0));
+}
+
+std::chrono::nanoseconds spin_time(const CommonOptions& o) {
+  return std::chrono::nanoseconds(static_cast<std::int64_t>(o.spin_us * 1e3));
 }
 
 LoadedConfig load_config(const CommonOptions& o) {

@@ -38,9 +38,13 @@ struct CommonOptions {
   dds::ParticipantOptions dds;
   std::string clock = "lockstep";
   double peer_timeout_s = 10.0;
+  /// How long the loop thread polls for an answer before it sleeps: worth it
+  /// on the control chain (plant, controller), wasted CPU for observers.
+  double spin_us = 0.0;
 };
 
-/// Adds --config, --scenario, --set, --profiles, --participant-profile, --domain, --clock, --peer-timeout-s.
+/// Adds --config, --scenario, --set, --profiles, --participant-profile, --domain, --clock,
+/// --peer-timeout-s, --spin-us (its default is what `options` holds).
 void add_common_options(CLI::App& app, CommonOptions& options);
 
 struct LoadedConfig {
@@ -58,6 +62,8 @@ int run_node(const std::string& node_name, const std::function<int()>& body);
 
 /// Wall-clock time in ns (CLOCK_REALTIME), for stamps across hosts.
 std::int64_t wall_time_ns();
+
+std::chrono::nanoseconds spin_time(const CommonOptions& options);
 
 pmlsm_msgs::msg::Stamp make_stamp(std::uint64_t tick, double control_period_s);
 

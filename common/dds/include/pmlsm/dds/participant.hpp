@@ -18,6 +18,7 @@
 #include <fastdds/dds/topic/Topic.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -35,6 +36,8 @@ namespace pmlsm::dds {
 /// Signalled by readers' listeners when data arrives; the loop thread waits on it.
 class Wakeup {
  public:
+  /// spin: how long wait_for() polls (yielding the core) before it sleeps.
+  explicit Wakeup(std::chrono::nanoseconds spin = std::chrono::nanoseconds(0)) : spin_(spin) {}
   /// A counter read before draining the readers; wait_for() returns at once if
   /// anything arrived after it was read, so no notification is lost.
   std::uint64_t generation() const;
@@ -44,9 +47,10 @@ class Wakeup {
   void notify();
 
  private:
-  mutable std::mutex mutex_;
+  std::chrono::nanoseconds spin_;
+  std::mutex mutex_;
   std::condition_variable cv_;
-  std::uint64_t generation_ = 0;
+  std::atomic<std::uint64_t> generation_{0};
 };
 
 struct ParticipantOptions {
