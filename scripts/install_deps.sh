@@ -13,6 +13,7 @@ packages=(
   libgtest-dev                    # unit tests
   libbenchmark-dev                # speed benchmark
   gnuplot-nox                     # PNG plots of the traces
+  iproute2                        # network namespaces for the two-host test
 )
 
 sudo_cmd=()

@@ -48,7 +48,8 @@ class Participant::NotifyingListener : public eprosima::fastdds::dds::DataReader
   Wakeup& wakeup_;
 };
 
-Participant::Participant(const ParticipantOptions& options) : node_name_(options.node_name) {
+Participant::Participant(const ParticipantOptions& options)
+    : node_name_(options.node_name), data_sharing_(options.data_sharing) {
   auto* factory = DomainParticipantFactory::get_instance();
   if (factory->load_XML_profiles_file(options.profiles_file) != ReturnCode::RETCODE_OK) {
     throw std::runtime_error("cannot load DDS profiles from '" + options.profiles_file + "'");
@@ -87,7 +88,12 @@ eprosima::fastdds::dds::Topic* Participant::create_topic(const std::string& name
 
 eprosima::fastdds::dds::DataWriter* Participant::create_writer(eprosima::fastdds::dds::Topic* topic,
                                                                const std::string& profile) {
-  auto* writer = publisher_->create_datawriter_with_profile(topic, profile);
+  eprosima::fastdds::dds::DataWriterQos qos;
+  if (publisher_->get_datawriter_qos_from_profile(profile, qos) != ReturnCode::RETCODE_OK) {
+    throw std::runtime_error("no data_writer profile '" + profile + "' in the DDS profiles");
+  }
+  if (!data_sharing_) qos.data_sharing().off();
+  auto* writer = publisher_->create_datawriter(topic, qos);
   if (writer == nullptr) {
     throw std::runtime_error("cannot create writer on '" + topic->get_name() + "' with profile '" +
                              profile + "'");
@@ -99,7 +105,12 @@ eprosima::fastdds::dds::DataReader* Participant::create_reader(eprosima::fastdds
                                                                const std::string& profile,
                                                                Wakeup& wakeup) {
   listeners_.push_back(std::make_unique<NotifyingListener>(wakeup));
-  auto* reader = subscriber_->create_datareader_with_profile(topic, profile, listeners_.back().get());
+  eprosima::fastdds::dds::DataReaderQos qos;
+  if (subscriber_->get_datareader_qos_from_profile(profile, qos) != ReturnCode::RETCODE_OK) {
+    throw std::runtime_error("no data_reader profile '" + profile + "' in the DDS profiles");
+  }
+  if (!data_sharing_) qos.data_sharing().off();
+  auto* reader = subscriber_->create_datareader(topic, qos, listeners_.back().get());
   if (reader == nullptr) {
     throw std::runtime_error("cannot create reader on '" + topic->get_name() + "' with profile '" +
                              profile + "'");

@@ -58,6 +58,10 @@ struct ParticipantOptions {
   std::string participant_profile = "pmlsm_default";
   int domain_id = 0;
   std::string node_name;
+  /// Fast DDS data-sharing (zero-copy through /dev/shm between processes it
+  /// believes share a host). Off where /dev/shm is not shared although the
+  /// host looks the same, e.g. network namespaces standing in for machines.
+  bool data_sharing = true;
 };
 
 class Participant;
@@ -154,6 +158,7 @@ class Participant {
                                                     const std::string& profile, Wakeup& wakeup);
 
   std::string node_name_;
+  bool data_sharing_ = true;
   eprosima::fastdds::dds::DomainParticipant* participant_ = nullptr;
   eprosima::fastdds::dds::Publisher* publisher_ = nullptr;
   eprosima::fastdds::dds::Subscriber* subscriber_ = nullptr;
