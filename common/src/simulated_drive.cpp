@@ -21,15 +21,17 @@ DriveFeedback SimulatedDrive::sample() {
 }
 
 void SimulatedDrive::apply_force(double force_request_n) {
-  PlantMeasurement m = last_measurement_;
   for (int i = 0; i < current_steps_per_tick_; ++i) {
-    const CurrentControllerOutput u =
-        current_.step({force_request_n, m.i_d_a, m.i_q_a, last_velocity_mps_});
-    m = plant_.step(PlantInput{u.u_d_v, u.u_q_v, 0.0}, current_period_s_);
-    last_u_d_v_ = u.u_d_v;
-    last_u_q_v_ = u.u_q_v;
+    const CurrentControllerOutput u = current_.step(
+        {force_request_n, last_measurement_.i_d_a, last_measurement_.i_q_a, last_velocity_mps_});
+    apply_voltage(u.u_d_v, u.u_q_v);
   }
-  last_measurement_ = m;
+}
+
+void SimulatedDrive::apply_voltage(double u_d_v, double u_q_v) {
+  last_measurement_ = plant_.step(PlantInput{u_d_v, u_q_v, 0.0}, current_period_s_);
+  last_u_d_v_ = u_d_v;
+  last_u_q_v_ = u_q_v;
 }
 
 }  // namespace pmlsm

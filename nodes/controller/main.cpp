@@ -6,11 +6,14 @@
 #include <cmath>
 #include <cstdio>
 
+#include "CurrentFeedbackPubSubTypes.h"
 #include "ForceCommandPubSubTypes.h"
+#include "VoltageCommandPubSubTypes.h"
 #include "MotorFeedbackPubSubTypes.h"
 #include "VelocityReferencePubSubTypes.h"
 #include "node_support.hpp"
 #include "pmlsm/closed_loop.hpp"
+#include "pmlsm/current_controller.hpp"
 #include "pmlsm/velocity_controller.hpp"
 
 namespace {
@@ -39,6 +42,14 @@ int run(int argc, char** argv) {
   auto command_writer = participant.make_writer<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand);
   auto reference_writer = participant.make_writer<pmlsm_msgs::msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference);
   node::StatusPublisher status(participant, "controller");
+  // The voltage command level: this node also runs the drive's current loop.
+  const bool voltage_level = cfg.command_level == node::CommandLevel::kVoltage;
+  auto current_reader = participant.make_reader<pmlsm_msgs::msg::CurrentFeedbackPubSubType>(pdds::topics::kCurrentFeedback, wakeup);
+  auto voltage_writer = participant.make_writer<pmlsm_msgs::msg::VoltageCommandPubSubType>(pdds::topics::kVoltageCommand);
+  CurrentController current_loop(cfg.params.current_controller_params());
+  const int current_steps = cfg.params.timing.current_steps_per_tick();
+  pmlsm_msgs::msg::CurrentFeedback current_feedback;
+  pmlsm_msgs::msg::VoltageCommand voltage_command;
 
   VelocityController controller(cfg.params, cfg.scenario);
   const std::uint64_t ticks = scenario_ticks(cfg.scenario, period);
@@ -95,11 +106,38 @@ int run(int argc, char** argv) {
     command.velocity_error_mps(out.velocity_error_mps);
     command.saturated(out.saturated);
     command_writer.write(command);
+
+    for (int sub = 0; voltage_level && sub < current_steps; ++sub) {
+      bool got_current = false;
+      const bool current_ok = node::wait_until(wakeup, peer_timeout, [&] {
+        while (!got_current && current_reader.take(current_feedback)) {
+          if (current_feedback.stamp().tick() == k && current_feedback.substep() == static_cast<std::uint32_t>(sub)) {
+            got_current = true;
+          } else {
+            ++rejected;
+          }
+        }
+        return got_current;
+      });
+      if (!current_ok) break;
+      // The current controller rejects (and counts) non-finite measurements itself.
+      const CurrentControllerOutput u = current_loop.step(
+          {out.force_n, current_feedback.i_d_a(), current_feedback.i_q_a(), current_feedback.velocity_mps()});
+      voltage_command.stamp(current_feedback.stamp());
+      voltage_command.substep(current_feedback.substep());
+      voltage_command.u_d_v(u.u_d_v);
+      voltage_command.u_q_v(u.u_q_v);
+      voltage_command.i_d_ref_a(0.0);
+      voltage_command.i_q_ref_a(u.i_q_ref_a);
+      voltage_command.saturated(u.voltage_limited);
+      voltage_writer.write(voltage_command);
+    }
     next_tick = k + 1;
   }
   status.status().rejected(rejected);
   status.publish(node_state::STATE_STOPPING, next_tick, period, "done");
   command_writer.wait_for_acknowledgments(peer_timeout);
+  if (voltage_level) voltage_writer.wait_for_acknowledgments(peer_timeout);
   reference_writer.wait_for_acknowledgments(peer_timeout);
   std::printf("controller: %llu ticks answered, %llu rejected\n",
               static_cast<unsigned long long>(next_tick), static_cast<unsigned long long>(rejected));

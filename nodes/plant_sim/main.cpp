@@ -20,7 +20,9 @@
 #include <cstdio>
 #include <vector>
 
+#include "CurrentFeedbackPubSubTypes.h"
 #include "ForceCommandPubSubTypes.h"
+#include "VoltageCommandPubSubTypes.h"
 #include "MotorFeedbackPubSubTypes.h"
 #include "PlantTruthPubSubTypes.h"
 #include "node_support.hpp"
@@ -119,6 +121,10 @@ int run(int argc, char** argv) {
   auto feedback_writer = participant.make_writer<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback);
   auto truth_writer = participant.make_writer<pmlsm_msgs::msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth);
   auto command_reader = participant.make_reader<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand, wakeup);
+  // The voltage command level: the current loop runs in the controller.
+  const bool voltage_level = cfg.command_level == node::CommandLevel::kVoltage;
+  auto current_writer = participant.make_writer<pmlsm_msgs::msg::CurrentFeedbackPubSubType>(pdds::topics::kCurrentFeedback);
+  auto voltage_reader = participant.make_reader<pmlsm_msgs::msg::VoltageCommandPubSubType>(pdds::topics::kVoltageCommand, wakeup);
   node::StatusPublisher status(participant, "plant_sim");
 
   SimulatedDrive drive(cfg.params, scenario_initial_condition(cfg.scenario));
@@ -129,7 +135,8 @@ int run(int argc, char** argv) {
   const auto peer_timeout = std::chrono::duration<double>(common.peer_timeout_s);
   if (!node::wait_until(wakeup, peer_timeout, [&] {
         return feedback_writer.matched_readers() >= static_cast<std::size_t>(opt.peers) &&
-               command_reader.matched_writers() >= 1;
+               command_reader.matched_writers() >= 1 &&
+               (!voltage_level || (current_writer.matched_readers() >= 1 && voltage_reader.matched_writers() >= 1));
       })) {
     if (pdds::stop_requested()) return node::kOk;
     std::fprintf(stderr, "plant_sim: peers missing after %.1f s: %zu of %d MotorFeedback readers, %zu ForceCommand writers\n",
@@ -137,8 +144,8 @@ int run(int argc, char** argv) {
                  command_reader.matched_writers());
     return node::kPeerMissing;
   }
-  std::printf("plant_sim: %s clock, %llu ticks of %.3g ms, scenario %s\n",
-              cfg.clock == node::Clock::kLockstep ? "lockstep" : "realtime",
+  std::printf("plant_sim: %s clock, %s command level, %llu ticks of %.3g ms, scenario %s\n",
+              cfg.clock == node::Clock::kLockstep ? "lockstep" : "realtime", voltage_level ? "voltage" : "force",
               static_cast<unsigned long long>(ticks), period * 1e3, cfg.scenario.name.c_str());
   std::fflush(stdout);
   status.publish(node_state::STATE_RUNNING, 0, period, "running");
@@ -146,6 +153,9 @@ int run(int argc, char** argv) {
   MotorFeedback feedback;
   PlantTruth truth;
   ForceCommand command;
+  pmlsm_msgs::msg::CurrentFeedback current_feedback;
+  pmlsm_msgs::msg::VoltageCommand voltage_command;
+  double u_d_v = 0.0, u_q_v = 0.0;  // held voltage at the voltage command level
   Counters counters;
   double force_n = 0.0;          // zero-order hold of the applied command
   std::uint64_t applied_tick = 0;
@@ -252,7 +262,48 @@ int run(int argc, char** argv) {
       if (safe_state) force_n = 0.0;
     }
 
-    drive.apply_force(force_n);
+    if (!voltage_level) {
+      drive.apply_force(force_n);
+    } else {
+      // 32 exchanges per tick: currents out, the controller's voltage back.
+      bool lost = false;
+      for (int sub = 0; sub < drive.current_steps_per_tick() && !lost; ++sub) {
+        const PlantMeasurement& m = drive.measurement();
+        current_feedback.stamp(feedback.stamp());
+        current_feedback.substep(static_cast<std::uint32_t>(sub));
+        current_feedback.i_d_a(m.i_d_a);
+        current_feedback.i_q_a(m.i_q_a);
+        current_feedback.velocity_mps(drive.tick_velocity_mps());
+        current_feedback.position_m(m.encoder_position_m);
+        current_writer.write(current_feedback);
+        bool answered = false;
+        lost = !node::wait_until(wakeup, peer_timeout, [&] {
+          while (!answered && voltage_reader.take(voltage_command)) {
+            if (voltage_command.stamp().tick() != k || voltage_command.substep() != static_cast<std::uint32_t>(sub)) {
+              ++counters.late;
+            } else {
+              if (std::isfinite(voltage_command.u_d_v()) && std::isfinite(voltage_command.u_q_v())) {
+                u_d_v = voltage_command.u_d_v();
+                u_q_v = voltage_command.u_q_v();
+              } else {
+                ++counters.rejected;  // the last finite voltage is held
+              }
+              answered = true;
+            }
+          }
+          return answered;
+        });
+        if (!lost) drive.apply_voltage(u_d_v, u_q_v);
+      }
+      if (lost) {
+        if (pdds::stop_requested()) break;
+        std::fprintf(stderr, "plant_sim: no VoltageCommand in tick %llu within %.1f s: controller lost; safe state\n",
+                     static_cast<unsigned long long>(k), common.peer_timeout_s);
+        status.publish(node_state::STATE_SAFE, k, period, "controller lost");
+        exit_code = node::kPeerLost;
+        break;
+      }
+    }
 
     if (cfg.clock == node::Clock::kRealtime) {
       next_tick = add_ns(next_tick, period_ns);
@@ -277,6 +328,7 @@ int run(int argc, char** argv) {
   status.publish(node_state::STATE_STOPPING, k, period, "done");
   feedback_writer.wait_for_acknowledgments(peer_timeout);
   truth_writer.wait_for_acknowledgments(peer_timeout);
+  if (voltage_level) current_writer.wait_for_acknowledgments(peer_timeout);
   const double loop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - loop_start).count();
   if (!latency_us.empty()) {
     std::sort(latency_us.begin(), latency_us.end());

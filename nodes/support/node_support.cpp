@@ -21,6 +21,9 @@ void add_common_options(CLI::App& app, CommonOptions& o) {
                "Turn Fast DDS data-sharing off (hosts that look alike but do not share /dev/shm)");
   app.add_option("--clock", o.clock, "lockstep (deterministic, as fast as possible) or realtime")
       ->check(CLI::IsMember({"lockstep", "realtime"}));
+  app.add_option("--command-level", o.command_level,
+                 "force (the drive runs the current loop) or voltage (the controller does, 32 kHz, lockstep only)")
+      ->check(CLI::IsMember({"force", "voltage"}));
   app.add_option("--peer-timeout-s", o.peer_timeout_s,
                  "How long to wait for a peer, at start and between lockstep ticks")
       ->check(CLI::PositiveNumber);
@@ -40,6 +43,10 @@ LoadedConfig load_config(const CommonOptions& o) {
   c.params = load_system_params(o.config_path, overrides);
   c.scenario = load_scenario(o.scenario_path, c.params.timing.control_period_s);
   c.clock = o.clock == "realtime" ? Clock::kRealtime : Clock::kLockstep;
+  c.command_level = o.command_level == "voltage" ? CommandLevel::kVoltage : CommandLevel::kForce;
+  if (c.command_level == CommandLevel::kVoltage && c.clock == Clock::kRealtime) {
+    throw ConfigError("--command-level voltage: runs in lockstep only (a 32 kHz exchange over DDS is a simulation device), got --clock realtime");
+  }
   return c;
 }
 

@@ -30,6 +30,7 @@ enum ExitCode : int {
 };
 
 enum class Clock { kLockstep, kRealtime };
+enum class CommandLevel { kForce, kVoltage };
 
 struct CommonOptions {
   std::string config_path = "configs/system.yaml";
@@ -37,6 +38,7 @@ struct CommonOptions {
   std::vector<std::string> overrides;
   dds::ParticipantOptions dds;
   std::string clock = "lockstep";
+  std::string command_level = "force";
   double peer_timeout_s = 10.0;
   /// How long the loop thread polls for an answer before it sleeps: worth it
   /// on the control chain (plant, controller), wasted CPU for observers.
@@ -51,6 +53,7 @@ struct LoadedConfig {
   SystemParams params;
   Scenario scenario;
   Clock clock = Clock::kLockstep;
+  CommandLevel command_level = CommandLevel::kForce;
 };
 
 /// @throws ConfigError naming the file, key path and value.

@@ -36,20 +36,22 @@ std::vector<std::string> node_args(const std::string& exe, const std::string& do
   return a;
 }
 
-class DistributedLockstep : public ::testing::TestWithParam<const char*> {};
-
-TEST_P(DistributedLockstep, TraceEqualsTheInProcessLoop) {
-  const std::string name = GetParam();
+// Runs evaluator, estimator, controller and plant in lockstep and compares the
+// evaluator's trace with the in-process loop's, byte for byte.
+void expect_trace_equals_in_process(const std::string& name, const std::string& command_level) {
   const std::string scenario = source("configs/scenarios/" + name + ".yaml");
-  const fs::path dir = fs::temp_directory_path() / ("pmlsm_dist_" + std::to_string(getpid()) + "_" + name);
+  const fs::path dir =
+      fs::temp_directory_path() / ("pmlsm_dist_" + std::to_string(getpid()) + "_" + name + "_" + command_level);
   fs::remove_all(dir);
   fs::create_directories(dir);
-  const std::string domain = test_domain(name.size());
+  const std::string domain = test_domain(static_cast<int>(name.size() + 3 * command_level.size()));
 
   test::ChildProcess evaluator(node_args("evaluator", domain, scenario, {"--out", dir.string()}), (dir / "evaluator.log").string());
   test::ChildProcess estimator(node_args("kalman_estimator", domain, scenario), (dir / "estimator.log").string());
-  test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
-  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "3"}), (dir / "plant.log").string());
+  test::ChildProcess controller(node_args("controller", domain, scenario, {"--command-level", command_level}),
+                                (dir / "controller.log").string());
+  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "3", "--command-level", command_level}),
+                           (dir / "plant.log").string());
 
   for (auto* p : {&plant, &controller, &estimator, &evaluator}) {
     const auto code = p->wait_for(std::chrono::seconds(60));
@@ -68,7 +70,27 @@ TEST_P(DistributedLockstep, TraceEqualsTheInProcessLoop) {
   fs::remove_all(dir);
 }
 
+class DistributedLockstep : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(DistributedLockstep, TraceEqualsTheInProcessLoop) { expect_trace_equals_in_process(GetParam(), "force"); }
+
 INSTANTIATE_TEST_SUITE_P(Scenarios, DistributedLockstep, ::testing::Values("pulse", "free_vibration"));
+
+// The voltage command level: the controller runs the current loop and
+// exchanges CurrentFeedback / VoltageCommand with the plant 32 times a tick.
+TEST(DistributedLockstepVoltage, TraceEqualsTheInProcessLoop) { expect_trace_equals_in_process("pulse", "voltage"); }
+
+TEST(DistributedLockstepVoltage, RealtimeIsRejectedAsABadOption) {
+  const fs::path log = fs::temp_directory_path() / ("pmlsm_voltage_rt_" + std::to_string(getpid()));
+  test::ChildProcess p(node_args("plant_sim", "0", source("configs/scenarios/pulse.yaml"),
+                                 {"--command-level", "voltage", "--clock", "realtime"}),
+                       log.string());
+  const auto code = p.wait_for(std::chrono::seconds(30));
+  ASSERT_TRUE(code.has_value());
+  EXPECT_EQ(*code, 2) << p.output();
+  EXPECT_NE(p.output().find("lockstep only"), std::string::npos) << p.output();
+  fs::remove(log);
+}
 
 TEST(DistributedFailures, LockstepPlantReportsALostControllerAndStops) {
   const std::string scenario = source("configs/scenarios/free_vibration.yaml");

@@ -35,6 +35,17 @@ class SimulatedDrive {
   /// drive's own encoder gives it.
   void apply_force(double force_request_n);
 
+  /// The `voltage` command level: the controller runs the current loop and
+  /// sends a voltage for each current-loop period of the tick. measurement()
+  /// is what the current sensors and encoder read now; apply_voltage() holds
+  /// one voltage for one current-loop period. A tick is
+  /// current_steps_per_tick() of these.
+  const PlantMeasurement& measurement() const { return last_measurement_; }
+  void apply_voltage(double u_d_v, double u_q_v);
+  int current_steps_per_tick() const { return current_steps_per_tick_; }
+  /// The velocity of the last sample(), which the current loop's back-EMF term uses.
+  double tick_velocity_mps() const { return last_velocity_mps_; }
+
   const Plant& plant() const { return plant_; }
   const CurrentController& current_controller() const { return current_; }
   double last_u_d_v() const { return last_u_d_v_; }
