@@ -136,9 +136,9 @@ int run(int argc, char** argv) {
   }
   status.status().rejected(rejected);
   status.publish(node_state::STATE_STOPPING, next_tick, period, "done");
-  command_writer.wait_for_acknowledgments(peer_timeout);
-  if (voltage_level) voltage_writer.wait_for_acknowledgments(peer_timeout);
-  reference_writer.wait_for_acknowledgments(peer_timeout);
+  command_writer.wait_for_acknowledgments(node::kFlushTimeout);
+  if (voltage_level) voltage_writer.wait_for_acknowledgments(node::kFlushTimeout);
+  reference_writer.wait_for_acknowledgments(node::kFlushTimeout);
   std::printf("controller: %llu ticks answered, %llu rejected\n",
               static_cast<unsigned long long>(next_tick), static_cast<unsigned long long>(rejected));
   return exit_code;

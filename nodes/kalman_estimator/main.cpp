@@ -85,7 +85,7 @@ int run(int argc, char** argv) {
   const auto& c = filter.counters();
   status.status().rejected(rejected + c.rejected_measurements + c.rejected_inputs);
   status.publish(node_state::STATE_STOPPING, next_tick, period, "done");
-  estimate_writer.wait_for_acknowledgments(peer_timeout);
+  estimate_writer.wait_for_acknowledgments(node::kFlushTimeout);
   std::printf("kalman_estimator: %llu ticks, %llu rejected\n", static_cast<unsigned long long>(next_tick),
               static_cast<unsigned long long>(rejected + c.rejected_measurements + c.rejected_inputs));
   return exit_code;

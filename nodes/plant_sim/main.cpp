@@ -326,9 +326,9 @@ int run(int argc, char** argv) {
   s.rejected(counters.rejected);
   s.deadline_misses(counters.deadline_misses);
   status.publish(node_state::STATE_STOPPING, k, period, "done");
-  feedback_writer.wait_for_acknowledgments(peer_timeout);
-  truth_writer.wait_for_acknowledgments(peer_timeout);
-  if (voltage_level) current_writer.wait_for_acknowledgments(peer_timeout);
+  feedback_writer.wait_for_acknowledgments(node::kFlushTimeout);
+  truth_writer.wait_for_acknowledgments(node::kFlushTimeout);
+  if (voltage_level) current_writer.wait_for_acknowledgments(node::kFlushTimeout);
   const double loop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - loop_start).count();
   if (!latency_us.empty()) {
     std::sort(latency_us.begin(), latency_us.end());

@@ -17,8 +17,8 @@ void add_common_options(CLI::App& app, CommonOptions& o) {
   app.add_option("--profiles", o.dds.profiles_file, "Fast DDS XML profiles")->check(CLI::ExistingFile);
   app.add_option("--participant-profile", o.dds.participant_profile, "Participant profile in --profiles");
   app.add_option("--domain", o.dds.domain_id, "DDS domain id")->check(CLI::Range(0, 232));
-  app.add_flag("!--no-data-sharing", o.dds.data_sharing,
-               "Turn Fast DDS data-sharing off (hosts that look alike but do not share /dev/shm)");
+  app.add_flag("--data-sharing", o.dds.data_sharing,
+               "Turn Fast DDS data-sharing on (zero-copy between processes of one host; off by default)");
   app.add_option("--clock", o.clock, "lockstep (deterministic, as fast as possible) or realtime")
       ->check(CLI::IsMember({"lockstep", "realtime"}));
   app.add_option("--command-level", o.command_level,

@@ -29,6 +29,9 @@ enum ExitCode : int {
   kPeerLost = 4,     ///< a peer stopped answering mid-run (lockstep timeout)
 };
 
+/// How long a node waits at exit for its last samples to be acknowledged.
+inline constexpr std::chrono::seconds kFlushTimeout{2};
+
 enum class Clock { kLockstep, kRealtime };
 enum class CommandLevel { kForce, kVoltage };
 

@@ -1,6 +1,7 @@
 // The control loop as separate processes on real DDS (loopback, shared memory).
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -18,8 +19,13 @@ namespace fs = std::filesystem;
 std::string bin(const std::string& name) { return std::string(PMLSM_BIN_DIR) + "/" + name; }
 std::string source(const std::string& rel) { return std::string(PMLSM_SOURCE_DIR) + "/" + rel; }
 
-// A domain of its own per test process, so tests running in parallel never meet.
-std::string test_domain(int offset) { return std::to_string(100 + (getpid() * 7 + offset) % 120); }
+// A domain of its own per test, so the tests of one ctest run, which run in
+// parallel, never meet. PMLSM_TEST_DOMAIN_BASE moves the whole set (default
+// 100), for two test runs on one machine.
+std::string test_domain(int offset) {
+  const char* base = std::getenv("PMLSM_TEST_DOMAIN_BASE");
+  return std::to_string((base != nullptr ? std::atoi(base) : 100) + offset);
+}
 
 std::string read_file(const fs::path& p) {
   std::ifstream in(p);
@@ -44,7 +50,8 @@ void expect_trace_equals_in_process(const std::string& name, const std::string& 
       fs::temp_directory_path() / ("pmlsm_dist_" + std::to_string(getpid()) + "_" + name + "_" + command_level);
   fs::remove_all(dir);
   fs::create_directories(dir);
-  const std::string domain = test_domain(static_cast<int>(name.size() + 3 * command_level.size()));
+  const std::string domain =
+      test_domain((name == "pulse" ? 0 : 1) + (command_level == "force" ? 0 : 2));
 
   test::ChildProcess evaluator(node_args("evaluator", domain, scenario, {"--out", dir.string()}), (dir / "evaluator.log").string());
   test::ChildProcess estimator(node_args("kalman_estimator", domain, scenario), (dir / "estimator.log").string());
@@ -96,7 +103,7 @@ TEST(DistributedFailures, LockstepPlantReportsALostControllerAndStops) {
   const std::string scenario = source("configs/scenarios/free_vibration.yaml");
   const fs::path dir = fs::temp_directory_path() / ("pmlsm_lost_" + std::to_string(getpid()));
   fs::create_directories(dir);
-  const std::string domain = test_domain(31);
+  const std::string domain = test_domain(4);
   test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
   test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "1", "--peer-timeout-s", "1"}),
                            (dir / "plant.log").string());
@@ -113,7 +120,7 @@ TEST(DistributedFailures, RealtimeWatchdogPutsThePlantInItsSafeState) {
   const std::string scenario = source("configs/scenarios/pulse.yaml");
   const fs::path dir = fs::temp_directory_path() / ("pmlsm_watchdog_" + std::to_string(getpid()));
   fs::create_directories(dir);
-  const std::string domain = test_domain(47);
+  const std::string domain = test_domain(5);
   test::ChildProcess controller(node_args("controller", domain, scenario, {"--clock", "realtime"}),
                                 (dir / "controller.log").string());
   test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "1", "--clock", "realtime"}),

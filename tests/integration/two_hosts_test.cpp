@@ -64,7 +64,7 @@ std::vector<std::string> in_host(const std::string& ns, const std::string& exe, 
   std::string command = "mount -t tmpfs tmpfs /dev/shm && exec " + bin(exe) + " --domain " + domain +
                         " --config " + source("configs/system.yaml") + " --scenario " + scenario +
                         " --profiles " + source("configs/dds/profiles.xml") +
-                        " --participant-profile pmlsm_udp_only --no-data-sharing --peer-timeout-s 30";
+                        " --participant-profile pmlsm_udp_only --peer-timeout-s 30";
   for (const auto& e : extra) command += " " + e;
   return {"/usr/sbin/ip", "netns", "exec", ns, "/usr/bin/unshare", "--mount", "--propagation", "private",
           "/bin/sh", "-c", command};

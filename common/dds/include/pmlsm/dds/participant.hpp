@@ -59,9 +59,10 @@ struct ParticipantOptions {
   int domain_id = 0;
   std::string node_name;
   /// Fast DDS data-sharing (zero-copy through /dev/shm between processes it
-  /// believes share a host). Off where /dev/shm is not shared although the
-  /// host looks the same, e.g. network namespaces standing in for machines.
-  bool data_sharing = true;
+  /// believes share a host). Off by default: it shares locks with its peers
+  /// (see configs/dds/profiles.xml), and it breaks where /dev/shm is not
+  /// shared although the host looks the same (network namespaces).
+  bool data_sharing = false;
 };
 
 class Participant;
@@ -158,7 +159,7 @@ class Participant {
                                                     const std::string& profile, Wakeup& wakeup);
 
   std::string node_name_;
-  bool data_sharing_ = true;
+  bool data_sharing_ = false;
   eprosima::fastdds::dds::DomainParticipant* participant_ = nullptr;
   eprosima::fastdds::dds::Publisher* publisher_ = nullptr;
   eprosima::fastdds::dds::Subscriber* subscriber_ = nullptr;
