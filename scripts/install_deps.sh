@@ -14,6 +14,7 @@ packages=(
   libbenchmark-dev                # speed benchmark
   gnuplot-nox                     # PNG plots of the traces
   iproute2                        # network namespaces for the two-host test
+  fastdds-tools                   # `fastdds discovery`: the Discovery Server for networks without multicast
 )
 
 sudo_cmd=()

@@ -173,7 +173,21 @@ int run(int argc, char** argv) {
   latency_us.reserve(ticks);
   const auto loop_start = std::chrono::steady_clock::now();
   std::uint64_t k = 0;
+  struct {
+    double sum_k = 0, sum_t = 0, sum_kk = 0, sum_kt = 0;
+  } start_fit;  // running sums for the period's least-squares fit
+  timespec first_tick_start{}, tick_start{};
   for (; k < ticks && !pdds::stop_requested(); ++k) {
+    clock_gettime(CLOCK_MONOTONIC, &tick_start);
+    if (k == 0) first_tick_start = tick_start;
+    {
+      const double kk = static_cast<double>(k);
+      const double t = static_cast<double>(diff_ns(tick_start, first_tick_start)) * 1e-9;
+      start_fit.sum_k += kk;
+      start_fit.sum_t += t;
+      start_fit.sum_kk += kk * kk;
+      start_fit.sum_kt += kk * t;
+    }
     const DriveFeedback fb = drive.sample();
     std::uint32_t status_bits = flags::STATUS_SIMULATED;
     if (safe_state) status_bits |= flags::STATUS_SAFE_STATE | flags::STATUS_WATCHDOG_TRIPPED;
@@ -330,6 +344,16 @@ int run(int argc, char** argv) {
   truth_writer.wait_for_acknowledgments(node::kFlushTimeout);
   if (voltage_level) current_writer.wait_for_acknowledgments(node::kFlushTimeout);
   const double loop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - loop_start).count();
+  if (cfg.clock == node::Clock::kRealtime && k > 1) {
+    // Absolute-time scheduling: the period, as the least-squares slope of the
+    // tick start times against the tick index, must equal the nominal one (no
+    // drift); single late ticks barely move it.
+    const double n = static_cast<double>(k);
+    const double mean_period = (n * start_fit.sum_kt - start_fit.sum_k * start_fit.sum_t) /
+                               (n * start_fit.sum_kk - start_fit.sum_k * start_fit.sum_k);
+    std::printf("plant_sim: mean tick period %.3f us (nominal %.3f us, %+.1f ppm)\n", mean_period * 1e6,
+                period * 1e6, (mean_period / period - 1.0) * 1e6);
+  }
   if (!latency_us.empty()) {
     std::sort(latency_us.begin(), latency_us.end());
     auto at = [&](double q) { return latency_us[static_cast<std::size_t>(q * static_cast<double>(latency_us.size() - 1))]; };

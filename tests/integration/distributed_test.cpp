@@ -150,5 +150,45 @@ TEST(DistributedFailures, NodesRejectABadConfigWithExitCode2) {
   }
 }
 
+TEST(DiscoveryServer, NodesFindEachOtherThroughTheServerAndNotWithoutIt) {
+  // The pmlsm_discovery_client profile has no multicast discovery: the nodes
+  // meet only through the server (Debian fastdds-tools).
+  const std::string server_exe = "/usr/bin/fastdds";
+  if (!fs::exists(server_exe)) GTEST_SKIP() << "fastdds-tools is not installed; not run";
+  const std::string scenario = source("configs/scenarios/pulse.yaml");
+  const fs::path dir = fs::temp_directory_path() / ("pmlsm_ds_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  const std::string domain = test_domain(6);
+  const std::vector<std::string> client{"--participant-profile", "pmlsm_discovery_client", "--peer-timeout-s", "3"};
+  auto with = [](std::vector<std::string> a, const std::vector<std::string>& b) {
+    a.insert(a.end(), b.begin(), b.end());
+    return a;
+  };
+  {
+    // No server: the plant never finds its controller.
+    test::ChildProcess controller(node_args("controller", domain, scenario, client), (dir / "c0.log").string());
+    test::ChildProcess plant(node_args("plant_sim", domain, scenario, with(client, {"--peers", "1"})),
+                             (dir / "p0.log").string());
+    const auto code = plant.wait_for(std::chrono::seconds(30));
+    ASSERT_TRUE(code.has_value());
+    EXPECT_EQ(*code, 3) << plant.output();  // kPeerMissing
+  }
+  test::ChildProcess server({server_exe, "discovery", "-i", "0", "-l", "127.0.0.1", "-p", "11811"},
+                            (dir / "server.log").string());
+  ASSERT_TRUE(server.wait_for_output("Server is running", std::chrono::seconds(10))) << server.output();
+  test::ChildProcess controller(node_args("controller", domain, scenario, client), (dir / "c1.log").string());
+  test::ChildProcess plant(node_args("plant_sim", domain, scenario, with(client, {"--peers", "1"})),
+                           (dir / "p1.log").string());
+  for (auto* p : {&plant, &controller}) {
+    const auto code = p->wait_for(std::chrono::seconds(60));
+    ASSERT_TRUE(code.has_value()) << p->output();
+    EXPECT_EQ(*code, 0) << p->output();
+  }
+  EXPECT_NE(plant.output().find("2000 ticks in"), std::string::npos) << plant.output();
+  server.signal(SIGINT);
+  server.wait_for(std::chrono::seconds(10));
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace pmlsm
