@@ -27,11 +27,7 @@ int run(int argc, char** argv) {
   node::CommonOptions common;
   common.spin_us = 200.0;
   node::add_common_options(app, common);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? node::kOk : node::kBadConfig;
-  }
+  if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   const node::LoadedConfig cfg = node::load_config(common);
   const double period = cfg.params.timing.control_period_s;
   common.dds.node_name = "controller";
@@ -65,17 +61,7 @@ int run(int argc, char** argv) {
   int exit_code = node::kOk;
 
   while (next_tick < ticks && !pdds::stop_requested()) {
-    bool got = false;
-    const bool ok = node::wait_until(wakeup, peer_timeout, [&] {
-      while (!got && feedback_reader.take(feedback)) {
-        if (feedback.stamp().tick() < next_tick) {
-          ++rejected;  // a tick already answered: duplicate or out of order
-          continue;
-        }
-        got = true;
-      }
-      return got;
-    });
+    const bool ok = node::take_next_tick(wakeup, feedback_reader, feedback, next_tick, rejected, peer_timeout);
     if (!ok) {
       if (pdds::stop_requested()) break;
       std::fprintf(stderr, "controller: no MotorFeedback after tick %llu for %.1f s: plant lost\n",

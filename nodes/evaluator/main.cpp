@@ -35,11 +35,7 @@ int run(int argc, char** argv) {
   node::add_common_options(app, common);
   app.add_option("-o,--out", out_dir, "Folder for the CSV trace");
   app.add_option("--header", print_header, "Print the table header (true/false)");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? node::kOk : node::kBadConfig;
-  }
+  if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   const node::LoadedConfig cfg = node::load_config(common);
   const double period = cfg.params.timing.control_period_s;
   common.dds.node_name = "evaluator";

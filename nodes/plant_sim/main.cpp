@@ -107,11 +107,7 @@ int run(int argc, char** argv) {
   app.add_option("--command-deadline-us", opt.command_deadline_us,
                  "realtime: how long into a tick the plant waits for that tick's command")
       ->check(CLI::Range(0.0, 1e6));
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? node::kOk : node::kBadConfig;
-  }
+  if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   const node::LoadedConfig cfg = node::load_config(common);
   const double period = cfg.params.timing.control_period_s;
   common.dds.node_name = "plant_sim";

@@ -50,6 +50,15 @@ LoadedConfig load_config(const CommonOptions& o) {
   return c;
 }
 
+std::optional<int> parse_command_line(CLI::App& app, int argc, char** argv) {
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? kOk : kBadConfig;
+  }
+  return std::nullopt;
+}
+
 int run_node(const std::string& node_name, const std::function<int()>& body) {
   dds::install_shutdown_handlers();
   // Line-buffered even into the launcher's pipe, so lines appear as they happen.

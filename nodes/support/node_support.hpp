@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,8 +30,10 @@ enum ExitCode : int {
   kPeerLost = 4,     ///< a peer stopped answering mid-run (lockstep timeout)
 };
 
-/// How long a node waits at exit for its last samples to be acknowledged.
-inline constexpr std::chrono::seconds kFlushTimeout{2};
+/// How long a node waits at exit for its last samples to be acknowledged: an
+/// observer may be seconds behind a fast lockstep run; a dead reader stops
+/// counting once its lease (3 s, configs/dds/profiles.xml) runs out.
+inline constexpr std::chrono::seconds kFlushTimeout{15};
 
 enum class Clock { kLockstep, kRealtime };
 enum class CommandLevel { kForce, kVoltage };
@@ -61,6 +64,29 @@ struct LoadedConfig {
 
 /// @throws ConfigError naming the file, key path and value.
 LoadedConfig load_config(const CommonOptions& options);
+
+/// Parses the command line: an exit code to end with (help printed: 0, bad
+/// options: 2), or nothing when the node should go on.
+std::optional<int> parse_command_line(CLI::App& app, int argc, char** argv);
+
+/// Waits for the next MotorFeedback-like sample whose tick is at least
+/// `next_tick`, counting older ones (duplicates, out of order) as rejected.
+/// False on timeout or a stop request.
+template <typename ReaderT, typename Message>
+bool take_next_tick(dds::Wakeup& wakeup, ReaderT& reader, Message& sample, std::uint64_t next_tick,
+                    std::uint64_t& rejected, std::chrono::duration<double> timeout) {
+  bool got = false;
+  return wait_until(wakeup, timeout, [&] {
+    while (!got && reader.take(sample)) {
+      if (sample.stamp().tick() < next_tick) {
+        ++rejected;
+        continue;
+      }
+      got = true;
+    }
+    return got;
+  });
+}
 
 /// Runs a node's body and maps its failures to exit codes with a one-line
 /// message on stderr: ConfigError -> 2, anything else -> 1.
