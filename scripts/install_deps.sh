@@ -15,6 +15,7 @@ packages=(
   gnuplot-nox                     # PNG plots of the traces
   iproute2                        # network namespaces for the two-host test
   fastdds-tools                   # `fastdds discovery`: the Discovery Server for networks without multicast
+  cyclonedds-tools                # ddsperf: the DDS latency floor the distributed benchmark compares with
 )
 
 sudo_cmd=()
