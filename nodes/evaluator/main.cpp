@@ -3,6 +3,7 @@
 // same records the in-process loop writes, and when the scenario's last tick
 // is complete prints the results table and writes <out>/<scenario>.csv.
 // It reads PlantTruth, which no controller may: evaluation only.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <vector>
@@ -128,6 +129,21 @@ int run(int argc, char** argv) {
     std::fprintf(stderr, "evaluator: only %llu of %llu ticks complete (%s); no results\n",
                  static_cast<unsigned long long>(complete), static_cast<unsigned long long>(ticks),
                  pdds::stop_requested() ? "stopped" : "peers silent");
+    // Which topics are missing, and from where: tells a late join from a loss.
+    const char* names[] = {"MotorFeedback", "PlantTruth", "VelocityReference", "ForceCommand", "EstimatedState"};
+    for (unsigned bit = 0; bit < 5; ++bit) {
+      std::uint64_t missing = 0, first = ticks;
+      for (std::uint64_t t = 0; t < ticks; ++t) {
+        if ((parts[t] & (1u << bit)) == 0) {
+          ++missing;
+          first = std::min(first, t);
+        }
+      }
+      if (missing > 0) {
+        std::fprintf(stderr, "evaluator: %s missing for %llu ticks, the first %llu\n", names[bit],
+                     static_cast<unsigned long long>(missing), static_cast<unsigned long long>(first));
+      }
+    }
     status.publish(node_state::STATE_ERROR, complete, period, "incomplete run");
     return pdds::stop_requested() ? node::kOk : node::kPeerLost;
   }

@@ -29,7 +29,10 @@ int run(int argc, char** argv) {
 
   pdds::Participant participant(common.dds);
   pdds::Wakeup wakeup(node::spin_time(common));
-  auto feedback_reader = participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, wakeup);
+  // Deep history: the estimator is off the lockstep chain and may fall behind;
+  // it must still see every tick.
+  auto feedback_reader = participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(
+      pdds::topics::kMotorFeedback, wakeup, pdds::kObserverProfile);
   auto estimate_writer = participant.make_writer<pmlsm_msgs::msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState);
   node::StatusPublisher status(participant, "kalman_estimator");
 
