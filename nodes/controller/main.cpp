@@ -28,20 +28,16 @@ int run(int argc, char** argv) {
   common.spin_us = 200.0;
   node::add_common_options(app, common);
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
-  const node::LoadedConfig cfg = node::load_config(common);
-  const double period = cfg.params.timing.control_period_s;
-  common.dds.node_name = "controller";
-
-  pdds::Participant participant(common.dds);
-  pdds::Wakeup wakeup(node::spin_time(common));
-  auto feedback_reader = participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, wakeup);
-  auto command_writer = participant.make_writer<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand);
-  auto reference_writer = participant.make_writer<pmlsm_msgs::msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference);
-  node::StatusPublisher status(participant, "controller");
+  node::NodeRuntime rt("controller", common);
+  const node::LoadedConfig& cfg = rt.cfg;
+  const double period = rt.period_s;
+  auto feedback_reader = rt.participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, rt.wakeup);
+  auto command_writer = rt.participant.make_writer<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand);
+  auto reference_writer = rt.participant.make_writer<pmlsm_msgs::msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference);
   // The voltage command level: this node also runs the drive's current loop.
   const bool voltage_level = cfg.command_level == node::CommandLevel::kVoltage;
-  auto current_reader = participant.make_reader<pmlsm_msgs::msg::CurrentFeedbackPubSubType>(pdds::topics::kCurrentFeedback, wakeup);
-  auto voltage_writer = participant.make_writer<pmlsm_msgs::msg::VoltageCommandPubSubType>(pdds::topics::kVoltageCommand);
+  auto current_reader = rt.participant.make_reader<pmlsm_msgs::msg::CurrentFeedbackPubSubType>(pdds::topics::kCurrentFeedback, rt.wakeup);
+  auto voltage_writer = rt.participant.make_writer<pmlsm_msgs::msg::VoltageCommandPubSubType>(pdds::topics::kVoltageCommand);
   CurrentController current_loop(cfg.params.current_controller_params());
   const int current_steps = cfg.params.timing.current_steps_per_tick();
   pmlsm_msgs::msg::CurrentFeedback current_feedback;
@@ -49,7 +45,7 @@ int run(int argc, char** argv) {
 
   VelocityController controller(cfg.params, cfg.scenario);
   const std::uint64_t ticks = scenario_ticks(cfg.scenario, period);
-  status.publish(node_state::STATE_RUNNING, 0, period, "running");
+  rt.status.publish(node_state::STATE_RUNNING, 0, period, "running");
 
   pmlsm_msgs::msg::MotorFeedback feedback;
   pmlsm_msgs::msg::ForceCommand command;
@@ -61,7 +57,7 @@ int run(int argc, char** argv) {
   int exit_code = node::kOk;
 
   while (next_tick < ticks && !pdds::stop_requested()) {
-    const bool ok = node::take_next_tick(wakeup, feedback_reader, feedback, next_tick, rejected, peer_timeout);
+    const bool ok = node::take_next_tick(rt.wakeup, feedback_reader, feedback, next_tick, rejected, peer_timeout);
     if (!ok) {
       if (pdds::stop_requested()) break;
       std::fprintf(stderr, "controller: no MotorFeedback after tick %llu for %.1f s: plant lost\n",
@@ -95,7 +91,7 @@ int run(int argc, char** argv) {
 
     for (int sub = 0; voltage_level && sub < current_steps; ++sub) {
       bool got_current = false;
-      const bool current_ok = node::wait_until(wakeup, peer_timeout, [&] {
+      const bool current_ok = node::wait_until(rt.wakeup, peer_timeout, [&] {
         while (!got_current && current_reader.take(current_feedback)) {
           if (current_feedback.stamp().tick() == k && current_feedback.substep() == static_cast<std::uint32_t>(sub)) {
             got_current = true;
@@ -120,8 +116,8 @@ int run(int argc, char** argv) {
     }
     next_tick = k + 1;
   }
-  status.status().rejected(rejected);
-  status.publish(node_state::STATE_STOPPING, next_tick, period, "done");
+  rt.status.status().rejected(rejected);
+  rt.status.publish(node_state::STATE_STOPPING, next_tick, period, "done");
   command_writer.wait_for_acknowledgments(node::kFlushTimeout);
   if (voltage_level) voltage_writer.wait_for_acknowledgments(node::kFlushTimeout);
   reference_writer.wait_for_acknowledgments(node::kFlushTimeout);

@@ -37,19 +37,15 @@ int run(int argc, char** argv) {
   app.add_option("-o,--out", out_dir, "Folder for the CSV trace");
   app.add_option("--header", print_header, "Print the table header (true/false)");
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
-  const node::LoadedConfig cfg = node::load_config(common);
-  const double period = cfg.params.timing.control_period_s;
-  common.dds.node_name = "evaluator";
-
-  pdds::Participant participant(common.dds);
-  pdds::Wakeup wakeup(node::spin_time(common));
-  auto feedback_reader = participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, wakeup, pdds::kObserverProfile);
-  auto truth_reader = participant.make_reader<pmlsm_msgs::msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth, wakeup, pdds::kObserverProfile);
-  auto reference_reader = participant.make_reader<pmlsm_msgs::msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference, wakeup, pdds::kObserverProfile);
-  auto command_reader = participant.make_reader<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand, wakeup, pdds::kObserverProfile);
-  auto estimate_reader = participant.make_reader<pmlsm_msgs::msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState, wakeup, pdds::kObserverProfile);
-  node::StatusPublisher status(participant, "evaluator");
-  status.publish(node_state::STATE_RUNNING, 0, period, "collecting");
+  node::NodeRuntime rt("evaluator", common);
+  const node::LoadedConfig& cfg = rt.cfg;
+  const double period = rt.period_s;
+  auto feedback_reader = rt.participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, rt.wakeup, pdds::kObserverProfile);
+  auto truth_reader = rt.participant.make_reader<pmlsm_msgs::msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth, rt.wakeup, pdds::kObserverProfile);
+  auto reference_reader = rt.participant.make_reader<pmlsm_msgs::msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference, rt.wakeup, pdds::kObserverProfile);
+  auto command_reader = rt.participant.make_reader<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand, rt.wakeup, pdds::kObserverProfile);
+  auto estimate_reader = rt.participant.make_reader<pmlsm_msgs::msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState, rt.wakeup, pdds::kObserverProfile);
+  rt.status.publish(node_state::STATE_RUNNING, 0, period, "collecting");
 
   const std::uint64_t ticks = scenario_ticks(cfg.scenario, period);
   std::vector<TickRecord> trace(ticks);
@@ -120,7 +116,7 @@ int run(int argc, char** argv) {
   // Done when every tick is complete; a stall longer than the peer timeout ends it.
   std::uint64_t last_complete = 0;
   while (!pdds::stop_requested()) {
-    if (node::wait_until(wakeup, std::chrono::duration<double>(common.peer_timeout_s), drain)) break;
+    if (node::wait_until(rt.wakeup, std::chrono::duration<double>(common.peer_timeout_s), drain)) break;
     if (complete == last_complete) break;
     last_complete = complete;
   }
@@ -144,7 +140,7 @@ int run(int argc, char** argv) {
                      static_cast<unsigned long long>(missing), static_cast<unsigned long long>(first));
       }
     }
-    status.publish(node_state::STATE_ERROR, complete, period, "incomplete run");
+    rt.status.publish(node_state::STATE_ERROR, complete, period, "incomplete run");
     return pdds::stop_requested() ? node::kOk : node::kPeerLost;
   }
   const ScenarioMetrics m = compute_metrics(trace, cfg.scenario, period);
@@ -153,8 +149,8 @@ int run(int argc, char** argv) {
   if (print_header) node::print_results_header();
   node::print_results_row(cfg.scenario.name, m);
   std::fflush(stdout);
-  status.status().rejected(rejected);
-  status.publish(node_state::STATE_STOPPING, ticks, period, "done");
+  rt.status.status().rejected(rejected);
+  rt.status.publish(node_state::STATE_STOPPING, ticks, period, "done");
   return node::kOk;
 }
 

@@ -23,22 +23,18 @@ int run(int argc, char** argv) {
   common.spin_us = 0.0;
   node::add_common_options(app, common);
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
-  const node::LoadedConfig cfg = node::load_config(common);
-  const double period = cfg.params.timing.control_period_s;
-  common.dds.node_name = "kalman_estimator";
-
-  pdds::Participant participant(common.dds);
-  pdds::Wakeup wakeup(node::spin_time(common));
+  node::NodeRuntime rt("kalman_estimator", common);
+  const node::LoadedConfig& cfg = rt.cfg;
+  const double period = rt.period_s;
   // Deep history: the estimator is off the lockstep chain and may fall behind;
   // it must still see every tick.
-  auto feedback_reader = participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(
-      pdds::topics::kMotorFeedback, wakeup, pdds::kObserverProfile);
-  auto estimate_writer = participant.make_writer<pmlsm_msgs::msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState);
-  node::StatusPublisher status(participant, "kalman_estimator");
+  auto feedback_reader = rt.participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(
+      pdds::topics::kMotorFeedback, rt.wakeup, pdds::kObserverProfile);
+  auto estimate_writer = rt.participant.make_writer<pmlsm_msgs::msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState);
 
   KalmanFilter filter(cfg.params.kalman_params());
   const std::uint64_t ticks = scenario_ticks(cfg.scenario, period);
-  status.publish(node_state::STATE_RUNNING, 0, period, "running");
+  rt.status.publish(node_state::STATE_RUNNING, 0, period, "running");
 
   pmlsm_msgs::msg::MotorFeedback feedback;
   pmlsm_msgs::msg::EstimatedState estimate;
@@ -48,7 +44,7 @@ int run(int argc, char** argv) {
   int exit_code = node::kOk;
 
   while (next_tick < ticks && !pdds::stop_requested()) {
-    const bool ok = node::take_next_tick(wakeup, feedback_reader, feedback, next_tick, rejected, peer_timeout);
+    const bool ok = node::take_next_tick(rt.wakeup, feedback_reader, feedback, next_tick, rejected, peer_timeout);
     if (!ok) {
       if (pdds::stop_requested()) break;
       std::fprintf(stderr, "kalman_estimator: no MotorFeedback after tick %llu for %.1f s: plant lost\n",
@@ -72,8 +68,8 @@ int run(int argc, char** argv) {
     next_tick = k + 1;
   }
   const auto& c = filter.counters();
-  status.status().rejected(rejected + c.rejected_measurements + c.rejected_inputs);
-  status.publish(node_state::STATE_STOPPING, next_tick, period, "done");
+  rt.status.status().rejected(rejected + c.rejected_measurements + c.rejected_inputs);
+  rt.status.publish(node_state::STATE_STOPPING, next_tick, period, "done");
   estimate_writer.wait_for_acknowledgments(node::kFlushTimeout);
   std::printf("kalman_estimator: %llu ticks, %llu rejected\n", static_cast<unsigned long long>(next_tick),
               static_cast<unsigned long long>(rejected + c.rejected_measurements + c.rejected_inputs));

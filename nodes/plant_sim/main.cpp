@@ -108,28 +108,24 @@ int run(int argc, char** argv) {
                  "realtime: how long into a tick the plant waits for that tick's command")
       ->check(CLI::Range(0.0, 1e6));
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
-  const node::LoadedConfig cfg = node::load_config(common);
-  const double period = cfg.params.timing.control_period_s;
-  common.dds.node_name = "plant_sim";
-
-  pdds::Participant participant(common.dds);
-  pdds::Wakeup wakeup(node::spin_time(common));
-  auto feedback_writer = participant.make_writer<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback);
-  auto truth_writer = participant.make_writer<pmlsm_msgs::msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth);
-  auto command_reader = participant.make_reader<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand, wakeup);
+  node::NodeRuntime rt("plant_sim", common);
+  const node::LoadedConfig& cfg = rt.cfg;
+  const double period = rt.period_s;
+  auto feedback_writer = rt.participant.make_writer<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback);
+  auto truth_writer = rt.participant.make_writer<pmlsm_msgs::msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth);
+  auto command_reader = rt.participant.make_reader<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand, rt.wakeup);
   // The voltage command level: the current loop runs in the controller.
   const bool voltage_level = cfg.command_level == node::CommandLevel::kVoltage;
-  auto current_writer = participant.make_writer<pmlsm_msgs::msg::CurrentFeedbackPubSubType>(pdds::topics::kCurrentFeedback);
-  auto voltage_reader = participant.make_reader<pmlsm_msgs::msg::VoltageCommandPubSubType>(pdds::topics::kVoltageCommand, wakeup);
-  node::StatusPublisher status(participant, "plant_sim");
+  auto current_writer = rt.participant.make_writer<pmlsm_msgs::msg::CurrentFeedbackPubSubType>(pdds::topics::kCurrentFeedback);
+  auto voltage_reader = rt.participant.make_reader<pmlsm_msgs::msg::VoltageCommandPubSubType>(pdds::topics::kVoltageCommand, rt.wakeup);
 
   SimulatedDrive drive(cfg.params, scenario_initial_condition(cfg.scenario));
   const std::uint64_t ticks = scenario_ticks(cfg.scenario, period);
   const double km = cfg.params.plant.electrical.motor_constant_n_per_a;
 
-  status.publish(node_state::STATE_WAITING, 0, period, "waiting for peers");
+  rt.status.publish(node_state::STATE_WAITING, 0, period, "waiting for peers");
   const auto peer_timeout = std::chrono::duration<double>(common.peer_timeout_s);
-  if (!node::wait_until(wakeup, peer_timeout, [&] {
+  if (!node::wait_until(rt.wakeup, peer_timeout, [&] {
         return feedback_writer.matched_readers() >= static_cast<std::size_t>(opt.peers) &&
                command_reader.matched_writers() >= 1 &&
                (!voltage_level || (current_writer.matched_readers() >= 1 && voltage_reader.matched_writers() >= 1));
@@ -144,7 +140,7 @@ int run(int argc, char** argv) {
               cfg.clock == node::Clock::kLockstep ? "lockstep" : "realtime", voltage_level ? "voltage" : "force",
               static_cast<unsigned long long>(ticks), period * 1e3, cfg.scenario.name.c_str());
   std::fflush(stdout);
-  status.publish(node_state::STATE_RUNNING, 0, period, "running");
+  rt.status.publish(node_state::STATE_RUNNING, 0, period, "running");
 
   MotorFeedback feedback;
   PlantTruth truth;
@@ -204,7 +200,7 @@ int run(int argc, char** argv) {
 
     if (cfg.clock == node::Clock::kLockstep) {
       bool answered = false;
-      const bool ok = node::wait_until(wakeup, peer_timeout, [&] {
+      const bool ok = node::wait_until(rt.wakeup, peer_timeout, [&] {
         while (!answered && command_reader.take(command)) {
           if (command.feedback_tick() != k) {
             ++counters.late;  // an answer to another tick: stale or out of order
@@ -225,7 +221,7 @@ int run(int argc, char** argv) {
         if (pdds::stop_requested()) break;
         std::fprintf(stderr, "plant_sim: no ForceCommand for tick %llu within %.1f s: controller lost; safe state\n",
                      static_cast<unsigned long long>(k), common.peer_timeout_s);
-        status.publish(node_state::STATE_SAFE, k, period, "controller lost");
+        rt.status.publish(node_state::STATE_SAFE, k, period, "controller lost");
         exit_code = node::kPeerLost;
         break;
       }
@@ -258,7 +254,7 @@ int run(int argc, char** argv) {
       timespec now{};
       clock_gettime(CLOCK_MONOTONIC, &now);
       const double wait_s = std::max(0.0, static_cast<double>(diff_ns(command_deadline, now)) * 1e-9);
-      node::wait_until(wakeup, std::chrono::duration<double>(wait_s), drain);
+      node::wait_until(rt.wakeup, std::chrono::duration<double>(wait_s), drain);
       drain();
       if (!fresh) ++counters.late;
       clock_gettime(CLOCK_MONOTONIC, &now);
@@ -267,7 +263,7 @@ int run(int argc, char** argv) {
         safe_state = true;
         std::fprintf(stderr, "plant_sim: watchdog: no command for %.1f ms at tick %llu: safe state (zero force)\n",
                      opt.watchdog_ms, static_cast<unsigned long long>(k));
-        status.publish(node_state::STATE_SAFE, k, period, "watchdog: no command, zero force");
+        rt.status.publish(node_state::STATE_SAFE, k, period, "watchdog: no command, zero force");
       }
       if (safe_state) force_n = 0.0;
     }
@@ -287,7 +283,7 @@ int run(int argc, char** argv) {
         current_feedback.position_m(m.encoder_position_m);
         current_writer.write(current_feedback);
         bool answered = false;
-        lost = !node::wait_until(wakeup, peer_timeout, [&] {
+        lost = !node::wait_until(rt.wakeup, peer_timeout, [&] {
           while (!answered && voltage_reader.take(voltage_command)) {
             if (voltage_command.stamp().tick() != k || voltage_command.substep() != static_cast<std::uint32_t>(sub)) {
               ++counters.late;
@@ -309,7 +305,7 @@ int run(int argc, char** argv) {
         if (pdds::stop_requested()) break;
         std::fprintf(stderr, "plant_sim: no VoltageCommand in tick %llu within %.1f s: controller lost; safe state\n",
                      static_cast<unsigned long long>(k), common.peer_timeout_s);
-        status.publish(node_state::STATE_SAFE, k, period, "controller lost");
+        rt.status.publish(node_state::STATE_SAFE, k, period, "controller lost");
         exit_code = node::kPeerLost;
         break;
       }
@@ -323,19 +319,19 @@ int run(int argc, char** argv) {
       clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next_tick, nullptr);
     }
     if (k % 1000 == 999) {
-      auto& s = status.status();
+      auto& s = rt.status.status();
       s.late(counters.late);
       s.rejected(counters.rejected);
       s.deadline_misses(counters.deadline_misses);
-      status.publish(safe_state ? node_state::STATE_SAFE : node_state::STATE_RUNNING, k, period);
+      rt.status.publish(safe_state ? node_state::STATE_SAFE : node_state::STATE_RUNNING, k, period);
     }
   }
 
-  auto& s = status.status();
+  auto& s = rt.status.status();
   s.late(counters.late);
   s.rejected(counters.rejected);
   s.deadline_misses(counters.deadline_misses);
-  status.publish(node_state::STATE_STOPPING, k, period, "done");
+  rt.status.publish(node_state::STATE_STOPPING, k, period, "done");
   feedback_writer.wait_for_acknowledgments(node::kFlushTimeout);
   truth_writer.wait_for_acknowledgments(node::kFlushTimeout);
   if (voltage_level) current_writer.wait_for_acknowledgments(node::kFlushTimeout);

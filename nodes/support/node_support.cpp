@@ -88,6 +88,20 @@ pmlsm_msgs::msg::Stamp make_stamp(std::uint64_t tick, double control_period_s) {
   return s;
 }
 
+namespace {
+dds::ParticipantOptions named(dds::ParticipantOptions options, const std::string& node_name) {
+  options.node_name = node_name;
+  return options;
+}
+}  // namespace
+
+NodeRuntime::NodeRuntime(const std::string& node_name, CommonOptions& options)
+    : cfg(load_config(options)),
+      period_s(cfg.params.timing.control_period_s),
+      participant(named(options.dds, node_name)),
+      wakeup(spin_time(options)),
+      status(participant, node_name) {}
+
 StatusPublisher::StatusPublisher(dds::Participant& participant, const std::string& node_name)
     : writer_(participant.make_writer<pmlsm_msgs::msg::NodeStatusPubSubType>(dds::topics::kNodeStatus)) {
   char host[64] = {};

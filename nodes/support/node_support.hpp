@@ -132,4 +132,18 @@ class StatusPublisher {
   pmlsm_msgs::msg::NodeStatus status_;
 };
 
+/// What every node builds once its command line is parsed: the loaded config,
+/// its participant, the wake-up its readers signal and its NodeStatus writer.
+/// Declared in this order, so they are made in it (and torn down in reverse).
+struct NodeRuntime {
+  /// @throws ConfigError (exit 2) or std::runtime_error from DDS (exit 1).
+  NodeRuntime(const std::string& node_name, CommonOptions& options);
+
+  LoadedConfig cfg;
+  double period_s;
+  dds::Participant participant;
+  dds::Wakeup wakeup;
+  StatusPublisher status;
+};
+
 }  // namespace pmlsm::node

@@ -7,7 +7,6 @@
 
 #include "pmlsm/closed_loop.hpp"
 #include "pmlsm/kalman_filter.hpp"
-#include "pmlsm/metrics.hpp"
 #include "test_support.hpp"
 
 namespace pmlsm {
