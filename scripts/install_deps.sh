@@ -11,6 +11,7 @@ packages=(
   libyaml-cpp-dev                 # configs/*.yaml
   libcli11-dev                    # command lines
   libgtest-dev                    # unit tests
+  libpagmo-dev                    # jDE and CMA-ES, compared with the paper's DE/rand/1/bin
   libbenchmark-dev                # speed benchmark
   gnuplot-nox                     # PNG plots of the traces
   iproute2                        # network namespaces for the two-host test

@@ -1,29 +1,52 @@
 #!/usr/bin/env bash
 # The main job: installs what is missing, builds, and runs the simulated
-# system as separate DDS processes (launch/sim.yaml, lockstep clock) on the
-# paper's two scenarios; prints the results table and plots the traces.
-# PMLSM_DOMAIN picks the DDS domain (default 42); extra arguments go to the
-# launcher (e.g. --arg clock=realtime).
+# system as separate DDS processes (lockstep clock) on the paper's two
+# scenarios, three ways: PI only (launch/sim.yaml), PI + load-acceleration
+# feedback (launch/sim_accel.yaml) and PI + the Jordan RNN (launch/sim_rnn.yaml).
+# Prints the comparison table and plots out/pulse.png, out/free_vibration.png
+# and (after a training run) out/training.png.
+#
+# The RNN's weights: configs/rnn_weights.yaml, made by de_trainer with
+#   ./build/bin/de_trainer --out configs/rnn_weights.yaml
+# With --train the weights are made again first (into out/rnn_weights.yaml,
+# the paper-sized search: about 52,000 closed-loop runs). PMLSM_DOMAIN picks the
+# DDS domain (default 42); other arguments go to the launcher (e.g. --arg clock=realtime).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+train=false
+launcher_args=()
+for a in "$@"; do
+  if [ "$a" = "--train" ]; then train=true; else launcher_args+=("$a"); fi
+done
 "$root/scripts/install_deps.sh"
 "$root/scripts/build.sh" >/dev/null
 cd "$root"
 mkdir -p out
 domain="${PMLSM_DOMAIN:-42}"
+weights=configs/rnn_weights.yaml
+if [ "$train" = true ]; then
+  ./build/bin/de_trainer --out out/rnn_weights.yaml --domain "$domain"
+  weights=out/rnn_weights.yaml
+fi
+
 header=true
 for scenario in pulse free_vibration; do
-  log="out/$scenario.launch.log"
-  if ! ./build/bin/launcher launch/sim.yaml --arg scenario="configs/scenarios/$scenario.yaml" \
-       --arg out=out --arg domain="$domain" --arg header="$header" "$@" >"$log" 2>&1; then
-    cat "$log" >&2
-    echo "run_main: the $scenario run failed (log above, also in $log)" >&2
-    exit 1
-  fi
-  sed -n 's/^\[evaluator\] //p' "$log"
-  header=false
+  for variant in sim sim_accel sim_rnn; do
+    log="out/${scenario}_${variant}.launch.log"
+    extra=()
+    [ "$variant" = sim_rnn ] && extra=(--arg weights="$weights")
+    if ! ./build/bin/launcher "launch/$variant.yaml" --arg scenario="configs/scenarios/$scenario.yaml" \
+         --arg out=out --arg domain="$domain" --arg header="$header" "${extra[@]}" \
+         "${launcher_args[@]+"${launcher_args[@]}"}" >"$log" 2>&1; then
+      cat "$log" >&2
+      echo "run_main: the $scenario run of launch/$variant.yaml failed (log above, also in $log)" >&2
+      exit 1
+    fi
+    sed -n 's/^\[evaluator\] //p' "$log"
+    header=false
+  done
 done
-echo "cost = sum over the first second of |V_ref - v_L| (eq. 23), true and Kalman-estimated v_L"
-echo "distributed run: plant_sim, controller, kalman_estimator, evaluator over Fast DDS; logs and traces in out/"
+echo "cost = sum over the first second of |V_ref - v_L| (eq. 23), true and Kalman-estimated v_L (the paper's best: 5.6)"
+echo "distributed lockstep runs over Fast DDS; RNN weights from $weights; logs and traces in out/"
 gnuplot -e "outdir='out'" scripts/plot_traces.gp
-echo "plots: out/pulse.png out/free_vibration.png"
+echo "plots: out/pulse.png out/free_vibration.png$( [ -s out/rnn_weights.yaml.history.csv ] && echo ' out/training.png')"

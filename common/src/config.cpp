@@ -149,6 +149,35 @@ class Section {
     return out;
   }
 
+  /// A list of sub-sections (mappings), e.g. scenarios: [{file: ..., weight: ...}].
+  std::vector<Section> sections(const std::string& key) {
+    const YAML::Node v = required(key);
+    if (!v.IsSequence() || v.size() == 0) {
+      fail(join(path_, key), "expected a non-empty list, got '" + describe(v) + "'");
+    }
+    std::vector<Section> out;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      out.emplace_back(v[i], origin_, join(path_, key) + "[" + std::to_string(i) + "]");
+    }
+    return out;
+  }
+
+  std::vector<int> integer_list(const std::string& key) {
+    const YAML::Node v = value(key);
+    if (!v.IsSequence() || v.size() == 0) {
+      fail(join(path_, key), "expected a list of integers, got '" + describe(v) + "'");
+    }
+    std::vector<int> out;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      int x = 0;
+      if (!v[i].IsScalar() || !YAML::convert<int>::decode(v[i], x)) {
+        fail(join(path_, key) + "[" + std::to_string(i) + "]", "expected an integer, got '" + describe(v[i]) + "'");
+      }
+      out.push_back(x);
+    }
+    return out;
+  }
+
   void finish() const {
     for (const auto& kv : node_) {
       const auto key = kv.first.as<std::string>();
@@ -304,6 +333,23 @@ SystemParams parse_system_params(const std::string& yaml_text, const std::string
   p.kalman.measurement_noise = kf.number("measurement_noise");
   p.kalman.initial_covariance_diag = kf.vector3("initial_covariance_diag");
   kf.finish();
+
+  Section comp = top.child("compensator");
+  Section rnn = comp.child("rnn");
+  auto& c = p.compensator;
+  c.rnn_layer_sizes = rnn.integer_list("layer_sizes");
+  c.rnn_input_scale_s2_per_m = rnn.number("input_scale_s2_per_m");
+  c.rnn_gain_n = rnn.number("gain_n");
+  c.rnn_learning_rate = rnn.number("learning_rate");
+  c.rnn_momentum = rnn.number("momentum");
+  c.rnn_tolerance_mps = rnn.number("tolerance_mps");
+  c.rnn_kc_limit_mps = rnn.number("kc_limit_mps");
+  c.rnn_du_deadband_per_s = rnn.number("du_deadband_per_s");
+  rnn.finish();
+  Section af = comp.child("acceleration_feedback");
+  c.accel_feedback_gain_kg = af.number("gain_kg");
+  af.finish();
+  comp.finish();
   top.finish();
 
   validate_in(origin, [&] { p.validate(); });
@@ -349,6 +395,52 @@ Scenario parse_scenario(const std::string& yaml_text, const std::string& origin,
 Scenario load_scenario(const std::string& path, double control_period_s,
                        const std::vector<ConfigOverride>& overrides) {
   return parse_scenario(read_file(path), path, control_period_s, overrides);
+}
+
+TrainingParams parse_training_params(const std::string& yaml_text, const std::string& origin,
+                                     double control_period_s,
+                                     const std::vector<ConfigOverride>& overrides) {
+  YAML::Node root = parse_yaml(yaml_text, origin);
+  apply_overrides(root, overrides, origin);
+  Section top(root, origin, "");
+  TrainingParams t;
+  t.optimiser = top.text("optimiser");
+  t.population_size = top.unsigned_integer("population_size");
+  t.mutation_factor = top.number("mutation_factor");
+  t.crossover_rate = top.number("crossover_rate");
+  t.init_lower = top.number("init_lower");
+  t.init_upper = top.number("init_upper");
+  t.seed = top.unsigned_integer("seed");
+  t.max_evaluations = top.unsigned_integer("max_evaluations");
+  t.target_cost = top.number("target_cost");
+  const std::string velocity = top.text("cost_velocity");
+  validate_in(origin, [&] {
+    try {
+      t.cost_velocity = cost_velocity_from_string(velocity);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("cost_velocity: ") + e.what());
+    }
+  });
+  // Scenario files are named relative to the training file.
+  const auto slash = origin.find_last_of('/');
+  const std::string dir = slash == std::string::npos ? std::string(".") : origin.substr(0, slash);
+  for (Section& item : top.sections("scenarios")) {
+    const std::string file = item.text("file");
+    TrainingScenario ts;
+    ts.weight = item.number("weight");
+    item.finish();
+    ts.file = file.empty() || file[0] == '/' ? file : dir + "/" + file;
+    ts.scenario = load_scenario(ts.file, control_period_s);
+    t.scenarios.push_back(ts);
+  }
+  top.finish();
+  validate_in(origin, [&] { t.validate(control_period_s); });
+  return t;
+}
+
+TrainingParams load_training_params(const std::string& path, double control_period_s,
+                                    const std::vector<ConfigOverride>& overrides) {
+  return parse_training_params(read_file(path), path, control_period_s, overrides);
 }
 
 namespace {

@@ -66,6 +66,25 @@ KalmanParams SystemParams::kalman_params() const {
   return p;
 }
 
+RnnCompensatorParams SystemParams::rnn_compensator_params(bool online_learning) const {
+  RnnCompensatorParams p;
+  p.layer_sizes = compensator.rnn_layer_sizes;
+  p.input_scale_s2_per_m = compensator.rnn_input_scale_s2_per_m;
+  p.gain_n = compensator.rnn_gain_n;
+  p.period_s = timing.control_period_s;
+  p.online_learning = online_learning;
+  p.learning_rate = compensator.rnn_learning_rate;
+  p.momentum = compensator.rnn_momentum;
+  p.tolerance_mps = compensator.rnn_tolerance_mps;
+  p.kc_limit_mps = compensator.rnn_kc_limit_mps;
+  p.du_deadband_per_s = compensator.rnn_du_deadband_per_s;
+  return p;
+}
+
+AccelFeedbackParams SystemParams::accel_feedback_params() const {
+  return AccelFeedbackParams{compensator.accel_feedback_gain_kg, velocity_loop.force_limit_n};
+}
+
 void SystemParams::validate() const {
   validate_section("timing", [&] { timing.validate(); });
   validate_section("plant", [&] { plant.validate(); });
@@ -74,6 +93,8 @@ void SystemParams::validate() const {
   validate_section("velocity_loop", [&] { velocity_pi_params().validate(); });
   validate_section("reference_model", [&] { reference_model_params().validate(); });
   validate_section("kalman", [&] { kalman_params().validate(); });
+  validate_section("compensator.rnn", [&] { rnn_compensator_params(true).validate(); });
+  validate_section("compensator.acceleration_feedback", [&] { accel_feedback_params().validate(); });
 }
 
 }  // namespace pmlsm

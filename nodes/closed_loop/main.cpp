@@ -1,5 +1,6 @@
 // closed_loop: the whole cascade in one process (no DDS). Runs the scenarios,
-// writes a CSV trace of each and prints the results table.
+// PI only or with a compensator (load-acceleration feedback or the RNN), writes
+// a CSV trace of each and prints the results table.
 #include <CLI/CLI.hpp>
 
 #include <cmath>
@@ -9,9 +10,12 @@
 #include <string>
 #include <vector>
 
+#include "pmlsm/accel_feedback.hpp"
 #include "pmlsm/closed_loop.hpp"
 #include "pmlsm/config.hpp"
 #include "pmlsm/metrics.hpp"
+#include "pmlsm/rnn_training.hpp"
+#include "pmlsm/weights_file.hpp"
 #include "results_table.hpp"
 #include "trace_csv.hpp"
 
@@ -29,6 +33,14 @@ int main(int argc, char** argv) {
   app.add_option("--set", overrides_text, "Override a system parameter: key.path=value")
       ->take_all();
   app.add_option("-o,--out", out_dir, "Folder for the CSV traces");
+  std::string compensator = "none";
+  std::string weights_path;
+  bool online_learning = false;
+  app.add_option("--compensator", compensator, "none (PI only), accel (load-acceleration feedback) or rnn")
+      ->check(CLI::IsMember({"none", "accel", "rnn"}))
+      ->capture_default_str();
+  app.add_option("-w,--weights", weights_path, "RNN weights file (with --compensator rnn)")->check(CLI::ExistingFile);
+  app.add_flag("--online-learning", online_learning, "RNN online learning, eqs. (16)-(19)");
   CLI11_PARSE(app, argc, argv);
 
   try {
@@ -40,13 +52,36 @@ int main(int argc, char** argv) {
     for (const auto& path : scenario_paths) scenarios.push_back(pmlsm::load_scenario(path, period));
     std::filesystem::create_directories(out_dir);
 
+    std::vector<double> weights;
+    if (compensator == "rnn") {
+      if (weights_path.empty()) throw pmlsm::ConfigError("--compensator rnn: needs --weights FILE");
+      const pmlsm::RnnWeightsFile file = pmlsm::load_rnn_weights(weights_path);
+      if (file.layer_sizes != params.compensator.rnn_layer_sizes ||
+          file.input_scale_s2_per_m != params.compensator.rnn_input_scale_s2_per_m ||
+          file.gain_n != params.compensator.rnn_gain_n) {
+        throw pmlsm::ConfigError(weights_path + ": layer sizes, input scale or gain differ from compensator.rnn in " + config_path);
+      }
+      weights = file.weights;
+    }
+    const std::string suffix = compensator == "none" ? "" : "_" + compensator + (online_learning ? "_online" : "");
+
     pmlsm::node::print_results_header();
     for (const pmlsm::Scenario& scenario : scenarios) {
-      const auto trace = pmlsm::run_scenario(params, scenario);
+      std::vector<pmlsm::TickRecord> trace;
+      if (compensator == "rnn") {
+        trace = pmlsm::run_with_rnn(params, scenario, weights, online_learning);
+      } else if (compensator == "accel") {
+        pmlsm::AccelFeedback feedback(params.accel_feedback_params());
+        trace = pmlsm::run_compensated(params, scenario, [&](const pmlsm::CompensatorView& v) {
+          return feedback.step(v.load_accel_mps2);
+        });
+      } else {
+        trace = pmlsm::run_scenario(params, scenario);
+      }
       const auto m = pmlsm::compute_metrics(trace, scenario, period);
-      const std::string csv = out_dir + "/" + scenario.name + ".csv";
+      const std::string csv = out_dir + "/" + scenario.name + suffix + ".csv";
       pmlsm::write_trace_csv(csv, trace);
-      pmlsm::node::print_results_row(scenario.name, m);
+      pmlsm::node::print_results_row(scenario.name + suffix, m);
     }
     pmlsm::node::print_results_footer(out_dir);
   } catch (const pmlsm::ConfigError& e) {

@@ -3,9 +3,16 @@
 // velocity PI, and answers with ForceCommand (feedback_tick = that tick); it
 // also publishes VelocityReference. It is event-driven: the same code serves
 // the lockstep and the realtime clock.
+//
+// With --compensation topic the PI output gets the compensator's force
+// (CompensatorOutput, Fig. 4's hybrid controller): output k-1 is applied at
+// tick k (run_compensated in pmlsm/closed_loop.hpp). Lockstep waits for it;
+// realtime uses the newest one no older than 3 ticks and counts the ticks
+// without (they get no compensation).
 #include <cmath>
 #include <cstdio>
 
+#include "CompensatorOutputPubSubTypes.h"
 #include "CurrentFeedbackPubSubTypes.h"
 #include "ForceCommandPubSubTypes.h"
 #include "VoltageCommandPubSubTypes.h"
@@ -27,6 +34,10 @@ int run(int argc, char** argv) {
   node::CommonOptions common;
   common.spin_us = 200.0;
   node::add_common_options(app, common);
+  std::string compensation = "none";
+  app.add_option("--compensation", compensation, "none (PI only) or topic (add CompensatorOutput to the PI output)")
+      ->check(CLI::IsMember({"none", "topic"}))
+      ->capture_default_str();
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   node::NodeRuntime rt("controller", common);
   const node::LoadedConfig& cfg = rt.cfg;
@@ -42,6 +53,16 @@ int run(int argc, char** argv) {
   const int current_steps = cfg.params.timing.current_steps_per_tick();
   pmlsm_msgs::msg::CurrentFeedback current_feedback;
   pmlsm_msgs::msg::VoltageCommand voltage_command;
+
+  const bool compensated = compensation == "topic";
+  auto compensation_reader = rt.participant.make_reader<pmlsm_msgs::msg::CompensatorOutputPubSubType>(
+      pdds::topics::kCompensatorOutput, rt.wakeup, pdds::kObserverProfile);
+  pmlsm_msgs::msg::CompensatorOutput compensator_output;
+  double compensation_n = 0.0;
+  std::uint64_t compensation_tick = 0;
+  bool have_compensation = false;
+  std::uint64_t compensation_missing = 0;
+  const bool lockstep = cfg.clock == node::Clock::kLockstep;
 
   VelocityController controller(cfg.params, cfg.scenario);
   const std::uint64_t ticks = scenario_ticks(cfg.scenario, period);
@@ -72,7 +93,40 @@ int run(int argc, char** argv) {
       velocity = last_velocity;
     }
     last_velocity = velocity;
-    const VelocityControllerOutput out = controller.step(k, velocity, 0.0);
+    double applied_compensation_n = 0.0;
+    if (compensated && k > 0) {
+      // Output k-1 belongs to tick k; lockstep waits for it, realtime takes what is there.
+      auto take_compensation = [&] {
+        while (compensation_reader.take(compensator_output)) {
+          const std::uint64_t t = compensator_output.stamp().tick();
+          if ((have_compensation && t <= compensation_tick) || !std::isfinite(compensator_output.force_n())) {
+            ++rejected;
+            continue;
+          }
+          compensation_tick = t;
+          compensation_n = compensator_output.force_n();
+          have_compensation = true;
+        }
+        return have_compensation && compensation_tick + 1 >= k;
+      };
+      if (lockstep) {
+        if (!node::wait_until(rt.wakeup, peer_timeout, take_compensation)) {
+          if (pdds::stop_requested()) break;
+          std::fprintf(stderr, "controller: no CompensatorOutput for tick %llu for %.1f s: compensator lost\n",
+                       static_cast<unsigned long long>(k - 1), common.peer_timeout_s);
+          exit_code = node::kPeerLost;
+          break;
+        }
+      } else {
+        take_compensation();
+      }
+      if (have_compensation && compensation_tick + 3 >= k) {
+        applied_compensation_n = compensation_n;
+      } else {
+        ++compensation_missing;
+      }
+    }
+    const VelocityControllerOutput out = controller.step(k, velocity, applied_compensation_n);
 
     reference.stamp(node::make_stamp(k, period));
     reference.velocity_command_mps(out.command_mps);
@@ -83,8 +137,8 @@ int run(int argc, char** argv) {
     command.stamp(reference.stamp());
     command.feedback_tick(k);
     command.force_n(out.force_n);
-    command.pi_force_n(out.force_n);
-    command.compensation_force_n(0.0);
+    command.pi_force_n(out.force_n - applied_compensation_n);
+    command.compensation_force_n(applied_compensation_n);
     command.velocity_error_mps(out.velocity_error_mps);
     command.saturated(out.saturated);
     command_writer.write(command);
@@ -121,8 +175,9 @@ int run(int argc, char** argv) {
   command_writer.wait_for_acknowledgments(node::kFlushTimeout);
   if (voltage_level) voltage_writer.wait_for_acknowledgments(node::kFlushTimeout);
   reference_writer.wait_for_acknowledgments(node::kFlushTimeout);
-  std::printf("controller: %llu ticks answered, %llu rejected\n",
-              static_cast<unsigned long long>(next_tick), static_cast<unsigned long long>(rejected));
+  std::printf("controller: %llu ticks answered, %llu rejected, compensation %s (%llu ticks without)\n",
+              static_cast<unsigned long long>(next_tick), static_cast<unsigned long long>(rejected),
+              compensation.c_str(), static_cast<unsigned long long>(compensation_missing));
   return exit_code;
 }
 

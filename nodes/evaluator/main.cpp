@@ -36,6 +36,8 @@ int run(int argc, char** argv) {
   node::add_common_options(app, common);
   app.add_option("-o,--out", out_dir, "Folder for the CSV trace");
   app.add_option("--header", print_header, "Print the table header (true/false)");
+  std::string label;
+  app.add_option("--label", label, "Names this run in the table and the CSV (<scenario>_<label>.csv), e.g. pi_rnn");
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   node::NodeRuntime rt("evaluator", common);
   const node::LoadedConfig& cfg = rt.cfg;
@@ -100,7 +102,10 @@ int run(int argc, char** argv) {
       }
     }
     while (command_reader.take(command)) {
-      if (TickRecord* r = mark(command.feedback_tick(), kCommand)) r->force_command_n = command.force_n();
+      if (TickRecord* r = mark(command.feedback_tick(), kCommand)) {
+        r->force_command_n = command.force_n();
+        r->compensation_force_n = command.compensation_force_n();
+      }
     }
     while (estimate_reader.take(estimate)) {
       if (TickRecord* r = mark(estimate.feedback_tick(), kEstimate)) {
@@ -145,9 +150,10 @@ int run(int argc, char** argv) {
   }
   const ScenarioMetrics m = compute_metrics(trace, cfg.scenario, period);
   std::filesystem::create_directories(out_dir);
-  write_trace_csv(out_dir + "/" + cfg.scenario.name + ".csv", trace);
+  const std::string run_name = label.empty() ? cfg.scenario.name : cfg.scenario.name + "_" + label;
+  write_trace_csv(out_dir + "/" + run_name + ".csv", trace);
   if (print_header) node::print_results_header();
-  node::print_results_row(cfg.scenario.name, m);
+  node::print_results_row(label.empty() ? cfg.scenario.name : cfg.scenario.name + " " + label, m);
   std::fflush(stdout);
   rt.status.status().rejected(rejected);
   rt.status.publish(node_state::STATE_STOPPING, ticks, period, "done");

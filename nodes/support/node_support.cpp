@@ -10,15 +10,19 @@
 
 namespace pmlsm::node {
 
+void add_dds_options(CLI::App& app, dds::ParticipantOptions& o) {
+  app.add_option("--profiles", o.profiles_file, "Fast DDS XML profiles")->check(CLI::ExistingFile);
+  app.add_option("--participant-profile", o.participant_profile, "Participant profile in --profiles");
+  app.add_option("--domain", o.domain_id, "DDS domain id")->check(CLI::Range(0, 232));
+  app.add_flag("--data-sharing", o.data_sharing,
+               "Turn Fast DDS data-sharing on (zero-copy between processes of one host; off by default)");
+}
+
 void add_common_options(CLI::App& app, CommonOptions& o) {
   app.add_option("-c,--config", o.config_path, "System parameters (YAML)")->check(CLI::ExistingFile);
   app.add_option("-s,--scenario", o.scenario_path, "Scenario (YAML)")->check(CLI::ExistingFile);
   app.add_option("--set", o.overrides, "Override a system parameter: key.path=value")->take_all();
-  app.add_option("--profiles", o.dds.profiles_file, "Fast DDS XML profiles")->check(CLI::ExistingFile);
-  app.add_option("--participant-profile", o.dds.participant_profile, "Participant profile in --profiles");
-  app.add_option("--domain", o.dds.domain_id, "DDS domain id")->check(CLI::Range(0, 232));
-  app.add_flag("--data-sharing", o.dds.data_sharing,
-               "Turn Fast DDS data-sharing on (zero-copy between processes of one host; off by default)");
+  add_dds_options(app, o.dds);
   app.add_option("--clock", o.clock, "lockstep (deterministic, as fast as possible) or realtime")
       ->check(CLI::IsMember({"lockstep", "realtime"}));
   app.add_option("--command-level", o.command_level,

@@ -97,6 +97,10 @@ std::int64_t wall_time_ns();
 
 std::chrono::nanoseconds spin_time(const CommonOptions& options);
 
+/// Only the DDS options (--profiles, --participant-profile, --domain, --data-sharing),
+/// for programs that are not part of the control loop (trainer, workers).
+void add_dds_options(CLI::App& app, dds::ParticipantOptions& options);
+
 pmlsm_msgs::msg::Stamp make_stamp(std::uint64_t tick, double control_period_s);
 
 /// Polls `ready` until it holds, waking on DDS activity; false after the timeout

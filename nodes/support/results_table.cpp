@@ -15,12 +15,12 @@ std::string seconds_or_never(double s) {
 }  // namespace
 
 void print_results_header() {
-  std::printf("%-16s %10s %10s %14s %14s %12s %12s %14s\n", "scenario", "cost_true", "cost_est",
+  std::printf("%-24s %10s %10s %14s %14s %12s %12s %14s\n", "scenario", "cost_true", "cost_est",
               "vib_rms_mm/s", "track_rms_mm/s", "settle_2%_s", "peak_F_N", "est_vL_err_mm/s");
 }
 
 void print_results_row(const std::string& scenario, const ScenarioMetrics& m) {
-  std::printf("%-16s %10.3f %10.3f %14.3f %14.3f %12s %12.1f %14.3f\n", scenario.c_str(), m.cost_true,
+  std::printf("%-24s %10.3f %10.3f %14.3f %14.3f %12s %12.1f %14.3f\n", scenario.c_str(), m.cost_true,
               m.cost_estimated, 1e3 * m.load_vibration_rms_mps, 1e3 * m.load_tracking_rms_mps,
               seconds_or_never(m.load_settling_time_s).c_str(), m.peak_force_command_n,
               1e3 * m.est_load_velocity_rms_error_mps);

@@ -12,6 +12,7 @@
 //   5. 32 current-loop periods: voltages from the current controller, plant integrated.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -41,7 +42,8 @@ struct TickRecord {
   double est_load_velocity_mps = 0;
   double est_spring_force_n = 0;
   double est_load_accel_mps2 = 0;
-  double force_command_n = 0;      ///< velocity loop output F_k
+  double force_command_n = 0;      ///< velocity loop output F_k (PI + compensation, limited)
+  double compensation_force_n = 0; ///< compensator force added to the PI output at t_k
   double thrust_n = 0;             ///< true F_dx at t_k
   double ripple_n = 0;
   double friction_n = 0;
@@ -89,5 +91,37 @@ void record_truth(const PlantTruth& truth, TickRecord& rec);
 
 /// Runs a scenario to its end; the trace is reserved up front (no allocation per tick).
 std::vector<TickRecord> run_scenario(const SystemParams& params, const Scenario& scenario);
+
+/// What a compensator sees of tick k: the Kalman estimate and V_ref (never the true plant).
+struct CompensatorView {
+  double load_accel_mps2 = 0;  ///< a_L estimate, eq. (36)
+  double v_ref_mps = 0;
+  double v_load_mps = 0;       ///< estimated load velocity (the paper's V_load)
+};
+inline CompensatorView compensator_view(const TickRecord& rec) {
+  return {rec.est_load_accel_mps2, rec.v_ref_mps, rec.est_load_velocity_mps};
+}
+
+/// Runs up to max_ticks ticks of a scenario with a compensator in the loop. The
+/// compensator works on tick k's estimate and its force is applied at tick k+1:
+/// the one-tick delay of the distributed system, where the estimator and the
+/// compensator run while the plant integrates tick k (1 ms, 3.7 degrees at the
+/// 10.2 Hz load mode), so they never lengthen the plant-controller chain.
+/// compensate: double(const CompensatorView&) -> force [N].
+template <typename Compensate>
+std::vector<TickRecord> run_compensated(const SystemParams& params, const Scenario& scenario,
+                                        Compensate&& compensate,
+                                        std::uint64_t max_ticks = UINT64_MAX) {
+  ClosedLoop loop(params, scenario);
+  std::vector<TickRecord> trace;
+  const std::uint64_t ticks = std::min(loop.total_ticks(), max_ticks);
+  trace.reserve(ticks);
+  double compensation_n = 0;
+  while (trace.size() < ticks) {
+    trace.push_back(loop.step(compensation_n));
+    compensation_n = compensate(compensator_view(trace.back()));
+  }
+  return trace;
+}
 
 }  // namespace pmlsm

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "pmlsm/rnn_training.hpp"
 #include "pmlsm/scenario.hpp"
 #include "pmlsm/system_params.hpp"
 
@@ -44,6 +45,14 @@ Scenario load_scenario(const std::string& path, double control_period_s,
                        const std::vector<ConfigOverride>& overrides = {});
 Scenario parse_scenario(const std::string& yaml_text, const std::string& origin,
                         double control_period_s, const std::vector<ConfigOverride>& overrides = {});
+
+/// configs/training.yaml (the weight search); scenario files are relative to it.
+/// @throws ConfigError naming the file, key path and value of the first problem.
+TrainingParams load_training_params(const std::string& path, double control_period_s,
+                                    const std::vector<ConfigOverride>& overrides = {});
+TrainingParams parse_training_params(const std::string& yaml_text, const std::string& origin,
+                                     double control_period_s,
+                                     const std::vector<ConfigOverride>& overrides = {});
 
 /// Every leaf of a YAML document with its key path and its source ("" when the
 /// leaf is a plain scalar): lets tests and tools check that each value says where

@@ -4,7 +4,11 @@
 // the nominal plant, as a drive tuned on the datasheet would be.
 #pragma once
 
+#include <vector>
+
+#include "pmlsm/accel_feedback.hpp"
 #include "pmlsm/current_controller.hpp"
+#include "pmlsm/jordan_rnn.hpp"
 #include "pmlsm/kalman_filter.hpp"
 #include "pmlsm/plant.hpp"
 #include "pmlsm/reference_model.hpp"
@@ -46,6 +50,20 @@ struct ReferenceTuning {
   double damping_ratio = 0;
 };
 
+/// The compensators added to the PI output: the Jordan RNN (section 3.2) and the
+/// linear load-acceleration feedback it is compared with.
+struct CompensatorTuning {
+  std::vector<int> rnn_layer_sizes;
+  double rnn_input_scale_s2_per_m = 0;
+  double rnn_gain_n = 0;
+  double rnn_learning_rate = 0;
+  double rnn_momentum = 0;
+  double rnn_tolerance_mps = 0;
+  double rnn_kc_limit_mps = 0;
+  double rnn_du_deadband_per_s = 0;
+  double accel_feedback_gain_kg = 0;
+};
+
 struct SystemParams {
   TimingParams timing;
   PlantParams plant;
@@ -53,6 +71,7 @@ struct SystemParams {
   VelocityLoopTuning velocity_loop;
   ReferenceTuning reference_model;
   KalmanTuning kalman;
+  CompensatorTuning compensator;
 
   /// @throws std::invalid_argument with the section path of the first invalid value.
   void validate() const;
@@ -60,6 +79,8 @@ struct SystemParams {
   VelocityPiParams velocity_pi_params() const;
   ReferenceModelParams reference_model_params() const;
   KalmanParams kalman_params() const;
+  RnnCompensatorParams rnn_compensator_params(bool online_learning) const;
+  AccelFeedbackParams accel_feedback_params() const;
 };
 
 }  // namespace pmlsm

@@ -26,6 +26,11 @@ inline constexpr TopicSpec kCompensatorOutput{"rt/pmlsm/compensator_output", "pm
 inline constexpr TopicSpec kNodeStatus{"rt/pmlsm/node_status", "pmlsm_observe"};
 inline constexpr TopicSpec kNetworkWeights{"rt/pmlsm/network_weights", "pmlsm_latched"};
 inline constexpr TopicSpec kTrainerProgress{"rt/pmlsm/trainer_progress", "pmlsm_observe"};
+// Distributed weight search: de_trainer <-> de_worker.
+inline constexpr TopicSpec kTrainingSetup{"rt/pmlsm/training/setup", "pmlsm_latched"};
+inline constexpr TopicSpec kEvaluationRequest{"rt/pmlsm/training/request", "pmlsm_observe"};
+inline constexpr TopicSpec kEvaluationResult{"rt/pmlsm/training/result", "pmlsm_observe"};
+inline constexpr TopicSpec kWorkerStatus{"rt/pmlsm/training/worker_status", "pmlsm_control"};
 }  // namespace topics
 
 }  // namespace pmlsm::dds

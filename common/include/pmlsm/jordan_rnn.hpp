@@ -1,0 +1,166 @@
+// The recurrent-network compensator of section 3.2: a Jordan network (the
+// output fed back as a "state unit" input with fixed weight +1, tanh in every
+// neuron (15)) and the online learning rule (16)-(19) that adapts it while it
+// runs, with the velocity error V_ref - V_load as the training error.
+//
+// JordanRnn is the bare network (forward pass, d output / d weights);
+// RnnCompensator wraps it into the component of Fig. 4: it keeps the history
+// of the normalised load acceleration, scales the output by G_n and, when
+// enabled, applies the extended back-propagation update (19) each tick.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace pmlsm {
+
+/// Jordan network (paper 3.2): inputs = external inputs + one state unit that
+/// carries the network's previous output u_n(k-1) with fixed weight +1; tanh in
+/// every neuron including the output (15), so |u_n| <= 1. A bias into every neuron.
+///
+/// Flat weight order (also the file/topic order): layer by layer from the first
+/// hidden layer; within a layer neuron by neuron; per neuron its incoming weights
+/// in the order of the previous layer's neurons, then its bias. The input layer's
+/// order is the external inputs first, the state unit last. For 3-6-6-3-1:
+/// 4*6 + 7*6 + 7*3 + 4*1 = 91 (Table 1).
+///
+/// Not thread-safe: forward() and gradient() use preallocated scratch buffers.
+class JordanRnn {
+ public:
+  /// Largest accepted layer width (guards against nonsense sizes from files).
+  static constexpr int kMaxLayerSize = 4096;
+
+  /// layer_sizes: inputs first (including the state unit), output last; >= 2
+  /// layers, every size in [1, kMaxLayerSize], last == 1, first >= 2 (at least
+  /// one external input + state unit). Weights start at zero.
+  /// @throws std::invalid_argument naming the bad entry ("layer_sizes[2]: must be >= 1, got 0").
+  explicit JordanRnn(std::vector<int> layer_sizes);
+
+  /// Number of weights and biases of a network of these sizes.
+  /// @throws std::invalid_argument as the constructor for invalid sizes.
+  static std::size_t parameter_count(const std::vector<int>& layer_sizes);
+  std::size_t parameter_count() const { return weights_.size(); }
+  const std::vector<int>& layer_sizes() const { return sizes_; }
+  /// layer_sizes[0] - 1: the inputs besides the state unit.
+  std::size_t external_input_count() const { return static_cast<std::size_t>(sizes_[0]) - 1; }
+
+  /// Replaces all weights; the state unit is kept.
+  /// @throws std::invalid_argument on wrong size ("weights: expected 91 values, got 90")
+  /// or a non-finite value ("weights[17]: must be finite, got nan"); the old weights stay.
+  void set_weights(const std::vector<double>& weights);
+  const std::vector<double>& weights() const { return weights_; }
+
+  /// w += delta (parameter_count() values) if every resulting weight is finite;
+  /// otherwise leaves the weights unchanged and returns false. No allocation.
+  bool add_to_weights(const double* delta);
+
+  /// Forward pass with the current state unit; stores the activations for
+  /// gradient(); returns u_n(k) but does NOT advance the state unit.
+  /// external_inputs: external_input_count() values. No allocation.
+  double forward(const double* external_inputs);
+  /// Output of the last forward() (0 before the first).
+  double output() const { return activations_.back(); }
+
+  /// Makes the last forward() output the state unit for the next step: u_n(k-1) <- u_n(k).
+  void commit_output() { state_unit_ = activations_.back(); }
+  double state_unit() const { return state_unit_; }
+  /// Sets the state unit (u_n(k-1)) and clears the stored activations.
+  void reset_state(double u = 0.0);
+
+  /// d u_n / d w for the last forward(), state unit held fixed (one-step
+  /// back-propagation, no back-propagation through time, as the paper's BP).
+  /// Writes parameter_count() values in the flat weight order; no allocation.
+  void gradient(double* d_output_d_weights) const;
+
+ private:
+  std::vector<int> sizes_;
+  std::vector<std::size_t> activation_offset_;  ///< per layer, into activations_
+  std::vector<std::size_t> weight_offset_;      ///< per layer (index 0 unused), into weights_
+  std::vector<double> weights_;
+  std::vector<double> activations_;             ///< all layers, inputs first, output last
+  mutable std::vector<double> delta_;           ///< dU/dz per neuron (same layout as activations_)
+  double state_unit_ = 0.0;
+};
+
+struct RnnCompensatorParams {
+  std::vector<int> layer_sizes{3, 6, 6, 3, 1};
+  double input_scale_s2_per_m = 0;  ///< x = input_scale * a_L normalises the load acceleration, > 0
+  double gain_n = 0;                ///< G_n: force = G_n u_n, > 0
+  double period_s = 0;              ///< T_s of (18), > 0
+  bool online_learning = false;
+  double learning_rate = 0;         ///< eta (16), >= 0
+  double momentum = 0;              ///< alpha (16), in [0, 1)
+  double tolerance_mps = 0;         ///< update only while |V_ref - V_load| > tolerance, >= 0
+  double kc_limit_mps = 0;          ///< |k_c| clamp, > 0, and momentum * kc_limit_mps < 1
+  double du_deadband_per_s = 0;     ///< |dU_n| below this: k_c undefined -> no update this tick, > 0
+  /// @throws std::invalid_argument naming the first invalid parameter.
+  void validate() const;
+};
+
+struct CompensatorInput {
+  double load_accel_mps2 = 0;  ///< a_L(k), e.g. the Kalman filter's (36)
+  double v_ref_mps = 0;        ///< V_ref(k)
+  double v_load_mps = 0;       ///< V_load(k) (estimated)
+};
+
+struct CompensatorStep {
+  double force_n = 0;             ///< G_n u_n(k)
+  double u_n = 0;                 ///< network output u_n(k), |u_n| <= 1
+  double training_error_mps = 0;  ///< e = V_ref - V_load
+  double k_c_mps = 0;             ///< k_c (17) after the clamp; 0 when not computed this tick
+  bool input_rejected = false;    ///< non-finite input: output 0 force, state/weights untouched
+  bool weights_updated = false;
+  bool kc_guarded = false;        ///< k_c clamped or dead-banded
+};
+
+struct CompensatorCounters {
+  std::uint64_t steps = 0;
+  std::uint64_t rejected_inputs = 0;
+  std::uint64_t updates = 0;           ///< ticks whose update (19) was applied
+  std::uint64_t kc_clamped = 0;        ///< |k_c| > kc_limit: clamped, update applied
+  std::uint64_t kc_deadband = 0;       ///< |dU_n| < du_deadband: no update
+  std::uint64_t reverted_updates = 0;  ///< an update would have made a weight non-finite
+};
+
+/// The network compensator of Fig. 4 with online learning (16)-(19).
+///
+/// Tick k: x = [s a_L(k), s a_L(k-1), ..., s a_L(k-m+1), u_n(k-1)] with
+/// m = external_input_count() (m = 2 in the paper), u_n(k) = network(x),
+/// force = G_n u_n(k). Then, when online learning is on and |e| > tolerance,
+/// e = V_ref - V_load, the weights are updated by (17)-(19) with
+/// k_c = a_L(k) / dU_n, dU_n = (u_n(k-1) - u_n(k-2)) / T_s (the last applied
+/// change, the one a_L(k) responds to; see jordan_rnn.cpp for the derivation and
+/// the k_c guards); the update affects the next tick.
+class RnnCompensator {
+ public:
+  /// Weights are zero until set. @throws std::invalid_argument naming the bad parameter.
+  explicit RnnCompensator(const RnnCompensatorParams& params);
+
+  /// Validates (throws std::invalid_argument, old weights kept), replaces the
+  /// weights and resets the momentum Delta w(n); the state unit is kept.
+  void set_weights(const std::vector<double>& w);
+  const std::vector<double>& weights() const { return net_.weights(); }
+
+  /// One tick. Never throws, no allocation.
+  CompensatorStep step(const CompensatorInput& in);
+
+  /// State unit 0, a_L history 0, momentum 0 (weights and counters kept).
+  void reset();
+
+  const CompensatorCounters& counters() const { return counters_; }
+  const RnnCompensatorParams& params() const { return params_; }
+  const JordanRnn& network() const { return net_; }
+
+ private:
+  RnnCompensatorParams params_;
+  JordanRnn net_;
+  std::vector<double> inputs_;  ///< s a_L(k), s a_L(k-1), ...: the external inputs
+  std::vector<double> grad_;    ///< d u_n / d w of this tick
+  std::vector<double> dw_;      ///< Delta w(n): the last applied update (momentum)
+  std::vector<double> next_dw_; ///< Delta w(n+1) being formed
+  double u_prev2_ = 0.0;        ///< u_n(k-2), for dU_n of (18)
+  CompensatorCounters counters_;
+};
+
+}  // namespace pmlsm

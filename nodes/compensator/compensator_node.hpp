@@ -1,0 +1,86 @@
+// What the compensator nodes (rnn_compensator, accel_feedback) share: they
+// read EstimatedState and VelocityReference, pair them by tick, and answer
+// every tick k with CompensatorOutput k. The controller applies output k at
+// tick k+1 (see run_compensated in pmlsm/closed_loop.hpp), so both clocks work
+// and the distributed lockstep trace equals the in-process one.
+#pragma once
+
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+
+#include "CompensatorOutputPubSubTypes.h"
+#include "EstimatedStatePubSubTypes.h"
+#include "VelocityReferencePubSubTypes.h"
+#include "node_support.hpp"
+#include "pmlsm/closed_loop.hpp"
+
+namespace pmlsm::node {
+
+/// Pairs EstimatedState and VelocityReference of the same tick, in tick order.
+/// Older or duplicate ticks are rejected (counted); a tick missing on one topic
+/// is skipped (counted) once the other topic has moved past it.
+class CompensatorInputs {
+ public:
+  CompensatorInputs(dds::Participant& participant, dds::Wakeup& wakeup)
+      : wakeup_(wakeup),
+        estimate_reader_(participant.make_reader<pmlsm_msgs::msg::EstimatedStatePubSubType>(
+            dds::topics::kEstimatedState, wakeup, dds::kObserverProfile)),
+        reference_reader_(participant.make_reader<pmlsm_msgs::msg::VelocityReferencePubSubType>(
+            dds::topics::kVelocityReference, wakeup, dds::kObserverProfile)) {}
+
+  /// Waits for the next complete tick. False on timeout or stop.
+  bool next(std::chrono::duration<double> timeout, std::uint64_t& tick, CompensatorView& view) {
+    return wait_until(wakeup_, timeout, [&] {
+      for (;;) {
+        if (!have_estimate_) have_estimate_ = take_from(estimate_reader_, estimate_);
+        if (!have_reference_) have_reference_ = take_from(reference_reader_, reference_);
+        if (!have_estimate_ || !have_reference_) return false;
+        const std::uint64_t e = estimate_.feedback_tick();
+        const std::uint64_t r = reference_.stamp().tick();
+        if (e == r) break;
+        // One topic skipped a tick: drop the older sample.
+        ++skipped_;
+        if (e < r) have_estimate_ = false; else have_reference_ = false;
+      }
+      tick = reference_.stamp().tick();
+      view.load_accel_mps2 = estimate_.a_load_mps2();
+      view.v_load_mps = estimate_.v_load_mps();
+      view.v_ref_mps = reference_.v_ref_mps();
+      have_estimate_ = have_reference_ = false;
+      next_tick_ = tick + 1;
+      return true;
+    });
+  }
+
+  std::uint64_t rejected() const { return rejected_; }
+  std::uint64_t skipped() const { return skipped_; }
+
+ private:
+  template <typename ReaderT, typename Message>
+  bool take_from(ReaderT& reader, Message& sample) {
+    while (reader.take(sample)) {
+      if (tick_of(sample) < next_tick_) {
+        ++rejected_;
+        continue;
+      }
+      return true;
+    }
+    return false;
+  }
+  static std::uint64_t tick_of(const pmlsm_msgs::msg::EstimatedState& m) { return m.feedback_tick(); }
+  static std::uint64_t tick_of(const pmlsm_msgs::msg::VelocityReference& m) { return m.stamp().tick(); }
+
+  dds::Wakeup& wakeup_;
+  dds::Reader<pmlsm_msgs::msg::EstimatedStatePubSubType> estimate_reader_;
+  dds::Reader<pmlsm_msgs::msg::VelocityReferencePubSubType> reference_reader_;
+  pmlsm_msgs::msg::EstimatedState estimate_;
+  pmlsm_msgs::msg::VelocityReference reference_;
+  bool have_estimate_ = false;
+  bool have_reference_ = false;
+  std::uint64_t next_tick_ = 0;
+  std::uint64_t rejected_ = 0;
+  std::uint64_t skipped_ = 0;
+};
+
+}  // namespace pmlsm::node

@@ -1,0 +1,156 @@
+// rnn_compensator: the Jordan RNN of section 3.2 on DDS. Every tick k it takes
+// EstimatedState k (a_L, V_load) and VelocityReference k (V_ref), runs the
+// network (and, with --online-learning, the extended back-propagation
+// (16)-(19)), and publishes CompensatorOutput k. Weights come from --weights
+// (a file the trainer wrote) and/or the NetworkWeights topic; a new set is
+// checked (layer sizes, input scale and G_n equal to the config's, every value
+// finite) and swapped in at a tick boundary, or refused with the reason while
+// the current set stays in use.
+#include <cstdio>
+
+#include "NetworkWeightsPubSubTypes.h"
+#include "compensator_node.hpp"
+#include "pmlsm/jordan_rnn.hpp"
+#include "pmlsm/validate.hpp"
+#include "pmlsm/weights_file.hpp"
+
+namespace {
+
+using namespace pmlsm;
+namespace pdds = pmlsm::dds;
+namespace msg = pmlsm_msgs::msg;
+namespace flags = pmlsm_msgs::msg::CompensatorOutput_Constants;
+
+/// Why a weight set does not fit this node's network; empty when it does.
+std::string check_fits(const RnnWeightsFile& w, const SystemParams& p) {
+  try {
+    validate_rnn_weights(w);
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  if (w.layer_sizes != p.compensator.rnn_layer_sizes) return "layer sizes differ from compensator.rnn.layer_sizes";
+  if (w.input_scale_s2_per_m != p.compensator.rnn_input_scale_s2_per_m) {
+    return "input scale " + format_value(w.input_scale_s2_per_m) + " differs from compensator.rnn.input_scale_s2_per_m " +
+           format_value(p.compensator.rnn_input_scale_s2_per_m);
+  }
+  if (w.gain_n != p.compensator.rnn_gain_n) {
+    return "gain " + format_value(w.gain_n) + " N differs from compensator.rnn.gain_n " + format_value(p.compensator.rnn_gain_n);
+  }
+  return {};
+}
+
+RnnWeightsFile from_message(const msg::NetworkWeights& m) {
+  RnnWeightsFile w;
+  for (auto size : m.layer_sizes()) w.layer_sizes.push_back(size);
+  w.input_scale_s2_per_m = m.input_scale();
+  w.gain_n = m.gain_n();
+  w.cost = m.cost();
+  w.source = m.source().to_string();
+  w.weights = m.weights();
+  return w;
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"Jordan RNN vibration compensator on DDS"};
+  node::CommonOptions common;
+  node::add_common_options(app, common);
+  std::string weights_path;
+  bool online_learning = false;
+  bool ignore_topic = false;
+  app.add_option("-w,--weights", weights_path, "Weights file (from de_trainer)")->check(CLI::ExistingFile);
+  app.add_flag("--online-learning", online_learning, "Refine the weights online, eqs. (16)-(19)");
+  app.add_flag("--no-weights-topic", ignore_topic, "Do not take weight sets from the NetworkWeights topic");
+  if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
+  node::NodeRuntime rt("rnn_compensator", common);
+  const SystemParams& params = rt.cfg.params;
+  RnnCompensator rnn(params.rnn_compensator_params(online_learning));
+  std::uint64_t weights_version = 0;
+  bool have_weights = false;
+  if (!weights_path.empty()) {
+    const RnnWeightsFile file = load_rnn_weights(weights_path);
+    const std::string why = check_fits(file, params);
+    if (!why.empty()) throw ConfigError(weights_path + ": " + why);
+    rnn.set_weights(file.weights);
+    have_weights = true;
+    std::printf("rnn_compensator: weights from %s (cost %.3f, %s)\n", weights_path.c_str(), file.cost, file.source.c_str());
+  }
+  node::CompensatorInputs inputs(rt.participant, rt.wakeup);
+  auto weights_reader = rt.participant.make_reader<msg::NetworkWeightsPubSubType>(pdds::topics::kNetworkWeights, rt.wakeup);
+  auto writer = rt.participant.make_writer<msg::CompensatorOutputPubSubType>(pdds::topics::kCompensatorOutput);
+  const std::uint64_t ticks = scenario_ticks(rt.cfg.scenario, rt.period_s);
+  rt.status.publish(msg::NodeStatus_Constants::STATE_RUNNING, 0, rt.period_s, have_weights ? "running" : "running, no weights yet");
+
+  msg::CompensatorOutput out;
+  msg::NetworkWeights incoming;
+  std::uint64_t tick = 0, answered = 0, refused_sets = 0, swaps = 0;
+  CompensatorView view;
+  int exit_code = node::kOk;
+  while (answered < ticks && !pdds::stop_requested()) {
+    if (!inputs.next(std::chrono::duration<double>(common.peer_timeout_s), tick, view)) {
+      if (pdds::stop_requested()) break;
+      std::fprintf(stderr, "rnn_compensator: no estimate/reference after tick %llu for %.1f s: peer lost\n",
+                   static_cast<unsigned long long>(tick), common.peer_timeout_s);
+      exit_code = node::kPeerLost;
+      break;
+    }
+    // Weight swaps happen here, between ticks, never inside a step.
+    while (!ignore_topic && weights_reader.take(incoming)) {
+      const RnnWeightsFile candidate = from_message(incoming);
+      const std::string why = check_fits(candidate, params);
+      if (!why.empty()) {
+        ++refused_sets;
+        std::fprintf(stderr, "rnn_compensator: weight set %llu from '%s' refused, keeping version %llu: %s\n",
+                     static_cast<unsigned long long>(incoming.version()), incoming.source().c_str(),
+                     static_cast<unsigned long long>(weights_version), why.c_str());
+        continue;
+      }
+      rnn.set_weights(candidate.weights);
+      weights_version = incoming.version();
+      have_weights = true;
+      ++swaps;
+    }
+    std::uint32_t out_flags = 0;
+    if (have_weights) {
+      const CompensatorStep step = rnn.step({view.load_accel_mps2, view.v_ref_mps, view.v_load_mps});
+      out.force_n(step.force_n);
+      out.u_n(step.u_n);
+      out.training_error_mps(step.training_error_mps);
+      out.k_c_mps(step.k_c_mps);
+      out_flags |= flags::FLAG_ENABLED;
+      if (online_learning) out_flags |= flags::FLAG_ONLINE_LEARNING;
+      if (step.weights_updated) out_flags |= flags::FLAG_WEIGHTS_UPDATED;
+      if (step.kc_guarded) out_flags |= flags::FLAG_KC_CLAMPED;
+      if (step.input_rejected) out_flags |= flags::FLAG_INPUT_STALE;
+    } else {
+      out.force_n(0.0);
+      out.u_n(0.0);
+      out.training_error_mps(view.v_ref_mps - view.v_load_mps);
+      out.k_c_mps(0.0);
+    }
+    out.flags(out_flags);
+    out.stamp(node::make_stamp(tick, rt.period_s));
+    out.estimate_tick(tick);
+    out.weights_version(weights_version);
+    writer.write(out);
+    answered = tick + 1;
+  }
+  const CompensatorCounters& c = rnn.counters();
+  rt.status.status().rejected(inputs.rejected() + c.rejected_inputs + refused_sets);
+  rt.status.publish(msg::NodeStatus_Constants::STATE_STOPPING, answered, rt.period_s, "done");
+  writer.wait_for_acknowledgments(node::kFlushTimeout);
+  std::printf("rnn_compensator: %llu ticks answered, online learning %s: %llu updates, k_c clamped %llu, dead-band %llu, "
+              "reverted %llu; %llu input(s) rejected, %llu skipped; %llu weight set(s) taken, %llu refused\n",
+              static_cast<unsigned long long>(answered), online_learning ? "on" : "off",
+              static_cast<unsigned long long>(c.updates), static_cast<unsigned long long>(c.kc_clamped),
+              static_cast<unsigned long long>(c.kc_deadband), static_cast<unsigned long long>(c.reverted_updates),
+              static_cast<unsigned long long>(inputs.rejected() + c.rejected_inputs),
+              static_cast<unsigned long long>(inputs.skipped()), static_cast<unsigned long long>(swaps),
+              static_cast<unsigned long long>(refused_sets));
+  return exit_code;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return pmlsm::node::run_node("rnn_compensator", [&] { return run(argc, argv); });
+}

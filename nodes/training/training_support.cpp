@@ -1,0 +1,241 @@
+#include "training_support.hpp"
+
+#include "pmlsm/dds/shutdown.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <deque>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+namespace pmlsm::training {
+
+namespace msg = pmlsm_msgs::msg;
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw ConfigError(path + ": cannot open");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+namespace {
+void check_bound(const std::string& what, std::size_t size, std::size_t bound) {
+  if (size > bound) {
+    throw ConfigError(what + ": " + std::to_string(size) + " characters, TrainingSetup carries at most " +
+                      std::to_string(bound));
+  }
+}
+}  // namespace
+
+msg::TrainingSetup make_setup(std::uint64_t run_id, const std::string& system_path,
+                              const std::vector<std::string>& system_overrides,
+                              const TrainingParams& training) {
+  msg::TrainingSetup setup;
+  setup.run_id(run_id);
+  const std::string system_text = read_text(system_path);
+  // fastddsgen's serialiser neither checks nor truncates bounds loudly: check them here.
+  check_bound(system_path, system_text.size(), 32768);
+  check_bound(system_path + " (name)", system_path.size(), 256);
+  setup.system_yaml(system_text);
+  setup.system_origin(system_path);
+  if (system_overrides.size() > 64) throw ConfigError("--set: at most 64 overrides reach remote workers");
+  for (const auto& o : system_overrides) {
+    check_bound("--set " + o, o.size(), 256);
+    setup.system_overrides().push_back(o);
+  }
+  if (training.scenarios.size() > 8) throw ConfigError("scenarios: at most 8 reach remote workers");
+  for (const TrainingScenario& s : training.scenarios) {
+    msg::TrainingScenarioText text;
+    const std::string yaml = read_text(s.file);
+    check_bound(s.file, yaml.size(), 8192);
+    check_bound(s.file + " (name)", s.file.size(), 256);
+    text.yaml(yaml);
+    text.origin(s.file);
+    text.weight(s.weight);
+    setup.scenarios().push_back(text);
+  }
+  setup.cost_velocity(to_string(training.cost_velocity));
+  return setup;
+}
+
+std::shared_ptr<const RnnCost> cost_from_setup(const msg::TrainingSetup& setup) {
+  std::vector<ConfigOverride> overrides;
+  for (const auto& o : setup.system_overrides()) overrides.push_back(ConfigOverride::parse(o.to_string()));
+  const std::string origin = "trainer:" + setup.system_origin().to_string();
+  const SystemParams params = parse_system_params(setup.system_yaml().to_string(), origin, overrides);
+  std::vector<TrainingScenario> scenarios;
+  for (const auto& s : setup.scenarios()) {
+    TrainingScenario ts;
+    ts.file = s.origin().to_string();
+    ts.weight = s.weight();
+    ts.scenario = parse_scenario(s.yaml().to_string(), "trainer:" + s.origin().to_string(), params.timing.control_period_s);
+    scenarios.push_back(ts);
+  }
+  CostVelocity which = CostVelocity::truth;
+  try {
+    which = cost_velocity_from_string(setup.cost_velocity().to_string());
+    return std::make_shared<const RnnCost>(params, std::move(scenarios), which);
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(origin + ": " + e.what());
+  }
+}
+
+DdsEvaluator::DdsEvaluator(dds::Participant& participant, dds::Wakeup& wakeup, CostFunction local_cost,
+                           unsigned local_threads, std::uint64_t run_id,
+                           std::chrono::milliseconds worker_timeout)
+    : wakeup_(wakeup),
+      local_(std::move(local_cost), local_threads),
+      run_id_(run_id),
+      worker_timeout_(worker_timeout),
+      request_writer_(participant.make_writer<msg::EvaluationRequestPubSubType>(dds::topics::kEvaluationRequest)),
+      result_reader_(participant.make_reader<msg::EvaluationResultPubSubType>(dds::topics::kEvaluationResult, wakeup)),
+      status_reader_(participant.make_reader<msg::WorkerStatusPubSubType>(dds::topics::kWorkerStatus, wakeup,
+                                                                           dds::kObserverProfile)) {}
+
+void DdsEvaluator::poll_workers() {
+  msg::WorkerStatus status;
+  const auto now = std::chrono::steady_clock::now();
+  while (status_reader_.take(status)) {
+    const std::string setup_error = status.setup_error().to_string();
+    Worker& w = workers_[status.worker_id().to_string()];
+    w.last_seen = now;
+    w.slots = std::max<std::uint32_t>(1, status.slots());
+    w.run_id = status.run_id();
+    if (setup_error != w.setup_error && !setup_error.empty()) {
+      std::fprintf(stderr, "de_trainer: worker %s refused the setup: %s\n", status.worker_id().c_str(),
+                   setup_error.c_str());
+    }
+    w.setup_error = setup_error;
+  }
+  for (auto it = workers_.begin(); it != workers_.end();) {
+    if (now - it->second.last_seen > worker_timeout_) {
+      if (it->second.in_flight > 0) {
+        std::fprintf(stderr, "de_trainer: worker %s silent for %lld ms: its %zu jobs go to others\n",
+                     it->first.c_str(), static_cast<long long>(worker_timeout_.count()), it->second.in_flight);
+      }
+      ++counters_.workers_lost;
+      it = workers_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+std::size_t DdsEvaluator::live_workers() {
+  poll_workers();
+  return static_cast<std::size_t>(std::count_if(workers_.begin(), workers_.end(), [&](const auto& kv) {
+    return kv.second.run_id == run_id_ && kv.second.setup_error.empty();
+  }));
+}
+
+std::size_t DdsEvaluator::wait_for_workers(std::size_t count, std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  std::size_t live = live_workers();
+  while (live < count && std::chrono::steady_clock::now() < deadline && !dds::stop_requested()) {
+    const auto seen = wakeup_.generation();
+    wakeup_.wait_for(seen, std::chrono::milliseconds(50));
+    live = live_workers();
+  }
+  return live;
+}
+
+void DdsEvaluator::evaluate(const std::vector<std::vector<double>>& candidates, std::vector<double>& costs) {
+  costs.assign(candidates.size(), std::numeric_limits<double>::infinity());
+  if (live_workers() == 0) {
+    local_.evaluate(candidates, costs);
+    counters_.local_evaluations += candidates.size();
+    return;
+  }
+  std::deque<std::size_t> pending;
+  for (std::size_t i = 0; i < candidates.size(); ++i) pending.push_back(i);
+  std::size_t done = 0;
+  msg::EvaluationRequest request;
+  msg::EvaluationResult result;
+  request.run_id(run_id_);
+  in_flight_.clear();
+
+  while (done < candidates.size()) {
+    poll_workers();
+    // Jobs of workers that vanished go back to the queue.
+    for (auto it = in_flight_.begin(); it != in_flight_.end();) {
+      const auto w = workers_.find(it->second.worker_id);
+      if (w == workers_.end() || w->second.run_id != run_id_) {
+        pending.push_front(it->second.index);
+        ++counters_.requeued;
+        if (w != workers_.end() && w->second.in_flight > 0) --w->second.in_flight;
+        it = in_flight_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    const std::size_t live = live_workers();
+    if (live == 0) {
+      // Nobody left: the rest is evaluated here, in one batch.
+      std::vector<std::vector<double>> rest;
+      std::vector<std::size_t> rest_index(pending.begin(), pending.end());
+      for (std::size_t i : rest_index) rest.push_back(candidates[i]);
+      std::vector<double> rest_costs;
+      local_.evaluate(rest, rest_costs);
+      for (std::size_t j = 0; j < rest_index.size(); ++j) costs[rest_index[j]] = rest_costs[j];
+      counters_.local_evaluations += rest.size();
+      done += rest.size();
+      pending.clear();
+      break;
+    }
+    // Keep every live worker busy with up to 2 x slots jobs in flight.
+    for (auto& [id, w] : workers_) {
+      if (w.run_id != run_id_ || !w.setup_error.empty()) continue;
+      while (!pending.empty() && w.in_flight < 2 * static_cast<std::size_t>(w.slots)) {
+        const std::size_t index = pending.front();
+        pending.pop_front();
+        const std::uint64_t job = next_job_id_++;
+        request.job_id(job);
+        request.worker_id(id);
+        request.candidate(candidates[index]);
+        request_writer_.write(request);
+        in_flight_[job] = Job{index, id};
+        ++w.in_flight;
+      }
+    }
+    const std::uint64_t seen = wakeup_.generation();
+    bool progressed = false;
+    while (result_reader_.take(result)) {
+      const auto it = in_flight_.find(result.job_id());
+      if (result.run_id() != run_id_ || it == in_flight_.end()) {
+        ++counters_.stale_results;
+        continue;
+      }
+      auto w = workers_.find(it->second.worker_id);
+      if (w != workers_.end() && w->second.in_flight > 0) --w->second.in_flight;
+      if (result.status() == msg::EvaluationResult_Constants::STATUS_OK) {
+        costs[it->second.index] = result.cost();
+        ++done;
+        ++counters_.remote_evaluations;
+      } else {
+        pending.push_front(it->second.index);
+        ++counters_.requeued;
+      }
+      in_flight_.erase(it);
+      progressed = true;
+    }
+    if (!progressed && done < candidates.size()) wakeup_.wait_for(seen, std::chrono::milliseconds(20));
+    if (dds::stop_requested()) {
+      // Finish the generation locally so the population stays consistent for the checkpoint.
+      for (const auto& [job, j] : in_flight_) pending.push_back(j.index);
+      in_flight_.clear();
+      std::vector<std::vector<double>> rest;
+      std::vector<std::size_t> rest_index(pending.begin(), pending.end());
+      for (std::size_t i : rest_index) rest.push_back(candidates[i]);
+      std::vector<double> rest_costs;
+      local_.evaluate(rest, rest_costs);
+      for (std::size_t k = 0; k < rest_index.size(); ++k) costs[rest_index[k]] = rest_costs[k];
+      counters_.local_evaluations += rest.size();
+      break;
+    }
+  }
+}
+
+}  // namespace pmlsm::training

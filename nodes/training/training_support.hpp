@@ -1,0 +1,91 @@
+// What de_trainer and de_worker share: the TrainingSetup message that lets a
+// worker on any machine score weight sets exactly as the trainer would, and
+// the trainer's evaluator that farms a generation out to live workers.
+//
+// Protocol (topics in pmlsm/dds/topics.hpp):
+//   trainer -> TrainingSetup (latched): config texts + run_id
+//   worker  -> WorkerStatus every 200 ms: id, run_id it holds, slots
+//   trainer -> EvaluationRequest addressed to one worker (at most 2 x slots in flight)
+//   worker  -> EvaluationResult (job_id echoed)
+// A worker silent for longer than the timeout is dead: its jobs go back to the
+// queue with new job ids (a late answer to an old id is ignored). With no live
+// worker the trainer evaluates in its own threads. Costs are pure functions of
+// the weights, so who evaluates never changes the search.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "EvaluationRequestPubSubTypes.h"
+#include "EvaluationResultPubSubTypes.h"
+#include "TrainingSetupPubSubTypes.h"
+#include "WorkerStatusPubSubTypes.h"
+#include "pmlsm/config.hpp"
+#include "pmlsm/dds/participant.hpp"
+#include "pmlsm/optimiser.hpp"
+#include "pmlsm/rnn_training.hpp"
+
+namespace pmlsm::training {
+
+/// Reads a whole file; @throws ConfigError naming it.
+std::string read_text(const std::string& path);
+
+/// The setup message for this run. @throws ConfigError if a text exceeds its bound.
+pmlsm_msgs::msg::TrainingSetup make_setup(std::uint64_t run_id, const std::string& system_path,
+                                          const std::vector<std::string>& system_overrides,
+                                          const TrainingParams& training);
+
+/// The cost a setup describes. @throws ConfigError (bad texts) naming the trainer's file.
+std::shared_ptr<const RnnCost> cost_from_setup(const pmlsm_msgs::msg::TrainingSetup& setup);
+
+struct DispatchCounters {
+  std::uint64_t remote_evaluations = 0;
+  std::uint64_t local_evaluations = 0;
+  std::uint64_t requeued = 0;       ///< jobs sent again (worker lost or refused)
+  std::uint64_t workers_lost = 0;
+  std::uint64_t stale_results = 0;  ///< answers to jobs already re-queued or of another run
+};
+
+class DdsEvaluator final : public BatchEvaluator {
+ public:
+  DdsEvaluator(dds::Participant& participant, dds::Wakeup& wakeup, CostFunction local_cost,
+               unsigned local_threads, std::uint64_t run_id, std::chrono::milliseconds worker_timeout);
+  void evaluate(const std::vector<std::vector<double>>& candidates, std::vector<double>& costs) override;
+  /// Live workers holding this run's setup.
+  std::size_t live_workers();
+  /// Waits up to `timeout` for `count` live workers; returns how many there are.
+  std::size_t wait_for_workers(std::size_t count, std::chrono::milliseconds timeout);
+  const DispatchCounters& counters() const { return counters_; }
+
+ private:
+  struct Worker {
+    std::chrono::steady_clock::time_point last_seen;
+    std::uint32_t slots = 1;
+    std::uint64_t run_id = 0;
+    std::size_t in_flight = 0;
+    std::string setup_error;
+  };
+  struct Job {
+    std::size_t index;
+    std::string worker_id;
+  };
+  void poll_workers();
+
+  dds::Wakeup& wakeup_;
+  ThreadPoolEvaluator local_;
+  std::uint64_t run_id_;
+  std::chrono::milliseconds worker_timeout_;
+  dds::Writer<pmlsm_msgs::msg::EvaluationRequestPubSubType> request_writer_;
+  dds::Reader<pmlsm_msgs::msg::EvaluationResultPubSubType> result_reader_;
+  dds::Reader<pmlsm_msgs::msg::WorkerStatusPubSubType> status_reader_;
+  std::map<std::string, Worker> workers_;
+  std::map<std::uint64_t, Job> in_flight_;
+  std::uint64_t next_job_id_ = 1;
+  DispatchCounters counters_;
+};
+
+}  // namespace pmlsm::training
