@@ -86,6 +86,11 @@ int run(int argc, char** argv) {
   app.add_option("--wait-workers-s", wait_workers_s, "How long to wait for them")->check(CLI::NonNegativeNumber)->capture_default_str();
   app.add_option("--worker-timeout-s", worker_timeout_s, "A worker silent this long is dead")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_flag("--no-progress", no_progress, "No progress bar on stderr");
+  double linger_s = 0;
+  app.add_option("--linger-s", linger_s,
+                 "Stay on the domain this long after the end, so compensators that start later still get the "
+                 "final NetworkWeights (transient-local lives only as long as its writer)")
+      ->check(CLI::NonNegativeNumber);
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   if (checkpoint_path.empty()) checkpoint_path = out_path + ".checkpoint";
   if (history_path.empty()) history_path = out_path + ".history.csv";
@@ -223,6 +228,10 @@ int run(int argc, char** argv) {
   std::printf("de_trainer: best cost %.4f -> %s (checkpoint %s, history %s)\n", report.best_cost, out_path.c_str(),
               checkpoint_path.c_str(), history_path.c_str());
   weights_writer.wait_for_acknowledgments(std::chrono::seconds(2));
+  const auto linger_end = std::chrono::steady_clock::now() + std::chrono::duration<double>(linger_s);
+  while (std::chrono::steady_clock::now() < linger_end && !pdds::stop_requested()) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
   return interrupted ? 130 : node::kOk;
 }
 

@@ -36,7 +36,8 @@ int run(int argc, char** argv) {
   double idle_exit_s = 0;
   app.add_option("--threads", threads, "Evaluations run at once")->check(CLI::Range(1u, 256u))->capture_default_str();
   app.add_option("--id", worker_id, "Worker id (unique on the domain)")->capture_default_str();
-  app.add_option("--idle-exit-s", idle_exit_s, "Exit after this long without a request (0: run until SIGINT)")
+  app.add_option("--idle-exit-s", idle_exit_s,
+                 "Exit after this long without a request, counted from the first setup (0: run until SIGINT)")
       ->check(CLI::NonNegativeNumber);
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   if (worker_id.empty() || worker_id.size() > 64) throw ConfigError("--id: 1 to 64 characters, got '" + worker_id + "'");
@@ -107,6 +108,7 @@ int run(int argc, char** argv) {
   status.slots(threads);
   auto next_heartbeat = std::chrono::steady_clock::now();
   auto last_request = std::chrono::steady_clock::now();
+  bool have_setup = false;
   std::printf("de_worker %s: %u thread(s), waiting for a trainer\n", worker_id.c_str(), threads);
   while (!pdds::stop_requested()) {
     const std::uint64_t seen = wakeup.generation();
@@ -117,6 +119,8 @@ int run(int argc, char** argv) {
         cost = std::move(fresh);
         run_id = setup.run_id();
         setup_error.clear();
+        last_request = std::chrono::steady_clock::now();
+        have_setup = true;
         std::printf("de_worker %s: setup of run %llu taken (%zu weights, %zu scenario(s))\n", worker_id.c_str(),
                     static_cast<unsigned long long>(run_id), cost->dimension(), setup.scenarios().size());
       } catch (const std::exception& e) {
@@ -150,7 +154,7 @@ int run(int argc, char** argv) {
       status_writer.write(status);
       next_heartbeat = now + std::chrono::milliseconds(200);
     }
-    if (idle_exit_s > 0 && now - last_request > std::chrono::duration<double>(idle_exit_s)) break;
+    if (idle_exit_s > 0 && have_setup && now - last_request > std::chrono::duration<double>(idle_exit_s)) break;
     wakeup.wait_for(seen, std::chrono::milliseconds(50));
   }
   {

@@ -1,0 +1,307 @@
+// The compensated control loop as separate processes on real DDS: evaluator,
+// Kalman estimator, controller (--compensation topic), a compensator node
+// (accel_feedback or rnn_compensator) and the plant in lockstep. The trace
+// must equal the in-process run_compensated loop's byte for byte.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <regex>
+#include <sstream>
+
+#include "child_process.hpp"
+#include "pmlsm/accel_feedback.hpp"
+#include "pmlsm/closed_loop.hpp"
+#include "pmlsm/config.hpp"
+#include "pmlsm/jordan_rnn.hpp"
+#include "pmlsm/rnn_training.hpp"
+#include "pmlsm/weights_file.hpp"
+#include "trace_csv.hpp"
+
+namespace pmlsm {
+namespace {
+
+namespace fs = std::filesystem;
+using std::chrono::seconds;
+
+std::string bin(const std::string& name) { return std::string(PMLSM_BIN_DIR) + "/" + name; }
+std::string source(const std::string& rel) { return std::string(PMLSM_SOURCE_DIR) + "/" + rel; }
+
+// Offsets 10..14 of the test domains are this file's (distributed_test.cpp has 0..6,
+// training_test.cpp 15..19). PMLSM_TEST_DOMAIN_BASE moves the whole set (default 100).
+std::string test_domain(int offset) {
+  const char* base = std::getenv("PMLSM_TEST_DOMAIN_BASE");
+  return std::to_string((base != nullptr ? std::atoi(base) : 100) + offset);
+}
+
+std::string read_file(const fs::path& p) {
+  std::ifstream in(p);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("pmlsm_comp_" + std::to_string(getpid()) + "_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+const std::string kScenarioName = "pulse";
+std::string scenario_path() { return source("configs/scenarios/" + kScenarioName + ".yaml"); }
+
+std::vector<std::string> node_args(const std::string& exe, const std::string& domain,
+                                   std::vector<std::string> extra = {}) {
+  std::vector<std::string> a{bin(exe),     "--domain",      domain, "--config", source("configs/system.yaml"),
+                             "--scenario", scenario_path(), "--profiles", source("configs/dds/profiles.xml")};
+  a.insert(a.end(), extra.begin(), extra.end());
+  return a;
+}
+
+std::vector<std::string> trainer_args(const std::string& domain, std::vector<std::string> extra) {
+  std::vector<std::string> a{bin("de_trainer"), "--domain",   domain, "--config", source("configs/system.yaml"),
+                             "--training",      source("configs/training.yaml"), "--profiles",
+                             source("configs/dds/profiles.xml"), "--no-progress", "--threads", "1"};
+  a.insert(a.end(), extra.begin(), extra.end());
+  return a;
+}
+
+SystemParams system_params() { return load_system_params(source("configs/system.yaml")); }
+Scenario scenario(const SystemParams& params) { return load_scenario(scenario_path(), params.timing.control_period_s); }
+
+/// Weights in [-0.5, 0.5] from a fixed seed, sized and tagged as configs/system.yaml's network.
+RnnWeightsFile pseudo_random_weights(const SystemParams& params, std::uint64_t seed) {
+  RnnWeightsFile w;
+  w.layer_sizes = params.compensator.rnn_layer_sizes;
+  w.input_scale_s2_per_m = params.compensator.rnn_input_scale_s2_per_m;
+  w.gain_n = params.compensator.rnn_gain_n;
+  w.cost = -1;
+  w.source = "compensator_test seed " + std::to_string(seed);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-0.5, 0.5);
+  w.weights.resize(JordanRnn::parameter_count(w.layer_sizes));
+  for (double& x : w.weights) x = u(rng);
+  return w;
+}
+
+/// The compensation_force_n column of a trace CSV.
+std::vector<double> compensation_column(const std::string& csv) {
+  std::istringstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  std::vector<std::string> header;
+  {
+    std::istringstream h(line);
+    std::string cell;
+    while (std::getline(h, cell, ',')) header.push_back(cell);
+  }
+  const auto it = std::find(header.begin(), header.end(), "compensation_force_n");
+  if (it == header.end()) return {};
+  const std::size_t column = static_cast<std::size_t>(it - header.begin());
+  std::vector<double> values;
+  while (std::getline(in, line)) {
+    std::istringstream row(line);
+    std::string cell;
+    for (std::size_t c = 0; c <= column && std::getline(row, cell, ','); ++c) {
+    }
+    values.push_back(std::strtod(cell.c_str(), nullptr));
+  }
+  return values;
+}
+
+std::size_t nonzero_count(const std::vector<double>& v) {
+  return static_cast<std::size_t>(std::count_if(v.begin(), v.end(), [](double x) { return x != 0.0; }));
+}
+
+struct CompensatedRun {
+  std::string trace;               ///< the evaluator's CSV
+  std::string compensator_output;  ///< stdout + stderr of the compensator node
+};
+
+/// Runs evaluator, estimator, controller --compensation topic and plant in
+/// lockstep around an already running compensator (or one started here).
+/// Every process must end with exit 0 within the deadline.
+CompensatedRun run_loop(const fs::path& dir, const std::string& domain, test::ChildProcess& compensator) {
+  CompensatedRun result;
+  test::ChildProcess evaluator(node_args("evaluator", domain, {"--out", dir.string(), "--label", "comp"}),
+                               (dir / "evaluator.log").string());
+  test::ChildProcess estimator(node_args("kalman_estimator", domain), (dir / "estimator.log").string());
+  test::ChildProcess controller(node_args("controller", domain, {"--compensation", "topic"}),
+                                (dir / "controller.log").string());
+  test::ChildProcess plant(node_args("plant_sim", domain, {"--peers", "3"}), (dir / "plant.log").string());
+  for (auto* p : {&plant, &controller, &compensator, &estimator, &evaluator}) {
+    const auto code = p->wait_for(seconds(60));
+    EXPECT_TRUE(code.has_value()) << "still running:\n" << p->output();
+    if (code) {
+      EXPECT_EQ(*code, 0) << p->output();
+    }
+  }
+  EXPECT_NE(controller.output().find("compensation topic (0 ticks without)"), std::string::npos)
+      << controller.output();
+  EXPECT_NE(plant.output().find("late 0, rejected 0"), std::string::npos) << plant.output();
+  result.trace = read_file(dir / (kScenarioName + "_comp.csv"));
+  EXPECT_FALSE(result.trace.empty()) << evaluator.output();
+  result.compensator_output = compensator.output();
+  return result;
+}
+
+/// The distributed trace equals the in-process one, and the compensation was really on.
+void expect_same_trace(const fs::path& dir, const CompensatedRun& run, const std::vector<TickRecord>& in_process) {
+  write_trace_csv((dir / "in_process.csv").string(), in_process);
+  const std::string expected = read_file(dir / "in_process.csv");
+  EXPECT_TRUE(run.trace == expected) << "the distributed trace differs from the in-process one (" << dir << ")";
+  const std::size_t distributed_nonzero = nonzero_count(compensation_column(run.trace));
+  EXPECT_GT(distributed_nonzero, in_process.size() / 2)
+      << "compensation_force_n is (almost) always zero: the compensator is not in the loop";
+  EXPECT_GT(nonzero_count(compensation_column(expected)), in_process.size() / 2);
+}
+
+TEST(CompensatorDistributed, AccelFeedbackTraceEqualsInProcess) {
+  const fs::path dir = fresh_dir("accel");
+  const std::string domain = test_domain(10);
+  test::ChildProcess compensator(node_args("accel_feedback", domain), (dir / "accel_feedback.log").string());
+  const CompensatedRun run = run_loop(dir, domain, compensator);
+
+  const SystemParams params = system_params();
+  AccelFeedback feedback(params.accel_feedback_params());
+  const auto in_process = run_compensated(params, scenario(params), [&](const CompensatorView& v) {
+    return feedback.step(v.load_accel_mps2);
+  });
+  expect_same_trace(dir, run, in_process);
+  EXPECT_NE(run.compensator_output.find("2000 ticks answered"), std::string::npos) << run.compensator_output;
+  if (!::testing::Test::HasFailure()) fs::remove_all(dir);
+}
+
+void expect_rnn_trace_equals_in_process(bool online_learning, int domain_offset) {
+  const fs::path dir = fresh_dir(online_learning ? "rnn_online" : "rnn");
+  const std::string domain = test_domain(domain_offset);
+  const SystemParams params = system_params();
+  const RnnWeightsFile weights = pseudo_random_weights(params, 7);
+  const std::string weights_path = (dir / "w.yaml").string();
+  save_rnn_weights(weights_path, weights);
+
+  std::vector<std::string> extra{"--weights", weights_path};
+  if (online_learning) extra.push_back("--online-learning");
+  test::ChildProcess compensator(node_args("rnn_compensator", domain, extra), (dir / "rnn.log").string());
+  const CompensatedRun run = run_loop(dir, domain, compensator);
+
+  expect_same_trace(dir, run, run_with_rnn(params, scenario(params), weights.weights, online_learning));
+  const std::string& out = run.compensator_output;
+  EXPECT_NE(out.find("2000 ticks answered"), std::string::npos) << out;
+  EXPECT_NE(out.find("0 weight set(s) taken, 0 refused"), std::string::npos) << out;
+  if (online_learning) {
+    // The learning rule must really have run, or the comparison proves nothing about it.
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(out, m, std::regex(R"(online learning on: (\d+) updates)"))) << out;
+    EXPECT_GT(std::stoull(m[1].str()), 0u) << out;
+  }
+  if (!::testing::Test::HasFailure()) fs::remove_all(dir);
+}
+
+TEST(CompensatorDistributed, RnnTraceEqualsInProcess) { expect_rnn_trace_equals_in_process(false, 11); }
+
+TEST(CompensatorDistributed, RnnWithOnlineLearningTraceEqualsInProcess) { expect_rnn_trace_equals_in_process(true, 12); }
+
+TEST(CompensatorDistributed, RnnRefusesBadWeightsFile) {
+  const fs::path dir = fresh_dir("badweights");
+  const SystemParams params = system_params();
+  const RnnWeightsFile good = pseudo_random_weights(params, 3);
+  save_rnn_weights((dir / "good.yaml").string(), good);
+  const std::string good_text = read_file(dir / "good.yaml");
+
+  // Derived from a valid file by one textual change each, so that only that change is wrong.
+  const std::string first = "weights: [\n";
+  const auto at = good_text.find(first);
+  ASSERT_NE(at, std::string::npos) << good_text;
+  const auto value_begin = good_text.find_first_not_of(' ', at + first.size());
+  const auto value_end = good_text.find(',', value_begin);
+  ASSERT_NE(value_end, std::string::npos);
+  {
+    std::string nan_text = good_text;
+    nan_text.replace(value_begin, value_end - value_begin, ".nan");
+    std::ofstream(dir / "nan.yaml") << nan_text;
+    std::string short_text = good_text;
+    short_text.erase(value_begin, value_end + 1 - value_begin);  // one value fewer
+    std::ofstream(dir / "short.yaml") << short_text;
+  }
+  RnnWeightsFile other = good;  // valid on its own, but another network
+  other.layer_sizes = {3, 4, 1};
+  other.weights.assign(JordanRnn::parameter_count(other.layer_sizes), 0.1);
+  save_rnn_weights((dir / "other_net.yaml").string(), other);
+  RnnWeightsFile other_gain = good;
+  other_gain.gain_n = good.gain_n * 2;
+  save_rnn_weights((dir / "other_gain.yaml").string(), other_gain);
+
+  const std::size_t count = JordanRnn::parameter_count(good.layer_sizes);
+  const std::vector<std::pair<std::string, std::string>> cases{
+      {"nan.yaml", "weights[0]: must be finite"},
+      {"short.yaml", "expected " + std::to_string(count) + " values"},
+      {"other_net.yaml", "layer sizes differ"},
+      {"other_gain.yaml", "gain"},
+  };
+  for (const auto& [file, why] : cases) {
+    test::ChildProcess p(node_args("rnn_compensator", test_domain(13), {"--weights", (dir / file).string()}),
+                         (dir / (file + ".log")).string());
+    const auto code = p.wait_for(seconds(30));
+    ASSERT_TRUE(code.has_value()) << file << " still running:\n" << p.output();
+    EXPECT_EQ(*code, 2) << file << ": " << p.output();
+    EXPECT_NE(p.output().find(file), std::string::npos) << "the message must name the file: " << p.output();
+    EXPECT_NE(p.output().find(why), std::string::npos) << file << ": " << p.output();
+  }
+  // The unchanged file is accepted (so the refusals above are about the changes).
+  test::ChildProcess p(node_args("rnn_compensator", test_domain(13),
+                                 {"--weights", (dir / "good.yaml").string(), "--peer-timeout-s", "0.5"}),
+                       (dir / "good.log").string());
+  const auto code = p.wait_for(seconds(30));
+  ASSERT_TRUE(code.has_value()) << p.output();
+  EXPECT_EQ(*code, 4) << "good file: expected to run and lose its (absent) peers: " << p.output();
+  EXPECT_NE(p.output().find("weights from"), std::string::npos) << p.output();
+  if (!::testing::Test::HasFailure()) fs::remove_all(dir);
+}
+
+// A trainer of another network (layer sizes 3-4-1) publishes NetworkWeights on
+// the domain; the compensator must refuse them and keep its file's weights.
+// Sequence, so that timing cannot decide it: the compensator is up first (its
+// NetworkWeights reader exists from the start), the trainer runs to the end
+// (it waits up to 2 s at exit for the set to be acknowledged), then the loop
+// runs; the compensator takes the set at tick 0 and must refuse it.
+TEST(CompensatorDistributed, RnnRefusesWrongSizeWeightsFromTopicAndKeepsItsOwn) {
+  const fs::path dir = fresh_dir("topic_refuse");
+  const std::string domain = test_domain(14);
+  const SystemParams params = system_params();
+  const RnnWeightsFile weights = pseudo_random_weights(params, 11);
+  const std::string weights_path = (dir / "w.yaml").string();
+  save_rnn_weights(weights_path, weights);
+
+  test::ChildProcess compensator(
+      node_args("rnn_compensator", domain, {"--weights", weights_path, "--peer-timeout-s", "60"}),
+      (dir / "rnn.log").string());
+  ASSERT_TRUE(compensator.wait_for_output("weights from", seconds(30))) << compensator.output();
+  {
+    test::ChildProcess trainer(trainer_args(domain, {"--set", "compensator.rnn.layer_sizes=[3,4,1]", "--train-set",
+                                                     "population_size=16", "max_evaluations=64", "--out",
+                                                     (dir / "w341.yaml").string()}),
+                               (dir / "trainer.log").string());
+    const auto code = trainer.wait_for(seconds(60));
+    ASSERT_TRUE(code.has_value()) << trainer.output();
+    ASSERT_EQ(*code, 0) << trainer.output();
+  }
+  ASSERT_EQ(load_rnn_weights((dir / "w341.yaml").string()).layer_sizes, (std::vector<int>{3, 4, 1}));
+
+  const CompensatedRun run = run_loop(dir, domain, compensator);
+  expect_same_trace(dir, run, run_with_rnn(params, scenario(params), weights.weights, false));
+  const std::string& out = run.compensator_output;
+  EXPECT_NE(out.find("refused, keeping version 0: layer sizes differ"), std::string::npos) << out;
+  EXPECT_NE(out.find("from 'de_trainer gen"), std::string::npos) << out;
+  EXPECT_NE(out.find("0 weight set(s) taken"), std::string::npos) << out;
+  EXPECT_EQ(out.find(" 0 refused"), std::string::npos) << out;
+  if (!::testing::Test::HasFailure()) fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace pmlsm

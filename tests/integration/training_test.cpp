@@ -1,0 +1,292 @@
+// The distributed weight search: de_trainer alone, with de_worker processes,
+// with a worker killed mid-run, killed itself and resumed from its checkpoint.
+// Costs are pure functions of the weights and DE draws its random numbers in
+// one thread, so every variant must end with bit-identical weights.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+#include <regex>
+#include <sstream>
+
+#include "child_process.hpp"
+#include "pmlsm/weights_file.hpp"
+
+namespace pmlsm {
+namespace {
+
+namespace fs = std::filesystem;
+using std::chrono::seconds;
+
+std::string bin(const std::string& name) { return std::string(PMLSM_BIN_DIR) + "/" + name; }
+std::string source(const std::string& rel) { return std::string(PMLSM_SOURCE_DIR) + "/" + rel; }
+
+// Offsets 15..19 of the test domains are this file's, one per test (distributed_test.cpp
+// has 0..6, compensator_test.cpp 10..14). PMLSM_TEST_DOMAIN_BASE moves the whole set (default 100).
+std::string test_domain(int offset) {
+  const char* base = std::getenv("PMLSM_TEST_DOMAIN_BASE");
+  return std::to_string((base != nullptr ? std::atoi(base) : 100) + offset);
+}
+
+std::string read_file(const fs::path& p) {
+  std::ifstream in(p);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("pmlsm_train_" + std::to_string(getpid()) + "_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// The search every test runs: NP 8, 160 evaluations of a ~5 ms closed-loop run each: the
+// initial population and 19 generations (generation g has made NP (g + 1) evaluations).
+constexpr unsigned long long kPopulation = 8, kBudget = 160, kGenerations = kBudget / kPopulation - 1;
+const std::vector<std::string> kTrainSet{"--train-set", "population_size=" + std::to_string(kPopulation),
+                                         "max_evaluations=" + std::to_string(kBudget)};
+
+std::vector<std::string> trainer_args(const std::string& domain, const fs::path& out, std::vector<std::string> extra) {
+  std::vector<std::string> a{bin("de_trainer"), "--domain",   domain, "--config", source("configs/system.yaml"),
+                             "--training",      source("configs/training.yaml"), "--profiles",
+                             source("configs/dds/profiles.xml"), "--no-progress", "--threads", "1",
+                             "--out",           out.string()};
+  a.insert(a.end(), extra.begin(), extra.end());
+  return a;
+}
+
+std::vector<std::string> worker_args(const std::string& domain, const std::string& id) {
+  return {bin("de_worker"), "--domain", domain, "--profiles", source("configs/dds/profiles.xml"),
+          "--threads",      "1",        "--id",   id};
+}
+
+template <typename... Vs>
+std::vector<std::string> join(std::vector<std::string> a, const Vs&... more) {
+  (a.insert(a.end(), more.begin(), more.end()), ...);
+  return a;
+}
+
+struct Dispatch {
+  unsigned long long remote = 0, local = 0, requeued = 0, lost = 0;
+};
+
+/// The trainer's summary line "(R remote, L local, Q re-queued, W worker(s) lost)".
+std::optional<Dispatch> dispatch_of(const std::string& out) {
+  std::smatch m;
+  if (!std::regex_search(out, m, std::regex(R"(\((\d+) remote, (\d+) local, (\d+) re-queued, (\d+) worker\(s\) lost\))"))) {
+    return std::nullopt;
+  }
+  return Dispatch{std::stoull(m[1]), std::stoull(m[2]), std::stoull(m[3]), std::stoull(m[4])};
+}
+
+/// Runs a trainer to its end (exit 0 expected) and returns its output.
+std::string run_trainer(const std::vector<std::string>& args, const fs::path& log) {
+  test::ChildProcess trainer(args, log.string());
+  const auto code = trainer.wait_for(seconds(120));
+  EXPECT_TRUE(code.has_value()) << "still running:\n" << trainer.output();
+  if (code) {
+    EXPECT_EQ(*code, 0) << trainer.output();
+  }
+  return trainer.output();
+}
+
+/// The local-threads run of kTrainSet, once per test program, on the calling test's
+/// domain before it starts any worker there (so that no worker can join it).
+const RnnWeightsFile& local_reference(int domain_offset) {
+  static const RnnWeightsFile reference = [domain_offset] {
+    const fs::path dir = fresh_dir("reference");
+    const std::string out =
+        run_trainer(trainer_args(test_domain(domain_offset), dir / "w.yaml", kTrainSet), dir / "trainer.log");
+    const auto d = dispatch_of(out);
+    EXPECT_TRUE(d.has_value()) << out;
+    if (d) {
+      EXPECT_EQ(d->remote, 0u) << out;
+      EXPECT_EQ(d->local, kBudget) << out;
+    }
+    RnnWeightsFile w = load_rnn_weights((dir / "w.yaml").string());
+    fs::remove_all(dir);
+    return w;
+  }();
+  return reference;
+}
+
+/// Bit-identical weights and cost (== on doubles: no tolerance).
+void expect_same_result(const RnnWeightsFile& got, const RnnWeightsFile& expected) {
+  EXPECT_EQ(got.layer_sizes, expected.layer_sizes);
+  EXPECT_EQ(got.cost, expected.cost);
+  ASSERT_EQ(got.weights.size(), expected.weights.size());
+  std::size_t differing = 0;
+  for (std::size_t i = 0; i < got.weights.size(); ++i) differing += got.weights[i] != expected.weights[i];
+  EXPECT_EQ(differing, 0u) << "weights differ from the local-threads run (cost " << got.cost << " vs "
+                           << expected.cost << ")";
+}
+
+/// Stops a worker with SIGINT and expects a clean exit; returns its evaluation count.
+unsigned long long stop_worker(test::ChildProcess& worker) {
+  worker.signal(SIGINT);
+  const auto code = worker.wait_for(seconds(30));
+  EXPECT_TRUE(code.has_value()) << worker.output();
+  if (code) {
+    EXPECT_EQ(*code, 0) << worker.output();
+  }
+  std::smatch m;
+  const std::string out = worker.output();
+  if (!std::regex_search(out, m, std::regex(R"(: (\d+) evaluations\n)"))) {
+    ADD_FAILURE() << "no evaluation count: " << out;
+    return 0;
+  }
+  return std::stoull(m[1]);
+}
+
+/// Lines of a file after its header (0 when absent).
+std::size_t data_lines(const fs::path& p) {
+  const std::string text = read_file(p);
+  const auto n = static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n'));
+  return n > 0 ? n - 1 : 0;
+}
+
+/// Polls until `ready` holds; false at the deadline.
+template <typename Ready>
+bool poll_until(std::chrono::duration<double> timeout, Ready&& ready) {
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::duration_cast<std::chrono::steady_clock::duration>(timeout);
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (ready()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));  // polling interval, not a synchronisation
+  }
+  return false;
+}
+
+TEST(TrainingDistributed, WorkersGiveTheSameResultAsLocalThreads) {
+  const RnnWeightsFile& reference = local_reference(15);
+  const fs::path dir = fresh_dir("workers");
+  const std::string domain = test_domain(16);
+  test::ChildProcess w1(worker_args(domain, "w1"), (dir / "w1.log").string());
+  test::ChildProcess w2(worker_args(domain, "w2"), (dir / "w2.log").string());
+  const std::string out = run_trainer(
+      trainer_args(domain, dir / "w.yaml", join(kTrainSet, std::vector<std::string>{"--wait-workers", "2", "--wait-workers-s", "30"})),
+      dir / "trainer.log");
+  EXPECT_NE(out.find("2 of 2 worker(s) joined"), std::string::npos) << out;
+  const auto d = dispatch_of(out);
+  ASSERT_TRUE(d.has_value()) << out;
+  EXPECT_GT(d->remote, 0u) << out;
+  EXPECT_EQ(d->remote + d->local, kBudget) << out;
+  const unsigned long long e1 = stop_worker(w1), e2 = stop_worker(w2);
+  EXPECT_GT(e1, 0u) << w1.output();
+  EXPECT_GT(e2, 0u) << w2.output();
+  ASSERT_TRUE(fs::exists(dir / "w.yaml")) << out;
+  expect_same_result(load_rnn_weights((dir / "w.yaml").string()), reference);
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+TEST(TrainingDistributed, KilledWorkerLosesNothing) {
+  const RnnWeightsFile& reference = local_reference(17);
+  const fs::path dir = fresh_dir("killed_worker");
+  const std::string domain = test_domain(17);
+  test::ChildProcess w1(worker_args(domain, "w1"), (dir / "w1.log").string());
+  test::ChildProcess w2(worker_args(domain, "w2"), (dir / "w2.log").string());
+  test::ChildProcess trainer(
+      trainer_args(domain, dir / "w.yaml",
+                   join(kTrainSet, std::vector<std::string>{"--wait-workers", "2", "--wait-workers-s", "30",
+                                                            "--worker-timeout-s", "1"})),
+      (dir / "trainer.log").string());
+  // A first generation done by the workers, then one of them dies without a word.
+  ASSERT_TRUE(poll_until(seconds(60), [&] { return data_lines(dir / "w.yaml.history.csv") >= 1; }))
+      << trainer.output();
+  w1.signal(SIGKILL);
+  ASSERT_TRUE(w1.wait_for(seconds(10)).has_value());
+  const std::size_t generation_at_kill = data_lines(dir / "w.yaml.history.csv");
+
+  const auto code = trainer.wait_for(seconds(120));
+  ASSERT_TRUE(code.has_value()) << trainer.output();
+  EXPECT_EQ(*code, 0) << trainer.output();
+  const std::string out = trainer.output();
+  const auto d = dispatch_of(out);
+  ASSERT_TRUE(d.has_value()) << out;
+  EXPECT_LT(generation_at_kill, kGenerations) << "the run was over before the kill: the test proves nothing";
+  EXPECT_GE(d->lost, 1u) << out;
+  EXPECT_GT(d->remote, 0u) << out;
+  EXPECT_EQ(d->remote + d->local, kBudget) << out;
+  std::printf("killed worker after %zu generation(s): %llu re-queued, %llu lost\n", generation_at_kill, d->requeued,
+              d->lost);
+  EXPECT_GT(stop_worker(w2), 0u) << w2.output();
+  ASSERT_TRUE(fs::exists(dir / "w.yaml")) << out;
+  expect_same_result(load_rnn_weights((dir / "w.yaml").string()), reference);
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+/// The "generation N" of a checkpoint file (nullopt when absent or unreadable).
+std::optional<unsigned long long> checkpoint_generation(const fs::path& p) {
+  std::smatch m;
+  const std::string text = read_file(p);
+  if (!std::regex_search(text, m, std::regex(R"(\ngeneration (\d+)\n)"))) return std::nullopt;
+  return std::stoull(m[1]);
+}
+
+TEST(TrainingDistributed, KilledTrainerResumesFromCheckpoint) {
+  const RnnWeightsFile& reference = local_reference(18);
+  const fs::path dir = fresh_dir("resume");
+  const std::string domain = test_domain(18);
+  const std::vector<std::string> args = trainer_args(domain, dir / "w.yaml", kTrainSet);
+  unsigned long long killed_at = 0;
+  {
+    test::ChildProcess trainer(args, (dir / "trainer1.log").string());
+    ASSERT_TRUE(poll_until(seconds(60), [&] {
+      const auto g = checkpoint_generation(dir / "w.yaml.checkpoint");
+      return g && *g >= 2;
+    })) << trainer.output();
+    trainer.signal(SIGKILL);
+    const auto code = trainer.wait_for(seconds(10));
+    ASSERT_TRUE(code.has_value());
+    EXPECT_EQ(*code, -SIGKILL) << "the trainer ended before the kill: " << trainer.output();
+    killed_at = checkpoint_generation(dir / "w.yaml.checkpoint").value_or(0);
+  }
+  ASSERT_FALSE(fs::exists(dir / "w.yaml")) << "the first run finished: the test proves nothing";
+  ASSERT_GE(killed_at, 2u);
+  ASSERT_LT(killed_at, kGenerations);
+
+  const std::string out = run_trainer(join(args, std::vector<std::string>{"--resume"}), dir / "trainer2.log");
+  EXPECT_NE(out.find("at generation " + std::to_string(killed_at)), std::string::npos) << out;
+  const auto d = dispatch_of(out);
+  ASSERT_TRUE(d.has_value()) << out;
+  EXPECT_EQ(d->local, kBudget - kPopulation * (killed_at + 1)) << "only the remaining generations are evaluated: " << out;
+  ASSERT_TRUE(fs::exists(dir / "w.yaml")) << out;
+  expect_same_result(load_rnn_weights((dir / "w.yaml").string()), reference);
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+TEST(TrainingDistributed, BadTrainingConfigExits2) {
+  const fs::path dir = fresh_dir("badcfg");
+  const std::vector<std::pair<std::string, std::string>> cases{
+      {"nonsense=1", "nonsense"},
+      {"crossover_rate=2", "crossover_rate"},
+      {"population_size=3", "population_size"},
+      {"max_evaluations=8", "max_evaluations"},  // below NP (120)
+  };
+  int i = 0;
+  for (const auto& [set, key] : cases) {
+    test::ChildProcess trainer(trainer_args(test_domain(19), dir / "w.yaml", {"--train-set", set}),
+                               (dir / ("trainer" + std::to_string(i++) + ".log")).string());
+    const auto code = trainer.wait_for(seconds(30));
+    ASSERT_TRUE(code.has_value()) << set << ": still running\n" << trainer.output();
+    EXPECT_EQ(*code, 2) << set << ": " << trainer.output();
+    EXPECT_NE(trainer.output().find(key), std::string::npos) << set << ": " << trainer.output();
+    EXPECT_NE(trainer.output().find("training.yaml"), std::string::npos) << set << ": " << trainer.output();
+  }
+  // A worker with a bad option is refused the same way.
+  test::ChildProcess worker({bin("de_worker"), "--domain", test_domain(19), "--threads", "0"}, (dir / "worker.log").string());
+  const auto code = worker.wait_for(seconds(30));
+  ASSERT_TRUE(code.has_value()) << worker.output();
+  EXPECT_EQ(*code, 2) << worker.output();
+  EXPECT_NE(worker.output().find("--threads"), std::string::npos) << worker.output();
+  EXPECT_FALSE(fs::exists(dir / "w.yaml"));
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace pmlsm

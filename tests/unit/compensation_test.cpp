@@ -1,0 +1,147 @@
+// The compensators in the in-process loop: the acceleration-feedback baseline,
+// the training cost (23) of the weight search, and the paper's claim with the
+// shipped weights (configs/rnn_weights.yaml).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "pmlsm/accel_feedback.hpp"
+#include "pmlsm/closed_loop.hpp"
+#include "pmlsm/config.hpp"
+#include "pmlsm/metrics.hpp"
+#include "pmlsm/rnn_training.hpp"
+#include "pmlsm/weights_file.hpp"
+#include "test_support.hpp"
+
+namespace pmlsm {
+namespace {
+
+using test::shipped_params;
+using test::shipped_scenario;
+
+std::string source(const std::string& rel) { return std::string(PMLSM_SOURCE_DIR) + "/" + rel; }
+
+TEST(AccelFeedback, ValidatesItsParameters) {
+  EXPECT_THROW(AccelFeedback({-1.0, 675.0}), std::invalid_argument);
+  EXPECT_THROW(AccelFeedback({100.0, 0.0}), std::invalid_argument);
+  try {
+    AccelFeedback({std::nan(""), 675.0});
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("gain_kg"), std::string::npos) << e.what();
+  }
+}
+
+TEST(AccelFeedback, OpposesTheLoadAccelerationWithinTheLimit) {
+  AccelFeedback f({160.0, 675.0});
+  EXPECT_DOUBLE_EQ(f.step(2.0), -320.0);
+  EXPECT_DOUBLE_EQ(f.step(-1.0), 160.0);
+  EXPECT_DOUBLE_EQ(f.step(10.0), -675.0);
+  EXPECT_EQ(f.counters().saturated, 1u);
+  EXPECT_DOUBLE_EQ(f.step(std::numeric_limits<double>::quiet_NaN()), 0.0);
+  EXPECT_EQ(f.counters().rejected_inputs, 1u);
+  EXPECT_EQ(f.counters().steps, 4u);
+}
+
+TEST(AccelFeedback, DampsThePulseTestInTheLoop) {
+  const SystemParams& p = shipped_params();
+  const Scenario pulse = shipped_scenario("pulse");
+  const double pi_cost = compute_metrics(run_scenario(p, pulse), pulse, p.timing.control_period_s).cost_true;
+  AccelFeedback feedback(p.accel_feedback_params());
+  const auto trace = run_compensated(p, pulse, [&](const CompensatorView& v) { return feedback.step(v.load_accel_mps2); });
+  const ScenarioMetrics m = compute_metrics(trace, pulse, p.timing.control_period_s);
+  EXPECT_LT(m.cost_true, pi_cost / 3) << "PI only " << pi_cost;
+  // The force of tick k's estimate is applied at tick k+1.
+  ASSERT_GT(trace.size(), 100u);
+  EXPECT_EQ(trace[0].compensation_force_n, 0.0);
+  AccelFeedback replay(p.accel_feedback_params());
+  EXPECT_DOUBLE_EQ(trace[50].compensation_force_n, replay.step(trace[49].est_load_accel_mps2));
+}
+
+TEST(TrainingConfig, ShippedFileLoadsWithTable1Values) {
+  const TrainingParams t = load_training_params(source("configs/training.yaml"), 1e-3);
+  EXPECT_EQ(t.optimiser, "de");
+  EXPECT_EQ(t.population_size, 120u);
+  EXPECT_DOUBLE_EQ(t.mutation_factor, 0.8);
+  EXPECT_DOUBLE_EQ(t.crossover_rate, 0.7);
+  EXPECT_DOUBLE_EQ(t.init_lower, -1.0);
+  EXPECT_DOUBLE_EQ(t.init_upper, 1.0);
+  ASSERT_FALSE(t.scenarios.empty());
+  EXPECT_EQ(t.scenarios[0].scenario.name, "pulse");
+}
+
+TEST(TrainingConfig, BadValuesNameTheKey) {
+  const std::string path = source("configs/training.yaml");
+  const std::vector<std::pair<std::string, std::string>> cases{
+      {"crossover_rate=2", "crossover_rate"},
+      {"optimiser=pso", "optimiser"},
+      {"population_size=3", "population_size"},
+      {"cost_velocity=measured", "cost_velocity"},
+      {"nonsense=1", "nonsense"},
+  };
+  for (const auto& [override_text, key] : cases) {
+    try {
+      load_training_params(path, 1e-3, {ConfigOverride::parse(override_text)});
+      ADD_FAILURE() << override_text << " was accepted";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(RnnCost, ZeroWeightsCostWhatPiOnlyCosts) {
+  // tanh(0) = 0: a zero network adds no force, so the cost is the PI loop's.
+  const SystemParams& p = shipped_params();
+  const Scenario pulse = shipped_scenario("pulse");
+  const RnnCost cost(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth);
+  ASSERT_EQ(cost.dimension(), 91u);
+  const double pi_cost = compute_metrics(run_scenario(p, pulse), pulse, p.timing.control_period_s).cost_true;
+  EXPECT_DOUBLE_EQ(cost(std::vector<double>(91, 0.0)), pi_cost);
+}
+
+TEST(RnnCost, RejectsWrongSizeAndNonFiniteSetsAsWorst) {
+  const SystemParams& p = shipped_params();
+  const RnnCost cost(p, {{shipped_scenario("pulse"), "pulse", 1.0}}, CostVelocity::estimated);
+  EXPECT_TRUE(std::isinf(cost(std::vector<double>(90, 0.0))));
+  std::vector<double> w(91, 0.1);
+  w[7] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_TRUE(std::isinf(cost(w)));
+}
+
+TEST(RnnCost, WeightsScenariosAndIsDeterministic) {
+  const SystemParams& p = shipped_params();
+  const Scenario pulse = shipped_scenario("pulse");
+  std::vector<double> w(91);
+  for (std::size_t i = 0; i < w.size(); ++i) w[i] = 0.3 * std::sin(1.7 * static_cast<double>(i));
+  const RnnCost once(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth);
+  const RnnCost twice(p, {{pulse, "pulse", 2.0}}, CostVelocity::truth);
+  EXPECT_DOUBLE_EQ(once(w), once(w));
+  EXPECT_DOUBLE_EQ(twice(w), 2.0 * once(w));
+}
+
+// The paper's claim (Figs. 11-12, cost (23)): PI + RNN leaves much less load
+// error than PI only, with the weights the trainer made (configs/rnn_weights.yaml).
+TEST(ShippedWeights, RnnBeatsPiOnlyAndAccelerationFeedbackOnThePulseTest) {
+  const SystemParams& p = shipped_params();
+  const Scenario pulse = shipped_scenario("pulse");
+  const RnnWeightsFile file = load_rnn_weights(source("configs/rnn_weights.yaml"));
+  ASSERT_EQ(file.layer_sizes, p.compensator.rnn_layer_sizes);
+  ASSERT_EQ(file.gain_n, p.compensator.rnn_gain_n);
+  ASSERT_EQ(file.input_scale_s2_per_m, p.compensator.rnn_input_scale_s2_per_m);
+  const double period = p.timing.control_period_s;
+  const ScenarioMetrics pi = compute_metrics(run_scenario(p, pulse), pulse, period);
+  AccelFeedback feedback(p.accel_feedback_params());
+  const ScenarioMetrics accel = compute_metrics(
+      run_compensated(p, pulse, [&](const CompensatorView& v) { return feedback.step(v.load_accel_mps2); }), pulse,
+      period);
+  const ScenarioMetrics rnn = compute_metrics(run_with_rnn(p, pulse, file.weights, false), pulse, period);
+  EXPECT_LT(rnn.cost_true, pi.cost_true / 5) << "PI only " << pi.cost_true;
+  EXPECT_LT(rnn.cost_true, accel.cost_true) << "acceleration feedback";
+  EXPECT_LT(rnn.load_vibration_rms_mps, pi.load_vibration_rms_mps / 3);
+  // The file records the cost it was trained to (the training cost uses this same run).
+  EXPECT_NEAR(rnn.cost_true, file.cost, 1e-9 * file.cost);
+}
+
+}  // namespace
+}  // namespace pmlsm
