@@ -1,7 +1,7 @@
 # PNG plots of the comparison runs, like the paper's figures. Inputs (CSV, in outdir):
 #   <scenario>_pi.csv, <scenario>_pi_accel.csv, <scenario>_pi_rnn.csv   (evaluator or closed_loop)
-#   rnn_weights.yaml.history.csv                                          (de_trainer)
-#   gnuplot -e "outdir='out'" scripts/plot_traces.gp
+#   history: the de_trainer's per-generation CSV (default configs/rnn_weights.history.csv)
+#   gnuplot -e "outdir='out'; history='out/rnn_weights.yaml.history.csv'" scripts/plot_traces.gp
 # Trace columns: 2 time_s, 4 v_ref, 7 x_M, 8 v_M, 9 x_L, 10 v_L, 14 v_L (Kalman), 17 force, 18 compensation.
 if (!exists("outdir")) outdir = 'out'
 set datafile separator ','
@@ -44,8 +44,8 @@ unset xrange
 unset multiplot
 
 # Figs. 6-7: the weight search, best and mean cost (23) and one weight against evaluations.
-history = outdir.'/rnn_weights.yaml.history.csv'
-if (system('test -s '.history.' && echo yes') eq "yes\n" || system('test -s '.history.' && echo yes') eq "yes") {
+if (!exists("history")) history = 'configs/rnn_weights.history.csv'
+if (system('test -s '.history.' && echo yes') eq "yes") {
   set output outdir.'/training.png'
   set multiplot layout 2,1 title 'weight search (Figs. 6-7)'
   set xlabel 'evaluations'

@@ -7,9 +7,9 @@
 # and (after a training run) out/training.png.
 #
 # The RNN's weights: configs/rnn_weights.yaml, made by de_trainer with
-#   ./build/bin/de_trainer --out configs/rnn_weights.yaml
-# With --train the weights are made again first (into out/rnn_weights.yaml,
-# the paper-sized search: about 52,000 closed-loop runs). PMLSM_DOMAIN picks the
+#   ./build/bin/de_trainer --train-set optimiser=cmaes seed=2 max_evaluations=2640 --out configs/rnn_weights.yaml
+# (README: why CMA-ES). With --train the weights are made again first with
+# configs/training.yaml (the paper's DE, 52,000 closed-loop runs) into out/. PMLSM_DOMAIN picks the
 # DDS domain (default 42); other arguments go to the launcher (e.g. --arg clock=realtime).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -24,9 +24,11 @@ cd "$root"
 mkdir -p out
 domain="${PMLSM_DOMAIN:-42}"
 weights=configs/rnn_weights.yaml
+history=configs/rnn_weights.history.csv
 if [ "$train" = true ]; then
   ./build/bin/de_trainer --out out/rnn_weights.yaml --domain "$domain"
   weights=out/rnn_weights.yaml
+  history=out/rnn_weights.yaml.history.csv
 fi
 
 header=true
@@ -48,5 +50,5 @@ for scenario in pulse free_vibration; do
 done
 echo "cost = sum over the first second of |V_ref - v_L| (eq. 23), true and Kalman-estimated v_L (the paper's best: 5.6)"
 echo "distributed lockstep runs over Fast DDS; RNN weights from $weights; logs and traces in out/"
-gnuplot -e "outdir='out'" scripts/plot_traces.gp
-echo "plots: out/pulse.png out/free_vibration.png$( [ -s out/rnn_weights.yaml.history.csv ] && echo ' out/training.png')"
+gnuplot -e "outdir='out'; history='$history'" scripts/plot_traces.gp
+echo "plots: out/pulse.png (Figs. 11-12) out/free_vibration.png (Fig. 10) out/training.png (Figs. 6-7, $history)"
