@@ -1,13 +1,13 @@
 #include "training_support.hpp"
 
-#include "pmlsm/dds/shutdown.hpp"
-
 #include <algorithm>
 #include <cstdio>
 #include <deque>
 #include <fstream>
 #include <limits>
 #include <sstream>
+
+#include "pmlsm/dds/shutdown.hpp"
 
 namespace pmlsm::training {
 
