@@ -353,16 +353,8 @@ void DifferentialEvolution::load_checkpoint(const std::string& path) {
   detail::CheckpointReader in(path);
   in.expect_header(name());
   DeParams loaded;
-  loaded.population_size = in.count("population_size");
-  if (loaded.population_size != params_.population_size) {
-    in.fail("population_size " + std::to_string(loaded.population_size) + " does not match the optimiser's " +
-            std::to_string(params_.population_size));
-  }
-  loaded.dimension = in.count("dimension");
-  if (loaded.dimension != params_.dimension) {
-    in.fail("dimension " + std::to_string(loaded.dimension) + " does not match the optimiser's " +
-            std::to_string(params_.dimension));
-  }
+  loaded.population_size = in.matching_count("population_size", params_.population_size);
+  loaded.dimension = in.matching_count("dimension", params_.dimension);
   loaded.mutation_factor = in.number("mutation_factor");
   loaded.crossover_rate = in.number("crossover_rate");
   loaded.init_lower = in.number("init_lower");
@@ -393,17 +385,10 @@ void DifferentialEvolution::load_checkpoint(const std::string& path) {
   std::vector<double> costs;
   if (initialised == 1) {
     for (std::size_t i = 0; i < loaded.population_size; ++i) {
-      const auto tokens = in.fields("member");
-      if (tokens.size() != loaded.dimension + 2) {
-        in.fail("member line has " + std::to_string(tokens.size()) + " fields, expected index, cost and " +
-                std::to_string(loaded.dimension) + " components");
-      }
-      if (in.parse_count(tokens[0]) != i) in.fail("expected member " + std::to_string(i));
-      const double cost = in.parse_number(tokens[1]);
+      std::vector<double> member;
+      const double cost = in.member(i, loaded.dimension, member);
       if (std::isnan(cost) || cost == -kInfinity) in.fail("member cost must be finite or inf");
       costs.push_back(cost);
-      std::vector<double> member(loaded.dimension);
-      for (std::size_t j = 0; j < loaded.dimension; ++j) member[j] = in.parse_number(tokens[j + 2]);
       population.push_back(std::move(member));
     }
   }
@@ -570,10 +555,30 @@ std::uint64_t CheckpointReader::count(const std::string& key) {
   return parse_count(tokens[0]);
 }
 
+std::uint64_t CheckpointReader::matching_count(const std::string& key, std::uint64_t expected) {
+  const std::uint64_t value = count(key);
+  if (value != expected) {
+    fail(key + " " + std::to_string(value) + " does not match the optimiser's " + std::to_string(expected));
+  }
+  return value;
+}
+
 double CheckpointReader::number(const std::string& key) {
   const auto tokens = fields(key);
   if (tokens.size() != 1) fail("corrupt: expected one value after '" + key + "'");
   return parse_number(tokens[0]);
+}
+
+double CheckpointReader::member(std::size_t index, std::size_t dimension, std::vector<double>& member) {
+  const auto tokens = fields("member");
+  if (tokens.size() != dimension + 2) {
+    fail("member line has " + std::to_string(tokens.size()) + " fields, expected index, cost and " +
+         std::to_string(dimension) + " components");
+  }
+  if (parse_count(tokens[0]) != index) fail("expected member " + std::to_string(index));
+  member.resize(dimension);
+  for (std::size_t j = 0; j < dimension; ++j) member[j] = parse_number(tokens[j + 2]);
+  return parse_number(tokens[1]);
 }
 
 std::vector<double> CheckpointReader::numbers(const std::string& key, std::size_t n) {

@@ -322,16 +322,8 @@ void PagmoOptimiser::load_checkpoint(const std::string& path) {
   detail::CheckpointReader in(path);
   in.expect_header(name());
   DeParams loaded = params_;  // mutation_factor and crossover_rate are not used here
-  loaded.population_size = in.count("population_size");
-  if (loaded.population_size != params_.population_size) {
-    in.fail("population_size " + std::to_string(loaded.population_size) + " does not match the optimiser's " +
-            std::to_string(params_.population_size));
-  }
-  loaded.dimension = in.count("dimension");
-  if (loaded.dimension != params_.dimension) {
-    in.fail("dimension " + std::to_string(loaded.dimension) + " does not match the optimiser's " +
-            std::to_string(params_.dimension));
-  }
+  loaded.population_size = in.matching_count("population_size", params_.population_size);
+  loaded.dimension = in.matching_count("dimension", params_.dimension);
   loaded.init_lower = in.number("init_lower");
   loaded.init_upper = in.number("init_upper");
   loaded.seed = in.count("seed");
@@ -363,16 +355,9 @@ void PagmoOptimiser::load_checkpoint(const std::string& path) {
   if (next->initialised) {
     next->best = in.numbers("best", loaded.dimension);
     for (std::size_t i = 0; i < loaded.population_size; ++i) {
-      const auto tokens = in.fields("member");
-      if (tokens.size() != loaded.dimension + 2) {
-        in.fail("member line has " + std::to_string(tokens.size()) + " fields, expected index, cost and " +
-                std::to_string(loaded.dimension) + " components");
-      }
-      if (in.parse_count(tokens[0]) != i) in.fail("expected member " + std::to_string(i));
-      const double cost = in.parse_number(tokens[1]);
+      pagmo::vector_double member;
+      const double cost = in.member(i, loaded.dimension, member);
       if (std::isnan(cost)) in.fail("member cost is NaN");
-      pagmo::vector_double member(loaded.dimension);
-      for (std::size_t j = 0; j < loaded.dimension; ++j) member[j] = in.parse_number(tokens[j + 2]);
       next->population.push_back(std::move(member), {cost});
     }
   }

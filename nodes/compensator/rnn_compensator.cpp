@@ -87,10 +87,8 @@ int run(int argc, char** argv) {
   int exit_code = node::kOk;
   while (answered < ticks && !pdds::stop_requested()) {
     if (!inputs.next(std::chrono::duration<double>(common.peer_timeout_s), tick, view)) {
-      if (pdds::stop_requested()) break;
-      std::fprintf(stderr, "rnn_compensator: no estimate/reference after tick %llu for %.1f s: peer lost\n",
-                   static_cast<unsigned long long>(tick), common.peer_timeout_s);
-      exit_code = node::kPeerLost;
+      exit_code = node::end_of_failed_wait("rnn_compensator", "EstimatedState and VelocityReference", "estimator or controller",
+                                           answered, common.peer_timeout_s);
       break;
     }
     // Weight swaps happen here, between ticks, never inside a step.

@@ -80,10 +80,7 @@ int run(int argc, char** argv) {
   while (next_tick < ticks && !pdds::stop_requested()) {
     const bool ok = node::take_next_tick(rt.wakeup, feedback_reader, feedback, next_tick, rejected, peer_timeout);
     if (!ok) {
-      if (pdds::stop_requested()) break;
-      std::fprintf(stderr, "controller: no MotorFeedback after tick %llu for %.1f s: plant lost\n",
-                   static_cast<unsigned long long>(next_tick), common.peer_timeout_s);
-      exit_code = node::kPeerLost;
+      exit_code = node::end_of_failed_wait("controller", "MotorFeedback", "plant", next_tick, common.peer_timeout_s);
       break;
     }
     const std::uint64_t k = feedback.stamp().tick();
@@ -111,10 +108,8 @@ int run(int argc, char** argv) {
       };
       if (lockstep) {
         if (!node::wait_until(rt.wakeup, peer_timeout, take_compensation)) {
-          if (pdds::stop_requested()) break;
-          std::fprintf(stderr, "controller: no CompensatorOutput for tick %llu for %.1f s: compensator lost\n",
-                       static_cast<unsigned long long>(k - 1), common.peer_timeout_s);
-          exit_code = node::kPeerLost;
+          exit_code = node::end_of_failed_wait("controller", "CompensatorOutput", "compensator", k - 1,
+                                               common.peer_timeout_s);
           break;
         }
       } else {

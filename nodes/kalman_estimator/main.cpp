@@ -46,10 +46,8 @@ int run(int argc, char** argv) {
   while (next_tick < ticks && !pdds::stop_requested()) {
     const bool ok = node::take_next_tick(rt.wakeup, feedback_reader, feedback, next_tick, rejected, peer_timeout);
     if (!ok) {
-      if (pdds::stop_requested()) break;
-      std::fprintf(stderr, "kalman_estimator: no MotorFeedback after tick %llu for %.1f s: plant lost\n",
-                   static_cast<unsigned long long>(next_tick), common.peer_timeout_s);
-      exit_code = node::kPeerLost;
+      exit_code = node::end_of_failed_wait("kalman_estimator", "MotorFeedback", "plant", next_tick,
+                                           common.peer_timeout_s);
       break;
     }
     const std::uint64_t k = feedback.stamp().tick();

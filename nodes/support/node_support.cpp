@@ -63,6 +63,14 @@ std::optional<int> parse_command_line(CLI::App& app, int argc, char** argv) {
   return std::nullopt;
 }
 
+int end_of_failed_wait(const char* node_name, const char* missing, const char* peer, std::uint64_t tick,
+                       double timeout_s) {
+  if (dds::stop_requested()) return kOk;
+  std::fprintf(stderr, "%s: no %s for tick %llu within %.1f s: %s lost\n", node_name, missing,
+               static_cast<unsigned long long>(tick), timeout_s, peer);
+  return kPeerLost;
+}
+
 int run_node(const std::string& node_name, const std::function<int()>& body) {
   dds::install_shutdown_handlers();
   // Line-buffered even into the launcher's pipe, so lines appear as they happen.

@@ -88,6 +88,12 @@ bool take_next_tick(dds::Wakeup& wakeup, ReaderT& reader, Message& sample, std::
   });
 }
 
+/// After a wait for a peer failed: kOk when a stop was requested (the loop just
+/// ends), else one line naming what stopped arriving ("controller: no
+/// MotorFeedback for tick 812 within 10.0 s: plant lost") and kPeerLost.
+int end_of_failed_wait(const char* node_name, const char* missing, const char* peer, std::uint64_t tick,
+                       double timeout_s);
+
 /// Runs a node's body and maps its failures to exit codes with a one-line
 /// message on stderr: ConfigError -> 2, anything else -> 1.
 int run_node(const std::string& node_name, const std::function<int()>& body);

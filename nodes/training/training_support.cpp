@@ -142,6 +142,17 @@ std::size_t DdsEvaluator::wait_for_workers(std::size_t count, std::chrono::milli
   return live;
 }
 
+void DdsEvaluator::evaluate_locally(const std::vector<std::vector<double>>& candidates,
+                                    const std::deque<std::size_t>& indices, std::vector<double>& costs) {
+  std::vector<std::vector<double>> batch;
+  for (std::size_t i : indices) batch.push_back(candidates[i]);
+  std::vector<double> batch_costs;
+  local_.evaluate(batch, batch_costs);
+  std::size_t k = 0;
+  for (std::size_t i : indices) costs[i] = batch_costs[k++];
+  counters_.local_evaluations += batch.size();
+}
+
 void DdsEvaluator::evaluate(const std::vector<std::vector<double>>& candidates, std::vector<double>& costs) {
   costs.assign(candidates.size(), std::numeric_limits<double>::infinity());
   if (live_workers() == 0) {
@@ -174,15 +185,7 @@ void DdsEvaluator::evaluate(const std::vector<std::vector<double>>& candidates, 
     const std::size_t live = live_workers();
     if (live == 0) {
       // Nobody left: the rest is evaluated here, in one batch.
-      std::vector<std::vector<double>> rest;
-      std::vector<std::size_t> rest_index(pending.begin(), pending.end());
-      for (std::size_t i : rest_index) rest.push_back(candidates[i]);
-      std::vector<double> rest_costs;
-      local_.evaluate(rest, rest_costs);
-      for (std::size_t j = 0; j < rest_index.size(); ++j) costs[rest_index[j]] = rest_costs[j];
-      counters_.local_evaluations += rest.size();
-      done += rest.size();
-      pending.clear();
+      evaluate_locally(candidates, pending, costs);
       break;
     }
     // Keep every live worker busy with up to 2 x slots jobs in flight.
@@ -226,13 +229,7 @@ void DdsEvaluator::evaluate(const std::vector<std::vector<double>>& candidates, 
       // Finish the generation locally so the population stays consistent for the checkpoint.
       for (const auto& [job, j] : in_flight_) pending.push_back(j.index);
       in_flight_.clear();
-      std::vector<std::vector<double>> rest;
-      std::vector<std::size_t> rest_index(pending.begin(), pending.end());
-      for (std::size_t i : rest_index) rest.push_back(candidates[i]);
-      std::vector<double> rest_costs;
-      local_.evaluate(rest, rest_costs);
-      for (std::size_t k = 0; k < rest_index.size(); ++k) costs[rest_index[k]] = rest_costs[k];
-      counters_.local_evaluations += rest.size();
+      evaluate_locally(candidates, pending, costs);
       break;
     }
   }

@@ -15,6 +15,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <deque>
 #include <map>
 #include <memory>
 #include <string>
@@ -74,6 +75,9 @@ class DdsEvaluator final : public BatchEvaluator {
     std::string worker_id;
   };
   void poll_workers();
+  /// Evaluates candidates[i] for i in `indices` in the local threads, into costs[i].
+  void evaluate_locally(const std::vector<std::vector<double>>& candidates, const std::deque<std::size_t>& indices,
+                        std::vector<double>& costs);
 
   dds::Wakeup& wakeup_;
   ThreadPoolEvaluator local_;

@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "child_process.hpp"
+#include "integration_support.hpp"
 #include "pmlsm/accel_feedback.hpp"
 #include "pmlsm/closed_loop.hpp"
 #include "pmlsm/config.hpp"
@@ -28,48 +29,22 @@ namespace {
 namespace fs = std::filesystem;
 using std::chrono::seconds;
 
-std::string bin(const std::string& name) { return std::string(PMLSM_BIN_DIR) + "/" + name; }
-std::string source(const std::string& rel) { return std::string(PMLSM_SOURCE_DIR) + "/" + rel; }
+using test::bin;
+using test::read_file;
+using test::source;
+using test::test_domain;
 
-// Offsets 10..14 of the test domains are this file's (distributed_test.cpp has 0..6,
-// training_test.cpp 15..19). PMLSM_TEST_DOMAIN_BASE moves the whole set (default 100).
-std::string test_domain(int offset) {
-  const char* base = std::getenv("PMLSM_TEST_DOMAIN_BASE");
-  return std::to_string((base != nullptr ? std::atoi(base) : 100) + offset);
-}
-
-std::string read_file(const fs::path& p) {
-  std::ifstream in(p);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("pmlsm_comp_" + std::to_string(getpid()) + "_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path fresh_dir(const std::string& name) { return test::fresh_dir("pmlsm_comp", name); }
 
 const std::string kScenarioName = "pulse";
 std::string scenario_path() { return source("configs/scenarios/" + kScenarioName + ".yaml"); }
 
 std::vector<std::string> node_args(const std::string& exe, const std::string& domain,
                                    std::vector<std::string> extra = {}) {
-  std::vector<std::string> a{bin(exe),     "--domain",      domain, "--config", source("configs/system.yaml"),
-                             "--scenario", scenario_path(), "--profiles", source("configs/dds/profiles.xml")};
-  a.insert(a.end(), extra.begin(), extra.end());
-  return a;
+  return test::node_args(exe, domain, scenario_path(), std::move(extra));
 }
 
-std::vector<std::string> trainer_args(const std::string& domain, std::vector<std::string> extra) {
-  std::vector<std::string> a{bin("de_trainer"), "--domain",   domain, "--config", source("configs/system.yaml"),
-                             "--training",      source("configs/training.yaml"), "--profiles",
-                             source("configs/dds/profiles.xml"), "--no-progress", "--threads", "1"};
-  a.insert(a.end(), extra.begin(), extra.end());
-  return a;
-}
+using test::trainer_args;
 
 SystemParams system_params() { return load_system_params(source("configs/system.yaml")); }
 Scenario scenario(const SystemParams& params) { return load_scenario(scenario_path(), params.timing.control_period_s); }

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "child_process.hpp"
+#include "integration_support.hpp"
 #include "pmlsm/closed_loop.hpp"
 #include "pmlsm/config.hpp"
 #include "trace_csv.hpp"
@@ -16,31 +17,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string bin(const std::string& name) { return std::string(PMLSM_BIN_DIR) + "/" + name; }
-std::string source(const std::string& rel) { return std::string(PMLSM_SOURCE_DIR) + "/" + rel; }
-
-// A domain of its own per test, so the tests of one ctest run, which run in
-// parallel, never meet. PMLSM_TEST_DOMAIN_BASE moves the whole set (default
-// 100), for two test runs on one machine.
-std::string test_domain(int offset) {
-  const char* base = std::getenv("PMLSM_TEST_DOMAIN_BASE");
-  return std::to_string((base != nullptr ? std::atoi(base) : 100) + offset);
-}
-
-std::string read_file(const fs::path& p) {
-  std::ifstream in(p);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-std::vector<std::string> node_args(const std::string& exe, const std::string& domain,
-                                   const std::string& scenario, std::vector<std::string> extra = {}) {
-  std::vector<std::string> a{bin(exe),        "--domain", domain, "--config", source("configs/system.yaml"),
-                             "--scenario",    scenario,   "--profiles", source("configs/dds/profiles.xml")};
-  a.insert(a.end(), extra.begin(), extra.end());
-  return a;
-}
+using test::bin;
+using test::node_args;
+using test::read_file;
+using test::source;
+using test::test_domain;
 
 // Runs evaluator, estimator, controller and plant in lockstep and compares the
 // evaluator's trace with the in-process loop's, byte for byte.

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "child_process.hpp"
+#include "integration_support.hpp"
 #include "pmlsm/weights_file.hpp"
 
 namespace pmlsm {
@@ -21,29 +22,12 @@ namespace {
 namespace fs = std::filesystem;
 using std::chrono::seconds;
 
-std::string bin(const std::string& name) { return std::string(PMLSM_BIN_DIR) + "/" + name; }
-std::string source(const std::string& rel) { return std::string(PMLSM_SOURCE_DIR) + "/" + rel; }
+using test::bin;
+using test::read_file;
+using test::source;
+using test::test_domain;
 
-// Offsets 15..19 of the test domains are this file's, one per test (distributed_test.cpp
-// has 0..6, compensator_test.cpp 10..14). PMLSM_TEST_DOMAIN_BASE moves the whole set (default 100).
-std::string test_domain(int offset) {
-  const char* base = std::getenv("PMLSM_TEST_DOMAIN_BASE");
-  return std::to_string((base != nullptr ? std::atoi(base) : 100) + offset);
-}
-
-std::string read_file(const fs::path& p) {
-  std::ifstream in(p);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("pmlsm_train_" + std::to_string(getpid()) + "_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path fresh_dir(const std::string& name) { return test::fresh_dir("pmlsm_train", name); }
 
 // The search every test runs: NP 8, 160 evaluations of a ~5 ms closed-loop run each: the
 // initial population and 19 generations (generation g has made NP (g + 1) evaluations).
@@ -52,12 +36,8 @@ const std::vector<std::string> kTrainSet{"--train-set", "population_size=" + std
                                          "max_evaluations=" + std::to_string(kBudget)};
 
 std::vector<std::string> trainer_args(const std::string& domain, const fs::path& out, std::vector<std::string> extra) {
-  std::vector<std::string> a{bin("de_trainer"), "--domain",   domain, "--config", source("configs/system.yaml"),
-                             "--training",      source("configs/training.yaml"), "--profiles",
-                             source("configs/dds/profiles.xml"), "--no-progress", "--threads", "1",
-                             "--out",           out.string()};
-  a.insert(a.end(), extra.begin(), extra.end());
-  return a;
+  extra.insert(extra.begin(), {"--out", out.string()});
+  return test::trainer_args(domain, std::move(extra));
 }
 
 std::vector<std::string> worker_args(const std::string& domain, const std::string& id) {

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "child_process.hpp"
+#include "integration_support.hpp"
 #include "pmlsm/closed_loop.hpp"
 #include "pmlsm/config.hpp"
 #include "trace_csv.hpp"
@@ -21,8 +22,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string bin(const std::string& name) { return std::string(PMLSM_BIN_DIR) + "/" + name; }
-std::string source(const std::string& rel) { return std::string(PMLSM_SOURCE_DIR) + "/" + rel; }
+using test::bin;
+using test::read_file;
+using test::source;
 
 int sh(const std::string& command) { return std::system((command + " >/dev/null 2>&1").c_str()); }
 
@@ -68,13 +70,6 @@ std::vector<std::string> in_host(const std::string& ns, const std::string& exe, 
   for (const auto& e : extra) command += " " + e;
   return {"/usr/sbin/ip", "netns", "exec", ns, "/usr/bin/unshare", "--mount", "--propagation", "private",
           "/bin/sh", "-c", command};
-}
-
-std::string read_file(const fs::path& p) {
-  std::ifstream in(p);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 TEST(TwoHosts, LockstepTraceOverUdpEqualsTheSingleHostOne) {

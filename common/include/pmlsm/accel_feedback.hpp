@@ -4,7 +4,7 @@
 // Why it damps: the stiff velocity PI makes the motor almost a velocity source,
 // so a force F_c moves the motor velocity by about F_c / Kp. The load then obeys
 //   m_L j_L + k (K_a / Kp) a_L + k v_L = k v_ref,
-// a damping ratio zeta = (K_a / Kp) sqrt(k / m_L) / 2 (0.47 at K_a = 160 kg with
+// a damping ratio zeta = (K_a / Kp) sqrt(k / m_L) / 2 (0.35 at K_a = 120 kg with
 // the paper's Kp = 10000 N s/m). The force is limited to +-force_limit_n.
 #pragma once
 

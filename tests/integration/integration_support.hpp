@@ -1,0 +1,62 @@
+// What the integration tests share: where the programs and the sources are,
+// a DDS domain per test, files in and out, and the command lines of the nodes.
+#pragma once
+
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace pmlsm::test {
+
+inline std::string bin(const std::string& name) { return std::string(PMLSM_BIN_DIR) + "/" + name; }
+inline std::string source(const std::string& rel) { return std::string(PMLSM_SOURCE_DIR) + "/" + rel; }
+
+/// A domain of its own per test, so the tests of one ctest run, which run in
+/// parallel, never meet. Offsets: distributed_test.cpp 0..6, compensator_test.cpp
+/// 10..14, training_test.cpp 15..19. PMLSM_TEST_DOMAIN_BASE moves the whole set
+/// (default 100), for two test runs on one machine.
+inline std::string test_domain(int offset) {
+  const char* base = std::getenv("PMLSM_TEST_DOMAIN_BASE");
+  return std::to_string((base != nullptr ? std::atoi(base) : 100) + offset);
+}
+
+inline std::string read_file(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+/// An empty folder <tmp>/<prefix>_<pid>_<name>.
+inline std::filesystem::path fresh_dir(const std::string& prefix, const std::string& name) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / (prefix + "_" + std::to_string(getpid()) + "_" + name);
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+/// A control-loop node on the shipped config and profiles.
+inline std::vector<std::string> node_args(const std::string& exe, const std::string& domain,
+                                          const std::string& scenario, std::vector<std::string> extra = {}) {
+  std::vector<std::string> a{bin(exe),     "--domain", domain,     "--config", source("configs/system.yaml"),
+                             "--scenario", scenario,   "--profiles", source("configs/dds/profiles.xml")};
+  a.insert(a.end(), extra.begin(), extra.end());
+  return a;
+}
+
+/// de_trainer on the shipped configs, one local thread, no progress bar.
+inline std::vector<std::string> trainer_args(const std::string& domain, std::vector<std::string> extra = {}) {
+  std::vector<std::string> a{bin("de_trainer"), "--domain",   domain, "--config", source("configs/system.yaml"),
+                             "--training",      source("configs/training.yaml"), "--profiles",
+                             source("configs/dds/profiles.xml"), "--no-progress", "--threads", "1"};
+  a.insert(a.end(), extra.begin(), extra.end());
+  return a;
+}
+
+}  // namespace pmlsm::test
