@@ -17,7 +17,16 @@ packages=(
   iproute2                        # network namespaces for the two-host test
   fastdds-tools                   # `fastdds discovery`: the Discovery Server for networks without multicast
   cyclonedds-tools                # ddsperf: the DDS latency floor the distributed benchmark compares with
+  cyclonedds-dev                  # a Cyclone DDS subscriber built from our IDL: interoperation on the wire
+  libzstd-dev liblz4-dev          # MCAP chunk compression (zstd default, lz4 for speed)
+  libwebsocketpp-dev libasio-dev  # the Foxglove WebSocket bridge (the server library the official bridge uses)
+  nlohmann-json3-dev              # the Foxglove protocol's JSON control messages
 )
+# Node.js and npm run the third-party readers in the tests (@mcap/core, @foxglove/* from npm).
+# Debian's packages only where none is installed: a machine may carry its own Node.js with npm.
+if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
+  packages+=(nodejs npm)
+fi
 
 sudo_cmd=()
 if [ "$(id -u)" -ne 0 ]; then
@@ -29,3 +38,8 @@ export DEBIAN_FRONTEND=noninteractive
 "${sudo_cmd[@]}" apt-get update -qq
 "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${packages[@]}" >/dev/null
 echo "install_deps: ${#packages[@]} packages present"
+
+# The npm packages of the third-party reader tests, at the versions in tests/node/package-lock.json.
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+(cd "$root/tests/node" && npm ci --no-audit --no-fund --loglevel=error >/dev/null)
+echo "install_deps: npm packages of tests/node present"

@@ -55,7 +55,8 @@ Participant::Participant(const ParticipantOptions& options)
     throw std::runtime_error("cannot load DDS profiles from '" + options.profiles_file + "'");
   }
   participant_ = factory->create_participant_with_profile(
-      static_cast<eprosima::fastdds::dds::DomainId_t>(options.domain_id), options.participant_profile);
+      static_cast<eprosima::fastdds::dds::DomainId_t>(options.domain_id), options.participant_profile,
+      options.listener);
   if (participant_ == nullptr) {
     throw std::runtime_error("cannot create participant with profile '" + options.participant_profile +
                              "' on domain " + std::to_string(options.domain_id));
@@ -84,6 +85,27 @@ eprosima::fastdds::dds::Topic* Participant::create_topic(const std::string& name
   if (topic == nullptr) throw std::runtime_error("cannot create topic '" + name + "'");
   topics_[name] = topic;
   return topic;
+}
+
+Reader<RawPubSubType> Participant::make_raw_reader(const CatalogEntry& entry, Wakeup& wakeup,
+                                                   const char* qos_profile) {
+  auto found = topics_.find(entry.spec.name);
+  auto* topic = found != topics_.end()
+                    ? found->second
+                    : create_topic(entry.spec.name, eprosima::fastdds::dds::TypeSupport(new RawPubSubType(
+                                                        entry.type_name, entry.max_serialized_size)));
+  return Reader<RawPubSubType>(
+      create_reader(topic, qos_profile != nullptr ? qos_profile : entry.spec.qos_profile, wakeup));
+}
+
+Writer<RawPubSubType> Participant::make_raw_writer(const CatalogEntry& entry, const char* qos_profile) {
+  auto found = topics_.find(entry.spec.name);
+  auto* topic = found != topics_.end()
+                    ? found->second
+                    : create_topic(entry.spec.name, eprosima::fastdds::dds::TypeSupport(new RawPubSubType(
+                                                        entry.type_name, entry.max_serialized_size)));
+  return Writer<RawPubSubType>(
+      create_writer(topic, qos_profile != nullptr ? qos_profile : entry.spec.qos_profile));
 }
 
 eprosima::fastdds::dds::DataWriter* Participant::create_writer(eprosima::fastdds::dds::Topic* topic,

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/domain/DomainParticipantListener.hpp>
 #include <fastdds/dds/publisher/DataWriter.hpp>
 #include <fastdds/dds/publisher/Publisher.hpp>
 #include <fastdds/dds/subscriber/DataReader.hpp>
@@ -29,6 +30,8 @@
 #include <string>
 #include <vector>
 
+#include "pmlsm/dds/catalog.hpp"
+#include "pmlsm/dds/raw_type.hpp"
 #include "pmlsm/dds/topics.hpp"
 
 namespace pmlsm::dds {
@@ -63,6 +66,9 @@ struct ParticipantOptions {
   /// (see configs/dds/profiles.xml), and it breaks where /dev/shm is not
   /// shared although the host looks the same (network namespaces).
   bool data_sharing = false;
+  /// Told about every writer and reader discovered in the domain (`pmlsm topic list`); must
+  /// outlive the participant. Set at creation so that no discovery event is missed.
+  eprosima::fastdds::dds::DomainParticipantListener* listener = nullptr;
 };
 
 class Participant;
@@ -107,6 +113,14 @@ class Reader {
     }
     return false;
   }
+  /// As take(), with the sample's info (source and reception times, writer and sequence number).
+  bool take(Message& out, eprosima::fastdds::dds::SampleInfo& info) {
+    while (reader_->take_next_sample(&out, &info) ==
+           eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+      if (info.valid_data) return true;
+    }
+    return false;
+  }
   std::size_t matched_writers() const;
   eprosima::fastdds::dds::DataReader* entity() { return reader_; }
 
@@ -137,6 +151,12 @@ class Participant {
     return Reader<PubSubType>(create_reader(topic_for<PubSubType>(spec),
                                             qos_profile != nullptr ? qos_profile : spec.qos_profile, wakeup));
   }
+
+  /// Endpoints that carry serialized samples of a catalog topic (recorder, player, bridge).
+  /// `qos_profile` as for make_reader(); nullptr = the topic's own.
+  Reader<RawPubSubType> make_raw_reader(const CatalogEntry& entry, Wakeup& wakeup,
+                                        const char* qos_profile = nullptr);
+  Writer<RawPubSubType> make_raw_writer(const CatalogEntry& entry, const char* qos_profile = nullptr);
 
   eprosima::fastdds::dds::DomainParticipant* entity() { return participant_; }
   const std::string& node_name() const { return node_name_; }
