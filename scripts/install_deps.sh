@@ -19,6 +19,7 @@ packages=(
   cyclonedds-tools                # ddsperf: the DDS latency floor the distributed benchmark compares with
   cyclonedds-dev                  # a Cyclone DDS subscriber built from our IDL: interoperation on the wire
   libzstd-dev liblz4-dev          # MCAP chunk compression (zstd default, lz4 for speed)
+  zlib1g-dev                      # crc32 of MCAP chunks and summary (pmlsm_mcap)
   libwebsocketpp-dev libasio-dev  # the Foxglove WebSocket bridge (the server library the official bridge uses)
   nlohmann-json3-dev              # the Foxglove protocol's JSON control messages
 )

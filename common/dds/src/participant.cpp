@@ -54,9 +54,15 @@ Participant::Participant(const ParticipantOptions& options)
   if (factory->load_XML_profiles_file(options.profiles_file) != ReturnCode::RETCODE_OK) {
     throw std::runtime_error("cannot load DDS profiles from '" + options.profiles_file + "'");
   }
-  participant_ = factory->create_participant_with_profile(
-      static_cast<eprosima::fastdds::dds::DomainId_t>(options.domain_id), options.participant_profile,
-      options.listener);
+  // The profile's QoS with the node's name, which discovery shows to the others (`pmlsm topic list`).
+  eprosima::fastdds::dds::DomainParticipantQos qos;
+  if (factory->get_participant_qos_from_profile(options.participant_profile, qos) != ReturnCode::RETCODE_OK) {
+    throw std::runtime_error("no participant profile '" + options.participant_profile + "' in '" +
+                             options.profiles_file + "'");
+  }
+  if (!options.node_name.empty()) qos.name(options.node_name);
+  participant_ = factory->create_participant(static_cast<eprosima::fastdds::dds::DomainId_t>(options.domain_id),
+                                             qos, options.listener);
   if (participant_ == nullptr) {
     throw std::runtime_error("cannot create participant with profile '" + options.participant_profile +
                              "' on domain " + std::to_string(options.domain_id));

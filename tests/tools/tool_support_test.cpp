@@ -1,0 +1,46 @@
+// The pure helpers of the pmlsm tool: loss accounting and statistics.
+#include <gtest/gtest.h>
+
+#include "tool_support.hpp"
+
+namespace pmlsm::tools {
+namespace {
+
+TEST(SequenceTracker, CountsGapsPerWriterAndJoinLateApart) {
+  SequenceTracker t;
+  EXPECT_EQ(t.observe("a", 1), 0u);
+  EXPECT_EQ(t.observe("a", 2), 0u);
+  EXPECT_EQ(t.observe("a", 5), 2u);   // 3 and 4 lost
+  EXPECT_EQ(t.observe("b", 40), 0u);  // b was publishing before we joined
+  EXPECT_EQ(t.observe("b", 41), 0u);
+  EXPECT_EQ(t.observe("a", 4), 0u);   // late repeat: not a loss, and no new gap after it
+  EXPECT_EQ(t.observe("a", 6), 0u);
+  EXPECT_EQ(t.lost(), 2u);
+  EXPECT_EQ(t.missed_before_join(), 39u);
+  EXPECT_EQ(t.out_of_order(), 1u);
+  EXPECT_EQ(t.writers(), 2u);
+}
+
+TEST(Summarize, NearestRankPercentilesAndMoments) {
+  std::vector<double> v;
+  for (int i = 100; i >= 1; --i) v.push_back(i);  // unsorted on purpose
+  const Summary s = summarize(v);
+  EXPECT_EQ(s.count, 100u);
+  EXPECT_DOUBLE_EQ(s.min, 1.0);
+  EXPECT_DOUBLE_EQ(s.max, 100.0);
+  EXPECT_DOUBLE_EQ(s.mean, 50.5);
+  EXPECT_DOUBLE_EQ(s.p50, 50.0);
+  EXPECT_DOUBLE_EQ(s.p99, 99.0);
+  EXPECT_NEAR(s.stddev, 28.866, 1e-3);
+  EXPECT_EQ(summarize({}).count, 0u);
+  EXPECT_DOUBLE_EQ(summarize({7.0}).p99, 7.0);
+}
+
+TEST(HumanBytes, ThousandsWithUnits) {
+  EXPECT_EQ(human_bytes(999), "999 B");
+  EXPECT_EQ(human_bytes(1234), "1.23 kB");
+  EXPECT_EQ(human_bytes(5.5e9), "5.50 GB");
+}
+
+}  // namespace
+}  // namespace pmlsm::tools

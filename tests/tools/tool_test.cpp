@@ -1,0 +1,282 @@
+// The pmlsm tool against real nodes on real DDS (loopback): recording a lockstep run loses
+// nothing and third-party readers decode it; a recording stands in for the plant; a recorder
+// killed by SIGKILL leaves a readable file; topic list/echo/hz/delay on a running loop; bad input.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+
+#include "child_process.hpp"
+#include "integration_support.hpp"
+#include "pmlsm/introspect/cdr_schema.hpp"
+#include "pmlsm/mcap/mcap.hpp"
+
+namespace pmlsm {
+namespace {
+
+namespace fs = std::filesystem;
+using test::bin;
+using test::node_args;
+using test::source;
+using test::test_domain;
+
+constexpr auto kRunTimeout = std::chrono::seconds(60);
+
+std::vector<std::string> pmlsm_args(const std::string& domain, std::vector<std::string> args) {
+  std::vector<std::string> a{bin("pmlsm"), "--domain", domain, "--profiles", source("configs/dds/profiles.xml")};
+  a.insert(a.end(), args.begin(), args.end());
+  return a;
+}
+
+std::vector<std::string> node_js(std::vector<std::string> args) {
+  std::vector<std::string> a{PMLSM_NODE, source("tests/node/read_mcap.mjs")};
+  a.insert(a.end(), args.begin(), args.end());
+  return a;
+}
+
+int run_to_end(test::ChildProcess& p) {
+  const auto code = p.wait_for(kRunTimeout);
+  EXPECT_TRUE(code.has_value()) << "still running:\n" << p.output();
+  return code.value_or(-1);
+}
+
+/// Every message of a file, decoded, per topic, in file order.
+struct FileContents {
+  std::map<std::string, std::vector<introspect::Decoded>> by_topic;
+  mcap::ReadReport report;
+};
+
+FileContents read_all(const fs::path& file) {
+  FileContents out;
+  std::map<std::uint16_t, mcap::Schema> schemas;
+  std::map<std::uint16_t, std::pair<std::string, introspect::MessageSchema>> channels;
+  mcap::ReadCallbacks callbacks;
+  callbacks.on_schema = [&](const mcap::Schema& s) { schemas[s.id] = s; };
+  callbacks.on_channel = [&](const mcap::Channel& c) {
+    const auto& s = schemas.at(c.schema_id);
+    channels.emplace(c.id, std::make_pair(c.topic, introspect::MessageSchema::parse(s.data, s.name)));
+  };
+  callbacks.on_message = [&](const mcap::Message& m) {
+    const auto& [topic, schema] = channels.at(m.channel_id);
+    out.by_topic[topic].push_back(schema.decode(m.data, m.size));
+  };
+  out.report = mcap::read(file.string(), callbacks);
+  return out;
+}
+
+double field(const introspect::Decoded& d, const std::string& path) {
+  const auto* f = d.find(path);
+  return f != nullptr ? f->as_double().value_or(-1.0) : -1.0;
+}
+
+/// Records a lockstep pulse run of plant, controller and estimator into dir/run.mcap.
+/// @return the recorder's output.
+std::string record_lockstep_run(const std::string& domain, const fs::path& dir,
+                                std::vector<std::string> extra_record_args = {}) {
+  const std::string scenario = source("configs/scenarios/pulse.yaml");
+  std::vector<std::string> record{"record", "-o", (dir / "run.mcap").string(), "--stop-after-idle-s", "2", "--no-progress"};
+  record.insert(record.end(), extra_record_args.begin(), extra_record_args.end());
+  test::ChildProcess recorder(pmlsm_args(domain, record), (dir / "record.log").string());
+  EXPECT_TRUE(recorder.wait_for_output("topics on domain", std::chrono::seconds(20))) << recorder.output();
+  test::ChildProcess estimator(node_args("kalman_estimator", domain, scenario), (dir / "estimator.log").string());
+  test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
+  // Three MotorFeedback readers: controller, estimator and the recorder, all matched before tick 0.
+  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "3"}), (dir / "plant.log").string());
+  for (auto* p : {&plant, &controller, &estimator}) EXPECT_EQ(run_to_end(*p), 0) << p->output();
+  EXPECT_EQ(run_to_end(recorder), 0) << recorder.output();
+  return recorder.output();
+}
+
+TEST(Record, LockstepRunWholeAndDecodedByThirdPartyReaders) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "record");
+  const std::string log = record_lockstep_run(test_domain(30), dir);
+  EXPECT_NE(log.find(", 0 lost;"), std::string::npos) << log;
+
+  const FileContents file = read_all(dir / "run.mcap");
+  EXPECT_TRUE(file.report.complete());
+  // The pulse scenario: 2 s at 1 kHz. Each control topic holds every tick, in order.
+  for (const char* topic : {"/pmlsm/motor_feedback", "/pmlsm/force_command", "/pmlsm/estimated_state",
+                            "/pmlsm/plant_truth", "/pmlsm/velocity_reference"}) {
+    const auto found = file.by_topic.find(topic);
+    ASSERT_NE(found, file.by_topic.end()) << topic << "\n" << log;
+    const auto& samples = found->second;
+    EXPECT_EQ(samples.size(), 2000u) << topic;
+    for (std::size_t k = 0; k < samples.size(); ++k) {
+      ASSERT_TRUE(samples[k].ok()) << topic << " " << k << ": " << samples[k].error;
+      ASSERT_EQ(field(samples[k], "stamp.tick"), static_cast<double>(k)) << topic;
+    }
+  }
+
+  // Third-party readers (Node.js: @mcap/core, @foxglove/omgidl-serialization) decode every message.
+  test::ChildProcess reader(node_js({(dir / "run.mcap").string(), "--expect-topic", "/pmlsm/motor_feedback",
+                                     "--expect-topic", "/pmlsm/estimated_state", "--min-messages", "10000"}),
+                            (dir / "node.log").string());
+  EXPECT_EQ(run_to_end(reader), 0) << reader.output();
+
+  test::ChildProcess plot(pmlsm_args(test_domain(30), {"plot", (dir / "run.mcap").string(), "-o", (dir / "plots").string()}),
+                          (dir / "plot.log").string());
+  EXPECT_EQ(run_to_end(plot), 0) << plot.output();
+  for (const char* png : {"velocities.png", "forces.png", "phase_plane.png"}) {
+    EXPECT_GT(fs::exists(dir / "plots" / png) ? fs::file_size(dir / "plots" / png) : 0u, 10000u) << png;
+  }
+  fs::remove_all(dir);
+}
+
+TEST(Play, RecordingStandsInForThePlant) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "play");
+  record_lockstep_run(test_domain(31), dir);
+
+  // A fresh estimator on another domain, fed only the recorded MotorFeedback.
+  const std::string domain = test_domain(32);
+  const std::string scenario = source("configs/scenarios/pulse.yaml");
+  test::ChildProcess recorder(pmlsm_args(domain, {"record", "/pmlsm/estimated_state", "-o", (dir / "replayed.mcap").string(),
+                                                  "--stop-after-idle-s", "2", "--no-progress"}),
+                              (dir / "record2.log").string());
+  ASSERT_TRUE(recorder.wait_for_output("topics on domain", std::chrono::seconds(20))) << recorder.output();
+  test::ChildProcess estimator(node_args("kalman_estimator", domain, scenario), (dir / "estimator2.log").string());
+  test::ChildProcess player(pmlsm_args(domain, {"play", (dir / "run.mcap").string(), "--topics", "/pmlsm/motor_feedback",
+                                                "--rate", "4", "--no-progress"}),
+                            (dir / "play.log").string());
+  EXPECT_EQ(run_to_end(player), 0) << player.output();
+  EXPECT_EQ(run_to_end(estimator), 0) << estimator.output();
+  EXPECT_EQ(run_to_end(recorder), 0) << recorder.output();
+
+  const auto original = read_all(dir / "run.mcap").by_topic["/pmlsm/estimated_state"];
+  const auto replayed = read_all(dir / "replayed.mcap").by_topic["/pmlsm/estimated_state"];
+  ASSERT_EQ(original.size(), 2000u);
+  ASSERT_EQ(replayed.size(), original.size()) << recorder.output();
+  for (std::size_t k = 0; k < original.size(); ++k) {
+    ASSERT_EQ(original[k].fields.size(), replayed[k].fields.size());
+    for (std::size_t i = 0; i < original[k].fields.size(); ++i) {
+      const auto& a = original[k].fields[i];
+      if (a.path == "stamp.source_time_ns") continue;  // the wall clock at publication
+      ASSERT_EQ(a.to_string(), replayed[k].fields[i].to_string()) << "tick " << k << " " << a.path;
+    }
+  }
+  fs::remove_all(dir);
+}
+
+TEST(Record, KilledRecorderLeavesReadableFile) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "killed");
+  const std::string domain = test_domain(33);
+  const std::string scenario = source("configs/scenarios/free_vibration.yaml");
+  const fs::path file = dir / "run.mcap";
+  test::ChildProcess recorder(pmlsm_args(domain, {"record", "-o", file.string(), "--chunk-size-kib", "16",
+                                                  "--flush-interval-s", "0.1", "--no-progress"}),
+                              (dir / "record.log").string());
+  ASSERT_TRUE(recorder.wait_for_output("topics on domain", std::chrono::seconds(20))) << recorder.output();
+  test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
+  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "2"}), (dir / "plant.log").string());
+  // Kill it mid-run, once some chunks are in the file.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (std::chrono::steady_clock::now() < deadline && (!fs::exists(file) || fs::file_size(file) < 100000)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  recorder.signal(SIGKILL);
+  recorder.wait_for(std::chrono::seconds(10));
+  for (auto* p : {&plant, &controller}) EXPECT_EQ(run_to_end(*p), 0) << p->output();
+
+  FileContents contents = read_all(file);
+  EXPECT_FALSE(contents.report.has_footer);
+  EXPECT_FALSE(contents.report.problems.empty());
+  ASSERT_GT(contents.by_topic["/pmlsm/motor_feedback"].size(), 100u);
+  for (const auto& d : contents.by_topic["/pmlsm/motor_feedback"]) EXPECT_TRUE(d.ok()) << d.error;
+
+  test::ChildProcess plot(pmlsm_args(domain, {"plot", file.string(), "-o", (dir / "plots").string()}), (dir / "plot.log").string());
+  EXPECT_EQ(run_to_end(plot), 0) << plot.output();
+  EXPECT_NE(plot.output().find("not whole"), std::string::npos) << plot.output();
+  EXPECT_TRUE(fs::exists(dir / "plots" / "velocities.png"));
+
+  test::ChildProcess player(pmlsm_args(test_domain(34), {"play", file.string(), "--rate", "50", "--wait-matched-s", "0",
+                                                         "--no-progress"}),
+                            (dir / "play.log").string());
+  EXPECT_EQ(run_to_end(player), 0) << player.output();
+  EXPECT_NE(player.output().find("not whole"), std::string::npos) << player.output();
+
+  test::ChildProcess reader(node_js({file.string(), "--allow-truncated", "--min-messages", "100"}), (dir / "node.log").string());
+  EXPECT_EQ(run_to_end(reader), 0) << reader.output();
+  fs::remove_all(dir);
+}
+
+TEST(Tool, BadInputIsAClearErrorWithExitCode2) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "bad");
+  const std::string domain = test_domain(35);
+  test::ChildProcess unknown(pmlsm_args(domain, {"record", "/pmlsm/nope", "-o", (dir / "x.mcap").string()}),
+                             (dir / "unknown.log").string());
+  EXPECT_EQ(run_to_end(unknown), 2);
+  EXPECT_NE(unknown.output().find("unknown topic '/pmlsm/nope'"), std::string::npos) << unknown.output();
+  EXPECT_NE(unknown.output().find("/pmlsm/motor_feedback"), std::string::npos) << unknown.output();
+
+  test::ChildProcess echo(pmlsm_args(domain, {"topic", "echo", "/pmlsm/nope"}), (dir / "echo.log").string());
+  EXPECT_EQ(run_to_end(echo), 2);
+
+  test::ChildProcess missing(pmlsm_args(domain, {"play", (dir / "missing.mcap").string()}), (dir / "missing.log").string());
+  EXPECT_EQ(run_to_end(missing), 2) << missing.output();
+
+  {
+    std::ofstream garbage(dir / "garbage.mcap", std::ios::binary);
+    for (int i = 0; i < 5000; ++i) garbage.put(static_cast<char>((i * 7919) & 0xff));
+  }
+  test::ChildProcess plot(pmlsm_args(domain, {"plot", (dir / "garbage.mcap").string(), "-o", (dir / "p").string()}),
+                          (dir / "plot.log").string());
+  EXPECT_EQ(run_to_end(plot), 2) << plot.output();
+  EXPECT_NE(plot.output().find("nothing to plot"), std::string::npos) << plot.output();
+
+  test::ChildProcess play(pmlsm_args(domain, {"play", (dir / "garbage.mcap").string()}), (dir / "play.log").string());
+  EXPECT_EQ(run_to_end(play), 2) << play.output();
+
+  test::ChildProcess compression(pmlsm_args(domain, {"record", "--compression", "gzip", "-o", (dir / "y.mcap").string()}),
+                                 (dir / "compression.log").string());
+  EXPECT_EQ(run_to_end(compression), 2) << compression.output();
+  fs::remove_all(dir);
+}
+
+TEST(Topic, ListEchoHzDelayOnARealtimeLoop) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "topic");
+  const std::string domain = test_domain(36);
+  const std::string scenario = source("configs/scenarios/free_vibration.yaml");  // 8 s at 1 kHz
+  test::ChildProcess controller(node_args("controller", domain, scenario, {"--clock", "realtime"}), (dir / "controller.log").string());
+  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "1", "--clock", "realtime"}),
+                           (dir / "plant.log").string());
+  test::ChildProcess echo(pmlsm_args(domain, {"topic", "echo", "/pmlsm/motor_feedback", "-n", "3", "--timeout-s", "6"}),
+                          (dir / "echo.log").string());
+  test::ChildProcess hz(pmlsm_args(domain, {"topic", "hz", "/pmlsm/motor_feedback", "--duration-s", "3"}), (dir / "hz.log").string());
+  test::ChildProcess delay(pmlsm_args(domain, {"topic", "delay", "/pmlsm/force_command", "--duration-s", "3"}),
+                           (dir / "delay.log").string());
+  test::ChildProcess list(pmlsm_args(domain, {"topic", "list", "--wait-s", "2", "-v"}), (dir / "list.log").string());
+
+  EXPECT_EQ(run_to_end(echo), 0) << echo.output();
+  const std::string e = echo.output();
+  EXPECT_NE(e.find("stamp:\n  tick: "), std::string::npos) << e;
+  EXPECT_NE(e.find("velocity_mps: "), std::string::npos) << e;
+
+  EXPECT_EQ(run_to_end(hz), 0) << hz.output();
+  const std::string h = hz.output();
+  const auto rate_at = h.rfind("average rate: ");
+  ASSERT_NE(rate_at, std::string::npos) << h;
+  const double rate_hz = std::stod(h.substr(rate_at + 14));
+  // A functional check (the loop runs at 1 kHz), with room for a loaded machine.
+  EXPECT_GT(rate_hz, 500.0) << h;
+  EXPECT_LT(rate_hz, 2000.0) << h;
+
+  EXPECT_EQ(run_to_end(delay), 0) << delay.output();
+  const std::string d = delay.output();
+  const auto delay_at = d.rfind("average delay: ");
+  ASSERT_NE(delay_at, std::string::npos) << d;
+  const double delay_s = std::stod(d.substr(delay_at + 15));
+  EXPECT_GT(delay_s, 0.0) << d;
+  EXPECT_LT(delay_s, 0.5) << d;
+
+  EXPECT_EQ(run_to_end(list), 0) << list.output();
+  const std::string l = list.output();
+  EXPECT_NE(l.find("/pmlsm/motor_feedback [pmlsm_msgs::msg::MotorFeedback]  writers: 1"), std::string::npos) << l;
+  EXPECT_NE(l.find("writer plant_sim  reliable, transient-local"), std::string::npos) << l;
+  EXPECT_NE(l.find("reader controller"), std::string::npos) << l;
+
+  for (auto* p : {&plant, &controller}) EXPECT_EQ(run_to_end(*p), 0) << p->output();
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace pmlsm

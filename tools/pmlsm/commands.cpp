@@ -1,0 +1,38 @@
+#include "commands.hpp"
+
+#include <sstream>
+
+namespace pmlsm::tools {
+
+std::vector<const dds::CatalogEntry*> select_topics(const std::vector<std::string>& names) {
+  std::vector<const dds::CatalogEntry*> out;
+  if (names.empty()) {
+    for (const auto& e : dds::catalog()) out.push_back(&e);
+    return out;
+  }
+  for (const auto& name : names) {
+    const auto* entry = dds::find_topic(name);
+    if (entry == nullptr) {
+      throw UsageError("unknown topic '" + name + "'; the known topics are:\n" + dds::known_topics_list());
+    }
+    out.push_back(entry);
+  }
+  return out;
+}
+
+std::string writer_key(const eprosima::fastdds::dds::SampleInfo& info) {
+  std::ostringstream s;
+  s << info.sample_identity.writer_guid();
+  return s.str();
+}
+
+std::int64_t to_ns(const eprosima::fastrtps::rtps::Time_t& t) {
+  return static_cast<std::int64_t>(t.seconds()) * 1000000000LL + static_cast<std::int64_t>(t.nanosec());
+}
+
+dds::ParticipantOptions with_node_name(dds::ParticipantOptions options, const std::string& name) {
+  if (options.node_name.empty()) options.node_name = name;
+  return options;
+}
+
+}  // namespace pmlsm::tools

@@ -1,0 +1,48 @@
+// The subcommands of `pmlsm` and what they share. Each run_* returns the process exit code:
+// 0 done, 1 runtime failure (DDS, I/O), 2 bad command line or input (unknown topic, bad file).
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "pmlsm/dds/catalog.hpp"
+#include "pmlsm/dds/participant.hpp"
+
+namespace pmlsm::tools {
+
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitFailure = 1;
+inline constexpr int kExitBadInput = 2;
+
+/// A bad command line or input: the message is printed and the exit code is 2.
+class UsageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// The catalog entries for topic names as users write them ("/pmlsm/x", "rt/pmlsm/x",
+/// "pmlsm/x"); all of them when `names` is empty. @throws UsageError naming an unknown topic
+/// and listing the known ones.
+std::vector<const dds::CatalogEntry*> select_topics(const std::vector<std::string>& names);
+
+/// A printable key of a DDS writer (its GUID), for per-writer accounting.
+std::string writer_key(const eprosima::fastdds::dds::SampleInfo& info);
+
+/// Time_t -> ns since the epoch.
+std::int64_t to_ns(const eprosima::fastrtps::rtps::Time_t& t);
+
+/// `options` with node_name set to `name` unless the user gave one.
+dds::ParticipantOptions with_node_name(dds::ParticipantOptions options, const std::string& name);
+
+// Each registers its subcommand(s); the callback runs the command and stores its exit code.
+// Option storage lives in the callbacks (shared), so it outlives parsing.
+void add_topic_commands(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code);
+void add_record_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code);
+void add_play_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code);
+void add_plot_command(CLI::App& app, int& exit_code);
+
+}  // namespace pmlsm::tools

@@ -1,0 +1,71 @@
+// pmlsm: the one command-line tool of the system, in the style of `ros2`:
+//   pmlsm topic list|echo|hz|delay   what is on the domain
+//   pmlsm record | play | plot       MCAP recordings
+//   pmlsm launch FILE ...            the launcher (same options)
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
+
+#include "commands.hpp"
+#include "pmlsm/dds/shutdown.hpp"
+#include "pmlsm/introspect/cdr_schema.hpp"
+
+namespace {
+
+// `pmlsm launch ...` is the launcher beside this program, given the rest of the command line.
+int exec_launcher(int argc, char** argv, int launch_index) {
+  std::error_code ec;
+  const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  const std::string launcher = (ec ? std::filesystem::path(".") : self.parent_path()) / "launcher";
+  std::vector<char*> args{const_cast<char*>(launcher.c_str())};
+  for (int i = launch_index + 1; i < argc; ++i) args.push_back(argv[i]);
+  args.push_back(nullptr);
+  execv(launcher.c_str(), args.data());
+  std::cerr << "pmlsm launch: cannot run " << launcher << ": " << std::strerror(errno) << "\n";
+  return pmlsm::tools::kExitFailure;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string word = argv[i];
+    if (word == "launch") return exec_launcher(argc, argv, i);
+    if (word.empty() || word[0] != '-') break;  // only global options may come before it
+  }
+
+  CLI::App app{"pmlsm: watch, record, replay and plot the PMLSM control system's DDS topics"};
+  app.require_subcommand(1);
+  pmlsm::dds::ParticipantOptions dds_options;
+  dds_options.profiles_file = "configs/dds/profiles.xml";
+  app.add_option("--profiles", dds_options.profiles_file, "Fast DDS XML profiles")->capture_default_str();
+  app.add_option("--participant-profile", dds_options.participant_profile, "Participant profile in them")->capture_default_str();
+  app.add_option("--domain", dds_options.domain_id, "DDS domain id")->capture_default_str()->check(CLI::Range(0, 232));
+  app.add_option("--node-name", dds_options.node_name, "Participant name others see (default: pmlsm_<command>)");
+  app.add_subcommand("launch", "Starts a launch description: `pmlsm launch FILE [--host H] ...` (see `launcher --help`)");
+
+  int exit_code = pmlsm::tools::kExitOk;
+  pmlsm::tools::add_topic_commands(app, dds_options, exit_code);
+  pmlsm::tools::add_record_command(app, dds_options, exit_code);
+  pmlsm::tools::add_play_command(app, dds_options, exit_code);
+  pmlsm::tools::add_plot_command(app, exit_code);
+
+  pmlsm::dds::install_shutdown_handlers();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? 0 : pmlsm::tools::kExitBadInput;
+  } catch (const pmlsm::tools::UsageError& e) {
+    std::cerr << "pmlsm: " << e.what() << "\n";
+    return pmlsm::tools::kExitBadInput;
+  } catch (const std::exception& e) {
+    std::cerr << "pmlsm: " << e.what() << "\n";
+    return pmlsm::tools::kExitFailure;
+  }
+  return exit_code;
+}

@@ -1,0 +1,188 @@
+// `pmlsm play`: publishes a recording back on DDS with its original timing (scaled by --rate),
+// so a recording can stand in for a node: e.g. the plant's MotorFeedback played to a fresh
+// kalman_estimator, whose estimates then equal the recorded ones.
+//
+// Two passes over the file: the first learns its channels (so a topic selection is checked
+// against what the file holds, and every writer exists before the first sample), the second
+// publishes. What is not whole in a truncated or corrupt file is reported; the rest is played.
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <set>
+#include <thread>
+
+#include "commands.hpp"
+#include "pmlsm/dds/shutdown.hpp"
+#include "pmlsm/mcap/mcap.hpp"
+#include "tool_support.hpp"
+
+namespace pmlsm::tools {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+struct PlayOptions {
+  std::string file;
+  std::vector<std::string> topics;
+  double rate = 1.0;
+  bool loop = false;
+  double wait_matched_s = 2.0;
+  bool no_progress = false;
+};
+
+struct PlayedChannel {
+  const dds::CatalogEntry* entry = nullptr;
+  std::unique_ptr<dds::Writer<dds::RawPubSubType>> writer;
+  std::uint64_t published = 0;
+  std::uint64_t refused = 0;
+};
+
+struct FileChannels {
+  std::map<std::uint16_t, mcap::Channel> channels;
+  std::map<std::uint16_t, mcap::Schema> schemas;
+  mcap::ReadReport report;
+};
+
+FileChannels scan(const std::string& path) {
+  FileChannels f;
+  mcap::ReadCallbacks callbacks;
+  callbacks.on_schema = [&](const mcap::Schema& s) { f.schemas[s.id] = s; };
+  callbacks.on_channel = [&](const mcap::Channel& c) { f.channels[c.id] = c; };
+  f.report = mcap::read(path, callbacks);
+  return f;
+}
+
+void print_problems(const mcap::ReadReport& report) {
+  for (const auto& p : report.problems) std::cerr << "pmlsm play: " << p << "\n";
+}
+
+int run_play(const dds::ParticipantOptions& dds_options, const PlayOptions& o) {
+  FileChannels file = [&] {
+    try {
+      return scan(o.file);
+    } catch (const std::runtime_error& e) {
+      throw UsageError(e.what());
+    }
+  }();
+  print_problems(file.report);
+
+  // Which channels to play: those of project topics, in cdr, whose schema is our type.
+  std::map<std::string, std::uint16_t> playable;  // display topic -> channel id
+  for (const auto& [id, channel] : file.channels) {
+    const auto* entry = dds::find_topic(channel.topic);
+    const auto schema = file.schemas.find(channel.schema_id);
+    if (entry == nullptr || channel.message_encoding != "cdr" || schema == file.schemas.end() ||
+        schema->second.name != entry->type_name) {
+      std::cerr << "pmlsm play: skipping channel " << channel.topic << " (not a project topic in cdr)\n";
+      continue;
+    }
+    playable[dds::display_name(entry->spec.name)] = id;
+  }
+  std::set<std::uint16_t> selected;
+  if (o.topics.empty()) {
+    for (const auto& [topic, id] : playable) selected.insert(id);
+  } else {
+    for (const auto& name : o.topics) {
+      const auto* entry = dds::find_topic(name);
+      const auto found = entry != nullptr ? playable.find(dds::display_name(entry->spec.name)) : playable.end();
+      if (found == playable.end()) {
+        std::string known;
+        for (const auto& [topic, id] : playable) known += "  " + topic + "\n";
+        throw UsageError("topic '" + name + "' is not in " + o.file + "; it holds:\n" + known);
+      }
+      selected.insert(found->second);
+    }
+  }
+  if (selected.empty()) throw UsageError(o.file + " holds no project topic to play");
+
+  dds::Participant participant(with_node_name(dds_options, "pmlsm_play"));
+  std::map<std::uint16_t, PlayedChannel> played;
+  for (const auto id : selected) {
+    const auto* entry = dds::find_topic(file.channels[id].topic);
+    played[id] = PlayedChannel{entry, std::make_unique<dds::Writer<dds::RawPubSubType>>(participant.make_raw_writer(*entry)), 0, 0};
+  }
+  // Give subscribers a moment to match, so the first samples are not sent into the void (the
+  // writers are transient-local besides, so a reader matching a little later still gets them).
+  const auto match_deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.wait_matched_s));
+  for (auto& [id, p] : played) {
+    while (p.writer->matched_readers() == 0 && Clock::now() < match_deadline && !dds::stop_requested()) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+
+  const bool show_progress = !o.no_progress && isatty(STDERR_FILENO) != 0;
+  dds::RawSample sample;
+  std::uint64_t total = 0;
+  mcap::ReadReport last_report;
+  do {
+    bool have_origin = false;
+    std::uint64_t first_log_ns = 0;
+    Clock::time_point wall_origin;
+    auto next_progress = Clock::now();
+    mcap::ReadCallbacks callbacks;
+    callbacks.on_message = [&](const mcap::Message& m) {
+      if (dds::stop_requested()) return;
+      const auto found = played.find(m.channel_id);
+      if (found == played.end()) return;
+      if (!have_origin) {
+        have_origin = true;
+        first_log_ns = m.log_time_ns;
+        wall_origin = Clock::now();
+      }
+      // Original timing: the message's offset from the first one, divided by the rate.
+      const double offset_s = static_cast<double>(m.log_time_ns - std::min(m.log_time_ns, first_log_ns)) * 1e-9 / o.rate;
+      std::this_thread::sleep_until(wall_origin + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(offset_s)));
+      sample.bytes.assign(m.data, m.data + m.size);
+      auto& p = found->second;
+      if (p.writer->write(sample)) {
+        ++p.published;
+      } else {
+        ++p.refused;
+      }
+      ++total;
+      if (show_progress && Clock::now() >= next_progress) {
+        next_progress = Clock::now() + std::chrono::milliseconds(250);
+        std::fprintf(stderr, "\rplaying %8.2f s of the recording  %10llu messages  ", offset_s * o.rate,
+                     static_cast<unsigned long long>(total));
+      }
+    };
+    last_report = mcap::read(o.file, callbacks);
+  } while (o.loop && !dds::stop_requested());
+  if (show_progress) std::fprintf(stderr, "\n");
+
+  // Reliable readers get everything before the writers go.
+  for (auto& [id, p] : played) p.writer->wait_for_acknowledgments(std::chrono::seconds(15));
+  std::uint64_t refused = 0;
+  for (const auto& [id, p] : played) {
+    refused += p.refused;
+    std::printf("%-36s %10llu published%s\n", dds::display_name(p.entry->spec.name).c_str(),
+                static_cast<unsigned long long>(p.published),
+                p.refused > 0 ? (", " + std::to_string(p.refused) + " refused").c_str() : "");
+  }
+  if (!last_report.complete()) {
+    std::printf("played what is whole of %s; not whole:\n", o.file.c_str());
+    for (const auto& p : last_report.problems) std::printf("  %s\n", p.c_str());
+  }
+  return refused == 0 ? kExitOk : kExitFailure;
+}
+
+}  // namespace
+
+void add_play_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code) {
+  auto o = std::make_shared<PlayOptions>();
+  auto* play = app.add_subcommand("play", "Publishes a recording back with its original timing");
+  play->add_option("file", o->file, "MCAP file")->required();
+  play->add_option("--topics", o->topics, "Only these topics (default: every project topic in the file)");
+  play->add_option("-r,--rate", o->rate, "Speed factor (2 = twice as fast)")->capture_default_str()->check(CLI::Range(1e-3, 1e6));
+  play->add_flag("-l,--loop", o->loop, "Start again at the end, until Ctrl-C");
+  play->add_option("--wait-matched-s", o->wait_matched_s, "Wait at most this long for subscribers before playing [s]")
+      ->capture_default_str()->check(CLI::NonNegativeNumber);
+  play->add_flag("--no-progress", o->no_progress, "No progress line on stderr");
+  play->callback([&dds_options, o, &exit_code] { exit_code = run_play(dds_options, *o); });
+}
+
+}  // namespace pmlsm::tools

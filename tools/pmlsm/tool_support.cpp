@@ -1,0 +1,60 @@
+#include "tool_support.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numeric>
+
+namespace pmlsm::tools {
+
+std::uint64_t SequenceTracker::observe(const std::string& writer_key, std::uint64_t sequence_number) {
+  auto [it, first] = last_.try_emplace(writer_key, sequence_number);
+  if (first) {
+    if (sequence_number > 1) missed_before_join_ += sequence_number - 1;
+    return 0;
+  }
+  const std::uint64_t expected = it->second + 1;
+  if (sequence_number < expected) {
+    ++out_of_order_;  // a repeat or an old one: not a loss, and the high-water mark stays
+    return 0;
+  }
+  const std::uint64_t gap = sequence_number - expected;
+  lost_ += gap;
+  it->second = sequence_number;
+  return gap;
+}
+
+Summary summarize(std::vector<double> values) {
+  Summary s;
+  if (values.empty()) return s;
+  std::sort(values.begin(), values.end());
+  s.count = values.size();
+  s.min = values.front();
+  s.max = values.back();
+  s.mean = std::accumulate(values.begin(), values.end(), 0.0) / static_cast<double>(s.count);
+  double sq = 0.0;
+  for (double v : values) sq += (v - s.mean) * (v - s.mean);
+  s.stddev = std::sqrt(sq / static_cast<double>(s.count));
+  // Nearest rank: the smallest value with at least p of the samples at or below it.
+  const auto rank = [&](double p) {
+    const auto r = static_cast<std::size_t>(std::ceil(p * static_cast<double>(s.count)));
+    return values[std::min(s.count, std::max<std::size_t>(r, 1)) - 1];
+  };
+  s.p50 = rank(0.50);
+  s.p99 = rank(0.99);
+  return s;
+}
+
+std::string human_bytes(double bytes) {
+  const char* units[] = {"B", "kB", "MB", "GB", "TB"};
+  int unit = 0;
+  while (bytes >= 1000.0 && unit < 4) {
+    bytes /= 1000.0;
+    ++unit;
+  }
+  char text[32];
+  std::snprintf(text, sizeof text, unit == 0 ? "%.0f %s" : "%.2f %s", bytes, units[unit]);
+  return text;
+}
+
+}  // namespace pmlsm::tools

@@ -1,0 +1,49 @@
+// Pure helpers of the `pmlsm` tool (no DDS): loss accounting by writer sequence numbers, and
+// summary statistics of intervals and latencies. Tested in tests/tools.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace pmlsm::tools {
+
+/// Counts samples lost between a writer and us from the writer's sequence numbers (1, 2, ...
+/// per writer in DDS). A reliable writer delivers every sequence number unless our reader's
+/// history overflowed, so each gap is a loss. A writer first seen above sequence 1 was already
+/// publishing when we joined: those are counted apart, as before the recording, not as lost.
+class SequenceTracker {
+ public:
+  /// @return how many samples this one shows lost (0 for the next expected or a first one).
+  std::uint64_t observe(const std::string& writer_key, std::uint64_t sequence_number);
+  std::uint64_t lost() const { return lost_; }
+  std::uint64_t missed_before_join() const { return missed_before_join_; }
+  std::uint64_t out_of_order() const { return out_of_order_; }
+  std::size_t writers() const { return last_.size(); }
+
+ private:
+  std::map<std::string, std::uint64_t> last_;
+  std::uint64_t lost_ = 0;
+  std::uint64_t missed_before_join_ = 0;
+  std::uint64_t out_of_order_ = 0;
+};
+
+struct Summary {
+  std::size_t count = 0;
+  double mean = 0.0;
+  double stddev = 0.0;  // population standard deviation
+  double min = 0.0;
+  double max = 0.0;
+  double p50 = 0.0;
+  double p99 = 0.0;
+};
+
+/// Summary of `values` (nearest-rank percentiles); all zero when empty.
+Summary summarize(std::vector<double> values);
+
+/// "12.3 kB", "4.56 MB": sizes as people read them.
+std::string human_bytes(double bytes);
+
+}  // namespace pmlsm::tools

@@ -1,0 +1,343 @@
+// `pmlsm topic list|echo|hz|delay`: what is on the domain, in the style of `ros2 topic`.
+#include <fastdds/dds/domain/DomainParticipantListener.hpp>
+#include <fastdds/rtps/participant/ParticipantDiscoveryInfo.h>
+#include <fastdds/rtps/reader/ReaderDiscoveryInfo.h>
+#include <fastdds/rtps/writer/WriterDiscoveryInfo.h>
+
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "commands.hpp"
+#include "pmlsm/dds/shutdown.hpp"
+#include "pmlsm/introspect/cdr_schema.hpp"
+#include "tool_support.hpp"
+
+namespace pmlsm::tools {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+namespace rtps = eprosima::fastrtps::rtps;
+
+// Monitors read with a volatile reader: they want what is published from now on, not a writer's
+// history (which the recorder's transient-local profile asks for).
+constexpr const char* kMonitorProfile = "pmlsm_monitor";
+
+std::string guid_text(const rtps::GUID_t& guid) {
+  std::ostringstream s;
+  s << guid;
+  return s.str();
+}
+
+std::string prefix_text(const rtps::GuidPrefix_t& prefix) {
+  std::ostringstream s;
+  s << prefix;
+  return s.str();
+}
+
+// ---- topic list ----------------------------------------------------------------------------
+
+struct Endpoint {
+  std::string participant_prefix;
+  bool reliable = false;
+  bool transient_local = false;
+};
+
+struct TopicInfo {
+  std::string type_name;
+  std::map<std::string, Endpoint> writers;  // by endpoint GUID
+  std::map<std::string, Endpoint> readers;
+};
+
+class DiscoveryCollector : public eprosima::fastdds::dds::DomainParticipantListener {
+ public:
+  void on_participant_discovery(eprosima::fastdds::dds::DomainParticipant*,
+                                rtps::ParticipantDiscoveryInfo&& info) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const std::string prefix = prefix_text(info.info.m_guid.guidPrefix);
+    if (info.status == rtps::ParticipantDiscoveryInfo::DISCOVERED_PARTICIPANT) {
+      participant_names_[prefix] = info.info.m_participantName.to_string();
+    }
+  }
+  void on_publisher_discovery(eprosima::fastdds::dds::DomainParticipant*,
+                              rtps::WriterDiscoveryInfo&& info) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto& topic = topics_[info.info.topicName().to_string()];
+    topic.type_name = info.info.typeName().to_string();
+    const std::string key = guid_text(info.info.guid());
+    if (info.status == rtps::WriterDiscoveryInfo::REMOVED_WRITER) {
+      topic.writers.erase(key);
+      return;
+    }
+    const auto& qos = info.info.m_qos;
+    topic.writers[key] = Endpoint{prefix_text(info.info.guid().guidPrefix),
+                                  qos.m_reliability.kind == eprosima::fastdds::dds::RELIABLE_RELIABILITY_QOS,
+                                  qos.m_durability.kind != eprosima::fastdds::dds::VOLATILE_DURABILITY_QOS};
+  }
+  void on_subscriber_discovery(eprosima::fastdds::dds::DomainParticipant*,
+                               rtps::ReaderDiscoveryInfo&& info) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto& topic = topics_[info.info.topicName().to_string()];
+    topic.type_name = info.info.typeName().to_string();
+    const std::string key = guid_text(info.info.guid());
+    if (info.status == rtps::ReaderDiscoveryInfo::REMOVED_READER) {
+      topic.readers.erase(key);
+      return;
+    }
+    const auto& qos = info.info.m_qos;
+    topic.readers[key] = Endpoint{prefix_text(info.info.guid().guidPrefix),
+                                  qos.m_reliability.kind == eprosima::fastdds::dds::RELIABLE_RELIABILITY_QOS,
+                                  qos.m_durability.kind != eprosima::fastdds::dds::VOLATILE_DURABILITY_QOS};
+  }
+
+  std::string participant_name(const std::string& prefix) const {
+    const auto found = participant_names_.find(prefix);
+    return found == participant_names_.end() || found->second.empty() ? "?" : found->second;
+  }
+
+  /// One block per topic: type, then each writer and reader with its node and QoS.
+  std::string report(bool verbose) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::ostringstream out;
+    for (const auto& [dds_name, topic] : topics_) {
+      if (topic.writers.empty() && topic.readers.empty()) continue;
+      const std::string name = dds::display_name(dds_name);
+      out << name << " [" << topic.type_name << "]";
+      if (dds::find_topic(dds_name) == nullptr) out << " (not a project topic)";
+      out << "  writers: " << topic.writers.size() << "  readers: " << topic.readers.size() << "\n";
+      if (!verbose) continue;
+      const auto list = [&](const char* role, const std::map<std::string, Endpoint>& endpoints) {
+        for (const auto& [guid, e] : endpoints) {
+          out << "    " << role << " " << participant_name(e.participant_prefix) << "  "
+              << (e.reliable ? "reliable" : "best-effort") << ", "
+              << (e.transient_local ? "transient-local" : "volatile") << "\n";
+        }
+      };
+      list("writer", topic.writers);
+      list("reader", topic.readers);
+    }
+    return out.str();
+  }
+
+ private:
+  std::mutex mutex_;
+  std::map<std::string, std::string> participant_names_;
+  std::map<std::string, TopicInfo> topics_;
+};
+
+int run_list(dds::ParticipantOptions options, double wait_s, bool verbose) {
+  DiscoveryCollector collector;
+  options.listener = &collector;
+  dds::Participant participant(with_node_name(options, "pmlsm_topic_list"));
+  // Discovery has no "done": listen for a while, as `ros2 topic list` does with its daemon.
+  const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(wait_s));
+  while (Clock::now() < deadline && !dds::stop_requested()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  const std::string text = collector.report(verbose);
+  std::cout << (text.empty() ? "no topics seen (is anything running on domain " + std::to_string(options.domain_id) + "?)\n"
+                             : text);
+  return kExitOk;
+}
+
+// ---- echo, hz, delay: one raw reader on one topic -------------------------------------------
+
+struct TopicReader {
+  TopicReader(dds::ParticipantOptions options, const std::string& topic_name, const char* tool)
+      : entry(*select_topics({topic_name}).front()),
+        participant(with_node_name(options, tool)),
+        reader(participant.make_raw_reader(entry, wakeup, kMonitorProfile)),
+        schema(introspect::MessageSchema::parse(entry.schema_idl, entry.type_name)) {}
+  const dds::CatalogEntry& entry;
+  dds::Participant participant;
+  dds::Wakeup wakeup;
+  dds::Reader<dds::RawPubSubType> reader;
+  introspect::MessageSchema schema;
+};
+
+/// Calls on_sample for every sample until a stop request, the duration (if > 0) or on_sample
+/// returning false. Wakes at least every 100 ms for on_tick (reports).
+template <typename OnSample, typename OnTick>
+void pump(TopicReader& r, double duration_s, OnSample&& on_sample, OnTick&& on_tick) {
+  const auto start = Clock::now();
+  dds::RawSample sample;
+  eprosima::fastdds::dds::SampleInfo info;
+  while (!dds::stop_requested()) {
+    const auto seen = r.wakeup.generation();
+    while (r.reader.take(sample, info)) {
+      if (!on_sample(sample, info)) return;
+    }
+    on_tick();
+    if (duration_s > 0 && Clock::now() - start >= std::chrono::duration<double>(duration_s)) return;
+    r.wakeup.wait_for(seen, std::chrono::milliseconds(100));
+  }
+}
+
+int run_echo(const dds::ParticipantOptions& options, const std::string& topic, std::uint64_t count,
+             double timeout_s) {
+  TopicReader r(options, topic, "pmlsm_topic_echo");
+  std::uint64_t printed = 0;
+  std::uint64_t undecodable = 0;
+  pump(
+      r, timeout_s,
+      [&](const dds::RawSample& sample, const eprosima::fastdds::dds::SampleInfo&) {
+        const auto decoded = r.schema.decode(sample.bytes.data(), sample.bytes.size());
+        std::cout << introspect::MessageSchema::to_yaml(decoded);
+        if (!decoded.ok()) {
+          ++undecodable;
+          std::cout << "# not decodable: " << decoded.error << "\n";
+        }
+        std::cout << "---\n" << std::flush;
+        return count == 0 || ++printed < count;
+      },
+      [] {});
+  if (count > 0 && printed < count && !dds::stop_requested()) {
+    std::cerr << "pmlsm topic echo: " << printed << " of " << count << " samples on "
+              << dds::display_name(r.entry.spec.name) << " within " << timeout_s << " s\n";
+    return kExitFailure;
+  }
+  return undecodable == 0 ? kExitOk : kExitFailure;
+}
+
+int run_hz(const dds::ParticipantOptions& options, const std::string& topic, std::size_t window,
+           double duration_s) {
+  TopicReader r(options, topic, "pmlsm_topic_hz");
+  std::vector<double> periods_s;  // the last `window` reception intervals
+  periods_s.reserve(window);
+  std::size_t next_slot = 0;
+  std::int64_t last_ns = -1;
+  std::uint64_t samples = 0;
+  auto next_report = Clock::now() + std::chrono::seconds(1);
+  const auto report = [&] {
+    const Summary s = summarize(periods_s);
+    if (s.count == 0) {
+      std::printf("%s: no samples yet\n", dds::display_name(r.entry.spec.name).c_str());
+    } else {
+      std::printf("average rate: %.3f Hz\n\tmin: %.6fs max: %.6fs std dev: %.6fs window: %zu\n", 1.0 / s.mean,
+                  s.min, s.max, s.stddev, s.count);
+    }
+    std::fflush(stdout);
+  };
+  pump(
+      r, duration_s,
+      [&](const dds::RawSample&, const eprosima::fastdds::dds::SampleInfo& info) {
+        const std::int64_t t_ns = to_ns(info.reception_timestamp);
+        if (last_ns >= 0) {
+          const double period_s = static_cast<double>(t_ns - last_ns) * 1e-9;
+          if (periods_s.size() < window) {
+            periods_s.push_back(period_s);
+          } else {
+            periods_s[next_slot] = period_s;
+            next_slot = (next_slot + 1) % window;
+          }
+        }
+        last_ns = t_ns;
+        ++samples;
+        return true;
+      },
+      [&] {
+        if (Clock::now() < next_report) return;
+        next_report += std::chrono::seconds(1);
+        report();
+      });
+  report();
+  return samples > 0 ? kExitOk : kExitFailure;
+}
+
+int run_delay(const dds::ParticipantOptions& options, const std::string& topic, std::size_t window,
+              double duration_s) {
+  TopicReader r(options, topic, "pmlsm_topic_delay");
+  std::vector<double> delays_s;
+  delays_s.reserve(window);
+  std::size_t next_slot = 0;
+  std::uint64_t samples = 0;
+  std::uint64_t without_stamp = 0;
+  auto next_report = Clock::now() + std::chrono::seconds(1);
+  const auto report = [&] {
+    const Summary s = summarize(delays_s);
+    if (s.count == 0) {
+      std::printf("%s: no samples yet\n", dds::display_name(r.entry.spec.name).c_str());
+    } else {
+      std::printf("average delay: %.6fs\n\tmin: %.6fs max: %.6fs p50: %.6fs p99: %.6fs std dev: %.6fs window: %zu\n",
+                  s.mean, s.min, s.max, s.p50, s.p99, s.stddev, s.count);
+    }
+    std::fflush(stdout);
+  };
+  pump(
+      r, duration_s,
+      [&](const dds::RawSample& sample, const eprosima::fastdds::dds::SampleInfo& info) {
+        ++samples;
+        // The publisher's wall clock at write (Stamp.source_time_ns) against ours at reception:
+        // across hosts this includes their clock offset, as ros2 topic delay does.
+        const auto decoded = r.schema.decode(sample.bytes.data(), sample.bytes.size());
+        const auto* stamp = decoded.find("stamp.source_time_ns");
+        const auto source_ns = stamp != nullptr ? stamp->as_double() : std::nullopt;
+        if (!source_ns || *source_ns <= 0) {
+          ++without_stamp;
+          return true;
+        }
+        const double delay_s = (static_cast<double>(to_ns(info.reception_timestamp)) - *source_ns) * 1e-9;
+        if (delays_s.size() < window) {
+          delays_s.push_back(delay_s);
+        } else {
+          delays_s[next_slot] = delay_s;
+          next_slot = (next_slot + 1) % window;
+        }
+        return true;
+      },
+      [&] {
+        if (Clock::now() < next_report) return;
+        next_report += std::chrono::seconds(1);
+        report();
+      });
+  report();
+  if (without_stamp > 0) std::printf("%llu samples without a source time\n", static_cast<unsigned long long>(without_stamp));
+  return samples > without_stamp ? kExitOk : kExitFailure;
+}
+
+}  // namespace
+
+void add_topic_commands(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code) {
+  auto* topic = app.add_subcommand("topic", "What is on the DDS domain: list, echo, hz, delay");
+  topic->require_subcommand(1);
+
+  struct Options {
+    double wait_s = 2.0;
+    bool verbose = false;
+    std::string topic;
+    std::uint64_t count = 0;
+    double timeout_s = 0.0;
+    std::size_t window = 1000;
+    double duration_s = 0.0;
+  };
+  auto o = std::make_shared<Options>();
+
+  auto* list = topic->add_subcommand("list", "Topics seen on the domain, with type, writers, readers and QoS");
+  list->add_option("--wait-s", o->wait_s, "How long to listen for discovery")->capture_default_str()->check(CLI::Range(0.1, 600.0));
+  list->add_flag("-v,--verbose", o->verbose, "Every writer and reader with its node and QoS");
+  list->callback([&dds_options, o, &exit_code] { exit_code = run_list(dds_options, o->wait_s, o->verbose); });
+
+  auto* echo = topic->add_subcommand("echo", "Prints the samples of a topic, decoded");
+  echo->add_option("topic", o->topic, "Topic, e.g. /pmlsm/motor_feedback")->required();
+  echo->add_option("-n,--count", o->count, "Stop after this many samples (0 = until Ctrl-C)");
+  echo->add_option("--timeout-s", o->timeout_s, "Give up after this long (0 = never)")->check(CLI::NonNegativeNumber);
+  echo->callback([&dds_options, o, &exit_code] { exit_code = run_echo(dds_options, o->topic, o->count, o->timeout_s); });
+
+  auto* hz = topic->add_subcommand("hz", "Rate and jitter of a topic, from reception times");
+  hz->add_option("topic", o->topic, "Topic")->required();
+  hz->add_option("-w,--window", o->window, "Intervals in the statistics")->capture_default_str()->check(CLI::Range(2, 10000000));
+  hz->add_option("--duration-s", o->duration_s, "Stop after this long (0 = until Ctrl-C)")->check(CLI::NonNegativeNumber);
+  hz->callback([&dds_options, o, &exit_code] { exit_code = run_hz(dds_options, o->topic, o->window, o->duration_s); });
+
+  auto* delay = topic->add_subcommand("delay", "Latency of a topic: reception time minus the sample's source time");
+  delay->add_option("topic", o->topic, "Topic")->required();
+  delay->add_option("-w,--window", o->window, "Samples in the statistics")->capture_default_str()->check(CLI::Range(1, 10000000));
+  delay->add_option("--duration-s", o->duration_s, "Stop after this long (0 = until Ctrl-C)")->check(CLI::NonNegativeNumber);
+  delay->callback([&dds_options, o, &exit_code] { exit_code = run_delay(dds_options, o->topic, o->window, o->duration_s); });
+}
+
+}  // namespace pmlsm::tools
