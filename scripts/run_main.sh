@@ -4,7 +4,8 @@
 # scenarios, three ways: PI only (launch/sim.yaml), PI + load-acceleration
 # feedback (launch/sim_accel.yaml) and PI + the Jordan RNN (launch/sim_rnn.yaml).
 # Prints the comparison table and plots out/pulse.png, out/free_vibration.png
-# and (after a training run) out/training.png.
+# and (after a training run) out/training.png. The pulse PI + RNN run is also recorded
+# (out/pulse_pi_rnn.mcap, `pmlsm record`) and plotted from the recording (`pmlsm plot`).
 #
 # The RNN's weights: configs/rnn_weights.yaml, made by de_trainer with
 #   ./build/bin/de_trainer --train-set optimiser=cmaes seed=2 max_evaluations=2640 --out configs/rnn_weights.yaml
@@ -37,6 +38,14 @@ for scenario in pulse free_vibration; do
     log="out/${scenario}_${variant}.launch.log"
     extra=()
     [ "$variant" = sim_rnn ] && extra=(--arg weights="$weights")
+    recorder=
+    if [ "$scenario/$variant" = pulse/sim_rnn ]; then
+      # This run is also recorded (every topic, MCAP) and plotted from the recording.
+      ./build/bin/pmlsm --domain "$domain" record -o out/pulse_pi_rnn.mcap --stop-after-idle-s 2 --no-progress \
+        >out/pulse_pi_rnn.record.log 2>&1 &
+      recorder=$!
+      until grep -q "topics on domain" out/pulse_pi_rnn.record.log 2>/dev/null; do sleep 0.05; done
+    fi
     if ! ./build/bin/launcher "launch/$variant.yaml" --arg scenario="configs/scenarios/$scenario.yaml" \
          --arg out=out --arg domain="$domain" --arg header="$header" "${extra[@]}" \
          "${launcher_args[@]+"${launcher_args[@]}"}" >"$log" 2>&1; then
@@ -45,6 +54,11 @@ for scenario in pulse free_vibration; do
       exit 1
     fi
     sed -n 's/^\[evaluator\] //p' "$log"
+    if [ -n "$recorder" ]; then
+      wait "$recorder" || { cat out/pulse_pi_rnn.record.log >&2; echo "run_main: the recorder failed" >&2; exit 1; }
+      recording_summary=$(grep "^recorded " out/pulse_pi_rnn.record.log)
+      ./build/bin/pmlsm plot out/pulse_pi_rnn.mcap -o out/pulse_pi_rnn_plots >/dev/null
+    fi
     header=false
   done
 done
@@ -52,3 +66,5 @@ echo "cost = sum over the first second of |V_ref - v_L| (eq. 23), true and Kalma
 echo "distributed lockstep runs over Fast DDS; RNN weights from $weights; logs and traces in out/"
 gnuplot -e "outdir='out'; history='$history'" scripts/plot_traces.gp
 echo "plots: out/pulse.png (Figs. 11-12) out/free_vibration.png (Fig. 10) out/training.png (Figs. 6-7, $history)"
+echo "recording of the pulse PI + RNN run: $recording_summary"
+echo "  plotted from the recording: out/pulse_pi_rnn_plots/{velocities,forces,phase_plane}.png"

@@ -177,17 +177,6 @@ class RawStatusPublisher {
   pmlsm_msgs::msg::NodeStatus status_;
 };
 
-void delete_reader(pdds::Reader<pdds::RawPubSubType>& reader) {
-  auto* entity = reader.entity();
-  // Participant has no way to delete one reader (the nodes' readers live as long as it does).
-  // The subscriber that made this one is a plain non-const object; DataReader only hands out
-  // a const pointer to it.
-  auto* subscriber = const_cast<eprosima::fastdds::dds::Subscriber*>(entity->get_subscriber());
-  if (subscriber->delete_datareader(entity) != ReturnCode::RETCODE_OK) {
-    throw std::runtime_error("cannot delete the reader of '" + entity->get_topicdescription()->get_name() + "'");
-  }
-}
-
 /// Opens the reader of every topic some client subscribes to, closes the others'.
 void match_readers_to_subscriptions(std::vector<BridgedTopic>& topics, const foxglove::Server& server,
                                     pdds::Participant& participant, pdds::Wakeup& wakeup, const char* profile) {
@@ -200,7 +189,7 @@ void match_readers_to_subscriptions(std::vector<BridgedTopic>& topics, const fox
                   subscribers == 1 ? "" : "s");
       changed = true;
     } else if (subscribers == 0 && t.reader) {
-      delete_reader(*t.reader);
+      participant.delete_reader(*t.reader);
       t.reader.reset();
       std::printf("%s: stopped reading %s (no subscribers)\n", kNodeName, t.display_name.c_str());
       changed = true;

@@ -110,8 +110,8 @@ dds::ParticipantOptions named(dds::ParticipantOptions options, const std::string
 NodeRuntime::NodeRuntime(const std::string& node_name, CommonOptions& options)
     : cfg(load_config(options)),
       period_s(cfg.params.timing.control_period_s),
-      participant(named(options.dds, node_name)),
       wakeup(spin_time(options)),
+      participant(named(options.dds, node_name)),
       status(participant, node_name) {}
 
 StatusPublisher::StatusPublisher(dds::Participant& participant, const std::string& node_name)

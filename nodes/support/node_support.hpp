@@ -151,8 +151,10 @@ struct NodeRuntime {
 
   LoadedConfig cfg;
   double period_s;
-  dds::Participant participant;
+  /// Before the participant: its readers' listeners signal the wakeup until the participant
+  /// is gone, so the wakeup must outlive it.
   dds::Wakeup wakeup;
+  dds::Participant participant;
   StatusPublisher status;
 };
 

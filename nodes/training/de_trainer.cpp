@@ -116,8 +116,8 @@ int run(int argc, char** argv) {
   de.seed = training.seed;
 
   dds_options.node_name = "de_trainer";
+  pdds::Wakeup wakeup;  // outlives the participant, whose listeners signal it
   pdds::Participant participant(dds_options);
-  pdds::Wakeup wakeup;
   const std::uint64_t run_id =
       static_cast<std::uint64_t>(node::wall_time_ns()) ^ (static_cast<std::uint64_t>(getpid()) << 40);
   auto setup_writer = participant.make_writer<msg::TrainingSetupPubSubType>(pdds::topics::kTrainingSetup);

@@ -43,8 +43,8 @@ int run(int argc, char** argv) {
   if (worker_id.empty() || worker_id.size() > 64) throw ConfigError("--id: 1 to 64 characters, got '" + worker_id + "'");
 
   dds_options.node_name = "de_worker";
+  pdds::Wakeup wakeup;  // outlives the participant, whose listeners signal it
   pdds::Participant participant(dds_options);
-  pdds::Wakeup wakeup;
   auto setup_reader = participant.make_reader<msg::TrainingSetupPubSubType>(pdds::topics::kTrainingSetup, wakeup);
   auto request_reader = participant.make_reader<msg::EvaluationRequestPubSubType>(pdds::topics::kEvaluationRequest, wakeup);
   auto result_writer = participant.make_writer<msg::EvaluationResultPubSubType>(pdds::topics::kEvaluationResult);

@@ -153,8 +153,8 @@ struct TopicReader {
         reader(participant.make_raw_reader(entry, wakeup, kMonitorProfile)),
         schema(introspect::MessageSchema::parse(entry.schema_idl, entry.type_name)) {}
   const dds::CatalogEntry& entry;
+  dds::Wakeup wakeup;  // outlives the participant, whose listeners signal it
   dds::Participant participant;
-  dds::Wakeup wakeup;
   dds::Reader<dds::RawPubSubType> reader;
   introspect::MessageSchema schema;
 };

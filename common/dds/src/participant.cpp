@@ -146,4 +146,15 @@ eprosima::fastdds::dds::DataReader* Participant::create_reader(eprosima::fastdds
   return reader;
 }
 
+void Participant::delete_reader_entity(eprosima::fastdds::dds::DataReader* reader) {
+  const auto* listener = reader->get_listener();
+  const std::string topic = reader->get_topicdescription()->get_name();
+  if (subscriber_->delete_datareader(reader) != ReturnCode::RETCODE_OK) {
+    throw std::runtime_error("cannot delete the reader of '" + topic + "'");
+  }
+  listeners_.erase(std::remove_if(listeners_.begin(), listeners_.end(),
+                                  [&](const auto& l) { return l.get() == listener; }),
+                   listeners_.end());
+}
+
 }  // namespace pmlsm::dds

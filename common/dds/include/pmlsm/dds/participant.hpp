@@ -158,6 +158,13 @@ class Participant {
                                         const char* qos_profile = nullptr);
   Writer<RawPubSubType> make_raw_writer(const CatalogEntry& entry, const char* qos_profile = nullptr);
 
+  /// Deletes a reader made by this participant, and its listener (a bridge opens and closes
+  /// readers as viewers come and go). @throws std::runtime_error when Fast DDS refuses.
+  template <typename PubSubType>
+  void delete_reader(Reader<PubSubType>& reader) {
+    delete_reader_entity(reader.entity());
+  }
+
   eprosima::fastdds::dds::DomainParticipant* entity() { return participant_; }
   const std::string& node_name() const { return node_name_; }
 
@@ -177,6 +184,7 @@ class Participant {
                                                     const std::string& profile);
   eprosima::fastdds::dds::DataReader* create_reader(eprosima::fastdds::dds::Topic* topic,
                                                     const std::string& profile, Wakeup& wakeup);
+  void delete_reader_entity(eprosima::fastdds::dds::DataReader* reader);
 
   std::string node_name_;
   bool data_sharing_ = false;
