@@ -124,6 +124,15 @@ class Section {
     return out;
   }
 
+  bool boolean(const std::string& key) {
+    const YAML::Node v = value(key);
+    bool out = false;
+    if (!v.IsScalar() || !YAML::convert<bool>::decode(v, out)) {
+      fail(join(path_, key), "expected true or false, got '" + describe(v) + "'");
+    }
+    return out;
+  }
+
   std::string text(const std::string& key) {
     const YAML::Node v = value(key);
     if (!v.IsScalar()) fail(join(path_, key), "expected a string, got '" + describe(v) + "'");
@@ -332,6 +341,22 @@ SystemParams parse_system_params(const std::string& yaml_text, const std::string
   p.kalman.process_noise_diag = kf.vector3("process_noise_diag");
   p.kalman.measurement_noise = kf.number("measurement_noise");
   p.kalman.initial_covariance_diag = kf.vector3("initial_covariance_diag");
+  Section kf_friction = kf.child("friction_input");
+  auto& fi = p.kalman.friction_input;
+  fi.enabled = kf_friction.boolean("enabled");
+  fi.coulomb_n = kf_friction.number("coulomb_n");
+  fi.viscous_n_s_per_m = kf_friction.number("viscous_n_s_per_m");
+  fi.smoothing_velocity_mps = kf_friction.number("smoothing_velocity_mps");
+  kf_friction.finish();
+  Section kf_ripple = kf.child("ripple_input");
+  auto& ri = p.kalman.ripple_input;
+  ri.enabled = kf_ripple.boolean("enabled");
+  ri.scale_n = kf_ripple.number("scale_n");
+  ri.amplitude_1 = kf_ripple.number("amplitude_1");
+  ri.amplitude_2 = kf_ripple.number("amplitude_2");
+  ri.spatial_freq_1_rad_per_m = kf_ripple.number("spatial_freq_1_rad_per_m");
+  ri.spatial_freq_2_rad_per_m = kf_ripple.number("spatial_freq_2_rad_per_m");
+  kf_ripple.finish();
   kf.finish();
 
   Section comp = top.child("compensator");

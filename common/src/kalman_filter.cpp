@@ -1,11 +1,37 @@
 #include "pmlsm/kalman_filter.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "pmlsm/discretize.hpp"
 #include "pmlsm/validate.hpp"
 
 namespace pmlsm {
+
+void KalmanFrictionInput::validate() const {
+  require_non_negative("coulomb_n", coulomb_n);
+  require_non_negative("viscous_n_s_per_m", viscous_n_s_per_m);
+  require_positive("smoothing_velocity_mps", smoothing_velocity_mps);
+}
+
+double KalmanFrictionInput::force_n(double motor_velocity_mps) const {
+  // s(v) = w (3 - w^2) / 2 on w = clamp(v / v_s, -1, 1): sign(v) outside the band, C1 at its edges.
+  const double w = std::min(1.0, std::max(-1.0, motor_velocity_mps / smoothing_velocity_mps));
+  return -(coulomb_n * w * (1.5 - 0.5 * w * w) + viscous_n_s_per_m * motor_velocity_mps);
+}
+
+void KalmanRippleInput::validate() const {
+  require_non_negative("scale_n", scale_n);
+  require_finite("amplitude_1", amplitude_1);
+  require_finite("amplitude_2", amplitude_2);
+  require_non_negative("spatial_freq_1_rad_per_m", spatial_freq_1_rad_per_m);
+  require_non_negative("spatial_freq_2_rad_per_m", spatial_freq_2_rad_per_m);
+}
+
+double KalmanRippleInput::force_n(double motor_position_m) const {
+  return scale_n * amplitude_1 * std::sin(spatial_freq_1_rad_per_m * motor_position_m) *
+         (amplitude_1 + amplitude_2 * std::sin(spatial_freq_2_rad_per_m * motor_position_m));
+}
 
 void KalmanParams::validate() const {
   require_positive("motor_mass_kg", motor_mass_kg);
@@ -19,6 +45,8 @@ void KalmanParams::validate() const {
   require_non_negative("initial_covariance_diag[0]", initial_covariance_diag(0));
   require_non_negative("initial_covariance_diag[1]", initial_covariance_diag(1));
   require_non_negative("initial_covariance_diag[2]", initial_covariance_diag(2));
+  validate_section("friction_input", [&] { friction_input.validate(); });
+  validate_section("ripple_input", [&] { ripple_input.validate(); });
 }
 
 Eigen::Matrix3d KalmanFilter::continuous_a(const KalmanParams& p) {
@@ -47,6 +75,30 @@ void KalmanFilter::reset(const Eigen::Vector3d& initial_state) {
   x_ = initial_state;
   p_ = params_.initial_covariance_diag.asDiagonal();
   last_input_n_ = 0;
+  last_position_m_ = 0;
+  have_last_position_ = false;
+}
+
+double KalmanFilter::modelled_disturbance_n(double y_mps, double position_m) {
+  double disturbance_n = 0;
+  if (params_.friction_input.enabled) {
+    // v_k = y_k, the mean velocity over the period; without a finite y_k the
+    // prior estimate of v_M (the posterior of k-1) stands in for it.
+    const double v_mps = std::isfinite(y_mps) ? y_mps : x_(0);
+    disturbance_n += params_.friction_input.force_n(v_mps);
+  }
+  if (params_.ripple_input.enabled) {
+    if (std::isfinite(position_m)) {
+      const double previous_m = have_last_position_ ? last_position_m_ : position_m;
+      disturbance_n += params_.ripple_input.force_n(0.5 * (previous_m + position_m));
+      last_position_m_ = position_m;
+      have_last_position_ = true;
+    } else {
+      ++counters_.rejected_inputs;
+      if (have_last_position_) disturbance_n += params_.ripple_input.force_n(last_position_m_);
+    }
+  }
+  return disturbance_n;
 }
 
 KalmanEstimate KalmanFilter::step(const KalmanInput& in) {
@@ -56,11 +108,18 @@ KalmanEstimate KalmanFilter::step(const KalmanInput& in) {
   } else {
     ++counters_.rejected_inputs;
   }
+  // u_{k-1} = F_{k-1} (+ F_friction(v_k) + F_ripple(xbar_k) when modelled; see the header).
+  const bool disturbance_modelled = params_.friction_input.enabled || params_.ripple_input.enabled;
+  const double input_n =
+      disturbance_modelled
+          ? last_input_n_ + modelled_disturbance_n(in.motor_velocity_measured_mps, in.motor_position_m)
+          : last_input_n_;
   // Time update (28), (29).
-  x_ = phi_ * x_ + gamma_ * last_input_n_;
+  x_ = phi_ * x_ + gamma_ * input_n;
   p_ = phi_ * p_ * phi_.transpose() + q_;
 
   KalmanEstimate out;
+  out.input_force_n = input_n;
   const double y = in.motor_velocity_measured_mps;
   if (std::isfinite(y)) {
     // Measurement update (30)-(32) with C = [1 0 0]: C P C^T = P(0,0).

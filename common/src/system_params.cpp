@@ -63,6 +63,8 @@ KalmanParams SystemParams::kalman_params() const {
   p.process_noise_diag = kalman.process_noise_diag;
   p.measurement_noise = kalman.measurement_noise;
   p.initial_covariance_diag = kalman.initial_covariance_diag;
+  p.friction_input = kalman.friction_input;
+  p.ripple_input = kalman.ripple_input;
   return p;
 }
 

@@ -1,7 +1,11 @@
 // kalman_estimator: the Kalman filter of section 3.5 on DDS. For every
 // MotorFeedback tick k it predicts with the force the drive applied over the
-// last tick (MotorFeedback.applied_force_n, u_{k-1}) and updates with the
-// measured motor velocity, then publishes EstimatedState (v_M, v_L, F_s, a_L).
+// last tick (MotorFeedback.applied_force_n, u_{k-1}; plus the modelled friction
+// and ripple of that tick, from the encoder velocity and position, when
+// kalman.friction_input / ripple_input are enabled) and updates with the
+// measured motor velocity, then publishes EstimatedState (v_M, v_L, F_s, a_L,
+// and the input u the prediction used). The in-process loop feeds the filter
+// the same three values, so the traces are identical.
 #include <cmath>
 #include <cstdio>
 
@@ -52,14 +56,15 @@ int run(int argc, char** argv) {
     }
     const std::uint64_t k = feedback.stamp().tick();
     // The filter itself rejects (and counts) a non-finite measurement or input.
-    const KalmanEstimate e = filter.step({feedback.velocity_mps(), feedback.applied_force_n()});
+    const KalmanEstimate e =
+        filter.step({feedback.velocity_mps(), feedback.applied_force_n(), feedback.position_m()});
     estimate.stamp(node::make_stamp(k, period));
     estimate.feedback_tick(k);
     estimate.v_motor_mps(e.motor_velocity_mps);
     estimate.v_load_mps(e.load_velocity_mps);
     estimate.spring_force_n(e.spring_force_n);
     estimate.a_load_mps2(e.load_accel_mps2);
-    estimate.input_force_n(feedback.applied_force_n());
+    estimate.input_force_n(e.input_force_n);
     estimate.innovation_mps(e.innovation_mps);
     estimate.covariance_diag({e.covariance_diag(0), e.covariance_diag(1), e.covariance_diag(2)});
     estimate_writer.write(estimate);

@@ -187,9 +187,8 @@ TEST(ConfigShipped, ValuesMatchThePaper) {
   EXPECT_DOUBLE_EQ(p.velocity_loop.ki_n_per_m, 0.01);
   EXPECT_DOUBLE_EQ(p.reference_model.natural_frequency_rad_s, 100.0);  // eq. 25
   EXPECT_DOUBLE_EQ(p.reference_model.damping_ratio, 1.732);
-  EXPECT_DOUBLE_EQ(p.kalman.process_noise_diag(0), 100.0);  // eq. 35
-  EXPECT_DOUBLE_EQ(p.kalman.process_noise_diag(1), 10.0);
-  EXPECT_DOUBLE_EQ(p.kalman.process_noise_diag(2), 1.0);
+  // Q is chosen, not the paper's diag(100, 10, 1) of eq. 35 (see its source in
+  // system.yaml and tests/unit/kalman_test.cpp); R is the paper's.
   EXPECT_DOUBLE_EQ(p.kalman.measurement_noise, 0.01);
   EXPECT_DOUBLE_EQ(p.timing.control_period_s, 1e-3);  // section 4.1
   EXPECT_DOUBLE_EQ(p.timing.current_loop_period_s, 31.25e-6);
@@ -410,6 +409,70 @@ TEST(ConfigFiles, ErrorsNameTheFilePath) {
                  load_system_params(shipped, {ConfigOverride::parse("plant.mechanics.load_mass_kg=-4")});
                }),
                shipped, {"plant.mechanics.load_mass_kg", "-4"});
+}
+
+
+// ------------------------------------------- the Kalman filter's disturbance inputs
+
+TEST(ConfigKalmanInputs, ShippedValuesAreThePlantsAndLoad) {
+  const SystemParams p = parse_system_params(system_text(), kOrigin);
+  // The identified models a rig would have: here the simulated plant's (10), (11).
+  EXPECT_DOUBLE_EQ(p.kalman.friction_input.coulomb_n, p.plant.friction.coulomb_n);
+  EXPECT_DOUBLE_EQ(p.kalman.friction_input.viscous_n_s_per_m, p.plant.friction.viscous_n_s_per_m);
+  EXPECT_GT(p.kalman.friction_input.smoothing_velocity_mps, 0.0);
+  EXPECT_DOUBLE_EQ(p.kalman.ripple_input.scale_n, p.plant.ripple.scale_n);
+  EXPECT_DOUBLE_EQ(p.kalman.ripple_input.amplitude_1, p.plant.ripple.amplitude_1);
+  EXPECT_DOUBLE_EQ(p.kalman.ripple_input.amplitude_2, p.plant.ripple.amplitude_2);
+  EXPECT_DOUBLE_EQ(p.kalman.ripple_input.spatial_freq_1_rad_per_m, p.plant.ripple.spatial_freq_1_rad_per_m);
+  EXPECT_DOUBLE_EQ(p.kalman.ripple_input.spatial_freq_2_rad_per_m, p.plant.ripple.spatial_freq_2_rad_per_m);
+  // And they reach the filter.
+  const KalmanParams kp = p.kalman_params();
+  EXPECT_EQ(kp.friction_input.enabled, p.kalman.friction_input.enabled);
+  EXPECT_EQ(kp.ripple_input.enabled, p.kalman.ripple_input.enabled);
+  EXPECT_DOUBLE_EQ(kp.friction_input.coulomb_n, p.kalman.friction_input.coulomb_n);
+  EXPECT_DOUBLE_EQ(kp.ripple_input.scale_n, p.kalman.ripple_input.scale_n);
+}
+
+TEST(ConfigKalmanInputs, OverridesSwitchThemOnAndOff) {
+  for (const char* value : {"true", "false"}) {
+    SCOPED_TRACE(value);
+    const bool on = std::string(value) == "true";
+    const auto p = parse_system_params(
+        system_text(), kOrigin,
+        {ConfigOverride::parse(std::string("kalman.friction_input.enabled=") + value),
+         ConfigOverride::parse(std::string("kalman.ripple_input.enabled=") + value),
+         ConfigOverride::parse("kalman.friction_input.smoothing_velocity_mps=0.005")});
+    EXPECT_EQ(p.kalman.friction_input.enabled, on);
+    EXPECT_EQ(p.kalman.ripple_input.enabled, on);
+    EXPECT_DOUBLE_EQ(p.kalman.friction_input.smoothing_velocity_mps, 0.005);
+  }
+}
+
+TEST(ConfigKalmanInputs, BadValuesAreRejectedWithKeyPathAndValue) {
+  const std::string f = "kalman.friction_input";
+  const std::string r = "kalman.ripple_input";
+  expect_system_rejects({
+      {"negative coulomb", {{f + ".coulomb_n.value", "-20"}}, {f + ".coulomb_n: must be >= 0", "got -20"}},
+      {"negative viscous", {{f + ".viscous_n_s_per_m.value", "-30"}},
+       {f + ".viscous_n_s_per_m: must be >= 0", "got -30"}},
+      {"zero smoothing", {{f + ".smoothing_velocity_mps.value", "0"}},
+       {f + ".smoothing_velocity_mps: must be > 0", "got 0"}},
+      {"nan coulomb", {{f + ".coulomb_n.value", ".nan"}}, {f + ".coulomb_n: must be finite", ".nan"}},
+      {"inf smoothing", {{f + ".smoothing_velocity_mps.value", ".inf"}},
+       {f + ".smoothing_velocity_mps: must be finite", ".inf"}},
+      {"negative ripple scale", {{r + ".scale_n.value", "-10"}}, {r + ".scale_n: must be >= 0", "got -10"}},
+      {"negative ripple frequency", {{r + ".spatial_freq_2_rad_per_m.value", "-1"}},
+       {r + ".spatial_freq_2_rad_per_m: must be >= 0", "got -1"}},
+      {"number for a flag", {{f + ".enabled.value", "2"}}, {f + ".enabled: expected true or false", "'2'"}},
+      {"word for a flag", {{r + ".enabled.value", "maybe"}}, {r + ".enabled: expected true or false", "'maybe'"}},
+      {"unknown key", {{f + ".static_n", "{value: 25, source: paper}"}}, {f + ".static_n: unknown key"}},
+      {"unknown ripple key", {{r + ".phase_rad", "{value: 0, source: paper}"}}, {r + ".phase_rad: unknown key"}},
+      {"missing section", {{f, std::nullopt}}, {f + ": missing key"}},
+      {"missing flag", {{r + ".enabled", std::nullopt}}, {r + ".enabled: missing key"}},
+  });
+  // On the command line too.
+  expect_names(system_error({}, {ConfigOverride::parse(f + ".coulomb_n=-1")}), kOrigin,
+               {f + ".coulomb_n: must be >= 0", "got -1"});
 }
 
 }  // namespace

@@ -2,11 +2,16 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <random>
+#include <string>
+#include <vector>
 
 #include "pmlsm/closed_loop.hpp"
 #include "pmlsm/kalman_filter.hpp"
+#include "pmlsm/metrics.hpp"
+#include "pmlsm/plant.hpp"
 #include "test_support.hpp"
 
 namespace pmlsm {
@@ -22,62 +27,89 @@ TEST(Kalman, ModelMatrices34) {
   EXPECT_DOUBLE_EQ(KalmanFilter::continuous_b(p)(0), 1.0 / 20.0);
 }
 
+/// The shipped filter with the paper's input u = F_{k-1} (no modelled friction or ripple), and the paper's Q (35) or the shipped one.
+KalmanParams force_input_only(KalmanParams p, bool paper_q) {
+  p.friction_input.enabled = false;
+  p.ripple_input.enabled = false;
+  if (paper_q) p.process_noise_diag = Eigen::Vector3d(100.0, 10.0, 1.0);  // (35)
+  return p;
+}
+
 TEST(Kalman, IsConsistentOnItsOwnLinearModel) {
-  // Monte Carlo on (26)-(27) simulated exactly, w ~ N(0, Q), v ~ N(0, R) with
-  // the paper's Q and R, x_0 ~ N(0, P_0): for a correct filter the normalised
-  // estimation error squared e^T P^-1 e is chi-square with 3 degrees of freedom,
-  // mean 3. Independent runs, because within one run the errors of v_L and F_s
-  // wander slowly (the paper's Q makes their variance large) and successive
-  // samples are far from independent.
-  const KalmanParams p = test::shipped_params().kalman_params();
-  KalmanFilter kf(p);
-  std::mt19937_64 rng(7);
-  std::normal_distribution<double> normal(0.0, 1.0);
-  const int runs = 1000, steps = 300;
-  double nees_sum = 0;
-  for (int run = 0; run < runs; ++run) {
-    Eigen::Vector3d x;
-    for (int i = 0; i < 3; ++i) x(i) = std::sqrt(p.initial_covariance_diag(i)) * normal(rng);
-    kf.reset(Eigen::Vector3d::Zero());
-    double u_prev = 0;
-    for (int k = 0; k < steps; ++k) {
-      x = kf.phi() * x + kf.gamma() * u_prev;
-      for (int i = 0; i < 3; ++i) x(i) += std::sqrt(p.process_noise_diag(i)) * normal(rng);
-      const double y = x(0) + std::sqrt(p.measurement_noise) * normal(rng);
-      kf.step({y, u_prev});
-      u_prev = 200.0 * std::sin(0.05 * k);
+  // Monte Carlo on (26)-(27) simulated exactly, w ~ N(0, Q), v ~ N(0, R),
+  // x_0 ~ N(0, P_0), for the paper's Q and the shipped one (R = the paper's):
+  // for a correct filter the normalised estimation error squared e^T P^-1 e is
+  // chi-square with 3 degrees of freedom, mean 3. Independent runs, because
+  // within one run the errors of v_L and F_s wander slowly (the paper's Q makes
+  // their variance large) and successive samples are far from independent. The
+  // modelled friction and ripple are off: this model has none.
+  for (const bool paper_q : {true, false}) {
+    SCOPED_TRACE(paper_q ? "paper Q" : "shipped Q");
+    const KalmanParams p = force_input_only(test::shipped_params().kalman_params(), paper_q);
+    KalmanFilter kf(p);
+    std::mt19937_64 rng(7);
+    std::normal_distribution<double> normal(0.0, 1.0);
+    const int runs = 1000, steps = 300;
+    double nees_sum = 0;
+    for (int run = 0; run < runs; ++run) {
+      Eigen::Vector3d x;
+      for (int i = 0; i < 3; ++i) x(i) = std::sqrt(p.initial_covariance_diag(i)) * normal(rng);
+      kf.reset(Eigen::Vector3d::Zero());
+      double u_prev = 0;
+      for (int k = 0; k < steps; ++k) {
+        x = kf.phi() * x + kf.gamma() * u_prev;
+        for (int i = 0; i < 3; ++i) x(i) += std::sqrt(p.process_noise_diag(i)) * normal(rng);
+        const double y = x(0) + std::sqrt(p.measurement_noise) * normal(rng);
+        kf.step({y, u_prev});
+        u_prev = 200.0 * std::sin(0.05 * k);
+      }
+      const Eigen::Vector3d e = x - kf.state();
+      nees_sum += e.dot(kf.covariance().ldlt().solve(e));
     }
-    const Eigen::Vector3d e = x - kf.state();
-    nees_sum += e.dot(kf.covariance().ldlt().solve(e));
+    // Standard deviation of the mean: sqrt(6 / 1000) = 0.077; the band is 4 of them.
+    EXPECT_NEAR(nees_sum / runs, 3.0, 0.31);
   }
-  // Standard deviation of the mean: sqrt(6 / 1000) = 0.077; the band is 4 of them.
-  EXPECT_NEAR(nees_sum / runs, 3.0, 0.31);
 }
 
 TEST(Kalman, TracksLoadVelocityAndSpringForceOnTheNoisyPlant) {
-  // The nonlinear plant with encoder noise, friction and ripple, under the
-  // pulse reference: the paper's filter (Q, R of eqs. 35) must follow the true
-  // load velocity and spring force it never measures.
-  SystemParams params = test::shipped_params();
-  params.plant.encoder.position_noise_std_m = 2e-6;
-  params.plant.encoder.noise_seed = 11;
-  const Scenario scenario = test::shipped_scenario("pulse");
-  const auto trace = run_scenario(params, scenario);
-  double err_v = 0, err_f = 0, sig_v = 0, sig_f = 0;
-  std::size_t n = 0;
-  for (const TickRecord& r : trace) {
-    if (r.time_s < 0.1) continue;  // past the start-up transient
-    err_v += std::pow(r.est_load_velocity_mps - r.load_velocity_mps, 2);
-    err_f += std::pow(r.est_spring_force_n - r.spring_force_n, 2);
-    sig_v += r.load_velocity_mps * r.load_velocity_mps;
-    sig_f += r.spring_force_n * r.spring_force_n;
-    ++n;
+  // The nonlinear plant with encoder noise (2 um, twice the resolution),
+  // friction and ripple, under the pulse reference with the PI loop alone (the
+  // filter does not act on the plant, so both filters see the same motion):
+  // each filter must follow the true load velocity and spring force it never
+  // measures. The shipped filter trusts its v_M model (small Q_00), so the
+  // encoder noise and the unmodelled lag of the drive's current loop reach its
+  // F_s more than the paper's.
+  struct Case {
+    const char* name;
+    bool paper;
+    double max_rel_v, max_rel_f;
+  };
+  for (const Case& c : {Case{"paper", true, 0.15, 0.25},      // measured 8.7 %, 14.8 %
+                        Case{"shipped", false, 0.25, 0.40}}) {  // measured 16.8 %, 28.8 %
+    SystemParams params = test::shipped_params();
+    if (c.paper) {
+      params.kalman.friction_input.enabled = false;
+      params.kalman.ripple_input.enabled = false;
+      params.kalman.process_noise_diag = Eigen::Vector3d(100.0, 10.0, 1.0);
+    }
+    params.plant.encoder.position_noise_std_m = 2e-6;
+    params.plant.encoder.noise_seed = 11;
+    const Scenario scenario = test::shipped_scenario("pulse");
+    const auto trace = run_scenario(params, scenario);
+    double err_v = 0, err_f = 0, sig_v = 0, sig_f = 0;
+    for (const TickRecord& r : trace) {
+      if (r.time_s < 0.1) continue;  // past the start-up transient
+      err_v += std::pow(r.est_load_velocity_mps - r.load_velocity_mps, 2);
+      err_f += std::pow(r.est_spring_force_n - r.spring_force_n, 2);
+      sig_v += r.load_velocity_mps * r.load_velocity_mps;
+      sig_f += r.spring_force_n * r.spring_force_n;
+    }
+    const double rel_v = std::sqrt(err_v / sig_v), rel_f = std::sqrt(err_f / sig_f);
+    std::printf("[ kalman     ] pulse, noisy plant, %s filter: v_L rms error %.1f %% of rms v_L, F_s %.1f %%\n",
+                c.name, 100 * rel_v, 100 * rel_f);
+    EXPECT_LT(rel_v, c.max_rel_v) << c.name;
+    EXPECT_LT(rel_f, c.max_rel_f) << c.name;
   }
-  const double rel_v = std::sqrt(err_v / sig_v), rel_f = std::sqrt(err_f / sig_f);
-  std::printf("[ kalman     ] pulse, noisy plant: v_L rms error %.1f %% of rms v_L, F_s %.1f %%\n",
-              100 * rel_v, 100 * rel_f);
-  EXPECT_LT(rel_v, 0.15);  // measured 8.7 %
-  EXPECT_LT(rel_f, 0.25);  // measured 14.8 %
 }
 
 TEST(Kalman, RejectsNonFiniteMeasurementAndInput) {
@@ -96,6 +128,164 @@ TEST(Kalman, RejectsNonFiniteMeasurementAndInput) {
   reference.step({std::numeric_limits<double>::quiet_NaN(), 10.0});
   reference.step({0.1, 10.0});
   EXPECT_LT((kf.state() - reference.state()).norm(), 1e-12);
+}
+
+
+// ------------------------------------------- the modelled disturbance in the input
+
+/// The shipped filter with both disturbance inputs on (their shipped values: the plant's).
+KalmanParams with_disturbance_input(KalmanParams p, bool friction, bool ripple) {
+  p.friction_input.enabled = friction;
+  p.ripple_input.enabled = ripple;
+  return p;
+}
+
+/// The message of the std::invalid_argument KalmanFilter(p) throws, or "" with a failure.
+std::string construction_error(const KalmanParams& p) {
+  try {
+    KalmanFilter kf(p);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "no std::invalid_argument";
+  return "";
+}
+
+TEST(KalmanDisturbanceInput, BadValuesThrowNamingTheValue) {
+  // Checked whether or not the input is enabled: a bad value is a config error either way.
+  for (const bool enabled : {false, true}) {
+    SCOPED_TRACE(enabled ? "enabled" : "disabled");
+    const KalmanParams good = with_disturbance_input(test::shipped_params().kalman_params(), enabled, enabled);
+    struct Case {
+      std::function<void(KalmanParams&)> edit;
+      std::vector<std::string> expected;
+    };
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const double inf = std::numeric_limits<double>::infinity();
+    const std::vector<Case> cases{
+        {[](KalmanParams& p) { p.friction_input.coulomb_n = -20; },
+         {"friction_input.coulomb_n: must be >= 0", "got -20"}},
+        {[](KalmanParams& p) { p.friction_input.viscous_n_s_per_m = -0.5; },
+         {"friction_input.viscous_n_s_per_m: must be >= 0", "got -0.5"}},
+        {[&](KalmanParams& p) { p.friction_input.viscous_n_s_per_m = nan; },
+         {"friction_input.viscous_n_s_per_m: must be finite", "nan"}},
+        {[](KalmanParams& p) { p.friction_input.smoothing_velocity_mps = 0; },
+         {"friction_input.smoothing_velocity_mps: must be > 0", "got 0"}},
+        {[](KalmanParams& p) { p.ripple_input.scale_n = -10; },
+         {"ripple_input.scale_n: must be >= 0", "got -10"}},
+        {[&](KalmanParams& p) { p.ripple_input.amplitude_2 = inf; },
+         {"ripple_input.amplitude_2: must be finite", "inf"}},
+        {[](KalmanParams& p) { p.ripple_input.spatial_freq_1_rad_per_m = -418; },
+         {"ripple_input.spatial_freq_1_rad_per_m: must be >= 0", "got -418"}},
+    };
+    for (const Case& c : cases) {
+      KalmanParams bad = good;
+      c.edit(bad);
+      const std::string message = construction_error(bad);
+      for (const std::string& part : c.expected) {
+        EXPECT_NE(message.find(part), std::string::npos) << "'" << part << "' not in: " << message;
+      }
+    }
+    EXPECT_NO_THROW(KalmanFilter kf(good));
+  }
+}
+
+TEST(KalmanDisturbanceInput, FrictionIsEquation11WithASmoothSign) {
+  KalmanFrictionInput f;
+  f.coulomb_n = 20;
+  f.viscous_n_s_per_m = 30;
+  f.smoothing_velocity_mps = 2e-3;
+  // Exact outside the band, opposing the motion.
+  EXPECT_DOUBLE_EQ(f.force_n(0.1), -(20.0 + 30.0 * 0.1));
+  EXPECT_DOUBLE_EQ(f.force_n(-0.1), 20.0 + 30.0 * 0.1);
+  EXPECT_DOUBLE_EQ(f.force_n(2e-3), -(20.0 + 30.0 * 2e-3));
+  // Inside: the cubic w (3 - w^2) / 2, odd, zero at rest.
+  EXPECT_DOUBLE_EQ(f.force_n(0.0), 0.0);
+  EXPECT_DOUBLE_EQ(f.force_n(1e-3), -(20.0 * 0.5 * (3.0 - 0.25) / 2.0 + 30.0 * 1e-3));
+  EXPECT_DOUBLE_EQ(f.force_n(-1e-3), -f.force_n(1e-3));
+}
+
+TEST(KalmanDisturbanceInput, RippleIsThePlantsEquation10) {
+  // With the plant's values (the shipped ones) the filter's ripple model is the plant's force.
+  const SystemParams& sp = test::shipped_params();
+  const KalmanRippleInput ripple = sp.kalman_params().ripple_input;
+  ASSERT_GT(ripple.scale_n, 0.0);
+  Plant plant(sp.plant);
+  for (const double x : {0.0, 1.3e-3, 4.1e-3, 7.7e-3, -0.0123, 0.25}) {
+    plant.reset({x, 0.0, x, 0.0});
+    EXPECT_NEAR(ripple.force_n(x), plant.truth().ripple_n, 1e-9) << "x = " << x;
+  }
+}
+
+TEST(KalmanDisturbanceInput, TimeUpdateUsesForcePlusFrictionAndRippleOfThePeriod) {
+  // u_{k-1} = F_{k-1} + F_friction(y_k) + F_ripple((x_{k-1} + x_k) / 2): a filter with
+  // the inputs on must match the paper's filter fed that u by hand.
+  const KalmanParams off = with_disturbance_input(test::shipped_params().kalman_params(), false, false);
+  const KalmanParams on = with_disturbance_input(off, true, true);
+  KalmanFilter modelled(on), by_hand(off);
+  double position_m = 0.0, previous_m = 0.0;
+  for (int k = 0; k < 400; ++k) {
+    const double velocity_mps = 0.2 * std::sin(0.02 * k) + (k % 7 == 0 ? 1e-3 : 0.0);
+    previous_m = position_m;
+    position_m += velocity_mps * off.period_s;
+    const double force_n = 150.0 * std::cos(0.03 * k);
+    // The first step has no x_{k-1}: x_k stands in for it.
+    const double midpoint_m = k == 0 ? position_m : 0.5 * (previous_m + position_m);
+    const double u_n = force_n + on.friction_input.force_n(velocity_mps) + on.ripple_input.force_n(midpoint_m);
+    const KalmanEstimate e = modelled.step({velocity_mps, force_n, position_m});
+    by_hand.step({velocity_mps, u_n, position_m});
+    ASSERT_NEAR(e.input_force_n, u_n, 1e-9) << "k = " << k;
+    ASSERT_LT((modelled.state() - by_hand.state()).norm(), 1e-9) << "k = " << k;
+  }
+  // Off, the input is the force alone (the paper's filter).
+  KalmanFilter paper(off);
+  EXPECT_DOUBLE_EQ(paper.step({0.1, 42.0, 0.004}).input_force_n, 42.0);
+}
+
+TEST(KalmanDisturbanceInput, NonFinitePositionIsCountedAndTheLastOneUsed) {
+  const KalmanParams on = with_disturbance_input(test::shipped_params().kalman_params(), false, true);
+  KalmanFilter kf(on);
+  kf.step({0.1, 0.0, 0.004});
+  const KalmanEstimate e = kf.step({0.1, 0.0, std::numeric_limits<double>::quiet_NaN()});
+  EXPECT_EQ(kf.counters().rejected_inputs, 1u);
+  EXPECT_DOUBLE_EQ(e.input_force_n, on.ripple_input.force_n(0.004));
+  EXPECT_TRUE(kf.state().allFinite());
+}
+
+// Behaviour in the loop: after the free-vibration start (0.02 m, F_s = -274 N
+// unknown to the filter) the load velocity estimate of a filter that trusts its
+// v_M model (the shipped small Q_00) is good only when the bearing friction is
+// in its input (the motor hardly moves, so the ripple matters little here); the
+// paper's Q never finds the start. PI only, so the filter does not act on the
+// plant and every run sees the same motion.
+TEST(KalmanDisturbanceInput, ShrinksTheFreeVibrationEstimateError) {
+  const Scenario free = test::shipped_scenario("free_vibration");
+  const auto error_mps = [&](const Eigen::Vector3d& q, bool friction, bool ripple) {
+    SystemParams p = test::shipped_params();
+    p.kalman.process_noise_diag = q;
+    p.kalman.friction_input.enabled = friction;
+    p.kalman.ripple_input.enabled = ripple;
+    // RMS over the first second, while the load rings: what a compensator acts on.
+    double sum = 0;
+    std::size_t n = 0;
+    for (const TickRecord& r : run_scenario(p, free)) {
+      if (r.time_s >= 1.0) break;
+      sum += std::pow(r.est_load_velocity_mps - r.load_velocity_mps, 2);
+      ++n;
+    }
+    return std::sqrt(sum / static_cast<double>(n));
+  };
+  const Eigen::Vector3d paper_q(100.0, 10.0, 1.0), shipped_q = test::shipped_params().kalman.process_noise_diag;
+  const double paper = error_mps(paper_q, false, false);
+  const double without = error_mps(shipped_q, false, false);
+  const double with_friction = error_mps(shipped_q, true, false);
+  const double with_both = error_mps(shipped_q, true, true);
+  std::printf("[ kalman     ] free vibration, v_L rms error over 1 s: paper Q %.1f mm/s; shipped Q: "
+              "force only %.1f, + friction %.1f, + friction and ripple %.1f mm/s\n",
+              1e3 * paper, 1e3 * without, 1e3 * with_friction, 1e3 * with_both);
+  EXPECT_LT(with_friction, 0.7 * without);  // measured 67.5 / 108.5 = 0.62
+  EXPECT_LT(with_both, 0.7 * without);
+  EXPECT_LT(with_both, 0.2 * paper);        // measured 68.2 / 588.6 = 0.12
 }
 
 }  // namespace

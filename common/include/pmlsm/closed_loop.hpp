@@ -7,7 +7,8 @@
 // One tick k (t_k = k T):
 //   1. read the encoder and the currents of the plant at t_k;
 //   2. v_M,meas = encoder difference; V_ref = reference model (command c(t_k));
-//   3. Kalman step with y = v_M,meas and u = the force applied over the last tick;
+//   3. Kalman step with y = v_M,meas and u = the force applied over the last tick (plus the
+//      modelled friction and ripple when the filter is configured with them);
 //   4. force F_k = velocity PI(V_ref, v_M,meas, compensation);
 //   5. 32 current-loop periods: voltages from the current controller, plant integrated.
 #pragma once

@@ -32,11 +32,15 @@ struct CurrentLoopTuning {
   void validate() const;
 };
 
-/// Kalman filter tuning; its model (34) comes from the plant's mechanics.
+/// Kalman filter tuning; its model (34) comes from the plant's mechanics. The
+/// friction and ripple models of its input are its own values (what a rig
+/// identifies), not the simulated plant's, so a mismatch can be studied.
 struct KalmanTuning {
   Eigen::Vector3d process_noise_diag = Eigen::Vector3d::Zero();
   double measurement_noise = 0;
   Eigen::Vector3d initial_covariance_diag = Eigen::Vector3d::Zero();
+  KalmanFrictionInput friction_input;
+  KalmanRippleInput ripple_input;
 };
 
 struct VelocityLoopTuning {
