@@ -67,33 +67,11 @@ class DiscoveryCollector : public eprosima::fastdds::dds::DomainParticipantListe
   }
   void on_publisher_discovery(eprosima::fastdds::dds::DomainParticipant*,
                               rtps::WriterDiscoveryInfo&& info) override {
-    std::lock_guard<std::mutex> lock(mutex_);
-    auto& topic = topics_[info.info.topicName().to_string()];
-    topic.type_name = info.info.typeName().to_string();
-    const std::string key = guid_text(info.info.guid());
-    if (info.status == rtps::WriterDiscoveryInfo::REMOVED_WRITER) {
-      topic.writers.erase(key);
-      return;
-    }
-    const auto& qos = info.info.m_qos;
-    topic.writers[key] = Endpoint{prefix_text(info.info.guid().guidPrefix),
-                                  qos.m_reliability.kind == eprosima::fastdds::dds::RELIABLE_RELIABILITY_QOS,
-                                  qos.m_durability.kind != eprosima::fastdds::dds::VOLATILE_DURABILITY_QOS};
+    note(info.info, info.status == rtps::WriterDiscoveryInfo::REMOVED_WRITER, &TopicInfo::writers);
   }
   void on_subscriber_discovery(eprosima::fastdds::dds::DomainParticipant*,
                                rtps::ReaderDiscoveryInfo&& info) override {
-    std::lock_guard<std::mutex> lock(mutex_);
-    auto& topic = topics_[info.info.topicName().to_string()];
-    topic.type_name = info.info.typeName().to_string();
-    const std::string key = guid_text(info.info.guid());
-    if (info.status == rtps::ReaderDiscoveryInfo::REMOVED_READER) {
-      topic.readers.erase(key);
-      return;
-    }
-    const auto& qos = info.info.m_qos;
-    topic.readers[key] = Endpoint{prefix_text(info.info.guid().guidPrefix),
-                                  qos.m_reliability.kind == eprosima::fastdds::dds::RELIABLE_RELIABILITY_QOS,
-                                  qos.m_durability.kind != eprosima::fastdds::dds::VOLATILE_DURABILITY_QOS};
+    note(info.info, info.status == rtps::ReaderDiscoveryInfo::REMOVED_READER, &TopicInfo::readers);
   }
 
   std::string participant_name(const std::string& prefix) const {
@@ -126,6 +104,22 @@ class DiscoveryCollector : public eprosima::fastdds::dds::DomainParticipantListe
   }
 
  private:
+  /// Adds or removes one writer or reader (`role` picks which map) of its topic.
+  template <typename ProxyData>
+  void note(const ProxyData& data, bool removed, std::map<std::string, Endpoint> TopicInfo::*role) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto& topic = topics_[data.topicName().to_string()];
+    topic.type_name = data.typeName().to_string();
+    const std::string key = guid_text(data.guid());
+    if (removed) {
+      (topic.*role).erase(key);
+      return;
+    }
+    (topic.*role)[key] = Endpoint{prefix_text(data.guid().guidPrefix),
+                                  data.m_qos.m_reliability.kind == eprosima::fastdds::dds::RELIABLE_RELIABILITY_QOS,
+                                  data.m_qos.m_durability.kind != eprosima::fastdds::dds::VOLATILE_DURABILITY_QOS};
+  }
+
   std::mutex mutex_;
   std::map<std::string, std::string> participant_names_;
   std::map<std::string, TopicInfo> topics_;
