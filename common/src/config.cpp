@@ -245,6 +245,21 @@ void validate_in(const std::string& origin, F&& check) {
   }
 }
 
+// Ripple (10) and friction (11) sections: the plant's, and the filter's model of them.
+void read_ripple(Section& section, RippleParams& ripple) {
+  ripple.scale_n = section.number("scale_n");
+  ripple.amplitude_1 = section.number("amplitude_1");
+  ripple.amplitude_2 = section.number("amplitude_2");
+  ripple.spatial_freq_1_rad_per_m = section.number("spatial_freq_1_rad_per_m");
+  ripple.spatial_freq_2_rad_per_m = section.number("spatial_freq_2_rad_per_m");
+}
+
+void read_friction(Section& section, FrictionParams& friction) {
+  friction.coulomb_n = section.number("coulomb_n");
+  friction.viscous_n_s_per_m = section.number("viscous_n_s_per_m");
+  friction.regularisation_velocity_mps = section.number("regularisation_velocity_mps");
+}
+
 }  // namespace
 
 ConfigOverride ConfigOverride::parse(const std::string& text) {
@@ -293,16 +308,10 @@ SystemParams parse_system_params(const std::string& yaml_text, const std::string
   e.pole_pairs = el.number("pole_pairs");
   el.finish();
   Section ripple = plant.child("ripple");
-  p.plant.ripple.scale_n = ripple.number("scale_n");
-  p.plant.ripple.amplitude_1 = ripple.number("amplitude_1");
-  p.plant.ripple.amplitude_2 = ripple.number("amplitude_2");
-  p.plant.ripple.spatial_freq_1_rad_per_m = ripple.number("spatial_freq_1_rad_per_m");
-  p.plant.ripple.spatial_freq_2_rad_per_m = ripple.number("spatial_freq_2_rad_per_m");
+  read_ripple(ripple, p.plant.ripple);
   ripple.finish();
   Section friction = plant.child("friction");
-  p.plant.friction.coulomb_n = friction.number("coulomb_n");
-  p.plant.friction.viscous_n_s_per_m = friction.number("viscous_n_s_per_m");
-  p.plant.friction.regularisation_velocity_mps = friction.number("regularisation_velocity_mps");
+  read_friction(friction, p.plant.friction);
   friction.finish();
   Section mech = plant.child("mechanics");
   p.plant.mechanics.motor_mass_kg = mech.number("motor_mass_kg");
@@ -342,20 +351,12 @@ SystemParams parse_system_params(const std::string& yaml_text, const std::string
   p.kalman.measurement_noise = kf.number("measurement_noise");
   p.kalman.initial_covariance_diag = kf.vector3("initial_covariance_diag");
   Section kf_friction = kf.child("friction_input");
-  auto& fi = p.kalman.friction_input;
-  fi.enabled = kf_friction.boolean("enabled");
-  fi.coulomb_n = kf_friction.number("coulomb_n");
-  fi.viscous_n_s_per_m = kf_friction.number("viscous_n_s_per_m");
-  fi.smoothing_velocity_mps = kf_friction.number("smoothing_velocity_mps");
+  p.kalman.friction_input.enabled = kf_friction.boolean("enabled");
+  read_friction(kf_friction, p.kalman.friction_input.model);
   kf_friction.finish();
   Section kf_ripple = kf.child("ripple_input");
-  auto& ri = p.kalman.ripple_input;
-  ri.enabled = kf_ripple.boolean("enabled");
-  ri.scale_n = kf_ripple.number("scale_n");
-  ri.amplitude_1 = kf_ripple.number("amplitude_1");
-  ri.amplitude_2 = kf_ripple.number("amplitude_2");
-  ri.spatial_freq_1_rad_per_m = kf_ripple.number("spatial_freq_1_rad_per_m");
-  ri.spatial_freq_2_rad_per_m = kf_ripple.number("spatial_freq_2_rad_per_m");
+  p.kalman.ripple_input.enabled = kf_ripple.boolean("enabled");
+  read_ripple(kf_ripple, p.kalman.ripple_input.model);
   kf_ripple.finish();
   kf.finish();
 

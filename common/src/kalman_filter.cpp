@@ -8,31 +8,6 @@
 
 namespace pmlsm {
 
-void KalmanFrictionInput::validate() const {
-  require_non_negative("coulomb_n", coulomb_n);
-  require_non_negative("viscous_n_s_per_m", viscous_n_s_per_m);
-  require_positive("smoothing_velocity_mps", smoothing_velocity_mps);
-}
-
-double KalmanFrictionInput::force_n(double motor_velocity_mps) const {
-  // s(v) = w (3 - w^2) / 2 on w = clamp(v / v_s, -1, 1): sign(v) outside the band, C1 at its edges.
-  const double w = std::min(1.0, std::max(-1.0, motor_velocity_mps / smoothing_velocity_mps));
-  return -(coulomb_n * w * (1.5 - 0.5 * w * w) + viscous_n_s_per_m * motor_velocity_mps);
-}
-
-void KalmanRippleInput::validate() const {
-  require_non_negative("scale_n", scale_n);
-  require_finite("amplitude_1", amplitude_1);
-  require_finite("amplitude_2", amplitude_2);
-  require_non_negative("spatial_freq_1_rad_per_m", spatial_freq_1_rad_per_m);
-  require_non_negative("spatial_freq_2_rad_per_m", spatial_freq_2_rad_per_m);
-}
-
-double KalmanRippleInput::force_n(double motor_position_m) const {
-  return scale_n * amplitude_1 * std::sin(spatial_freq_1_rad_per_m * motor_position_m) *
-         (amplitude_1 + amplitude_2 * std::sin(spatial_freq_2_rad_per_m * motor_position_m));
-}
-
 void KalmanParams::validate() const {
   require_positive("motor_mass_kg", motor_mass_kg);
   require_positive("load_mass_kg", load_mass_kg);

@@ -110,6 +110,16 @@ void FrictionParams::validate() const {
   require_positive("regularisation_velocity_mps", regularisation_velocity_mps);
 }
 
+double ripple_force_n(const RippleParams& r, double motor_position_m) {
+  return r.scale_n * r.amplitude_1 * std::sin(r.spatial_freq_1_rad_per_m * motor_position_m) *
+         (r.amplitude_1 + r.amplitude_2 * std::sin(r.spatial_freq_2_rad_per_m * motor_position_m));
+}
+
+double friction_force_n(const FrictionParams& f, double motor_velocity_mps) {
+  const double w = std::min(1.0, std::max(-1.0, motor_velocity_mps / f.regularisation_velocity_mps));
+  return -(f.coulomb_n * w * (1.5 - 0.5 * w * w) + f.viscous_n_s_per_m * motor_velocity_mps);
+}
+
 void MechanicsParams::validate() const {
   require_positive("motor_mass_kg", motor_mass_kg);
   require_positive("load_mass_kg", load_mass_kg);

@@ -1,6 +1,9 @@
 // The pure helpers of the pmlsm tool: loss accounting and statistics.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <stdexcept>
+
 #include "tool_support.hpp"
 
 namespace pmlsm::tools {
@@ -34,6 +37,15 @@ TEST(Summarize, NearestRankPercentilesAndMoments) {
   EXPECT_NEAR(s.stddev, 28.866, 1e-3);
   EXPECT_EQ(summarize({}).count, 0u);
   EXPECT_DOUBLE_EQ(summarize({7.0}).p99, 7.0);
+}
+
+TEST(RollingWindow, KeepsTheLastCapacityValues) {
+  RollingWindow w(3);
+  for (double v : {1.0, 2.0, 3.0, 4.0, 5.0}) w.add(v);
+  std::vector<double> kept = w.values();
+  std::sort(kept.begin(), kept.end());
+  EXPECT_EQ(kept, (std::vector<double>{3.0, 4.0, 5.0}));
+  EXPECT_THROW(RollingWindow(0), std::invalid_argument);
 }
 
 TEST(HumanBytes, ThousandsWithUnits) {

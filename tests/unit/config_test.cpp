@@ -417,20 +417,20 @@ TEST(ConfigFiles, ErrorsNameTheFilePath) {
 TEST(ConfigKalmanInputs, ShippedValuesAreThePlantsAndLoad) {
   const SystemParams p = parse_system_params(system_text(), kOrigin);
   // The identified models a rig would have: here the simulated plant's (10), (11).
-  EXPECT_DOUBLE_EQ(p.kalman.friction_input.coulomb_n, p.plant.friction.coulomb_n);
-  EXPECT_DOUBLE_EQ(p.kalman.friction_input.viscous_n_s_per_m, p.plant.friction.viscous_n_s_per_m);
-  EXPECT_GT(p.kalman.friction_input.smoothing_velocity_mps, 0.0);
-  EXPECT_DOUBLE_EQ(p.kalman.ripple_input.scale_n, p.plant.ripple.scale_n);
-  EXPECT_DOUBLE_EQ(p.kalman.ripple_input.amplitude_1, p.plant.ripple.amplitude_1);
-  EXPECT_DOUBLE_EQ(p.kalman.ripple_input.amplitude_2, p.plant.ripple.amplitude_2);
-  EXPECT_DOUBLE_EQ(p.kalman.ripple_input.spatial_freq_1_rad_per_m, p.plant.ripple.spatial_freq_1_rad_per_m);
-  EXPECT_DOUBLE_EQ(p.kalman.ripple_input.spatial_freq_2_rad_per_m, p.plant.ripple.spatial_freq_2_rad_per_m);
+  EXPECT_DOUBLE_EQ(p.kalman.friction_input.model.coulomb_n, p.plant.friction.coulomb_n);
+  EXPECT_DOUBLE_EQ(p.kalman.friction_input.model.viscous_n_s_per_m, p.plant.friction.viscous_n_s_per_m);
+  EXPECT_GT(p.kalman.friction_input.model.regularisation_velocity_mps, 0.0);
+  EXPECT_DOUBLE_EQ(p.kalman.ripple_input.model.scale_n, p.plant.ripple.scale_n);
+  EXPECT_DOUBLE_EQ(p.kalman.ripple_input.model.amplitude_1, p.plant.ripple.amplitude_1);
+  EXPECT_DOUBLE_EQ(p.kalman.ripple_input.model.amplitude_2, p.plant.ripple.amplitude_2);
+  EXPECT_DOUBLE_EQ(p.kalman.ripple_input.model.spatial_freq_1_rad_per_m, p.plant.ripple.spatial_freq_1_rad_per_m);
+  EXPECT_DOUBLE_EQ(p.kalman.ripple_input.model.spatial_freq_2_rad_per_m, p.plant.ripple.spatial_freq_2_rad_per_m);
   // And they reach the filter.
   const KalmanParams kp = p.kalman_params();
   EXPECT_EQ(kp.friction_input.enabled, p.kalman.friction_input.enabled);
   EXPECT_EQ(kp.ripple_input.enabled, p.kalman.ripple_input.enabled);
-  EXPECT_DOUBLE_EQ(kp.friction_input.coulomb_n, p.kalman.friction_input.coulomb_n);
-  EXPECT_DOUBLE_EQ(kp.ripple_input.scale_n, p.kalman.ripple_input.scale_n);
+  EXPECT_DOUBLE_EQ(kp.friction_input.model.coulomb_n, p.kalman.friction_input.model.coulomb_n);
+  EXPECT_DOUBLE_EQ(kp.ripple_input.model.scale_n, p.kalman.ripple_input.model.scale_n);
 }
 
 TEST(ConfigKalmanInputs, OverridesSwitchThemOnAndOff) {
@@ -441,10 +441,10 @@ TEST(ConfigKalmanInputs, OverridesSwitchThemOnAndOff) {
         system_text(), kOrigin,
         {ConfigOverride::parse(std::string("kalman.friction_input.enabled=") + value),
          ConfigOverride::parse(std::string("kalman.ripple_input.enabled=") + value),
-         ConfigOverride::parse("kalman.friction_input.smoothing_velocity_mps=0.005")});
+         ConfigOverride::parse("kalman.friction_input.regularisation_velocity_mps=0.005")});
     EXPECT_EQ(p.kalman.friction_input.enabled, on);
     EXPECT_EQ(p.kalman.ripple_input.enabled, on);
-    EXPECT_DOUBLE_EQ(p.kalman.friction_input.smoothing_velocity_mps, 0.005);
+    EXPECT_DOUBLE_EQ(p.kalman.friction_input.model.regularisation_velocity_mps, 0.005);
   }
 }
 
@@ -455,11 +455,11 @@ TEST(ConfigKalmanInputs, BadValuesAreRejectedWithKeyPathAndValue) {
       {"negative coulomb", {{f + ".coulomb_n.value", "-20"}}, {f + ".coulomb_n: must be >= 0", "got -20"}},
       {"negative viscous", {{f + ".viscous_n_s_per_m.value", "-30"}},
        {f + ".viscous_n_s_per_m: must be >= 0", "got -30"}},
-      {"zero smoothing", {{f + ".smoothing_velocity_mps.value", "0"}},
-       {f + ".smoothing_velocity_mps: must be > 0", "got 0"}},
+      {"zero smoothing", {{f + ".regularisation_velocity_mps.value", "0"}},
+       {f + ".regularisation_velocity_mps: must be > 0", "got 0"}},
       {"nan coulomb", {{f + ".coulomb_n.value", ".nan"}}, {f + ".coulomb_n: must be finite", ".nan"}},
-      {"inf smoothing", {{f + ".smoothing_velocity_mps.value", ".inf"}},
-       {f + ".smoothing_velocity_mps: must be finite", ".inf"}},
+      {"inf smoothing", {{f + ".regularisation_velocity_mps.value", ".inf"}},
+       {f + ".regularisation_velocity_mps: must be finite", ".inf"}},
       {"negative ripple scale", {{r + ".scale_n.value", "-10"}}, {r + ".scale_n: must be >= 0", "got -10"}},
       {"negative ripple frequency", {{r + ".spatial_freq_2_rad_per_m.value", "-1"}},
        {r + ".spatial_freq_2_rad_per_m: must be >= 0", "got -1"}},

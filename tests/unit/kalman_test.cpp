@@ -163,19 +163,19 @@ TEST(KalmanDisturbanceInput, BadValuesThrowNamingTheValue) {
     const double nan = std::numeric_limits<double>::quiet_NaN();
     const double inf = std::numeric_limits<double>::infinity();
     const std::vector<Case> cases{
-        {[](KalmanParams& p) { p.friction_input.coulomb_n = -20; },
+        {[](KalmanParams& p) { p.friction_input.model.coulomb_n = -20; },
          {"friction_input.coulomb_n: must be >= 0", "got -20"}},
-        {[](KalmanParams& p) { p.friction_input.viscous_n_s_per_m = -0.5; },
+        {[](KalmanParams& p) { p.friction_input.model.viscous_n_s_per_m = -0.5; },
          {"friction_input.viscous_n_s_per_m: must be >= 0", "got -0.5"}},
-        {[&](KalmanParams& p) { p.friction_input.viscous_n_s_per_m = nan; },
+        {[&](KalmanParams& p) { p.friction_input.model.viscous_n_s_per_m = nan; },
          {"friction_input.viscous_n_s_per_m: must be finite", "nan"}},
-        {[](KalmanParams& p) { p.friction_input.smoothing_velocity_mps = 0; },
-         {"friction_input.smoothing_velocity_mps: must be > 0", "got 0"}},
-        {[](KalmanParams& p) { p.ripple_input.scale_n = -10; },
+        {[](KalmanParams& p) { p.friction_input.model.regularisation_velocity_mps = 0; },
+         {"friction_input.regularisation_velocity_mps: must be > 0", "got 0"}},
+        {[](KalmanParams& p) { p.ripple_input.model.scale_n = -10; },
          {"ripple_input.scale_n: must be >= 0", "got -10"}},
-        {[&](KalmanParams& p) { p.ripple_input.amplitude_2 = inf; },
+        {[&](KalmanParams& p) { p.ripple_input.model.amplitude_2 = inf; },
          {"ripple_input.amplitude_2: must be finite", "inf"}},
-        {[](KalmanParams& p) { p.ripple_input.spatial_freq_1_rad_per_m = -418; },
+        {[](KalmanParams& p) { p.ripple_input.model.spatial_freq_1_rad_per_m = -418; },
          {"ripple_input.spatial_freq_1_rad_per_m: must be >= 0", "got -418"}},
     };
     for (const Case& c : cases) {
@@ -192,9 +192,9 @@ TEST(KalmanDisturbanceInput, BadValuesThrowNamingTheValue) {
 
 TEST(KalmanDisturbanceInput, FrictionIsEquation11WithASmoothSign) {
   KalmanFrictionInput f;
-  f.coulomb_n = 20;
-  f.viscous_n_s_per_m = 30;
-  f.smoothing_velocity_mps = 2e-3;
+  f.model.coulomb_n = 20;
+  f.model.viscous_n_s_per_m = 30;
+  f.model.regularisation_velocity_mps = 2e-3;
   // Exact outside the band, opposing the motion.
   EXPECT_DOUBLE_EQ(f.force_n(0.1), -(20.0 + 30.0 * 0.1));
   EXPECT_DOUBLE_EQ(f.force_n(-0.1), 20.0 + 30.0 * 0.1);
@@ -209,7 +209,7 @@ TEST(KalmanDisturbanceInput, RippleIsThePlantsEquation10) {
   // With the plant's values (the shipped ones) the filter's ripple model is the plant's force.
   const SystemParams& sp = test::shipped_params();
   const KalmanRippleInput ripple = sp.kalman_params().ripple_input;
-  ASSERT_GT(ripple.scale_n, 0.0);
+  ASSERT_GT(ripple.model.scale_n, 0.0);
   Plant plant(sp.plant);
   for (const double x : {0.0, 1.3e-3, 4.1e-3, 7.7e-3, -0.0123, 0.25}) {
     plant.reset({x, 0.0, x, 0.0});

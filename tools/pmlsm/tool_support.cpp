@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <numeric>
+#include <stdexcept>
 
 namespace pmlsm::tools {
 
@@ -22,6 +23,20 @@ std::uint64_t SequenceTracker::observe(const std::string& writer_key, std::uint6
   lost_ += gap;
   it->second = sequence_number;
   return gap;
+}
+
+RollingWindow::RollingWindow(std::size_t capacity) : capacity_(capacity) {
+  if (capacity == 0) throw std::invalid_argument("RollingWindow: capacity 0");
+  values_.reserve(capacity);
+}
+
+void RollingWindow::add(double value) {
+  if (values_.size() < capacity_) {
+    values_.push_back(value);
+    return;
+  }
+  values_[next_slot_] = value;
+  next_slot_ = (next_slot_ + 1) % capacity_;
 }
 
 Summary summarize(std::vector<double> values) {

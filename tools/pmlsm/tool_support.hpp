@@ -40,6 +40,21 @@ struct Summary {
   double p99 = 0.0;
 };
 
+/// The last `capacity` values added (oldest overwritten): the window of hz and delay.
+class RollingWindow {
+ public:
+  /// @throws std::invalid_argument for a capacity of 0.
+  explicit RollingWindow(std::size_t capacity);
+  void add(double value);
+  /// In no particular order once full (the statistics do not need it).
+  const std::vector<double>& values() const { return values_; }
+
+ private:
+  std::size_t capacity_;
+  std::size_t next_slot_ = 0;
+  std::vector<double> values_;
+};
+
 /// Summary of `values` (nearest-rank percentiles); all zero when empty.
 Summary summarize(std::vector<double> values);
 

@@ -200,14 +200,12 @@ int run_echo(const dds::ParticipantOptions& options, const std::string& topic, s
 int run_hz(const dds::ParticipantOptions& options, const std::string& topic, std::size_t window,
            double duration_s) {
   TopicReader r(options, topic, "pmlsm_topic_hz");
-  std::vector<double> periods_s;  // the last `window` reception intervals
-  periods_s.reserve(window);
-  std::size_t next_slot = 0;
+  RollingWindow periods_s(window);  // the last `window` reception intervals
   std::int64_t last_ns = -1;
   std::uint64_t samples = 0;
   auto next_report = Clock::now() + std::chrono::seconds(1);
   const auto report = [&] {
-    const Summary s = summarize(periods_s);
+    const Summary s = summarize(periods_s.values());
     if (s.count == 0) {
       std::printf("%s: no samples yet\n", dds::display_name(r.entry.spec.name).c_str());
     } else {
@@ -221,13 +219,7 @@ int run_hz(const dds::ParticipantOptions& options, const std::string& topic, std
       [&](const dds::RawSample&, const eprosima::fastdds::dds::SampleInfo& info) {
         const std::int64_t t_ns = to_ns(info.reception_timestamp);
         if (last_ns >= 0) {
-          const double period_s = static_cast<double>(t_ns - last_ns) * 1e-9;
-          if (periods_s.size() < window) {
-            periods_s.push_back(period_s);
-          } else {
-            periods_s[next_slot] = period_s;
-            next_slot = (next_slot + 1) % window;
-          }
+          periods_s.add(static_cast<double>(t_ns - last_ns) * 1e-9);
         }
         last_ns = t_ns;
         ++samples;
@@ -245,14 +237,12 @@ int run_hz(const dds::ParticipantOptions& options, const std::string& topic, std
 int run_delay(const dds::ParticipantOptions& options, const std::string& topic, std::size_t window,
               double duration_s) {
   TopicReader r(options, topic, "pmlsm_topic_delay");
-  std::vector<double> delays_s;
-  delays_s.reserve(window);
-  std::size_t next_slot = 0;
+  RollingWindow delays_s(window);
   std::uint64_t samples = 0;
   std::uint64_t without_stamp = 0;
   auto next_report = Clock::now() + std::chrono::seconds(1);
   const auto report = [&] {
-    const Summary s = summarize(delays_s);
+    const Summary s = summarize(delays_s.values());
     if (s.count == 0) {
       std::printf("%s: no samples yet\n", dds::display_name(r.entry.spec.name).c_str());
     } else {
@@ -274,13 +264,7 @@ int run_delay(const dds::ParticipantOptions& options, const std::string& topic, 
           ++without_stamp;
           return true;
         }
-        const double delay_s = (static_cast<double>(to_ns(info.reception_timestamp)) - *source_ns) * 1e-9;
-        if (delays_s.size() < window) {
-          delays_s.push_back(delay_s);
-        } else {
-          delays_s[next_slot] = delay_s;
-          next_slot = (next_slot + 1) % window;
-        }
+        delays_s.add((static_cast<double>(to_ns(info.reception_timestamp)) - *source_ns) * 1e-9);
         return true;
       },
       [&] {

@@ -36,33 +36,28 @@
 #include <Eigen/Dense>
 #include <cstdint>
 
+#include "pmlsm/plant.hpp"
+
 namespace pmlsm {
 
-/// The bearing friction (11) the filter adds to its input (identified on a rig).
+/// The bearing friction (11) the filter adds to its input: the plant's model with the
+/// filter's own constants (identified on a rig; v_eps wider than the plant's, see the config).
 struct KalmanFrictionInput {
   bool enabled = false;
-  double coulomb_n = 0;               ///< F_c
-  double viscous_n_s_per_m = 0;       ///< F_v
-  double smoothing_velocity_mps = 0;  ///< v_s: half-width of the band where sign(v) is the cubic s(v)
-  /// @throws std::invalid_argument naming the first non-finite or negative value (v_s must be > 0).
-  void validate() const;
-  /// F_friction(v) = -(F_c s(v) + F_v v): opposes the motion, as in the plant.
-  double force_n(double motor_velocity_mps) const;
+  FrictionParams model;
+  /// @throws std::invalid_argument naming the first non-finite or out-of-range value.
+  void validate() const { model.validate(); }
+  double force_n(double motor_velocity_mps) const { return friction_force_n(model, motor_velocity_mps); }
 };
 
-/// The force ripple (10) the filter adds to its input (identified on a rig
-/// against the encoder position).
+/// The force ripple (10) the filter adds to its input (identified on a rig against the
+/// encoder position): the plant's model with the filter's own constants.
 struct KalmanRippleInput {
   bool enabled = false;
-  double scale_n = 0;                   ///< K_s
-  double amplitude_1 = 0;               ///< A_r1
-  double amplitude_2 = 0;               ///< A_r2
-  double spatial_freq_1_rad_per_m = 0;  ///< phi_1
-  double spatial_freq_2_rad_per_m = 0;  ///< phi_2
+  RippleParams model;
   /// @throws std::invalid_argument naming the first non-finite or out-of-range value.
-  void validate() const;
-  /// F_ripple(x) = K_s A_r1 sin(phi_1 x) [A_r1 + A_r2 sin(phi_2 x)].
-  double force_n(double motor_position_m) const;
+  void validate() const { model.validate(); }
+  double force_n(double motor_position_m) const { return ripple_force_n(model, motor_position_m); }
 };
 
 struct KalmanParams {

@@ -96,6 +96,15 @@ struct FrictionParams {
   void validate() const;
 };
 
+/// Ripple force (10): F_ripple(x) = K_s A_r1 sin(phi_1 x) [A_r1 + A_r2 sin(phi_2 x)] [N].
+/// The plant evaluates the same expression incrementally in its hot loop; this is the
+/// reference form, for the filter's model and the tests.
+double ripple_force_n(const RippleParams& ripple, double motor_position_m);
+
+/// Friction force (11), opposing the motion: -(F_coulomb s(v) + F_viscous v) [N], with
+/// s(v) = sign(v) outside +-v_eps and the cubic w (3 - w^2) / 2, w = v / v_eps, inside.
+double friction_force_n(const FrictionParams& friction, double motor_velocity_mps);
+
 struct MechanicsParams {
   double motor_mass_kg = 0;        ///< m_M
   double load_mass_kg = 0;         ///< m_L
