@@ -17,6 +17,7 @@ packages=(
   iproute2                        # network namespaces for the two-host test
   fastdds-tools                   # `fastdds discovery`: the Discovery Server for networks without multicast
   cyclonedds-tools                # ddsperf: the DDS latency floor the distributed benchmark compares with
+  rt-tests                        # cyclictest: the machine's timer wake-up floor, in the same benchmark
   cyclonedds-dev                  # a Cyclone DDS subscriber built from our IDL: interoperation on the wire
   libzstd-dev liblz4-dev          # MCAP chunk compression (zstd default, lz4 for speed)
   zlib1g-dev                      # crc32 of MCAP chunks and summary (pmlsm_mcap)

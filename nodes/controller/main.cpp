@@ -123,13 +123,7 @@ int run(int argc, char** argv) {
     }
     const VelocityControllerOutput out = controller.step(k, velocity, applied_compensation_n);
 
-    reference.stamp(node::make_stamp(k, period));
-    reference.velocity_command_mps(out.command_mps);
-    reference.v_ref_mps(out.v_ref_mps);
-    reference.a_ref_mps2(out.a_ref_mps2);
-    reference_writer.write(reference);
-
-    command.stamp(reference.stamp());
+    command.stamp(node::make_stamp(k, period));
     command.feedback_tick(k);
     command.force_n(out.force_n);
     command.pi_force_n(out.force_n - applied_compensation_n);
@@ -137,6 +131,12 @@ int run(int argc, char** argv) {
     command.velocity_error_mps(out.velocity_error_mps);
     command.saturated(out.saturated);
     command_writer.write(command);
+    // After the command: the plant waits for it, the evaluator for this one.
+    reference.stamp(command.stamp());
+    reference.velocity_command_mps(out.command_mps);
+    reference.v_ref_mps(out.v_ref_mps);
+    reference.a_ref_mps2(out.a_ref_mps2);
+    reference_writer.write(reference);
 
     for (int sub = 0; voltage_level && sub < current_steps; ++sub) {
       bool got_current = false;

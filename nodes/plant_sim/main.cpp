@@ -17,6 +17,7 @@
 #include <chrono>
 #include <cmath>
 #include <algorithm>
+#include <array>
 #include <cstdio>
 #include <vector>
 
@@ -43,6 +44,7 @@ struct PlantOptions {
   int peers = 2;
   double watchdog_ms = 3.0;
   double command_deadline_us = 500.0;
+  double wake_early_us = 0.0;
 };
 
 void fill_truth(const SimulatedDrive& drive, double force_n, PlantTruth& out) {
@@ -82,11 +84,15 @@ bool acceptable(const ForceCommand& cmd, std::uint64_t last_tick, bool any_yet) 
 }
 
 timespec add_ns(timespec t, std::int64_t ns) {
-  t.tv_nsec += ns;
-  while (t.tv_nsec >= 1000000000L) {
-    t.tv_nsec -= 1000000000L;
-    ++t.tv_sec;
+  const std::int64_t total = static_cast<std::int64_t>(t.tv_nsec) + ns;
+  std::int64_t sec = total / 1000000000LL;
+  std::int64_t nsec = total % 1000000000LL;
+  if (nsec < 0) {
+    nsec += 1000000000LL;
+    --sec;
   }
+  t.tv_sec += static_cast<time_t>(sec);
+  t.tv_nsec = static_cast<long>(nsec);
   return t;
 }
 
@@ -107,6 +113,10 @@ int run(int argc, char** argv) {
   app.add_option("--command-deadline-us", opt.command_deadline_us,
                  "realtime: how long into a tick the plant waits for that tick's command")
       ->check(CLI::Range(0.0, 1e6));
+  app.add_option("--wake-early-us", opt.wake_early_us,
+                 "realtime: sleep until this long before each tick, then poll the clock to its start "
+                 "(a sleeping thread may wake tens of microseconds late)")
+      ->check(CLI::Range(0.0, 900.0));
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   node::NodeRuntime rt("plant_sim", common);
   const node::LoadedConfig& cfg = rt.cfg;
@@ -160,11 +170,22 @@ int run(int argc, char** argv) {
   const auto period_ns = static_cast<std::int64_t>(std::llround(period * 1e9));
   timespec last_command_time = next_tick;
 
-  // Chain latency per tick: MotorFeedback written -> its ForceCommand taken.
+  // Chain latency per tick: MotorFeedback written -> its ForceCommand received
+  // (the reader's reception time, wall clock on both ends), late answers
+  // included; a tick whose answer never came has none.
+  constexpr std::uint64_t kPublishRing = 256;
+  std::array<std::int64_t, kPublishRing> published_ns{};
   std::vector<double> latency_us;
   latency_us.reserve(ticks);
+  eprosima::fastdds::dds::SampleInfo info;
   const auto loop_start = std::chrono::steady_clock::now();
   std::uint64_t k = 0;
+  auto record_latency = [&](std::uint64_t answered_tick) {
+    if (answered_tick > k || k - answered_tick >= kPublishRing) return;
+    std::int64_t received_ns = info.reception_timestamp.to_ns();
+    if (received_ns <= 0) received_ns = node::wall_time_ns();
+    latency_us.push_back(static_cast<double>(received_ns - published_ns[answered_tick % kPublishRing]) * 1e-3);
+  };
   struct {
     double sum_k = 0, sum_t = 0, sum_kk = 0, sum_kt = 0;
   } start_fit;  // running sums for the period's least-squares fit
@@ -194,14 +215,14 @@ int run(int argc, char** argv) {
     feedback.status(status_bits);
     fill_truth(drive, force_n, truth);
     truth.stamp(feedback.stamp());
-    const auto published = std::chrono::steady_clock::now();
+    published_ns[k % kPublishRing] = node::wall_time_ns();
     feedback_writer.write(feedback);
     truth_writer.write(truth);
 
     if (cfg.clock == node::Clock::kLockstep) {
       bool answered = false;
       const bool ok = node::wait_until(rt.wakeup, peer_timeout, [&] {
-        while (!answered && command_reader.take(command)) {
+        while (!answered && command_reader.take(command, info)) {
           if (command.feedback_tick() != k) {
             ++counters.late;  // an answer to another tick: stale or out of order
           } else if (!std::isfinite(command.force_n())) {
@@ -212,7 +233,7 @@ int run(int argc, char** argv) {
             applied_tick = k;
             any_command = true;
             answered = true;
-            latency_us.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - published).count());
+            record_latency(k);
           }
         }
         return answered;
@@ -231,7 +252,7 @@ int run(int argc, char** argv) {
           add_ns(next_tick, static_cast<std::int64_t>(opt.command_deadline_us * 1e3));
       bool fresh = false;
       auto drain = [&] {
-        while (command_reader.take(command)) {
+        while (command_reader.take(command, info)) {
           if (!acceptable(command, applied_tick, any_command)) {
             ++counters.rejected;
             continue;
@@ -243,10 +264,8 @@ int run(int argc, char** argv) {
           force_n = command.force_n();
           applied_tick = command.feedback_tick();
           any_command = true;
-          if (command.feedback_tick() == k) {
-            fresh = true;
-            latency_us.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - published).count());
-          }
+          record_latency(applied_tick);
+          if (applied_tick == k) fresh = true;
           clock_gettime(CLOCK_MONOTONIC, &last_command_time);
         }
         return fresh;
@@ -316,7 +335,9 @@ int run(int argc, char** argv) {
       timespec now{};
       clock_gettime(CLOCK_MONOTONIC, &now);
       if (diff_ns(now, next_tick) > 0) ++counters.deadline_misses;
-      clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next_tick, nullptr);
+      const timespec wake = add_ns(next_tick, -static_cast<std::int64_t>(opt.wake_early_us * 1e3));
+      clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &wake, nullptr);
+      while (opt.wake_early_us > 0.0 && diff_ns(now, next_tick) < 0) clock_gettime(CLOCK_MONOTONIC, &now);
     }
     if (k % 1000 == 999) {
       auto& s = rt.status.status();
@@ -351,6 +372,10 @@ int run(int argc, char** argv) {
     auto at = [&](double q) { return latency_us[static_cast<std::size_t>(q * static_cast<double>(latency_us.size() - 1))]; };
     std::printf("plant_sim: chain latency feedback -> command over %zu ticks: p50 %.1f us, p99 %.1f us, max %.1f us\n",
                 latency_us.size(), at(0.5), at(0.99), latency_us.back());
+  }
+  if (latency_us.size() < k) {
+    std::printf("plant_sim: %llu of %llu ticks never got their command\n",
+                static_cast<unsigned long long>(k - latency_us.size()), static_cast<unsigned long long>(k));
   }
   std::printf("plant_sim: %llu ticks in %.3f s (%.1fx real time), late %llu, rejected %llu, deadline misses %llu%s\n",
               static_cast<unsigned long long>(k), loop_s, static_cast<double>(k) * period / loop_s,

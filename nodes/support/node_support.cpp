@@ -34,6 +34,13 @@ void add_common_options(CLI::App& app, CommonOptions& o) {
   app.add_option("--spin-us", o.spin_us, "Poll this long for an answer before sleeping (latency vs CPU)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 10000.0));
+  app.add_option("--rt-priority", o.realtime.rt_priority,
+                 "SCHED_FIFO priority 1..99 for the node and its DDS threads, memory locked (0: normal scheduling)")
+      ->check(CLI::Range(0, 99));
+  app.add_option("--cpu-dma-latency-us", o.realtime.cpu_dma_latency_us,
+                 "While the node runs, keep the cores out of idle states slower to leave than this "
+                 "(/dev/cpu_dma_latency; 0: never halt; -1: no request; needs root)")
+      ->check(CLI::Range(-1, 10000000));
 }
 
 std::chrono::nanoseconds spin_time(const CommonOptions& o) {
@@ -110,9 +117,14 @@ dds::ParticipantOptions named(dds::ParticipantOptions options, const std::string
 NodeRuntime::NodeRuntime(const std::string& node_name, CommonOptions& options)
     : cfg(load_config(options)),
       period_s(cfg.params.timing.control_period_s),
+      realtime(options.realtime),
       wakeup(spin_time(options)),
       participant(named(options.dds, node_name)),
-      status(participant, node_name) {}
+      status(participant, node_name) {
+  if (options.realtime.rt_priority > 0 || options.realtime.cpu_dma_latency_us >= 0) {
+    std::printf("%s: real-time setup: %s\n", node_name.c_str(), realtime.summary().c_str());
+  }
+}
 
 StatusPublisher::StatusPublisher(dds::Participant& participant, const std::string& node_name)
     : writer_(participant.make_writer<pmlsm_msgs::msg::NodeStatusPubSubType>(dds::topics::kNodeStatus)) {

@@ -18,6 +18,7 @@
 #include "pmlsm/config.hpp"
 #include "pmlsm/dds/participant.hpp"
 #include "pmlsm/dds/shutdown.hpp"
+#include "realtime_setup.hpp"
 
 namespace pmlsm::node {
 
@@ -49,10 +50,13 @@ struct CommonOptions {
   /// How long the loop thread polls for an answer before it sleeps: worth it
   /// on the control chain (plant, controller), wasted CPU for observers.
   double spin_us = 0.0;
+  /// Real-time priority, PM QoS latency request (--rt-priority, --cpu-dma-latency-us).
+  RealtimeOptions realtime;
 };
 
 /// Adds --config, --scenario, --set, --profiles, --participant-profile, --domain, --clock,
-/// --peer-timeout-s, --spin-us (its default is what `options` holds).
+/// --peer-timeout-s, --spin-us (its default is what `options` holds), --rt-priority,
+/// --cpu-dma-latency-us.
 void add_common_options(CLI::App& app, CommonOptions& options);
 
 struct LoadedConfig {
@@ -151,6 +155,8 @@ struct NodeRuntime {
 
   LoadedConfig cfg;
   double period_s;
+  /// Before the participant, so Fast DDS's threads inherit priority and timer slack.
+  RealtimeSetup realtime;
   /// Before the participant: its readers' listeners signal the wakeup until the participant
   /// is gone, so the wakeup must outlive it.
   dds::Wakeup wakeup;
