@@ -34,6 +34,11 @@ void add_common_options(CLI::App& app, CommonOptions& o) {
   app.add_option("--spin-us", o.spin_us, "Poll this long for an answer before sleeping (latency vs CPU)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 10000.0));
+  app.add_option("--wake-batch-us", o.wake_batch_us,
+                 "Off the control chain: wake every this many us and take a batch of samples instead of "
+                 "waking for each (0: wake for each; never on the chain: it paces the loop)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 100000.0));
   app.add_option("--rt-priority", o.realtime.rt_priority,
                  "SCHED_FIFO priority 1..99 for the node and its DDS threads, memory locked (0: normal scheduling)")
       ->check(CLI::Range(0, 99));
@@ -118,7 +123,7 @@ NodeRuntime::NodeRuntime(const std::string& node_name, CommonOptions& options)
     : cfg(load_config(options)),
       period_s(cfg.params.timing.control_period_s),
       realtime(options.realtime),
-      wakeup(spin_time(options)),
+      wakeup(spin_time(options), std::chrono::nanoseconds(static_cast<std::int64_t>(options.wake_batch_us * 1e3))),
       participant(named(options.dds, node_name)),
       status(participant, node_name) {
   if (options.realtime.rt_priority > 0 || options.realtime.cpu_dma_latency_us >= 0) {

@@ -50,13 +50,16 @@ struct CommonOptions {
   /// How long the loop thread polls for an answer before it sleeps: worth it
   /// on the control chain (plant, controller), wasted CPU for observers.
   double spin_us = 0.0;
+  /// Observers off the chain: wake every this many microseconds and take what
+  /// arrived, instead of on every sample (0: on every sample).
+  double wake_batch_us = 0.0;
   /// Real-time priority, PM QoS latency request (--rt-priority, --cpu-dma-latency-us).
   RealtimeOptions realtime;
 };
 
 /// Adds --config, --scenario, --set, --profiles, --participant-profile, --domain, --clock,
-/// --peer-timeout-s, --spin-us (its default is what `options` holds), --rt-priority,
-/// --cpu-dma-latency-us.
+/// --peer-timeout-s, --spin-us and --wake-batch-us (their defaults are what `options` holds),
+/// --rt-priority, --cpu-dma-latency-us.
 void add_common_options(CLI::App& app, CommonOptions& options);
 
 struct LoadedConfig {

@@ -13,6 +13,10 @@ using ReturnCode = eprosima::fastrtps::types::ReturnCode_t;
 std::uint64_t Wakeup::generation() const { return generation_.load(std::memory_order_acquire); }
 
 bool Wakeup::wait_for(std::uint64_t seen, std::chrono::nanoseconds timeout) {
+  if (batch_.count() > 0) {
+    std::this_thread::sleep_for(std::min(timeout, batch_));
+    return generation_.load(std::memory_order_acquire) != seen;
+  }
   // Spin (yielding) for a short while before sleeping: an answer usually comes
   // within a few tens of microseconds, and a condition-variable wake-up costs
   // about as much again on a virtual machine.
@@ -28,6 +32,10 @@ bool Wakeup::wait_for(std::uint64_t seen, std::chrono::nanoseconds timeout) {
 }
 
 void Wakeup::notify() {
+  if (batch_.count() > 0) {
+    generation_.fetch_add(1, std::memory_order_acq_rel);
+    return;
+  }
   {
     std::lock_guard<std::mutex> lock(mutex_);
     generation_.fetch_add(1, std::memory_order_acq_rel);

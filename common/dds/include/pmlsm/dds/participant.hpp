@@ -40,17 +40,26 @@ namespace pmlsm::dds {
 class Wakeup {
  public:
   /// spin: how long wait_for() polls (yielding the core) before it sleeps.
-  explicit Wakeup(std::chrono::nanoseconds spin = std::chrono::nanoseconds(0)) : spin_(spin) {}
+  /// batch: when positive, wait_for() sleeps this long whatever arrives and
+  /// notify() wakes nobody. For observers off the control chain: they then
+  /// take a batch of samples per wake-up instead of waking the loop thread for
+  /// every sample (on a virtual machine a wake-up costs tens of microseconds
+  /// of the cores the chain needs).
+  explicit Wakeup(std::chrono::nanoseconds spin = std::chrono::nanoseconds(0),
+                  std::chrono::nanoseconds batch = std::chrono::nanoseconds(0))
+      : spin_(spin), batch_(batch) {}
   /// A counter read before draining the readers; wait_for() returns at once if
   /// anything arrived after it was read, so no notification is lost.
   std::uint64_t generation() const;
-  /// Waits until the generation moves past `seen` or the timeout passes.
+  /// Waits until the generation moves past `seen` or the timeout passes (with
+  /// a batch: sleeps min(batch, timeout), then reports whether it moved).
   /// @return false on timeout.
   bool wait_for(std::uint64_t seen, std::chrono::nanoseconds timeout);
   void notify();
 
  private:
   std::chrono::nanoseconds spin_;
+  std::chrono::nanoseconds batch_;
   std::mutex mutex_;
   std::condition_variable cv_;
   std::atomic<std::uint64_t> generation_{0};
