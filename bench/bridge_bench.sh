@@ -8,7 +8,9 @@
 #   bench/bridge_bench.sh [seconds_per_run [topics]]   (default 20, all)
 # The client runs at niceness 10: it stands in for Foxglove, which runs on the operator's
 # machine, not on the control machine's cores.
-#   PMLSM_BIN_DIR: the programs (default build/bin); PMLSM_DOMAIN: DDS domain (default 44).
+#   PMLSM_BIN_DIR: the programs (default build/bin); PMLSM_DOMAIN: DDS domain (default 44);
+#   PMLSM_CHAIN_OPTS: more options for plant_sim and controller, e.g. the tuned setup of
+#   bench/distributed_bench.sh: "--rt-priority 80 --cpu-dma-latency-us 0".
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
@@ -61,13 +63,14 @@ ratio() { awk -v a="$1" -v b="$2" 'BEGIN { if (a == "" || b == "" || b + 0 == 0)
 
 sed "s/^duration_s: .*/duration_s: ${seconds}.0/" configs/scenarios/pulse.yaml >"$work/long.yaml"
 dds=(--domain "$domain" --profiles configs/dds/profiles.xml)
+read -r -a chain_opts <<<"${PMLSM_CHAIN_OPTS:-}"
 
 # plant_sim + controller in realtime, as bench/distributed_bench.sh runs them.
 run_loop() {
   local name="$1"
-  "$bin/controller" "${dds[@]}" -s "$work/long.yaml" --clock realtime >"$work/${name}_controller.log" 2>&1 &
+  "$bin/controller" "${dds[@]}" ${chain_opts[@]+"${chain_opts[@]}"} -s "$work/long.yaml" --clock realtime >"$work/${name}_controller.log" 2>&1 &
   controller_pid=$!
-  "$bin/plant_sim" "${dds[@]}" -s "$work/long.yaml" --clock realtime --peers 1 --watchdog-ms 1000 \
+  "$bin/plant_sim" "${dds[@]}" ${chain_opts[@]+"${chain_opts[@]}"} -s "$work/long.yaml" --clock realtime --peers 1 --watchdog-ms 1000 \
     >"$work/${name}.log" 2>&1 || true
   wait "$controller_pid" || true
   controller_pid=""
