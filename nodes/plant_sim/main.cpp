@@ -8,16 +8,18 @@
 //    as fast as the machine goes.
 //  - realtime: ticks on absolute time (no drift). The plant never waits past
 //    --command-deadline-us into the tick: it applies the newest command
-//    (zero-order hold), counts late ones, and after --watchdog-ms without a
-//    command goes to its safe state (zero force), latched until restart. The
-//    watchdog arms with the first command, as a drive's does when enabled;
-//    until then the force is zero anyway.
+//    (zero-order hold), counts late ones, and when the oldest feedback still
+//    unanswered was published more than --watchdog-ms ago goes to its safe
+//    state (zero force), latched until restart. Counting from the unanswered
+//    feedback, not from the last command, means a plant thread that itself
+//    stalled (its core taken by the host, say) does not blame the controller
+//    for ticks it never asked about. The watchdog arms with the first
+//    command, as a drive's does when enabled; until then the force is zero.
 #include <time.h>
 
 #include <chrono>
 #include <cmath>
 #include <algorithm>
-#include <array>
 #include <cstdio>
 #include <vector>
 
@@ -96,6 +98,12 @@ timespec add_ns(timespec t, std::int64_t ns) {
   return t;
 }
 
+std::int64_t monotonic_ns() {
+  timespec t{};
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return static_cast<std::int64_t>(t.tv_sec) * 1000000000LL + t.tv_nsec;
+}
+
 std::int64_t diff_ns(const timespec& a, const timespec& b) {
   return (static_cast<std::int64_t>(a.tv_sec) - b.tv_sec) * 1000000000LL + (a.tv_nsec - b.tv_nsec);
 }
@@ -168,13 +176,15 @@ int run(int argc, char** argv) {
   timespec next_tick{};
   clock_gettime(CLOCK_MONOTONIC, &next_tick);
   const auto period_ns = static_cast<std::int64_t>(std::llround(period * 1e9));
-  timespec last_command_time = next_tick;
 
   // Chain latency per tick: MotorFeedback written -> its ForceCommand received
   // (the reader's reception time, wall clock on both ends), late answers
-  // included; a tick whose answer never came has none.
-  constexpr std::uint64_t kPublishRing = 256;
-  std::array<std::int64_t, kPublishRing> published_ns{};
+  // included; a tick whose answer never came, or was rejected, has none.
+  // Publish times of the last kPublishRing ticks: wall clock (compared with the
+  // reader's reception time) and monotonic (for the watchdog).
+  constexpr std::uint64_t kPublishRing = 4096;
+  std::vector<std::int64_t> published_ns(kPublishRing, 0);
+  std::vector<std::int64_t> published_mono_ns(kPublishRing, 0);
   std::vector<double> latency_us;
   latency_us.reserve(ticks);
   eprosima::fastdds::dds::SampleInfo info;
@@ -216,6 +226,7 @@ int run(int argc, char** argv) {
     fill_truth(drive, force_n, truth);
     truth.stamp(feedback.stamp());
     published_ns[k % kPublishRing] = node::wall_time_ns();
+    published_mono_ns[k % kPublishRing] = monotonic_ns();
     feedback_writer.write(feedback);
     truth_writer.write(truth);
 
@@ -266,7 +277,6 @@ int run(int argc, char** argv) {
           any_command = true;
           record_latency(applied_tick);
           if (applied_tick == k) fresh = true;
-          clock_gettime(CLOCK_MONOTONIC, &last_command_time);
         }
         return fresh;
       };
@@ -276,9 +286,13 @@ int run(int argc, char** argv) {
       node::wait_until(rt.wakeup, std::chrono::duration<double>(wait_s), drain);
       drain();
       if (!fresh) ++counters.late;
-      clock_gettime(CLOCK_MONOTONIC, &now);
-      if (!safe_state && any_command &&
-          static_cast<double>(diff_ns(now, last_command_time)) > opt.watchdog_ms * 1e6) {
+      // The oldest unanswered feedback: tick applied_tick + 1, or, beyond the
+      // ring, the oldest remembered one (which is younger: the trip comes no earlier).
+      const std::uint64_t oldest_unanswered =
+          std::max(applied_tick + 1, k + 1 >= kPublishRing ? k + 1 - kPublishRing : std::uint64_t{0});
+      if (!safe_state && any_command && oldest_unanswered <= k &&
+          static_cast<double>(monotonic_ns() - published_mono_ns[oldest_unanswered % kPublishRing]) >
+              opt.watchdog_ms * 1e6) {
         safe_state = true;
         std::fprintf(stderr, "plant_sim: watchdog: no command for %.1f ms at tick %llu: safe state (zero force)\n",
                      opt.watchdog_ms, static_cast<unsigned long long>(k));
@@ -374,7 +388,7 @@ int run(int argc, char** argv) {
                 latency_us.size(), at(0.5), at(0.99), latency_us.back());
   }
   if (latency_us.size() < k) {
-    std::printf("plant_sim: %llu of %llu ticks never got their command\n",
+    std::printf("plant_sim: %llu of %llu ticks got no acceptable command\n",
                 static_cast<unsigned long long>(k - latency_us.size()), static_cast<unsigned long long>(k));
   }
   std::printf("plant_sim: %llu ticks in %.3f s (%.1fx real time), late %llu, rejected %llu, deadline misses %llu%s\n",
