@@ -80,9 +80,12 @@ struct Counters {
   std::uint64_t deadline_misses = 0;
 };
 
-// A command is applied only if finite and newer than the last applied one.
-bool acceptable(const ForceCommand& cmd, std::uint64_t last_tick, bool any_yet) {
-  return std::isfinite(cmd.force_n()) && (!any_yet || cmd.feedback_tick() > last_tick);
+// A command is applied only if finite, newer than the last applied one and
+// answering a tick already published (a future tick is malformed: taken, it
+// would make every genuine answer after it look stale).
+bool acceptable(const ForceCommand& cmd, std::uint64_t last_tick, bool any_yet, std::uint64_t current_tick) {
+  return std::isfinite(cmd.force_n()) && cmd.feedback_tick() <= current_tick &&
+         (!any_yet || cmd.feedback_tick() > last_tick);
 }
 
 timespec add_ns(timespec t, std::int64_t ns) {
@@ -264,7 +267,7 @@ int run(int argc, char** argv) {
       bool fresh = false;
       auto drain = [&] {
         while (command_reader.take(command, info)) {
-          if (!acceptable(command, applied_tick, any_command)) {
+          if (!acceptable(command, applied_tick, any_command, k)) {
             ++counters.rejected;
             continue;
           }

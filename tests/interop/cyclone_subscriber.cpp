@@ -5,7 +5,10 @@
 //
 // With --answer-force-n it also stands in for the controller in the other direction: it answers
 // every MotorFeedback tick k with a ForceCommand (feedback_tick k, force (-1)^k * F), so a Fast
-// DDS plant_sim in lockstep runs on commands that Cyclone serialised.
+// DDS plant_sim in lockstep runs on commands that Cyclone serialised. With --bad-answers it
+// also sends, before the answer to every tick k with k % 7 == 3, two malformed commands: one
+// for a future tick (k + 1000, 999 N) and one for tick k with a NaN force. A plant must reject
+// and count both and apply only the genuine answer.
 //
 // Exit codes (as the nodes'): 0 every topic got --count samples, 1 timeout or DDS error (the
 // message says which topic got how many), 2 bad command line.
@@ -185,13 +188,14 @@ struct Options {
   std::string cyclone_config;  // empty: Cyclone's defaults, or CYCLONEDDS_URI if set
   bool answer = false;         // answer MotorFeedback with ForceCommand
   double answer_force_n = 0.0;
+  bool bad_answers = false;    // malformed commands before some answers (see the top)
 };
 
 void print_usage(std::FILE* to) {
   std::fprintf(to,
                "usage: cyclone_subscriber --topic NAME [--topic NAME ...] --count K --out FILE.csv\n"
                "                          [--domain N] [--timeout-s T] [--linger-s T]\n"
-               "                          [--cyclone-config XML] [--answer-force-n F]\n"
+               "                          [--cyclone-config XML] [--answer-force-n F [--bad-answers]]\n"
                "  --topic NAME         one of our topics, short (motor_feedback) or DDS name\n"
                "                       (rt/pmlsm/motor_feedback); repeatable\n"
                "  --count K            exit 0 once every topic got K samples\n"
@@ -206,6 +210,8 @@ void print_usage(std::FILE* to) {
                "  --cyclone-config XML Cyclone DDS configuration (as in CYCLONEDDS_URI) for this domain\n"
                "  --answer-force-n F   act as the controller: answer MotorFeedback tick k with a\n"
                "                       ForceCommand of force (-1)^k * F (needs --topic motor_feedback)\n"
+               "  --bad-answers        before the answer to every tick k with k %% 7 == 3, send a command\n"
+               "                       for tick k + 1000 (999 N) and one for tick k with a NaN force\n"
                "topics:");
   for (const TopicKind& kind : kTopicKinds) std::fprintf(to, " %s", kind.short_name);
   std::fputc('\n', to);
@@ -242,6 +248,10 @@ std::string parse_options(int argc, char** argv, Options& opt, bool& help) {
     if (arg == "-h" || arg == "--help") {
       help = true;
       return {};
+    }
+    if (arg == "--bad-answers") {  // a flag: no value
+      opt.bad_answers = true;
+      continue;
     }
     if (!is_option(arg)) return (arg.rfind("-", 0) == 0 ? "unknown option '" : "unexpected argument '") + arg + "'";
     if (i + 1 >= argc) return arg + " needs a value";
@@ -289,6 +299,7 @@ std::string parse_options(int argc, char** argv, Options& opt, bool& help) {
     for (const TopicKind* t : opt.topics) subscribed = subscribed || t == motor_feedback;
     if (!subscribed) return "--answer-force-n answers MotorFeedback: add --topic motor_feedback";
   }
+  if (opt.bad_answers && !opt.answer) return "--bad-answers needs --answer-force-n";
   return {};
 }
 
@@ -394,7 +405,8 @@ class Program {
     }
     std::printf("cyclone_subscriber: done:");
     for (const Subscription& s : subscriptions_) std::printf(" %s %" PRIu64, s.kind->short_name, s.received);
-    std::printf("%s\n", opt_.answer ? (", answered " + std::to_string(answered_) + " ticks").c_str() : "");
+    std::printf("%s", opt_.answer ? (", answered " + std::to_string(answered_) + " ticks").c_str() : "");
+    std::printf("%s\n", opt_.bad_answers ? (", " + std::to_string(bad_answers_) + " malformed commands sent").c_str() : "");
     return kOk;
   }
 
@@ -506,6 +518,20 @@ class Program {
 
   std::string answer(const pmlsm_msgs_msg_MotorFeedback& feedback) {
     const std::uint64_t k = feedback.stamp.tick;
+    if (opt_.bad_answers && k % 7 == 3) {
+      pmlsm_msgs_msg_ForceCommand bad{};
+      bad.stamp = feedback.stamp;
+      bad.stamp.source_time_ns = dds_time();
+      bad.feedback_tick = k + 1000;  // a tick not yet published
+      bad.force_n = 999.0;
+      dds_return_t rc = dds_write(answer_writer_, &bad);
+      if (rc < 0) return dds_error("write ForceCommand (future tick)", rc);
+      bad.feedback_tick = k;
+      bad.force_n = std::nan("");
+      rc = dds_write(answer_writer_, &bad);
+      if (rc < 0) return dds_error("write ForceCommand (NaN)", rc);
+      bad_answers_ += 2;
+    }
     pmlsm_msgs_msg_ForceCommand command{};
     command.stamp = feedback.stamp;
     command.stamp.source_time_ns = dds_time();
@@ -529,6 +555,7 @@ class Program {
   dds_entity_t answer_writer_ = 0;
   std::vector<Subscription> subscriptions_;
   std::uint64_t answered_ = 0;
+  std::uint64_t bad_answers_ = 0;
 };
 
 }  // namespace

@@ -242,6 +242,64 @@ TEST(CycloneController, FastDdsPlantRunsInLockstepOnCycloneCommands) {
   if (!HasFailure()) fs::remove_all(dir);
 }
 
+// Bad input on the wire, from another vendor's writer: before some answers the Cyclone controller
+// sends a command for a tick not yet published (999 N) and one with a NaN force. The realtime
+// plant must reject and count both and never apply either; the genuine answers still drive it.
+TEST(CycloneController, RealtimePlantRejectsFutureTicksAndNanForces) {
+  const std::string scenario = source("configs/scenarios/pulse.yaml");
+  const std::uint64_t ticks = 2000;
+  const fs::path dir = test::fresh_dir("pmlsm_interop", "bad_commands");
+  const std::string domain = test_domain(23);
+  const fs::path csv = dir / "cyclone.csv";
+  test::ChildProcess cyclone(
+      cyclone_args(domain, {"motor_feedback", "plant_truth"}, ticks, csv, {"--answer-force-n", "20", "--bad-answers"}),
+      (dir / "cyclone.log").string());
+  ASSERT_TRUE(cyclone.wait_for_output("readers ready", 20s)) << cyclone.output();
+  // A long watchdog: this test is about malformed commands, not about a busy machine's pauses.
+  test::ChildProcess plant(
+      node_args("plant_sim", domain, scenario, {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "1000"}),
+      (dir / "plant.log").string());
+  for (auto* p : {&plant, &cyclone}) {
+    const auto code = p->wait_for(60s);
+    ASSERT_TRUE(code.has_value()) << "still running:\n" << p->output();
+    EXPECT_EQ(*code, 0) << p->output();
+  }
+  const std::string out = plant.output();
+  EXPECT_EQ(out.find("safe state"), std::string::npos) << out;
+
+  // The plant's count of rejected commands: at most what was sent, and most of it (the last
+  // few may come after the plant's last tick). Had a future tick been applied, every genuine
+  // answer after it would have been rejected as stale, far more than was sent.
+  const auto sent_at = cyclone.output().find(" malformed commands sent");
+  ASSERT_NE(sent_at, std::string::npos) << cyclone.output();
+  const std::uint64_t sent = std::stoull(cyclone.output().substr(cyclone.output().rfind(' ', sent_at - 1) + 1));
+  const auto rejected_at = out.find("rejected ");
+  ASSERT_NE(rejected_at, std::string::npos) << out;
+  const std::uint64_t rejected = std::stoull(out.substr(rejected_at + 9));
+  EXPECT_GT(sent, 500u) << cyclone.output();  // ticks 3, 10, 17, ... of 2000: 286, two commands each
+  EXPECT_LE(rejected, sent) << out;
+  EXPECT_GE(rejected, sent / 2) << out;
+
+  const auto topics = read_cyclone_csv(csv);
+  ASSERT_EQ(topics.count("motor_feedback"), 1u) << csv;
+  ASSERT_EQ(topics.count("plant_truth"), 1u) << csv;
+  Mismatches mismatches;
+  bool pushed = false, pulled = false;
+  for (const auto* rows : {&topics.at("motor_feedback"), &topics.at("plant_truth")}) {
+    const std::string field = rows == &topics.at("motor_feedback") ? "applied_force_n" : "command_force_n";
+    for (std::size_t r = 0; r < rows->rows.size(); ++r) {
+      const double force_n = rows->number(r, field);
+      mismatches.check(force_n == 0.0 || force_n == 20.0 || force_n == -20.0,
+                       field + " row " + std::to_string(r) + " = " + rows->at(r, field) + " (only 0 or +-20 N were sent)");
+      pushed = pushed || force_n == 20.0;
+      pulled = pulled || force_n == -20.0;
+    }
+  }
+  EXPECT_TRUE(mismatches.none()) << mismatches.report() << " (" << dir << ")";
+  EXPECT_TRUE(pushed && pulled) << "the genuine answers were not applied (" << dir << ")";
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
 TEST(CycloneSubscriber, ReportsPerTopicCountsWhenItTimesOut) {
   const fs::path dir = test::fresh_dir("pmlsm_interop", "timeout");
   // A domain with no writers of these topics.
