@@ -42,13 +42,14 @@ int run(int argc, char** argv) {
 
   pmlsm_msgs::msg::MotorFeedback feedback;
   pmlsm_msgs::msg::EstimatedState estimate;
-  std::uint64_t next_tick = 0;
+  std::uint64_t next_tick = 0;  // ticks up to here are done
+  node::TickFilter tick_filter;
   std::uint64_t rejected = 0;
   const auto peer_timeout = std::chrono::duration<double>(common.peer_timeout_s);
   int exit_code = node::kOk;
 
   while (next_tick < ticks && !pdds::stop_requested()) {
-    const bool ok = node::take_next_tick(rt.wakeup, feedback_reader, feedback, next_tick, rejected, peer_timeout);
+    const bool ok = node::take_next_tick(rt.wakeup, feedback_reader, feedback, tick_filter, rejected, peer_timeout);
     if (!ok) {
       exit_code = node::end_of_failed_wait("kalman_estimator", "MotorFeedback", "plant", next_tick,
                                            common.peer_timeout_s);

@@ -19,6 +19,7 @@
 #include "pmlsm/dds/participant.hpp"
 #include "pmlsm/dds/shutdown.hpp"
 #include "realtime_setup.hpp"
+#include "tick_filter.hpp"
 
 namespace pmlsm::node {
 
@@ -76,16 +77,16 @@ LoadedConfig load_config(const CommonOptions& options);
 /// options: 2), or nothing when the node should go on.
 std::optional<int> parse_command_line(CLI::App& app, int argc, char** argv);
 
-/// Waits for the next MotorFeedback-like sample whose tick is at least
-/// `next_tick`, counting older ones (duplicates, out of order) as rejected.
-/// False on timeout or a stop request.
+/// Waits for the next MotorFeedback-like sample that `ticks` accepts (in
+/// order; see TickFilter), counting the others (duplicates, out of order,
+/// implausible jumps) as rejected. False on timeout or a stop request.
 template <typename ReaderT, typename Message>
-bool take_next_tick(dds::Wakeup& wakeup, ReaderT& reader, Message& sample, std::uint64_t next_tick,
+bool take_next_tick(dds::Wakeup& wakeup, ReaderT& reader, Message& sample, TickFilter& ticks,
                     std::uint64_t& rejected, std::chrono::duration<double> timeout) {
   bool got = false;
   return wait_until(wakeup, timeout, [&] {
     while (!got && reader.take(sample)) {
-      if (sample.stamp().tick() < next_tick) {
+      if (!ticks.accept(sample.stamp().tick())) {
         ++rejected;
         continue;
       }

@@ -1,0 +1,45 @@
+// Which MotorFeedback ticks a node on the chain takes. No DDS here.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+
+namespace pmlsm::node {
+
+/// Ticks are taken in order: the expected one or a later one (a realtime reader
+/// may see gaps); older ones are rejected. A tick more than `max_jump` past the
+/// expected one is taken only once the tick after it arrives: a writer whose
+/// history overflowed skips ticks for real, and its stream goes on from there,
+/// while a single malformed far-future tick, taken, would make every genuine
+/// sample after it look stale. The first tick is taken whatever it is (a node
+/// may join a running system).
+class TickFilter {
+ public:
+  explicit TickFilter(std::uint64_t max_jump = 4096) : max_jump_(max_jump) {}
+
+  /// True: take this sample (expected() moves past it); false: reject it.
+  bool accept(std::uint64_t tick) {
+    if (any_ && tick < expected_) return false;
+    const bool near = !any_ || tick - expected_ <= max_jump_;
+    const bool resync = far_candidate_.has_value() && tick == *far_candidate_ + 1;
+    if (!near && !resync) {
+      far_candidate_ = tick;
+      return false;
+    }
+    expected_ = tick + 1;
+    any_ = true;
+    far_candidate_.reset();
+    return true;
+  }
+
+  /// The tick the node waits for next (0 before any).
+  std::uint64_t expected() const { return expected_; }
+
+ private:
+  std::uint64_t max_jump_;
+  std::uint64_t expected_ = 0;
+  bool any_ = false;
+  std::optional<std::uint64_t> far_candidate_;  // a far tick rejected once, taken if its successor follows
+};
+
+}  // namespace pmlsm::node
