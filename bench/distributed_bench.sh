@@ -66,8 +66,8 @@ if command -v ddsperf >/dev/null; then
   ddsperf -D 10 ping >"$work/ddsperf.log" 2>&1 || true
   kill "$pong_pid" 2>/dev/null || true
   wait "$pong_pid" 2>/dev/null || true
-  ddsperf_p50=$(grep ' 50% ' "$work/ddsperf.log" | tail -n 1 | sed -n 's/.* 50% \([0-9.]*\)us.*/\1/p')
-  ddsperf_p99=$(grep ' 99% ' "$work/ddsperf.log" | tail -n 1 | sed -n 's/.* 99% \([0-9.]*\)us.*/\1/p')
+  ddsperf_p50=$( (grep ' 50% ' "$work/ddsperf.log" || true) | tail -n 1 | sed -n 's/.* 50% \([0-9.]*\)us.*/\1/p')
+  ddsperf_p99=$( (grep ' 99% ' "$work/ddsperf.log" || true) | tail -n 1 | sed -n 's/.* 99% \([0-9.]*\)us.*/\1/p')
 fi
 
 echo "[7/7] cyclictest, one SCHED_FIFO 80 thread waking every 1 ms, 10 s"

@@ -42,6 +42,10 @@ int run(int argc, char** argv) {
   node::NodeRuntime rt("controller", common);
   const node::LoadedConfig& cfg = rt.cfg;
   const double period = rt.period_s;
+  if (common.wake_batch_us > 0.0) {
+    throw ConfigError("--wake-batch-us " + std::to_string(common.wake_batch_us) +
+                      ": the controller is on the control chain; batching would pace the loop");
+  }
   auto feedback_reader = rt.participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, rt.wakeup);
   auto command_writer = rt.participant.make_writer<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand);
   auto reference_writer = rt.participant.make_writer<pmlsm_msgs::msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference);

@@ -119,7 +119,7 @@ int run(int argc, char** argv) {
   node::add_common_options(app, common);
   app.add_option("--peers", opt.peers, "MotorFeedback readers to wait for before tick 0")
       ->check(CLI::Range(1, 64));
-  app.add_option("--watchdog-ms", opt.watchdog_ms, "realtime: no command for this long -> safe state")
+  app.add_option("--watchdog-ms", opt.watchdog_ms, "realtime: the oldest unanswered feedback this old -> safe state")
       ->check(CLI::PositiveNumber);
   app.add_option("--command-deadline-us", opt.command_deadline_us,
                  "realtime: how long into a tick the plant waits for that tick's command")
@@ -132,6 +132,14 @@ int run(int argc, char** argv) {
   node::NodeRuntime rt("plant_sim", common);
   const node::LoadedConfig& cfg = rt.cfg;
   const double period = rt.period_s;
+  if (opt.wake_early_us * 1e-6 >= period) {
+    throw ConfigError("--wake-early-us " + std::to_string(opt.wake_early_us) +
+                      ": must be shorter than the control period (" + std::to_string(period * 1e6) + " us)");
+  }
+  if (common.wake_batch_us > 0.0) {
+    throw ConfigError("--wake-batch-us " + std::to_string(common.wake_batch_us) +
+                      ": plant_sim is on the control chain; batching would pace the loop");
+  }
   auto feedback_writer = rt.participant.make_writer<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback);
   auto truth_writer = rt.participant.make_writer<pmlsm_msgs::msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth);
   auto command_reader = rt.participant.make_reader<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand, rt.wakeup);
@@ -297,9 +305,10 @@ int run(int argc, char** argv) {
           static_cast<double>(monotonic_ns() - published_mono_ns[oldest_unanswered % kPublishRing]) >
               opt.watchdog_ms * 1e6) {
         safe_state = true;
-        std::fprintf(stderr, "plant_sim: watchdog: no command for %.1f ms at tick %llu: safe state (zero force)\n",
-                     opt.watchdog_ms, static_cast<unsigned long long>(k));
-        rt.status.publish(node_state::STATE_SAFE, k, period, "watchdog: no command, zero force");
+        std::fprintf(stderr, "plant_sim: watchdog: tick %llu unanswered for %.1f ms at tick %llu: safe state (zero force)\n",
+                     static_cast<unsigned long long>(oldest_unanswered), opt.watchdog_ms,
+                     static_cast<unsigned long long>(k));
+        rt.status.publish(node_state::STATE_SAFE, k, period, "watchdog: feedback unanswered, zero force");
       }
       if (safe_state) force_n = 0.0;
     }
@@ -354,6 +363,8 @@ int run(int argc, char** argv) {
       if (diff_ns(now, next_tick) > 0) ++counters.deadline_misses;
       const timespec wake = add_ns(next_tick, -static_cast<std::int64_t>(opt.wake_early_us * 1e3));
       clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &wake, nullptr);
+      // No yield while polling: the poll is short, and at SCHED_FIFO a yield would hand the core
+      // to this node's own threads only at the moment the tick must start.
       while (opt.wake_early_us > 0.0 && diff_ns(now, next_tick) < 0) clock_gettime(CLOCK_MONOTONIC, &now);
     }
     if (k % 1000 == 999) {

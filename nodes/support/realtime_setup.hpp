@@ -29,15 +29,18 @@ class RealtimeSetup {
   /// @throws std::invalid_argument for a priority outside 0..99 or a latency over 10 s
   /// @throws std::runtime_error naming the call and the reason when the system refuses
   explicit RealtimeSetup(const RealtimeOptions& options);
-  ~RealtimeSetup();
   RealtimeSetup(const RealtimeSetup&) = delete;
   RealtimeSetup& operator=(const RealtimeSetup&) = delete;
 
-  /// One line saying what was applied ("SCHED_FIFO 80, memory locked, cpu_dma_latency 0 us, timer slack 1 ns").
+  /// One line saying what was applied ("SCHED_FIFO 80, memory locked, timer slack 1 ns, cpu_dma_latency 0 us").
   const std::string& summary() const { return summary_; }
 
  private:
-  int latency_fd_ = -1;
+  /// Closes the PM QoS device (ending the request) on every path, a throwing constructor included.
+  struct LatencyRequest {
+    int fd = -1;
+    ~LatencyRequest();
+  } latency_;
   std::string summary_;
 };
 

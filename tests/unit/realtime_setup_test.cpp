@@ -38,6 +38,13 @@ TEST(RealtimeSetup, RejectsAPriorityOutsideTheFifoRange) {
   EXPECT_NE(message_of(o).find("-3"), std::string::npos) << message_of(o);
 }
 
+TEST(RealtimeSetup, RejectsALatencyBelowMinusOne) {
+  RealtimeOptions o;
+  o.cpu_dma_latency_us = -2;
+  EXPECT_THROW(RealtimeSetup{o}, std::invalid_argument);
+  EXPECT_NE(message_of(o).find("-2"), std::string::npos) << message_of(o);
+}
+
 TEST(RealtimeSetup, SetsATimerSlackOfOneNanosecond) {
   const int before = prctl(PR_GET_TIMERSLACK, 0, 0, 0, 0);
   {
@@ -97,6 +104,8 @@ TEST(RealtimeSetup, FifoPriorityIsAppliedOrRefusedWithTheReason) {
     ASSERT_EQ(sched_setscheduler(0, SCHED_OTHER, &normal), 0);
     munlockall();
   } else {
+    // Refused all or nothing: normal scheduling stays.
+    EXPECT_EQ(sched_getscheduler(0), SCHED_OTHER);
     // Without CAP_SYS_NICE (or CAP_IPC_LOCK): the message says which call and why.
     EXPECT_TRUE(error.find("SCHED_FIFO priority 10 refused") != std::string::npos ||
                 error.find("mlockall refused") != std::string::npos)

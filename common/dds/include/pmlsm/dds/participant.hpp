@@ -47,7 +47,12 @@ class Wakeup {
   /// of the cores the chain needs).
   explicit Wakeup(std::chrono::nanoseconds spin = std::chrono::nanoseconds(0),
                   std::chrono::nanoseconds batch = std::chrono::nanoseconds(0))
-      : spin_(spin), batch_(batch) {}
+      : spin_(spin), batch_(batch) {
+    if (spin.count() < 0 || batch.count() < 0) {
+      throw std::invalid_argument("Wakeup: spin and batch must not be negative, got " +
+                                  std::to_string(spin.count()) + " ns and " + std::to_string(batch.count()) + " ns");
+    }
+  }
   /// A counter read before draining the readers; wait_for() returns at once if
   /// anything arrived after it was read, so no notification is lost.
   std::uint64_t generation() const;
