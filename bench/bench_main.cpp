@@ -10,9 +10,9 @@
 #include <memory>
 #include <string>
 
-#include "pmlsm/closed_loop.hpp"
-#include "pmlsm/config.hpp"
-#include "pmlsm/kalman_filter.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/config/config.hpp"
+#include "pmlsm/estimation/kalman_filter.hpp"
 
 namespace {
 

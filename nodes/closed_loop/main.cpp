@@ -10,12 +10,12 @@
 #include <string>
 #include <vector>
 
-#include "pmlsm/accel_feedback.hpp"
-#include "pmlsm/closed_loop.hpp"
-#include "pmlsm/config.hpp"
-#include "pmlsm/metrics.hpp"
-#include "pmlsm/rnn_training.hpp"
-#include "pmlsm/weights_file.hpp"
+#include "pmlsm/compensation/accel_feedback.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/config/config.hpp"
+#include "pmlsm/sim/metrics.hpp"
+#include "pmlsm/sim/rnn_training.hpp"
+#include "pmlsm/config/weights_file.hpp"
 #include "results_table.hpp"
 #include "trace_csv.hpp"
 
@@ -56,11 +56,8 @@ int main(int argc, char** argv) {
     if (compensator == "rnn") {
       if (weights_path.empty()) throw pmlsm::ConfigError("--compensator rnn: needs --weights FILE");
       const pmlsm::RnnWeightsFile file = pmlsm::load_rnn_weights(weights_path);
-      if (file.layer_sizes != params.compensator.rnn_layer_sizes ||
-          file.input_scale_s2_per_m != params.compensator.rnn_input_scale_s2_per_m ||
-          file.gain_n != params.compensator.rnn_gain_n) {
-        throw pmlsm::ConfigError(weights_path + ": layer sizes, input scale or gain differ from compensator.rnn in " + config_path);
-      }
+      const std::string misfit = pmlsm::rnn_weights_misfit(file, params);
+      if (!misfit.empty()) throw pmlsm::ConfigError(weights_path + ": " + misfit + " (" + config_path + ")");
       weights = file.weights;
     }
     const std::string suffix = compensator == "none" ? "" : "_" + compensator + (online_learning ? "_online" : "");

@@ -1,10 +1,10 @@
 // accel_feedback: the classical baseline, F_c = -K_a a_L from the Kalman
-// estimate (pmlsm/accel_feedback.hpp), on the same topics as rnn_compensator,
+// estimate (pmlsm/compensation/accel_feedback.hpp), on the same topics as rnn_compensator,
 // so either can be launched in the other's place.
 #include <cstdio>
 
 #include "compensator_node.hpp"
-#include "pmlsm/accel_feedback.hpp"
+#include "pmlsm/compensation/accel_feedback.hpp"
 
 namespace {
 
@@ -28,7 +28,7 @@ int run(int argc, char** argv) {
   out.flags(msg::CompensatorOutput_Constants::FLAG_ENABLED);
   std::uint64_t tick = 0, answered = 0;
   CompensatorView view;
-  int exit_code = node::kOk;
+  int exit_code = kExitOk;
   while (answered < ticks && !pdds::stop_requested()) {
     if (!inputs.next(std::chrono::duration<double>(common.peer_timeout_s), tick, view)) {
       exit_code = node::end_of_failed_wait("accel_feedback", "EstimatedState and VelocityReference", "estimator or controller",

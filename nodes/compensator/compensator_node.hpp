@@ -1,7 +1,7 @@
 // What the compensator nodes (rnn_compensator, accel_feedback) share: they
 // read EstimatedState and VelocityReference, pair them by tick, and answer
 // every tick k with CompensatorOutput k. The controller applies output k at
-// tick k+1 (see run_compensated in pmlsm/closed_loop.hpp), so both clocks work
+// tick k+1 (see run_compensated in pmlsm/sim/closed_loop.hpp), so both clocks work
 // and the distributed lockstep trace equals the in-process one.
 #pragma once
 
@@ -13,7 +13,7 @@
 #include "EstimatedStatePubSubTypes.h"
 #include "VelocityReferencePubSubTypes.h"
 #include "node_support.hpp"
-#include "pmlsm/closed_loop.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
 
 namespace pmlsm::node {
 

@@ -10,9 +10,9 @@
 
 #include "NetworkWeightsPubSubTypes.h"
 #include "compensator_node.hpp"
-#include "pmlsm/jordan_rnn.hpp"
-#include "pmlsm/validate.hpp"
-#include "pmlsm/weights_file.hpp"
+#include "pmlsm/compensation/jordan_rnn.hpp"
+#include "pmlsm/util/validate.hpp"
+#include "pmlsm/config/weights_file.hpp"
 
 namespace {
 
@@ -20,24 +20,6 @@ using namespace pmlsm;
 namespace pdds = pmlsm::dds;
 namespace msg = pmlsm_msgs::msg;
 namespace flags = pmlsm_msgs::msg::CompensatorOutput_Constants;
-
-/// Why a weight set does not fit this node's network; empty when it does.
-std::string check_fits(const RnnWeightsFile& w, const SystemParams& p) {
-  try {
-    validate_rnn_weights(w);
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  if (w.layer_sizes != p.compensator.rnn_layer_sizes) return "layer sizes differ from compensator.rnn.layer_sizes";
-  if (w.input_scale_s2_per_m != p.compensator.rnn_input_scale_s2_per_m) {
-    return "input scale " + format_value(w.input_scale_s2_per_m) + " differs from compensator.rnn.input_scale_s2_per_m " +
-           format_value(p.compensator.rnn_input_scale_s2_per_m);
-  }
-  if (w.gain_n != p.compensator.rnn_gain_n) {
-    return "gain " + format_value(w.gain_n) + " N differs from compensator.rnn.gain_n " + format_value(p.compensator.rnn_gain_n);
-  }
-  return {};
-}
 
 RnnWeightsFile from_message(const msg::NetworkWeights& m) {
   RnnWeightsFile w;
@@ -68,7 +50,7 @@ int run(int argc, char** argv) {
   bool have_weights = false;
   if (!weights_path.empty()) {
     const RnnWeightsFile file = load_rnn_weights(weights_path);
-    const std::string why = check_fits(file, params);
+    const std::string why = rnn_weights_misfit(file, params);
     if (!why.empty()) throw ConfigError(weights_path + ": " + why);
     rnn.set_weights(file.weights);
     have_weights = true;
@@ -84,7 +66,7 @@ int run(int argc, char** argv) {
   msg::NetworkWeights incoming;
   std::uint64_t tick = 0, answered = 0, refused_sets = 0, swaps = 0;
   CompensatorView view;
-  int exit_code = node::kOk;
+  int exit_code = kExitOk;
   while (answered < ticks && !pdds::stop_requested()) {
     if (!inputs.next(std::chrono::duration<double>(common.peer_timeout_s), tick, view)) {
       exit_code = node::end_of_failed_wait("rnn_compensator", "EstimatedState and VelocityReference", "estimator or controller",
@@ -94,7 +76,7 @@ int run(int argc, char** argv) {
     // Weight swaps happen here, between ticks, never inside a step.
     while (!ignore_topic && weights_reader.take(incoming)) {
       const RnnWeightsFile candidate = from_message(incoming);
-      const std::string why = check_fits(candidate, params);
+      const std::string why = rnn_weights_misfit(candidate, params);
       if (!why.empty()) {
         ++refused_sets;
         std::fprintf(stderr, "rnn_compensator: weight set %llu from '%s' refused, keeping version %llu: %s\n",

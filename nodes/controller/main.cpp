@@ -6,7 +6,7 @@
 //
 // With --compensation topic the PI output gets the compensator's force
 // (CompensatorOutput, Fig. 4's hybrid controller): output k-1 is applied at
-// tick k (run_compensated in pmlsm/closed_loop.hpp). Lockstep waits for it;
+// tick k (run_compensated in pmlsm/sim/closed_loop.hpp). Lockstep waits for it;
 // realtime uses the newest one no older than 3 ticks and counts the ticks
 // without (they get no compensation).
 #include <cmath>
@@ -19,9 +19,9 @@
 #include "MotorFeedbackPubSubTypes.h"
 #include "VelocityReferencePubSubTypes.h"
 #include "node_support.hpp"
-#include "pmlsm/closed_loop.hpp"
-#include "pmlsm/current_controller.hpp"
-#include "pmlsm/velocity_controller.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/control/current_controller.hpp"
+#include "pmlsm/sim/velocity_controller.hpp"
 
 namespace {
 
@@ -80,7 +80,7 @@ int run(int argc, char** argv) {
   std::uint64_t rejected = 0;
   double last_velocity = 0.0;
   const auto peer_timeout = std::chrono::duration<double>(common.peer_timeout_s);
-  int exit_code = node::kOk;
+  int exit_code = kExitOk;
 
   while (next_tick < ticks && !pdds::stop_requested()) {
     const bool ok = node::take_next_tick(rt.wakeup, feedback_reader, feedback, tick_filter, rejected, peer_timeout);

@@ -14,8 +14,8 @@
 #include "PlantTruthPubSubTypes.h"
 #include "VelocityReferencePubSubTypes.h"
 #include "node_support.hpp"
-#include "pmlsm/closed_loop.hpp"
-#include "pmlsm/metrics.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/sim/metrics.hpp"
 #include "results_table.hpp"
 #include "trace_csv.hpp"
 
@@ -146,7 +146,7 @@ int run(int argc, char** argv) {
       }
     }
     rt.status.publish(node_state::STATE_ERROR, complete, period, "incomplete run");
-    return pdds::stop_requested() ? node::kOk : node::kPeerLost;
+    return pdds::stop_requested() ? kExitOk : kExitPeerLost;
   }
   const ScenarioMetrics m = compute_metrics(trace, cfg.scenario, period);
   std::filesystem::create_directories(out_dir);
@@ -157,7 +157,7 @@ int run(int argc, char** argv) {
   std::fflush(stdout);
   rt.status.status().rejected(rejected);
   rt.status.publish(node_state::STATE_STOPPING, ticks, period, "done");
-  return node::kOk;
+  return kExitOk;
 }
 
 }  // namespace

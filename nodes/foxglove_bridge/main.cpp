@@ -209,7 +209,7 @@ std::size_t forward_samples(BridgedTopic& t, foxglove::Server& server, pdds::Raw
     ++taken;
     // Foxglove's message time: when the sample reached us (wall clock, as Foxglove shows it).
     std::int64_t receive_time_ns = info.reception_timestamp.to_ns();
-    if (receive_time_ns <= 0) receive_time_ns = node::wall_time_ns();
+    if (receive_time_ns <= 0) receive_time_ns = wall_time_ns();
     server.publish(t.channel, static_cast<std::uint64_t>(receive_time_ns), sample.bytes.data(), sample.bytes.size());
   }
   t.samples_taken += taken;
@@ -381,7 +381,7 @@ int run(int argc, char** argv) {
               static_cast<unsigned long long>(c.bad_requests), static_cast<unsigned long long>(c.closed_for_bad_input),
               static_cast<unsigned long long>(c.handshakes_failed),
               static_cast<unsigned long long>(c.connections_total));
-  return network_failed ? node::kError : node::kOk;
+  return network_failed ? kExitError : kExitOk;
 }
 
 }  // namespace

@@ -12,8 +12,8 @@
 #include "EstimatedStatePubSubTypes.h"
 #include "MotorFeedbackPubSubTypes.h"
 #include "node_support.hpp"
-#include "pmlsm/closed_loop.hpp"
-#include "pmlsm/kalman_filter.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/estimation/kalman_filter.hpp"
 
 namespace {
 
@@ -46,7 +46,7 @@ int run(int argc, char** argv) {
   node::TickFilter tick_filter;
   std::uint64_t rejected = 0;
   const auto peer_timeout = std::chrono::duration<double>(common.peer_timeout_s);
-  int exit_code = node::kOk;
+  int exit_code = kExitOk;
 
   while (next_tick < ticks && !pdds::stop_requested()) {
     const bool ok = node::take_next_tick(rt.wakeup, feedback_reader, feedback, tick_filter, rejected, peer_timeout);

@@ -11,13 +11,13 @@
 #include <vector>
 
 #include "launch_file.hpp"
+#include "pmlsm/util/exit_codes.hpp"
 #include "supervisor.hpp"
 
 namespace {
 
 using pmlsm::launch::ProcessSpec;
 
-constexpr int kBadInput = 2;
 constexpr int kMaxMs = 24 * 3600 * 1000;
 
 // The folder of the running program: the nodes are built beside it.
@@ -82,7 +82,7 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : kBadInput;
+    return app.exit(e) == 0 ? 0 : pmlsm::kExitBadConfig;
   }
 
   pmlsm::launch::LaunchDescription launch;
@@ -99,7 +99,7 @@ int main(int argc, char** argv) {
     nodes = pmlsm::launch::select_nodes(launch, selected_host);
   } catch (const pmlsm::launch::LaunchFileError& e) {
     std::cerr << "[launcher] error: " << e.what() << "\n";
-    return kBadInput;
+    return pmlsm::kExitBadConfig;
   }
   const std::string slice = host_option->count() > 0 ? "host " + host : "all hosts";
 

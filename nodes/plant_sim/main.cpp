@@ -29,8 +29,8 @@
 #include "MotorFeedbackPubSubTypes.h"
 #include "PlantTruthPubSubTypes.h"
 #include "node_support.hpp"
-#include "pmlsm/closed_loop.hpp"
-#include "pmlsm/simulated_drive.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/sim/simulated_drive.hpp"
 
 namespace {
 
@@ -101,12 +101,6 @@ timespec add_ns(timespec t, std::int64_t ns) {
   return t;
 }
 
-std::int64_t monotonic_ns() {
-  timespec t{};
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return static_cast<std::int64_t>(t.tv_sec) * 1000000000LL + t.tv_nsec;
-}
-
 std::int64_t diff_ns(const timespec& a, const timespec& b) {
   return (static_cast<std::int64_t>(a.tv_sec) - b.tv_sec) * 1000000000LL + (a.tv_nsec - b.tv_nsec);
 }
@@ -159,11 +153,11 @@ int run(int argc, char** argv) {
                command_reader.matched_writers() >= 1 &&
                (!voltage_level || (current_writer.matched_readers() >= 1 && voltage_reader.matched_writers() >= 1));
       })) {
-    if (pdds::stop_requested()) return node::kOk;
+    if (pdds::stop_requested()) return kExitOk;
     std::fprintf(stderr, "plant_sim: peers missing after %.1f s: %zu of %d MotorFeedback readers, %zu ForceCommand writers\n",
                  common.peer_timeout_s, feedback_writer.matched_readers(), opt.peers,
                  command_reader.matched_writers());
-    return node::kPeerMissing;
+    return kExitPeerMissing;
   }
   std::printf("plant_sim: %s clock, %s command level, %llu ticks of %.3g ms, scenario %s\n",
               cfg.clock == node::Clock::kLockstep ? "lockstep" : "realtime", voltage_level ? "voltage" : "force",
@@ -182,7 +176,7 @@ int run(int argc, char** argv) {
   std::uint64_t applied_tick = 0;
   bool any_command = false;
   bool safe_state = false;
-  int exit_code = node::kOk;
+  int exit_code = kExitOk;
 
   timespec next_tick{};
   clock_gettime(CLOCK_MONOTONIC, &next_tick);
@@ -204,7 +198,7 @@ int run(int argc, char** argv) {
   auto record_latency = [&](std::uint64_t answered_tick) {
     if (answered_tick > k || k - answered_tick >= kPublishRing) return;
     std::int64_t received_ns = info.reception_timestamp.to_ns();
-    if (received_ns <= 0) received_ns = node::wall_time_ns();
+    if (received_ns <= 0) received_ns = wall_time_ns();
     latency_us.push_back(static_cast<double>(received_ns - published_ns[answered_tick % kPublishRing]) * 1e-3);
   };
   struct {
@@ -236,7 +230,7 @@ int run(int argc, char** argv) {
     feedback.status(status_bits);
     fill_truth(drive, force_n, truth);
     truth.stamp(feedback.stamp());
-    published_ns[k % kPublishRing] = node::wall_time_ns();
+    published_ns[k % kPublishRing] = wall_time_ns();
     published_mono_ns[k % kPublishRing] = monotonic_ns();
     feedback_writer.write(feedback);
     truth_writer.write(truth);
@@ -265,7 +259,7 @@ int run(int argc, char** argv) {
         std::fprintf(stderr, "plant_sim: no ForceCommand for tick %llu within %.1f s: controller lost; safe state\n",
                      static_cast<unsigned long long>(k), common.peer_timeout_s);
         rt.status.publish(node_state::STATE_SAFE, k, period, "controller lost");
-        exit_code = node::kPeerLost;
+        exit_code = kExitPeerLost;
         break;
       }
     } else {
@@ -351,7 +345,7 @@ int run(int argc, char** argv) {
         std::fprintf(stderr, "plant_sim: no VoltageCommand in tick %llu within %.1f s: controller lost; safe state\n",
                      static_cast<unsigned long long>(k), common.peer_timeout_s);
         rt.status.publish(node_state::STATE_SAFE, k, period, "controller lost");
-        exit_code = node::kPeerLost;
+        exit_code = kExitPeerLost;
         break;
       }
     }

@@ -70,17 +70,17 @@ std::optional<int> parse_command_line(CLI::App& app, int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? kOk : kBadConfig;
+    return app.exit(e) == 0 ? kExitOk : kExitBadConfig;
   }
   return std::nullopt;
 }
 
 int end_of_failed_wait(const char* node_name, const char* missing, const char* peer, std::uint64_t tick,
                        double timeout_s) {
-  if (dds::stop_requested()) return kOk;
+  if (dds::stop_requested()) return kExitOk;
   std::fprintf(stderr, "%s: no %s for tick %llu within %.1f s: %s lost\n", node_name, missing,
                static_cast<unsigned long long>(tick), timeout_s, peer);
-  return kPeerLost;
+  return kExitPeerLost;
 }
 
 int run_node(const std::string& node_name, const std::function<int()>& body) {
@@ -91,17 +91,11 @@ int run_node(const std::string& node_name, const std::function<int()>& body) {
     return body();
   } catch (const ConfigError& e) {
     std::fprintf(stderr, "%s: config error: %s\n", node_name.c_str(), e.what());
-    return kBadConfig;
+    return kExitBadConfig;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s: error: %s\n", node_name.c_str(), e.what());
-    return kError;
+    return kExitError;
   }
-}
-
-std::int64_t wall_time_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_REALTIME, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
 }
 
 pmlsm_msgs::msg::Stamp make_stamp(std::uint64_t tick, double control_period_s) {

@@ -15,22 +15,15 @@
 
 #include "NodeStatusPubSubTypes.h"
 #include "StampPubSubTypes.h"
-#include "pmlsm/config.hpp"
+#include "pmlsm/config/config.hpp"
 #include "pmlsm/dds/participant.hpp"
 #include "pmlsm/dds/shutdown.hpp"
+#include "pmlsm/util/clock.hpp"
+#include "pmlsm/util/exit_codes.hpp"
 #include "realtime_setup.hpp"
 #include "tick_filter.hpp"
 
 namespace pmlsm::node {
-
-/// Exit codes, the same for every node.
-enum ExitCode : int {
-  kOk = 0,
-  kError = 1,        ///< DDS or I/O failure
-  kBadConfig = 2,    ///< config or command line rejected
-  kPeerMissing = 3,  ///< a peer never appeared (discovery timeout)
-  kPeerLost = 4,     ///< a peer stopped answering mid-run (lockstep timeout)
-};
 
 /// How long a node waits at exit for its last samples to be acknowledged: an
 /// observer may be seconds behind a fast lockstep run; a dead reader stops
@@ -96,18 +89,15 @@ bool take_next_tick(dds::Wakeup& wakeup, ReaderT& reader, Message& sample, TickF
   });
 }
 
-/// After a wait for a peer failed: kOk when a stop was requested (the loop just
+/// After a wait for a peer failed: kExitOk when a stop was requested (the loop just
 /// ends), else one line naming what stopped arriving ("controller: no
-/// MotorFeedback for tick 812 within 10.0 s: plant lost") and kPeerLost.
+/// MotorFeedback for tick 812 within 10.0 s: plant lost") and kExitPeerLost.
 int end_of_failed_wait(const char* node_name, const char* missing, const char* peer, std::uint64_t tick,
                        double timeout_s);
 
 /// Runs a node's body and maps its failures to exit codes with a one-line
 /// message on stderr: ConfigError -> 2, anything else -> 1.
 int run_node(const std::string& node_name, const std::function<int()>& body);
-
-/// Wall-clock time in ns (CLOCK_REALTIME), for stamps across hosts.
-std::int64_t wall_time_ns();
 
 std::chrono::nanoseconds spin_time(const CommonOptions& options);
 

@@ -3,7 +3,7 @@
 
 #include <string>
 
-#include "pmlsm/metrics.hpp"
+#include "pmlsm/sim/metrics.hpp"
 
 namespace pmlsm::node {
 

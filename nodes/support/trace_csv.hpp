@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "pmlsm/closed_loop.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
 
 namespace pmlsm {
 

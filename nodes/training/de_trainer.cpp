@@ -15,8 +15,8 @@
 #include "NetworkWeightsPubSubTypes.h"
 #include "TrainerProgressPubSubTypes.h"
 #include "node_support.hpp"
-#include "pmlsm/pagmo_optimisers.hpp"
-#include "pmlsm/weights_file.hpp"
+#include "pmlsm/optim/pagmo_optimisers.hpp"
+#include "pmlsm/config/weights_file.hpp"
 #include "training_support.hpp"
 
 namespace {
@@ -119,7 +119,7 @@ int run(int argc, char** argv) {
   pdds::Wakeup wakeup;  // outlives the participant, whose listeners signal it
   pdds::Participant participant(dds_options);
   const std::uint64_t run_id =
-      static_cast<std::uint64_t>(node::wall_time_ns()) ^ (static_cast<std::uint64_t>(getpid()) << 40);
+      static_cast<std::uint64_t>(wall_time_ns()) ^ (static_cast<std::uint64_t>(getpid()) << 40);
   auto setup_writer = participant.make_writer<msg::TrainingSetupPubSubType>(pdds::topics::kTrainingSetup);
   setup_writer.write(training::make_setup(run_id, config_path, overrides, training));
   auto progress_writer = participant.make_writer<msg::TrainerProgressPubSubType>(pdds::topics::kTrainerProgress);
@@ -131,7 +131,7 @@ int run(int argc, char** argv) {
     const std::size_t live = evaluator.wait_for_workers(
         wait_workers, std::chrono::milliseconds(static_cast<long long>(wait_workers_s * 1000)));
     std::printf("de_trainer: %zu of %zu worker(s) joined\n", live, wait_workers);
-    if (live < wait_workers) return node::kPeerMissing;
+    if (live < wait_workers) return kExitPeerMissing;
   }
 
   std::unique_ptr<Optimiser> optimiser = make_optimiser(parse_optimiser_kind(training.optimiser), de, evaluator);
@@ -232,7 +232,7 @@ int run(int argc, char** argv) {
   while (std::chrono::steady_clock::now() < linger_end && !pdds::stop_requested()) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
-  return interrupted ? 130 : node::kOk;
+  return interrupted ? 130 : kExitOk;
 }
 
 }  // namespace

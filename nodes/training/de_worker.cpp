@@ -94,7 +94,7 @@ int run(int argc, char** argv) {
           ++evaluated;
         }
         result.eval_time_s(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-        result.stamp().source_time_ns(node::wall_time_ns());
+        result.stamp().source_time_ns(wall_time_ns());
         result_writer.write(result);
         --busy;
       }
@@ -150,7 +150,7 @@ int run(int argc, char** argv) {
       status.setup_error(setup_error);
       status.queued(static_cast<std::uint32_t>(queued + busy.load()));
       status.evaluated(evaluated.load());
-      status.stamp().source_time_ns(node::wall_time_ns());
+      status.stamp().source_time_ns(wall_time_ns());
       status_writer.write(status);
       next_heartbeat = now + std::chrono::milliseconds(200);
     }
@@ -166,7 +166,7 @@ int run(int argc, char** argv) {
   result_writer.wait_for_acknowledgments(std::chrono::seconds(2));
   std::printf("de_worker %s: %llu evaluations\n", worker_id.c_str(),
               static_cast<unsigned long long>(evaluated.load()));
-  return node::kOk;
+  return kExitOk;
 }
 
 }  // namespace

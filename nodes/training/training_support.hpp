@@ -25,10 +25,11 @@
 #include "EvaluationResultPubSubTypes.h"
 #include "TrainingSetupPubSubTypes.h"
 #include "WorkerStatusPubSubTypes.h"
-#include "pmlsm/config.hpp"
+#include "pmlsm/config/config.hpp"
 #include "pmlsm/dds/participant.hpp"
-#include "pmlsm/optimiser.hpp"
-#include "pmlsm/rnn_training.hpp"
+#include "pmlsm/optim/optimiser.hpp"
+#include "pmlsm/optim/thread_pool_evaluator.hpp"
+#include "pmlsm/sim/rnn_training.hpp"
 
 namespace pmlsm::training {
 

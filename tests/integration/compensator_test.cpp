@@ -15,12 +15,12 @@
 
 #include "child_process.hpp"
 #include "integration_support.hpp"
-#include "pmlsm/accel_feedback.hpp"
-#include "pmlsm/closed_loop.hpp"
-#include "pmlsm/config.hpp"
-#include "pmlsm/jordan_rnn.hpp"
-#include "pmlsm/rnn_training.hpp"
-#include "pmlsm/weights_file.hpp"
+#include "pmlsm/compensation/accel_feedback.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/config/config.hpp"
+#include "pmlsm/compensation/jordan_rnn.hpp"
+#include "pmlsm/sim/rnn_training.hpp"
+#include "pmlsm/config/weights_file.hpp"
 #include "trace_csv.hpp"
 
 namespace pmlsm {

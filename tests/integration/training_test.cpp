@@ -14,7 +14,7 @@
 
 #include "child_process.hpp"
 #include "integration_support.hpp"
-#include "pmlsm/weights_file.hpp"
+#include "pmlsm/config/weights_file.hpp"
 
 namespace pmlsm {
 namespace {

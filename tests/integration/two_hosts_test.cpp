@@ -13,8 +13,8 @@
 
 #include "child_process.hpp"
 #include "integration_support.hpp"
-#include "pmlsm/closed_loop.hpp"
-#include "pmlsm/config.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/config/config.hpp"
 #include "trace_csv.hpp"
 
 namespace pmlsm {

@@ -6,8 +6,8 @@
 #include <limits>
 #include <vector>
 
-#include "pmlsm/closed_loop.hpp"
-#include "pmlsm/metrics.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/sim/metrics.hpp"
 #include "test_support.hpp"
 
 namespace pmlsm {

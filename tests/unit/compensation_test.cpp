@@ -7,12 +7,12 @@
 #include <cstdio>
 #include <limits>
 
-#include "pmlsm/accel_feedback.hpp"
-#include "pmlsm/closed_loop.hpp"
-#include "pmlsm/config.hpp"
-#include "pmlsm/metrics.hpp"
-#include "pmlsm/rnn_training.hpp"
-#include "pmlsm/weights_file.hpp"
+#include "pmlsm/compensation/accel_feedback.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/config/config.hpp"
+#include "pmlsm/sim/metrics.hpp"
+#include "pmlsm/sim/rnn_training.hpp"
+#include "pmlsm/config/weights_file.hpp"
 #include "test_support.hpp"
 
 namespace pmlsm {

@@ -1,4 +1,4 @@
-// The config loader's rules (pmlsm/config.hpp), one table row per rule: each
+// The config loader's rules (pmlsm/config/config.hpp), one table row per rule: each
 // bad input must raise a ConfigError whose message names the origin, the full
 // key path and the offending value. Bad inputs are the shipped files with
 // small YAML edits, so the tests follow the files as they evolve.
@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "pmlsm/config.hpp"
+#include "pmlsm/config/config.hpp"
 
 namespace pmlsm {
 namespace {

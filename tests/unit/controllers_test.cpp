@@ -4,11 +4,11 @@
 #include <cmath>
 #include <limits>
 
-#include "pmlsm/current_controller.hpp"
-#include "pmlsm/discretize.hpp"
-#include "pmlsm/encoder_velocity.hpp"
-#include "pmlsm/reference_model.hpp"
-#include "pmlsm/velocity_pi.hpp"
+#include "pmlsm/control/current_controller.hpp"
+#include "pmlsm/util/discretize.hpp"
+#include "pmlsm/plant/encoder_velocity.hpp"
+#include "pmlsm/control/reference_model.hpp"
+#include "pmlsm/control/velocity_pi.hpp"
 #include "test_support.hpp"
 
 namespace pmlsm {

@@ -8,10 +8,10 @@
 #include <string>
 #include <vector>
 
-#include "pmlsm/closed_loop.hpp"
-#include "pmlsm/kalman_filter.hpp"
-#include "pmlsm/metrics.hpp"
-#include "pmlsm/plant.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/estimation/kalman_filter.hpp"
+#include "pmlsm/sim/metrics.hpp"
+#include "pmlsm/plant/plant.hpp"
 #include "test_support.hpp"
 
 namespace pmlsm {

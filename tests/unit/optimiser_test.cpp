@@ -17,8 +17,10 @@
 #include <pagmo/problem.hpp>
 #include <pagmo/types.hpp>
 
-#include "pmlsm/optimiser.hpp"
-#include "pmlsm/pagmo_optimisers.hpp"
+#include "pmlsm/optim/differential_evolution.hpp"
+#include "pmlsm/optim/optimiser.hpp"
+#include "pmlsm/optim/thread_pool_evaluator.hpp"
+#include "pmlsm/optim/pagmo_optimisers.hpp"
 
 namespace pmlsm {
 namespace {

@@ -6,8 +6,8 @@
 #include <limits>
 #include <vector>
 
-#include "pmlsm/current_controller.hpp"
-#include "pmlsm/plant.hpp"
+#include "pmlsm/control/current_controller.hpp"
+#include "pmlsm/plant/plant.hpp"
 #include "test_support.hpp"
 
 namespace pmlsm {

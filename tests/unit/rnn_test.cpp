@@ -20,8 +20,8 @@
 #include <string>
 #include <vector>
 
-#include "pmlsm/jordan_rnn.hpp"
-#include "pmlsm/weights_file.hpp"
+#include "pmlsm/compensation/jordan_rnn.hpp"
+#include "pmlsm/config/weights_file.hpp"
 
 // Counts heap allocations, to check that step() allocates nothing.
 namespace {

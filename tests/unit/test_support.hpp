@@ -3,7 +3,7 @@
 
 #include <string>
 
-#include "pmlsm/config.hpp"
+#include "pmlsm/config/config.hpp"
 
 namespace pmlsm::test {
 

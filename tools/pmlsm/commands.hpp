@@ -11,12 +11,9 @@
 
 #include "pmlsm/dds/catalog.hpp"
 #include "pmlsm/dds/participant.hpp"
+#include "pmlsm/util/exit_codes.hpp"
 
 namespace pmlsm::tools {
-
-inline constexpr int kExitOk = 0;
-inline constexpr int kExitFailure = 1;
-inline constexpr int kExitBadInput = 2;
 
 /// A bad command line or input: the message is printed and the exit code is 2.
 class UsageError : public std::runtime_error {

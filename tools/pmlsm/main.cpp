@@ -26,7 +26,7 @@ int exec_launcher(int argc, char** argv, int launch_index) {
   args.push_back(nullptr);
   execv(launcher.c_str(), args.data());
   std::cerr << "pmlsm launch: cannot run " << launcher << ": " << std::strerror(errno) << "\n";
-  return pmlsm::tools::kExitFailure;
+  return pmlsm::kExitError;
 }
 
 }  // namespace
@@ -48,7 +48,7 @@ int main(int argc, char** argv) {
   app.add_option("--node-name", dds_options.node_name, "Participant name others see (default: pmlsm_<command>)");
   app.add_subcommand("launch", "Starts a launch description: `pmlsm launch FILE [--host H] ...` (see `launcher --help`)");
 
-  int exit_code = pmlsm::tools::kExitOk;
+  int exit_code = pmlsm::kExitOk;
   pmlsm::tools::add_topic_commands(app, dds_options, exit_code);
   pmlsm::tools::add_record_command(app, dds_options, exit_code);
   pmlsm::tools::add_play_command(app, dds_options, exit_code);
@@ -59,13 +59,13 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
-    return code == 0 ? 0 : pmlsm::tools::kExitBadInput;
+    return code == 0 ? 0 : pmlsm::kExitBadConfig;
   } catch (const pmlsm::tools::UsageError& e) {
     std::cerr << "pmlsm: " << e.what() << "\n";
-    return pmlsm::tools::kExitBadInput;
+    return pmlsm::kExitBadConfig;
   } catch (const std::exception& e) {
     std::cerr << "pmlsm: " << e.what() << "\n";
-    return pmlsm::tools::kExitFailure;
+    return pmlsm::kExitError;
   }
   return exit_code;
 }

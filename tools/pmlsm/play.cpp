@@ -86,13 +86,12 @@ int run_play(const dds::ParticipantOptions& dds_options, const PlayOptions& o) {
   if (o.topics.empty()) {
     for (const auto& [topic, id] : playable) selected.insert(id);
   } else {
-    for (const auto& name : o.topics) {
-      const auto* entry = dds::find_topic(name);
-      const auto found = entry != nullptr ? playable.find(dds::display_name(entry->spec.name)) : playable.end();
+    for (const auto* entry : select_topics(o.topics)) {  // an unknown name: UsageError listing the known ones
+      const auto found = playable.find(dds::display_name(entry->spec.name));
       if (found == playable.end()) {
         std::string known;
         for (const auto& [topic, id] : playable) known += "  " + topic + "\n";
-        throw UsageError("topic '" + name + "' is not in " + o.file + "; it holds:\n" + known);
+        throw UsageError("topic '" + dds::display_name(entry->spec.name) + "' is not in " + o.file + "; it holds:\n" + known);
       }
       selected.insert(found->second);
     }
@@ -167,7 +166,7 @@ int run_play(const dds::ParticipantOptions& dds_options, const PlayOptions& o) {
     std::printf("played what is whole of %s; not whole:\n", o.file.c_str());
     for (const auto& p : last_report.problems) std::printf("  %s\n", p.c_str());
   }
-  return refused == 0 ? kExitOk : kExitFailure;
+  return refused == 0 ? kExitOk : kExitError;
 }
 
 }  // namespace

@@ -194,11 +194,11 @@ int run_plot(const PlotOptions& o) {
     std::cerr << "pmlsm plot: nothing to plot in " << o.file << " (needs one of:";
     for (const auto& c : plotted()) std::cerr << " " << c.topic;
     std::cerr << ")\n";
-    return kExitBadInput;
+    return kExitBadConfig;
   }
   if (run_gnuplot(dir / "plots.gp") != 0) {
     std::cerr << "pmlsm plot: gnuplot failed on " << (dir / "plots.gp").string() << "\n";
-    return kExitFailure;
+    return kExitError;
   }
   for (const auto& png : made) std::cout << (dir / png).string() << "\n";
   return kExitOk;

@@ -192,9 +192,9 @@ int run_echo(const dds::ParticipantOptions& options, const std::string& topic, s
   if (count > 0 && printed < count && !dds::stop_requested()) {
     std::cerr << "pmlsm topic echo: " << printed << " of " << count << " samples on "
               << dds::display_name(r.entry.spec.name) << " within " << timeout_s << " s\n";
-    return kExitFailure;
+    return kExitError;
   }
-  return undecodable == 0 ? kExitOk : kExitFailure;
+  return undecodable == 0 ? kExitOk : kExitError;
 }
 
 int run_hz(const dds::ParticipantOptions& options, const std::string& topic, std::size_t window,
@@ -231,7 +231,7 @@ int run_hz(const dds::ParticipantOptions& options, const std::string& topic, std
         report();
       });
   report();
-  return samples > 0 ? kExitOk : kExitFailure;
+  return samples > 0 ? kExitOk : kExitError;
 }
 
 int run_delay(const dds::ParticipantOptions& options, const std::string& topic, std::size_t window,
@@ -274,7 +274,7 @@ int run_delay(const dds::ParticipantOptions& options, const std::string& topic, 
       });
   report();
   if (without_stamp > 0) std::printf("%llu samples without a source time\n", static_cast<unsigned long long>(without_stamp));
-  return samples > without_stamp ? kExitOk : kExitFailure;
+  return samples > without_stamp ? kExitOk : kExitError;
 }
 
 }  // namespace

@@ -1,0 +1,30 @@
+#include "pmlsm/compensation/accel_feedback.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "pmlsm/util/validate.hpp"
+
+namespace pmlsm {
+
+void AccelFeedbackParams::validate() const {
+  require_non_negative("gain_kg", gain_kg);
+  require_positive("force_limit_n", force_limit_n);
+}
+
+AccelFeedback::AccelFeedback(const AccelFeedbackParams& params) : params_(params) {
+  params_.validate();
+}
+
+double AccelFeedback::step(double load_accel_mps2) {
+  ++counters_.steps;
+  if (!std::isfinite(load_accel_mps2)) {
+    ++counters_.rejected_inputs;
+    return 0.0;
+  }
+  const double force_n = -params_.gain_kg * load_accel_mps2;
+  if (std::abs(force_n) > params_.force_limit_n) ++counters_.saturated;
+  return std::clamp(force_n, -params_.force_limit_n, params_.force_limit_n);
+}
+
+}  // namespace pmlsm

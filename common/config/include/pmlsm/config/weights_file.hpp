@@ -1,0 +1,65 @@
+// The RNN weights file: one set of Jordan-network weights (jordan_rnn.hpp) with
+// what is needed to use it, as written by the DE trainer and read by the
+// compensator.
+//
+// Format "pmlsm-rnn-weights/1": a YAML mapping with exactly these keys, all required:
+//
+//   format: pmlsm-rnn-weights/1
+//   layer_sizes: [3, 6, 6, 3, 1]      # inputs (external inputs + the state unit) first,
+//                                     # output (1 neuron) last; see JordanRnn
+//   input_scale_s2_per_m: 0.02        # s: the network input is s * a_L, > 0
+//   gain_n: 300.0                     # G_n: force = G_n u_n, > 0
+//   cost: 5.3                         # cost (23) of this set, >= 0, or -1 when unknown
+//   source: "de_trainer seed 1 gen 433"   # free text: where the set comes from
+//   weights: [ ... ]                  # JordanRnn::parameter_count(layer_sizes) numbers
+//
+// weights are in JordanRnn's flat order: layer by layer from the first hidden
+// layer; within a layer neuron by neuron; per neuron its incoming weights in
+// the order of the previous layer's neurons (external inputs, then the state
+// unit, for the first hidden layer), then its bias. Every number must be finite.
+// save_rnn_weights() writes the weights with 17 significant digits (the header
+// numbers with 15 when those suffice), so that a load reads back the identical
+// doubles; it writes one neuron per line.
+// Unknown keys, missing or duplicate keys, another format tag, a wrong count,
+// non-numeric or non-finite values are errors.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "pmlsm/sim/system_params.hpp"
+
+namespace pmlsm {
+
+struct RnnWeightsFile {
+  std::vector<int> layer_sizes;
+  double input_scale_s2_per_m = 0;
+  double gain_n = 0;
+  double cost = -1;  ///< cost (23) of the set, or -1 when unknown
+  std::string source;
+  std::vector<double> weights;
+};
+
+inline constexpr const char* kRnnWeightsFormat = "pmlsm-rnn-weights/1";
+
+/// Sizes valid (JordanRnn rules), weights.size() == parameter_count(layer_sizes),
+/// all values finite, scale and gain > 0, cost >= 0 or == -1.
+/// @throws std::invalid_argument naming the field and value ("weights[3]: must be finite, got nan").
+void validate_rnn_weights(const RnnWeightsFile& file);
+
+/// @throws pmlsm::ConfigError (a std::runtime_error) naming the file, the key and the
+/// value of the first problem: "w.yaml: weights[3]: must be finite, got .nan".
+RnnWeightsFile load_rnn_weights(const std::string& path);
+
+/// Validates, then writes path + ".tmp", flushes and fsyncs it and renames it
+/// over path (atomic: readers see the old or the new file, never a partial one).
+/// @throws pmlsm::ConfigError naming the path (invalid content or an I/O error);
+/// the .tmp file is removed on failure.
+void save_rnn_weights(const std::string& path, const RnnWeightsFile& file);
+
+/// Why a weight set does not fit the network that `params` configure (invalid
+/// set, other layer sizes, input scale or gain); empty when it fits. The one
+/// check every loader of weights runs (files, the NetworkWeights topic).
+std::string rnn_weights_misfit(const RnnWeightsFile& file, const SystemParams& params);
+
+}  // namespace pmlsm

@@ -1,0 +1,492 @@
+#include "pmlsm/config/config.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace pmlsm {
+
+namespace {
+
+bool is_sourced_leaf(const YAML::Node& node) { return node.IsMap() && node["value"]; }
+
+std::string join(const std::string& path, const std::string& key) {
+  return path.empty() ? key : path + "." + key;
+}
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError(path + ": cannot open file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+YAML::Node parse_yaml(const std::string& text, const std::string& origin) {
+  try {
+    YAML::Node root = YAML::Load(text);
+    if (!root.IsMap()) throw ConfigError(origin + ": top level must be a mapping of keys");
+    return root;
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(origin + ": YAML parse error: " + e.what());
+  }
+}
+
+// Checks the form of a sourced leaf: exactly value and source, and a source that
+// says where the value comes from.
+void check_sourced_leaf(const YAML::Node& node, const std::string& origin, const std::string& path) {
+  for (const auto& kv : node) {
+    const auto key = kv.first.as<std::string>();
+    if (key != "value" && key != "source") {
+      throw ConfigError(origin + ": " + path + "." + key + ": unknown key (a sourced value has only 'value' and 'source')");
+    }
+  }
+  if (!node["source"] || !node["source"].IsScalar()) {
+    throw ConfigError(origin + ": " + path + ".source: missing (say 'paper ...' or 'chosen: why')");
+  }
+  const auto source = node["source"].as<std::string>();
+  const bool from_paper = source.rfind("paper", 0) == 0;
+  const bool chosen = source.rfind("chosen:", 0) == 0 &&
+                      source.find_first_not_of(" \t", 7) != std::string::npos;
+  if (!from_paper && !chosen) {
+    throw ConfigError(origin + ": " + path + ".source: must start with 'paper' or 'chosen: <reason>', got '" + source + "'");
+  }
+}
+
+void apply_overrides(YAML::Node& root, const std::vector<ConfigOverride>& overrides,
+                     const std::string& origin) {
+  for (const ConfigOverride& o : overrides) {
+    YAML::Node node = root;
+    std::string walked;
+    std::stringstream parts(o.key_path);
+    std::string part;
+    std::vector<std::string> keys;
+    while (std::getline(parts, part, '.')) keys.push_back(part);
+    for (std::size_t i = 0; i < keys.size(); ++i) {
+      walked = join(walked, keys[i]);
+      if (!node.IsMap() || !node[keys[i]]) {
+        throw ConfigError(origin + ": override " + o.key_path + ": no key '" + walked + "' in the file");
+      }
+      node.reset(node[keys[i]]);
+    }
+    if (node.IsMap() && !is_sourced_leaf(node)) {
+      throw ConfigError(origin + ": override " + o.key_path + ": is a section, not a value");
+    }
+    YAML::Node value;
+    try {
+      value = YAML::Load(o.value);
+    } catch (const YAML::Exception& e) {
+      throw ConfigError(origin + ": override " + o.key_path + ": value '" + o.value +
+                        "' is not YAML: " + e.what());
+    }
+    if (is_sourced_leaf(node)) {
+      node["value"] = value;
+      node["source"] = "chosen: set on the command line";
+    } else {
+      node = value;
+    }
+  }
+}
+
+// A mapping being read: hands out values by key, remembers which keys were
+// read, and reports the ones that were not (unknown keys) in finish().
+class Section {
+ public:
+  Section(YAML::Node node, std::string origin, std::string path)
+      : node_(std::move(node)), origin_(std::move(origin)), path_(std::move(path)) {
+    if (!node_.IsMap()) fail(path_, "must be a mapping of keys, got '" + describe(node_) + "'");
+  }
+
+  Section child(const std::string& key) {
+    return Section(required(key), origin_, join(path_, key));
+  }
+
+  double number(const std::string& key) {
+    const YAML::Node v = value(key);
+    double out = 0;
+    if (!v.IsScalar() || !YAML::convert<double>::decode(v, out) || looks_boolean(v)) {
+      fail(join(path_, key), "expected a number, got '" + describe(v) + "'");
+    }
+    if (!std::isfinite(out)) fail(join(path_, key), "must be finite, got " + v.Scalar());
+    return out;
+  }
+
+  std::uint64_t unsigned_integer(const std::string& key) {
+    const YAML::Node v = value(key);
+    std::uint64_t out = 0;
+    const std::string text = v.IsScalar() ? v.Scalar() : std::string();
+    if (!v.IsScalar() || text.empty() || text[0] == '-' || !YAML::convert<std::uint64_t>::decode(v, out)) {
+      fail(join(path_, key), "expected a non-negative integer, got '" + describe(v) + "'");
+    }
+    return out;
+  }
+
+  bool boolean(const std::string& key) {
+    const YAML::Node v = value(key);
+    bool out = false;
+    if (!v.IsScalar() || !YAML::convert<bool>::decode(v, out)) {
+      fail(join(path_, key), "expected true or false, got '" + describe(v) + "'");
+    }
+    return out;
+  }
+
+  std::string text(const std::string& key) {
+    const YAML::Node v = value(key);
+    if (!v.IsScalar()) fail(join(path_, key), "expected a string, got '" + describe(v) + "'");
+    return v.Scalar();
+  }
+
+  Eigen::Vector3d vector3(const std::string& key) {
+    const YAML::Node v = value(key);
+    if (!v.IsSequence() || v.size() != 3) {
+      fail(join(path_, key), "expected a list of 3 numbers, got '" + describe(v) + "'");
+    }
+    Eigen::Vector3d out;
+    for (std::size_t i = 0; i < 3; ++i) {
+      double x = 0;
+      if (!v[i].IsScalar() || !YAML::convert<double>::decode(v[i], x) || looks_boolean(v[i])) {
+        fail(join(path_, key) + "[" + std::to_string(i) + "]", "expected a number, got '" + describe(v[i]) + "'");
+      }
+      if (!std::isfinite(x)) {
+        fail(join(path_, key) + "[" + std::to_string(i) + "]", "must be finite, got " + v[i].Scalar());
+      }
+      out(static_cast<Eigen::Index>(i)) = x;
+    }
+    return out;
+  }
+
+  /// A list of sub-sections (mappings), e.g. scenarios: [{file: ..., weight: ...}].
+  std::vector<Section> sections(const std::string& key) {
+    const YAML::Node v = required(key);
+    if (!v.IsSequence() || v.size() == 0) {
+      fail(join(path_, key), "expected a non-empty list, got '" + describe(v) + "'");
+    }
+    std::vector<Section> out;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      out.emplace_back(v[i], origin_, join(path_, key) + "[" + std::to_string(i) + "]");
+    }
+    return out;
+  }
+
+  std::vector<int> integer_list(const std::string& key) {
+    const YAML::Node v = value(key);
+    if (!v.IsSequence() || v.size() == 0) {
+      fail(join(path_, key), "expected a list of integers, got '" + describe(v) + "'");
+    }
+    std::vector<int> out;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      int x = 0;
+      if (!v[i].IsScalar() || !YAML::convert<int>::decode(v[i], x)) {
+        fail(join(path_, key) + "[" + std::to_string(i) + "]", "expected an integer, got '" + describe(v[i]) + "'");
+      }
+      out.push_back(x);
+    }
+    return out;
+  }
+
+  void finish() const {
+    for (const auto& kv : node_) {
+      const auto key = kv.first.as<std::string>();
+      if (used_.count(key) == 0) fail(join(path_, key), "unknown key");
+    }
+  }
+
+ private:
+  [[noreturn]] void fail(const std::string& path, const std::string& what) const {
+    throw ConfigError(origin_ + ": " + path + ": " + what);
+  }
+
+  static bool looks_boolean(const YAML::Node& v) {
+    bool b = false;
+    return YAML::convert<bool>::decode(v, b);
+  }
+
+  static std::string describe(const YAML::Node& v) {
+    if (v.IsScalar()) return v.Scalar();
+    YAML::Emitter out;
+    out << YAML::Flow << v;
+    return out.c_str();
+  }
+
+  YAML::Node required(const std::string& key) {
+    const YAML::Node v = node_[key];
+    if (!v) fail(join(path_, key), "missing key");
+    used_.insert(key);
+    return v;
+  }
+
+  YAML::Node value(const std::string& key) {
+    const YAML::Node v = required(key);
+    if (is_sourced_leaf(v)) {
+      check_sourced_leaf(v, origin_, join(path_, key));
+      return v["value"];
+    }
+    if (v.IsMap()) fail(join(path_, key), "expected a value, got a section '" + describe(v) + "'");
+    return v;
+  }
+
+  YAML::Node node_;
+  std::string origin_;
+  std::string path_;
+  std::set<std::string> used_;
+};
+
+// Runs a section's validate(), turning its std::invalid_argument into a
+// ConfigError with the file name and the section's key path in front.
+template <typename F>
+void validate_in(const std::string& origin, F&& check) {
+  try {
+    check();
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(origin + ": " + e.what());
+  }
+}
+
+// Ripple (10) and friction (11) sections: the plant's, and the filter's model of them.
+void read_ripple(Section& section, RippleParams& ripple) {
+  ripple.scale_n = section.number("scale_n");
+  ripple.amplitude_1 = section.number("amplitude_1");
+  ripple.amplitude_2 = section.number("amplitude_2");
+  ripple.spatial_freq_1_rad_per_m = section.number("spatial_freq_1_rad_per_m");
+  ripple.spatial_freq_2_rad_per_m = section.number("spatial_freq_2_rad_per_m");
+}
+
+void read_friction(Section& section, FrictionParams& friction) {
+  friction.coulomb_n = section.number("coulomb_n");
+  friction.viscous_n_s_per_m = section.number("viscous_n_s_per_m");
+  friction.regularisation_velocity_mps = section.number("regularisation_velocity_mps");
+}
+
+}  // namespace
+
+ConfigOverride ConfigOverride::parse(const std::string& text) {
+  const auto eq = text.find('=');
+  if (eq == std::string::npos || eq == 0) {
+    throw ConfigError("override '" + text + "': expected key.path=value");
+  }
+  return ConfigOverride{text.substr(0, eq), text.substr(eq + 1)};
+}
+
+SystemParams parse_system_params(const std::string& yaml_text, const std::string& origin,
+                                 const std::vector<ConfigOverride>& overrides) {
+  YAML::Node root = parse_yaml(yaml_text, origin);
+  apply_overrides(root, overrides, origin);
+  Section top(root, origin, "");
+  SystemParams p;
+
+  Section timing = top.child("timing");
+  p.timing.control_period_s = timing.number("control_period_s");
+  p.timing.current_loop_period_s = timing.number("current_loop_period_s");
+  timing.finish();
+
+  Section plant = top.child("plant");
+  p.plant.max_step_s = plant.number("max_step_s");
+  const std::string integrator = plant.text("integrator");
+  validate_in(origin, [&] {
+    try {
+      p.plant.integrator = integrator_from_string(integrator);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("plant.integrator: ") + e.what());
+    }
+  });
+  Section el = plant.child("electrical");
+  auto& e = p.plant.electrical;
+  e.resistance_ohm = el.number("resistance_ohm");
+  e.armature_d_inductance_h = el.number("armature_d_inductance_h");
+  e.armature_q_inductance_h = el.number("armature_q_inductance_h");
+  e.mutual_d_inductance_h = el.number("mutual_d_inductance_h");
+  e.mutual_q_inductance_h = el.number("mutual_q_inductance_h");
+  e.damper_d_inductance_h = el.number("damper_d_inductance_h");
+  e.damper_q_inductance_h = el.number("damper_q_inductance_h");
+  e.damper_d_resistance_ohm = el.number("damper_d_resistance_ohm");
+  e.damper_q_resistance_ohm = el.number("damper_q_resistance_ohm");
+  e.motor_constant_n_per_a = el.number("motor_constant_n_per_a");
+  e.pole_pitch_m = el.number("pole_pitch_m");
+  e.pole_pairs = el.number("pole_pairs");
+  el.finish();
+  Section ripple = plant.child("ripple");
+  read_ripple(ripple, p.plant.ripple);
+  ripple.finish();
+  Section friction = plant.child("friction");
+  read_friction(friction, p.plant.friction);
+  friction.finish();
+  Section mech = plant.child("mechanics");
+  p.plant.mechanics.motor_mass_kg = mech.number("motor_mass_kg");
+  p.plant.mechanics.load_mass_kg = mech.number("load_mass_kg");
+  p.plant.mechanics.spring_n_per_m = mech.number("spring_n_per_m");
+  p.plant.mechanics.damping_n_s_per_m = mech.number("damping_n_s_per_m");
+  mech.finish();
+  Section inverter = plant.child("inverter");
+  p.plant.inverter.dc_bus_v = inverter.number("dc_bus_v");
+  inverter.finish();
+  Section encoder = plant.child("encoder");
+  p.plant.encoder.resolution_m = encoder.number("resolution_m");
+  p.plant.encoder.position_noise_std_m = encoder.number("position_noise_std_m");
+  p.plant.encoder.noise_seed = encoder.unsigned_integer("noise_seed");
+  encoder.finish();
+  plant.finish();
+
+  Section cl = top.child("current_loop");
+  p.current_loop.kp_v_per_a = cl.number("kp_v_per_a");
+  p.current_loop.ki_v_per_a_s = cl.number("ki_v_per_a_s");
+  p.current_loop.current_limit_a = cl.number("current_limit_a");
+  cl.finish();
+
+  Section vl = top.child("velocity_loop");
+  p.velocity_loop.kp_n_s_per_m = vl.number("kp_n_s_per_m");
+  p.velocity_loop.ki_n_per_m = vl.number("ki_n_per_m");
+  p.velocity_loop.force_limit_n = vl.number("force_limit_n");
+  vl.finish();
+
+  Section rm = top.child("reference_model");
+  p.reference_model.natural_frequency_rad_s = rm.number("natural_frequency_rad_s");
+  p.reference_model.damping_ratio = rm.number("damping_ratio");
+  rm.finish();
+
+  Section kf = top.child("kalman");
+  p.kalman.process_noise_diag = kf.vector3("process_noise_diag");
+  p.kalman.measurement_noise = kf.number("measurement_noise");
+  p.kalman.initial_covariance_diag = kf.vector3("initial_covariance_diag");
+  Section kf_friction = kf.child("friction_input");
+  p.kalman.friction_input.enabled = kf_friction.boolean("enabled");
+  read_friction(kf_friction, p.kalman.friction_input.model);
+  kf_friction.finish();
+  Section kf_ripple = kf.child("ripple_input");
+  p.kalman.ripple_input.enabled = kf_ripple.boolean("enabled");
+  read_ripple(kf_ripple, p.kalman.ripple_input.model);
+  kf_ripple.finish();
+  kf.finish();
+
+  Section comp = top.child("compensator");
+  Section rnn = comp.child("rnn");
+  auto& c = p.compensator;
+  c.rnn_layer_sizes = rnn.integer_list("layer_sizes");
+  c.rnn_input_scale_s2_per_m = rnn.number("input_scale_s2_per_m");
+  c.rnn_gain_n = rnn.number("gain_n");
+  c.rnn_learning_rate = rnn.number("learning_rate");
+  c.rnn_momentum = rnn.number("momentum");
+  c.rnn_tolerance_mps = rnn.number("tolerance_mps");
+  c.rnn_kc_limit_mps = rnn.number("kc_limit_mps");
+  c.rnn_du_deadband_per_s = rnn.number("du_deadband_per_s");
+  rnn.finish();
+  Section af = comp.child("acceleration_feedback");
+  c.accel_feedback_gain_kg = af.number("gain_kg");
+  af.finish();
+  comp.finish();
+  top.finish();
+
+  validate_in(origin, [&] { p.validate(); });
+  return p;
+}
+
+SystemParams load_system_params(const std::string& path, const std::vector<ConfigOverride>& overrides) {
+  return parse_system_params(read_file(path), path, overrides);
+}
+
+Scenario parse_scenario(const std::string& yaml_text, const std::string& origin,
+                        double control_period_s, const std::vector<ConfigOverride>& overrides) {
+  YAML::Node root = parse_yaml(yaml_text, origin);
+  apply_overrides(root, overrides, origin);
+  Section top(root, origin, "");
+  Scenario s;
+  s.name = top.text("name");
+  if (s.name.empty() || s.name.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-") != std::string::npos) {
+    throw ConfigError(origin + ": name: must be letters, digits, '_' or '-' (it names output files), got '" + s.name + "'");
+  }
+  s.duration_s = top.number("duration_s");
+  Section cmd = top.child("command");
+  const std::string shape = cmd.text("shape");
+  validate_in(origin, [&] {
+    try {
+      s.shape = command_shape_from_string(shape);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("command.shape: ") + e.what());
+    }
+  });
+  s.amplitude_mps = cmd.number("amplitude_mps");
+  s.frequency_hz = cmd.number("frequency_hz");
+  s.duty_cycle = cmd.number("duty_cycle");
+  cmd.finish();
+  s.initial_load_displacement_m = top.number("initial_load_displacement_m");
+  s.cost_window_s = top.number("cost_window_s");
+  s.settling_band = top.number("settling_band");
+  top.finish();
+  validate_in(origin, [&] { s.validate(control_period_s); });
+  return s;
+}
+
+Scenario load_scenario(const std::string& path, double control_period_s,
+                       const std::vector<ConfigOverride>& overrides) {
+  return parse_scenario(read_file(path), path, control_period_s, overrides);
+}
+
+TrainingParams parse_training_params(const std::string& yaml_text, const std::string& origin,
+                                     double control_period_s,
+                                     const std::vector<ConfigOverride>& overrides) {
+  YAML::Node root = parse_yaml(yaml_text, origin);
+  apply_overrides(root, overrides, origin);
+  Section top(root, origin, "");
+  TrainingParams t;
+  t.optimiser = top.text("optimiser");
+  t.population_size = top.unsigned_integer("population_size");
+  t.mutation_factor = top.number("mutation_factor");
+  t.crossover_rate = top.number("crossover_rate");
+  t.init_lower = top.number("init_lower");
+  t.init_upper = top.number("init_upper");
+  t.seed = top.unsigned_integer("seed");
+  t.max_evaluations = top.unsigned_integer("max_evaluations");
+  t.target_cost = top.number("target_cost");
+  const std::string velocity = top.text("cost_velocity");
+  validate_in(origin, [&] {
+    try {
+      t.cost_velocity = cost_velocity_from_string(velocity);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("cost_velocity: ") + e.what());
+    }
+  });
+  // Scenario files are named relative to the training file.
+  const auto slash = origin.find_last_of('/');
+  const std::string dir = slash == std::string::npos ? std::string(".") : origin.substr(0, slash);
+  for (Section& item : top.sections("scenarios")) {
+    const std::string file = item.text("file");
+    TrainingScenario ts;
+    ts.weight = item.number("weight");
+    item.finish();
+    ts.file = file.empty() || file[0] == '/' ? file : dir + "/" + file;
+    ts.scenario = load_scenario(ts.file, control_period_s);
+    t.scenarios.push_back(ts);
+  }
+  top.finish();
+  validate_in(origin, [&] { t.validate(control_period_s); });
+  return t;
+}
+
+TrainingParams load_training_params(const std::string& path, double control_period_s,
+                                    const std::vector<ConfigOverride>& overrides) {
+  return parse_training_params(read_file(path), path, control_period_s, overrides);
+}
+
+namespace {
+void collect_leaves(const YAML::Node& node, const std::string& path, const std::string& origin,
+                    std::vector<SourcedLeaf>& out) {
+  if (is_sourced_leaf(node)) {
+    check_sourced_leaf(node, origin, path);
+    out.push_back({path, node["source"].as<std::string>()});
+  } else if (node.IsMap()) {
+    for (const auto& kv : node) collect_leaves(kv.second, join(path, kv.first.as<std::string>()), origin, out);
+  } else {
+    out.push_back({path, ""});
+  }
+}
+}  // namespace
+
+std::vector<SourcedLeaf> list_leaf_sources(const std::string& yaml_text, const std::string& origin) {
+  std::vector<SourcedLeaf> out;
+  collect_leaves(parse_yaml(yaml_text, origin), "", origin, out);
+  return out;
+}
+
+}  // namespace pmlsm

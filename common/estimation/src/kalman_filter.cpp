@@ -1,0 +1,122 @@
+#include "pmlsm/estimation/kalman_filter.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "pmlsm/util/discretize.hpp"
+#include "pmlsm/util/validate.hpp"
+
+namespace pmlsm {
+
+void KalmanParams::validate() const {
+  require_positive("motor_mass_kg", motor_mass_kg);
+  require_positive("load_mass_kg", load_mass_kg);
+  require_positive("spring_n_per_m", spring_n_per_m);
+  require_in_range("period_s", period_s, 1e-6, 1.0);
+  require_non_negative("process_noise_diag[0]", process_noise_diag(0));
+  require_non_negative("process_noise_diag[1]", process_noise_diag(1));
+  require_non_negative("process_noise_diag[2]", process_noise_diag(2));
+  require_positive("measurement_noise", measurement_noise);
+  require_non_negative("initial_covariance_diag[0]", initial_covariance_diag(0));
+  require_non_negative("initial_covariance_diag[1]", initial_covariance_diag(1));
+  require_non_negative("initial_covariance_diag[2]", initial_covariance_diag(2));
+  validate_section("friction_input", [&] { friction_input.validate(); });
+  validate_section("ripple_input", [&] { ripple_input.validate(); });
+}
+
+Eigen::Matrix3d KalmanFilter::continuous_a(const KalmanParams& p) {
+  Eigen::Matrix3d a;
+  a << 0.0, 0.0, -1.0 / p.motor_mass_kg,  //
+      0.0, 0.0, 1.0 / p.load_mass_kg,     //
+      p.spring_n_per_m, -p.spring_n_per_m, 0.0;
+  return a;
+}
+
+Eigen::Vector3d KalmanFilter::continuous_b(const KalmanParams& p) {
+  return Eigen::Vector3d(1.0 / p.motor_mass_kg, 0.0, 0.0);
+}
+
+KalmanFilter::KalmanFilter(const KalmanParams& params) : params_(params) {
+  params_.validate();
+  const DiscreteModel d =
+      discretize_zoh(continuous_a(params_), continuous_b(params_), params_.period_s);
+  phi_ = d.phi;
+  gamma_ = d.gamma;
+  q_ = params_.process_noise_diag.asDiagonal();
+  reset();
+}
+
+void KalmanFilter::reset(const Eigen::Vector3d& initial_state) {
+  x_ = initial_state;
+  p_ = params_.initial_covariance_diag.asDiagonal();
+  last_input_n_ = 0;
+  last_position_m_ = 0;
+  have_last_position_ = false;
+}
+
+double KalmanFilter::modelled_disturbance_n(double y_mps, double position_m) {
+  double disturbance_n = 0;
+  if (params_.friction_input.enabled) {
+    // v_k = y_k, the mean velocity over the period; without a finite y_k the
+    // prior estimate of v_M (the posterior of k-1) stands in for it.
+    const double v_mps = std::isfinite(y_mps) ? y_mps : x_(0);
+    disturbance_n += params_.friction_input.force_n(v_mps);
+  }
+  if (params_.ripple_input.enabled) {
+    if (std::isfinite(position_m)) {
+      const double previous_m = have_last_position_ ? last_position_m_ : position_m;
+      disturbance_n += params_.ripple_input.force_n(0.5 * (previous_m + position_m));
+      last_position_m_ = position_m;
+      have_last_position_ = true;
+    } else {
+      ++counters_.rejected_inputs;
+      if (have_last_position_) disturbance_n += params_.ripple_input.force_n(last_position_m_);
+    }
+  }
+  return disturbance_n;
+}
+
+KalmanEstimate KalmanFilter::step(const KalmanInput& in) {
+  ++counters_.steps;
+  if (std::isfinite(in.thrust_previous_n)) {
+    last_input_n_ = in.thrust_previous_n;
+  } else {
+    ++counters_.rejected_inputs;
+  }
+  // u_{k-1} = F_{k-1} (+ F_friction(v_k) + F_ripple(xbar_k) when modelled; see the header).
+  const bool disturbance_modelled = params_.friction_input.enabled || params_.ripple_input.enabled;
+  const double input_n =
+      disturbance_modelled
+          ? last_input_n_ + modelled_disturbance_n(in.motor_velocity_measured_mps, in.motor_position_m)
+          : last_input_n_;
+  // Time update (28), (29).
+  x_ = phi_ * x_ + gamma_ * input_n;
+  p_ = phi_ * p_ * phi_.transpose() + q_;
+
+  KalmanEstimate out;
+  out.input_force_n = input_n;
+  const double y = in.motor_velocity_measured_mps;
+  if (std::isfinite(y)) {
+    // Measurement update (30)-(32) with C = [1 0 0]: C P C^T = P(0,0).
+    const double s = p_(0, 0) + params_.measurement_noise;
+    const Eigen::Vector3d gain = p_.col(0) / s;
+    out.innovation_mps = y - x_(0);
+    x_ += gain * out.innovation_mps;
+    // Joseph form of (32): same value in exact arithmetic, stays symmetric and
+    // positive semi-definite in floating point.
+    Eigen::Matrix3d i_kc = Eigen::Matrix3d::Identity();
+    i_kc.col(0) -= gain;
+    p_ = i_kc * p_ * i_kc.transpose() + gain * params_.measurement_noise * gain.transpose();
+    out.measurement_used = true;
+  } else {
+    ++counters_.rejected_measurements;
+  }
+  out.motor_velocity_mps = x_(0);
+  out.load_velocity_mps = x_(1);
+  out.spring_force_n = x_(2);
+  out.load_accel_mps2 = x_(2) / params_.load_mass_kg;
+  out.covariance_diag = p_.diagonal();
+  return out;
+}
+
+}  // namespace pmlsm

@@ -1,0 +1,128 @@
+// The whole control cascade in one process, without DDS: the reference model,
+// the encoder velocity, the Kalman filter, the velocity PI (1 ms) and the
+// drive's current loop (31.25 us) around the nonlinear plant (10 us RK4).
+// The distributed nodes run these same components; this loop is their
+// reference trace.
+//
+// One tick k (t_k = k T):
+//   1. read the encoder and the currents of the plant at t_k;
+//   2. v_M,meas = encoder difference; V_ref = reference model (command c(t_k));
+//   3. Kalman step with y = v_M,meas and u = the force applied over the last tick (plus the
+//      modelled friction and ripple when the filter is configured with them);
+//   4. force F_k = velocity PI(V_ref, v_M,meas, compensation);
+//   5. 32 current-loop periods: voltages from the current controller, plant integrated.
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+#include "pmlsm/estimation/kalman_filter.hpp"
+#include "pmlsm/sim/scenario.hpp"
+#include "pmlsm/sim/simulated_drive.hpp"
+#include "pmlsm/sim/system_params.hpp"
+#include "pmlsm/sim/velocity_controller.hpp"
+
+namespace pmlsm {
+
+/// What happened at one control tick: the state at t_k and the commands computed at t_k.
+struct TickRecord {
+  std::uint64_t tick = 0;
+  double time_s = 0;
+  double command_mps = 0;          ///< raw command c(t_k)
+  double v_ref_mps = 0;            ///< reference model output
+  double encoder_position_m = 0;
+  double motor_velocity_measured_mps = 0;
+  double motor_position_m = 0;     ///< true
+  double motor_velocity_mps = 0;   ///< true
+  double load_position_m = 0;      ///< true
+  double load_velocity_mps = 0;    ///< true
+  double load_accel_mps2 = 0;      ///< true
+  double spring_force_n = 0;       ///< true F_s
+  double est_motor_velocity_mps = 0;
+  double est_load_velocity_mps = 0;
+  double est_spring_force_n = 0;
+  double est_load_accel_mps2 = 0;
+  double force_command_n = 0;      ///< velocity loop output F_k (PI + compensation, limited)
+  double compensation_force_n = 0; ///< compensator force added to the PI output at t_k
+  double thrust_n = 0;             ///< true F_dx at t_k
+  double ripple_n = 0;
+  double friction_n = 0;
+  double i_q_a = 0;
+  double u_q_v = 0;                ///< last q-axis voltage of the previous tick
+};
+
+class ClosedLoop {
+ public:
+  /// @throws std::invalid_argument from any component or the scenario.
+  ClosedLoop(const SystemParams& params, const Scenario& scenario);
+
+  /// Runs one control tick and returns its record. compensation_force_n is
+  /// added to the PI output inside its saturation (the hybrid controller, Fig. 4).
+  TickRecord step(double compensation_force_n = 0.0);
+
+  std::uint64_t tick() const { return tick_; }
+  std::uint64_t total_ticks() const { return total_ticks_; }
+  bool done() const { return tick_ >= total_ticks_; }
+
+  const Plant& plant() const { return drive_.plant(); }
+  const SimulatedDrive& drive() const { return drive_; }
+  const VelocityController& controller() const { return controller_; }
+  const KalmanFilter& kalman() const { return kalman_; }
+
+ private:
+  SystemParams params_;
+  Scenario scenario_;
+  SimulatedDrive drive_;
+  VelocityController controller_;
+  KalmanFilter kalman_;
+  std::uint64_t tick_ = 0;
+  std::uint64_t total_ticks_ = 0;
+  double last_force_n_ = 0;
+};
+
+/// Ticks in a scenario: duration / control period.
+std::uint64_t scenario_ticks(const Scenario& scenario, double control_period_s);
+
+/// The initial condition a scenario sets.
+PlantInitialCondition scenario_initial_condition(const Scenario& scenario);
+
+/// Fills the true-plant fields of a record from the plant at t_k.
+void record_truth(const PlantTruth& truth, TickRecord& rec);
+
+/// Runs a scenario to its end; the trace is reserved up front (no allocation per tick).
+std::vector<TickRecord> run_scenario(const SystemParams& params, const Scenario& scenario);
+
+/// What a compensator sees of tick k: the Kalman estimate and V_ref (never the true plant).
+struct CompensatorView {
+  double load_accel_mps2 = 0;  ///< a_L estimate, eq. (36)
+  double v_ref_mps = 0;
+  double v_load_mps = 0;       ///< estimated load velocity (the paper's V_load)
+};
+inline CompensatorView compensator_view(const TickRecord& rec) {
+  return {rec.est_load_accel_mps2, rec.v_ref_mps, rec.est_load_velocity_mps};
+}
+
+/// Runs up to max_ticks ticks of a scenario with a compensator in the loop. The
+/// compensator works on tick k's estimate and its force is applied at tick k+1:
+/// the one-tick delay of the distributed system, where the estimator and the
+/// compensator run while the plant integrates tick k (1 ms, 3.7 degrees at the
+/// 10.2 Hz load mode), so they never lengthen the plant-controller chain.
+/// compensate: double(const CompensatorView&) -> force [N].
+template <typename Compensate>
+std::vector<TickRecord> run_compensated(const SystemParams& params, const Scenario& scenario,
+                                        Compensate&& compensate,
+                                        std::uint64_t max_ticks = UINT64_MAX) {
+  ClosedLoop loop(params, scenario);
+  std::vector<TickRecord> trace;
+  const std::uint64_t ticks = std::min(loop.total_ticks(), max_ticks);
+  trace.reserve(ticks);
+  double compensation_n = 0;
+  while (trace.size() < ticks) {
+    trace.push_back(loop.step(compensation_n));
+    compensation_n = compensate(compensator_view(trace.back()));
+  }
+  return trace;
+}
+
+}  // namespace pmlsm

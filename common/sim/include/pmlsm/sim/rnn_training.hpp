@@ -1,0 +1,73 @@
+// The offline search of section 3.3: what differential evolution (or jDE,
+// CMA-ES) minimises. One evaluation is a closed-loop run of the full nonlinear
+// plant with the Jordan RNN as compensator (online learning off, so a weight
+// set has one cost), scored by eq. (23)-(24):
+//   F_Co = sum_{k=1}^{K} |V_ref(k) - V_load(k)|,  K = cost window / T (1000),
+// summed over the training scenarios with their weights.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/compensation/jordan_rnn.hpp"
+#include "pmlsm/sim/scenario.hpp"
+#include "pmlsm/sim/system_params.hpp"
+
+namespace pmlsm {
+
+/// Which load velocity enters (23): the Kalman estimate (the paper: all a rig
+/// measures) or the simulated truth (what the simulation can afford to use).
+enum class CostVelocity { estimated, truth };
+CostVelocity cost_velocity_from_string(const std::string& text);
+const char* to_string(CostVelocity which);
+
+struct TrainingScenario {
+  Scenario scenario;
+  std::string file;     ///< where it was read from (for remote workers and messages)
+  double weight = 1.0;  ///< > 0
+};
+
+/// configs/training.yaml: the optimiser and what it is scored on.
+struct TrainingParams {
+  std::string optimiser;             ///< "de" (the paper), "jde", "cmaes"
+  std::uint64_t population_size = 0; ///< NP
+  double mutation_factor = 0;        ///< F_s (21)
+  double crossover_rate = 0;         ///< CR (22)
+  double init_lower = 0;             ///< initial weights uniform in [lower, upper]
+  double init_upper = 0;
+  std::uint64_t seed = 0;
+  std::uint64_t max_evaluations = 0;  ///< budget; the run stops at the first generation that reaches it
+  double target_cost = 0;             ///< stop early at or below this cost (0: never)
+  CostVelocity cost_velocity = CostVelocity::truth;
+  std::vector<TrainingScenario> scenarios;
+  void validate(double control_period_s) const;
+};
+
+/// The cost of a weight set: thread-safe (each call builds its own loop).
+class RnnCost {
+ public:
+  /// @throws std::invalid_argument when a parameter or scenario is invalid.
+  RnnCost(const SystemParams& params, std::vector<TrainingScenario> scenarios, CostVelocity which);
+  std::size_t dimension() const { return dimension_; }
+  /// Weighted sum of (23) over the scenarios; +inf for a wrong-size or non-finite set.
+  double operator()(const std::vector<double>& weights) const;
+  /// Cost (23) of one trace with this object's choice of V_load.
+  double scenario_cost(const std::vector<TickRecord>& trace, const Scenario& scenario) const;
+  /// The ticks a cost needs: the window plus tick 0.
+  std::uint64_t cost_ticks(const Scenario& scenario) const;
+
+ private:
+  SystemParams params_;
+  std::vector<TrainingScenario> scenarios_;
+  CostVelocity which_;
+  std::size_t dimension_ = 0;
+};
+
+/// A whole scenario with the RNN in the loop (one-tick delay, see run_compensated).
+std::vector<TickRecord> run_with_rnn(const SystemParams& params, const Scenario& scenario,
+                                     const std::vector<double>& weights, bool online_learning,
+                                     std::uint64_t max_ticks = UINT64_MAX);
+
+}  // namespace pmlsm

@@ -1,0 +1,66 @@
+// The simulated servo drive: the plant with the drive's own current loop
+// (31.25 us) closed around it, taking a force command every control tick, as
+// a real drive in cyclic-synchronous-torque mode does, and reporting what its
+// encoder and current sensors read. Both the in-process loop and the
+// plant_sim node run it, so their traces are the same.
+#pragma once
+
+#include "pmlsm/control/current_controller.hpp"
+#include "pmlsm/plant/encoder_velocity.hpp"
+#include "pmlsm/plant/plant.hpp"
+#include "pmlsm/sim/system_params.hpp"
+
+namespace pmlsm {
+
+/// What the drive reports at a control tick.
+struct DriveFeedback {
+  double encoder_position_m = 0;
+  double velocity_mps = 0;  ///< encoder difference over the last tick
+  double i_d_a = 0;
+  double i_q_a = 0;
+};
+
+class SimulatedDrive {
+ public:
+  /// @throws std::invalid_argument from the plant or current controller parameters.
+  SimulatedDrive(const SystemParams& params, const PlantInitialCondition& initial);
+
+  /// The readings at the present tick. Call once per tick: the encoder
+  /// velocity is the difference to the previous call's position.
+  DriveFeedback sample();
+
+  /// Holds the force request for one control period: the current loop runs
+  /// every current-loop period and the plant integrates between them. The
+  /// back-EMF feed-forward uses the velocity of the last sample(), as the
+  /// drive's own encoder gives it.
+  void apply_force(double force_request_n);
+
+  /// The `voltage` command level: the controller runs the current loop and
+  /// sends a voltage for each current-loop period of the tick. measurement()
+  /// is what the current sensors and encoder read now; apply_voltage() holds
+  /// one voltage for one current-loop period. A tick is
+  /// current_steps_per_tick() of these.
+  const PlantMeasurement& measurement() const { return last_measurement_; }
+  void apply_voltage(double u_d_v, double u_q_v);
+  int current_steps_per_tick() const { return current_steps_per_tick_; }
+  /// The velocity of the last sample(), which the current loop's back-EMF term uses.
+  double tick_velocity_mps() const { return last_velocity_mps_; }
+
+  const Plant& plant() const { return plant_; }
+  const CurrentController& current_controller() const { return current_; }
+  double last_u_d_v() const { return last_u_d_v_; }
+  double last_u_q_v() const { return last_u_q_v_; }
+
+ private:
+  Plant plant_;
+  CurrentController current_;
+  EncoderVelocity encoder_velocity_;
+  int current_steps_per_tick_;
+  double current_period_s_;
+  PlantMeasurement last_measurement_;
+  double last_velocity_mps_ = 0;
+  double last_u_d_v_ = 0;
+  double last_u_q_v_ = 0;
+};
+
+}  // namespace pmlsm

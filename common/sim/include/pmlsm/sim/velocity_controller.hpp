@@ -1,0 +1,41 @@
+// The motor-side controller of one control tick: the scenario's raw command,
+// shaped by the reference model (25) into V_ref, and the velocity PI with the
+// compensator's force added inside its saturation (the hybrid controller,
+// Fig. 4). The controller node and the in-process loop both run it.
+#pragma once
+
+#include <cstdint>
+
+#include "pmlsm/control/reference_model.hpp"
+#include "pmlsm/sim/scenario.hpp"
+#include "pmlsm/sim/system_params.hpp"
+#include "pmlsm/control/velocity_pi.hpp"
+
+namespace pmlsm {
+
+struct VelocityControllerOutput {
+  double command_mps = 0;  ///< raw command c(t_k)
+  double v_ref_mps = 0;
+  double a_ref_mps2 = 0;
+  double force_n = 0;      ///< force request after the limit
+  double velocity_error_mps = 0;
+  bool saturated = false;
+};
+
+class VelocityController {
+ public:
+  /// @throws std::invalid_argument from the parameters or the scenario.
+  VelocityController(const SystemParams& params, const Scenario& scenario);
+  VelocityControllerOutput step(std::uint64_t tick, double motor_velocity_mps,
+                                double compensation_force_n);
+  const VelocityPi& velocity_pi() const { return velocity_; }
+  const ReferenceModel& reference() const { return reference_; }
+
+ private:
+  Scenario scenario_;
+  double period_s_;
+  ReferenceModel reference_;
+  VelocityPi velocity_;
+};
+
+}  // namespace pmlsm

@@ -1,0 +1,80 @@
+#include "pmlsm/sim/closed_loop.hpp"
+
+#include <cmath>
+
+namespace pmlsm {
+
+std::uint64_t scenario_ticks(const Scenario& scenario, double control_period_s) {
+  return static_cast<std::uint64_t>(std::llround(scenario.duration_s / control_period_s));
+}
+
+PlantInitialCondition scenario_initial_condition(const Scenario& scenario) {
+  PlantInitialCondition initial;
+  initial.load_position_m = scenario.initial_load_displacement_m;
+  return initial;
+}
+
+void record_truth(const PlantTruth& truth, TickRecord& rec) {
+  rec.motor_position_m = truth.state.motor_position_m;
+  rec.motor_velocity_mps = truth.state.motor_velocity_mps;
+  rec.load_position_m = truth.state.load_position_m;
+  rec.load_velocity_mps = truth.state.load_velocity_mps;
+  rec.load_accel_mps2 = truth.load_accel_mps2;
+  rec.spring_force_n = truth.spring_force_n;
+  rec.thrust_n = truth.thrust_n;
+  rec.ripple_n = truth.ripple_n;
+  rec.friction_n = truth.friction_n;
+  rec.i_q_a = truth.i_q_a;
+}
+
+ClosedLoop::ClosedLoop(const SystemParams& params, const Scenario& scenario)
+    : params_(params),
+      scenario_(scenario),
+      drive_(params, scenario_initial_condition(scenario)),
+      controller_(params, scenario),
+      kalman_(params.kalman_params()) {
+  params_.validate();
+  total_ticks_ = scenario_ticks(scenario_, params_.timing.control_period_s);
+}
+
+TickRecord ClosedLoop::step(double compensation_force_n) {
+  TickRecord rec;
+  rec.tick = tick_;
+  rec.time_s = static_cast<double>(tick_) * params_.timing.control_period_s;
+  rec.u_q_v = drive_.last_u_q_v();
+
+  const DriveFeedback feedback = drive_.sample();
+  rec.encoder_position_m = feedback.encoder_position_m;
+  rec.motor_velocity_measured_mps = feedback.velocity_mps;
+
+  const KalmanEstimate est =
+      kalman_.step({feedback.velocity_mps, last_force_n_, feedback.encoder_position_m});
+  rec.est_motor_velocity_mps = est.motor_velocity_mps;
+  rec.est_load_velocity_mps = est.load_velocity_mps;
+  rec.est_spring_force_n = est.spring_force_n;
+  rec.est_load_accel_mps2 = est.load_accel_mps2;
+
+  const VelocityControllerOutput control =
+      controller_.step(tick_, feedback.velocity_mps, compensation_force_n);
+  rec.command_mps = control.command_mps;
+  rec.v_ref_mps = control.v_ref_mps;
+  rec.force_command_n = control.force_n;
+  rec.compensation_force_n = compensation_force_n;
+
+  record_truth(drive_.plant().truth(), rec);
+
+  drive_.apply_force(control.force_n);
+  last_force_n_ = control.force_n;
+  ++tick_;
+  return rec;
+}
+
+std::vector<TickRecord> run_scenario(const SystemParams& params, const Scenario& scenario) {
+  ClosedLoop loop(params, scenario);
+  std::vector<TickRecord> trace;
+  trace.reserve(loop.total_ticks());
+  while (!loop.done()) trace.push_back(loop.step());
+  return trace;
+}
+
+}  // namespace pmlsm

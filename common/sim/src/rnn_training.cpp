@@ -1,0 +1,103 @@
+#include "pmlsm/sim/rnn_training.hpp"
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "pmlsm/util/validate.hpp"
+
+namespace pmlsm {
+
+CostVelocity cost_velocity_from_string(const std::string& text) {
+  if (text == "estimated") return CostVelocity::estimated;
+  if (text == "truth") return CostVelocity::truth;
+  throw std::invalid_argument("expected 'estimated' or 'truth', got '" + text + "'");
+}
+
+const char* to_string(CostVelocity which) {
+  return which == CostVelocity::estimated ? "estimated" : "truth";
+}
+
+void TrainingParams::validate(double control_period_s) const {
+  if (optimiser != "de" && optimiser != "jde" && optimiser != "cmaes") {
+    throw std::invalid_argument("optimiser: expected de, jde or cmaes, got '" + optimiser + "'");
+  }
+  if (population_size < 4) {
+    throw std::invalid_argument("population_size: must be >= 4 (DE draws 3 others), got " +
+                                std::to_string(population_size));
+  }
+  require_in_range("mutation_factor", mutation_factor, 1e-9, 2.0);
+  require_in_range("crossover_rate", crossover_rate, 0.0, 1.0);
+  require_finite("init_lower", init_lower);
+  require_finite("init_upper", init_upper);
+  if (!(init_lower < init_upper)) {
+    throw std::invalid_argument("init_upper: must be > init_lower (" + format_value(init_lower) +
+                                "), got " + format_value(init_upper));
+  }
+  if (max_evaluations < population_size) {
+    throw std::invalid_argument("max_evaluations: must be >= population_size, got " +
+                                std::to_string(max_evaluations));
+  }
+  require_non_negative("target_cost", target_cost);
+  if (scenarios.empty()) throw std::invalid_argument("scenarios: at least one is needed");
+  for (std::size_t i = 0; i < scenarios.size(); ++i) {
+    const std::string name = "scenarios[" + std::to_string(i) + "].weight";
+    require_positive(name.c_str(), scenarios[i].weight);
+    scenarios[i].scenario.validate(control_period_s);
+  }
+}
+
+RnnCost::RnnCost(const SystemParams& params, std::vector<TrainingScenario> scenarios,
+                 CostVelocity which)
+    : params_(params), scenarios_(std::move(scenarios)), which_(which) {
+  params_.validate();
+  dimension_ = JordanRnn::parameter_count(params_.compensator.rnn_layer_sizes);
+  for (const TrainingScenario& s : scenarios_) {
+    require_positive("weight", s.weight);
+    s.scenario.validate(params_.timing.control_period_s);
+  }
+}
+
+std::uint64_t RnnCost::cost_ticks(const Scenario& scenario) const {
+  return static_cast<std::uint64_t>(std::llround(scenario.cost_window_s / params_.timing.control_period_s)) + 1;
+}
+
+double RnnCost::scenario_cost(const std::vector<TickRecord>& trace, const Scenario& scenario) const {
+  const std::uint64_t window = cost_ticks(scenario) - 1;
+  double cost = 0;
+  for (std::uint64_t k = 1; k <= window && k < trace.size(); ++k) {
+    const double v_load = which_ == CostVelocity::truth ? trace[k].load_velocity_mps
+                                                        : trace[k].est_load_velocity_mps;
+    cost += std::abs(trace[k].v_ref_mps - v_load);
+  }
+  return cost;
+}
+
+double RnnCost::operator()(const std::vector<double>& weights) const {
+  const double worst = std::numeric_limits<double>::infinity();
+  if (weights.size() != dimension_) return worst;
+  for (double w : weights) {
+    if (!std::isfinite(w)) return worst;
+  }
+  double total = 0;
+  for (const TrainingScenario& s : scenarios_) {
+    const auto trace = run_with_rnn(params_, s.scenario, weights, false, cost_ticks(s.scenario));
+    total += s.weight * scenario_cost(trace, s.scenario);
+  }
+  return std::isfinite(total) ? total : worst;
+}
+
+std::vector<TickRecord> run_with_rnn(const SystemParams& params, const Scenario& scenario,
+                                     const std::vector<double>& weights, bool online_learning,
+                                     std::uint64_t max_ticks) {
+  RnnCompensator rnn(params.rnn_compensator_params(online_learning));
+  rnn.set_weights(weights);
+  return run_compensated(
+      params, scenario,
+      [&rnn](const CompensatorView& view) {
+        return rnn.step({view.load_accel_mps2, view.v_ref_mps, view.v_load_mps}).force_n;
+      },
+      max_ticks);
+}
+
+}  // namespace pmlsm

@@ -1,0 +1,37 @@
+#include "pmlsm/sim/simulated_drive.hpp"
+
+namespace pmlsm {
+
+SimulatedDrive::SimulatedDrive(const SystemParams& params, const PlantInitialCondition& initial)
+    : plant_(params.plant),
+      current_(params.current_controller_params()),
+      encoder_velocity_(params.timing.control_period_s),
+      current_steps_per_tick_(params.timing.current_steps_per_tick()),
+      current_period_s_(params.timing.current_loop_period_s) {
+  params.timing.validate();
+  plant_.reset(initial);
+  last_measurement_ = plant_.measure();
+  encoder_velocity_.reset(last_measurement_.encoder_position_m);
+}
+
+DriveFeedback SimulatedDrive::sample() {
+  last_velocity_mps_ = encoder_velocity_.step(last_measurement_.encoder_position_m);
+  return DriveFeedback{last_measurement_.encoder_position_m, last_velocity_mps_,
+                       last_measurement_.i_d_a, last_measurement_.i_q_a};
+}
+
+void SimulatedDrive::apply_force(double force_request_n) {
+  for (int i = 0; i < current_steps_per_tick_; ++i) {
+    const CurrentControllerOutput u = current_.step(
+        {force_request_n, last_measurement_.i_d_a, last_measurement_.i_q_a, last_velocity_mps_});
+    apply_voltage(u.u_d_v, u.u_q_v);
+  }
+}
+
+void SimulatedDrive::apply_voltage(double u_d_v, double u_q_v) {
+  last_measurement_ = plant_.step(PlantInput{u_d_v, u_q_v, 0.0}, current_period_s_);
+  last_u_d_v_ = u_d_v;
+  last_u_q_v_ = u_q_v;
+}
+
+}  // namespace pmlsm

@@ -1,0 +1,102 @@
+#include "pmlsm/sim/system_params.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "pmlsm/util/validate.hpp"
+
+namespace pmlsm {
+
+void TimingParams::validate() const {
+  require_in_range("control_period_s", control_period_s, 1e-5, 1.0);
+  require_in_range("current_loop_period_s", current_loop_period_s, 1e-7, control_period_s);
+  const double ratio = control_period_s / current_loop_period_s;
+  if (std::abs(ratio - std::round(ratio)) > 1e-9 * ratio) {
+    throw std::invalid_argument(
+        "current_loop_period_s: must divide control_period_s into a whole number of steps, got " +
+        format_value(current_loop_period_s));
+  }
+}
+
+int TimingParams::current_steps_per_tick() const {
+  return static_cast<int>(std::lround(control_period_s / current_loop_period_s));
+}
+
+void CurrentLoopTuning::validate() const {
+  require_positive("kp_v_per_a", kp_v_per_a);
+  require_non_negative("ki_v_per_a_s", ki_v_per_a_s);
+  require_positive("current_limit_a", current_limit_a);
+}
+
+CurrentControllerParams SystemParams::current_controller_params() const {
+  CurrentControllerParams p;
+  p.kp_v_per_a = current_loop.kp_v_per_a;
+  p.ki_v_per_a_s = current_loop.ki_v_per_a_s;
+  p.period_s = timing.current_loop_period_s;
+  p.current_limit_a = current_loop.current_limit_a;
+  p.voltage_limit_v = plant.inverter.voltage_limit_v();
+  p.motor_constant_n_per_a = plant.electrical.motor_constant_n_per_a;
+  p.pole_pitch_m = plant.electrical.pole_pitch_m;
+  p.armature_d_inductance_h = plant.electrical.armature_d_inductance_h;
+  p.armature_q_inductance_h = plant.electrical.armature_q_inductance_h;
+  p.permanent_magnet_flux_wb = plant.electrical.permanent_magnet_flux_wb();
+  return p;
+}
+
+VelocityPiParams SystemParams::velocity_pi_params() const {
+  return VelocityPiParams{velocity_loop.kp_n_s_per_m, velocity_loop.ki_n_per_m,
+                          timing.control_period_s, velocity_loop.force_limit_n};
+}
+
+ReferenceModelParams SystemParams::reference_model_params() const {
+  return ReferenceModelParams{reference_model.natural_frequency_rad_s,
+                              reference_model.damping_ratio, timing.control_period_s};
+}
+
+KalmanParams SystemParams::kalman_params() const {
+  KalmanParams p;
+  p.motor_mass_kg = plant.mechanics.motor_mass_kg;
+  p.load_mass_kg = plant.mechanics.load_mass_kg;
+  p.spring_n_per_m = plant.mechanics.spring_n_per_m;
+  p.period_s = timing.control_period_s;
+  p.process_noise_diag = kalman.process_noise_diag;
+  p.measurement_noise = kalman.measurement_noise;
+  p.initial_covariance_diag = kalman.initial_covariance_diag;
+  p.friction_input = kalman.friction_input;
+  p.ripple_input = kalman.ripple_input;
+  return p;
+}
+
+RnnCompensatorParams SystemParams::rnn_compensator_params(bool online_learning) const {
+  RnnCompensatorParams p;
+  p.layer_sizes = compensator.rnn_layer_sizes;
+  p.input_scale_s2_per_m = compensator.rnn_input_scale_s2_per_m;
+  p.gain_n = compensator.rnn_gain_n;
+  p.period_s = timing.control_period_s;
+  p.online_learning = online_learning;
+  p.learning_rate = compensator.rnn_learning_rate;
+  p.momentum = compensator.rnn_momentum;
+  p.tolerance_mps = compensator.rnn_tolerance_mps;
+  p.kc_limit_mps = compensator.rnn_kc_limit_mps;
+  p.du_deadband_per_s = compensator.rnn_du_deadband_per_s;
+  return p;
+}
+
+AccelFeedbackParams SystemParams::accel_feedback_params() const {
+  return AccelFeedbackParams{compensator.accel_feedback_gain_kg, velocity_loop.force_limit_n};
+}
+
+void SystemParams::validate() const {
+  validate_section("timing", [&] { timing.validate(); });
+  validate_section("plant", [&] { plant.validate(); });
+  validate_section("current_loop", [&] { current_loop.validate(); });
+  validate_section("current_loop", [&] { current_controller_params().validate(); });
+  validate_section("velocity_loop", [&] { velocity_pi_params().validate(); });
+  validate_section("reference_model", [&] { reference_model_params().validate(); });
+  validate_section("kalman", [&] { kalman_params().validate(); });
+  validate_section("compensator.rnn", [&] { rnn_compensator_params(true).validate(); });
+  validate_section("compensator.acceleration_feedback", [&] { accel_feedback_params().validate(); });
+}
+
+}  // namespace pmlsm

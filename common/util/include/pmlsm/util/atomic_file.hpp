@@ -1,0 +1,26 @@
+// Writing a file so that a crash leaves either the old or the new contents,
+// never a mix: the one copy used by checkpoints, weights files and traces.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+#include <string_view>
+
+namespace pmlsm {
+
+/// Why write_file_atomically failed: "cannot create '<path>.tmp'", "cannot write ...",
+/// "cannot flush ...", "cannot rename ..." followed by ": <strerror>". The target is unchanged.
+class AtomicWriteError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Writes path + ".tmp", fsyncs it, renames it over `path` and fsyncs the
+/// directory (best effort: some file systems refuse that), so that `path`
+/// holds the old or the new contents after a crash or power cut. Without the
+/// fsync before the rename a crash may leave the new name on empty contents.
+/// The temporary file is removed on every failure. Mode 0644 (before umask).
+/// @throws AtomicWriteError naming what failed, the file and errno's text.
+void write_file_atomically(const std::string& path, std::string_view contents);
+
+}  // namespace pmlsm
