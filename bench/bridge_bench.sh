@@ -92,8 +92,8 @@ nice -n 10 node tests/node/ws_client.mjs --url "$url" --topics "$topics" --min-m
   --duration-s $((seconds + 3600)) --timeout-s $((seconds + 7200)) >"$work/client.log" 2>&1 &
 client_pid=$!
 wait_for_line "$work/client.log" "ws_client: subscribed"
-if [ "$topics" = all ]; then topic_count=15; else topic_count=$(tr ',' '\n' <<<"$topics" | grep -c .); fi
-wait_for_line "$work/bridge.log" "reading $topic_count of 15 topics"
+if [ "$topics" = all ]; then topic_count=17; else topic_count=$(tr ',' '\n' <<<"$topics" | grep -c .); fi
+wait_for_line "$work/bridge.log" "reading $topic_count of 17 topics"
 run_loop attached
 kill "$client_pid" 2>/dev/null || true
 wait "$client_pid" 2>/dev/null || true

@@ -36,7 +36,7 @@ int run(int argc, char** argv) {
       break;
     }
     const double force_n = feedback.step(view.load_accel_mps2);
-    out.stamp(node::make_stamp(tick, rt.period_s));
+    out.stamp(node::make_stamp(tick, rt.period_s, inputs.run_id()));
     out.estimate_tick(tick);
     out.force_n(force_n);
     out.u_n(force_n / rt.cfg.params.accel_feedback_params().force_limit_n);

@@ -30,6 +30,9 @@ class CompensatorInputs {
             dds::topics::kVelocityReference, wakeup, dds::kObserverProfile)) {}
 
   /// Waits for the next complete tick. False on timeout or stop.
+  /// The drive run the last estimate followed (stamped on the output, so it follows the same run).
+  std::uint64_t run_id() const { return estimate_.stamp().run_id(); }
+
   bool next(std::chrono::duration<double> timeout, std::uint64_t& tick, CompensatorView& view) {
     return wait_until(wakeup_, timeout, [&] {
       for (;;) {

@@ -108,7 +108,7 @@ int run(int argc, char** argv) {
       out.k_c_mps(0.0);
     }
     out.flags(out_flags);
-    out.stamp(node::make_stamp(tick, rt.period_s));
+    out.stamp(node::make_stamp(tick, rt.period_s, inputs.run_id()));
     out.estimate_tick(tick);
     out.weights_version(weights_version);
     writer.write(out);

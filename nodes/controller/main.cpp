@@ -11,6 +11,7 @@
 // without (they get no compensation).
 #include <cmath>
 #include <cstdio>
+#include <optional>
 
 #include "CompensatorOutputPubSubTypes.h"
 #include "CurrentFeedbackPubSubTypes.h"
@@ -18,6 +19,7 @@
 #include "VoltageCommandPubSubTypes.h"
 #include "MotorFeedbackPubSubTypes.h"
 #include "VelocityReferencePubSubTypes.h"
+#include "msg_mapping.hpp"
 #include "node_support.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/control/current_controller.hpp"
@@ -37,6 +39,11 @@ int run(int argc, char** argv) {
   std::string compensation = "none";
   app.add_option("--compensation", compensation, "none (PI only) or topic (add CompensatorOutput to the PI output)")
       ->check(CLI::IsMember({"none", "topic"}))
+      ->capture_default_str();
+  double plant_lost_ms = 50.0;
+  app.add_option("--plant-lost-ms", plant_lost_ms,
+                 "realtime: no MotorFeedback this long after the first -> plant lost, exit 4")
+      ->check(CLI::PositiveNumber)
       ->capture_default_str();
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   node::NodeRuntime rt("controller", common);
@@ -68,7 +75,7 @@ int run(int argc, char** argv) {
   std::uint64_t compensation_missing = 0;
   const bool lockstep = cfg.clock == node::Clock::kLockstep;
 
-  VelocityController controller(cfg.params, cfg.scenario);
+  std::optional<VelocityController> controller(std::in_place, cfg.params, cfg.scenario);
   const std::uint64_t ticks = scenario_ticks(cfg.scenario, period);
   rt.status.publish(node_state::STATE_RUNNING, 0, period, "running");
 
@@ -77,16 +84,42 @@ int run(int argc, char** argv) {
   pmlsm_msgs::msg::VelocityReference reference;
   std::uint64_t next_tick = 0;  // ticks up to here are done
   node::TickFilter tick_filter;
+  node::RunFollower run;
+  bool new_run = false;
   std::uint64_t rejected = 0;
   double last_velocity = 0.0;
   const auto peer_timeout = std::chrono::duration<double>(common.peer_timeout_s);
   int exit_code = kExitOk;
 
+  // Realtime: once the plant ticks, silence for plant_lost_ms means it is gone (a drive sends
+  // feedback every tick, in its safe state too); lockstep waits as long as a tick may take.
+  const auto plant_lost_timeout = std::chrono::duration<double>(plant_lost_ms * 1e-3);
+  bool any_feedback = false;
   while (next_tick < ticks && !pdds::stop_requested()) {
-    const bool ok = node::take_next_tick(rt.wakeup, feedback_reader, feedback, tick_filter, rejected, peer_timeout);
+    const bool ok = node::take_next_tick(rt.wakeup, feedback_reader, feedback, tick_filter, run, new_run, rejected,
+                                         !lockstep && any_feedback ? plant_lost_timeout : peer_timeout);
     if (!ok) {
+      if (!lockstep && any_feedback && !pdds::stop_requested()) {
+        std::fprintf(stderr, "controller: no MotorFeedback for %.0f ms after tick %llu: plant lost\n", plant_lost_ms,
+                     static_cast<unsigned long long>(next_tick == 0 ? 0 : next_tick - 1));
+        rt.status.publish(node_state::STATE_ERROR, next_tick, period, "plant lost");
+        exit_code = kExitPeerLost;
+        break;
+      }
       exit_code = node::end_of_failed_wait("controller", "MotorFeedback", "plant", next_tick, common.peer_timeout_s);
       break;
+    }
+    any_feedback = true;
+    if (new_run && run.restarts() > 0) {
+      // The drive restarted: what this loop integrated belongs to the old run.
+      std::printf("controller: the drive restarted (run %016llx -> %016llx) at its tick %llu: following the new run\n",
+                  static_cast<unsigned long long>(run.previous()), static_cast<unsigned long long>(run.current()),
+                  static_cast<unsigned long long>(feedback.stamp().tick()));
+      controller.emplace(cfg.params, cfg.scenario);
+      have_compensation = false;
+      compensation_n = 0.0;
+      last_velocity = 0.0;
+      rt.status.publish(node_state::STATE_RUNNING, feedback.stamp().tick(), period, "drive restarted: new run followed");
     }
     const std::uint64_t k = feedback.stamp().tick();
     double velocity = feedback.velocity_mps();
@@ -126,21 +159,14 @@ int run(int argc, char** argv) {
         ++compensation_missing;
       }
     }
-    const VelocityControllerOutput out = controller.step(k, velocity, applied_compensation_n);
+    const VelocityControllerOutput out = controller->step(k, velocity, applied_compensation_n);
 
-    command.stamp(node::make_stamp(k, period));
-    command.feedback_tick(k);
-    command.force_n(out.force_n);
-    command.pi_force_n(out.force_n - applied_compensation_n);
-    command.compensation_force_n(applied_compensation_n);
-    command.velocity_error_mps(out.velocity_error_mps);
-    command.saturated(out.saturated);
+    command.stamp(node::make_stamp(k, period, run.current()));
+    node::to_msg(out, applied_compensation_n, k, command);
     command_writer.write(command);
     // After the command: the plant waits for it, the evaluator for this one.
     reference.stamp(command.stamp());
-    reference.velocity_command_mps(out.command_mps);
-    reference.v_ref_mps(out.v_ref_mps);
-    reference.a_ref_mps2(out.a_ref_mps2);
+    node::to_msg(out, reference);
     reference_writer.write(reference);
 
     for (int sub = 0; voltage_level && sub < current_steps; ++sub) {

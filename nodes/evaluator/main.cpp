@@ -3,9 +3,17 @@
 // same records the in-process loop writes, and when the scenario's last tick
 // is complete prints the results table and writes <out>/<scenario>.csv.
 // It reads PlantTruth, which no controller may: evaluation only.
+//
+// It never presents an invalid run as valid:
+//   - a tick at which the drive had its force off (MotorFeedback STATUS_SAFE_STATE or
+//     STATUS_FAULT, or a power state other than operation enabled) marks the row INVALID with
+//     the reason; the CSV is still written and the exit code is kExitSafeState (5);
+//   - a sample of any topic stamped with another run_id than the first one seen (0 ignored)
+//     means the drive restarted mid-run: no table, no CSV, exit kExitPeerLost (4).
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <vector>
 
 #include "EstimatedStatePubSubTypes.h"
@@ -13,10 +21,12 @@
 #include "MotorFeedbackPubSubTypes.h"
 #include "PlantTruthPubSubTypes.h"
 #include "VelocityReferencePubSubTypes.h"
+#include "msg_mapping.hpp"
 #include "node_support.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/sim/metrics.hpp"
 #include "results_table.hpp"
+#include "run_validity.hpp"
 #include "trace_csv.hpp"
 
 namespace {
@@ -54,6 +64,9 @@ int run(int argc, char** argv) {
   std::vector<unsigned> parts(ticks, 0);
   std::uint64_t complete = 0;
   std::uint64_t rejected = 0;
+  node::RunValidity validity;  // the drive's status at every tick
+  node::RunIdTracker run;      // the drive's run every sample must belong to
+  std::optional<node::RunChange> restart;
 
   auto mark = [&](std::uint64_t tick, Part part) -> TickRecord* {
     if (tick >= ticks || (parts[tick] & part) != 0) {
@@ -73,49 +86,38 @@ int run(int argc, char** argv) {
   pmlsm_msgs::msg::VelocityReference reference;
   pmlsm_msgs::msg::ForceCommand command;
   pmlsm_msgs::msg::EstimatedState estimate;
+  // A sample of another run than the first one seen ends the collection.
+  auto same_run = [&](const pmlsm_msgs::msg::Stamp& stamp) {
+    if (!restart) restart = run.observe(stamp.run_id(), stamp.tick());
+    return !restart;
+  };
+  node::DriveTickStatus drive_status;
   auto drain = [&] {
-    while (feedback_reader.take(feedback)) {
+    while (!restart && feedback_reader.take(feedback)) {
+      if (!same_run(feedback.stamp())) break;
       if (TickRecord* r = mark(feedback.stamp().tick(), kFeedback)) {
-        r->encoder_position_m = feedback.position_m();
-        r->motor_velocity_measured_mps = feedback.velocity_mps();
+        node::from_msg(feedback, *r);
+        node::from_msg(feedback, drive_status);
+        validity.add(feedback.stamp().tick(), drive_status);
       }
     }
-    while (truth_reader.take(truth)) {
-      if (TickRecord* r = mark(truth.stamp().tick(), kTruth)) {
-        r->motor_position_m = truth.motor_position_m();
-        r->motor_velocity_mps = truth.motor_velocity_mps();
-        r->load_position_m = truth.load_position_m();
-        r->load_velocity_mps = truth.load_velocity_mps();
-        r->load_accel_mps2 = truth.load_acceleration_mps2();
-        r->spring_force_n = truth.spring_force_n();
-        r->thrust_n = truth.thrust_force_n();
-        r->ripple_n = truth.ripple_force_n();
-        r->friction_n = truth.friction_force_n();
-        r->i_q_a = truth.i_q_a();
-        r->u_q_v = truth.u_q_v();
-      }
+    while (!restart && truth_reader.take(truth)) {
+      if (!same_run(truth.stamp())) break;
+      if (TickRecord* r = mark(truth.stamp().tick(), kTruth)) node::from_msg(truth, *r);
     }
-    while (reference_reader.take(reference)) {
-      if (TickRecord* r = mark(reference.stamp().tick(), kReference)) {
-        r->command_mps = reference.velocity_command_mps();
-        r->v_ref_mps = reference.v_ref_mps();
-      }
+    while (!restart && reference_reader.take(reference)) {
+      if (!same_run(reference.stamp())) break;
+      if (TickRecord* r = mark(reference.stamp().tick(), kReference)) node::from_msg(reference, *r);
     }
-    while (command_reader.take(command)) {
-      if (TickRecord* r = mark(command.feedback_tick(), kCommand)) {
-        r->force_command_n = command.force_n();
-        r->compensation_force_n = command.compensation_force_n();
-      }
+    while (!restart && command_reader.take(command)) {
+      if (!same_run(command.stamp())) break;
+      if (TickRecord* r = mark(command.feedback_tick(), kCommand)) node::from_msg(command, *r);
     }
-    while (estimate_reader.take(estimate)) {
-      if (TickRecord* r = mark(estimate.feedback_tick(), kEstimate)) {
-        r->est_motor_velocity_mps = estimate.v_motor_mps();
-        r->est_load_velocity_mps = estimate.v_load_mps();
-        r->est_spring_force_n = estimate.spring_force_n();
-        r->est_load_accel_mps2 = estimate.a_load_mps2();
-      }
+    while (!restart && estimate_reader.take(estimate)) {
+      if (!same_run(estimate.stamp())) break;
+      if (TickRecord* r = mark(estimate.feedback_tick(), kEstimate)) node::from_msg(estimate, *r);
     }
-    return complete == ticks;
+    return complete == ticks || restart.has_value();
   };
 
   // Done when every tick is complete; a stall longer than the peer timeout ends it.
@@ -124,6 +126,12 @@ int run(int argc, char** argv) {
     if (node::wait_until(rt.wakeup, std::chrono::duration<double>(common.peer_timeout_s), drain)) break;
     if (complete == last_complete) break;
     last_complete = complete;
+  }
+
+  if (restart) {
+    std::fprintf(stderr, "%s\n", node::restart_message("evaluator", *restart).c_str());
+    rt.status.publish(node_state::STATE_ERROR, complete, period, "drive restarted mid-run");
+    return kExitPeerLost;
   }
 
   if (complete < ticks) {
@@ -145,6 +153,9 @@ int run(int argc, char** argv) {
                      static_cast<unsigned long long>(missing), static_cast<unsigned long long>(first));
       }
     }
+    if (!validity.valid()) {
+      std::fprintf(stderr, "evaluator: the ticks received are INVALID as well: %s\n", validity.reason().c_str());
+    }
     rt.status.publish(node_state::STATE_ERROR, complete, period, "incomplete run");
     return pdds::stop_requested() ? kExitOk : kExitPeerLost;
   }
@@ -152,10 +163,16 @@ int run(int argc, char** argv) {
   std::filesystem::create_directories(out_dir);
   const std::string run_name = label.empty() ? cfg.scenario.name : cfg.scenario.name + "_" + label;
   write_trace_csv(out_dir + "/" + run_name + ".csv", trace);
+  const std::string invalid_reason = validity.reason();  // empty: valid
   if (print_header) node::print_results_header();
-  node::print_results_row(label.empty() ? cfg.scenario.name : cfg.scenario.name + " " + label, m);
+  node::print_results_row(label.empty() ? cfg.scenario.name : cfg.scenario.name + " " + label, m,
+                          invalid_reason);
   std::fflush(stdout);
   rt.status.status().rejected(rejected);
+  if (!invalid_reason.empty()) {
+    rt.status.publish(node_state::STATE_ERROR, ticks, period, "invalid run: drive force off");
+    return kExitSafeState;
+  }
   rt.status.publish(node_state::STATE_STOPPING, ticks, period, "done");
   return kExitOk;
 }

@@ -11,6 +11,7 @@
 
 #include "EstimatedStatePubSubTypes.h"
 #include "MotorFeedbackPubSubTypes.h"
+#include "msg_mapping.hpp"
 #include "node_support.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/estimation/kalman_filter.hpp"
@@ -42,32 +43,37 @@ int run(int argc, char** argv) {
 
   pmlsm_msgs::msg::MotorFeedback feedback;
   pmlsm_msgs::msg::EstimatedState estimate;
+  KalmanInput input;
   std::uint64_t next_tick = 0;  // ticks up to here are done
   node::TickFilter tick_filter;
+  node::RunFollower run;
+  bool new_run = false;
   std::uint64_t rejected = 0;
   const auto peer_timeout = std::chrono::duration<double>(common.peer_timeout_s);
   int exit_code = kExitOk;
 
   while (next_tick < ticks && !pdds::stop_requested()) {
-    const bool ok = node::take_next_tick(rt.wakeup, feedback_reader, feedback, tick_filter, rejected, peer_timeout);
+    const bool ok =
+        node::take_next_tick(rt.wakeup, feedback_reader, feedback, tick_filter, run, new_run, rejected, peer_timeout);
     if (!ok) {
       exit_code = node::end_of_failed_wait("kalman_estimator", "MotorFeedback", "plant", next_tick,
                                            common.peer_timeout_s);
       break;
     }
+    if (new_run && run.restarts() > 0) {
+      // The drive restarted: the estimate belongs to the old run; start afresh as at start-up.
+      std::printf("kalman_estimator: the drive restarted (run %016llx -> %016llx) at its tick %llu: "
+                  "following the new run\n",
+                  static_cast<unsigned long long>(run.previous()), static_cast<unsigned long long>(run.current()),
+                  static_cast<unsigned long long>(feedback.stamp().tick()));
+      filter.reset();
+      rt.status.publish(node_state::STATE_RUNNING, feedback.stamp().tick(), period, "drive restarted: new run followed");
+    }
     const std::uint64_t k = feedback.stamp().tick();
     // The filter itself rejects (and counts) a non-finite measurement or input.
-    const KalmanEstimate e =
-        filter.step({feedback.velocity_mps(), feedback.applied_force_n(), feedback.position_m()});
-    estimate.stamp(node::make_stamp(k, period));
-    estimate.feedback_tick(k);
-    estimate.v_motor_mps(e.motor_velocity_mps);
-    estimate.v_load_mps(e.load_velocity_mps);
-    estimate.spring_force_n(e.spring_force_n);
-    estimate.a_load_mps2(e.load_accel_mps2);
-    estimate.input_force_n(e.input_force_n);
-    estimate.innovation_mps(e.innovation_mps);
-    estimate.covariance_diag({e.covariance_diag(0), e.covariance_diag(1), e.covariance_diag(2)});
+    node::from_msg(feedback, input);
+    node::to_msg(filter.step(input), k, estimate);
+    estimate.stamp(node::make_stamp(k, period, run.current()));  // the run this estimate follows
     estimate_writer.write(estimate);
     next_tick = k + 1;
   }

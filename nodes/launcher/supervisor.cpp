@@ -15,6 +15,8 @@
 #include <cstring>
 #include <optional>
 
+#include "pmlsm/util/exit_codes.hpp"
+
 extern char** environ;
 
 namespace pmlsm::launch {
@@ -115,14 +117,15 @@ const char* signal_name(int sig) {
     case SIGTERM: return "SIGTERM";
     case SIGHUP: return "SIGHUP";
     case SIGKILL: return "SIGKILL";
-    default: return "a signal";
+    case SIGQUIT: return "SIGQUIT";
+    case SIGABRT: return "SIGABRT";
+    case SIGSEGV: return "SIGSEGV";
+    case SIGBUS: return "SIGBUS";
+    case SIGFPE: return "SIGFPE";
+    case SIGILL: return "SIGILL";
+    case SIGPIPE: return "SIGPIPE";
+    default: return ::strsignal(sig);
   }
-}
-
-std::string describe_status(int status) {
-  if (WIFEXITED(status)) return "exited with code " + std::to_string(WEXITSTATUS(status));
-  if (WIFSIGNALED(status)) return "killed by signal " + std::to_string(WTERMSIG(status));
-  return "ended with status " + std::to_string(status);
 }
 
 std::string plural(std::size_t n, const char* word) {
@@ -200,8 +203,24 @@ struct Child {
   bool stop_sent = false;
   bool kill_sent = false;
   bool clean = false;
-  std::string outcome;  // for the summary
+  std::string outcome;  // "exited with code 5 (...)" and the like, for the summary
 };
+
+// "exited with code 4 (a peer was lost)", "killed by signal 9 (SIGKILL, sent by
+// the launcher)": the code's meaning, and whether a signal was the launcher's own.
+std::string describe_exit(const Child& c, int status) {
+  if (WIFEXITED(status)) {
+    const int code = WEXITSTATUS(status);
+    return "exited with code " + std::to_string(code) + " (" + pmlsm::exit_code_meaning(code) + ")";
+  }
+  if (WIFSIGNALED(status)) {
+    const int sig = WTERMSIG(status);
+    const bool ours = (sig == SIGINT && c.stop_sent) || (sig == SIGKILL && c.kill_sent);
+    return "killed by signal " + std::to_string(sig) + " (" + signal_name(sig) +
+           (ours ? ", sent by the launcher)" : ")");
+  }
+  return "ended with status " + std::to_string(status);
+}
 
 // Everything the child needs after fork(), built before it: only
 // async-signal-safe calls are allowed there.
@@ -243,12 +262,11 @@ class Supervisor {
   int run() {
     if (!signals_.ok()) {
       report(std::string("cannot create a signalfd: ") + std::strerror(signals_.error()));
-      return 1;
+      return pmlsm::kExitError;
     }
     Fd dev_null(::open("/dev/null", O_RDONLY | O_CLOEXEC));
     for (Child& child : children_) {
-      if (!start(child, dev_null.get())) {
-        failed_ = true;
+      if (!start(child, dev_null.get())) {  // the failure is noted
         request_stop();
         break;
       }
@@ -270,18 +288,18 @@ class Supervisor {
   bool start(Child& child, int dev_null) {
     const ProcessSpec& spec = *child.spec;
     int out[2], err[2], exec_status[2];
-    if (::pipe2(out, O_CLOEXEC) != 0) return start_error(spec, "pipe");
+    if (::pipe2(out, O_CLOEXEC) != 0) return start_error(child, "pipe");
     Fd out_read(out[0]), out_write(out[1]);
-    if (::pipe2(err, O_CLOEXEC) != 0) return start_error(spec, "pipe");
+    if (::pipe2(err, O_CLOEXEC) != 0) return start_error(child, "pipe");
     Fd err_read(err[0]), err_write(err[1]);
     // Closed by a successful exec; otherwise the child writes its errno here.
-    if (::pipe2(exec_status, O_CLOEXEC) != 0) return start_error(spec, "pipe");
+    if (::pipe2(exec_status, O_CLOEXEC) != 0) return start_error(child, "pipe");
     Fd status_read(exec_status[0]), status_write(exec_status[1]);
     const ExecImage image(spec);
     const pid_t parent = ::getpid();
 
     const pid_t pid = ::fork();
-    if (pid < 0) return start_error(spec, "fork");
+    if (pid < 0) return start_error(child, "fork");
     if (pid == 0) {
       exec_child(image, parent, dev_null, out_write.get(), err_write.get(), status_write.get());
     }
@@ -314,14 +332,20 @@ class Supervisor {
       child.outcome = "could not be executed";
       report("node '" + spec.name + "' failed to start: cannot execute '" + spec.path +
              "': " + std::strerror(child_errno));
+      // A node started earlier may have failed already; its exit comes first.
+      reap();
+      note_failure(child, pmlsm::kExitError);
       return false;
     }
     report(spec.name + " started (pid " + std::to_string(pid) + ")");
     return true;
   }
 
-  bool start_error(const ProcessSpec& spec, const char* call) {
-    report("node '" + spec.name + "' failed to start: " + call + ": " + std::strerror(errno));
+  bool start_error(Child& child, const char* call) {
+    report("node '" + child.spec->name + "' failed to start: " + call + ": " +
+           std::strerror(errno));
+    child.outcome = std::string("not started (") + call + " failed)";
+    note_failure(child, pmlsm::kExitError);
     return false;
   }
 
@@ -446,20 +470,20 @@ class Supervisor {
     c.err.reset();
     if (c.exec_failed) return;  // reported at start
 
-    const std::string how = describe_status(status);
-    report(c.spec->name + " " + how);
-    c.outcome = how;
+    c.outcome = describe_exit(c, status);
+    report(c.spec->name + " " + c.outcome);
     const bool exited_zero = WIFEXITED(status) && WEXITSTATUS(status) == 0;
     const bool ended_by_our_sigint =
         c.stop_sent && !c.kill_sent && WIFSIGNALED(status) && WTERMSIG(status) == SIGINT;
     c.clean = exited_zero || ended_by_our_sigint;
+    if (!c.clean) {
+      // A node's own code says why it failed; a signal (or a SIGKILL the stop
+      // needed) carries no code, so it is a plain error.
+      note_failure(c, WIFEXITED(status) ? WEXITSTATUS(status) : pmlsm::kExitError);
+    }
     if (!c.clean && !c.stop_sent && options_.start_grace.count() > 0 &&
         lived < options_.start_grace) {
-      const std::string detail = WIFEXITED(status)
-                                     ? "exit code " + std::to_string(WEXITSTATUS(status))
-                                     : "killed by signal " + std::to_string(WTERMSIG(status));
-      report("node '" + c.spec->name + "' died at start (" + detail + ")");
-      failed_ = true;
+      report("node '" + c.spec->name + "' died at start: " + c.outcome);
       request_stop();
     } else if (c.spec->ends_launch && !stopping_) {
       report(c.spec->name + " ends the launch");
@@ -516,25 +540,34 @@ class Supervisor {
     if (sig == SIGKILL) c.kill_sent = true;
   }
 
+  // Failures in the order they were seen: the first one's code is the launch's.
+  void note_failure(const Child& c, int code) {
+    if (failures_.empty()) exit_code_ = code;
+    failures_.push_back(&c);
+  }
+
   int summarise() const {
+    const bool all_clean =
+        std::all_of(children_.begin(), children_.end(), [](const Child& c) { return c.clean; });
+    if (all_clean && !failed_) {
+      report("all " + plural(children_.size(), "node") + " ended cleanly");
+      return pmlsm::kExitOk;
+    }
     std::vector<std::string> problems;
-    std::size_t started = 0;
+    for (const Child* c : failures_) problems.push_back(c->spec->name + " " + c->outcome);
+    // The rest: nodes left unstarted after an earlier one failed to start.
     for (const Child& c : children_) {
-      if (c.started == Clock::time_point{}) {
-        problems.push_back(c.spec->name + " (not started)");
-        continue;
-      }
-      ++started;
-      if (!c.clean) problems.push_back(c.spec->name + " (" + c.outcome + ")");
+      const bool listed = std::find(failures_.begin(), failures_.end(), &c) != failures_.end();
+      if (!c.clean && !listed)
+        problems.push_back(c.spec->name + " " + (c.outcome.empty() ? "not started" : c.outcome));
     }
-    if (problems.empty() && !failed_) {
-      report("all " + plural(started, "node") + " ended cleanly");
-      return 0;
-    }
+    std::string text = "launch failed with exit code " + std::to_string(exit_code_);
+    if (failures_.size() > 1)
+      text += " (from " + failures_.front()->spec->name + ", the first to fail)";
     std::string list;
-    for (const auto& p : problems) list += (list.empty() ? "" : ", ") + p;
-    report("launch failed: " + list);
-    return 1;
+    for (const auto& p : problems) list += (list.empty() ? "" : "; ") + p;
+    report(text + (list.empty() ? "" : ": " + list));
+    return exit_code_;
   }
 
   const SupervisorOptions options_;
@@ -542,7 +575,9 @@ class Supervisor {
   std::vector<Child> children_;
   std::vector<char> buffer_;
   bool stopping_ = false;
-  bool failed_ = false;
+  bool failed_ = false;  // the launcher's own failure (poll)
+  std::vector<const Child*> failures_;  // nodes that did not end cleanly, first seen first
+  int exit_code_ = pmlsm::kExitError;
   std::optional<Clock::time_point> kill_deadline_;
 };
 

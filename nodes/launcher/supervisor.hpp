@@ -56,8 +56,14 @@ class LineRelay {
 // second signal sends SIGKILL at once), when a node with ends_launch exits, or
 // when a node fails to start or dies within options.start_grace. Takes over
 // SIGCHLD and reaps every child: call it from a single-threaded process.
-// Returns 0 when every node exited with code 0, or was stopped and ended by that
-// SIGINT or with code 0; otherwise 1.
+// Reports every exit with the meaning of its code (pmlsm/util/exit_codes.hpp) and
+// ends with a summary that lists each node that did not end cleanly.
+// A node ends cleanly when it exits with code 0, or, stopped by the launcher, dies
+// from that SIGINT. Returns 0 only when every node ended cleanly; otherwise the
+// code of the first failure seen, so a script learns why the run failed: the
+// node's own exit code (2 bad config, 4 peer lost, 5 run not valid, ...), or 1 for
+// a node killed by a signal other than the stop's SIGINT (a SIGKILL the stop
+// needed included), a node that could not be started, or the launcher's own failure.
 int supervise(const std::vector<ProcessSpec>& processes, const SupervisorOptions& options);
 
 }  // namespace pmlsm::launch

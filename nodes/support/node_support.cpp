@@ -98,8 +98,9 @@ int run_node(const std::string& node_name, const std::function<int()>& body) {
   }
 }
 
-pmlsm_msgs::msg::Stamp make_stamp(std::uint64_t tick, double control_period_s) {
+pmlsm_msgs::msg::Stamp make_stamp(std::uint64_t tick, double control_period_s, std::uint64_t run_id) {
   pmlsm_msgs::msg::Stamp s;
+  s.run_id(run_id);
   s.tick(tick);
   s.sim_time_ns(static_cast<std::int64_t>(static_cast<double>(tick) * control_period_s * 1e9 + 0.5));
   s.source_time_ns(wall_time_ns());
@@ -141,6 +142,36 @@ void StatusPublisher::publish(std::uint8_t state, std::uint64_t tick, double con
   status_.ticks(tick);
   if (!message.empty()) status_.message(message);
   writer_.write(status_);
+}
+
+namespace {
+
+std::uint64_t splitmix64(std::uint64_t x) {
+  x += 0x9E3779B97F4A7C15ULL;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
+  return x ^ (x >> 31);
+}
+
+}  // namespace
+
+std::uint64_t new_run_id() {
+  std::uint64_t id = splitmix64(static_cast<std::uint64_t>(wall_time_ns()) ^
+                                (static_cast<std::uint64_t>(getpid()) << 32) ^
+                                splitmix64(static_cast<std::uint64_t>(monotonic_ns())));
+  return id == 0 ? 1 : id;
+}
+
+std::uint64_t writer_id(const eprosima::fastdds::dds::SampleInfo& info) {
+  const auto& guid = info.sample_identity.writer_guid();
+  std::uint64_t h = 1469598103934665603ULL;
+  const auto mix = [&h](std::uint8_t byte) {
+    h ^= byte;
+    h *= 1099511628211ULL;
+  };
+  for (auto b : guid.guidPrefix.value) mix(b);
+  for (auto b : guid.entityId.value) mix(b);
+  return h;
 }
 
 }  // namespace pmlsm::node

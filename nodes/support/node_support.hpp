@@ -70,15 +70,55 @@ LoadedConfig load_config(const CommonOptions& options);
 /// options: 2), or nothing when the node should go on.
 std::optional<int> parse_command_line(CLI::App& app, int argc, char** argv);
 
-/// Waits for the next MotorFeedback-like sample that `ticks` accepts (in
-/// order; see TickFilter), counting the others (duplicates, out of order,
-/// implausible jumps) as rejected. False on timeout or a stop request.
+/// The drive run a node follows (Stamp.run_id, drawn anew by every start of a drive node).
+/// A sample of another run means the drive restarted: the node resets its state and follows
+/// the new run from its first tick; the run it left is never taken up again (late samples of
+/// it are rejected).
+class RunFollower {
+ public:
+  /// True when `run_id` starts a run this node has not followed before (the first one too).
+  bool is_new(std::uint64_t run_id) const { return run_id != current_ && (!any_ || run_id != previous_); }
+  bool is_abandoned(std::uint64_t run_id) const { return any_ && run_id == previous_ && run_id != current_; }
+  void follow(std::uint64_t run_id) {
+    previous_ = current_;
+    current_ = run_id;
+    if (any_) ++restarts_;
+    any_ = true;
+  }
+  std::uint64_t current() const { return current_; }
+  std::uint64_t previous() const { return previous_; }
+  /// Runs followed after the first: drive restarts seen.
+  std::uint64_t restarts() const { return restarts_; }
+
+ private:
+  std::uint64_t current_ = 0;
+  std::uint64_t previous_ = 0;
+  std::uint64_t restarts_ = 0;
+  bool any_ = false;
+};
+
+/// Waits for the next MotorFeedback-like sample that `ticks` accepts (in order; see
+/// TickFilter), counting the others (duplicates, out of order, implausible jumps, a run
+/// already left) as rejected. A sample of a new run (see RunFollower) is taken at once with a
+/// fresh TickFilter and sets `new_run`: the caller resets its state. False on timeout or a stop
+/// request.
 template <typename ReaderT, typename Message>
-bool take_next_tick(dds::Wakeup& wakeup, ReaderT& reader, Message& sample, TickFilter& ticks,
-                    std::uint64_t& rejected, std::chrono::duration<double> timeout) {
+bool take_next_tick(dds::Wakeup& wakeup, ReaderT& reader, Message& sample, TickFilter& ticks, RunFollower& run,
+                    bool& new_run, std::uint64_t& rejected, std::chrono::duration<double> timeout) {
   bool got = false;
+  new_run = false;
   return wait_until(wakeup, timeout, [&] {
     while (!got && reader.take(sample)) {
+      const std::uint64_t run_id = sample.stamp().run_id();
+      if (run.is_abandoned(run_id)) {
+        ++rejected;
+        continue;
+      }
+      if (run.is_new(run_id)) {
+        run.follow(run_id);
+        ticks = TickFilter();
+        new_run = true;
+      }
       if (!ticks.accept(sample.stamp().tick())) {
         ++rejected;
         continue;
@@ -105,7 +145,8 @@ std::chrono::nanoseconds spin_time(const CommonOptions& options);
 /// for programs that are not part of the control loop (trainer, workers).
 void add_dds_options(CLI::App& app, dds::ParticipantOptions& options);
 
-pmlsm_msgs::msg::Stamp make_stamp(std::uint64_t tick, double control_period_s);
+/// A stamp for tick `tick` of the run `run_id` (the drive's run this node follows; 0: none yet).
+pmlsm_msgs::msg::Stamp make_stamp(std::uint64_t tick, double control_period_s, std::uint64_t run_id = 0);
 
 /// Polls `ready` until it holds, waking on DDS activity; false after the timeout
 /// or on a stop request. A template, not std::function: it runs every tick and
@@ -126,6 +167,13 @@ bool wait_until(dds::Wakeup& wakeup, std::chrono::duration<double> timeout, Read
   }
   return false;
 }
+
+/// A new run id: non-zero, different for every start of a drive node (wall time, pid and a
+/// monotonic reading mixed by splitmix64), so a restarted drive is told from the old one.
+std::uint64_t new_run_id();
+
+/// 64 bits identifying the writer of a sample (FNV-1a over its GUID).
+std::uint64_t writer_id(const eprosima::fastdds::dds::SampleInfo& info);
 
 /// Publishes NodeStatus with this node's counters.
 class StatusPublisher {

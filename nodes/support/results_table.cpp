@@ -1,11 +1,26 @@
 #include "results_table.hpp"
 
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 
 namespace pmlsm::node {
 
 namespace {
+// printf into a string of the length it needs.
+__attribute__((format(printf, 1, 2))) std::string format(const char* fmt, ...) {
+  va_list args;
+  va_start(args, fmt);
+  va_list again;
+  va_copy(again, args);
+  const int n = std::vsnprintf(nullptr, 0, fmt, args);
+  va_end(args);
+  std::string text(n > 0 ? static_cast<std::size_t>(n) : 0, '\0');
+  if (n > 0) std::vsnprintf(&text[0], text.size() + 1, fmt, again);
+  va_end(again);
+  return text;
+}
+
 std::string seconds_or_never(double s) {
   if (!std::isfinite(s)) return "not settled";
   char buf[32];
@@ -19,11 +34,17 @@ void print_results_header() {
               "vib_rms_mm/s", "track_rms_mm/s", "settle_2%_s", "peak_F_N", "est_vL_err_mm/s");
 }
 
-void print_results_row(const std::string& scenario, const ScenarioMetrics& m) {
-  std::printf("%-24s %10.3f %10.3f %14.3f %14.3f %12s %12.1f %14.3f\n", scenario.c_str(), m.cost_true,
-              m.cost_estimated, 1e3 * m.load_vibration_rms_mps, 1e3 * m.load_tracking_rms_mps,
-              seconds_or_never(m.load_settling_time_s).c_str(), m.peak_force_command_n,
-              1e3 * m.est_load_velocity_rms_error_mps);
+std::string results_row(const std::string& scenario, const ScenarioMetrics& m, const std::string& invalid_reason) {
+  std::string row = format("%-24s %10.3f %10.3f %14.3f %14.3f %12s %12.1f %14.3f", scenario.c_str(),
+                           m.cost_true, m.cost_estimated, 1e3 * m.load_vibration_rms_mps,
+                           1e3 * m.load_tracking_rms_mps, seconds_or_never(m.load_settling_time_s).c_str(),
+                           m.peak_force_command_n, 1e3 * m.est_load_velocity_rms_error_mps);
+  if (!invalid_reason.empty()) row += "  INVALID: " + invalid_reason;
+  return row;
+}
+
+void print_results_row(const std::string& scenario, const ScenarioMetrics& m, const std::string& invalid_reason) {
+  std::printf("%s\n", results_row(scenario, m, invalid_reason).c_str());
 }
 
 void print_results_footer(const std::string& out_dir) {

@@ -8,7 +8,15 @@
 namespace pmlsm::node {
 
 void print_results_header();
-void print_results_row(const std::string& scenario, const ScenarioMetrics& m);
+/// One row of the table (no newline). A run that is not valid (the drive had its force off or
+/// was faulted, see RunValidity) keeps its numbers but is marked on the same line:
+///   "pulse pi   65.250 ... 29.770  INVALID: drive force off for 1998 ticks from tick 2 (...)"
+/// invalid_reason empty: a valid run, the row as before.
+std::string results_row(const std::string& scenario, const ScenarioMetrics& m,
+                        const std::string& invalid_reason = "");
+/// Prints results_row() and a newline.
+void print_results_row(const std::string& scenario, const ScenarioMetrics& m,
+                       const std::string& invalid_reason = "");
 void print_results_footer(const std::string& out_dir);
 
 }  // namespace pmlsm::node

@@ -2,7 +2,6 @@
 #pragma once
 
 #include <cstdint>
-#include <optional>
 
 namespace pmlsm::node {
 
@@ -21,14 +20,15 @@ class TickFilter {
   bool accept(std::uint64_t tick) {
     if (any_ && tick < expected_) return false;
     const bool near = !any_ || tick - expected_ <= max_jump_;
-    const bool resync = far_candidate_.has_value() && tick == *far_candidate_ + 1;
+    const bool resync = has_far_candidate_ && tick == far_candidate_ + 1;
     if (!near && !resync) {
       far_candidate_ = tick;
+      has_far_candidate_ = true;
       return false;
     }
     expected_ = tick + 1;
     any_ = true;
-    far_candidate_.reset();
+    has_far_candidate_ = false;
     return true;
   }
 
@@ -39,7 +39,10 @@ class TickFilter {
   std::uint64_t max_jump_;
   std::uint64_t expected_ = 0;
   bool any_ = false;
-  std::optional<std::uint64_t> far_candidate_;  // a far tick rejected once, taken if its successor follows
+  // A far tick rejected once, taken if its successor follows. Not a std::optional: GCC's
+  // -Wmaybe-uninitialized misreads one in a TickFilter assigned afresh inside a loop.
+  bool has_far_candidate_ = false;
+  std::uint64_t far_candidate_ = 0;
 };
 
 }  // namespace pmlsm::node

@@ -87,8 +87,10 @@ long long bridge_count(const std::string& output, const std::string& what) {
 /// readers, the controller's and the bridge's.
 struct Loop {
   Loop(const std::string& domain, const std::string& scenario, const fs::path& dir)
-      : controller(node_args("controller", domain, scenario, {"--clock", "realtime"}), (dir / "controller.log").string()),
-        plant(node_args("plant_sim", domain, scenario, {"--clock", "realtime", "--peers", "2", "--watchdog-ms", "1000"}),
+      : controller(node_args("controller", domain, scenario, {"--clock", "realtime", "--plant-lost-ms", "5000"}),
+                   (dir / "controller.log").string()),
+        plant(node_args("plant_sim", domain, scenario, {"--clock", "realtime", "--peers", "2", "--watchdog-ms", "1000",
+                                                      "--controller-lost-ms", "5000"}),
               (dir / "plant.log").string()) {}
   void expect_clean_exit() {
     for (auto* p : {&plant, &controller}) {
@@ -135,7 +137,7 @@ TEST(FoxgloveBridge, AFoxgloveClientDecodesTheLiveLoop) {
                                            "1000", "--timeout-s", "25"}),
                       (dir / "client.log").string());
   ASSERT_TRUE(client.wait_for_output("ws_client: subscribed", kStartTimeout)) << client.output();
-  ASSERT_TRUE(bridge.wait_for_output("reading 2 of 15 topics", kStartTimeout)) << bridge.output();
+  ASSERT_TRUE(bridge.wait_for_output("reading 2 of 17 topics", kStartTimeout)) << bridge.output();
   Loop loop(domain, scenario, dir);
 
   const auto code = client.wait_for(std::chrono::seconds(30));
@@ -144,7 +146,7 @@ TEST(FoxgloveBridge, AFoxgloveClientDecodesTheLiveLoop) {
   const json summary = summary_of(client.output());
   ASSERT_TRUE(summary.is_object()) << client.output();
   EXPECT_EQ(summary["ok"], true) << summary.dump(2);
-  EXPECT_EQ(summary["channels_advertised"], 15) << summary.dump(2);
+  EXPECT_EQ(summary["channels_advertised"], 17) << summary.dump(2);
   EXPECT_EQ(summary["server"]["name"], "pmlsm foxglove_bridge");
   for (const char* topic : {"/pmlsm/motor_feedback", "/pmlsm/force_command"}) {
     EXPECT_GE(summary["topics"][topic]["messages"].get<int>(), 1000) << summary.dump(2);
@@ -175,7 +177,7 @@ TEST(FoxgloveBridge, GarbageClientsAreDisconnectedWhileAGoodClientKeepsReceiving
                                          "25"}),
                     (dir / "good_client.log").string());
   ASSERT_TRUE(good.wait_for_output("ws_client: subscribed", kStartTimeout)) << good.output();
-  ASSERT_TRUE(bridge.wait_for_output("reading 1 of 15 topics", kStartTimeout)) << bridge.output();
+  ASSERT_TRUE(bridge.wait_for_output("reading 1 of 17 topics", kStartTimeout)) << bridge.output();
   Loop loop(domain, scenario, dir);
   ASSERT_TRUE(good.wait_for_output("ws_client: receiving", kStartTimeout)) << good.output() << loop.plant.output();
 
@@ -221,7 +223,7 @@ TEST(FoxgloveBridge, ASlowClientLosesFramesNotTheOthers) {
                                          "3", "--duration-s", "9", "--timeout-s", "25"}),
                     (dir / "good_client.log").string());
   ASSERT_TRUE(good.wait_for_output("ws_client: subscribed", kStartTimeout)) << good.output();
-  ASSERT_TRUE(bridge.wait_for_output("reading 15 of 15 topics", kStartTimeout)) << bridge.output();
+  ASSERT_TRUE(bridge.wait_for_output("reading 17 of 17 topics", kStartTimeout)) << bridge.output();
   Loop loop(domain, scenario, dir);
 
   const auto good_code = good.wait_for(std::chrono::seconds(30));

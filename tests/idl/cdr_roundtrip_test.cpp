@@ -20,6 +20,8 @@
 
 #include "CompensatorOutputPubSubTypes.h"
 #include "CurrentFeedbackPubSubTypes.h"
+#include "DriveControlPubSubTypes.h"
+#include "DriveStatePubSubTypes.h"
 #include "EstimatedStatePubSubTypes.h"
 #include "ForceCommandPubSubTypes.h"
 #include "MotorFeedbackPubSubTypes.h"
@@ -54,6 +56,7 @@ struct Fields<msg::Stamp> {
     v("tick", m.tick()...);
     v("sim_time_ns", m.sim_time_ns()...);
     v("source_time_ns", m.source_time_ns()...);
+    v("run_id", m.run_id()...);
   }
 };
 
@@ -72,6 +75,44 @@ struct Fields<msg::MotorFeedback> {
     v("applied_force_n", m.applied_force_n()...);
     v("applied_command_tick", m.applied_command_tick()...);
     v("status", m.status()...);
+    v("power_state", m.power_state()...);
+    v("error_code", m.error_code()...);
+  }
+};
+
+template <>
+struct Fields<msg::DriveState> {
+  static constexpr const char* name = "DriveState";
+  static constexpr bool plain = false;
+  template <class V, class... M>
+  static void each(V& v, M&... m) {
+    v("stamp", m.stamp()...);
+    v("drive_name", m.drive_name()...);
+    v("power_state", m.power_state()...);
+    v("statusword", m.statusword()...);
+    v("error_code", m.error_code()...);
+    v("fault_reason", m.fault_reason()...);
+    v("request_id", m.request_id()...);
+    v("request_accepted", m.request_accepted()...);
+    v("request_message", m.request_message()...);
+    v("refused_requests", m.refused_requests()...);
+    v("faults", m.faults()...);
+    v("safe_ticks", m.safe_ticks()...);
+    v("watchdog_armed", m.watchdog_armed()...);
+  }
+};
+
+template <>
+struct Fields<msg::DriveControl> {
+  static constexpr const char* name = "DriveControl";
+  static constexpr bool plain = false;
+  template <class V, class... M>
+  static void each(V& v, M&... m) {
+    v("stamp", m.stamp()...);
+    v("drive_name", m.drive_name()...);
+    v("command", m.command()...);
+    v("request_id", m.request_id()...);
+    v("requester", m.requester()...);
   }
 };
 
@@ -424,7 +465,8 @@ using PubSubTypes = ::testing::Types<
     msg::ForceCommandPubSubType, msg::CurrentFeedbackPubSubType, msg::VoltageCommandPubSubType,
     msg::VelocityReferencePubSubType, msg::EstimatedStatePubSubType,
     msg::CompensatorOutputPubSubType, msg::NetworkWeightsPubSubType,
-    msg::TrainerProgressPubSubType, msg::NodeStatusPubSubType>;
+    msg::TrainerProgressPubSubType, msg::NodeStatusPubSubType, msg::DriveStatePubSubType,
+    msg::DriveControlPubSubType>;
 
 struct TypeNames {
   template <class PubSub>

@@ -97,7 +97,7 @@ TEST(DistributedFailures, LockstepPlantReportsALostControllerAndStops) {
   fs::remove_all(dir);
 }
 
-TEST(DistributedFailures, RealtimeWatchdogPutsThePlantInItsSafeState) {
+TEST(DistributedFailures, RealtimeWatchdogFaultsTheDriveAndTheLostControllerEndsTheRun) {
   const std::string scenario = source("configs/scenarios/pulse.yaml");
   const fs::path dir = fs::temp_directory_path() / ("pmlsm_watchdog_" + std::to_string(getpid()));
   fs::create_directories(dir);
@@ -110,10 +110,13 @@ TEST(DistributedFailures, RealtimeWatchdogPutsThePlantInItsSafeState) {
   controller.signal(SIGKILL);
   const auto code = plant.wait_for(std::chrono::seconds(30));
   ASSERT_TRUE(code.has_value());
-  EXPECT_EQ(*code, 0) << plant.output();  // it finishes the run, safely
+  // The watchdog faults the drive (zero force at once); 50 ms later the controller is lost and
+  // the simulation ends with code 4 instead of idling to the end of the scenario.
+  EXPECT_EQ(*code, 4) << plant.output();
   const std::string out = plant.output();
   EXPECT_NE(out.find("unanswered for 3.0 ms"), std::string::npos) << out;
-  EXPECT_NE(out.find("ended in safe state"), std::string::npos) << out;
+  EXPECT_NE(out.find("fault 0x8130, zero force"), std::string::npos) << out;
+  EXPECT_NE(out.find("controller lost"), std::string::npos) << out;
   fs::remove_all(dir);
 }
 

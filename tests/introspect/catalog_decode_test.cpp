@@ -20,6 +20,8 @@
 
 #include "CompensatorOutputPubSubTypes.h"
 #include "CurrentFeedbackPubSubTypes.h"
+#include "DriveControlPubSubTypes.h"
+#include "DriveStatePubSubTypes.h"
 #include "EstimatedStatePubSubTypes.h"
 #include "EvaluationRequestPubSubTypes.h"
 #include "EvaluationResultPubSubTypes.h"
@@ -110,6 +112,7 @@ msg::Stamp stamp(Sampler& s) {
   v.tick(s.u64("stamp.tick"));
   v.sim_time_ns(s.i64("stamp.sim_time_ns"));
   v.source_time_ns(s.i64("stamp.source_time_ns"));
+  v.run_id(s.u64("stamp.run_id"));
   return v;
 }
 
@@ -124,6 +127,36 @@ msg::MotorFeedback motor_feedback(Sampler& s) {
   v.applied_force_n(s.real("applied_force_n"));
   v.applied_command_tick(s.u64("applied_command_tick"));
   v.status(s.u32("status"));
+  v.power_state(s.u8("power_state"));
+  v.error_code(s.u16("error_code"));
+  return v;
+}
+
+msg::DriveState drive_state(Sampler& s) {
+  msg::DriveState v;
+  v.stamp(stamp(s));
+  v.drive_name(s.text<64>("drive_name"));
+  v.power_state(s.u8("power_state"));
+  v.statusword(s.u16("statusword"));
+  v.error_code(s.u16("error_code"));
+  v.fault_reason(s.text<128>("fault_reason"));
+  v.request_id(s.u64("request_id"));
+  v.request_accepted(s.flag("request_accepted"));
+  v.request_message(s.text<128>("request_message"));
+  v.refused_requests(s.u64("refused_requests"));
+  v.faults(s.u64("faults"));
+  v.safe_ticks(s.u64("safe_ticks"));
+  v.watchdog_armed(s.flag("watchdog_armed"));
+  return v;
+}
+
+msg::DriveControl drive_control(Sampler& s) {
+  msg::DriveControl v;
+  v.stamp(stamp(s));
+  v.drive_name(s.text<64>("drive_name"));
+  v.command(s.u8("command"));
+  v.request_id(s.u64("request_id"));
+  v.requester(s.text<64>("requester"));
   return v;
 }
 
@@ -364,6 +397,8 @@ const CatalogCase kCases[] = {
     {"pmlsm_msgs::msg::VelocityReference",
      make_sample<msg::VelocityReferencePubSubType, velocity_reference>},
     {"pmlsm_msgs::msg::EstimatedState", make_sample<msg::EstimatedStatePubSubType, estimated_state>},
+    {"pmlsm_msgs::msg::DriveControl", make_sample<msg::DriveControlPubSubType, drive_control>},
+    {"pmlsm_msgs::msg::DriveState", make_sample<msg::DriveStatePubSubType, drive_state>},
     {"pmlsm_msgs::msg::CompensatorOutput",
      make_sample<msg::CompensatorOutputPubSubType, compensator_output>},
     {"pmlsm_msgs::msg::NetworkWeights", make_sample<msg::NetworkWeightsPubSubType, network_weights>},
@@ -516,15 +551,34 @@ TEST(CatalogDecode, EveryTruncationOfMotorFeedback) {
   Sampler sampler;
   const Bytes bytes =
       make_sample<msg::MotorFeedbackPubSubType, motor_feedback>(sampler, ByteOrder::Little);
-  ASSERT_EQ(bytes.size(), 88U);  // header + 10 eight-byte members + uint32
+  // header + 11 eight-byte members (4 in the stamp) + uint32 + uint8 + 1 padding + uint16
+  ASSERT_EQ(bytes.size(), 100U);
   check_every_truncation("pmlsm_msgs::msg::MotorFeedback", bytes);
-  // Fixed layout: member i (< 10) ends at byte 4 + 8 (i + 1), status at 88.
+  // Fixed layout: member i (< 11) ends at byte 4 + 8 (i + 1), status at 96, power_state at 97,
+  // error_code (aligned to 2) at 100.
+  std::vector<std::size_t> ends;
+  for (std::size_t i = 0; i < 11; ++i) ends.push_back(4 + 8 * (i + 1));
+  ends.insert(ends.end(), {96, 97, 100});
   const MessageSchema schema = schema_of("pmlsm_msgs::msg::MotorFeedback");
+  ASSERT_EQ(schema.decode(bytes.data(), bytes.size()).fields.size(), ends.size());
   for (std::size_t length = 0; length < bytes.size(); ++length) {
     std::size_t complete = 0;
-    for (std::size_t i = 0; i < 10; ++i) complete += (4 + 8 * (i + 1) <= length) ? 1 : 0;
+    for (const std::size_t end : ends) complete += (end <= length) ? 1 : 0;
     EXPECT_EQ(schema.decode(bytes.data(), length).fields.size(), complete) << length;
   }
+}
+
+TEST(CatalogDecode, EveryTruncationOfDriveState) {
+  Sampler sampler;
+  check_every_truncation("pmlsm_msgs::msg::DriveState",
+                         make_sample<msg::DriveStatePubSubType, drive_state>(sampler, ByteOrder::Little));
+}
+
+TEST(CatalogDecode, EveryTruncationOfDriveControl) {
+  Sampler sampler;
+  check_every_truncation(
+      "pmlsm_msgs::msg::DriveControl",
+      make_sample<msg::DriveControlPubSubType, drive_control>(sampler, ByteOrder::Little));
 }
 
 TEST(CatalogDecode, EveryTruncationOfNetworkWeights) {
@@ -563,23 +617,23 @@ TEST(CatalogDecode, SequenceCountBeyondItsBoundOrTheData) {
   Bytes bytes =
       make_sample<msg::NetworkWeightsPubSubType, network_weights>(sampler, ByteOrder::Little);
   const MessageSchema schema = schema_of("pmlsm_msgs::msg::NetworkWeights");
-  // layer_sizes' count follows stamp (24 bytes) and version (8): byte 4 + 32 = 36.
-  ASSERT_EQ(bytes[36], 5U);
-  bytes[36] = 9;
+  // layer_sizes' count follows stamp (32 bytes) and version (8): byte 4 + 40 = 44.
+  ASSERT_EQ(bytes[44], 5U);
+  bytes[44] = 9;
   Decoded decoded = schema.decode(bytes.data(), bytes.size());
-  EXPECT_EQ(decoded.error, "at byte 36, field 'layer_sizes': sequence count 9 exceeds its bound 8");
-  EXPECT_EQ(decoded.fields.size(), 4U);  // stamp and version
-  // weights' count: after 5 uint16 (rel 36..46) and padding to 4: rel 48, byte 52.
-  bytes[36] = 5;
-  ASSERT_EQ(bytes[52], 37U);
-  bytes[52] = 0xff;
-  bytes[53] = 0x03;  // 1023: within the bound, far beyond the data
+  EXPECT_EQ(decoded.error, "at byte 44, field 'layer_sizes': sequence count 9 exceeds its bound 8");
+  EXPECT_EQ(decoded.fields.size(), 5U);  // stamp (4) and version
+  // weights' count: after 5 uint16 (rel 44..54) and padding to 4: rel 56, byte 60.
+  bytes[44] = 5;
+  ASSERT_EQ(bytes[60], 37U);
+  bytes[60] = 0xff;
+  bytes[61] = 0x03;  // 1023: within the bound, far beyond the data
   decoded = schema.decode(bytes.data(), bytes.size());
-  EXPECT_NE(decoded.error.find("at byte 52, field 'weights': sequence count 1023 needs at least "
+  EXPECT_NE(decoded.error.find("at byte 60, field 'weights': sequence count 1023 needs at least "
                                "8184 bytes"),
             std::string::npos)
       << decoded.error;
-  EXPECT_EQ(decoded.fields.size(), 9U);  // up to the last layer size
+  EXPECT_EQ(decoded.fields.size(), 10U);  // up to the last layer size
 }
 
 TEST(CatalogDecode, YamlOfASample) {
@@ -588,6 +642,7 @@ TEST(CatalogDecode, YamlOfASample) {
   stamp.tick(12);
   stamp.sim_time_ns(12'000'000);
   stamp.source_time_ns(-5);
+  stamp.run_id(0xFEDCBA9876543210ULL);
   sample.stamp(stamp);
   sample.version(3);
   sample.layer_sizes({3, 1});
@@ -606,6 +661,7 @@ TEST(CatalogDecode, YamlOfASample) {
             "  tick: 12\n"
             "  sim_time_ns: 12000000\n"
             "  source_time_ns: -5\n"
+            "  run_id: 18364758544493064720\n"
             "version: 3\n"
             "layer_sizes:\n"
             "- 3\n"

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "launch_test_support.hpp"
+#include "pmlsm/util/exit_codes.hpp"
 
 namespace {
 
@@ -50,7 +51,7 @@ TEST_F(LauncherRun, PrefixesEachLineAndKeepsStdoutAndStderrApart) {
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.out, "[talker] one\n[talker] two\n[talker] tail\n");
   EXPECT_TRUE(contains(r.err, "[talker] warn\n"));
-  EXPECT_TRUE(contains(r.err, "[launcher] talker exited with code 0\n"));
+  EXPECT_TRUE(contains(r.err, "[launcher] talker exited with code 0 (ok)\n"));
   EXPECT_TRUE(contains(r.err, "[launcher] all 1 node ended cleanly"));
 }
 
@@ -126,7 +127,8 @@ TEST_F(LauncherRun, NodeEndedByTheForwardedSigintCountsAsClean) {
   const RunResult r = run_launcher(dir_, args());
   ASSERT_TRUE(r.finished);
   EXPECT_EQ(r.code, 0) << r.err;
-  EXPECT_TRUE(contains(r.err, "[launcher] worker killed by signal 2"));
+  EXPECT_TRUE(contains(r.err, "[launcher] worker killed by signal 2 (SIGINT, sent by the launcher)\n"));
+  EXPECT_TRUE(contains(r.err, "[launcher] all 2 nodes ended cleanly\n"));
   expect_gone({"worker", "main"});
 }
 
@@ -139,10 +141,11 @@ TEST_F(LauncherRun, FailingEndsLaunchNodeFailsTheLaunch) {
        {"main.sh", script::exits_after(dir_, "main", "worker", 4)}});
   const RunResult r = run_launcher(dir_, args({"--start-grace-ms", "0"}));
   ASSERT_TRUE(r.finished);
-  EXPECT_EQ(r.code, 1) << r.err;
-  EXPECT_TRUE(contains(r.err, "[launcher] main exited with code 4"));
-  EXPECT_TRUE(contains(r.err, "[launcher] worker exited with code 0"));
-  EXPECT_TRUE(contains(r.err, "[launcher] launch failed: main (exited with code 4)"));
+  EXPECT_EQ(r.code, 4) << r.err;
+  EXPECT_TRUE(contains(r.err, "[launcher] main exited with code 4 (a peer was lost)\n"));
+  EXPECT_TRUE(contains(r.err, "[launcher] worker exited with code 0 (ok)\n"));
+  EXPECT_TRUE(contains(
+      r.err, "[launcher] launch failed with exit code 4: main exited with code 4 (a peer was lost)\n"));
   expect_gone({"worker", "main"});
 }
 
@@ -157,7 +160,8 @@ TEST_F(LauncherRun, NodeIgnoringSigintIsKilledAfterTheStopTimeout) {
   ASSERT_TRUE(r.finished);
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_TRUE(contains(r.err, "[launcher] worker did not stop within 200 ms of SIGINT; sending SIGKILL"));
-  EXPECT_TRUE(contains(r.err, "[launcher] worker killed by signal 9"));
+  EXPECT_TRUE(contains(r.err, "[launcher] worker killed by signal 9 (SIGKILL, sent by the launcher)"));
+  EXPECT_TRUE(contains(r.err, "launch failed with exit code 1: worker killed by signal 9"));
   expect_gone({"worker", "main"});
 }
 
@@ -171,10 +175,12 @@ TEST_F(LauncherRun, NodeDyingAtStartStopsTheOthersAndFails) {
   // A generous grace: "bad" exits within milliseconds, however loaded the machine.
   const RunResult r = run_launcher(dir_, args({"--start-grace-ms", "20000"}));
   ASSERT_TRUE(r.finished);
-  EXPECT_EQ(r.code, 1) << r.err;
-  EXPECT_TRUE(contains(r.err, "[launcher] node 'bad' died at start (exit code 3)"));
+  EXPECT_EQ(r.code, 3) << r.err;
+  EXPECT_TRUE(contains(
+      r.err, "[launcher] node 'bad' died at start: exited with code 3 (a peer never appeared)\n"));
   EXPECT_TRUE(contains(r.err, "[launcher] worker exited with code 0"));
-  EXPECT_TRUE(contains(r.err, "launch failed: bad (exited with code 3)"));
+  EXPECT_TRUE(contains(
+      r.err, "launch failed with exit code 3: bad exited with code 3 (a peer never appeared)\n"));
   expect_gone({"worker", "bad"});
 }
 
@@ -197,10 +203,11 @@ TEST_F(LauncherRun, FailureAfterTheGraceIsReportedWithoutStoppingTheOthers) {
 
   launcher.signal(SIGINT);
   ASSERT_TRUE(launcher.wait_exit());
-  EXPECT_EQ(launcher.code(), 1) << launcher.err();
+  EXPECT_EQ(launcher.code(), 3) << launcher.err();
   EXPECT_FALSE(contains(launcher.err(), "died at start"));
   EXPECT_TRUE(contains(launcher.err(), "[launcher] worker exited with code 0"));
-  EXPECT_TRUE(contains(launcher.err(), "launch failed: late (exited with code 3)"));
+  EXPECT_TRUE(contains(launcher.err(),
+                       "launch failed with exit code 3: late exited with code 3 (a peer never appeared)\n"));
   expect_gone({"worker"});
 }
 
@@ -224,7 +231,8 @@ TEST_F(LauncherRun, ExecFailureInTheChildIsReportedAndStopsTheOthers) {
   write_launch(
       "name: broken\nnodes:\n"
       "  - {name: worker, executable: worker.sh}\n"
-      "  - {name: broken, executable: broken}\n",
+      "  - {name: broken, executable: broken}\n"
+      "  - {name: after, executable: worker.sh}\n",
       {{"worker.sh", script::waits_for_sigint(dir_, "worker")},
        {"broken", "neither a script nor a program\n"}});  // executable bit set: exec says ENOEXEC
   const RunResult r = run_launcher(dir_, args());
@@ -232,11 +240,120 @@ TEST_F(LauncherRun, ExecFailureInTheChildIsReportedAndStopsTheOthers) {
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_TRUE(contains(r.err, "[launcher] node 'broken' failed to start: cannot execute '" +
                                   dir_.file("broken") + "': Exec format error"));
-  EXPECT_TRUE(contains(r.err, "launch failed: broken (could not be executed)"));
+  EXPECT_TRUE(contains(
+      r.err, "launch failed with exit code 1: broken could not be executed; after not started\n"));
+  EXPECT_FALSE(contains(r.err, "after started"));
   // The worker may have been stopped before its script got as far as its PID file.
   if (const auto pid = dir_.pid_of("worker")) {
     EXPECT_FALSE(process_exists(*pid));
   }
+}
+
+// The launcher's exit code is the first failing node's, so a script learns why.
+
+TEST_F(LauncherRun, NodeEndingInTheSafeStateMakesTheLaunchExit5) {
+  write_launch(
+      "name: safe\nnodes:\n"
+      "  - {name: evaluator, executable: evaluator.sh}\n"
+      "  - {name: plant_sim, executable: plant.sh, ends_launch: true}\n",
+      {{"evaluator.sh", script::waits_for_sigint(dir_, "evaluator")},
+       {"plant.sh", script::exits_after(dir_, "plant_sim", "evaluator", 5)}});
+  const RunResult r = run_launcher(dir_, args({"--start-grace-ms", "0"}));
+  ASSERT_TRUE(r.finished);
+  EXPECT_EQ(r.code, 5) << r.err;
+  EXPECT_TRUE(contains(r.err,
+                       "[launcher] plant_sim exited with code 5 (ended in the safe state or a "
+                       "fault (run not valid))\n"));
+  EXPECT_TRUE(contains(r.err,
+                       "[launcher] launch failed with exit code 5: plant_sim exited with code 5 "
+                       "(ended in the safe state or a fault (run not valid))\n"));
+  EXPECT_FALSE(contains(r.err, "ended cleanly")) << r.err;
+  expect_gone({"evaluator", "plant_sim"});
+}
+
+TEST_F(LauncherRun, NodeConfigErrorMakesTheLaunchExit2) {
+  write_launch(
+      "name: config\nnodes:\n"
+      "  - {name: worker, executable: worker.sh}\n"
+      "  - {name: controller, executable: controller.sh}\n",
+      {{"worker.sh", script::waits_for_sigint(dir_, "worker")},
+       {"controller.sh", script::exits_after(dir_, "controller", "worker", 2)}});
+  const RunResult r = run_launcher(dir_, args({"--start-grace-ms", "20000"}));
+  ASSERT_TRUE(r.finished);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_TRUE(contains(
+      r.err, "[launcher] node 'controller' died at start: exited with code 2 (bad config or input)\n"));
+  EXPECT_TRUE(contains(r.err, "[launcher] worker exited with code 0 (ok)\n"));
+  EXPECT_TRUE(contains(
+      r.err, "launch failed with exit code 2: controller exited with code 2 (bad config or input)\n"));
+  EXPECT_FALSE(contains(r.err, "ended cleanly"));
+  expect_gone({"worker", "controller"});
+}
+
+// Two failures in a known order: `first` exits on its own; `second` fails only
+// when the launcher stops it because `first` ended the launch. `second` comes
+// first in the file, so neither file order nor the larger or smaller code can
+// pass for "first in time".
+class LauncherTwoFailures : public LauncherRun,
+                            public ::testing::WithParamInterface<std::pair<int, int>> {};
+
+TEST_P(LauncherTwoFailures, ExitCodeIsTheFirstFailuresAndBothAreListed) {
+  const auto [first_code, second_code] = GetParam();
+  write_launch(
+      "name: two\nnodes:\n"
+      "  - {name: second, executable: second.sh}\n"
+      "  - {name: first, executable: first.sh, ends_launch: true}\n",
+      {{"second.sh", script::waits_for_sigint(dir_, "second", second_code)},
+       {"first.sh", script::exits_after(dir_, "first", "second", first_code)}});
+  const RunResult r = run_launcher(dir_, args({"--start-grace-ms", "0"}));
+  ASSERT_TRUE(r.finished);
+  EXPECT_EQ(r.code, first_code) << r.err;
+  const auto exit_text = [](const char* name, int code) {
+    return std::string(name) + " exited with code " + std::to_string(code) + " (" +
+           pmlsm::exit_code_meaning(code) + ")";
+  };
+  EXPECT_TRUE(contains(r.out, "[second] second stopping on SIGINT"));
+  EXPECT_TRUE(contains(r.err, "[launcher] launch failed with exit code " +
+                                  std::to_string(first_code) + " (from first, the first to fail): " +
+                                  exit_text("first", first_code) + "; " +
+                                  exit_text("second", second_code) + "\n"));
+  EXPECT_FALSE(contains(r.err, "ended cleanly"));
+  expect_gone({"first", "second"});
+}
+
+INSTANTIATE_TEST_SUITE_P(Codes, LauncherTwoFailures,
+                         ::testing::Values(std::pair{4, 5}, std::pair{5, 4}),
+                         [](const auto& info) {
+                           return "First" + std::to_string(info.param.first) + "Then" +
+                                  std::to_string(info.param.second);
+                         });
+
+TEST_F(LauncherRun, NodeKilledByASignalTheLauncherDidNotSendExits1) {
+  // SIGINT, the very signal the launcher stops with: it counts only when the launcher sent it.
+  write_launch("name: selfkill\nnodes:\n  - {name: victim, executable: victim.sh}\n",
+               {{"victim.sh", "#!/bin/sh\nkill -INT $$\nsleep 30\n"}});
+  const RunResult r = run_launcher(dir_, args({"--start-grace-ms", "0"}));
+  ASSERT_TRUE(r.finished);
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_TRUE(contains(r.err, "[launcher] victim killed by signal 2 (SIGINT)\n"));
+  EXPECT_TRUE(contains(r.err, "launch failed with exit code 1: victim killed by signal 2 (SIGINT)\n"));
+  EXPECT_FALSE(contains(r.err, "ended cleanly"));
+}
+
+TEST_F(LauncherRun, AllNodesExitingZeroEndCleanly) {
+  write_launch(
+      "name: fine\nnodes:\n"
+      "  - {name: a, executable: ok.sh}\n"
+      "  - {name: b, executable: ok.sh}\n"
+      "  - {name: c, executable: ok.sh}\n",
+      {{"ok.sh", "#!/bin/sh\nexit 0\n"}});
+  const RunResult r = run_launcher(dir_, args());
+  ASSERT_TRUE(r.finished);
+  EXPECT_EQ(r.code, 0) << r.err;
+  for (const char* name : {"a", "b", "c"})
+    EXPECT_TRUE(contains(r.err, std::string("[launcher] ") + name + " exited with code 0 (ok)\n"));
+  EXPECT_TRUE(contains(r.err, "[launcher] all 3 nodes ended cleanly\n"));
+  EXPECT_FALSE(contains(r.err, "launch failed"));
 }
 
 class LauncherStopSignal : public LauncherRun, public ::testing::WithParamInterface<int> {};
@@ -286,7 +403,7 @@ TEST_F(LauncherRun, ExitStatusesSurviveAnInheritedIgnoredSigchld) {
                {{"quit.sh", "#!/bin/sh\nexit 5\n"}});
   LauncherProcess launcher(dir_, args({"--start-grace-ms", "0"}), {SIGCHLD});
   ASSERT_TRUE(launcher.wait_exit()) << launcher.err();
-  EXPECT_EQ(launcher.code(), 1) << launcher.err();
+  EXPECT_EQ(launcher.code(), 5) << launcher.err();
   EXPECT_TRUE(contains(launcher.err(), "[launcher] quitter exited with code 5"));
 }
 

@@ -15,10 +15,12 @@ execute_process(
           --expect-topic /pmlsm/motor_feedback --expect-topic /pmlsm/force_command
           --expect-topic /pmlsm/node_status --expect-topic /pmlsm/network_weights
           --expect-topic /pmlsm/training/setup
-          --min-messages 165
+          --expect-topic /pmlsm/drive_state --expect-topic /pmlsm/drive_control
+          --min-messages 175
           --print-first /pmlsm/motor_feedback --print-first /pmlsm/force_command
           --print-first /pmlsm/node_status --print-first /pmlsm/network_weights
           --print-first /pmlsm/training/setup
+          --print-first /pmlsm/drive_state --print-first /pmlsm/drive_control
   RESULT_VARIABLE result
   OUTPUT_VARIABLE output
   ERROR_VARIABLE errors)
@@ -27,7 +29,7 @@ if(NOT result EQUAL 0)
   message(FATAL_ERROR "read_mcap.mjs failed (exit ${result})")
 endif()
 
-# 50 ticks: the two control topics every tick, the other 13 every 10th tick.
+# 50 ticks: the two control topics every tick, the other 15 every 10th tick.
 string(JSON message_count GET "${output}" messages)
 string(JSON topic_count LENGTH "${output}" topics)
 string(JSON motor_feedback_count GET "${output}" topics /pmlsm/motor_feedback)
@@ -37,8 +39,8 @@ macro(expect actual expected what)
     string(APPEND failures "\n  ${what}: got '${actual}', expected '${expected}'")
   endif()
 endmacro()
-expect("${message_count}" 165 "message count")
-expect("${topic_count}" 15 "topics with messages")
+expect("${message_count}" 175 "message count")
+expect("${topic_count}" 17 "topics with messages")
 expect("${motor_feedback_count}" 50 "/pmlsm/motor_feedback messages")
 
 # Each check: topic, JSON path below the decoded message, expected text.
@@ -46,15 +48,19 @@ set(checks
   "/pmlsm/motor_feedback|stamp tick|0"
   "/pmlsm/motor_feedback|stamp sim_time_ns|0"
   "/pmlsm/motor_feedback|stamp source_time_ns|1700000000000000000"
+  "/pmlsm/motor_feedback|stamp run_id|18364758544493064720"
   "/pmlsm/motor_feedback|position_m|0.125"
   "/pmlsm/motor_feedback|velocity_mps|-1.5"
   "/pmlsm/motor_feedback|i_q_a|2.5"
   "/pmlsm/motor_feedback|applied_force_n|29.5"
-  "/pmlsm/motor_feedback|status|64"
+  "/pmlsm/motor_feedback|status|192"
+  "/pmlsm/motor_feedback|power_state|6"
+  "/pmlsm/motor_feedback|error_code|34321"
   "/pmlsm/force_command|force_n|12.5"
   "/pmlsm/force_command|pi_force_n|10.25"
   "/pmlsm/force_command|velocity_error_mps|-0.5"
   "/pmlsm/force_command|saturated|OFF"
+  "/pmlsm/force_command|stamp run_id|18364758544493064720"
   "/pmlsm/node_status|node_name|plant_sim"
   "/pmlsm/node_status|host_name|host-a"
   "/pmlsm/node_status|pid|4242"
@@ -72,6 +78,26 @@ set(checks
   "/pmlsm/training/setup|scenarios 1 origin|step.yaml"
   "/pmlsm/training/setup|scenarios 1 weight|2"
   "/pmlsm/training/setup|cost_velocity|truth"
+  "/pmlsm/drive_state|stamp tick|0"
+  "/pmlsm/drive_state|stamp run_id|18364758544493064720"
+  "/pmlsm/drive_state|drive_name|plant_sim"
+  "/pmlsm/drive_state|power_state|7"
+  "/pmlsm/drive_state|statusword|536"
+  "/pmlsm/drive_state|error_code|34321"
+  "/pmlsm/drive_state|fault_reason|following error 0.5 mm"
+  "/pmlsm/drive_state|request_id|41"
+  "/pmlsm/drive_state|request_accepted|ON"
+  "/pmlsm/drive_state|request_message|enable operation: done"
+  "/pmlsm/drive_state|refused_requests|3"
+  "/pmlsm/drive_state|faults|2"
+  "/pmlsm/drive_state|safe_ticks|1500"
+  "/pmlsm/drive_state|watchdog_armed|OFF"
+  "/pmlsm/drive_control|stamp tick|0"
+  "/pmlsm/drive_control|stamp run_id|18364758544493064720"
+  "/pmlsm/drive_control|drive_name|*"
+  "/pmlsm/drive_control|command|6"
+  "/pmlsm/drive_control|request_id|42"
+  "/pmlsm/drive_control|requester|operator@host-b"
 )
 foreach(check IN LISTS checks)
   string(REPLACE "|" ";" parts "${check}")

@@ -22,6 +22,8 @@
 
 #include "CompensatorOutputPubSubTypes.h"
 #include "CurrentFeedbackPubSubTypes.h"
+#include "DriveControlPubSubTypes.h"
+#include "DriveStatePubSubTypes.h"
 #include "EstimatedStatePubSubTypes.h"
 #include "EvaluationRequestPubSubTypes.h"
 #include "EvaluationResultPubSubTypes.h"
@@ -46,6 +48,8 @@ using eprosima::fastrtps::rtps::SerializedPayload_t;
 constexpr std::uint32_t kTicks = 50;
 constexpr std::uint32_t kTicksPerChunk = 10;
 constexpr std::int64_t kTickNs = 1'000'000;
+// Above 2^53: the Node.js check must keep all 64 bits (it prints it as a decimal string).
+constexpr std::uint64_t kRunId = 0xFEDCBA9876543210ULL;
 
 // The CDR bytes Fast DDS puts on the wire, encapsulation header included.
 template <class PubSubType, class T>
@@ -61,6 +65,7 @@ void stamp(T& sample, std::uint32_t tick) {
   sample.stamp().tick(tick);
   sample.stamp().sim_time_ns(kTickNs * tick);
   sample.stamp().source_time_ns(1'700'000'000'000'000'000LL + kTickNs * tick);
+  sample.stamp().run_id(kRunId);
 }
 
 // Any type with only its stamp set: proves its schema and CDR agree in a third-party decoder.
@@ -81,8 +86,38 @@ std::vector<std::uint8_t> motor_feedback(std::uint32_t tick) {
   sample.thrust_force_n(30.0);
   sample.applied_force_n(29.5);
   sample.applied_command_tick(tick);
-  sample.status(64);
+  sample.status(64 | 128);      // STATUS_SIMULATED | STATUS_FAULT
+  sample.power_state(6);         // POWER_FAULT_REACTION_ACTIVE
+  sample.error_code(0x8611);     // CiA 402 "following error"
   return to_cdr<msg::MotorFeedbackPubSubType>(sample);
+}
+
+std::vector<std::uint8_t> drive_state(std::uint32_t tick) {
+  msg::DriveState sample;
+  stamp(sample, tick);
+  sample.drive_name("plant_sim");
+  sample.power_state(7);  // POWER_FAULT
+  sample.statusword(0x0218);
+  sample.error_code(0x8611);
+  sample.fault_reason("following error 0.5 mm");
+  sample.request_id(41);
+  sample.request_accepted(true);
+  sample.request_message("enable operation: done");
+  sample.refused_requests(3);
+  sample.faults(2);
+  sample.safe_ticks(1500);
+  sample.watchdog_armed(false);
+  return to_cdr<msg::DriveStatePubSubType>(sample);
+}
+
+std::vector<std::uint8_t> drive_control(std::uint32_t tick) {
+  msg::DriveControl sample;
+  stamp(sample, tick);
+  sample.drive_name("*");
+  sample.command(6);  // COMMAND_FAULT_RESET
+  sample.request_id(42);
+  sample.requester("operator@host-b");
+  return to_cdr<msg::DriveControlPubSubType>(sample);
 }
 
 std::vector<std::uint8_t> force_command(std::uint32_t tick) {
@@ -147,6 +182,8 @@ std::map<std::string, Generator> generators() {
       {"pmlsm_msgs::msg::NodeStatus", node_status},
       {"pmlsm_msgs::msg::NetworkWeights", network_weights},
       {"pmlsm_msgs::msg::TrainingSetup", training_setup},
+      {"pmlsm_msgs::msg::DriveState", drive_state},
+      {"pmlsm_msgs::msg::DriveControl", drive_control},
       {"pmlsm_msgs::msg::CurrentFeedback", stamped<msg::CurrentFeedback, msg::CurrentFeedbackPubSubType>},
       {"pmlsm_msgs::msg::VoltageCommand", stamped<msg::VoltageCommand, msg::VoltageCommandPubSubType>},
       {"pmlsm_msgs::msg::PlantTruth", stamped<msg::PlantTruth, msg::PlantTruthPubSubType>},

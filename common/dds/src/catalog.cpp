@@ -8,6 +8,8 @@
 
 #include "CompensatorOutputPubSubTypes.h"
 #include "CurrentFeedbackPubSubTypes.h"
+#include "DriveControlPubSubTypes.h"
+#include "DriveStatePubSubTypes.h"
 #include "EstimatedStatePubSubTypes.h"
 #include "EvaluationRequestPubSubTypes.h"
 #include "EvaluationResultPubSubTypes.h"
@@ -57,6 +59,8 @@ std::vector<CatalogEntry> make_catalog() {
       entry<msg::PlantTruthPubSubType>(topics::kPlantTruth, "PlantTruth"),
       entry<msg::VelocityReferencePubSubType>(topics::kVelocityReference, "VelocityReference"),
       entry<msg::EstimatedStatePubSubType>(topics::kEstimatedState, "EstimatedState"),
+      entry<msg::DriveControlPubSubType>(topics::kDriveControl, "DriveControl"),
+      entry<msg::DriveStatePubSubType>(topics::kDriveState, "DriveState"),
       entry<msg::CompensatorOutputPubSubType>(topics::kCompensatorOutput, "CompensatorOutput"),
       entry<msg::NodeStatusPubSubType>(topics::kNodeStatus, "NodeStatus"),
       entry<msg::NetworkWeightsPubSubType>(topics::kNetworkWeights, "NetworkWeights"),

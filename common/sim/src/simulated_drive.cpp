@@ -34,4 +34,26 @@ void SimulatedDrive::apply_voltage(double u_d_v, double u_q_v) {
   last_u_q_v_ = u_q_v;
 }
 
+SimulatedDriveBackend::SimulatedDriveBackend(const SystemParams& params, const PlantInitialCondition& initial,
+                                             const drive::PowerStateParams& power)
+    : drive_(params, initial), power_(power), motor_constant_n_per_a_(params.plant.electrical.motor_constant_n_per_a) {
+  power_.step();  // initialisation done: not ready to switch on -> switch on disabled (transition 1)
+}
+
+drive::Measurement SimulatedDriveBackend::sample() {
+  power_.step();
+  const DriveFeedback fb = drive_.sample();
+  drive::Measurement m;
+  m.position_m = fb.encoder_position_m;
+  m.velocity_mps = fb.velocity_mps;
+  m.i_d_a = fb.i_d_a;
+  m.i_q_a = fb.i_q_a;
+  m.thrust_force_n = motor_constant_n_per_a_ * fb.i_q_a;
+  return m;
+}
+
+void SimulatedDriveBackend::apply(double force_n) {
+  drive_.apply_force(power_.force_allowed() ? force_n : 0.0);
+}
+
 }  // namespace pmlsm

@@ -23,6 +23,9 @@ inline constexpr TopicSpec kPlantTruth{"rt/pmlsm/plant_truth", "pmlsm_observe"};
 inline constexpr TopicSpec kVelocityReference{"rt/pmlsm/velocity_reference", "pmlsm_observe"};
 inline constexpr TopicSpec kEstimatedState{"rt/pmlsm/estimated_state", "pmlsm_observe"};
 inline constexpr TopicSpec kCompensatorOutput{"rt/pmlsm/compensator_output", "pmlsm_control"};
+// The drive's power state machine: requests in, its state out (latest kept for late joiners).
+inline constexpr TopicSpec kDriveControl{"rt/pmlsm/drive_control", "pmlsm_command"};
+inline constexpr TopicSpec kDriveState{"rt/pmlsm/drive_state", "pmlsm_latched"};
 inline constexpr TopicSpec kNodeStatus{"rt/pmlsm/node_status", "pmlsm_observe"};
 inline constexpr TopicSpec kNetworkWeights{"rt/pmlsm/network_weights", "pmlsm_latched"};
 inline constexpr TopicSpec kTrainerProgress{"rt/pmlsm/trainer_progress", "pmlsm_observe"};

@@ -6,6 +6,7 @@
 #pragma once
 
 #include "pmlsm/control/current_controller.hpp"
+#include "pmlsm/drive/drive.hpp"
 #include "pmlsm/plant/encoder_velocity.hpp"
 #include "pmlsm/plant/plant.hpp"
 #include "pmlsm/sim/system_params.hpp"
@@ -61,6 +62,33 @@ class SimulatedDrive {
   double last_velocity_mps_ = 0;
   double last_u_d_v_ = 0;
   double last_u_q_v_ = 0;
+};
+
+/// SimulatedDrive behind the drive seam: the simulated drive's own CiA 402 power state machine
+/// (force only in operation enabled; quick stop and fault reaction end in zero force at once:
+/// the simulation has no stopping ramp of its own). The voltage command level goes around it
+/// to simulated() (simulation only: a real drive runs its own current loop).
+class SimulatedDriveBackend final : public drive::Drive {
+ public:
+  /// @throws std::invalid_argument from the plant, current controller or state machine.
+  SimulatedDriveBackend(const SystemParams& params, const PlantInitialCondition& initial,
+                        const drive::PowerStateParams& power = {});
+
+  drive::Measurement sample() override;
+  void apply(double force_n) override;
+  drive::TransitionResult request(drive::DriveCommand command) override { return power_.request(command); }
+  void fault(std::uint16_t error_code) override { power_.fault(error_code); }
+  drive::PowerState power_state() const override { return power_.state(); }
+  std::uint16_t error_code() const override { return power_.error_code(); }
+  bool simulated() const override { return true; }
+
+  SimulatedDrive& simulated_drive() { return drive_; }
+  const SimulatedDrive& simulated_drive() const { return drive_; }
+
+ private:
+  SimulatedDrive drive_;
+  drive::PowerStateMachine power_;
+  double motor_constant_n_per_a_;
 };
 
 }  // namespace pmlsm

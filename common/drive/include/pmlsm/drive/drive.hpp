@@ -1,0 +1,51 @@
+// The seam between the drive loop and a drive backend (ros2_control's hardware interface, for
+// one servo axis): the loop owns timing, command arbitration, the watchdog and statistics; a
+// backend measures, applies a force and runs (or mirrors) the drive's CiA 402 power state
+// machine. SimulatedDrive (common/sim) is one backend; a CANopen bridge to a real drive is
+// another. The controller on the other side of the bus cannot tell them apart.
+#pragma once
+
+#include <cstdint>
+
+#include "pmlsm/drive/power_state.hpp"
+
+namespace pmlsm::drive {
+
+/// What a drive measures at the start of a control tick.
+struct Measurement {
+  double position_m = 0;       ///< motor position from the encoder (quantised) [m]
+  double velocity_mps = 0;     ///< encoder difference over the last tick [m/s]
+  double i_d_a = 0;            ///< measured d-axis current [A]
+  double i_q_a = 0;            ///< measured q-axis current [A]
+  double thrust_force_n = 0;   ///< thrust from the currents, K_m i_q (eq. 14) [N]
+};
+
+/// A drive backend. Called from the loop thread only; no call may block past its tick, throw
+/// or allocate.
+class Drive {
+ public:
+  virtual ~Drive() = default;
+
+  /// Once per tick, first: the readings at the tick's start; the power state machine's
+  /// automatic transitions (fault reaction done, quick stop done) happen here.
+  virtual Measurement sample() = 0;
+  /// Once per tick, last: hold `force_n` for one control period. The backend applies it
+  /// only in operation enabled (zero force in every other state, whatever is asked).
+  virtual void apply(double force_n) = 0;
+  /// An operator's or supervisor's request to the power state machine.
+  virtual TransitionResult request(DriveCommand command) = 0;
+  /// A fault the loop detected (watchdog, a command that cannot be applied): transition 13,
+  /// latched until fault reset. The backend keeps the first code while faulted.
+  virtual void fault(std::uint16_t error_code) = 0;
+  virtual PowerState power_state() const = 0;
+  /// The last fault's code (CiA 402 object 0x603F), 0 when there was none.
+  virtual std::uint16_t error_code() const = 0;
+  /// True for a simulation (MotorFeedback's STATUS_SIMULATED bit).
+  virtual bool simulated() const = 0;
+};
+
+/// Error codes of faults the drive loop raises (CiA 301 / 402 error code classes).
+/// 0x8130 "life guard or heartbeat error": the controller stopped answering.
+inline constexpr std::uint16_t kErrorCommandTimeout = 0x8130;
+
+}  // namespace pmlsm::drive

@@ -1,0 +1,35 @@
+#include "pmlsm/drive/tick_clock.hpp"
+
+#include <stdexcept>
+#include <string>
+
+#include "pmlsm/util/clock.hpp"
+
+namespace pmlsm::drive {
+
+TickClock::TickClock(std::int64_t period_ns, bool realtime, std::int64_t wake_early_ns)
+    : period_ns_(period_ns), realtime_(realtime), wake_early_ns_(wake_early_ns) {
+  if (period_ns <= 0) throw std::invalid_argument("period_ns: must be > 0, got " + std::to_string(period_ns));
+  if (wake_early_ns < 0 || wake_early_ns >= period_ns) {
+    throw std::invalid_argument("wake_early_ns: must be in [0, period " + std::to_string(period_ns) + "), got " +
+                                std::to_string(wake_early_ns));
+  }
+}
+
+void TickClock::start() { next_ns_ = monotonic_ns(); }
+
+bool TickClock::wait_next_tick() {
+  if (!realtime_) return false;
+  next_ns_ += period_ns_;
+  std::int64_t now = monotonic_ns();
+  const bool missed = now > next_ns_;
+  sleep_until_monotonic_ns(next_ns_ - wake_early_ns_);
+  // No yield while polling: the poll is short, and at SCHED_FIFO a yield would hand the core
+  // to this node's own threads just when the tick must start.
+  if (wake_early_ns_ > 0) {
+    while (now < next_ns_) now = monotonic_ns();
+  }
+  return missed;
+}
+
+}  // namespace pmlsm::drive

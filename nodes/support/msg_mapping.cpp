@@ -1,0 +1,218 @@
+#include "msg_mapping.hpp"
+
+namespace pmlsm::node {
+namespace {
+
+namespace feedback_flags = pmlsm_msgs::msg::MotorFeedback_Constants;
+namespace power = pmlsm_msgs::msg::DriveState_Constants;
+// The loop's status bits are the message's.
+static_assert(drive::status::kSafeState == feedback_flags::STATUS_SAFE_STATE);
+static_assert(drive::status::kCommandLate == feedback_flags::STATUS_COMMAND_LATE);
+static_assert(drive::status::kWatchdogTripped == feedback_flags::STATUS_WATCHDOG_TRIPPED);
+static_assert(drive::status::kSimulated == feedback_flags::STATUS_SIMULATED);
+static_assert(drive::status::kFault == feedback_flags::STATUS_FAULT);
+static_assert(drive::status::kForeignCommand == feedback_flags::STATUS_FOREIGN_COMMAND);
+static_assert(static_cast<int>(drive::PowerState::kOperationEnabled) == power::POWER_OPERATION_ENABLED);
+static_assert(static_cast<int>(drive::PowerState::kFault) == power::POWER_FAULT);
+static_assert(static_cast<int>(drive::PowerState::kSwitchOnDisabled) == power::POWER_SWITCH_ON_DISABLED);
+
+}  // namespace
+
+namespace msg = pmlsm_msgs::msg;
+
+// run_validity.hpp keeps the constants as plain numbers (no generated code there): they must
+// be the IDL's.
+static_assert(kFeedbackStatusSafeState == msg::MotorFeedback_Constants::STATUS_SAFE_STATE);
+static_assert(kFeedbackStatusFault == msg::MotorFeedback_Constants::STATUS_FAULT);
+static_assert(kPowerOperationEnabled == msg::DriveState_Constants::POWER_OPERATION_ENABLED);
+static_assert(kPowerFaultReactionActive == msg::DriveState_Constants::POWER_FAULT_REACTION_ACTIVE);
+static_assert(kPowerFault == msg::DriveState_Constants::POWER_FAULT);
+
+// ---- PlantTruth ---------------------------------------------------------------------------
+
+void to_msg(const PlantTruth& truth, const PlantAppliedInputs& applied, msg::PlantTruth& out) {
+  const PlantState& s = truth.state;
+  out.motor_position_m(s.motor_position_m);
+  out.motor_velocity_mps(s.motor_velocity_mps);
+  out.motor_acceleration_mps2(truth.motor_accel_mps2);
+  out.load_position_m(s.load_position_m);
+  out.load_velocity_mps(s.load_velocity_mps);
+  out.load_acceleration_mps2(truth.load_accel_mps2);
+  out.spring_force_n(truth.spring_force_n);
+  out.thrust_force_n(truth.thrust_n);
+  out.ripple_force_n(truth.ripple_n);
+  out.friction_force_n(truth.friction_n);
+  out.command_force_n(applied.command_force_n);
+  out.psi_d_wb(s.psi_d_wb);
+  out.psi_q_wb(s.psi_q_wb);
+  out.psi_damper_d_wb(s.psi_dd_wb);
+  out.psi_damper_q_wb(s.psi_qq_wb);
+  out.i_d_a(truth.i_d_a);
+  out.i_q_a(truth.i_q_a);
+  out.i_damper_d_a(truth.i_dd_a);
+  out.i_damper_q_a(truth.i_qq_a);
+  out.u_d_v(applied.u_d_v);
+  out.u_q_v(applied.u_q_v);
+}
+
+void from_msg(const msg::PlantTruth& in, PlantTruth& truth, PlantAppliedInputs& applied) {
+  PlantState& s = truth.state;
+  s.motor_position_m = in.motor_position_m();
+  s.motor_velocity_mps = in.motor_velocity_mps();
+  truth.motor_accel_mps2 = in.motor_acceleration_mps2();
+  s.load_position_m = in.load_position_m();
+  s.load_velocity_mps = in.load_velocity_mps();
+  truth.load_accel_mps2 = in.load_acceleration_mps2();
+  truth.spring_force_n = in.spring_force_n();
+  truth.thrust_n = in.thrust_force_n();
+  truth.ripple_n = in.ripple_force_n();
+  truth.friction_n = in.friction_force_n();
+  applied.command_force_n = in.command_force_n();
+  s.psi_d_wb = in.psi_d_wb();
+  s.psi_q_wb = in.psi_q_wb();
+  s.psi_dd_wb = in.psi_damper_d_wb();
+  s.psi_qq_wb = in.psi_damper_q_wb();
+  truth.i_d_a = in.i_d_a();
+  truth.i_q_a = in.i_q_a();
+  truth.i_dd_a = in.i_damper_d_a();
+  truth.i_qq_a = in.i_damper_q_a();
+  applied.u_d_v = in.u_d_v();
+  applied.u_q_v = in.u_q_v();
+}
+
+void from_msg(const msg::PlantTruth& in, TickRecord& rec) {
+  PlantTruth truth;
+  PlantAppliedInputs applied;
+  from_msg(in, truth, applied);
+  record_truth(truth, rec);  // the same fields as the in-process loop's record
+  rec.u_q_v = applied.u_q_v;
+}
+
+// ---- MotorFeedback ------------------------------------------------------------------------
+
+void from_msg(const msg::MotorFeedback& in, TickRecord& rec) {
+  rec.encoder_position_m = in.position_m();
+  rec.motor_velocity_measured_mps = in.velocity_mps();
+}
+
+void from_msg(const msg::MotorFeedback& in, KalmanInput& out) {
+  out.motor_velocity_measured_mps = in.velocity_mps();
+  out.thrust_previous_n = in.applied_force_n();
+  out.motor_position_m = in.position_m();
+}
+
+void from_msg(const msg::MotorFeedback& in, DriveTickStatus& out) {
+  out.status = in.status();
+  out.power_state = in.power_state();
+  out.error_code = in.error_code();
+}
+
+// ---- VelocityReference, ForceCommand ------------------------------------------------------
+
+void to_msg(const VelocityControllerOutput& control, msg::VelocityReference& out) {
+  out.velocity_command_mps(control.command_mps);
+  out.v_ref_mps(control.v_ref_mps);
+  out.a_ref_mps2(control.a_ref_mps2);
+}
+
+void from_msg(const msg::VelocityReference& in, TickRecord& rec) {
+  rec.command_mps = in.velocity_command_mps();
+  rec.v_ref_mps = in.v_ref_mps();
+}
+
+void to_msg(const VelocityControllerOutput& control, double compensation_force_n, std::uint64_t feedback_tick,
+            msg::ForceCommand& out) {
+  out.feedback_tick(feedback_tick);
+  out.force_n(control.force_n);
+  out.pi_force_n(control.force_n - compensation_force_n);
+  out.compensation_force_n(compensation_force_n);
+  out.velocity_error_mps(control.velocity_error_mps);
+  out.saturated(control.saturated);
+}
+
+void from_msg(const msg::ForceCommand& in, TickRecord& rec) {
+  rec.force_command_n = in.force_n();
+  rec.compensation_force_n = in.compensation_force_n();
+}
+
+// ---- EstimatedState -----------------------------------------------------------------------
+
+void to_msg(const KalmanEstimate& estimate, std::uint64_t feedback_tick, msg::EstimatedState& out) {
+  out.feedback_tick(feedback_tick);
+  out.v_motor_mps(estimate.motor_velocity_mps);
+  out.v_load_mps(estimate.load_velocity_mps);
+  out.spring_force_n(estimate.spring_force_n);
+  out.a_load_mps2(estimate.load_accel_mps2);
+  out.input_force_n(estimate.input_force_n);
+  out.innovation_mps(estimate.innovation_mps);
+  auto& p = out.covariance_diag();
+  for (int i = 0; i < 3; ++i) p[static_cast<std::size_t>(i)] = estimate.covariance_diag(i);
+}
+
+void from_msg(const msg::EstimatedState& in, KalmanEstimate& out) {
+  out.motor_velocity_mps = in.v_motor_mps();
+  out.load_velocity_mps = in.v_load_mps();
+  out.spring_force_n = in.spring_force_n();
+  out.load_accel_mps2 = in.a_load_mps2();
+  out.input_force_n = in.input_force_n();
+  out.innovation_mps = in.innovation_mps();
+  const auto& p = in.covariance_diag();
+  for (int i = 0; i < 3; ++i) out.covariance_diag(i) = p[static_cast<std::size_t>(i)];
+}
+
+void from_msg(const msg::EstimatedState& in, TickRecord& rec) {
+  rec.est_motor_velocity_mps = in.v_motor_mps();
+  rec.est_load_velocity_mps = in.v_load_mps();
+  rec.est_spring_force_n = in.spring_force_n();
+  rec.est_load_accel_mps2 = in.a_load_mps2();
+}
+
+// ---- drive messages -----------------------------------------------------------------------
+
+void to_msg(const drive::TickReport& r, pmlsm_msgs::msg::MotorFeedback& out) {
+  out.position_m(r.measurement.position_m);
+  out.velocity_mps(r.measurement.velocity_mps);
+  out.i_d_a(r.measurement.i_d_a);
+  out.i_q_a(r.measurement.i_q_a);
+  out.thrust_force_n(r.measurement.thrust_force_n);
+  out.applied_force_n(r.applied_force_n);
+  out.applied_command_tick(r.applied_command_tick);
+  out.status(r.status);
+  out.power_state(static_cast<std::uint8_t>(r.power_state));
+  out.error_code(r.error_code);
+}
+
+drive::ForceCommandIn from_msg(const pmlsm_msgs::msg::ForceCommand& c, std::uint64_t writer,
+                               std::int64_t received_wall_ns) {
+  drive::ForceCommandIn in;
+  in.run_id = c.stamp().run_id();
+  in.feedback_tick = c.feedback_tick();
+  in.force_n = c.force_n();
+  in.writer_id = writer;
+  in.received_wall_ns = received_wall_ns;
+  return in;
+}
+
+void fill_drive_state(const drive::Drive& drive, const drive::DriveLoop& loop, std::uint64_t refused_requests,
+                      pmlsm_msgs::msg::DriveState& out) {
+  out.power_state(static_cast<std::uint8_t>(drive.power_state()));
+  out.statusword(drive::statusword_of(drive.power_state()));
+  out.error_code(drive.error_code());
+  out.refused_requests(refused_requests);
+  out.safe_ticks(loop.counters().safe_ticks);
+  out.watchdog_armed(loop.watchdog_armed());
+  out.faults(loop.counters().watchdog_trips);
+}
+
+void to_msg(const drive::Drive& drive, const drive::DriveLoop& loop, std::uint64_t refused_requests,
+                      pmlsm_msgs::msg::DriveState& out) {
+  out.power_state(static_cast<std::uint8_t>(drive.power_state()));
+  out.statusword(drive::statusword_of(drive.power_state()));
+  out.error_code(drive.error_code());
+  out.refused_requests(refused_requests);
+  out.safe_ticks(loop.counters().safe_ticks);
+  out.watchdog_armed(loop.watchdog_armed());
+  out.faults(loop.counters().watchdog_trips);
+}
+
+}  // namespace pmlsm::node
