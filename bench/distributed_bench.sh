@@ -46,11 +46,11 @@ realtime_pair() {
   while [ $# -gt 0 ] && [ "$1" != "--" ]; do both+=("$1"); shift; done
   [ $# -gt 0 ] && shift
   plant_only=("$@")
-  "$bin/controller" --domain "$domain" -s "$work/long.yaml" --clock realtime "${both[@]}" \
+  "$bin/controller" --domain "$domain" -s "$work/long.yaml" --clock realtime --plant-lost-ms 5000 "${both[@]}" \
     >"$work/${name}_controller.log" 2>&1 &
   controller_pid=$!
   "$bin/plant_sim" --domain "$domain" -s "$work/long.yaml" --clock realtime --peers 1 \
-    --watchdog-ms 1000 "${both[@]}" "${plant_only[@]}" >"$work/${name}.log" 2>&1 || true
+    --watchdog-ms 1000 --controller-lost-ms 5000 "${both[@]}" "${plant_only[@]}" >"$work/${name}.log" 2>&1 || true
   wait "$controller_pid" || true
 }
 echo "[4/7] realtime, plant_sim + controller, normal scheduling, ${realtime_s} s"

@@ -40,11 +40,6 @@ int run(int argc, char** argv) {
   app.add_option("--compensation", compensation, "none (PI only) or topic (add CompensatorOutput to the PI output)")
       ->check(CLI::IsMember({"none", "topic"}))
       ->capture_default_str();
-  double plant_lost_ms = 50.0;
-  app.add_option("--plant-lost-ms", plant_lost_ms,
-                 "realtime: no MotorFeedback this long after the first -> plant lost, exit 4")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   node::NodeRuntime rt("controller", common);
   const node::LoadedConfig& cfg = rt.cfg;
@@ -91,22 +86,12 @@ int run(int argc, char** argv) {
   const auto peer_timeout = std::chrono::duration<double>(common.peer_timeout_s);
   int exit_code = kExitOk;
 
-  // Realtime: once the plant ticks, silence for plant_lost_ms means it is gone (a drive sends
-  // feedback every tick, in its safe state too); lockstep waits as long as a tick may take.
-  const auto plant_lost_timeout = std::chrono::duration<double>(plant_lost_ms * 1e-3);
   bool any_feedback = false;
   while (next_tick < ticks && !pdds::stop_requested()) {
     const bool ok = node::take_next_tick(rt.wakeup, feedback_reader, feedback, tick_filter, run, new_run, rejected,
-                                         !lockstep && any_feedback ? plant_lost_timeout : peer_timeout);
+                                         node::feedback_timeout(common, cfg.clock, any_feedback));
     if (!ok) {
-      if (!lockstep && any_feedback && !pdds::stop_requested()) {
-        std::fprintf(stderr, "controller: no MotorFeedback for %.0f ms after tick %llu: plant lost\n", plant_lost_ms,
-                     static_cast<unsigned long long>(next_tick == 0 ? 0 : next_tick - 1));
-        rt.status.publish(node_state::STATE_ERROR, next_tick, period, "plant lost");
-        exit_code = kExitPeerLost;
-        break;
-      }
-      exit_code = node::end_of_failed_wait("controller", "MotorFeedback", "plant", next_tick, common.peer_timeout_s);
+      exit_code = node::end_of_feedback_wait("controller", common, cfg.clock, any_feedback, next_tick, period, rt.status);
       break;
     }
     any_feedback = true;

@@ -49,17 +49,18 @@ int run(int argc, char** argv) {
   node::RunFollower run;
   bool new_run = false;
   std::uint64_t rejected = 0;
-  const auto peer_timeout = std::chrono::duration<double>(common.peer_timeout_s);
   int exit_code = kExitOk;
 
+  bool any_feedback = false;
   while (next_tick < ticks && !pdds::stop_requested()) {
-    const bool ok =
-        node::take_next_tick(rt.wakeup, feedback_reader, feedback, tick_filter, run, new_run, rejected, peer_timeout);
+    const bool ok = node::take_next_tick(rt.wakeup, feedback_reader, feedback, tick_filter, run, new_run, rejected,
+                                         node::feedback_timeout(common, cfg.clock, any_feedback));
     if (!ok) {
-      exit_code = node::end_of_failed_wait("kalman_estimator", "MotorFeedback", "plant", next_tick,
-                                           common.peer_timeout_s);
+      exit_code =
+          node::end_of_feedback_wait("kalman_estimator", common, cfg.clock, any_feedback, next_tick, period, rt.status);
       break;
     }
+    any_feedback = true;
     if (new_run && run.restarts() > 0) {
       // The drive restarted: the estimate belongs to the old run; start afresh as at start-up.
       std::printf("kalman_estimator: the drive restarted (run %016llx -> %016llx) at its tick %llu: "

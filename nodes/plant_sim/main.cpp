@@ -318,15 +318,16 @@ int PlantSimNode::run() {
     }
     if (events.watchdog_tripped) {
       std::fprintf(stderr,
-                   "plant_sim: watchdog: tick %llu unanswered for %.1f ms at tick %llu: fault 0x%04x, zero force\n",
+                   "plant_sim: watchdog: tick %llu unanswered for %.1f ms at tick %llu: fault 0x%04x, zero force "
+                   "[wall %.6f s]\n",
                    static_cast<unsigned long long>(events.unanswered_tick), opt_.watchdog_ms,
-                   static_cast<unsigned long long>(k), backend_.error_code());
+                   static_cast<unsigned long long>(k), backend_.error_code(), static_cast<double>(wall_time_ns()) * 1e-9);
       rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "watchdog: feedback unanswered, fault, zero force");
     }
     if (events.controller_lost) {
-      std::fprintf(stderr, "plant_sim: no acceptable ForceCommand for %.0f ms at tick %llu: controller lost\n",
+      std::fprintf(stderr, "plant_sim: no acceptable ForceCommand for %.0f ms at tick %llu: controller lost [wall %.6f s]\n",
                    loop_.any_command() ? opt_.controller_lost_ms : common_.peer_timeout_s * 1e3,
-                   static_cast<unsigned long long>(k));
+                   static_cast<unsigned long long>(k), static_cast<double>(wall_time_ns()) * 1e-9);
       rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "controller lost");
       if (backend_.power_state() == drive::PowerState::kOperationEnabled) loop_.request(drive::DriveCommand::kQuickStop, monotonic_ns());
       if (opt_.on_controller_lost == "exit") {

@@ -39,6 +39,10 @@ void add_common_options(CLI::App& app, CommonOptions& o) {
                  "waking for each (0: wake for each; never on the chain: it paces the loop)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 100000.0));
+  app.add_option("--plant-lost-ms", o.plant_lost_ms,
+                 "realtime, chain nodes: no MotorFeedback this long after the first -> plant lost, exit 4")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   app.add_option("--rt-priority", o.realtime.rt_priority,
                  "SCHED_FIFO priority 1..99 for the node and its DDS threads, memory locked (0: normal scheduling)")
       ->check(CLI::Range(0, 99));
@@ -80,6 +84,23 @@ int end_of_failed_wait(const char* node_name, const char* missing, const char* p
   if (dds::stop_requested()) return kExitOk;
   std::fprintf(stderr, "%s: no %s for tick %llu within %.1f s: %s lost\n", node_name, missing,
                static_cast<unsigned long long>(tick), timeout_s, peer);
+  return kExitPeerLost;
+}
+
+std::chrono::duration<double> feedback_timeout(const CommonOptions& o, Clock clock, bool any_feedback) {
+  if (clock == Clock::kRealtime && any_feedback) return std::chrono::duration<double>(o.plant_lost_ms * 1e-3);
+  return std::chrono::duration<double>(o.peer_timeout_s);
+}
+
+int end_of_feedback_wait(const char* node_name, const CommonOptions& o, Clock clock, bool any_feedback,
+                         std::uint64_t next_tick, double control_period_s, StatusPublisher& status) {
+  if (clock != Clock::kRealtime || !any_feedback || dds::stop_requested()) {
+    return end_of_failed_wait(node_name, "MotorFeedback", "plant", next_tick, o.peer_timeout_s);
+  }
+  std::fprintf(stderr, "%s: no MotorFeedback for %.0f ms after tick %llu: plant lost [wall %.6f s]\n", node_name,
+               o.plant_lost_ms, static_cast<unsigned long long>(next_tick == 0 ? 0 : next_tick - 1),
+               static_cast<double>(wall_time_ns()) * 1e-9);
+  status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_ERROR, next_tick, control_period_s, "plant lost");
   return kExitPeerLost;
 }
 

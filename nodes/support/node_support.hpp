@@ -47,6 +47,9 @@ struct CommonOptions {
   /// Observers off the chain: wake every this many microseconds and take what
   /// arrived, instead of on every sample (0: on every sample).
   double wake_batch_us = 0.0;
+  /// Realtime, on the chain: once the plant ticks, no MotorFeedback for this long means it is
+  /// gone (a drive sends feedback every tick, in its safe state too).
+  double plant_lost_ms = 50.0;
   /// Real-time priority, PM QoS latency request (--rt-priority, --cpu-dma-latency-us).
   RealtimeOptions realtime;
 };
@@ -134,6 +137,17 @@ bool take_next_tick(dds::Wakeup& wakeup, ReaderT& reader, Message& sample, TickF
 /// MotorFeedback for tick 812 within 10.0 s: plant lost") and kExitPeerLost.
 int end_of_failed_wait(const char* node_name, const char* missing, const char* peer, std::uint64_t tick,
                        double timeout_s);
+
+/// How long a chain node waits for the next MotorFeedback: realtime, once the plant ticks,
+/// plant_lost_ms; at the start and in lockstep (a tick may take as long as the slowest node) the
+/// peer timeout.
+std::chrono::duration<double> feedback_timeout(const CommonOptions& options, Clock clock, bool any_feedback);
+
+/// After that wait failed: kExitOk on a stop request; realtime after the first feedback, one
+/// line "<node>: no MotorFeedback for 50 ms after tick N: plant lost [wall 1763...s]", NodeStatus
+/// in error and kExitPeerLost; otherwise as end_of_failed_wait.
+int end_of_feedback_wait(const char* node_name, const CommonOptions& options, Clock clock, bool any_feedback,
+                         std::uint64_t next_tick, double control_period_s, class StatusPublisher& status);
 
 /// Runs a node's body and maps its failures to exit codes with a one-line
 /// message on stderr: ConfigError -> 2, anything else -> 1.

@@ -41,5 +41,7 @@ void add_topic_commands(CLI::App& app, dds::ParticipantOptions& dds_options, int
 void add_record_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code);
 void add_play_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code);
 void add_plot_command(CLI::App& app, int& exit_code);
+/// `pmlsm drive status|enable|disable|quick-stop|fault-reset|shutdown|switch-on` (drive.cpp).
+void add_drive_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code);
 
 }  // namespace pmlsm::tools

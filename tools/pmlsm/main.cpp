@@ -2,6 +2,7 @@
 //   pmlsm topic list|echo|hz|delay   what is on the domain
 //   pmlsm record | play | plot       MCAP recordings
 //   pmlsm launch FILE ...            the launcher (same options)
+//   pmlsm drive status|enable|...    the drive's CiA 402 power state
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -53,6 +54,7 @@ int main(int argc, char** argv) {
   pmlsm::tools::add_record_command(app, dds_options, exit_code);
   pmlsm::tools::add_play_command(app, dds_options, exit_code);
   pmlsm::tools::add_plot_command(app, exit_code);
+  pmlsm::tools::add_drive_command(app, dds_options, exit_code);
 
   pmlsm::dds::install_shutdown_handlers();
   try {
