@@ -23,6 +23,8 @@ packages=(
   zlib1g-dev                      # crc32 of MCAP chunks and summary (pmlsm_mcap)
   libwebsocketpp-dev libasio-dev  # the Foxglove WebSocket bridge (the server library the official bridge uses)
   nlohmann-json3-dev              # the Foxglove protocol's JSON control messages
+  libmsgpack-cxx-dev              # CAN frames on the UDP-multicast virtual bus (python-can's udp_multicast format)
+  python3-can                     # python-can 4.1: an independent peer on that bus in the tests
 )
 # Node.js and npm run the third-party readers in the tests (@mcap/core, @foxglove/* from npm).
 # Debian's packages only where none is installed: a machine may carry its own Node.js with npm.

@@ -183,9 +183,9 @@ int run(int argc, char** argv) {
   }
   rt.status.status().rejected(rejected);
   rt.status.publish(node_state::STATE_STOPPING, next_tick, period, "done");
-  command_writer.wait_for_acknowledgments(node::kFlushTimeout);
-  if (voltage_level) voltage_writer.wait_for_acknowledgments(node::kFlushTimeout);
-  reference_writer.wait_for_acknowledgments(node::kFlushTimeout);
+  command_writer.wait_for_acknowledgments(node::flush_timeout(exit_code));
+  if (voltage_level) voltage_writer.wait_for_acknowledgments(node::flush_timeout(exit_code));
+  reference_writer.wait_for_acknowledgments(node::flush_timeout(exit_code));
   std::printf("controller: %llu ticks answered, %llu rejected, compensation %s (%llu ticks without)\n",
               static_cast<unsigned long long>(next_tick), static_cast<unsigned long long>(rejected),
               compensation.c_str(), static_cast<unsigned long long>(compensation_missing));

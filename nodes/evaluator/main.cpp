@@ -120,12 +120,20 @@ int run(int argc, char** argv) {
     return complete == ticks || restart.has_value();
   };
 
-  // Done when every tick is complete; a stall longer than the peer timeout ends it.
+  // Done when every tick is complete; no new complete tick for the peer timeout ends it (checked
+  // every 100 ms, so a stall is reported after the timeout, not up to twice it).
   std::uint64_t last_complete = 0;
+  auto last_progress = std::chrono::steady_clock::now();
+  const auto stall_limit = std::chrono::duration<double>(common.peer_timeout_s);
   while (!pdds::stop_requested()) {
-    if (node::wait_until(rt.wakeup, std::chrono::duration<double>(common.peer_timeout_s), drain)) break;
-    if (complete == last_complete) break;
-    last_complete = complete;
+    if (node::wait_until(rt.wakeup, std::chrono::milliseconds(100), drain)) break;
+    const auto now = std::chrono::steady_clock::now();
+    if (complete != last_complete) {
+      last_complete = complete;
+      last_progress = now;
+    } else if (now - last_progress >= stall_limit) {
+      break;
+    }
   }
 
   if (restart) {
@@ -157,7 +165,8 @@ int run(int argc, char** argv) {
       std::fprintf(stderr, "evaluator: the ticks received are INVALID as well: %s\n", validity.reason().c_str());
     }
     rt.status.publish(node_state::STATE_ERROR, complete, period, "incomplete run");
-    return pdds::stop_requested() ? kExitOk : kExitPeerLost;
+    // Stopped or stalled before the run was complete: no results, and never exit 0 for that.
+    return pdds::stop_requested() ? kExitError : kExitPeerLost;
   }
   const ScenarioMetrics m = compute_metrics(trace, cfg.scenario, period);
   std::filesystem::create_directories(out_dir);

@@ -81,7 +81,7 @@ int run(int argc, char** argv) {
   const auto& c = filter.counters();
   rt.status.status().rejected(rejected + c.rejected_measurements + c.rejected_inputs);
   rt.status.publish(node_state::STATE_STOPPING, next_tick, period, "done");
-  estimate_writer.wait_for_acknowledgments(node::kFlushTimeout);
+  estimate_writer.wait_for_acknowledgments(node::flush_timeout(exit_code));
   std::printf("kalman_estimator: %llu ticks, %llu rejected\n", static_cast<unsigned long long>(next_tick),
               static_cast<unsigned long long>(rejected + c.rejected_measurements + c.rejected_inputs));
   return exit_code;

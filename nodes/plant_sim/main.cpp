@@ -280,7 +280,7 @@ int PlantSimNode::run() {
   clock_.start();
   std::uint64_t k = 0;
   for (; k < ticks_ && !pdds::stop_requested(); ++k) {
-    const drive::TickReport& report = loop_.begin_tick(k, monotonic_ns());
+    const drive::TickReport& report = loop_.begin_tick(k, monotonic_ns(), clock_.tick_start_ns());
     feedback_.stamp(node::make_stamp(k, period_s_, run_id_));
     node::to_msg(report, feedback_);
     const SimulatedDrive& simulated = backend_.simulated_drive();
@@ -317,12 +317,19 @@ int PlantSimNode::run() {
       }
     }
     if (events.watchdog_tripped) {
+      // The wall time the force went off (the trip may have come at the tick's start).
+      const std::int64_t tripped_wall_ns = wall_time_ns() - (monotonic_ns() - events.tripped_mono_ns);
       std::fprintf(stderr,
                    "plant_sim: watchdog: tick %llu unanswered for %.1f ms at tick %llu: fault 0x%04x, zero force "
                    "[wall %.6f s]\n",
                    static_cast<unsigned long long>(events.unanswered_tick), opt_.watchdog_ms,
-                   static_cast<unsigned long long>(k), backend_.error_code(), static_cast<double>(wall_time_ns()) * 1e-9);
+                   static_cast<unsigned long long>(k), backend_.error_code(), static_cast<double>(tripped_wall_ns) * 1e-9);
       rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "watchdog: feedback unanswered, fault, zero force");
+      char reason[128];
+      std::snprintf(reason, sizeof reason, "watchdog: feedback of tick %llu unanswered for %.1f ms (tick %llu)",
+                    static_cast<unsigned long long>(events.unanswered_tick), opt_.watchdog_ms,
+                    static_cast<unsigned long long>(k));
+      drive_state_.fault_reason(reason);
     }
     if (events.controller_lost) {
       std::fprintf(stderr, "plant_sim: no acceptable ForceCommand for %.0f ms at tick %llu: controller lost [wall %.6f s]\n",
@@ -361,10 +368,10 @@ int PlantSimNode::finish(std::uint64_t k, int exit_code, double loop_s) {
   s.deadline_misses(loop_.statistics().deadline_misses());
   publish_drive_state(k);
   rt_.status.publish(node_state::STATE_STOPPING, k, period_s_, "done");
-  feedback_writer_.wait_for_acknowledgments(node::kFlushTimeout);
-  truth_writer_.wait_for_acknowledgments(node::kFlushTimeout);
-  state_writer_.wait_for_acknowledgments(node::kFlushTimeout);
-  if (voltage_level_) current_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  feedback_writer_.wait_for_acknowledgments(node::flush_timeout(exit_code));
+  truth_writer_.wait_for_acknowledgments(node::flush_timeout(exit_code));
+  state_writer_.wait_for_acknowledgments(node::flush_timeout(exit_code));
+  if (voltage_level_) current_writer_.wait_for_acknowledgments(node::flush_timeout(exit_code));
   if (realtime_ && k > 1) {
     const double mean_period = loop_.statistics().mean_period_s();
     std::printf("plant_sim: mean tick period %.3f us (nominal %.3f us, %+.1f ppm)\n", mean_period * 1e6,
@@ -380,12 +387,13 @@ int PlantSimNode::finish(std::uint64_t k, int exit_code, double loop_s) {
                 static_cast<unsigned long long>(c.uncommanded_ticks), static_cast<unsigned long long>(k));
   }
   std::printf("plant_sim: %llu ticks in %.3f s (%.1fx real time), late %llu, rejected %llu, foreign %llu, "
-              "deadline misses %llu, safe ticks %llu, drive %s\n",
+              "deadline misses %llu, safe ticks %llu, drive stalls %llu, drive %s\n",
               static_cast<unsigned long long>(k), loop_s, static_cast<double>(k) * period_s_ / loop_s,
               static_cast<unsigned long long>(c.late + stale_voltages_),
               static_cast<unsigned long long>(c.rejected + rejected_voltages_), static_cast<unsigned long long>(c.foreign),
               static_cast<unsigned long long>(loop_.statistics().deadline_misses()),
-              static_cast<unsigned long long>(c.safe_ticks), drive::to_string(backend_.power_state()));
+              static_cast<unsigned long long>(c.safe_ticks), static_cast<unsigned long long>(c.drive_stalls),
+              drive::to_string(backend_.power_state()));
   if (exit_code != kExitOk || pdds::stop_requested()) return exit_code;
   if (!loop_.ever_enabled()) {
     std::fprintf(stderr, "plant_sim: the drive was never enabled: no force was applied; run not valid\n");

@@ -193,26 +193,15 @@ drive::ForceCommandIn from_msg(const pmlsm_msgs::msg::ForceCommand& c, std::uint
   return in;
 }
 
-void fill_drive_state(const drive::Drive& drive, const drive::DriveLoop& loop, std::uint64_t refused_requests,
-                      pmlsm_msgs::msg::DriveState& out) {
-  out.power_state(static_cast<std::uint8_t>(drive.power_state()));
-  out.statusword(drive::statusword_of(drive.power_state()));
-  out.error_code(drive.error_code());
-  out.refused_requests(refused_requests);
-  out.safe_ticks(loop.counters().safe_ticks);
-  out.watchdog_armed(loop.watchdog_armed());
-  out.faults(loop.counters().watchdog_trips);
-}
-
 void to_msg(const drive::Drive& drive, const drive::DriveLoop& loop, std::uint64_t refused_requests,
-                      pmlsm_msgs::msg::DriveState& out) {
+            pmlsm_msgs::msg::DriveState& out) {
   out.power_state(static_cast<std::uint8_t>(drive.power_state()));
   out.statusword(drive::statusword_of(drive.power_state()));
   out.error_code(drive.error_code());
   out.refused_requests(refused_requests);
   out.safe_ticks(loop.counters().safe_ticks);
   out.watchdog_armed(loop.watchdog_armed());
-  out.faults(loop.counters().watchdog_trips);
+  out.faults(drive.fault_count());
 }
 
 }  // namespace pmlsm::node

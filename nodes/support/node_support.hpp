@@ -30,6 +30,12 @@ namespace pmlsm::node {
 /// counting once its lease (3 s, configs/dds/profiles.xml) runs out.
 inline constexpr std::chrono::seconds kFlushTimeout{15};
 
+/// The flush wait for a node ending with `exit_code`: kFlushTimeout, but 200 ms when a peer was
+/// lost (the dead peer's reader would hold the wait until its lease runs out, for nothing).
+inline std::chrono::milliseconds flush_timeout(int exit_code) {
+  return exit_code == kExitPeerLost ? std::chrono::milliseconds(200) : std::chrono::milliseconds(kFlushTimeout);
+}
+
 enum class Clock { kLockstep, kRealtime };
 enum class CommandLevel { kForce, kVoltage };
 

@@ -54,5 +54,21 @@ TEST(HumanBytes, ThousandsWithUnits) {
   EXPECT_EQ(human_bytes(5.5e9), "5.50 GB");
 }
 
+TEST(StampRunId, ReadsTheRunIdInEitherByteOrder) {
+  std::vector<std::uint8_t> le{0x00, 0x01, 0x00, 0x00};
+  for (int i = 0; i < 24; ++i) le.push_back(static_cast<std::uint8_t>(0xA0 + i));
+  for (std::uint8_t b : {0x10, 0x32, 0x54, 0x76, 0x98, 0xBA, 0xDC, 0xFE}) le.push_back(b);
+  le.push_back(0x99);  // the rest of the message
+  EXPECT_EQ(stamp_run_id(le), 0xFEDCBA9876543210ULL);
+  std::vector<std::uint8_t> be = le;
+  be[1] = 0x00;
+  std::reverse(be.begin() + 28, be.begin() + 36);
+  EXPECT_EQ(stamp_run_id(be), 0xFEDCBA9876543210ULL);
+  le.resize(35);
+  EXPECT_EQ(stamp_run_id(le), std::nullopt);  // too short
+  be[1] = 0x02;                               // PL_CDR_BE: not a plain stamp
+  EXPECT_EQ(stamp_run_id(be), std::nullopt);
+}
+
 }  // namespace
 }  // namespace pmlsm::tools

@@ -13,6 +13,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 
 #include "commands.hpp"
 #include "pmlsm/dds/shutdown.hpp"
@@ -101,6 +102,10 @@ int run_record(const dds::ParticipantOptions& dds_options, RecordOptions o) {
   std::uint64_t total = 0;
   std::uint64_t flushed_total = 0;
   bool any = false;
+  // The drive's run (MotorFeedback's Stamp.run_id): a restarted drive is a new run in the same
+  // file; say so, so that nobody reads the file as one run.
+  std::optional<std::uint64_t> drive_run;
+  std::uint64_t drive_runs = 0;
   dds::RawSample sample;
   eprosima::fastdds::dds::SampleInfo info;
   while (!dds::stop_requested()) {
@@ -118,6 +123,18 @@ int run_record(const dds::ParticipantOptions& dds_options, RecordOptions o) {
                      static_cast<std::uint64_t>(published_ns), sample.bytes.data(), sample.bytes.size());
         ++t->messages;
         t->bytes += sample.bytes.size();
+        if (t->entry->spec.name == std::string(dds::topics::kMotorFeedback.name)) {
+          const auto run = stamp_run_id(sample.bytes);
+          if (run && run != drive_run) {
+            if (drive_run) {
+              std::fprintf(stderr, "%spmlsm record: the drive restarted (run %016llx -> %016llx): a new run from here\n",
+                           show_progress ? "\n" : "", static_cast<unsigned long long>(*drive_run),
+                           static_cast<unsigned long long>(*run));
+            }
+            drive_run = run;
+            ++drive_runs;
+          }
+        }
         ++total;
       }
     }
@@ -155,6 +172,10 @@ int run_record(const dds::ParticipantOptions& dds_options, RecordOptions o) {
     std::printf("%-36s %10llu %8llu %14llu\n", dds::display_name(t->entry->spec.name).c_str(),
                 static_cast<unsigned long long>(t->messages), static_cast<unsigned long long>(topic_lost),
                 static_cast<unsigned long long>(t->sequences.missed_before_join()));
+  }
+  if (drive_runs > 1) {
+    std::printf("the file holds %llu runs of the drive (it restarted %llu times)\n",
+                static_cast<unsigned long long>(drive_runs), static_cast<unsigned long long>(drive_runs - 1));
   }
   const auto& stats = writer.statistics();
   const double elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();

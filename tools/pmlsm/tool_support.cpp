@@ -72,4 +72,16 @@ std::string human_bytes(double bytes) {
   return text;
 }
 
+std::optional<std::uint64_t> stamp_run_id(const std::vector<std::uint8_t>& cdr) {
+  constexpr std::size_t kHeader = 4, kOffset = kHeader + 24;
+  if (cdr.size() < kOffset + 8 || cdr[0] != 0x00 || cdr[1] > 0x01) return std::nullopt;  // CDR_BE 0x0000, CDR_LE 0x0001
+  const bool little_endian = cdr[1] == 0x01;
+  std::uint64_t value = 0;
+  for (std::size_t i = 0; i < 8; ++i) {
+    const std::uint64_t byte = cdr[kOffset + (little_endian ? i : 7 - i)];
+    value |= byte << (8 * i);
+  }
+  return value;
+}
+
 }  // namespace pmlsm::tools

@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -57,6 +58,11 @@ class RollingWindow {
 
 /// Summary of `values` (nearest-rank percentiles); all zero when empty.
 Summary summarize(std::vector<double> values);
+
+/// Stamp.run_id of a serialized project message (every type starts with its Stamp: tick,
+/// sim_time_ns, source_time_ns, run_id, 8 bytes each after the 4-byte encapsulation header, in
+/// the header's byte order); nullopt for a sample too short or not plain CDR.
+std::optional<std::uint64_t> stamp_run_id(const std::vector<std::uint8_t>& cdr);
 
 /// "12.3 kB", "4.56 MB": sizes as people read them.
 std::string human_bytes(double bytes);

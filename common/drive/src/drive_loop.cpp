@@ -68,8 +68,39 @@ void DriveLoop::track_power_state(std::int64_t now_mono_ns) {
   was_enabled_ = enabled;
 }
 
-const TickReport& DriveLoop::begin_tick(std::uint64_t tick, std::int64_t now_mono_ns) {
+void DriveLoop::check_watchdog(std::int64_t now_mono_ns) {
+  if (!params_.realtime || !armed_ || drive_.power_state() != PowerState::kOperationEnabled) return;
+  if (any_stall_ && tick_ <= grace_until_tick_) return;
+  // The oldest unanswered feedback: tick applied + 1, never before arming, and within the ring
+  // of remembered publish times (beyond it the oldest remembered, which is younger: the trip
+  // comes no earlier). At a tick's start the current tick is not published yet.
+  const std::uint64_t newest_published = published_this_tick_ ? tick_ : tick_ - 1;
+  if (tick_ == 0 && !published_this_tick_) return;
+  const std::uint64_t ring_start = newest_published + 1 >= kRing ? newest_published + 1 - kRing : 0;
+  const std::uint64_t oldest = std::max({applied_tick_ + 1, arm_tick_, ring_start});
+  if (oldest > newest_published || now_mono_ns - published_mono_ns_[oldest % kRing] < to_ns(params_.watchdog_s)) return;
+  drive_.fault(kErrorCommandTimeout);
+  watchdog_latched_ = true;
+  armed_ = false;
+  ++counters_.watchdog_trips;
+  events_.watchdog_tripped = true;
+  events_.unanswered_tick = oldest;
+  events_.tripped_mono_ns = now_mono_ns;
+}
+
+const TickReport& DriveLoop::begin_tick(std::uint64_t tick, std::int64_t now_mono_ns, std::int64_t scheduled_mono_ns) {
   tick_ = tick;
+  events_ = TickEvents{};
+  published_this_tick_ = false;
+  // Started more than a period late: the drive's own thread was held (by the host); the
+  // controller gets until the drive is back on time before the watchdog counts again.
+  // The tick after the last late one is spared too: the controller, held with the drive, needs
+  // that long to answer what it could not.
+  if (params_.realtime && now_mono_ns - scheduled_mono_ns > to_ns(params_.period_s)) {
+    ++counters_.drive_stalls;
+    any_stall_ = true;
+    grace_until_tick_ = tick + 1;
+  }
   tick_start_mono_ns_ = now_mono_ns;
   answered_ = false;
   fresh_ = false;
@@ -80,6 +111,7 @@ const TickReport& DriveLoop::begin_tick(std::uint64_t tick, std::int64_t now_mon
     last_accept_mono_ns_ = now_mono_ns;
   }
   report_.measurement = drive_.sample();
+  check_watchdog(now_mono_ns);
   track_power_state(now_mono_ns);
   const PowerState state = drive_.power_state();
   std::uint32_t bits = 0;
@@ -101,6 +133,7 @@ const TickReport& DriveLoop::begin_tick(std::uint64_t tick, std::int64_t now_mon
 void DriveLoop::published(std::int64_t wall_ns, std::int64_t mono_ns) {
   published_wall_ns_[tick_ % kRing] = wall_ns;
   published_mono_ns_[tick_ % kRing] = mono_ns;
+  published_this_tick_ = true;
 }
 
 Verdict DriveLoop::offer(const ForceCommandIn& c) {
@@ -164,7 +197,6 @@ Verdict DriveLoop::offer(const ForceCommandIn& c) {
 }
 
 TickEvents DriveLoop::end_tick(std::int64_t now_mono_ns, bool apply_force) {
-  TickEvents events;
   const bool enabled = drive_.power_state() == PowerState::kOperationEnabled;
   if (params_.realtime) {
     if (!fresh_) ++counters_.late;
@@ -174,25 +206,13 @@ TickEvents DriveLoop::end_tick(std::int64_t now_mono_ns, bool apply_force) {
         armed_ = true;
         arm_tick_ = tick_ + 1;  // feedback from here on counts
       }
-    } else if (enabled && armed_) {
-      // The oldest unanswered feedback: tick applied + 1, never before arming, and within the
-      // ring of remembered publish times (beyond it the oldest remembered, which is younger:
-      // the trip comes no earlier).
-      const std::uint64_t ring_start = tick_ + 1 >= kRing ? tick_ + 1 - kRing : 0;
-      const std::uint64_t oldest = std::max({applied_tick_ + 1, arm_tick_, ring_start});
-      if (oldest <= tick_ && now_mono_ns - published_mono_ns_[oldest % kRing] > to_ns(params_.watchdog_s)) {
-        drive_.fault(kErrorCommandTimeout);
-        watchdog_latched_ = true;
-        armed_ = false;
-        ++counters_.watchdog_trips;
-        events.watchdog_tripped = true;
-        events.unanswered_tick = oldest;
-      }
+    } else {
+      check_watchdog(now_mono_ns);
     }
     const double limit_s = any_command_ ? params_.controller_lost_s : params_.first_command_timeout_s;
     if (!lost_reported_ && now_mono_ns - last_accept_mono_ns_ > to_ns(limit_s)) {
       lost_reported_ = true;
-      events.controller_lost = true;
+      events_.controller_lost = true;
     }
   }
   if (!accepted_this_tick_ && !(applied_tick_ == tick_ && any_command_)) ++counters_.uncommanded_ticks;
@@ -201,7 +221,7 @@ TickEvents DriveLoop::end_tick(std::int64_t now_mono_ns, bool apply_force) {
   if (ever_enabled_ && !still_enabled) ++counters_.safe_ticks;
   last_applied_force_n_ = still_enabled ? force_n_ : 0.0;
   if (apply_force) drive_.apply(last_applied_force_n_);
-  return events;
+  return events_;
 }
 
 TransitionResult DriveLoop::request(DriveCommand command, std::int64_t now_mono_ns) {

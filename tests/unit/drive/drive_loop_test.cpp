@@ -33,6 +33,7 @@ class RecordingDrive final : public Drive {
   void fault(std::uint16_t code) override { power_.fault(code); }
   PowerState power_state() const override { return power_.state(); }
   std::uint16_t error_code() const override { return power_.error_code(); }
+  std::uint64_t fault_count() const override { return power_.fault_count(); }
   bool simulated() const override { return true; }
   std::vector<double> applied;
 
@@ -218,6 +219,39 @@ TEST(DriveLoop, WatchdogArmsAfterFreshAnswersAndTripsWithinWatchdogPlusOneTick) 
   EXPECT_FALSE(loop.watchdog_armed());
   realtime_tick(loop, k, true, k);
   EXPECT_EQ(drive.applied.back(), 1.0);
+}
+
+TEST(DriveLoop, WatchdogWaitsWhileTheDriveItselfRunsLateThenTrips) {
+  RecordingDrive drive;
+  DriveLoop loop(params(true), drive);
+  loop.set_run_id(kRun);
+  enable(loop, drive, 0);
+  std::uint64_t k = 0;
+  for (; k < 10; ++k) realtime_tick(loop, k, true, k);
+  ASSERT_TRUE(loop.watchdog_armed());
+  // The host holds the drive's thread for 6 ms after tick 10 was published: ticks 11..16 start
+  // late (back to back, catching up). The controller's answer to 10 is not its fault; no trip.
+  loop.begin_tick(10, 10 * kMs);
+  loop.published(10 * kMs, 10 * kMs);
+  loop.end_tick(10 * kMs + kMs / 2);
+  const std::int64_t resumed = 16 * kMs + kMs / 2;
+  for (k = 11; k <= 16; ++k) {
+    loop.begin_tick(k, resumed, static_cast<std::int64_t>(k) * kMs);
+    loop.published(resumed, resumed);
+    const TickEvents e = loop.end_tick(resumed);
+    EXPECT_FALSE(e.watchdog_tripped) << k;
+  }
+  // Ticks 11..15 started more than a period late; tick 16, half a tick late, is on time again
+  // but spared: the controller, held with the drive, has had no time yet.
+  EXPECT_EQ(loop.counters().drive_stalls, 5u);
+  EXPECT_EQ(drive.power_state(), PowerState::kOperationEnabled);
+  // A tick later and still no answer: the check at the tick's start trips.
+  loop.begin_tick(17, 17 * kMs, 17 * kMs);
+  EXPECT_EQ(drive.power_state(), PowerState::kFaultReactionActive);
+  loop.published(17 * kMs, 17 * kMs);
+  const TickEvents e = loop.end_tick(17 * kMs + kMs / 2);
+  EXPECT_TRUE(e.watchdog_tripped);
+  EXPECT_EQ(e.tripped_mono_ns, 17 * kMs);  // at the tick's start, not half a tick later
 }
 
 TEST(DriveLoop, ARefusedRequestLeavesTheStateAndSaysWhy) {

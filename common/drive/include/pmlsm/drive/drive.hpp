@@ -40,6 +40,8 @@ class Drive {
   virtual PowerState power_state() const = 0;
   /// The last fault's code (CiA 402 object 0x603F), 0 when there was none.
   virtual std::uint16_t error_code() const = 0;
+  /// Faults since start (entries into fault reaction active).
+  virtual std::uint64_t fault_count() const = 0;
   /// True for a simulation (MotorFeedback's STATUS_SIMULATED bit).
   virtual bool simulated() const = 0;
 };

@@ -24,9 +24,14 @@
 // Watchdog (realtime): arms once `watchdog_arm_ticks` consecutive ticks were answered in
 // their own tick while in operation enabled (a controller working through a backlog of old
 // feedback, as at start-up, does not arm it); it trips when the oldest feedback still
-// unanswered was published more than `watchdog_s` ago: the backend faults (0x8130), force off,
-// latched until fault reset. Counting from the unanswered feedback, not from the last command,
-// means a drive thread that itself stalled does not blame the controller.
+// unanswered was published `watchdog_s` ago or more: the backend faults (0x8130), force off,
+// latched until fault reset. It is checked at the start of every tick and again after the
+// tick's command deadline, so a controller that dies is cut off at most watchdog + 1 tick
+// after its last answer. Counting from the unanswered feedback, not from the last command,
+// means a drive thread that itself stalled does not blame the controller; and a tick that
+// starts more than a period late (the drive's own thread was held, by the host, not by the
+// controller) suspends the check until the drive is back on time and one more tick has passed
+// (the controller was held with it), counted as a drive stall.
 // Lost controller (realtime): no command taken for `controller_lost_s` since the last one (or
 // since start) -> controller_lost(); the node decides what follows (a simulation ends, a
 // rig's drive stays up in its safe state to be reset).
@@ -99,6 +104,7 @@ struct TickReport {
 struct TickEvents {
   bool watchdog_tripped = false;        ///< this tick
   std::uint64_t unanswered_tick = 0;    ///< the feedback tick that tripped it
+  std::int64_t tripped_mono_ns = 0;     ///< when it tripped (force off from then on)
   bool controller_lost = false;         ///< this tick (reported once until the next enable)
 };
 
@@ -110,6 +116,7 @@ struct DriveCounters {
   std::uint64_t safe_ticks = 0;    ///< ticks with force off after the drive was first enabled
   std::uint64_t watchdog_trips = 0;
   std::uint64_t uncommanded_ticks = 0;  ///< ticks that got no acceptable command
+  std::uint64_t drive_stalls = 0;       ///< ticks that started more than a period late
 };
 
 class DriveLoop {
@@ -117,8 +124,12 @@ class DriveLoop {
   /// `drive` must outlive the loop. @throws std::invalid_argument for bad params.
   DriveLoop(const DriveLoopParams& params, Drive& drive);
 
-  /// Starts tick `tick` at CLOCK_MONOTONIC `now_mono_ns`: samples the drive.
-  const TickReport& begin_tick(std::uint64_t tick, std::int64_t now_mono_ns);
+  /// Starts tick `tick` at CLOCK_MONOTONIC `now_mono_ns`, due at `scheduled_mono_ns`
+  /// (realtime; lockstep: the same): checks the watchdog, samples the drive.
+  const TickReport& begin_tick(std::uint64_t tick, std::int64_t now_mono_ns, std::int64_t scheduled_mono_ns);
+  const TickReport& begin_tick(std::uint64_t tick, std::int64_t now_mono_ns) {
+    return begin_tick(tick, now_mono_ns, now_mono_ns);
+  }
   /// The feedback of the current tick was written at these times.
   void published(std::int64_t wall_ns, std::int64_t mono_ns);
   /// Arbitrates one received command (see the file comment).
@@ -147,6 +158,8 @@ class DriveLoop {
 
  private:
   void track_power_state(std::int64_t now_mono_ns);
+  /// The watchdog's check at `now_mono_ns` (see the file comment); trips into `events_`.
+  void check_watchdog(std::int64_t now_mono_ns);
 
   static constexpr std::uint64_t kRing = 4096;  // publish times remembered
 
@@ -182,6 +195,10 @@ class DriveLoop {
   double last_applied_force_n_ = 0;
   bool last_fresh_ = true;
   bool accepted_this_tick_ = false;
+  bool any_stall_ = false;
+  std::uint64_t grace_until_tick_ = 0;
+  bool published_this_tick_ = false;
+  TickEvents events_;
   bool liveness_started_ = false;
   bool lost_reported_ = false;
 };

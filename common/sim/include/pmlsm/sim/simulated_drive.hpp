@@ -80,6 +80,7 @@ class SimulatedDriveBackend final : public drive::Drive {
   void fault(std::uint16_t error_code) override { power_.fault(error_code); }
   drive::PowerState power_state() const override { return power_.state(); }
   std::uint16_t error_code() const override { return power_.error_code(); }
+  std::uint64_t fault_count() const override { return power_.fault_count(); }
   bool simulated() const override { return true; }
 
   SimulatedDrive& simulated_drive() { return drive_; }
