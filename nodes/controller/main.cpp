@@ -9,9 +9,11 @@
 // tick k (run_compensated in pmlsm/sim/closed_loop.hpp). Lockstep waits for it;
 // realtime uses the newest one no older than 3 ticks and counts the ticks
 // without (they get no compensation).
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <string>
 
 #include "CompensatorOutputPubSubTypes.h"
 #include "CurrentFeedbackPubSubTypes.h"
@@ -29,167 +31,229 @@ namespace {
 
 using namespace pmlsm;
 namespace pdds = pmlsm::dds;
+namespace msg = pmlsm_msgs::msg;
 namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
+
+struct ControllerOptions {
+  std::string compensation = "none";
+};
+
+class ControllerNode {
+ public:
+  ControllerNode(const node::CommonOptions& common, const ControllerOptions& options, node::NodeRuntime& rt)
+      : common_(common),
+        opt_(options),
+        rt_(rt),
+        period_s_(rt.period_s),
+        ticks_(scenario_ticks(rt.cfg.scenario, period_s_)),
+        voltage_level_(rt.cfg.command_level == node::CommandLevel::kVoltage),
+        lockstep_(rt.cfg.clock == node::Clock::kLockstep),
+        compensated_(options.compensation == "topic"),
+        peer_timeout_(common.peer_timeout_s),
+        feedback_reader_(rt.participant.make_reader<msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, rt.wakeup)),
+        command_writer_(rt.participant.make_writer<msg::ForceCommandPubSubType>(pdds::topics::kForceCommand)),
+        reference_writer_(rt.participant.make_writer<msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference)),
+        current_reader_(rt.participant.make_reader<msg::CurrentFeedbackPubSubType>(pdds::topics::kCurrentFeedback, rt.wakeup)),
+        voltage_writer_(rt.participant.make_writer<msg::VoltageCommandPubSubType>(pdds::topics::kVoltageCommand)),
+        current_loop_(rt.cfg.params.current_controller_params()),
+        current_steps_(rt.cfg.params.timing.current_steps_per_tick()),
+        compensation_reader_(rt.participant.make_reader<msg::CompensatorOutputPubSubType>(
+            pdds::topics::kCompensatorOutput, rt.wakeup, pdds::kObserverProfile)),
+        controller_(std::in_place, rt.cfg.params, rt.cfg.scenario) {}
+
+  int run();
+
+ private:
+  /// The drive restarted: what this loop integrated belongs to the old run.
+  void follow_new_run();
+  /// The compensator's force for tick k (0 when there is none), into `applied_n`; false when
+  /// lockstep waited for it in vain.
+  bool compensation_for(std::uint64_t k, double& applied_n);
+  bool take_compensation(std::uint64_t k);
+  void publish(std::uint64_t k, const VelocityControllerOutput& out, double applied_compensation_n);
+  /// The voltage command level: the drive's current loop, 32 exchanges per tick.
+  void run_current_loop(std::uint64_t k, double force_n);
+  int finish(int exit_code);
+
+  const node::CommonOptions& common_;
+  ControllerOptions opt_;
+  node::NodeRuntime& rt_;
+  double period_s_;
+  std::uint64_t ticks_;
+  bool voltage_level_;
+  bool lockstep_;
+  bool compensated_;
+  std::chrono::duration<double> peer_timeout_;
+  pdds::Reader<msg::MotorFeedbackPubSubType> feedback_reader_;
+  pdds::Writer<msg::ForceCommandPubSubType> command_writer_;
+  pdds::Writer<msg::VelocityReferencePubSubType> reference_writer_;
+  // The voltage command level: this node also runs the drive's current loop.
+  pdds::Reader<msg::CurrentFeedbackPubSubType> current_reader_;
+  pdds::Writer<msg::VoltageCommandPubSubType> voltage_writer_;
+  CurrentController current_loop_;
+  int current_steps_;
+  pdds::Reader<msg::CompensatorOutputPubSubType> compensation_reader_;
+  std::optional<VelocityController> controller_;
+
+  msg::MotorFeedback feedback_;
+  msg::ForceCommand command_;
+  msg::VelocityReference reference_;
+  msg::CurrentFeedback current_feedback_;
+  msg::VoltageCommand voltage_command_;
+  msg::CompensatorOutput compensator_output_;
+  double compensation_n_ = 0.0;
+  std::uint64_t compensation_tick_ = 0;
+  bool have_compensation_ = false;
+  std::uint64_t compensation_missing_ = 0;
+  std::uint64_t next_tick_ = 0;  // ticks up to here are done
+  node::TickFilter tick_filter_;
+  node::RunFollower run_;
+  std::uint64_t rejected_ = 0;
+  double last_velocity_ = 0.0;
+};
+
+void ControllerNode::follow_new_run() {
+  std::printf("controller: the drive restarted (run %016llx -> %016llx) at its tick %llu: following the new run\n",
+              static_cast<unsigned long long>(run_.previous()), static_cast<unsigned long long>(run_.current()),
+              static_cast<unsigned long long>(feedback_.stamp().tick()));
+  controller_.emplace(rt_.cfg.params, rt_.cfg.scenario);
+  have_compensation_ = false;
+  compensation_n_ = 0.0;
+  last_velocity_ = 0.0;
+  rt_.status.publish(node_state::STATE_RUNNING, feedback_.stamp().tick(), period_s_, "drive restarted: new run followed");
+}
+
+bool ControllerNode::take_compensation(std::uint64_t k) {
+  while (compensation_reader_.take(compensator_output_)) {
+    const std::uint64_t t = compensator_output_.stamp().tick();
+    if ((have_compensation_ && t <= compensation_tick_) || !std::isfinite(compensator_output_.force_n())) {
+      ++rejected_;
+      continue;
+    }
+    compensation_tick_ = t;
+    compensation_n_ = compensator_output_.force_n();
+    have_compensation_ = true;
+  }
+  return have_compensation_ && compensation_tick_ + 1 >= k;
+}
+
+bool ControllerNode::compensation_for(std::uint64_t k, double& applied_n) {
+  // Output k-1 belongs to tick k; lockstep waits for it, realtime takes what is there.
+  if (lockstep_) {
+    if (!node::wait_until(rt_.wakeup, peer_timeout_, [&] { return take_compensation(k); })) return false;
+  } else {
+    take_compensation(k);
+  }
+  if (have_compensation_ && compensation_tick_ + 3 >= k) {
+    applied_n = compensation_n_;
+  } else {
+    ++compensation_missing_;
+  }
+  return true;
+}
+
+void ControllerNode::publish(std::uint64_t k, const VelocityControllerOutput& out, double applied_compensation_n) {
+  command_.stamp(node::make_stamp(k, period_s_, run_.current()));
+  node::to_msg(out, applied_compensation_n, k, command_);
+  command_writer_.write(command_);
+  // After the command: the plant waits for it, the evaluator for this one.
+  reference_.stamp(command_.stamp());
+  node::to_msg(out, reference_);
+  reference_writer_.write(reference_);
+}
+
+void ControllerNode::run_current_loop(std::uint64_t k, double force_n) {
+  for (int sub = 0; sub < current_steps_; ++sub) {
+    bool got_current = false;
+    const bool current_ok = node::wait_until(rt_.wakeup, peer_timeout_, [&] {
+      while (!got_current && current_reader_.take(current_feedback_)) {
+        if (current_feedback_.stamp().tick() == k && current_feedback_.substep() == static_cast<std::uint32_t>(sub)) {
+          got_current = true;
+        } else {
+          ++rejected_;
+        }
+      }
+      return got_current;
+    });
+    if (!current_ok) return;
+    // The current controller rejects (and counts) non-finite measurements itself.
+    const CurrentControllerOutput u = current_loop_.step(
+        {force_n, current_feedback_.i_d_a(), current_feedback_.i_q_a(), current_feedback_.velocity_mps()});
+    voltage_command_.stamp(current_feedback_.stamp());
+    voltage_command_.substep(current_feedback_.substep());
+    voltage_command_.u_d_v(u.u_d_v);
+    voltage_command_.u_q_v(u.u_q_v);
+    voltage_command_.i_d_ref_a(0.0);
+    voltage_command_.i_q_ref_a(u.i_q_ref_a);
+    voltage_command_.saturated(u.voltage_limited);
+    voltage_writer_.write(voltage_command_);
+  }
+}
+
+int ControllerNode::run() {
+  rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "running");
+  int exit_code = kExitOk;
+  bool any_feedback = false;
+  bool new_run = false;
+  while (next_tick_ < ticks_ && !pdds::stop_requested()) {
+    if (!node::take_next_tick(rt_.wakeup, feedback_reader_, feedback_, tick_filter_, run_, new_run, rejected_,
+                              node::feedback_timeout(common_, rt_.cfg.clock, any_feedback))) {
+      exit_code = node::end_of_feedback_wait("controller", common_, rt_.cfg.clock, any_feedback, next_tick_, period_s_,
+                                             rt_.status);
+      break;
+    }
+    any_feedback = true;
+    if (new_run && run_.restarts() > 0) follow_new_run();
+    const std::uint64_t k = feedback_.stamp().tick();
+    double velocity = feedback_.velocity_mps();
+    if (!std::isfinite(velocity)) {
+      ++rejected_;  // answer with the last good measurement rather than pass a NaN on
+      velocity = last_velocity_;
+    }
+    last_velocity_ = velocity;
+    double applied_compensation_n = 0.0;
+    if (compensated_ && k > 0 && !compensation_for(k, applied_compensation_n)) {
+      exit_code = node::end_of_failed_wait("controller", "CompensatorOutput", "compensator", k - 1,
+                                           common_.peer_timeout_s);
+      break;
+    }
+    const VelocityControllerOutput out = controller_->step(k, velocity, applied_compensation_n);
+    publish(k, out, applied_compensation_n);
+    if (voltage_level_) run_current_loop(k, out.force_n);
+    next_tick_ = k + 1;
+  }
+  return finish(exit_code);
+}
+
+int ControllerNode::finish(int exit_code) {
+  rt_.status.status().rejected(rejected_);
+  rt_.status.publish(node_state::STATE_STOPPING, next_tick_, period_s_, "done");
+  command_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  if (voltage_level_) voltage_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  reference_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  std::printf("controller: %llu ticks answered, %llu rejected, compensation %s (%llu ticks without)\n",
+              static_cast<unsigned long long>(next_tick_), static_cast<unsigned long long>(rejected_),
+              opt_.compensation.c_str(), static_cast<unsigned long long>(compensation_missing_));
+  return exit_code;
+}
 
 int run(int argc, char** argv) {
   CLI::App app{"Velocity loop (reference model + PI) of the PMLSM on DDS"};
   node::CommonOptions common;
   common.spin_us = 200.0;
+  ControllerOptions opt;
   node::add_common_options(app, common);
-  std::string compensation = "none";
-  app.add_option("--compensation", compensation, "none (PI only) or topic (add CompensatorOutput to the PI output)")
+  app.add_option("--compensation", opt.compensation, "none (PI only) or topic (add CompensatorOutput to the PI output)")
       ->check(CLI::IsMember({"none", "topic"}))
       ->capture_default_str();
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   node::NodeRuntime rt("controller", common);
-  const node::LoadedConfig& cfg = rt.cfg;
-  const double period = rt.period_s;
   if (common.wake_batch_us > 0.0) {
     throw ConfigError("--wake-batch-us " + std::to_string(common.wake_batch_us) +
                       ": the controller is on the control chain; batching would pace the loop");
   }
-  auto feedback_reader = rt.participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, rt.wakeup);
-  auto command_writer = rt.participant.make_writer<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand);
-  auto reference_writer = rt.participant.make_writer<pmlsm_msgs::msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference);
-  // The voltage command level: this node also runs the drive's current loop.
-  const bool voltage_level = cfg.command_level == node::CommandLevel::kVoltage;
-  auto current_reader = rt.participant.make_reader<pmlsm_msgs::msg::CurrentFeedbackPubSubType>(pdds::topics::kCurrentFeedback, rt.wakeup);
-  auto voltage_writer = rt.participant.make_writer<pmlsm_msgs::msg::VoltageCommandPubSubType>(pdds::topics::kVoltageCommand);
-  CurrentController current_loop(cfg.params.current_controller_params());
-  const int current_steps = cfg.params.timing.current_steps_per_tick();
-  pmlsm_msgs::msg::CurrentFeedback current_feedback;
-  pmlsm_msgs::msg::VoltageCommand voltage_command;
-
-  const bool compensated = compensation == "topic";
-  auto compensation_reader = rt.participant.make_reader<pmlsm_msgs::msg::CompensatorOutputPubSubType>(
-      pdds::topics::kCompensatorOutput, rt.wakeup, pdds::kObserverProfile);
-  pmlsm_msgs::msg::CompensatorOutput compensator_output;
-  double compensation_n = 0.0;
-  std::uint64_t compensation_tick = 0;
-  bool have_compensation = false;
-  std::uint64_t compensation_missing = 0;
-  const bool lockstep = cfg.clock == node::Clock::kLockstep;
-
-  std::optional<VelocityController> controller(std::in_place, cfg.params, cfg.scenario);
-  const std::uint64_t ticks = scenario_ticks(cfg.scenario, period);
-  rt.status.publish(node_state::STATE_RUNNING, 0, period, "running");
-
-  pmlsm_msgs::msg::MotorFeedback feedback;
-  pmlsm_msgs::msg::ForceCommand command;
-  pmlsm_msgs::msg::VelocityReference reference;
-  std::uint64_t next_tick = 0;  // ticks up to here are done
-  node::TickFilter tick_filter;
-  node::RunFollower run;
-  bool new_run = false;
-  std::uint64_t rejected = 0;
-  double last_velocity = 0.0;
-  const auto peer_timeout = std::chrono::duration<double>(common.peer_timeout_s);
-  int exit_code = kExitOk;
-
-  bool any_feedback = false;
-  while (next_tick < ticks && !pdds::stop_requested()) {
-    const bool ok = node::take_next_tick(rt.wakeup, feedback_reader, feedback, tick_filter, run, new_run, rejected,
-                                         node::feedback_timeout(common, cfg.clock, any_feedback));
-    if (!ok) {
-      exit_code = node::end_of_feedback_wait("controller", common, cfg.clock, any_feedback, next_tick, period, rt.status);
-      break;
-    }
-    any_feedback = true;
-    if (new_run && run.restarts() > 0) {
-      // The drive restarted: what this loop integrated belongs to the old run.
-      std::printf("controller: the drive restarted (run %016llx -> %016llx) at its tick %llu: following the new run\n",
-                  static_cast<unsigned long long>(run.previous()), static_cast<unsigned long long>(run.current()),
-                  static_cast<unsigned long long>(feedback.stamp().tick()));
-      controller.emplace(cfg.params, cfg.scenario);
-      have_compensation = false;
-      compensation_n = 0.0;
-      last_velocity = 0.0;
-      rt.status.publish(node_state::STATE_RUNNING, feedback.stamp().tick(), period, "drive restarted: new run followed");
-    }
-    const std::uint64_t k = feedback.stamp().tick();
-    double velocity = feedback.velocity_mps();
-    if (!std::isfinite(velocity)) {
-      ++rejected;  // answer with the last good measurement rather than pass a NaN on
-      velocity = last_velocity;
-    }
-    last_velocity = velocity;
-    double applied_compensation_n = 0.0;
-    if (compensated && k > 0) {
-      // Output k-1 belongs to tick k; lockstep waits for it, realtime takes what is there.
-      auto take_compensation = [&] {
-        while (compensation_reader.take(compensator_output)) {
-          const std::uint64_t t = compensator_output.stamp().tick();
-          if ((have_compensation && t <= compensation_tick) || !std::isfinite(compensator_output.force_n())) {
-            ++rejected;
-            continue;
-          }
-          compensation_tick = t;
-          compensation_n = compensator_output.force_n();
-          have_compensation = true;
-        }
-        return have_compensation && compensation_tick + 1 >= k;
-      };
-      if (lockstep) {
-        if (!node::wait_until(rt.wakeup, peer_timeout, take_compensation)) {
-          exit_code = node::end_of_failed_wait("controller", "CompensatorOutput", "compensator", k - 1,
-                                               common.peer_timeout_s);
-          break;
-        }
-      } else {
-        take_compensation();
-      }
-      if (have_compensation && compensation_tick + 3 >= k) {
-        applied_compensation_n = compensation_n;
-      } else {
-        ++compensation_missing;
-      }
-    }
-    const VelocityControllerOutput out = controller->step(k, velocity, applied_compensation_n);
-
-    command.stamp(node::make_stamp(k, period, run.current()));
-    node::to_msg(out, applied_compensation_n, k, command);
-    command_writer.write(command);
-    // After the command: the plant waits for it, the evaluator for this one.
-    reference.stamp(command.stamp());
-    node::to_msg(out, reference);
-    reference_writer.write(reference);
-
-    for (int sub = 0; voltage_level && sub < current_steps; ++sub) {
-      bool got_current = false;
-      const bool current_ok = node::wait_until(rt.wakeup, peer_timeout, [&] {
-        while (!got_current && current_reader.take(current_feedback)) {
-          if (current_feedback.stamp().tick() == k && current_feedback.substep() == static_cast<std::uint32_t>(sub)) {
-            got_current = true;
-          } else {
-            ++rejected;
-          }
-        }
-        return got_current;
-      });
-      if (!current_ok) break;
-      // The current controller rejects (and counts) non-finite measurements itself.
-      const CurrentControllerOutput u = current_loop.step(
-          {out.force_n, current_feedback.i_d_a(), current_feedback.i_q_a(), current_feedback.velocity_mps()});
-      voltage_command.stamp(current_feedback.stamp());
-      voltage_command.substep(current_feedback.substep());
-      voltage_command.u_d_v(u.u_d_v);
-      voltage_command.u_q_v(u.u_q_v);
-      voltage_command.i_d_ref_a(0.0);
-      voltage_command.i_q_ref_a(u.i_q_ref_a);
-      voltage_command.saturated(u.voltage_limited);
-      voltage_writer.write(voltage_command);
-    }
-    next_tick = k + 1;
-  }
-  rt.status.status().rejected(rejected);
-  rt.status.publish(node_state::STATE_STOPPING, next_tick, period, "done");
-  command_writer.wait_for_acknowledgments(node::flush_timeout(exit_code));
-  if (voltage_level) voltage_writer.wait_for_acknowledgments(node::flush_timeout(exit_code));
-  reference_writer.wait_for_acknowledgments(node::flush_timeout(exit_code));
-  std::printf("controller: %llu ticks answered, %llu rejected, compensation %s (%llu ticks without)\n",
-              static_cast<unsigned long long>(next_tick), static_cast<unsigned long long>(rejected),
-              compensation.c_str(), static_cast<unsigned long long>(compensation_missing));
-  return exit_code;
+  ControllerNode node(common, opt, rt);
+  return node.run();
 }
 
 }  // namespace

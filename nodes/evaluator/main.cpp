@@ -11,9 +11,11 @@
 //   - a sample of any topic stamped with another run_id than the first one seen (0 ignored)
 //     means the drive restarted mid-run: no table, no CSV, exit kExitPeerLost (4).
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "EstimatedStatePubSubTypes.h"
@@ -33,157 +35,210 @@ namespace {
 
 using namespace pmlsm;
 namespace pdds = pmlsm::dds;
+namespace msg = pmlsm_msgs::msg;
 namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
 
 enum Part : unsigned { kFeedback = 1, kTruth = 2, kReference = 4, kCommand = 8, kEstimate = 16, kAll = 31 };
 
-int run(int argc, char** argv) {
-  CLI::App app{"Collects a distributed run's topics per tick, prints the results table, writes the CSV trace"};
-  node::CommonOptions common;
-  common.spin_us = 0.0;
+struct EvaluatorOptions {
   std::string out_dir = "out";
   bool print_header = true;
-  node::add_common_options(app, common);
-  app.add_option("-o,--out", out_dir, "Folder for the CSV trace");
-  app.add_option("--header", print_header, "Print the table header (true/false)");
   std::string label;
-  app.add_option("--label", label, "Names this run in the table and the CSV (<scenario>_<label>.csv), e.g. pi_rnn");
-  if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
-  node::NodeRuntime rt("evaluator", common);
-  const node::LoadedConfig& cfg = rt.cfg;
-  const double period = rt.period_s;
-  auto feedback_reader = rt.participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, rt.wakeup, pdds::kObserverProfile);
-  auto truth_reader = rt.participant.make_reader<pmlsm_msgs::msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth, rt.wakeup, pdds::kObserverProfile);
-  auto reference_reader = rt.participant.make_reader<pmlsm_msgs::msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference, rt.wakeup, pdds::kObserverProfile);
-  auto command_reader = rt.participant.make_reader<pmlsm_msgs::msg::ForceCommandPubSubType>(pdds::topics::kForceCommand, rt.wakeup, pdds::kObserverProfile);
-  auto estimate_reader = rt.participant.make_reader<pmlsm_msgs::msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState, rt.wakeup, pdds::kObserverProfile);
-  rt.status.publish(node_state::STATE_RUNNING, 0, period, "collecting");
+};
 
-  const std::uint64_t ticks = scenario_ticks(cfg.scenario, period);
-  std::vector<TickRecord> trace(ticks);
-  std::vector<unsigned> parts(ticks, 0);
-  std::uint64_t complete = 0;
-  std::uint64_t rejected = 0;
-  node::RunValidity validity;  // the drive's status at every tick
-  node::RunIdTracker run;      // the drive's run every sample must belong to
-  std::optional<node::RunChange> restart;
+class EvaluatorNode {
+ public:
+  EvaluatorNode(const node::CommonOptions& common, const EvaluatorOptions& options, node::NodeRuntime& rt)
+      : common_(common),
+        opt_(options),
+        rt_(rt),
+        period_s_(rt.period_s),
+        ticks_(scenario_ticks(rt.cfg.scenario, period_s_)),
+        feedback_reader_(observe<msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback)),
+        truth_reader_(observe<msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth)),
+        reference_reader_(observe<msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference)),
+        command_reader_(observe<msg::ForceCommandPubSubType>(pdds::topics::kForceCommand)),
+        estimate_reader_(observe<msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState)),
+        trace_(ticks_),
+        parts_(ticks_, 0) {}
 
-  auto mark = [&](std::uint64_t tick, Part part) -> TickRecord* {
-    if (tick >= ticks || (parts[tick] & part) != 0) {
-      ++rejected;  // outside the scenario or a duplicate
-      return nullptr;
-    }
-    parts[tick] |= part;
-    if (parts[tick] == kAll) ++complete;
-    TickRecord& r = trace[tick];
-    r.tick = tick;
-    r.time_s = static_cast<double>(tick) * period;
-    return &r;
-  };
+  int run();
 
-  pmlsm_msgs::msg::MotorFeedback feedback;
-  pmlsm_msgs::msg::PlantTruth truth;
-  pmlsm_msgs::msg::VelocityReference reference;
-  pmlsm_msgs::msg::ForceCommand command;
-  pmlsm_msgs::msg::EstimatedState estimate;
-  // A sample of another run than the first one seen ends the collection.
-  auto same_run = [&](const pmlsm_msgs::msg::Stamp& stamp) {
-    if (!restart) restart = run.observe(stamp.run_id(), stamp.tick());
-    return !restart;
-  };
-  node::DriveTickStatus drive_status;
-  auto drain = [&] {
-    while (!restart && feedback_reader.take(feedback)) {
-      if (!same_run(feedback.stamp())) break;
-      if (TickRecord* r = mark(feedback.stamp().tick(), kFeedback)) {
-        node::from_msg(feedback, *r);
-        node::from_msg(feedback, drive_status);
-        validity.add(feedback.stamp().tick(), drive_status);
-      }
-    }
-    while (!restart && truth_reader.take(truth)) {
-      if (!same_run(truth.stamp())) break;
-      if (TickRecord* r = mark(truth.stamp().tick(), kTruth)) node::from_msg(truth, *r);
-    }
-    while (!restart && reference_reader.take(reference)) {
-      if (!same_run(reference.stamp())) break;
-      if (TickRecord* r = mark(reference.stamp().tick(), kReference)) node::from_msg(reference, *r);
-    }
-    while (!restart && command_reader.take(command)) {
-      if (!same_run(command.stamp())) break;
-      if (TickRecord* r = mark(command.feedback_tick(), kCommand)) node::from_msg(command, *r);
-    }
-    while (!restart && estimate_reader.take(estimate)) {
-      if (!same_run(estimate.stamp())) break;
-      if (TickRecord* r = mark(estimate.feedback_tick(), kEstimate)) node::from_msg(estimate, *r);
-    }
-    return complete == ticks || restart.has_value();
-  };
+ private:
+  template <typename PubSubType>
+  pdds::Reader<PubSubType> observe(const pdds::TopicSpec& topic) {
+    return rt_.participant.make_reader<PubSubType>(topic, rt_.wakeup, pdds::kObserverProfile);
+  }
+  /// The record of `tick` with `part` now in, or null (and counted) outside the scenario or for a duplicate.
+  TickRecord* mark(std::uint64_t tick, Part part);
+  /// A sample of another run than the first one seen ends the collection.
+  bool same_run(const msg::Stamp& stamp);
+  /// Takes what arrived on every topic; true when every tick is complete or the drive restarted.
+  bool drain();
+  void collect();
+  int report_incomplete();
+  int report_results();
 
+  const node::CommonOptions& common_;
+  EvaluatorOptions opt_;
+  node::NodeRuntime& rt_;
+  double period_s_;
+  std::uint64_t ticks_;
+  pdds::Reader<msg::MotorFeedbackPubSubType> feedback_reader_;
+  pdds::Reader<msg::PlantTruthPubSubType> truth_reader_;
+  pdds::Reader<msg::VelocityReferencePubSubType> reference_reader_;
+  pdds::Reader<msg::ForceCommandPubSubType> command_reader_;
+  pdds::Reader<msg::EstimatedStatePubSubType> estimate_reader_;
+
+  std::vector<TickRecord> trace_;
+  std::vector<unsigned> parts_;
+  std::uint64_t complete_ = 0;
+  std::uint64_t rejected_ = 0;
+  node::RunValidity validity_;  // the drive's status at every tick
+  node::RunIdTracker run_;      // the drive's run every sample must belong to
+  std::optional<node::RunChange> restart_;
+  node::DriveTickStatus drive_status_;
+  msg::MotorFeedback feedback_;
+  msg::PlantTruth truth_;
+  msg::VelocityReference reference_;
+  msg::ForceCommand command_;
+  msg::EstimatedState estimate_;
+};
+
+TickRecord* EvaluatorNode::mark(std::uint64_t tick, Part part) {
+  if (tick >= ticks_ || (parts_[tick] & part) != 0) {
+    ++rejected_;  // outside the scenario or a duplicate
+    return nullptr;
+  }
+  parts_[tick] |= part;
+  if (parts_[tick] == kAll) ++complete_;
+  TickRecord& r = trace_[tick];
+  r.tick = tick;
+  r.time_s = static_cast<double>(tick) * period_s_;
+  return &r;
+}
+
+bool EvaluatorNode::same_run(const msg::Stamp& stamp) {
+  if (!restart_) restart_ = run_.observe(stamp.run_id(), stamp.tick());
+  return !restart_;
+}
+
+bool EvaluatorNode::drain() {
+  while (!restart_ && feedback_reader_.take(feedback_)) {
+    if (!same_run(feedback_.stamp())) break;
+    if (TickRecord* r = mark(feedback_.stamp().tick(), kFeedback)) {
+      node::from_msg(feedback_, *r);
+      node::from_msg(feedback_, drive_status_);
+      validity_.add(feedback_.stamp().tick(), drive_status_);
+    }
+  }
+  while (!restart_ && truth_reader_.take(truth_)) {
+    if (!same_run(truth_.stamp())) break;
+    if (TickRecord* r = mark(truth_.stamp().tick(), kTruth)) node::from_msg(truth_, *r);
+  }
+  while (!restart_ && reference_reader_.take(reference_)) {
+    if (!same_run(reference_.stamp())) break;
+    if (TickRecord* r = mark(reference_.stamp().tick(), kReference)) node::from_msg(reference_, *r);
+  }
+  while (!restart_ && command_reader_.take(command_)) {
+    if (!same_run(command_.stamp())) break;
+    if (TickRecord* r = mark(command_.feedback_tick(), kCommand)) node::from_msg(command_, *r);
+  }
+  while (!restart_ && estimate_reader_.take(estimate_)) {
+    if (!same_run(estimate_.stamp())) break;
+    if (TickRecord* r = mark(estimate_.feedback_tick(), kEstimate)) node::from_msg(estimate_, *r);
+  }
+  return complete_ == ticks_ || restart_.has_value();
+}
+
+void EvaluatorNode::collect() {
   // Done when every tick is complete; no new complete tick for the peer timeout ends it (checked
   // every 100 ms, so a stall is reported after the timeout, not up to twice it).
   std::uint64_t last_complete = 0;
   auto last_progress = std::chrono::steady_clock::now();
-  const auto stall_limit = std::chrono::duration<double>(common.peer_timeout_s);
+  const auto stall_limit = std::chrono::duration<double>(common_.peer_timeout_s);
   while (!pdds::stop_requested()) {
-    if (node::wait_until(rt.wakeup, std::chrono::milliseconds(100), drain)) break;
+    if (node::wait_until(rt_.wakeup, std::chrono::milliseconds(100), [this] { return drain(); })) break;
     const auto now = std::chrono::steady_clock::now();
-    if (complete != last_complete) {
-      last_complete = complete;
+    if (complete_ != last_complete) {
+      last_complete = complete_;
       last_progress = now;
     } else if (now - last_progress >= stall_limit) {
       break;
     }
   }
+}
 
-  if (restart) {
-    std::fprintf(stderr, "%s\n", node::restart_message("evaluator", *restart).c_str());
-    rt.status.publish(node_state::STATE_ERROR, complete, period, "drive restarted mid-run");
-    return kExitPeerLost;
-  }
-
-  if (complete < ticks) {
-    std::fprintf(stderr, "evaluator: only %llu of %llu ticks complete (%s); no results\n",
-                 static_cast<unsigned long long>(complete), static_cast<unsigned long long>(ticks),
-                 pdds::stop_requested() ? "stopped" : "peers silent");
-    // Which topics are missing, and from where: tells a late join from a loss.
-    const char* names[] = {"MotorFeedback", "PlantTruth", "VelocityReference", "ForceCommand", "EstimatedState"};
-    for (unsigned bit = 0; bit < 5; ++bit) {
-      std::uint64_t missing = 0, first = ticks;
-      for (std::uint64_t t = 0; t < ticks; ++t) {
-        if ((parts[t] & (1u << bit)) == 0) {
-          ++missing;
-          first = std::min(first, t);
-        }
-      }
-      if (missing > 0) {
-        std::fprintf(stderr, "evaluator: %s missing for %llu ticks, the first %llu\n", names[bit],
-                     static_cast<unsigned long long>(missing), static_cast<unsigned long long>(first));
+int EvaluatorNode::report_incomplete() {
+  std::fprintf(stderr, "evaluator: only %llu of %llu ticks complete (%s); no results\n",
+               static_cast<unsigned long long>(complete_), static_cast<unsigned long long>(ticks_),
+               pdds::stop_requested() ? "stopped" : "peers silent");
+  // Which topics are missing, and from where: tells a late join from a loss.
+  const char* names[] = {"MotorFeedback", "PlantTruth", "VelocityReference", "ForceCommand", "EstimatedState"};
+  for (unsigned bit = 0; bit < 5; ++bit) {
+    std::uint64_t missing = 0, first = ticks_;
+    for (std::uint64_t t = 0; t < ticks_; ++t) {
+      if ((parts_[t] & (1u << bit)) == 0) {
+        ++missing;
+        first = std::min(first, t);
       }
     }
-    if (!validity.valid()) {
-      std::fprintf(stderr, "evaluator: the ticks received are INVALID as well: %s\n", validity.reason().c_str());
+    if (missing > 0) {
+      std::fprintf(stderr, "evaluator: %s missing for %llu ticks, the first %llu\n", names[bit],
+                   static_cast<unsigned long long>(missing), static_cast<unsigned long long>(first));
     }
-    rt.status.publish(node_state::STATE_ERROR, complete, period, "incomplete run");
-    // Stopped or stalled before the run was complete: no results, and never exit 0 for that.
-    return pdds::stop_requested() ? kExitError : kExitPeerLost;
   }
-  const ScenarioMetrics m = compute_metrics(trace, cfg.scenario, period);
-  std::filesystem::create_directories(out_dir);
-  const std::string run_name = label.empty() ? cfg.scenario.name : cfg.scenario.name + "_" + label;
-  write_trace_csv(out_dir + "/" + run_name + ".csv", trace);
-  const std::string invalid_reason = validity.reason();  // empty: valid
-  if (print_header) node::print_results_header();
-  node::print_results_row(label.empty() ? cfg.scenario.name : cfg.scenario.name + " " + label, m,
-                          invalid_reason);
+  if (!validity_.valid()) {
+    std::fprintf(stderr, "evaluator: the ticks received are INVALID as well: %s\n", validity_.reason().c_str());
+  }
+  rt_.status.publish(node_state::STATE_ERROR, complete_, period_s_, "incomplete run");
+  // Stopped or stalled before the run was complete: no results, and never exit 0 for that.
+  return pdds::stop_requested() ? kExitError : kExitPeerLost;
+}
+
+int EvaluatorNode::report_results() {
+  const Scenario& scenario = rt_.cfg.scenario;
+  const ScenarioMetrics m = compute_metrics(trace_, scenario, period_s_);
+  std::filesystem::create_directories(opt_.out_dir);
+  const std::string run_name = opt_.label.empty() ? scenario.name : scenario.name + "_" + opt_.label;
+  write_trace_csv(opt_.out_dir + "/" + run_name + ".csv", trace_);
+  const std::string invalid_reason = validity_.reason();  // empty: valid
+  if (opt_.print_header) node::print_results_header();
+  node::print_results_row(opt_.label.empty() ? scenario.name : scenario.name + " " + opt_.label, m, invalid_reason);
   std::fflush(stdout);
-  rt.status.status().rejected(rejected);
+  rt_.status.status().rejected(rejected_);
   if (!invalid_reason.empty()) {
-    rt.status.publish(node_state::STATE_ERROR, ticks, period, "invalid run: drive force off");
+    rt_.status.publish(node_state::STATE_ERROR, ticks_, period_s_, "invalid run: drive force off");
     return kExitSafeState;
   }
-  rt.status.publish(node_state::STATE_STOPPING, ticks, period, "done");
+  rt_.status.publish(node_state::STATE_STOPPING, ticks_, period_s_, "done");
   return kExitOk;
+}
+
+int EvaluatorNode::run() {
+  rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "collecting");
+  collect();
+  if (restart_) {
+    std::fprintf(stderr, "%s\n", node::restart_message("evaluator", *restart_).c_str());
+    rt_.status.publish(node_state::STATE_ERROR, complete_, period_s_, "drive restarted mid-run");
+    return kExitPeerLost;
+  }
+  return complete_ < ticks_ ? report_incomplete() : report_results();
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"Collects a distributed run's topics per tick, prints the results table, writes the CSV trace"};
+  node::CommonOptions common;
+  common.spin_us = 0.0;
+  EvaluatorOptions opt;
+  node::add_common_options(app, common);
+  app.add_option("-o,--out", opt.out_dir, "Folder for the CSV trace");
+  app.add_option("--header", opt.print_header, "Print the table header (true/false)");
+  app.add_option("--label", opt.label, "Names this run in the table and the CSV (<scenario>_<label>.csv), e.g. pi_rnn");
+  if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
+  node::NodeRuntime rt("evaluator", common);
+  EvaluatorNode node(common, opt, rt);
+  return node.run();
 }
 
 }  // namespace

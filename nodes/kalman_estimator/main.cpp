@@ -20,7 +20,95 @@ namespace {
 
 using namespace pmlsm;
 namespace pdds = pmlsm::dds;
+namespace msg = pmlsm_msgs::msg;
 namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
+
+class KalmanEstimatorNode {
+ public:
+  KalmanEstimatorNode(const node::CommonOptions& common, node::NodeRuntime& rt)
+      : common_(common),
+        rt_(rt),
+        period_s_(rt.period_s),
+        ticks_(scenario_ticks(rt.cfg.scenario, period_s_)),
+        // Deep history: the estimator is off the lockstep chain and may fall behind;
+        // it must still see every tick.
+        feedback_reader_(rt.participant.make_reader<msg::MotorFeedbackPubSubType>(
+            pdds::topics::kMotorFeedback, rt.wakeup, pdds::kObserverProfile)),
+        estimate_writer_(rt.participant.make_writer<msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState)),
+        filter_(rt.cfg.params.kalman_params()) {}
+
+  int run();
+
+ private:
+  /// The drive restarted: the estimate belongs to the old run; start afresh as at start-up.
+  void follow_new_run();
+  void estimate(std::uint64_t k);
+  int finish(int exit_code);
+
+  const node::CommonOptions& common_;
+  node::NodeRuntime& rt_;
+  double period_s_;
+  std::uint64_t ticks_;
+  pdds::Reader<msg::MotorFeedbackPubSubType> feedback_reader_;
+  pdds::Writer<msg::EstimatedStatePubSubType> estimate_writer_;
+  KalmanFilter filter_;
+
+  msg::MotorFeedback feedback_;
+  msg::EstimatedState estimate_;
+  KalmanInput input_;
+  std::uint64_t next_tick_ = 0;  // ticks up to here are done
+  node::TickFilter tick_filter_;
+  node::RunFollower run_;
+  std::uint64_t rejected_ = 0;
+};
+
+void KalmanEstimatorNode::follow_new_run() {
+  std::printf("kalman_estimator: the drive restarted (run %016llx -> %016llx) at its tick %llu: "
+              "following the new run\n",
+              static_cast<unsigned long long>(run_.previous()), static_cast<unsigned long long>(run_.current()),
+              static_cast<unsigned long long>(feedback_.stamp().tick()));
+  filter_.reset();
+  rt_.status.publish(node_state::STATE_RUNNING, feedback_.stamp().tick(), period_s_, "drive restarted: new run followed");
+}
+
+void KalmanEstimatorNode::estimate(std::uint64_t k) {
+  // The filter itself rejects (and counts) a non-finite measurement or input.
+  node::from_msg(feedback_, input_);
+  node::to_msg(filter_.step(input_), k, estimate_);
+  estimate_.stamp(node::make_stamp(k, period_s_, run_.current()));  // the run this estimate follows
+  estimate_writer_.write(estimate_);
+}
+
+int KalmanEstimatorNode::run() {
+  rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "running");
+  int exit_code = kExitOk;
+  bool any_feedback = false;
+  bool new_run = false;
+  while (next_tick_ < ticks_ && !pdds::stop_requested()) {
+    if (!node::take_next_tick(rt_.wakeup, feedback_reader_, feedback_, tick_filter_, run_, new_run, rejected_,
+                              node::feedback_timeout(common_, rt_.cfg.clock, any_feedback))) {
+      exit_code = node::end_of_feedback_wait("kalman_estimator", common_, rt_.cfg.clock, any_feedback, next_tick_,
+                                             period_s_, rt_.status);
+      break;
+    }
+    any_feedback = true;
+    if (new_run && run_.restarts() > 0) follow_new_run();
+    const std::uint64_t k = feedback_.stamp().tick();
+    estimate(k);
+    next_tick_ = k + 1;
+  }
+  return finish(exit_code);
+}
+
+int KalmanEstimatorNode::finish(int exit_code) {
+  const auto& c = filter_.counters();
+  rt_.status.status().rejected(rejected_ + c.rejected_measurements + c.rejected_inputs);
+  rt_.status.publish(node_state::STATE_STOPPING, next_tick_, period_s_, "done");
+  estimate_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  std::printf("kalman_estimator: %llu ticks, %llu rejected\n", static_cast<unsigned long long>(next_tick_),
+              static_cast<unsigned long long>(rejected_ + c.rejected_measurements + c.rejected_inputs));
+  return exit_code;
+}
 
 int run(int argc, char** argv) {
   CLI::App app{"Kalman estimator of the load velocity and spring force on DDS"};
@@ -29,62 +117,8 @@ int run(int argc, char** argv) {
   node::add_common_options(app, common);
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   node::NodeRuntime rt("kalman_estimator", common);
-  const node::LoadedConfig& cfg = rt.cfg;
-  const double period = rt.period_s;
-  // Deep history: the estimator is off the lockstep chain and may fall behind;
-  // it must still see every tick.
-  auto feedback_reader = rt.participant.make_reader<pmlsm_msgs::msg::MotorFeedbackPubSubType>(
-      pdds::topics::kMotorFeedback, rt.wakeup, pdds::kObserverProfile);
-  auto estimate_writer = rt.participant.make_writer<pmlsm_msgs::msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState);
-
-  KalmanFilter filter(cfg.params.kalman_params());
-  const std::uint64_t ticks = scenario_ticks(cfg.scenario, period);
-  rt.status.publish(node_state::STATE_RUNNING, 0, period, "running");
-
-  pmlsm_msgs::msg::MotorFeedback feedback;
-  pmlsm_msgs::msg::EstimatedState estimate;
-  KalmanInput input;
-  std::uint64_t next_tick = 0;  // ticks up to here are done
-  node::TickFilter tick_filter;
-  node::RunFollower run;
-  bool new_run = false;
-  std::uint64_t rejected = 0;
-  int exit_code = kExitOk;
-
-  bool any_feedback = false;
-  while (next_tick < ticks && !pdds::stop_requested()) {
-    const bool ok = node::take_next_tick(rt.wakeup, feedback_reader, feedback, tick_filter, run, new_run, rejected,
-                                         node::feedback_timeout(common, cfg.clock, any_feedback));
-    if (!ok) {
-      exit_code =
-          node::end_of_feedback_wait("kalman_estimator", common, cfg.clock, any_feedback, next_tick, period, rt.status);
-      break;
-    }
-    any_feedback = true;
-    if (new_run && run.restarts() > 0) {
-      // The drive restarted: the estimate belongs to the old run; start afresh as at start-up.
-      std::printf("kalman_estimator: the drive restarted (run %016llx -> %016llx) at its tick %llu: "
-                  "following the new run\n",
-                  static_cast<unsigned long long>(run.previous()), static_cast<unsigned long long>(run.current()),
-                  static_cast<unsigned long long>(feedback.stamp().tick()));
-      filter.reset();
-      rt.status.publish(node_state::STATE_RUNNING, feedback.stamp().tick(), period, "drive restarted: new run followed");
-    }
-    const std::uint64_t k = feedback.stamp().tick();
-    // The filter itself rejects (and counts) a non-finite measurement or input.
-    node::from_msg(feedback, input);
-    node::to_msg(filter.step(input), k, estimate);
-    estimate.stamp(node::make_stamp(k, period, run.current()));  // the run this estimate follows
-    estimate_writer.write(estimate);
-    next_tick = k + 1;
-  }
-  const auto& c = filter.counters();
-  rt.status.status().rejected(rejected + c.rejected_measurements + c.rejected_inputs);
-  rt.status.publish(node_state::STATE_STOPPING, next_tick, period, "done");
-  estimate_writer.wait_for_acknowledgments(node::flush_timeout(exit_code));
-  std::printf("kalman_estimator: %llu ticks, %llu rejected\n", static_cast<unsigned long long>(next_tick),
-              static_cast<unsigned long long>(rejected + c.rejected_measurements + c.rejected_inputs));
-  return exit_code;
+  KalmanEstimatorNode node(common, rt);
+  return node.run();
 }
 
 }  // namespace

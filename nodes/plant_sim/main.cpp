@@ -368,10 +368,10 @@ int PlantSimNode::finish(std::uint64_t k, int exit_code, double loop_s) {
   s.deadline_misses(loop_.statistics().deadline_misses());
   publish_drive_state(k);
   rt_.status.publish(node_state::STATE_STOPPING, k, period_s_, "done");
-  feedback_writer_.wait_for_acknowledgments(node::flush_timeout(exit_code));
-  truth_writer_.wait_for_acknowledgments(node::flush_timeout(exit_code));
-  state_writer_.wait_for_acknowledgments(node::flush_timeout(exit_code));
-  if (voltage_level_) current_writer_.wait_for_acknowledgments(node::flush_timeout(exit_code));
+  feedback_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  truth_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  state_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  if (voltage_level_) current_writer_.wait_for_acknowledgments(node::kFlushTimeout);
   if (realtime_ && k > 1) {
     const double mean_period = loop_.statistics().mean_period_s();
     std::printf("plant_sim: mean tick period %.3f us (nominal %.3f us, %+.1f ppm)\n", mean_period * 1e6,

@@ -27,14 +27,10 @@ namespace pmlsm::node {
 
 /// How long a node waits at exit for its last samples to be acknowledged: an
 /// observer may be seconds behind a fast lockstep run; a dead reader stops
-/// counting once its lease (3 s, configs/dds/profiles.xml) runs out.
+/// counting once its lease (3 s, configs/dds/profiles.xml) runs out. Not shorter
+/// when a peer is known dead: Fast DDS 2.9.1 can hang destroying a writer whose dead
+/// reader is still matched (~StatefulWriter waits on the heartbeat event thread).
 inline constexpr std::chrono::seconds kFlushTimeout{15};
-
-/// The flush wait for a node ending with `exit_code`: kFlushTimeout, but 200 ms when a peer was
-/// lost (the dead peer's reader would hold the wait until its lease runs out, for nothing).
-inline std::chrono::milliseconds flush_timeout(int exit_code) {
-  return exit_code == kExitPeerLost ? std::chrono::milliseconds(200) : std::chrono::milliseconds(kFlushTimeout);
-}
 
 enum class Clock { kLockstep, kRealtime };
 enum class CommandLevel { kForce, kVoltage };

@@ -47,7 +47,9 @@ DriveLoop::DriveLoop(const DriveLoopParams& params, Drive& drive)
       drive_(drive),
       statistics_(params.expected_ticks),
       published_wall_ns_(kRing, 0),
-      published_mono_ns_(kRing, 0) {}
+      published_mono_ns_(kRing, 0),
+      watchdog_ticks_(std::max<std::uint64_t>(
+          1, static_cast<std::uint64_t>(std::floor(params.watchdog_s / params.period_s + 1e-9)))) {}
 
 void DriveLoop::track_power_state(std::int64_t now_mono_ns) {
   const bool enabled = drive_.power_state() == PowerState::kOperationEnabled;
@@ -68,7 +70,7 @@ void DriveLoop::track_power_state(std::int64_t now_mono_ns) {
   was_enabled_ = enabled;
 }
 
-void DriveLoop::check_watchdog(std::int64_t now_mono_ns) {
+void DriveLoop::check_watchdog(std::int64_t now_mono_ns, bool at_tick_start) {
   if (!params_.realtime || !armed_ || drive_.power_state() != PowerState::kOperationEnabled) return;
   if (any_stall_ && tick_ <= grace_until_tick_) return;
   // The oldest unanswered feedback: tick applied + 1, never before arming, and within the ring
@@ -78,7 +80,15 @@ void DriveLoop::check_watchdog(std::int64_t now_mono_ns) {
   if (tick_ == 0 && !published_this_tick_) return;
   const std::uint64_t ring_start = newest_published + 1 >= kRing ? newest_published + 1 - kRing : 0;
   const std::uint64_t oldest = std::max({applied_tick_ + 1, arm_tick_, ring_start});
-  if (oldest > newest_published || now_mono_ns - published_mono_ns_[oldest % kRing] < to_ns(params_.watchdog_s)) return;
+  if (oldest > newest_published) return;
+  // At a tick's start the deadline counts in ticks (the feedback of tick n is due answered
+  // before tick n + watchdog / period starts: publish times and wake-ups jitter alike, and a
+  // comparison of the two against exactly 3 ms would miss every other time); after the command
+  // deadline, in time since the feedback was published.
+  const bool overdue = at_tick_start
+                           ? tick_ - oldest >= watchdog_ticks_
+                           : now_mono_ns - published_mono_ns_[oldest % kRing] >= to_ns(params_.watchdog_s);
+  if (!overdue) return;
   drive_.fault(kErrorCommandTimeout);
   watchdog_latched_ = true;
   armed_ = false;
@@ -111,7 +121,7 @@ const TickReport& DriveLoop::begin_tick(std::uint64_t tick, std::int64_t now_mon
     last_accept_mono_ns_ = now_mono_ns;
   }
   report_.measurement = drive_.sample();
-  check_watchdog(now_mono_ns);
+  check_watchdog(now_mono_ns, true);
   track_power_state(now_mono_ns);
   const PowerState state = drive_.power_state();
   std::uint32_t bits = 0;
@@ -207,7 +217,7 @@ TickEvents DriveLoop::end_tick(std::int64_t now_mono_ns, bool apply_force) {
         arm_tick_ = tick_ + 1;  // feedback from here on counts
       }
     } else {
-      check_watchdog(now_mono_ns);
+      check_watchdog(now_mono_ns, false);
     }
     const double limit_s = any_command_ ? params_.controller_lost_s : params_.first_command_timeout_s;
     if (!lost_reported_ && now_mono_ns - last_accept_mono_ns_ > to_ns(limit_s)) {

@@ -159,7 +159,7 @@ class DriveLoop {
  private:
   void track_power_state(std::int64_t now_mono_ns);
   /// The watchdog's check at `now_mono_ns` (see the file comment); trips into `events_`.
-  void check_watchdog(std::int64_t now_mono_ns);
+  void check_watchdog(std::int64_t now_mono_ns, bool at_tick_start);
 
   static constexpr std::uint64_t kRing = 4096;  // publish times remembered
 
@@ -169,6 +169,7 @@ class DriveLoop {
   DriveCounters counters_;
   std::vector<std::int64_t> published_wall_ns_;
   std::vector<std::int64_t> published_mono_ns_;
+  std::uint64_t watchdog_ticks_;  // whole periods in the watchdog time
   TickReport report_;
   std::uint64_t run_id_ = 0;
   std::uint64_t tick_ = 0;
