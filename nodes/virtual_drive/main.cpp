@@ -1,0 +1,666 @@
+// virtual_drive: the rig in a box. The simulated drive (plant + current loop, configs/system.yaml
+// and a scenario, as plant_sim) behind a CiA 402 slave on a CAN bus: UDP multicast in
+// python-can's udp_multicast format (--can-group, --can-port, --can-iface) or SocketCAN
+// (--can-interface NAME). No DDS.
+//
+// CANopen (node id and the rest from configs/canopen/virtual_drive.yaml):
+//   - NMT slave: boot-up on start (pre-operational); start / stop / enter pre-operational /
+//     reset node / reset communication honoured; heartbeat producer per 0x1017.
+//   - SDO server (expedited) in pre-operational and operational.
+//   - Dictionary: make_cia402_dictionary plus 0x2001 "periods stepped" (u32 ro, mappable) and
+//     0x2002 "command tick" (u32 rw, mappable). Default PDOs, all synchronous (type 1):
+//       RPDO1 0x200+id: 0x6040 controlword u16, 0x6071 target torque i16, 0x2002 command tick u32
+//       TPDO1 0x180+id: 0x6041 statusword u16, 0x6077 torque actual i16, 0x606C velocity i32
+//       TPDO2 0x280+id: 0x6064 position actual i32, 0x2001 periods stepped u32
+//     The mappings can be changed over SDO (CiA 301's procedure) while pre-operational.
+//   - PDOs only in operational. An RPDO1 is unpacked when it arrives; a controlword (RPDO1 or
+//     an SDO write of 0x6040) is decoded with decode_controlword(previous) and requested from
+//     the power state machine. Force only in operation enabled: target torque (per mille of
+//     the rated force) -> newtons.
+//
+// Clocks:
+//   lockstep (default): the SYNC is the clock. At a SYNC in operational: when an RPDO1 (or SDO
+//     write of 0x2002) came since the last step and its command tick == periods stepped, one
+//     period is integrated with its force and periods stepped grows by one; otherwise (a
+//     repeated or early SYNC) nothing is integrated. The first SYNC answered only samples
+//     (periods stepped 0: tick 0's feedback is the initial state). Then TPDO1 and TPDO2.
+//     Ends after the scenario's ticks.
+//   realtime: integrates on its own absolute 1 ms clock with the latest target torque; answers
+//     each SYNC with the latest state. In operation enabled, no SYNC for sync_timeout_ms ->
+//     fault 0x8700, no master heartbeat for the consumer time (0x1016.1) -> fault 0x8130 (both
+//     counted from the later of the last one received and the entry into operation enabled).
+//     Ends on SIGINT / SIGTERM.
+//   --inject-fault-at-tick N: fault 0x5000 at period N.
+//   A fault: PowerStateMachine::fault(code), force zero, EMCY with the code, a log line with the
+//   time; cleared only by fault reset and enable via the controlword (EMCY 0x0000 on reset).
+//
+// Malformed frames (wrong DLC for the COB-ID, an unknown COB-ID, RTR / 29-bit frames, an
+// undecodable NMT / SYNC / heartbeat) are counted and ignored.
+//
+// Exit codes: 0 ok; 2 bad config or command line; 1 runtime error (socket); 5 the drive faulted.
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <cinttypes>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include "canopen_config.hpp"
+#include "pmlsm/can/socketcan_bus.hpp"
+#include "pmlsm/can/udp_multicast_bus.hpp"
+#include "pmlsm/canopen/cia402_dictionary.hpp"
+#include "pmlsm/canopen/cob_id.hpp"
+#include "pmlsm/canopen/emcy.hpp"
+#include "pmlsm/canopen/nmt.hpp"
+#include "pmlsm/canopen/pdo.hpp"
+#include "pmlsm/canopen/scaling.hpp"
+#include "pmlsm/canopen/sdo_server.hpp"
+#include "pmlsm/canopen/sync.hpp"
+#include "pmlsm/config/config.hpp"
+#include "pmlsm/drive/power_state.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/sim/simulated_drive.hpp"
+#include "pmlsm/util/clock.hpp"
+#include "pmlsm/util/exit_codes.hpp"
+
+namespace {
+
+using namespace pmlsm;
+namespace co = pmlsm::canopen;
+using co::CanFrame;
+
+volatile std::sig_atomic_t g_stop = 0;
+extern "C" void on_signal(int) { g_stop = 1; }
+
+constexpr std::uint16_t kObjectPeriodsStepped = 0x2001;
+constexpr std::uint16_t kObjectCommandTick = 0x2002;
+constexpr std::uint16_t kObjectTpdo2Communication = 0x1801;
+constexpr std::uint16_t kObjectTpdo2Mapping = 0x1A01;
+constexpr std::uint16_t kEmcySyncLost = 0x8700;  // CiA 301 monitoring: SYNC data length / lost
+constexpr std::uint64_t kMalformedLogLimit = 20;
+
+struct Options {
+  std::string config_path = "configs/system.yaml";
+  std::string scenario_path = "configs/scenarios/pulse.yaml";
+  std::string canopen_path = "configs/canopen/virtual_drive.yaml";
+  std::vector<std::string> overrides;
+  std::string clock = "lockstep";
+  std::string can_group = "239.74.163.2";
+  int can_port = 43113;
+  std::string can_iface = "127.0.0.1";
+  std::string can_interface;  // SocketCAN when set
+  std::optional<std::uint64_t> inject_fault_at_tick;
+};
+
+co::ObjectDictionary build_dictionary(co::NodeId node, const virtual_drive::CanopenConfig& c,
+                                      const co::UnitScaling& scaling, std::uint8_t interpolation_ms) {
+  co::Cia402DictionaryConfig dc;
+  dc.rated_torque = scaling.rated_torque_object();
+  dc.producer_heartbeat_ms = c.heartbeat_producer_ms;
+  dc.interpolation_period_ms = interpolation_ms;
+  co::ObjectDictionary od = co::make_cia402_dictionary(node, dc);
+
+  co::Entry e;
+  e.index = kObjectPeriodsStepped;
+  e.name = "periods stepped";
+  e.type = co::DataType::kU32;
+  e.access = co::Access::kRo;
+  e.pdo_mappable = true;
+  od.add(e);
+  e.index = kObjectCommandTick;
+  e.name = "command tick";
+  e.access = co::Access::kRw;
+  od.add(e);
+
+  const auto must = [](co::Status s, const char* what) {
+    if (!s) throw std::logic_error(std::string("virtual_drive dictionary: ") + what + ": " + s.detail);
+  };
+  must(od.set(co::kObjectConsumerHeartbeatTime, 1,
+              co::consumer_heartbeat_entry(static_cast<std::uint8_t>(c.master_node_id), c.consumer_time_ms)),
+       "0x1016.1");
+  // RPDO1: controlword, target torque, command tick.
+  must(od.set(co::kObjectRpdo1Mapping, 3, co::encode_pdo_mapping({kObjectCommandTick, 0, 32})), "0x1600.3");
+  must(od.set(co::kObjectRpdo1Mapping, 0, 3), "0x1600.0");
+  // TPDO1: statusword, torque actual, velocity actual.
+  must(od.set(co::kObjectTpdo1Mapping, 3, co::encode_pdo_mapping({co::kObjectVelocityActual, 0, 32})), "0x1A00.3");
+  // TPDO2: position actual, periods stepped; its entries copied from TPDO1's (same checks).
+  static const char* const kTpdo2CommNames[6] = {"TPDO2 communication: highest sub-index", "TPDO2 COB-ID",
+                                                 "TPDO2 transmission type", "TPDO2 inhibit time", "",
+                                                 "TPDO2 event timer"};
+  for (std::uint8_t sub : {0, 1, 2, 3, 5}) {
+    const co::Entry* from = od.find(co::kObjectTpdo1Communication, sub);
+    if (from == nullptr) throw std::logic_error("virtual_drive dictionary: 0x1800 lacks a sub-index");
+    co::Entry copy = *from;
+    copy.index = kObjectTpdo2Communication;
+    copy.name = kTpdo2CommNames[sub];
+    if (sub == 1) copy.value = co::tpdo_cob_id(2, node);
+    od.add(copy);
+  }
+  for (std::uint8_t sub = 0; sub <= 8; ++sub) {
+    const co::Entry* from = od.find(co::kObjectTpdo1Mapping, sub);
+    if (from == nullptr) throw std::logic_error("virtual_drive dictionary: 0x1A00 lacks a sub-index");
+    co::Entry copy = *from;
+    copy.index = kObjectTpdo2Mapping;
+    if (sub == 0) {
+      copy.name = "TPDO2 mapping: number of entries";
+      copy.value = 2;
+    } else if (sub == 1) {
+      copy.value = co::encode_pdo_mapping({co::kObjectPositionActual, 0, 32});
+    } else if (sub == 2) {
+      copy.value = co::encode_pdo_mapping({kObjectPeriodsStepped, 0, 32});
+    } else {
+      copy.value = 0;
+    }
+    od.add(copy);
+  }
+  for (std::uint16_t mapping : {co::kObjectRpdo1Mapping, co::kObjectTpdo1Mapping, kObjectTpdo2Mapping}) {
+    const co::Result<co::PdoMap> map = co::read_pdo_map(od, mapping);
+    if (!map) throw std::logic_error("virtual_drive dictionary: default mapping invalid: " + std::string(map.detail));
+  }
+  return od;
+}
+
+struct PdoChannel {
+  bool valid = false;
+  std::uint32_t cob_id = 0;
+  std::uint8_t transmission_type = 1;
+  co::PdoMap map;
+};
+
+PdoChannel load_pdo(const co::ObjectDictionary& od, std::uint16_t communication_index) {
+  PdoChannel ch;
+  const co::Result<co::PdoCommunication> comm = co::read_pdo_communication(od, communication_index);
+  const co::Result<co::PdoMap> map =
+      co::read_pdo_map(od, static_cast<std::uint16_t>(communication_index + co::kPdoMappingOffset));
+  if (!comm || !map) return ch;
+  ch.valid = comm.value.valid && !map.value.empty();
+  ch.cob_id = comm.value.cob_id;
+  ch.transmission_type = comm.value.transmission_type;
+  ch.map = map.value;
+  return ch;
+}
+
+class VirtualDrive {
+ public:
+  VirtualDrive(const Options& opt, const SystemParams& params, const Scenario& scenario,
+               const virtual_drive::CanopenConfig& config, can::CanBus& bus)
+      : opt_(opt),
+        config_(config),
+        bus_(bus),
+        realtime_(opt.clock == "realtime"),
+        period_s_(params.timing.control_period_s),
+        period_ns_(static_cast<std::int64_t>(std::llround(period_s_ * 1e9))),
+        ticks_(scenario_ticks(scenario, period_s_)),
+        node_(config.node_id),
+        scaling_(co::ScalingConfig{config.rated_force_n, config.increments_per_metre}),
+        interpolation_ms_(interpolation_ms(period_s_)),
+        od_(build_dictionary(node_, config, scaling_, interpolation_ms_)),
+        sdo_(od_, node_),
+        nmt_(node_),
+        drive_(params, scenario_initial_condition(scenario)) {
+    power_.step();  // initialisation done: not ready to switch on -> switch on disabled
+    feedback_ = drive_.sample();
+    reload_pdos();
+    update_objects();
+  }
+
+  int run();
+
+ private:
+  static std::uint8_t interpolation_ms(double period_s) {
+    const double ms = period_s * 1e3;
+    if (std::fabs(ms - std::round(ms)) > 1e-9 || ms < 1.0 || ms > 255.0) {
+      throw ConfigError("timing.control_period_s " + std::to_string(period_s) +
+                        ": the virtual drive needs a whole number of milliseconds in [1, 255] (0x60C2)");
+    }
+    return static_cast<std::uint8_t>(std::lround(ms));
+  }
+  static double seconds_since(std::int64_t start_ns, std::int64_t now_ns) {
+    return static_cast<double>(now_ns - start_ns) * 1e-9;
+  }
+
+  void send(const CanFrame& f) {
+    if (bus_.send(f)) {
+      ++frames_out_;
+    } else {
+      ++send_failures_;
+    }
+  }
+  void malformed(const CanFrame& f, const char* why) {
+    ++malformed_;
+    if (malformed_ <= kMalformedLogLimit) {
+      std::fprintf(stderr, "virtual_drive: ignored malformed frame id 0x%03X dlc %u: %s%s\n",
+                   static_cast<unsigned>(f.id), static_cast<unsigned>(f.dlc), why,
+                   malformed_ == kMalformedLogLimit ? " (further ones only counted)" : "");
+    }
+  }
+
+  void reload_pdos() {
+    rpdo1_ = load_pdo(od_, co::kObjectRpdo1Communication);
+    tpdo1_ = load_pdo(od_, co::kObjectTpdo1Communication);
+    tpdo2_ = load_pdo(od_, kObjectTpdo2Communication);
+  }
+
+  std::optional<co::ConsumerHeartbeat> consumer() const {
+    const auto entry = od_.get(co::kObjectConsumerHeartbeatTime, 1);
+    if (!entry) return std::nullopt;
+    const auto c = co::decode_consumer_heartbeat_entry(static_cast<std::uint32_t>(*entry));
+    if (!c || c.value.time_ms == 0 || c.value.node_id == 0) return std::nullopt;
+    return c.value;
+  }
+
+  double commanded_force() const {
+    const auto per_mille = static_cast<std::int16_t>(od_.get_or(co::kObjectTargetTorque, 0, 0));
+    return scaling_.per_mille_to_force(per_mille);
+  }
+
+  void update_objects() {
+    const drive::PowerState s = power_.state();
+    const bool faulted = s == drive::PowerState::kFault || s == drive::PowerState::kFaultReactionActive;
+    od_.set(co::kObjectStatusword, 0, power_.statusword());
+    od_.set(co::kObjectErrorCode, 0, power_.error_code());
+    od_.set(co::kObjectErrorRegister, 0, faulted ? co::kErrorRegisterGeneric : 0);
+    od_.set(co::kObjectModesOfOperationDisplay, 0, od_.get_or(co::kObjectModesOfOperation, 0, 0));
+    od_.set(co::kObjectPositionActual, 0, scaling_.metres_to_increments(feedback_.encoder_position_m).value);
+    od_.set(co::kObjectVelocityActual, 0, scaling_.velocity_to_increments(feedback_.velocity_mps).value);
+    od_.set(co::kObjectTorqueActual, 0, scaling_.force_to_per_mille(applied_force_n_).value);
+    od_.set(kObjectPeriodsStepped, 0, static_cast<std::int64_t>(periods_ & 0xFFFFFFFFULL));
+  }
+
+  void send_emcy(std::uint16_t code) {
+    if (!co::sync_emcy_allowed(nmt_.state())) return;
+    co::EmcyMessage m;
+    m.error_code = code;
+    m.error_register = static_cast<std::uint8_t>(od_.get_or(co::kObjectErrorRegister, 0, 0));
+    send(co::encode_emcy(node_, m));
+    ++emcys_;
+  }
+
+  void raise_fault(std::uint16_t code, const std::string& why, std::int64_t now_ns) {
+    const std::uint64_t before = power_.fault_count();
+    power_.fault(code);
+    if (power_.fault_count() == before) return;  // already faulted: the first cause is kept
+    update_objects();
+    send_emcy(code);
+    std::fprintf(stderr,
+                 "virtual_drive: FAULT 0x%04X (%s): %s at period %" PRIu64 ", %.3f s after start [wall %.6f s]; "
+                 "force off, EMCY sent\n",
+                 static_cast<unsigned>(code), co::describe_emcy(code), why.c_str(), periods_,
+                 seconds_since(start_ns_, now_ns), static_cast<double>(wall_time_ns()) * 1e-9);
+  }
+
+  void apply_controlword(std::int64_t now_ns) {
+    const auto cw = static_cast<std::uint16_t>(od_.get_or(co::kObjectControlword, 0, 0));
+    const std::optional<drive::DriveCommand> command = drive::decode_controlword(cw, previous_controlword_);
+    const bool changed = cw != previous_controlword_;
+    previous_controlword_ = cw;
+    if (!command) return;
+    const drive::TransitionResult r = power_.request(*command);
+    if (r.accepted && r.to != r.from) {
+      std::printf("virtual_drive: controlword 0x%04X (%s): %s -> %s\n", static_cast<unsigned>(cw),
+                  drive::to_string(*command), drive::to_string(r.from), drive::to_string(r.to));
+      if (r.to == drive::PowerState::kOperationEnabled) enabled_since_ns_ = now_ns;
+    } else if (!r.accepted && changed) {
+      std::printf("virtual_drive: controlword 0x%04X (%s) refused in %s: %s\n", static_cast<unsigned>(cw),
+                  drive::to_string(*command), drive::to_string(r.from), r.reason);
+    }
+    const bool was_fault = r.from == drive::PowerState::kFault;
+    update_objects();
+    if (was_fault && r.accepted && r.to != r.from) send_emcy(co::kEmcyNoError);  // errors gone
+  }
+
+  void step_period(std::int64_t now_ns) {
+    if (opt_.inject_fault_at_tick && periods_ == *opt_.inject_fault_at_tick && !injected_) {
+      injected_ = true;
+      raise_fault(co::kEmcyDeviceHardware, "injected (--inject-fault-at-tick)", now_ns);
+    }
+    applied_force_n_ = power_.force_allowed() ? commanded_force() : 0.0;
+    drive_.apply_force(applied_force_n_);
+    ++periods_;
+    power_.step();
+    feedback_ = drive_.sample();
+    update_objects();
+  }
+
+  void send_tpdos() {
+    ++tpdo_syncs_;
+    for (const PdoChannel* ch : {&tpdo1_, &tpdo2_}) {
+      if (!ch->valid || ch->transmission_type == 0) continue;
+      if (tpdo_syncs_ % ch->transmission_type != 0) continue;
+      const co::Result<CanFrame> f = co::pack_pdo(ch->map, od_, ch->cob_id);
+      if (f) {
+        send(f.value);
+      } else {
+        ++send_failures_;
+      }
+    }
+  }
+
+  void on_sync(std::int64_t now_ns) {
+    ++syncs_;
+    last_sync_ns_ = now_ns;
+    if (!nmt_.pdo_allowed()) return;  // pre-operational: consumed, no PDOs
+    if (!realtime_) {
+      const auto tick = static_cast<std::uint64_t>(od_.get_or(kObjectCommandTick, 0, 0));
+      if (!first_answered_) {
+        first_answered_ = true;  // tick 0's feedback: the initial state
+      } else if (command_pending_ && tick == (periods_ & 0xFFFFFFFFULL)) {
+        command_pending_ = false;
+        step_period(now_ns);
+      } else {
+        ++unstepped_syncs_;
+      }
+    }
+    send_tpdos();
+    if (!realtime_ && periods_ >= ticks_) finished_ = true;
+  }
+
+  void on_rpdo1(const CanFrame& f, std::int64_t now_ns) {
+    const co::Status s = co::unpack_pdo(rpdo1_.map, od_, f);
+    if (!s) {
+      ++rejected_rpdos_;
+      if (rejected_rpdos_ <= kMalformedLogLimit) {
+        std::fprintf(stderr, "virtual_drive: RPDO1 refused: %s (abort 0x%08X)\n", s.detail,
+                     static_cast<unsigned>(s.abort_code));
+      }
+      return;
+    }
+    ++rpdos_;
+    bool controlword = false;
+    for (const co::PdoMapEntry& e : rpdo1_.map) {
+      if (e.index == co::kObjectControlword) controlword = true;
+      if (e.index == kObjectCommandTick) command_pending_ = true;
+    }
+    if (controlword) apply_controlword(now_ns);
+  }
+
+  void on_sdo(const CanFrame& f, std::int64_t now_ns) {
+    const co::SdoServerResult r = sdo_.handle(f);
+    if (r.respond) send(r.response);
+    ++sdo_requests_;
+    if (!r.status || r.request.kind != co::SdoRequestKind::kDownload) return;
+    const std::uint16_t index = r.request.index;
+    if (index == co::kObjectControlword) apply_controlword(now_ns);
+    if (index == kObjectCommandTick) command_pending_ = true;
+    if (index >= co::kRpdoCommunicationFirst && index <= 0x1BFF) reload_pdos();
+    if (index == co::kObjectModesOfOperation) update_objects();
+  }
+
+  void on_nmt(const CanFrame& f) {
+    const co::Result<co::NmtTransition> r = nmt_.on_frame(f);
+    if (!r) {
+      malformed(f, r.detail);
+      return;
+    }
+    if (!r.value.accepted) return;
+    if (r.value.from != r.value.to) {
+      std::printf("virtual_drive: NMT %s -> %s\n", co::to_string(r.value.from), co::to_string(r.value.to));
+    }
+    if (r.value.reset != co::NmtReset::kNone) reset(r.value.reset);
+  }
+
+  void reset(co::NmtReset kind) {
+    co::ObjectDictionary fresh = build_dictionary(node_, config_, scaling_, interpolation_ms_);
+    for (const co::Entry& e : fresh) {
+      if (kind == co::NmtReset::kNode || (e.index >= 0x1000 && e.index <= 0x1FFF)) od_.store(e, e.value);
+    }
+    if (kind == co::NmtReset::kNode) {
+      command_pending_ = false;
+      previous_controlword_ = 0;
+    }
+    reload_pdos();
+    update_objects();  // the live values (statusword, actuals, periods stepped) stay what they are
+    std::printf("virtual_drive: %s: dictionary reset, boot-up\n",
+                kind == co::NmtReset::kNode ? "reset node" : "reset communication");
+    if (const auto boot = nmt_.boot()) send(*boot);
+  }
+
+  void on_frame(const CanFrame& f, std::int64_t now_ns) {
+    ++frames_in_;
+    if (f.extended || f.rtr) {
+      malformed(f, "29-bit or remote frame (CANopen here uses 11-bit data frames)");
+      return;
+    }
+    const std::uint32_t id = f.id;
+    if (id == co::kCobIdNmt) {
+      on_nmt(f);
+      return;
+    }
+    if (id == co::kCobIdSync) {
+      const co::Result<co::SyncMessage> s = co::decode_sync(f);
+      if (!s) {
+        malformed(f, s.detail);
+      } else if (co::sync_emcy_allowed(nmt_.state())) {
+        on_sync(now_ns);
+      }
+      return;
+    }
+    if (rpdo1_.valid && id == rpdo1_.cob_id) {
+      if (f.dlc != rpdo1_.map.byte_length()) {
+        malformed(f, "RPDO1: DLC is not the mapping's length");
+      } else if (nmt_.pdo_allowed()) {
+        on_rpdo1(f, now_ns);
+      } else {
+        ++ignored_;
+      }
+      return;
+    }
+    if (id == co::sdo_rx_cob_id(node_)) {
+      if (f.dlc != 8) malformed(f, "SDO request: DLC must be 8 (answered with an abort)");
+      if (nmt_.sdo_allowed()) on_sdo(f, now_ns);
+      return;
+    }
+    const auto watched = consumer();
+    if (watched && id == co::kCobIdHeartbeatBase + watched->node_id) {
+      const co::Result<co::HeartbeatMessage> hb = co::decode_heartbeat(f);
+      if (!hb) {
+        malformed(f, hb.detail);
+      } else {
+        last_master_heartbeat_ns_ = now_ns;
+      }
+      return;
+    }
+    const co::CobIdInfo info = co::classify(id);
+    if (info.function == co::FunctionCode::kUnknown) {
+      malformed(f, "unknown COB-ID");
+      return;
+    }
+    const bool rpdo = info.function == co::FunctionCode::kRpdo1 || info.function == co::FunctionCode::kRpdo2 ||
+                      info.function == co::FunctionCode::kRpdo3 || info.function == co::FunctionCode::kRpdo4;
+    if (rpdo && info.node_id == node_.value() && id != co::rpdo_cob_id(1, node_)) {
+      malformed(f, "an RPDO this node does not have");
+      return;
+    }
+    ++ignored_;  // another node's traffic, or RPDO1 while not valid
+  }
+
+  void check_timeouts(std::int64_t now_ns) {
+    if (power_.state() != drive::PowerState::kOperationEnabled) return;
+    const std::int64_t sync_ref = std::max(last_sync_ns_, enabled_since_ns_);
+    const std::int64_t sync_timeout_ns = static_cast<std::int64_t>(config_.sync_timeout_ms) * 1000000;
+    if (now_ns - sync_ref > sync_timeout_ns) {
+      raise_fault(kEmcySyncLost, "no SYNC for " + std::to_string(config_.sync_timeout_ms) + " ms", now_ns);
+      return;
+    }
+    if (const auto watched = consumer()) {
+      const std::int64_t hb_ref = std::max(last_master_heartbeat_ns_, enabled_since_ns_);
+      if (now_ns - hb_ref > static_cast<std::int64_t>(watched->time_ms) * 1000000) {
+        raise_fault(co::kEmcyHeartbeatError,
+                    "no heartbeat of master node " + std::to_string(watched->node_id) + " for " +
+                        std::to_string(watched->time_ms) + " ms",
+                    now_ns);
+      }
+    }
+  }
+
+  const Options& opt_;
+  virtual_drive::CanopenConfig config_;
+  can::CanBus& bus_;
+  bool realtime_;
+  double period_s_;
+  std::int64_t period_ns_;
+  std::uint64_t ticks_;
+  co::NodeId node_;
+  co::UnitScaling scaling_;
+  std::uint8_t interpolation_ms_;
+  co::ObjectDictionary od_;
+  co::SdoServer sdo_;
+  co::NmtSlave nmt_;
+  SimulatedDrive drive_;
+  drive::PowerStateMachine power_;
+  DriveFeedback feedback_;
+  PdoChannel rpdo1_, tpdo1_, tpdo2_;
+
+  double applied_force_n_ = 0.0;
+  std::uint64_t periods_ = 0;
+  std::uint16_t previous_controlword_ = 0;
+  bool command_pending_ = false;
+  bool first_answered_ = false;
+  bool injected_ = false;
+  bool finished_ = false;
+  std::int64_t start_ns_ = 0;
+  std::int64_t last_sync_ns_ = 0;
+  std::int64_t last_master_heartbeat_ns_ = 0;
+  std::int64_t enabled_since_ns_ = 0;
+
+  std::uint64_t frames_in_ = 0, frames_out_ = 0, send_failures_ = 0, malformed_ = 0, ignored_ = 0;
+  std::uint64_t syncs_ = 0, tpdo_syncs_ = 0, unstepped_syncs_ = 0, rpdos_ = 0, rejected_rpdos_ = 0;
+  std::uint64_t sdo_requests_ = 0, emcys_ = 0, deadline_misses_ = 0;
+};
+
+int VirtualDrive::run() {
+  start_ns_ = monotonic_ns();
+  last_sync_ns_ = last_master_heartbeat_ns_ = enabled_since_ns_ = start_ns_;
+  std::printf("virtual_drive: node %u on %s, %s clock, %s%" PRIu64 " ticks of %.3g ms (scenario), rated force %.6g N, "
+              "%.6g increments/m\n",
+              static_cast<unsigned>(node_.value()), bus_.describe().c_str(), realtime_ ? "realtime" : "lockstep",
+              realtime_ ? "until SIGINT/SIGTERM, " : "", ticks_, period_s_ * 1e3, config_.rated_force_n,
+              config_.increments_per_metre);
+  if (const auto boot = nmt_.boot()) send(*boot);
+  std::int64_t next_tick_ns = start_ns_ + period_ns_;
+  CanFrame frame{};
+  while (g_stop == 0 && !finished_) {
+    std::int64_t now = monotonic_ns();
+    std::int64_t wait_ns = 2000000;  // lockstep: bounded, for heartbeats and signals
+    if (realtime_) wait_ns = std::max<std::int64_t>(0, std::min<std::int64_t>(next_tick_ns - now, 1000000));
+    if (bus_.receive(frame, std::chrono::nanoseconds(wait_ns))) {
+      on_frame(frame, monotonic_ns());
+      if (finished_) break;
+    }
+    now = monotonic_ns();
+    if (realtime_ && now >= next_tick_ns) {
+      // Absolute time: tick k is due at start + k T; a late loop catches up, a very late one
+      // (over 100 periods) skips ahead and counts it.
+      int steps = 0;
+      while (now >= next_tick_ns && steps < 100) {
+        step_period(now);
+        check_timeouts(now);
+        next_tick_ns += period_ns_;
+        ++steps;
+      }
+      if (steps > 1) deadline_misses_ += static_cast<std::uint64_t>(steps - 1);
+      if (now >= next_tick_ns) {
+        const std::int64_t behind = (now - next_tick_ns) / period_ns_ + 1;
+        deadline_misses_ += static_cast<std::uint64_t>(behind);
+        next_tick_ns += behind * period_ns_;
+      }
+    }
+    const auto hb_ms = static_cast<std::uint16_t>(od_.get_or(co::kObjectProducerHeartbeatTime, 0, 0));
+    if (const auto hb = nmt_.poll_heartbeat(hb_ms, static_cast<std::uint64_t>(now / 1000000))) send(*hb);
+  }
+  const can::CanBusCounters bus = bus_.counters();
+  std::printf("virtual_drive: summary: periods stepped %" PRIu64 " of %" PRIu64 ", SYNCs %" PRIu64
+              " (not stepped %" PRIu64 "), RPDOs %" PRIu64 " (refused %" PRIu64 "), SDO requests %" PRIu64
+              ", frames in %" PRIu64 " out %" PRIu64 " (send failures %" PRIu64 "), malformed %" PRIu64
+              " (bus-level %" PRIu64 "), ignored %" PRIu64 ", EMCYs %" PRIu64 ", faults %" PRIu64
+              " (last error 0x%04X), deadline misses %" PRIu64 ", power state %s, NMT %s%s\n",
+              periods_, ticks_, syncs_, unstepped_syncs_, rpdos_, rejected_rpdos_, sdo_requests_, frames_in_,
+              frames_out_, send_failures_, malformed_, bus.malformed_dropped, ignored_, emcys_, power_.fault_count(),
+              static_cast<unsigned>(power_.error_code()), deadline_misses_, drive::to_string(power_.state()),
+              co::to_string(nmt_.state()), g_stop != 0 ? ", stopped by signal" : "");
+  if (power_.fault_count() > 0) {
+    std::fprintf(stderr, "virtual_drive: the drive faulted %" PRIu64 " time(s) during the run: exit 5\n",
+                 power_.fault_count());
+    return kExitSafeState;
+  }
+  return kExitOk;
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"virtual_drive: the simulated PMLSM drive behind a CiA 402 CANopen slave (no DDS)"};
+  Options opt;
+  app.add_option("--config", opt.config_path, "system parameters (configs/system.yaml)")->capture_default_str();
+  app.add_option("--scenario", opt.scenario_path, "scenario: initial state and, in lockstep, the number of ticks")
+      ->capture_default_str();
+  app.add_option("--set", opt.overrides, "override a system.yaml value: key.path=value (repeatable)");
+  app.add_option("--canopen-config", opt.canopen_path, "the CANopen settings (node id, scaling, heartbeat, SYNC)")
+      ->capture_default_str();
+  app.add_option("--clock", opt.clock, "lockstep: SYNC-driven, one period per command; realtime: own 1 ms clock")
+      ->check(CLI::IsMember({"lockstep", "realtime"}))
+      ->capture_default_str();
+  auto* group = app.add_option("--can-group", opt.can_group, "UDP multicast CAN bus: group address")
+                    ->capture_default_str();
+  auto* port = app.add_option("--can-port", opt.can_port, "UDP multicast CAN bus: port")
+                   ->check(CLI::Range(1, 65535))
+                   ->capture_default_str();
+  auto* iface = app.add_option("--can-iface", opt.can_iface,
+                               "UDP multicast CAN bus: local interface address (0.0.0.0: the default route's)")
+                    ->capture_default_str();
+  app.add_option("--can-interface", opt.can_interface, "SocketCAN interface (can0, vcan0) instead of UDP multicast")
+      ->excludes(group)
+      ->excludes(port)
+      ->excludes(iface);
+  app.add_option("--inject-fault-at-tick", opt.inject_fault_at_tick,
+                 "fault 0x5000 (device hardware) at this period; cleared by fault reset and enable");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? kExitOk : kExitBadConfig;
+  }
+
+  std::vector<ConfigOverride> overrides;
+  for (const auto& text : opt.overrides) overrides.push_back(ConfigOverride::parse(text));
+  const SystemParams params = load_system_params(opt.config_path, overrides);
+  const Scenario scenario = load_scenario(opt.scenario_path, params.timing.control_period_s);
+  const virtual_drive::CanopenConfig canopen = virtual_drive::load_canopen_config(opt.canopen_path);
+
+  std::unique_ptr<can::CanBus> bus;
+  if (!opt.can_interface.empty()) {
+    bus = std::make_unique<can::SocketCanBus>(opt.can_interface);
+  } else {
+    can::UdpMulticastParams p;
+    p.group = opt.can_group;
+    p.port = opt.can_port;
+    p.interface_address = opt.can_iface;
+    try {
+      can::validate(p);
+    } catch (const std::invalid_argument& e) {
+      throw ConfigError(std::string("CAN bus: ") + e.what());
+    }
+    bus = std::make_unique<can::UdpMulticastBus>(p);
+  }
+  VirtualDrive drive(opt, params, scenario, canopen, *bus);
+  return drive.run();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);
+  try {
+    return run(argc, argv);
+  } catch (const ConfigError& e) {
+    std::fprintf(stderr, "virtual_drive: config error: %s\n", e.what());
+    return kExitBadConfig;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "virtual_drive: error: %s\n", e.what());
+    return kExitError;
+  }
+}

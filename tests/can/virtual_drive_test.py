@@ -1,0 +1,226 @@
+#!/usr/bin/env python3
+"""python-can as the CANopen master of nodes/virtual_drive (lockstep).
+
+    virtual_drive_test.py PATH/TO/virtual_drive --source-dir DIR [--group ADDR] [--port N]
+
+Starts the drive on a test group/port with a short copy of the pulse scenario, then checks:
+boot-up, SDO uploads (0x1000, 0x6041, a missing object -> 0x06020000), SDO downloads of 0x6060
+(10 accepted, 3 refused with 0x06090030), NMT start, enabling through RPDO1 controlwords with
+SYNCs (statusword & 0x6F == 0x27), 20 lockstep ticks with a target torque (periods stepped +1 a
+tick, position moves with the force), a repeated SYNC that must not step, a wrong-DLC RPDO1
+that is ignored. Exit: 0 PASS, 1 FAIL, 77 skipped (python-can missing).
+"""
+
+import argparse
+import os
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+
+SKIP = 77
+try:
+    import can
+except ImportError as error:
+    print(f"SKIP: python-can (Debian: python3-can) is not importable by {sys.executable}: {error}")
+    sys.exit(SKIP)
+
+NODE = 1  # configs/canopen/virtual_drive.yaml
+
+
+class Checks:
+    def __init__(self):
+        self.passed, self.failed = 0, []
+
+    def check(self, ok, what):
+        print(("PASS " if ok else "FAIL ") + what, flush=True)
+        if ok:
+            self.passed += 1
+        else:
+            self.failed.append(what)
+        return ok
+
+
+def recv_id(bus, cob_id, timeout=2.0, pred=None):
+    """The next frame with this id (and pred true), or None."""
+    deadline = time.monotonic() + timeout
+    while True:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return None
+        m = bus.recv(timeout=left)
+        if m is None:
+            return None
+        if m.arbitration_id == cob_id and not m.is_extended_id and (pred is None or pred(m)):
+            return m
+
+
+def drain(bus):
+    while bus.recv(timeout=0.0) is not None:
+        pass
+
+
+def send(bus, cob_id, data):
+    bus.send(can.Message(arbitration_id=cob_id, data=bytes(data), is_extended_id=False))
+
+
+def sdo(bus, data):
+    """Sends an SDO request, returns the response's 8 bytes or None. python-can hears its own
+    frames: responses are on 0x580 + node only."""
+    drain(bus)
+    send(bus, 0x600 + NODE, data)
+    m = recv_id(bus, 0x580 + NODE)
+    return bytes(m.data) if m else None
+
+
+def upload(bus, index, sub):
+    return sdo(bus, [0x40, index & 0xFF, index >> 8, sub, 0, 0, 0, 0])
+
+
+def download(bus, index, sub, value, size):
+    cmd = {1: 0x2F, 2: 0x2B, 4: 0x23}[size]
+    payload = value.to_bytes(size, "little", signed=value < 0) + bytes(4 - size)
+    return sdo(bus, [cmd, index & 0xFF, index >> 8, sub] + list(payload))
+
+
+def abort_code(r):
+    return struct.unpack_from("<I", r, 4)[0] if r and r[0] == 0x80 else None
+
+
+def lockstep(bus, controlword, torque, tick):
+    """RPDO1 + SYNC; returns (statusword, torque actual, velocity, position, periods) or None."""
+    drain(bus)
+    send(bus, 0x200 + NODE, struct.pack("<HhI", controlword, torque, tick))
+    send(bus, 0x080, b"")
+    return answer(bus)
+
+
+def answer(bus):
+    t1 = recv_id(bus, 0x180 + NODE)
+    t2 = recv_id(bus, 0x280 + NODE)
+    if t1 is None or t2 is None or len(t1.data) != 8 or len(t2.data) != 8:
+        return None
+    sw, tq, vel = struct.unpack("<Hhi", bytes(t1.data))
+    pos, periods = struct.unpack("<iI", bytes(t2.data))
+    return sw, tq, vel, pos, periods
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("drive")
+    parser.add_argument("--source-dir", default=os.path.join(os.path.dirname(__file__), "..", ".."))
+    pid = os.getpid()
+    parser.add_argument("--group", default=f"239.74.{180 + (pid >> 8) % 40}.{pid & 0xFF}")
+    parser.add_argument("--port", type=int, default=43150)
+    args = parser.parse_args()
+    src = os.path.abspath(args.source_dir)
+    checks = Checks()
+
+    tmp = tempfile.mkdtemp(prefix="virtual_drive_test_")
+    scenario = os.path.join(tmp, "short.yaml")
+    with open(os.path.join(src, "configs/scenarios/pulse.yaml")) as f:
+        text = f.read()
+    text = text.replace('duration_s: {value: 2.0,', 'duration_s: {value: 0.05,')
+    text = text.replace('cost_window_s: {value: 1.0,', 'cost_window_s: {value: 0.05,')
+    with open(scenario, "w") as f:
+        f.write(text)
+
+    try:
+        bus = can.Bus(interface="udp_multicast", channel=args.group, port=args.port, hop_limit=1, fd=False)
+    except can.CanInterfaceNotImplementedError as error:
+        print(f"SKIP: python-can's udp_multicast interface is unavailable: {error}")
+        return SKIP
+    log = open(os.path.join(tmp, "drive.log"), "w+")
+    drive = subprocess.Popen(
+        [args.drive, "--config", os.path.join(src, "configs/system.yaml"), "--scenario", scenario,
+         "--canopen-config", os.path.join(src, "configs/canopen/virtual_drive.yaml"),
+         "--can-group", args.group, "--can-port", str(args.port), "--can-iface", "127.0.0.1"],
+        stdout=log, stderr=subprocess.STDOUT)
+    try:
+        run_checks(bus, checks, drive)
+    finally:
+        if drive.poll() is None:
+            drive.terminate()
+            try:
+                drive.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                drive.kill()
+                drive.wait()
+        bus.shutdown()
+        log.seek(0)
+        print("---- drive output ----\n" + log.read() + "----------------------")
+    print(f"{'PASS' if not checks.failed else 'FAIL'}: {checks.passed} checks passed, "
+          f"{len(checks.failed)} failed" + "".join(f"\n  failed: {w}" for w in checks.failed))
+    return 0 if not checks.failed else 1
+
+
+def run_checks(bus, checks, drive):
+    boot = recv_id(bus, 0x700 + NODE, timeout=10.0)
+    if not checks.check(boot is not None and bytes(boot.data) == b"\x00",
+                        f"boot-up 0x{0x700 + NODE:03X} [00] (got {boot})"):
+        return
+    r = upload(bus, 0x1000, 0)
+    checks.check(r is not None and r[0] == 0x43 and struct.unpack_from("<I", r, 4)[0] == 0x00020192,
+                 f"SDO upload 0x1000 = 0x00020192 (got {r.hex() if r else None})")
+    r = upload(bus, 0x6041, 0)
+    checks.check(r is not None and r[0] == 0x4B and (struct.unpack_from("<H", r, 4)[0] & 0x4F) == 0x40,
+                 f"SDO upload 0x6041: switch on disabled (got {r.hex() if r else None})")
+    r = upload(bus, 0x2345, 0)
+    checks.check(abort_code(r) == 0x06020000, f"SDO upload of missing 0x2345: abort 0x06020000 (got {r.hex() if r else None})")
+    r = download(bus, 0x6060, 0, 10, 1)
+    checks.check(r is not None and r[0] == 0x60, f"SDO download 0x6060 = 10 accepted (got {r.hex() if r else None})")
+    r = download(bus, 0x6060, 0, 3, 1)
+    checks.check(abort_code(r) == 0x06090030, f"SDO download 0x6060 = 3: abort 0x06090030 (got {r.hex() if r else None})")
+
+    send(bus, 0x000, [0x01, NODE])  # NMT start
+    hb = recv_id(bus, 0x700 + NODE, timeout=2.0, pred=lambda m: bytes(m.data) == b"\x05")
+    checks.check(hb is not None, "heartbeat shows operational (0x05) after NMT start")
+
+    # The first SYNC only answers (periods stepped 0), then each controlword with its tick.
+    drain(bus)
+    send(bus, 0x080, b"")
+    a = answer(bus)
+    if not checks.check(a is not None and a[4] == 0, f"first SYNC answered with periods stepped 0 (got {a})"):
+        return
+    periods = a[4]
+    for cw in (0x06, 0x07, 0x0F):
+        a = lockstep(bus, cw, 0, periods)
+        if not checks.check(a is not None and a[4] == periods + 1, f"controlword 0x{cw:02X}: stepped (got {a})"):
+            return
+        periods = a[4]
+    checks.check((a[0] & 0x6F) == 0x27, f"TPDO1 statusword 0x{a[0]:04X}: operation enabled")
+
+    torque = 200  # per mille of the rated force
+    start_pos = a[3]
+    ok_steps, last_pos = True, a[3]
+    for _ in range(20):
+        a = lockstep(bus, 0x0F, torque, periods)
+        if a is None or a[4] != periods + 1:
+            ok_steps = False
+            print(f"  tick {periods}: answer {a}")
+            break
+        periods, last_pos = a[4], a[3]
+        if a[1] != torque:
+            ok_steps = False
+            print(f"  torque actual {a[1]} != {torque}")
+    checks.check(ok_steps, "20 lockstep ticks: periods stepped +1 a tick, torque actual = target")
+    checks.check(last_pos > start_pos + 10, f"position moved with the force: {start_pos} -> {last_pos} increments")
+
+    drain(bus)
+    send(bus, 0x080, b"")  # a repeated SYNC, no new RPDO1
+    a = answer(bus)
+    checks.check(a is not None and a[4] == periods, f"repeated SYNC does not step (periods {periods}, got {a})")
+
+    drain(bus)
+    send(bus, 0x200 + NODE, [0x0F, 0x00, 0x00])  # wrong DLC for RPDO1 (3, not 8)
+    send(bus, 0x080, b"")
+    a = answer(bus)
+    checks.check(a is not None and a[4] == periods, f"wrong-DLC RPDO1 ignored: SYNC answered, no step (got {a})")
+    a = lockstep(bus, 0x0F, torque, periods)
+    checks.check(a is not None and a[4] == periods + 1, f"drive still steps after the malformed frame (got {a})")
+    checks.check(drive.poll() is None, "drive still running")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
