@@ -213,5 +213,57 @@ TEST(DriveSafety, ASecondControllerIsRefusedAndReportedNeverFollowed) {
   fs::remove_all(dir);
 }
 
+/// virtual_drive on its own group and port (lockstep), its output in `log`.
+test::ChildProcess start_virtual_drive(const fs::path& dir, const std::string& scenario, const std::string& port) {
+  return test::ChildProcess({test::bin("virtual_drive"), "--config", source("configs/system.yaml"), "--scenario", scenario,
+                             "--canopen-config", source("configs/canopen/virtual_drive.yaml"), "--can-group",
+                             "239.74.171.20", "--can-port", port},
+                            (dir / "virtual_drive.log").string());
+}
+
+TEST(VirtualRig, TheBridgeRunsTheControllerAgainstTheVirtualDriveOverTheCanBus) {
+  const fs::path dir = test::fresh_dir("pmlsm_virtual_rig", "lockstep");
+  const std::string scenario = source("configs/scenarios/pulse.yaml");
+  const std::string domain = test_domain(45);
+  test::ChildProcess drive = start_virtual_drive(dir, scenario, "43245");
+  test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
+  test::ChildProcess bridge(node_args("drive_bridge", domain, scenario,
+                                      {"--peers", "1", "--can-group", "239.74.171.20", "--can-port", "43245"}),
+                            (dir / "bridge.log").string());
+  const auto code = bridge.wait_for(std::chrono::seconds(60));
+  ASSERT_TRUE(code.has_value()) << bridge.output();
+  EXPECT_EQ(*code, 0) << bridge.output();
+  EXPECT_NE(bridge.output().find("booted on udp_multicast"), std::string::npos) << bridge.output();
+  EXPECT_NE(bridge.output().find("2000 ticks in"), std::string::npos) << bridge.output();
+  const auto controller_code = controller.wait_for(std::chrono::seconds(30));
+  ASSERT_TRUE(controller_code.has_value());
+  EXPECT_EQ(*controller_code, 0) << controller.output();
+  drive.signal(SIGINT);
+  ASSERT_TRUE(drive.wait_for(std::chrono::seconds(10)).has_value()) << drive.output();
+  // One period per SYNC, exactly once: tick 0 is the initial state, 1999 commands were applied.
+  EXPECT_NE(drive.output().find("periods stepped 1999 of 2000"), std::string::npos) << drive.output();
+  fs::remove_all(dir);
+}
+
+TEST(VirtualRig, ADeadDriveFaultsTheBridgeInsteadOfHangingIt) {
+  const fs::path dir = test::fresh_dir("pmlsm_virtual_rig", "dead_drive");
+  const std::string scenario = source("configs/scenarios/free_vibration.yaml");
+  const std::string domain = test_domain(46);
+  test::ChildProcess drive = start_virtual_drive(dir, scenario, "43246");
+  test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
+  test::ChildProcess bridge(node_args("drive_bridge", domain, scenario,
+                                      {"--peers", "1", "--can-group", "239.74.171.20", "--can-port", "43246"}),
+                            (dir / "bridge.log").string());
+  ASSERT_TRUE(bridge.wait_for_output("operation enabled", std::chrono::seconds(30))) << bridge.output();
+  drive.signal(SIGKILL);
+  const auto code = bridge.wait_for(std::chrono::seconds(60));
+  ASSERT_TRUE(code.has_value()) << "the bridge hung on a dead drive:\n" << bridge.output();
+  EXPECT_EQ(*code, 5) << bridge.output();
+  EXPECT_NE(bridge.output().find("0x8130"), std::string::npos) << bridge.output();
+  controller.signal(SIGINT);
+  controller.wait_for(std::chrono::seconds(30));
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace pmlsm

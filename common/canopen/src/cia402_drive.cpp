@@ -1,0 +1,483 @@
+#include "pmlsm/canopen/cia402_drive.hpp"
+
+#include <cstdio>
+#include <string>
+#include <utility>
+
+#include "pmlsm/canopen/bytes.hpp"
+#include "pmlsm/canopen/emcy.hpp"
+
+namespace pmlsm::canopen {
+
+namespace {
+
+constexpr std::int64_t kNsPerMs = 1000000;
+
+std::string hex(std::uint32_t value, int digits) {
+  char text[16];
+  std::snprintf(text, sizeof text, "0x%0*X", digits, value);
+  return text;
+}
+
+}  // namespace
+
+void Cia402DriveConfig::validate() const {
+  const auto bad = [](const char* field, const std::string& why) {
+    throw std::invalid_argument(std::string(field) + ": " + why);
+  };
+  if (!is_valid_node_id(node_id)) bad("node_id", "must be in [1, 127], got " + std::to_string(node_id));
+  if (!is_valid_node_id(master_node_id)) {
+    bad("master_node_id", "must be in [1, 127], got " + std::to_string(master_node_id));
+  }
+  if (master_node_id == node_id) bad("master_node_id", "must differ from node_id " + std::to_string(node_id));
+  if (sync_timeout_ms == 0) bad("sync_timeout_ms", "must be >= 1, got 0");
+  if (boot_timeout_ms == 0) bad("boot_timeout_ms", "must be >= 1, got 0");
+  if (sdo_timeout_ms == 0) bad("sdo_timeout_ms", "must be >= 1, got 0");
+  if (drive_heartbeat_ms > 0 && drive_heartbeat_timeout_ms <= drive_heartbeat_ms) {
+    bad("drive_heartbeat_timeout_ms", "must exceed drive_heartbeat_ms " + std::to_string(drive_heartbeat_ms) +
+                                          ", got " + std::to_string(drive_heartbeat_timeout_ms));
+  }
+  if (master_heartbeat_ms == 0) bad("master_heartbeat_ms", "must be >= 1, got 0");
+  if (master_heartbeat_timeout_ms <= master_heartbeat_ms) {
+    bad("master_heartbeat_timeout_ms", "must exceed master_heartbeat_ms " + std::to_string(master_heartbeat_ms) +
+                                           ", got " + std::to_string(master_heartbeat_timeout_ms));
+  }
+  if (sync_overflow < 2 || sync_overflow > kSyncCounterMax) {
+    bad("sync_overflow", "must be in [2, 240], got " + std::to_string(sync_overflow));
+  }
+  if (enable_timeout_cycles == 0) bad("enable_timeout_cycles", "must be >= 1, got 0");
+}
+
+namespace {
+const Cia402DriveConfig& validated(const Cia402DriveConfig& config) {
+  config.validate();
+  return config;
+}
+}  // namespace
+
+Cia402Drive::Cia402Drive(const Cia402DriveConfig& config, can::CanBus& bus, Clock clock)
+    : config_(validated(config)),
+      bus_(bus),
+      clock_(std::move(clock)),
+      node_(config.node_id),
+      master_node_(config.master_node_id),
+      scaling_(config.scaling),
+      master_(Cia402MasterParams{config.enable_timeout_cycles}),
+      sdo_(node_, config.sdo_timeout_ms),
+      sync_(config.sync_overflow) {
+  if (!clock_) throw std::invalid_argument("clock: must be set");
+  if (config_.drive_heartbeat_ms > 0) heartbeat_.emplace(node_, config_.drive_heartbeat_timeout_ms);
+  next_master_heartbeat_ns_ = now_ns();
+}
+
+void Cia402Drive::set_problem(const char* text) noexcept { std::snprintf(problem_, sizeof problem_, "%s", text); }
+
+void Cia402Drive::send(const can::CanFrame& frame) { bus_.send(frame); }
+
+bool Cia402Drive::service(std::int64_t timeout_ns) {
+  const std::int64_t now = now_ns();
+  if (now >= next_master_heartbeat_ns_) {
+    send(encode_heartbeat(master_node_, NmtState::kOperational));
+    next_master_heartbeat_ns_ = now + config_.master_heartbeat_ms * kNsPerMs;
+  }
+  if (heartbeat_ && heartbeat_->poll(now_ms()) == HeartbeatEvent::kTimedOut) {
+    lose("drive heartbeat lost");
+  }
+  // Never wait past the next heartbeat we owe.
+  std::int64_t wait = timeout_ns;
+  if (wait > next_master_heartbeat_ns_ - now) wait = next_master_heartbeat_ns_ - now;
+  if (wait < 0) wait = 0;
+  can::CanFrame frame{};
+  if (!bus_.receive(frame, std::chrono::nanoseconds(wait))) return false;
+  handle(frame);
+  return true;
+}
+
+void Cia402Drive::handle(const can::CanFrame& frame) {
+  if (frame.rtr || frame.extended) return;
+  const CobIdInfo info = classify(frame.id);
+  if (info.node_id != node_.value()) return;
+  switch (info.function) {
+    case FunctionCode::kTpdo1:
+      if (frame.dlc != 8) return;
+      statusword_ = get_u16_le(frame.data, 0);
+      statusword_valid_ = true;
+      torque_actual_ = static_cast<std::int16_t>(get_u16_le(frame.data, 2));
+      velocity_actual_ = static_cast<std::int32_t>(get_u32_le(frame.data, 4));
+      tpdo1_generation_ = generation_;
+      {
+        const std::optional<drive::PowerState> state = drive::decode_statusword(statusword_);
+        const bool faulted =
+            state == drive::PowerState::kFaultReactionActive || state == drive::PowerState::kFault;
+        if (faulted && !drive_faulted_ && !local_fault_) ++fault_count_;
+        drive_faulted_ = faulted;
+      }
+      break;
+    case FunctionCode::kTpdo2:
+      if (frame.dlc != 8) return;
+      position_actual_ = static_cast<std::int32_t>(get_u32_le(frame.data, 0));
+      tpdo2_periods_ = get_u32_le(frame.data, 4);
+      periods_ = tpdo2_periods_;
+      tpdo2_generation_ = generation_;
+      break;
+    case FunctionCode::kEmcy: {
+      const Result<EmcyMessage> emcy = decode_emcy(frame);
+      if (!emcy) return;
+      ++counters_.emcys;
+      if (emcy.value.error_code != kEmcyNoError) {
+        error_code_ = emcy.value.error_code;
+        char text[96];
+        std::snprintf(text, sizeof text, "EMCY 0x%04X (%s)", emcy.value.error_code, describe_emcy(emcy.value.error_code));
+        set_problem(text);
+      }
+      break;
+    }
+    case FunctionCode::kHeartbeat: {
+      seen_ = true;
+      const Result<HeartbeatMessage> hb = decode_heartbeat(frame);
+      if (hb && hb.value.boot_up()) boot_up_ = true;
+      if (heartbeat_) heartbeat_->on_frame(frame, now_ms());
+      break;
+    }
+    case FunctionCode::kSdoTx: {
+      const SdoClientEvent event = sdo_.on_frame(frame);
+      if (event.kind != SdoClientEventKind::kNone) sdo_event_ = event;
+      break;
+    }
+    default:
+      break;
+  }
+}
+
+void Cia402Drive::send_sync(bool resend) {
+  if (!resend) last_sync_ = sync_.next();
+  ++generation_;
+  ++counters_.syncs;
+  if (resend) ++counters_.sync_resends;
+  send(last_sync_);
+}
+
+void Cia402Drive::send_rpdo(std::uint16_t controlword, std::int16_t torque, std::uint32_t tick) {
+  can::CanFrame frame = make_frame(rpdo_cob_id(1, node_), 8);
+  put_u16_le(frame.data, 0, controlword);
+  put_u16_le(frame.data, 2, static_cast<std::uint16_t>(torque));
+  put_u32_le(frame.data, 4, tick);
+  last_rpdo_ = frame;
+  rpdo_sent_ = true;
+  send(frame);
+}
+
+bool Cia402Drive::wait_answer(std::optional<std::uint32_t> expected, std::int64_t deadline_ns) {
+  for (;;) {
+    const bool complete = tpdo1_generation_ == generation_ && tpdo2_generation_ == generation_ &&
+                          (!expected || tpdo2_periods_ == *expected);
+    if (complete) return true;
+    const std::int64_t left = deadline_ns - now_ns();
+    if (left <= 0) return false;
+    service(left);
+    if (lost_) return false;
+  }
+}
+
+void Cia402Drive::lose(const char* what) {
+  if (!lost_) {
+    lost_ = true;
+    set_problem(what);
+  }
+  fault(drive::kErrorCommandTimeout);
+}
+
+std::uint32_t Cia402Drive::sdo(bool write, std::uint16_t index, std::uint8_t sub, std::uint32_t value,
+                               std::uint8_t size, const char* name) {
+  const std::string what = std::string("SDO ") + (write ? "write " : "read ") + hex(index, 4) + ":" +
+                           hex(sub, 2).substr(2) + " (" + name + ")" +
+                           (write ? " = " + std::to_string(value) : std::string());
+  sdo_event_.reset();
+  const Result<can::CanFrame> request =
+      write ? sdo_.download(index, sub, SdoData{value, size}, now_ms()) : sdo_.upload(index, sub, now_ms());
+  if (!request) throw Cia402DriveError(what + ": " + request.detail);
+  send(request.value);
+  for (;;) {
+    if (sdo_event_) break;
+    const SdoClientEvent timeout = sdo_.poll(now_ms());
+    if (timeout.kind == SdoClientEventKind::kTimedOut) {
+      if (timeout.send_abort) send(timeout.abort_frame);
+      throw Cia402DriveError(what + ": no response from node " + std::to_string(node_.value()) + " within " +
+                             std::to_string(config_.sdo_timeout_ms) + " ms");
+    }
+    service(kNsPerMs);
+  }
+  const SdoClientEvent event = *sdo_event_;
+  sdo_event_.reset();
+  switch (event.kind) {
+    case SdoClientEventKind::kAborted:
+      throw Cia402DriveError(what + ": aborted by the drive with " + hex(event.abort_code, 8) + " (" +
+                             describe(event.abort_code) + ")");
+    case SdoClientEventKind::kFailed:
+      if (event.send_abort) send(event.abort_frame);
+      throw Cia402DriveError(what + ": " + to_string(event.error) + ": " + event.detail);
+    case SdoClientEventKind::kUploaded:
+      return event.data.data;
+    default:
+      return 0;
+  }
+}
+
+void Cia402Drive::boot() {
+  // A drive that booted before the bridge (and whose heartbeat is off) answers a reset of its
+  // communication with a fresh boot-up.
+  if (config_.reset_communication) {
+    seen_ = false;
+    boot_up_ = false;
+    send(encode_nmt(NmtCommand::kResetCommunication, node_));
+  }
+  const std::int64_t deadline = now_ns() + config_.boot_timeout_ms * kNsPerMs;
+  while (!seen_) {
+    const std::int64_t left = deadline - now_ns();
+    if (left <= 0) {
+      throw Cia402DriveError("drive node " + std::to_string(node_.value()) + ": no boot-up or heartbeat (COB-ID " +
+                             hex(heartbeat_cob_id(node_), 3) + ") within " + std::to_string(config_.boot_timeout_ms) +
+                             " ms on " + bus_.describe());
+    }
+    service(left);
+  }
+  sdo(true, kObjectModesOfOperation, 0, static_cast<std::uint8_t>(kModeCyclicSynchronousTorque), 1,
+      "modes of operation, cyclic synchronous torque");
+  sdo(true, kObjectInterpolationTimePeriod, 1, 1, 1, "interpolation time period value");
+  sdo(true, kObjectInterpolationTimePeriod, 2, static_cast<std::uint8_t>(static_cast<std::int8_t>(-3)), 1,
+      "interpolation time index");
+  sdo(true, kObjectProducerHeartbeat, 0, config_.drive_heartbeat_ms, 2, "producer heartbeat time");
+  sdo(true, kObjectConsumerHeartbeat, 1,
+      consumer_heartbeat_entry(master_node_.value(), config_.master_heartbeat_timeout_ms), 4,
+      "consumer heartbeat time");
+  const std::uint32_t mode = sdo(false, kObjectModesOfOperationDisplay, 0, 0, 0, "modes of operation display");
+  const auto mode_value = static_cast<std::int8_t>(static_cast<std::uint8_t>(mode & 0xFFU));
+  if (mode_value != kModeCyclicSynchronousTorque) {
+    throw Cia402DriveError("0x6061 (modes of operation display) is " + std::to_string(mode_value) +
+                           " after 0x6060 = 10: the drive did not enter cyclic synchronous torque");
+  }
+  send(encode_nmt(NmtCommand::kStart, node_));
+}
+
+bool Cia402Drive::idle_exchange(std::uint16_t controlword) {
+  // A command tick one behind the drive's periods: the drive takes the controlword and does
+  // not step.
+  send_rpdo(controlword, 0, periods_ - 1U);
+  for (std::uint32_t attempt = 0; attempt <= config_.sync_retries; ++attempt) {
+    send_sync(attempt > 0);
+    if (wait_answer(std::nullopt, now_ns() + config_.sync_timeout_ms * kNsPerMs)) return true;
+    if (lost_) return false;
+  }
+  return false;
+}
+
+void Cia402Drive::start() {
+  send_sync(false);
+  bool answered = false;
+  for (std::uint32_t attempt = 0; attempt <= config_.sync_retries && !answered; ++attempt) {
+    if (attempt > 0) send_sync(true);
+    answered = wait_answer(std::nullopt, now_ns() + config_.sync_timeout_ms * kNsPerMs);
+    if (lost_) break;
+  }
+  if (!answered) {
+    throw Cia402DriveError("drive node " + std::to_string(node_.value()) + ": no TPDO1 + TPDO2 (COB-IDs " +
+                           hex(tpdo_cob_id(1, node_), 3) + ", " + hex(tpdo_cob_id(2, node_), 3) + ") after " +
+                           std::to_string(config_.sync_retries + 1) + " SYNCs" +
+                           (lost_ ? std::string(": ") + problem_ : std::string()));
+  }
+  // Hold the drive where it is: an RPDO1 it does not step on, with the master's word.
+  const Cia402MasterOutput out = master_.update(statusword_, enable_);
+  send_rpdo(out.controlword, 0, periods_ - 1U);
+  base_ = periods_;
+  started_ = true;
+  tick_ = 0;
+  last_measurement_ = measurement();
+}
+
+void Cia402Drive::enable_and_wait() {
+  if (!started_) start();
+  enable_ = true;
+  master_.quick_stop(false);
+  for (;;) {
+    const Cia402MasterOutput out = master_.update(statusword_, true);
+    if (out.status == Cia402MasterStatus::kOperationEnabled) break;
+    if (out.status == Cia402MasterStatus::kFaultResetNeeded) {
+      throw Cia402DriveError("drive node " + std::to_string(node_.value()) + " is in fault (error code " +
+                             hex(error_code_, 4) + "): fault reset first");
+    }
+    if (out.timed_out) {
+      throw Cia402DriveError("drive node " + std::to_string(node_.value()) +
+                             " never reached operation enabled: stuck in " +
+                             (out.stuck_in ? drive::to_string(*out.stuck_in) : "an invalid statusword") +
+                             " (statusword " + hex(statusword_, 4) + ", controlword " + hex(out.controlword, 4) +
+                             ") for " + std::to_string(config_.enable_timeout_cycles) + " cycles");
+    }
+    if (!idle_exchange(out.controlword)) {
+      throw Cia402DriveError("drive node " + std::to_string(node_.value()) + " stopped answering during the enable walk" +
+                             (lost_ ? std::string(": ") + problem_ : std::string()));
+    }
+  }
+  base_ = periods_;
+  last_measurement_ = measurement();
+}
+
+drive::Measurement Cia402Drive::measurement() const {
+  drive::Measurement m;
+  m.position_m = scaling_.increments_to_metres(position_actual_);
+  m.velocity_mps = scaling_.increments_to_velocity(velocity_actual_);
+  m.thrust_force_n = scaling_.per_mille_to_force(torque_actual_);
+  return m;
+}
+
+drive::Measurement Cia402Drive::sample() {
+  if (!started_) {
+    base_ = 0;
+    started_ = true;
+  }
+  const std::uint64_t k = tick_++;
+  if (lost_) {
+    while (service(0)) {
+    }
+    return last_measurement_;
+  }
+  if (config_.realtime) {
+    send_sync(false);
+    if (!wait_answer(std::nullopt, now_ns() + config_.tpdo_deadline_us * 1000LL)) ++counters_.tpdo_missing;
+    last_measurement_ = measurement();
+    return last_measurement_;
+  }
+  const std::uint32_t expected = base_ + static_cast<std::uint32_t>(k);
+  send_sync(false);
+  for (std::uint32_t attempt = 0;; ++attempt) {
+    if (wait_answer(expected, now_ns() + config_.sync_timeout_ms * kNsPerMs)) break;
+    if (lost_) return last_measurement_;
+    if (attempt >= config_.sync_retries) {
+      char text[160];
+      std::snprintf(text, sizeof text, "no answer to the SYNC of tick %llu after %u resends: drive lost",
+                    static_cast<unsigned long long>(k), config_.sync_retries);
+      lose(text);
+      return last_measurement_;
+    }
+    // The drive did not step: our RPDO1 of the last tick was lost. Send it again first.
+    if (k > 0 && tpdo2_generation_ == generation_ && periods_ == expected - 1U && rpdo_sent_) {
+      ++counters_.rpdo_resends;
+      send(last_rpdo_);
+    }
+    send_sync(true);
+  }
+  while (service(0)) {  // EMCYs and heartbeats already queued
+  }
+  last_measurement_ = measurement();
+  return last_measurement_;
+}
+
+void Cia402Drive::apply(double force_n) {
+  const bool enabled = power_state() == drive::PowerState::kOperationEnabled;
+  const Cia402MasterOutput out = master_.update(statusword_, enable_ && !local_fault_ && !lost_);
+  stuck_in_.reset();
+  if (out.timed_out && !lost_) {
+    stuck_in_ = out.stuck_in ? *out.stuck_in : drive::PowerState::kNotReadyToSwitchOn;
+  }
+  std::uint16_t controlword = out.controlword;
+  // An operator's walk one state at a time (shutdown, switch on): the word for that state.
+  if (partial_target_ && !local_fault_ && !lost_ && !master_.quick_stop_active()) {
+    const std::optional<drive::PowerState> state = drive::decode_statusword(statusword_);
+    if (state && *state != drive::PowerState::kFault && *state != drive::PowerState::kFaultReactionActive) {
+      const bool to_switched_on =
+          *partial_target_ == drive::DriveCommand::kSwitchOn && *state != drive::PowerState::kSwitchOnDisabled &&
+          *state != drive::PowerState::kQuickStopActive;
+      controlword = drive::controlword_of(to_switched_on ? drive::DriveCommand::kSwitchOn : drive::DriveCommand::kShutdown);
+      if (*state == drive::PowerState::kQuickStopActive) controlword = drive::controlword_of(drive::DriveCommand::kDisableVoltage);
+    }
+  }
+  const std::int16_t torque = enabled ? scaling_.force_to_per_mille(force_n).value : std::int16_t{0};
+  const std::uint64_t k = tick_ == 0 ? 0 : tick_ - 1;  // the tick sampled last
+  const std::uint32_t command_tick = config_.realtime ? periods_ : base_ + static_cast<std::uint32_t>(k);
+  send_rpdo(controlword, torque, command_tick);
+}
+
+drive::TransitionResult Cia402Drive::request(drive::DriveCommand command) {
+  drive::TransitionResult r;
+  r.from = power_state();
+  r.to = r.from;
+  r.accepted = true;
+  partial_target_.reset();
+  switch (command) {
+    case drive::DriveCommand::kEnableOperation:
+      if (local_fault_ || r.from == drive::PowerState::kFault || r.from == drive::PowerState::kFaultReactionActive) {
+        r.accepted = false;
+        r.reason = "the drive is in fault: fault reset first";
+        return r;
+      }
+      if (lost_) {
+        r.accepted = false;
+        r.reason = "the drive is lost (no answer on the bus)";
+        return r;
+      }
+      enable_ = true;
+      master_.quick_stop(false);
+      r.reason = "sent: the drive walks to operation enabled over the next cycles";
+      break;
+    case drive::DriveCommand::kQuickStop:
+      enable_ = false;
+      master_.quick_stop(true);
+      r.reason = "sent: quick stop";
+      break;
+    case drive::DriveCommand::kFaultReset:
+      local_fault_ = false;
+      if (r.from == drive::PowerState::kFault || drive::decode_statusword(statusword_) == drive::PowerState::kFault) {
+        master_.request_fault_reset();
+      }
+      master_.quick_stop(false);
+      enable_ = false;
+      r.to = power_state();
+      r.reason = "sent: fault reset";
+      break;
+    case drive::DriveCommand::kShutdown:
+    case drive::DriveCommand::kSwitchOn:
+    case drive::DriveCommand::kDisableOperation:
+      if (local_fault_ || lost_ || r.from == drive::PowerState::kFault) {
+        r.accepted = false;
+        r.reason = "the drive is in fault: fault reset first";
+        return r;
+      }
+      enable_ = false;
+      master_.quick_stop(false);
+      partial_target_ = command == drive::DriveCommand::kShutdown ? command : drive::DriveCommand::kSwitchOn;
+      r.reason = command == drive::DriveCommand::kShutdown ? "sent: shutdown" : "sent: switch on";
+      break;
+    case drive::DriveCommand::kDisableVoltage:
+      enable_ = false;
+      master_.quick_stop(false);
+      r.reason = "sent: disable voltage";
+      break;
+  }
+  return r;
+}
+
+void Cia402Drive::fault(std::uint16_t error_code) {
+  if (local_fault_) return;  // the first cause is kept
+  local_fault_ = true;
+  ++fault_count_;
+  error_code_ = error_code == 0 ? drive::kErrorCodeGeneric : error_code;
+  enable_ = false;
+  master_.quick_stop(true);
+  if (problem_[0] == '\0') {
+    char text[64];
+    std::snprintf(text, sizeof text, "fault 0x%04X raised by the drive loop", error_code_);
+    set_problem(text);
+  }
+}
+
+drive::PowerState Cia402Drive::power_state() const {
+  drive::PowerState decoded = drive::PowerState::kNotReadyToSwitchOn;
+  if (statusword_valid_) {
+    if (const auto state = drive::decode_statusword(statusword_)) decoded = *state;
+  }
+  if (local_fault_ || lost_) {
+    return decoded == drive::PowerState::kFaultReactionActive ? decoded : drive::PowerState::kFault;
+  }
+  return decoded;
+}
+
+}  // namespace pmlsm::canopen

@@ -1,0 +1,330 @@
+#include "drive_node.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <utility>
+
+#include "msg_mapping.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+
+namespace pmlsm::node {
+
+namespace {
+namespace pdds = pmlsm::dds;
+namespace msg = pmlsm_msgs::msg;
+namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
+}  // namespace
+
+void add_drive_node_options(CLI::App& app, DriveNodeOptions& opt) {
+  app.add_option("--peers", opt.peers, "MotorFeedback readers to wait for before tick 0")
+      ->check(CLI::Range(1, 64));
+  app.add_option("--watchdog-ms", opt.watchdog_ms, "realtime: the oldest unanswered feedback this old -> fault")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--watchdog-arm-ticks", opt.watchdog_arm_ticks,
+                 "realtime: consecutive ticks answered in their own tick before the watchdog counts")
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--controller-lost-ms", opt.controller_lost_ms,
+                 "realtime: no acceptable command this long -> controller lost")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--on-controller-lost", opt.on_controller_lost,
+                 "realtime: exit (simulation: end with code 4) or stay (rig: stay up in the safe state to be reset)")
+      ->check(CLI::IsMember({"exit", "stay"}))
+      ->capture_default_str();
+  app.add_option("--command-deadline-us", opt.command_deadline_us,
+                 "realtime: how long into a tick the plant waits for that tick's command")
+      ->check(CLI::Range(0.0, 1e6));
+  app.add_option("--wake-early-us", opt.wake_early_us,
+                 "realtime: sleep until this long before each tick, then poll the clock to its start "
+                 "(a sleeping thread may wake tens of microseconds late)")
+      ->check(CLI::Range(0.0, 900.0));
+  app.add_option("--auto-enable", opt.auto_enable,
+                 "enable the drive (walk to operation enabled) once the peers are there; false: wait for "
+                 "`pmlsm drive enable`")
+      ->capture_default_str();
+}
+
+void check_drive_node_options(const char* node_name, const DriveNodeOptions& opt, const CommonOptions& common,
+                              const NodeRuntime& rt) {
+  if (opt.wake_early_us * 1e-6 >= rt.period_s) {
+    throw ConfigError("--wake-early-us " + std::to_string(opt.wake_early_us) +
+                      ": must be shorter than the control period (" + std::to_string(rt.period_s * 1e6) + " us)");
+  }
+  if (opt.watchdog_ms * 1e-3 < rt.period_s) {
+    throw ConfigError("--watchdog-ms " + std::to_string(opt.watchdog_ms) + ": must be at least one control period (" +
+                      std::to_string(rt.period_s * 1e3) + " ms)");
+  }
+  if (common.wake_batch_us > 0.0) {
+    throw ConfigError("--wake-batch-us " + std::to_string(common.wake_batch_us) +
+                      ": " + std::string(node_name) + " is on the control chain; batching would pace the loop");
+  }
+}
+
+DriveNode::DriveNode(std::string name, const CommonOptions& common, const DriveNodeOptions& options, NodeRuntime& rt,
+                     drive::Drive& backend, DriveNodeHooks& hooks)
+    : name_(std::move(name)),
+      common_(common),
+      opt_(options),
+      rt_(rt),
+      backend_(backend),
+      hooks_(hooks),
+      period_s_(rt.period_s),
+      ticks_(scenario_ticks(rt.cfg.scenario, period_s_)),
+      voltage_level_(rt.cfg.command_level == CommandLevel::kVoltage),
+      realtime_(rt.cfg.clock == Clock::kRealtime),
+      feedback_writer_(rt.participant.make_writer<msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback)),
+      command_reader_(rt.participant.make_reader<msg::ForceCommandPubSubType>(pdds::topics::kForceCommand, rt.wakeup)),
+      control_reader_(rt.participant.make_reader<msg::DriveControlPubSubType>(pdds::topics::kDriveControl, rt.wakeup)),
+      state_writer_(rt.participant.make_writer<msg::DriveStatePubSubType>(pdds::topics::kDriveState)),
+      loop_(loop_params(), backend_),
+      clock_(static_cast<std::int64_t>(std::llround(period_s_ * 1e9)), realtime_,
+             static_cast<std::int64_t>(std::llround(options.wake_early_us * 1e3))),
+      run_id_(new_run_id()) {
+  loop_.set_run_id(run_id_);
+  drive_state_.drive_name(name_);
+}
+
+drive::DriveLoopParams DriveNode::loop_params() const {
+  drive::DriveLoopParams p;
+  p.period_s = period_s_;
+  p.realtime = realtime_;
+  p.watchdog_s = opt_.watchdog_ms * 1e-3;
+  p.watchdog_arm_ticks = opt_.watchdog_arm_ticks;
+  p.controller_lost_s = opt_.controller_lost_ms * 1e-3;
+  p.first_command_timeout_s = common_.peer_timeout_s;
+  p.expected_ticks = ticks_;
+  return p;
+}
+
+bool DriveNode::wait_for_peers() {
+  rt_.status.publish(node_state::STATE_WAITING, 0, period_s_, "waiting for peers");
+  const auto timeout = std::chrono::duration<double>(common_.peer_timeout_s);
+  return node::wait_until(rt_.wakeup, timeout, [&] {
+    return feedback_writer_.matched_readers() >= static_cast<std::size_t>(opt_.peers) &&
+           command_reader_.matched_writers() >= 1 && hooks_.peers_ready();
+  });
+}
+
+void DriveNodeHooks::enable_at_start(DriveNode& node) {
+  const std::int64_t now = monotonic_ns();
+  while (const auto next = drive::next_command_towards_operation_enabled(node.backend().power_state())) {
+    const drive::TransitionResult r = node.loop().request(*next, now);
+    if (!r.accepted) break;  // cannot happen from switch on disabled; never loop
+  }
+  std::printf("%s: drive %s (auto-enable)\n", node.name().c_str(), drive::to_string(node.backend().power_state()));
+}
+
+void DriveNode::publish_drive_state(std::uint64_t tick) {
+  drive_state_.stamp(node::make_stamp(tick, period_s_, run_id_));
+  node::to_msg(backend_, loop_, refused_requests_, drive_state_);
+  state_writer_.write(drive_state_);
+  published_state_ = backend_.power_state();
+}
+
+void DriveNode::serve_drive_control() {
+  while (control_reader_.take(control_)) {
+    const std::string target = control_.drive_name().to_string();
+    if (!target.empty() && target != "*" && target != name_) continue;
+    const drive::PowerState before = backend_.power_state();
+    std::string text;
+    bool accepted = false;
+    if (control_.command() >= drive::kDriveCommandCount) {
+      text = "unknown command " + std::to_string(control_.command());
+    } else {
+      const auto command = static_cast<drive::DriveCommand>(control_.command());
+      const drive::TransitionResult r = loop_.request(command, monotonic_ns());
+      accepted = r.accepted;
+      text = std::string(drive::to_string(command)) + (r.accepted ? "" : " refused") + " in " +
+             drive::to_string(before) + (r.accepted ? " -> " + std::string(drive::to_string(r.to)) : ": " + std::string(r.reason));
+    }
+    if (!accepted) ++refused_requests_;
+    std::printf("%s: drive control from %s (request %llu): %s\n", name_.c_str(), control_.requester().c_str(),
+                static_cast<unsigned long long>(control_.request_id()), text.c_str());
+    drive_state_.request_id(control_.request_id());
+    drive_state_.request_accepted(accepted);
+    drive_state_.request_message(text.substr(0, 127));
+    publish_drive_state(loop_.statistics().ticks());
+  }
+}
+
+void DriveNode::take_commands(std::uint64_t k) {
+  const auto offer_all = [&] {
+    while (!(loop_.answered() && !realtime_) && command_reader_.take(command_, info_)) {
+      std::int64_t received_ns = info_.reception_timestamp.to_ns();
+      if (received_ns <= 0) received_ns = wall_time_ns();
+      loop_.offer(node::from_msg(command_, node::writer_id(info_), received_ns));
+    }
+    std::uint64_t foreign = 0;
+    if (loop_.take_new_foreign_writer(foreign)) {
+      std::fprintf(stderr,
+                   "%s: a second ForceCommand writer (%016llx) at tick %llu: refused; following %016llx\n", name_.c_str(),
+                   static_cast<unsigned long long>(foreign), static_cast<unsigned long long>(k),
+                   static_cast<unsigned long long>(loop_.owner_writer_id()));
+      rt_.status.publish(node_state::STATE_RUNNING, k, period_s_, "second ForceCommand writer refused");
+    }
+    serve_drive_control();
+    return loop_.answered();
+  };
+  if (!realtime_) {
+    node::wait_until(rt_.wakeup, std::chrono::duration<double>(common_.peer_timeout_s), offer_all);
+    return;
+  }
+  const std::int64_t deadline = clock_.tick_start_ns() + static_cast<std::int64_t>(opt_.command_deadline_us * 1e3);
+  const double wait_s = std::max(0.0, static_cast<double>(deadline - monotonic_ns()) * 1e-9);
+  node::wait_until(rt_.wakeup, std::chrono::duration<double>(wait_s), offer_all);
+  offer_all();
+}
+
+int DriveNode::run() {
+  if (!wait_for_peers()) {
+    if (pdds::stop_requested()) return kExitOk;
+    std::fprintf(stderr, "%s: peers missing after %.1f s: %zu of %d MotorFeedback readers, %zu ForceCommand writers\n", name_.c_str(),
+                 common_.peer_timeout_s, feedback_writer_.matched_readers(), opt_.peers,
+                 command_reader_.matched_writers());
+    return kExitPeerMissing;
+  }
+  std::printf("%s: %s clock, %s command level, %llu ticks of %.3g ms, scenario %s, run %016llx\n", name_.c_str(),
+              realtime_ ? "realtime" : "lockstep", voltage_level_ ? "voltage" : "force",
+              static_cast<unsigned long long>(ticks_), period_s_ * 1e3, rt_.cfg.scenario.name.c_str(),
+              static_cast<unsigned long long>(run_id_));
+  hooks_.before_run(*this);
+  if (opt_.auto_enable) hooks_.enable_at_start(*this);
+  publish_drive_state(0);
+  rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "running");
+
+  int exit_code = kExitOk;
+  const auto loop_start = std::chrono::steady_clock::now();
+  clock_.start();
+  std::uint64_t k = 0;
+  for (; k < ticks_ && !pdds::stop_requested(); ++k) {
+    const drive::TickReport& report = loop_.begin_tick(k, monotonic_ns(), clock_.tick_start_ns());
+    feedback_.stamp(node::make_stamp(k, period_s_, run_id_));
+    node::to_msg(report, feedback_);
+    hooks_.before_publish(k, report);
+    loop_.published(wall_time_ns(), monotonic_ns());
+    feedback_writer_.write(feedback_);
+    hooks_.after_publish(k);
+
+    take_commands(k);
+    if (!realtime_ && !loop_.answered()) {
+      if (pdds::stop_requested()) break;
+      std::fprintf(stderr, "%s: no ForceCommand for tick %llu within %.1f s: controller lost; safe state\n", name_.c_str(),
+                   static_cast<unsigned long long>(k), common_.peer_timeout_s);
+      rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "controller lost");
+      exit_code = kExitPeerLost;
+      break;
+    }
+    if (const char* missing = hooks_.during_tick(k)) {
+      if (pdds::stop_requested()) break;
+      std::fprintf(stderr, "%s: %s in tick %llu within %.1f s: controller lost; safe state\n", name_.c_str(), missing,
+                   static_cast<unsigned long long>(k), common_.peer_timeout_s);
+      rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "controller lost");
+      exit_code = kExitPeerLost;
+      break;
+    }
+    const drive::TickEvents events = loop_.end_tick(monotonic_ns(), hooks_.apply_force());
+    if (loop_.watchdog_armed() != watchdog_armed_) {
+      watchdog_armed_ = loop_.watchdog_armed();
+      if (watchdog_armed_) {
+        std::printf("%s: watchdog armed at tick %llu (%u ticks answered in their own tick)\n", name_.c_str(),
+                    static_cast<unsigned long long>(k), opt_.watchdog_arm_ticks);
+      }
+    }
+    if (events.watchdog_tripped) {
+      // The wall time the force went off (the trip may have come at the tick's start).
+      const std::int64_t tripped_wall_ns = wall_time_ns() - (monotonic_ns() - events.tripped_mono_ns);
+      std::fprintf(stderr,
+                   "%s: watchdog: tick %llu unanswered for %.1f ms at tick %llu: fault 0x%04x, zero force "
+                   "[wall %.6f s]\n",
+                   name_.c_str(),
+                   static_cast<unsigned long long>(events.unanswered_tick), opt_.watchdog_ms,
+                   static_cast<unsigned long long>(k), backend_.error_code(), static_cast<double>(tripped_wall_ns) * 1e-9);
+      rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "watchdog: feedback unanswered, fault, zero force");
+      char reason[128];
+      std::snprintf(reason, sizeof reason, "watchdog: feedback of tick %llu unanswered for %.1f ms (tick %llu)",
+                    static_cast<unsigned long long>(events.unanswered_tick), opt_.watchdog_ms,
+                    static_cast<unsigned long long>(k));
+      drive_state_.fault_reason(reason);
+    }
+    if (events.controller_lost) {
+      std::fprintf(stderr, "%s: no acceptable ForceCommand for %.0f ms at tick %llu: controller lost [wall %.6f s]\n", name_.c_str(),
+                   loop_.any_command() ? opt_.controller_lost_ms : common_.peer_timeout_s * 1e3,
+                   static_cast<unsigned long long>(k), static_cast<double>(wall_time_ns()) * 1e-9);
+      rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "controller lost");
+      if (backend_.power_state() == drive::PowerState::kOperationEnabled) loop_.request(drive::DriveCommand::kQuickStop, monotonic_ns());
+      if (opt_.on_controller_lost == "exit") {
+        exit_code = kExitPeerLost;
+        ++k;
+        break;
+      }
+    }
+    hooks_.after_tick(*this, k);
+    if (backend_.power_state() != published_state_) publish_drive_state(k);
+    if (clock_.wait_next_tick()) loop_.statistics().record_deadline_miss();
+    if (k % 1000 == 999) {
+      auto& s = rt_.status.status();
+      s.late(loop_.counters().late);
+      s.rejected(loop_.counters().rejected + loop_.counters().foreign);
+      s.deadline_misses(loop_.statistics().deadline_misses());
+      rt_.status.publish(backend_.power_state() == drive::PowerState::kOperationEnabled ? node_state::STATE_RUNNING
+                                                                                         : node_state::STATE_SAFE,
+                         k, period_s_);
+      publish_drive_state(k);
+    }
+  }
+  const double loop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - loop_start).count();
+  return finish(k, exit_code, loop_s);
+}
+
+int DriveNode::finish(std::uint64_t k, int exit_code, double loop_s) {
+  const drive::DriveCounters& c = loop_.counters();
+  auto& s = rt_.status.status();
+  s.late(c.late);
+  s.rejected(c.rejected + c.foreign);
+  s.deadline_misses(loop_.statistics().deadline_misses());
+  publish_drive_state(k);
+  rt_.status.publish(node_state::STATE_STOPPING, k, period_s_, "done");
+  feedback_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  state_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  hooks_.flush();
+  if (realtime_ && k > 1) {
+    const double mean_period = loop_.statistics().mean_period_s();
+    std::printf("%s: mean tick period %.3f us (nominal %.3f us, %+.1f ppm)\n", name_.c_str(), mean_period * 1e6,
+                period_s_ * 1e6, (mean_period / period_s_ - 1.0) * 1e6);
+  }
+  const drive::LatencySummary latency = loop_.statistics().latency();
+  if (latency.count > 0) {
+    std::printf("%s: chain latency feedback -> command over %zu ticks: p50 %.1f us, p99 %.1f us, max %.1f us\n", name_.c_str(),
+                latency.count, latency.p50_us, latency.p99_us, latency.max_us);
+  }
+  if (c.uncommanded_ticks > 0) {
+    std::printf("%s: %llu of %llu ticks got no acceptable command\n", name_.c_str(),
+                static_cast<unsigned long long>(c.uncommanded_ticks), static_cast<unsigned long long>(k));
+  }
+  std::printf("%s: %llu ticks in %.3f s (%.1fx real time), late %llu, rejected %llu, foreign %llu, "
+              "deadline misses %llu, safe ticks %llu, drive stalls %llu, drive %s\n", name_.c_str(),
+              static_cast<unsigned long long>(k), loop_s, static_cast<double>(k) * period_s_ / loop_s,
+              static_cast<unsigned long long>(c.late + hooks_.extra_late()),
+              static_cast<unsigned long long>(c.rejected + hooks_.extra_rejected()), static_cast<unsigned long long>(c.foreign),
+              static_cast<unsigned long long>(loop_.statistics().deadline_misses()),
+              static_cast<unsigned long long>(c.safe_ticks), static_cast<unsigned long long>(c.drive_stalls),
+              drive::to_string(backend_.power_state()));
+  if (exit_code != kExitOk || pdds::stop_requested()) return exit_code;
+  if (!loop_.ever_enabled()) {
+    std::fprintf(stderr, "%s: the drive was never enabled: no force was applied; run not valid\n", name_.c_str());
+    return kExitSafeState;
+  }
+  if (c.safe_ticks > 0) {
+    std::fprintf(stderr, "%s: force was off for %llu of %llu ticks (fault 0x%04x): run not valid\n", name_.c_str(),
+                 static_cast<unsigned long long>(c.safe_ticks), static_cast<unsigned long long>(k),
+                 backend_.error_code());
+    return kExitSafeState;
+  }
+  return kExitOk;
+}
+
+}  // namespace pmlsm::node

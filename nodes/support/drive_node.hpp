@@ -1,0 +1,131 @@
+// What every drive node (plant_sim, drive_bridge) does on DDS around the drive loop
+// (common/drive/drive_loop.hpp), whatever its backend: waits for its peers, publishes
+// MotorFeedback and DriveState, applies ForceCommand, serves DriveControl, runs the tick loop
+// (lockstep or realtime), reports the watchdog and a lost controller, prints the summary and
+// decides the exit code. A node adds its own parts through DriveNodeHooks (plant_sim: PlantTruth
+// and the voltage level; drive_bridge: the CANopen boot and enable walk).
+//
+// Exit codes: 0 the scenario ran with force on throughout; 4 the controller was lost (lockstep
+// timeout; realtime with --on-controller-lost exit); 5 the drive spent ticks with force off
+// after it was first enabled (fault, quick stop, disabled) or was never enabled.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "DriveControlPubSubTypes.h"
+#include "DriveStatePubSubTypes.h"
+#include "ForceCommandPubSubTypes.h"
+#include "MotorFeedbackPubSubTypes.h"
+#include "node_support.hpp"
+#include "pmlsm/drive/drive_loop.hpp"
+#include "pmlsm/drive/tick_clock.hpp"
+
+namespace pmlsm::node {
+
+struct DriveNodeOptions {
+  int peers = 2;
+  double watchdog_ms = 3.0;
+  std::uint32_t watchdog_arm_ticks = 3;
+  double controller_lost_ms = 50.0;
+  std::string on_controller_lost = "exit";
+  double command_deadline_us = 500.0;
+  double wake_early_us = 0.0;
+  bool auto_enable = true;
+};
+
+/// --peers, --watchdog-ms, --watchdog-arm-ticks, --controller-lost-ms, --on-controller-lost,
+/// --command-deadline-us, --wake-early-us, --auto-enable.
+void add_drive_node_options(CLI::App& app, DriveNodeOptions& options);
+/// The checks against the control period. @throws ConfigError naming the option.
+void check_drive_node_options(const char* node_name, const DriveNodeOptions& options, const CommonOptions& common,
+                              const NodeRuntime& rt);
+
+class DriveNode;
+
+/// A node's own parts of the tick. Every default does nothing.
+class DriveNodeHooks {
+ public:
+  virtual ~DriveNodeHooks() = default;
+  /// Besides the MotorFeedback readers and a ForceCommand writer.
+  virtual bool peers_ready() { return true; }
+  /// Once the peers are there, before tick 0 (a bridge boots its drive here).
+  virtual void before_run(DriveNode& /*node*/) {}
+  /// Walks the drive to operation enabled (--auto-enable). Default: the loop's requests,
+  /// which a backend with an immediate state machine (the simulation) takes at once.
+  virtual void enable_at_start(DriveNode& node);
+  /// Tick k's feedback is filled (stamp set), not yet written.
+  virtual void before_publish(std::uint64_t /*k*/, const drive::TickReport& /*report*/) {}
+  /// Tick k's feedback was written.
+  virtual void after_publish(std::uint64_t /*k*/) {}
+  /// After tick k's command is in: nullptr, or what is missing ("no VoltageCommand"), which
+  /// ends the run as a lost controller.
+  virtual const char* during_tick(std::uint64_t /*k*/) { return nullptr; }
+  /// Whether end_tick applies the force (false: the node drove the period itself).
+  virtual bool apply_force() { return true; }
+  /// After end_tick and the loop's own reports.
+  virtual void after_tick(DriveNode& /*node*/, std::uint64_t /*k*/) {}
+  /// Waits for the node's own writers at the end.
+  virtual void flush() {}
+  /// Added to the summary's late and rejected counts.
+  virtual std::uint64_t extra_late() const { return 0; }
+  virtual std::uint64_t extra_rejected() const { return 0; }
+};
+
+class DriveNode {
+ public:
+  /// `backend` and `hooks` must outlive the node.
+  DriveNode(std::string name, const CommonOptions& common, const DriveNodeOptions& options, NodeRuntime& rt,
+            drive::Drive& backend, DriveNodeHooks& hooks);
+
+  /// The whole run; returns the exit code.
+  int run();
+
+  const std::string& name() const { return name_; }
+  drive::DriveLoop& loop() { return loop_; }
+  drive::Drive& backend() { return backend_; }
+  const pmlsm_msgs::msg::MotorFeedback& feedback() const { return feedback_; }
+  double period_s() const { return period_s_; }
+  bool realtime() const { return realtime_; }
+  NodeRuntime& runtime() { return rt_; }
+  /// DriveState's fault_reason (at most 127 characters).
+  void set_fault_reason(const std::string& reason) { drive_state_.fault_reason(reason.substr(0, 127)); }
+  void publish_drive_state(std::uint64_t tick);
+
+ private:
+  drive::DriveLoopParams loop_params() const;
+  bool wait_for_peers();
+  /// Takes DriveControl requests addressed to this drive and answers each on DriveState.
+  void serve_drive_control();
+  void take_commands(std::uint64_t k);
+  int finish(std::uint64_t ticks_done, int exit_code, double loop_s);
+
+  std::string name_;
+  const CommonOptions& common_;
+  DriveNodeOptions opt_;
+  NodeRuntime& rt_;
+  drive::Drive& backend_;
+  DriveNodeHooks& hooks_;
+  double period_s_;
+  std::uint64_t ticks_;
+  bool voltage_level_;
+  bool realtime_;
+  dds::Writer<pmlsm_msgs::msg::MotorFeedbackPubSubType> feedback_writer_;
+  dds::Reader<pmlsm_msgs::msg::ForceCommandPubSubType> command_reader_;
+  dds::Reader<pmlsm_msgs::msg::DriveControlPubSubType> control_reader_;
+  dds::Writer<pmlsm_msgs::msg::DriveStatePubSubType> state_writer_;
+  drive::DriveLoop loop_;
+  drive::TickClock clock_;
+  std::uint64_t run_id_;
+
+  pmlsm_msgs::msg::MotorFeedback feedback_;
+  pmlsm_msgs::msg::ForceCommand command_;
+  pmlsm_msgs::msg::DriveControl control_;
+  pmlsm_msgs::msg::DriveState drive_state_;
+  eprosima::fastdds::dds::SampleInfo info_;
+  drive::PowerState published_state_ = drive::PowerState::kNotReadyToSwitchOn;
+  std::uint64_t refused_requests_ = 0;
+  bool watchdog_armed_ = false;
+};
+
+}  // namespace pmlsm::node
