@@ -51,6 +51,27 @@ void fill_multiplexer(T& value, const CanFrame& frame) noexcept {
   value.subindex = frame.data[3];
 }
 
+/// What both SDO parsers check first: a standard data frame on the SDO COB-ID of `function`,
+/// with DLC 8; the node id and (from 4 bytes on) the multiplexer are filled either way. False,
+/// with the error in `r`, when the frame is not one.
+template <typename T>
+bool parse_sdo_envelope(const CanFrame& frame, FunctionCode function, const char* wrong_cob_id,
+                        const char* wrong_dlc, Result<T>& r) noexcept {
+  if (const Status s = detail::check_standard_data_frame(frame); !s) {
+    r = detail::as_result<T>(s);
+    return false;
+  }
+  const CobIdInfo info = classify(frame.id);
+  if (info.function != function) {
+    r = fail_with<T>(Error::kWrongCobId, wrong_cob_id);
+    return false;
+  }
+  if (frame.dlc != 8) r = fail_with<T>(Error::kWrongDlc, wrong_dlc, kAbortCommandSpecifier);
+  r.value.node_id = info.node_id;
+  if (frame.dlc >= 4) fill_multiplexer(r.value, frame);
+  return frame.dlc == 8;
+}
+
 }  // namespace
 
 const char* describe(std::uint32_t abort_code) noexcept {
@@ -120,21 +141,11 @@ CanFrame sdo_abort_request(NodeId server, std::uint16_t index, std::uint8_t subi
 }
 
 Result<SdoResponse> parse_sdo_response(const CanFrame& frame) noexcept {
-  using R = Result<SdoResponse>;
-  if (const Status s = detail::check_standard_data_frame(frame); !s) return detail::as_result<SdoResponse>(s);
-  const CobIdInfo info = classify(frame.id);
-  if (info.function != FunctionCode::kSdoTx) {
-    return fail_with<SdoResponse>(Error::kWrongCobId, "SDO response: COB-ID must be 0x581..0x5FF");
-  }
-  if (frame.dlc != 8) {
-    R r = fail_with<SdoResponse>(Error::kWrongDlc, "SDO response: DLC must be 8", kAbortCommandSpecifier);
-    r.value.node_id = info.node_id;
-    if (frame.dlc >= 4) fill_multiplexer(r.value, frame);
+  Result<SdoResponse> r;
+  if (!parse_sdo_envelope(frame, FunctionCode::kSdoTx, "SDO response: COB-ID must be 0x581..0x5FF",
+                          "SDO response: DLC must be 8", r)) {
     return r;
   }
-  R r;
-  r.value.node_id = info.node_id;
-  fill_multiplexer(r.value, frame);
   auto refuse = [&r](Error error, const char* detail) {
     r.error = error;
     r.detail = detail;
@@ -175,21 +186,11 @@ Result<SdoResponse> parse_sdo_response(const CanFrame& frame) noexcept {
 // ---- server side ------------------------------------------------------------------------------
 
 Result<SdoRequest> parse_sdo_request(const CanFrame& frame) noexcept {
-  using R = Result<SdoRequest>;
-  if (const Status s = detail::check_standard_data_frame(frame); !s) return detail::as_result<SdoRequest>(s);
-  const CobIdInfo info = classify(frame.id);
-  if (info.function != FunctionCode::kSdoRx) {
-    return fail_with<SdoRequest>(Error::kWrongCobId, "SDO request: COB-ID must be 0x601..0x67F");
-  }
-  if (frame.dlc != 8) {
-    R r = fail_with<SdoRequest>(Error::kWrongDlc, "SDO request: DLC must be 8", kAbortCommandSpecifier);
-    r.value.node_id = info.node_id;
-    if (frame.dlc >= 4) fill_multiplexer(r.value, frame);
+  Result<SdoRequest> r;
+  if (!parse_sdo_envelope(frame, FunctionCode::kSdoRx, "SDO request: COB-ID must be 0x601..0x67F",
+                          "SDO request: DLC must be 8", r)) {
     return r;
   }
-  R r;
-  r.value.node_id = info.node_id;
-  fill_multiplexer(r.value, frame);
   auto refuse = [&r](Error error, const char* detail) {
     r.error = error;
     r.detail = detail;
