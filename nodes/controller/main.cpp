@@ -106,21 +106,16 @@ class ControllerNode {
   bool have_compensation_ = false;
   std::uint64_t compensation_missing_ = 0;
   std::uint64_t next_tick_ = 0;  // ticks up to here are done
-  node::TickFilter tick_filter_;
-  node::RunFollower run_;
+  node::FeedbackFollower feedback_follower_{"controller", common_, rt_.cfg.clock};
   std::uint64_t rejected_ = 0;
   double last_velocity_ = 0.0;
 };
 
 void ControllerNode::follow_new_run() {
-  std::printf("controller: the drive restarted (run %016llx -> %016llx) at its tick %llu: following the new run\n",
-              static_cast<unsigned long long>(run_.previous()), static_cast<unsigned long long>(run_.current()),
-              static_cast<unsigned long long>(feedback_.stamp().tick()));
   controller_.emplace(rt_.cfg.params, rt_.cfg.scenario);
   have_compensation_ = false;
   compensation_n_ = 0.0;
   last_velocity_ = 0.0;
-  rt_.status.publish(node_state::STATE_RUNNING, feedback_.stamp().tick(), period_s_, "drive restarted: new run followed");
 }
 
 bool ControllerNode::take_compensation(std::uint64_t k) {
@@ -153,7 +148,7 @@ bool ControllerNode::compensation_for(std::uint64_t k, double& applied_n) {
 }
 
 void ControllerNode::publish(std::uint64_t k, const VelocityControllerOutput& out, double applied_compensation_n) {
-  command_.stamp(node::make_stamp(k, period_s_, run_.current()));
+  command_.stamp(node::make_stamp(k, period_s_, feedback_follower_.run().current()));
   node::to_msg(out, applied_compensation_n, k, command_);
   command_writer_.write(command_);
   // After the command: the plant waits for it, the evaluator for this one.
@@ -193,17 +188,14 @@ void ControllerNode::run_current_loop(std::uint64_t k, double force_n) {
 int ControllerNode::run() {
   rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "running");
   int exit_code = kExitOk;
-  bool any_feedback = false;
-  bool new_run = false;
   while (next_tick_ < ticks_ && !pdds::stop_requested()) {
-    if (!node::take_next_tick(rt_.wakeup, feedback_reader_, feedback_, tick_filter_, run_, new_run, rejected_,
-                              node::feedback_timeout(common_, rt_.cfg.clock, any_feedback))) {
-      exit_code = node::end_of_feedback_wait("controller", common_, rt_.cfg.clock, any_feedback, next_tick_, period_s_,
-                                             rt_.status);
+    const auto next =
+        feedback_follower_.next(rt_.wakeup, feedback_reader_, feedback_, next_tick_, period_s_, rt_.status, rejected_);
+    if (next == node::FeedbackFollower::Next::kEnded) {
+      exit_code = feedback_follower_.exit_code();
       break;
     }
-    any_feedback = true;
-    if (new_run && run_.restarts() > 0) follow_new_run();
+    if (next == node::FeedbackFollower::Next::kNewRun) follow_new_run();
     const std::uint64_t k = feedback_.stamp().tick();
     double velocity = feedback_.velocity_mps();
     if (!std::isfinite(velocity)) {

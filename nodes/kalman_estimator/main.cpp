@@ -57,42 +57,33 @@ class KalmanEstimatorNode {
   msg::EstimatedState estimate_;
   KalmanInput input_;
   std::uint64_t next_tick_ = 0;  // ticks up to here are done
-  node::TickFilter tick_filter_;
-  node::RunFollower run_;
+  node::FeedbackFollower feedback_follower_{"kalman_estimator", common_, rt_.cfg.clock};
   std::uint64_t rejected_ = 0;
 };
 
 void KalmanEstimatorNode::follow_new_run() {
-  std::printf("kalman_estimator: the drive restarted (run %016llx -> %016llx) at its tick %llu: "
-              "following the new run\n",
-              static_cast<unsigned long long>(run_.previous()), static_cast<unsigned long long>(run_.current()),
-              static_cast<unsigned long long>(feedback_.stamp().tick()));
   filter_.reset();
-  rt_.status.publish(node_state::STATE_RUNNING, feedback_.stamp().tick(), period_s_, "drive restarted: new run followed");
 }
 
 void KalmanEstimatorNode::estimate(std::uint64_t k) {
   // The filter itself rejects (and counts) a non-finite measurement or input.
   node::from_msg(feedback_, input_);
   node::to_msg(filter_.step(input_), k, estimate_);
-  estimate_.stamp(node::make_stamp(k, period_s_, run_.current()));  // the run this estimate follows
+  estimate_.stamp(node::make_stamp(k, period_s_, feedback_follower_.run().current()));  // the run this estimate follows
   estimate_writer_.write(estimate_);
 }
 
 int KalmanEstimatorNode::run() {
   rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "running");
   int exit_code = kExitOk;
-  bool any_feedback = false;
-  bool new_run = false;
   while (next_tick_ < ticks_ && !pdds::stop_requested()) {
-    if (!node::take_next_tick(rt_.wakeup, feedback_reader_, feedback_, tick_filter_, run_, new_run, rejected_,
-                              node::feedback_timeout(common_, rt_.cfg.clock, any_feedback))) {
-      exit_code = node::end_of_feedback_wait("kalman_estimator", common_, rt_.cfg.clock, any_feedback, next_tick_,
-                                             period_s_, rt_.status);
+    const auto next =
+        feedback_follower_.next(rt_.wakeup, feedback_reader_, feedback_, next_tick_, period_s_, rt_.status, rejected_);
+    if (next == node::FeedbackFollower::Next::kEnded) {
+      exit_code = feedback_follower_.exit_code();
       break;
     }
-    any_feedback = true;
-    if (new_run && run_.restarts() > 0) follow_new_run();
+    if (next == node::FeedbackFollower::Next::kNewRun) follow_new_run();
     const std::uint64_t k = feedback_.stamp().tick();
     estimate(k);
     next_tick_ = k + 1;

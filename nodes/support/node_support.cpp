@@ -104,6 +104,14 @@ int end_of_feedback_wait(const char* node_name, const CommonOptions& o, Clock cl
   return kExitPeerLost;
 }
 
+void FeedbackFollower::report_new_run(std::uint64_t tick, double control_period_s, StatusPublisher& status) {
+  std::printf("%s: the drive restarted (run %016llx -> %016llx) at its tick %llu: following the new run\n", node_name_,
+              static_cast<unsigned long long>(run_.previous()), static_cast<unsigned long long>(run_.current()),
+              static_cast<unsigned long long>(tick));
+  status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_RUNNING, tick, control_period_s,
+                 "drive restarted: new run followed");
+}
+
 int run_node(const std::string& node_name, const std::function<int()>& body) {
   dds::install_shutdown_handlers();
   // Line-buffered even into the launcher's pipe, so lines appear as they happen.

@@ -102,38 +102,6 @@ class RunFollower {
   bool any_ = false;
 };
 
-/// Waits for the next MotorFeedback-like sample that `ticks` accepts (in order; see
-/// TickFilter), counting the others (duplicates, out of order, implausible jumps, a run
-/// already left) as rejected. A sample of a new run (see RunFollower) is taken at once with a
-/// fresh TickFilter and sets `new_run`: the caller resets its state. False on timeout or a stop
-/// request.
-template <typename ReaderT, typename Message>
-bool take_next_tick(dds::Wakeup& wakeup, ReaderT& reader, Message& sample, TickFilter& ticks, RunFollower& run,
-                    bool& new_run, std::uint64_t& rejected, std::chrono::duration<double> timeout) {
-  bool got = false;
-  new_run = false;
-  return wait_until(wakeup, timeout, [&] {
-    while (!got && reader.take(sample)) {
-      const std::uint64_t run_id = sample.stamp().run_id();
-      if (run.is_abandoned(run_id)) {
-        ++rejected;
-        continue;
-      }
-      if (run.is_new(run_id)) {
-        run.follow(run_id);
-        ticks = TickFilter();
-        new_run = true;
-      }
-      if (!ticks.accept(sample.stamp().tick())) {
-        ++rejected;
-        continue;
-      }
-      got = true;
-    }
-    return got;
-  });
-}
-
 /// After a wait for a peer failed: kExitOk when a stop was requested (the loop just
 /// ends), else one line naming what stopped arriving ("controller: no
 /// MotorFeedback for tick 812 within 10.0 s: plant lost") and kExitPeerLost.
@@ -202,6 +170,71 @@ class StatusPublisher {
  private:
   dds::Writer<pmlsm_msgs::msg::NodeStatusPubSubType> writer_;
   pmlsm_msgs::msg::NodeStatus status_;
+};
+
+/// How a node on the chain (controller, estimator) takes MotorFeedback: in order (TickFilter),
+/// following the drive's run (RunFollower), waiting the peer timeout at the start and in
+/// lockstep and, in realtime once the plant ticks, the plant-lost timeout.
+class FeedbackFollower {
+ public:
+  enum class Next {
+    kTick,    ///< the next tick's feedback is in the sample
+    kNewRun,  ///< so is the first tick of a restarted drive: reset state (said on stdout and NodeStatus)
+    kEnded,   ///< the wait failed: the reason is printed, end with exit_code()
+  };
+
+  FeedbackFollower(const char* node_name, const CommonOptions& options, Clock clock)
+      : node_name_(node_name), options_(options), clock_(clock) {}
+
+  /// Waits for the feedback after tick `next_tick` - 1, counting the samples it passes over
+  /// (duplicates, out of order, implausible jumps, a run already left) in `rejected`.
+  template <typename ReaderT, typename Message>
+  Next next(dds::Wakeup& wakeup, ReaderT& reader, Message& sample, std::uint64_t next_tick, double control_period_s,
+            StatusPublisher& status, std::uint64_t& rejected) {
+    bool got = false, new_run = false;
+    const bool ok = wait_until(wakeup, feedback_timeout(options_, clock_, any_feedback_), [&] {
+      while (!got && reader.take(sample)) {
+        const std::uint64_t run_id = sample.stamp().run_id();
+        if (run_.is_abandoned(run_id)) {
+          ++rejected;
+          continue;
+        }
+        if (run_.is_new(run_id)) {
+          run_.follow(run_id);
+          ticks_ = TickFilter();
+          new_run = run_.restarts() > 0;
+        }
+        if (!ticks_.accept(sample.stamp().tick())) {
+          ++rejected;
+          continue;
+        }
+        got = true;
+      }
+      return got;
+    });
+    if (!ok) {
+      exit_code_ = end_of_feedback_wait(node_name_, options_, clock_, any_feedback_, next_tick, control_period_s, status);
+      return Next::kEnded;
+    }
+    any_feedback_ = true;
+    if (!new_run) return Next::kTick;
+    report_new_run(sample.stamp().tick(), control_period_s, status);
+    return Next::kNewRun;
+  }
+
+  const RunFollower& run() const { return run_; }
+  int exit_code() const { return exit_code_; }
+
+ private:
+  void report_new_run(std::uint64_t tick, double control_period_s, StatusPublisher& status);
+
+  const char* node_name_;
+  const CommonOptions& options_;
+  Clock clock_;
+  TickFilter ticks_;
+  RunFollower run_;
+  bool any_feedback_ = false;
+  int exit_code_ = kExitOk;
 };
 
 /// What every node builds once its command line is parsed: the loaded config,

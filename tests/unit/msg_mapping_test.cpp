@@ -13,19 +13,7 @@
 
 #include "DriveState.h"
 #include "msg_mapping.hpp"
-
-// Counts heap allocations, to check that the per-tick mappings make none.
-namespace {
-std::atomic<std::size_t> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  ++g_allocations;
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+#include "allocation_counter.hpp"
 
 namespace pmlsm {
 namespace {
@@ -372,9 +360,9 @@ TEST(MsgMapping, EstimatedStateIntoTickRecord) {
 // ---- allocation-free ----------------------------------------------------------------------
 
 TEST(MsgMapping, TheAllocationCounterCounts) {
-  const std::size_t before = g_allocations.load();
+  const std::size_t before = pmlsm::test::allocations();
   auto* v = new std::vector<double>(100);
-  EXPECT_GE(g_allocations.load(), before + 2);  // the vector and its buffer
+  EXPECT_GE(pmlsm::test::allocations(), before + 2);  // the vector and its buffer
   delete v;
 }
 
@@ -396,7 +384,7 @@ TEST(MsgMapping, PerTickMappingsDoNotAllocate) {
   node::PlantAppliedInputs applied_back;
   KalmanEstimate estimate_back;
 
-  const std::size_t before = g_allocations.load();
+  const std::size_t before = pmlsm::test::allocations();
   to_msg(truth, applied, truth_msg);
   from_msg(truth_msg, truth_back, applied_back);
   from_msg(truth_msg, record);
@@ -410,7 +398,7 @@ TEST(MsgMapping, PerTickMappingsDoNotAllocate) {
   to_msg(estimate, 3, estimate_msg);
   from_msg(estimate_msg, estimate_back);
   from_msg(estimate_msg, record);
-  EXPECT_EQ(g_allocations.load(), before);
+  EXPECT_EQ(pmlsm::test::allocations(), before);
 }
 
 }  // namespace

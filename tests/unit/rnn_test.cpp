@@ -22,22 +22,7 @@
 
 #include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/config/weights_file.hpp"
-
-// Counts heap allocations, to check that step() allocates nothing.
-namespace {
-std::atomic<std::uint64_t> g_allocations{0};
-// Out of line, so that GCC does not pair the inlined free() with a new-expression
-// (-Wmismatched-new-delete).
-[[gnu::noinline]] void release(void* p) noexcept { std::free(p); }
-}  // namespace
-
-void* operator new(std::size_t size) {
-  ++g_allocations;
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { release(p); }
-void operator delete(void* p, std::size_t) noexcept { release(p); }
+#include "allocation_counter.hpp"
 
 namespace pmlsm {
 namespace {
@@ -445,11 +430,11 @@ TEST(RnnCompensator, StepDoesNotAllocate) {
   RnnCompensator comp(base_params());
   comp.set_weights(random_weights(91, 0.5, 12));
   comp.step({1.0, 0.1, 0.0});
-  const std::uint64_t before = g_allocations.load();
+  const std::uint64_t before = pmlsm::test::allocations();
   double sink = 0;
   for (int k = 0; k < 1000; ++k) sink += comp.step({std::sin(0.01 * k) * 30.0, 0.1, 0.0}).force_n;
   comp.step({kNan, 0.0, 0.0});
-  EXPECT_EQ(g_allocations.load(), before);
+  EXPECT_EQ(pmlsm::test::allocations(), before);
   EXPECT_TRUE(std::isfinite(sink));
   EXPECT_GT(comp.counters().updates, 0u);
 }

@@ -72,6 +72,16 @@ bool parse_sdo_envelope(const CanFrame& frame, FunctionCode function, const char
   return frame.dlc == 8;
 }
 
+/// `r` turned into the refusal of a command specifier this library does not serve (segmented,
+/// block, undefined): the error, its text and the abort code a server answers with.
+template <typename T>
+Result<T> refused(Result<T>& r, Error error, const char* detail) noexcept {
+  r.error = error;
+  r.detail = detail;
+  r.abort_code = kAbortCommandSpecifier;
+  return r;
+}
+
 }  // namespace
 
 const char* describe(std::uint32_t abort_code) noexcept {
@@ -146,12 +156,7 @@ Result<SdoResponse> parse_sdo_response(const CanFrame& frame) noexcept {
                           "SDO response: DLC must be 8", r)) {
     return r;
   }
-  auto refuse = [&r](Error error, const char* detail) {
-    r.error = error;
-    r.detail = detail;
-    r.abort_code = kAbortCommandSpecifier;
-    return r;
-  };
+  const auto refuse = [&r](Error error, const char* detail) { return refused(r, error, detail); };
   const std::uint8_t command = frame.data[0];
   switch (command >> 5) {
     case kCsInitiateUpload:
@@ -191,12 +196,7 @@ Result<SdoRequest> parse_sdo_request(const CanFrame& frame) noexcept {
                           "SDO request: DLC must be 8", r)) {
     return r;
   }
-  auto refuse = [&r](Error error, const char* detail) {
-    r.error = error;
-    r.detail = detail;
-    r.abort_code = kAbortCommandSpecifier;
-    return r;
-  };
+  const auto refuse = [&r](Error error, const char* detail) { return refused(r, error, detail); };
   const std::uint8_t command = frame.data[0];
   switch (command >> 5) {
     case kCsInitiateDownload:

@@ -12,20 +12,7 @@
 #include "can_test_support.hpp"
 #include "pmlsm/can/pycan_wire.hpp"
 #include "pmlsm/can/udp_multicast_bus.hpp"
-
-namespace {
-std::atomic<std::size_t> g_allocations{0};
-}  // namespace
-
-// noinline: once inlined, GCC 12 pairs the callers' operator new with the free() below and
-// warns (-Wmismatched-new-delete) although the pair is consistent.
-[[gnu::noinline]] void* operator new(std::size_t size) {
-  ++g_allocations;
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-[[gnu::noinline]] void operator delete(void* p) noexcept { std::free(p); }
-[[gnu::noinline]] void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+#include "../allocation_counter.hpp"
 
 namespace pmlsm::can {
 namespace {
@@ -47,7 +34,7 @@ TEST(UdpMulticastBusAllocations, SteadyStateSendAndReceiveAllocateNothing) {
   EXPECT_FALSE(a.receive(got, 1ms));
 
   constexpr int kRounds = 200;
-  const std::size_t before = g_allocations.load();
+  const std::size_t before = pmlsm::test::allocations();
   int received = 0;
   for (int i = 0; i < kRounds; ++i) {
     const CanFrame f = CanFrame{static_cast<std::uint32_t>(i), static_cast<std::uint8_t>(i % 9),
@@ -56,7 +43,7 @@ TEST(UdpMulticastBusAllocations, SteadyStateSendAndReceiveAllocateNothing) {
     if (b.receive(got, 2s)) ++received;
   }
   a.receive(got, 0ns);  // drains 200 own echoes
-  const std::size_t during_traffic = g_allocations.load() - before;
+  const std::size_t during_traffic = pmlsm::test::allocations() - before;
   EXPECT_EQ(during_traffic, 0u);
   EXPECT_EQ(received, kRounds);
   EXPECT_EQ(a.counters().own_echo_dropped, static_cast<std::uint64_t>(kRounds + 1));
@@ -64,19 +51,19 @@ TEST(UdpMulticastBusAllocations, SteadyStateSendAndReceiveAllocateNothing) {
   // Dropped input: malformed and a foreign frame (raw sends prepared beforehand).
   ASSERT_TRUE(raw.send(garbage));
   ASSERT_TRUE(raw.send(foreign));
-  const std::size_t before_drop = g_allocations.load();
+  const std::size_t before_drop = pmlsm::test::allocations();
   ASSERT_TRUE(b.receive(got, 2s));
   EXPECT_EQ(got.id, 0x1FFFFFFFu);
   EXPECT_FALSE(b.receive(got, 5ms));  // a timeout
-  EXPECT_EQ(g_allocations.load() - before_drop, 0u);
+  EXPECT_EQ(pmlsm::test::allocations() - before_drop, 0u);
   EXPECT_EQ(b.counters().malformed_dropped, 1u);
 
   // The codec on its own.
   std::array<std::uint8_t, pycan_wire::kMaxEncodedSize> buffer{};
-  const std::size_t before_codec = g_allocations.load();
+  const std::size_t before_codec = pmlsm::test::allocations();
   const std::size_t n = pycan_wire::encode(make_frame(0x7FF, false, false, 8, 3), 1.0, buffer.data(), buffer.size());
   const auto result = pycan_wire::decode(buffer.data(), n, got);
-  EXPECT_EQ(g_allocations.load() - before_codec, 0u);
+  EXPECT_EQ(pmlsm::test::allocations() - before_codec, 0u);
   EXPECT_EQ(result.status, pycan_wire::DecodeStatus::ok);
 }
 

@@ -15,30 +15,17 @@
 #include "pmlsm/canopen/scaling.hpp"
 #include "pmlsm/canopen/sdo_server.hpp"
 #include "pmlsm/canopen/sync.hpp"
-
-namespace {
-std::atomic<std::size_t> g_allocations{0};
-// Out of line, so that GCC does not see free() inlined against a new-expression's pointer.
-[[gnu::noinline]] void release(void* p) noexcept { std::free(p); }
-}  // namespace
-
-void* operator new(std::size_t size) {
-  ++g_allocations;
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { release(p); }
-void operator delete(void* p, std::size_t) noexcept { release(p); }
+#include "../allocation_counter.hpp"
 
 namespace {
 
 using namespace pmlsm::canopen;
 
 TEST(CanopenAllocationTest, CounterSeesAllocations) {
-  const std::size_t before = g_allocations.load();
+  const std::size_t before = pmlsm::test::allocations();
   std::vector<int> v;
   v.reserve(16);
-  EXPECT_GT(g_allocations.load(), before);
+  EXPECT_GT(pmlsm::test::allocations(), before);
 }
 
 TEST(CanopenAllocationTest, ACycleAllocatesNothing) {
@@ -55,7 +42,7 @@ TEST(CanopenAllocationTest, ACycleAllocatesNothing) {
   SyncProducer sync(240);
   SdoClient client(node, 100);
 
-  const std::size_t before = g_allocations.load();
+  const std::size_t before = pmlsm::test::allocations();
   slave.boot();
   slave.on_frame(encode_nmt(NmtCommand::kStart, node));
   std::uint16_t previous = 0;
@@ -87,7 +74,7 @@ TEST(CanopenAllocationTest, ACycleAllocatesNothing) {
     ok += slave.poll_heartbeat(10, t).has_value();
     ok += decode_heartbeat(encode_heartbeat(node, slave.state())).ok();
   }
-  EXPECT_EQ(g_allocations.load(), before);
+  EXPECT_EQ(pmlsm::test::allocations(), before);
   EXPECT_GT(ok, 200u * 12);
   EXPECT_EQ(drive.state(), pmlsm::drive::PowerState::kOperationEnabled);
 }
