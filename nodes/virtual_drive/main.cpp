@@ -1,9 +1,10 @@
 // virtual_drive: the rig in a box. The simulated drive (plant + current loop, configs/system.yaml
 // and a scenario, as plant_sim) behind a CiA 402 slave on a CAN bus: UDP multicast in
 // python-can's udp_multicast format (--can-group, --can-port, --can-iface) or SocketCAN
-// (--can-interface NAME). No DDS.
+// (--can-interface NAME). Its control is CAN only; on DDS it publishes NodeStatus and, with
+// --publish-truth (lockstep), PlantTruth for the evaluator (never read by a controller).
 //
-// CANopen (node id and the rest from configs/canopen/virtual_drive.yaml):
+// CANopen (node id and the rest from configs/canopen/drive.yaml, the file drive_bridge reads):
 //   - NMT slave: boot-up on start (pre-operational); start / stop / enter pre-operational /
 //     reset node / reset communication honoured; heartbeat producer per 0x1017.
 //   - SDO server (expedited) in pre-operational and operational.
@@ -31,6 +32,12 @@
 //     counted from the later of the last one received and the entry into operation enabled).
 //     Ends on SIGINT / SIGTERM.
 //   --inject-fault-at-tick N: fault 0x5000 at period N.
+//   PlantTruth (--publish-truth, lockstep): tick k is the state after the drive stepped k periods
+//   since the run began, the run beginning at the first SYNC answered after NMT start (what the
+//   master's start() learns as its base); the stamp's run id is the bridge's, from its latched
+//   DriveState. Samples wait in a buffer sized for the scenario until the evaluator has matched
+//   and the run id is known, so none is lost to discovery. Realtime has no PlantTruth: the
+//   drive's own clock does not know the master's ticks.
 //   A fault: PowerStateMachine::fault(code), force zero, EMCY with the code, a log line with the
 //   time; cleared only by fault reset and enable via the controlword (EMCY 0x0000 on reset).
 //
@@ -50,9 +57,11 @@
 #include <stdexcept>
 #include <string>
 
-#include "canopen_config.hpp"
-#include "pmlsm/can/socketcan_bus.hpp"
-#include "pmlsm/can/udp_multicast_bus.hpp"
+#include "DriveStatePubSubTypes.h"
+#include "PlantTruthPubSubTypes.h"
+#include "can_options.hpp"
+#include "msg_mapping.hpp"
+#include "node_support.hpp"
 #include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/canopen/cob_id.hpp"
 #include "pmlsm/canopen/emcy.hpp"
@@ -74,8 +83,9 @@ using namespace pmlsm;
 namespace co = pmlsm::canopen;
 using co::CanFrame;
 
-volatile std::sig_atomic_t g_stop = 0;
-extern "C" void on_signal(int) { g_stop = 1; }
+namespace pdds = pmlsm::dds;
+namespace msg = pmlsm_msgs::msg;
+namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
 
 constexpr std::uint16_t kObjectPeriodsStepped = 0x2001;
 constexpr std::uint16_t kObjectCommandTick = 0x2002;
@@ -85,23 +95,83 @@ constexpr std::uint16_t kEmcySyncLost = 0x8700;  // CiA 301 monitoring: SYNC dat
 constexpr std::uint64_t kMalformedLogLimit = 20;
 
 struct Options {
-  std::string config_path = "configs/system.yaml";
-  std::string scenario_path = "configs/scenarios/pulse.yaml";
-  std::string canopen_path = "configs/canopen/virtual_drive.yaml";
-  std::vector<std::string> overrides;
-  std::string clock = "lockstep";
-  std::string can_group = "239.74.163.2";
-  int can_port = 43113;
-  std::string can_iface = "127.0.0.1";
-  std::string can_interface;  // SocketCAN when set
+  node::CommonOptions common;
+  node::CanOptions can;
   std::optional<std::uint64_t> inject_fault_at_tick;
+  bool publish_truth = false;
 };
 
-co::ObjectDictionary build_dictionary(co::NodeId node, const virtual_drive::CanopenConfig& c,
-                                      const co::UnitScaling& scaling, std::uint8_t interpolation_ms) {
+/// PlantTruth of the lockstep periods, stamped with the bridge's run (its latched DriveState).
+/// Held until the evaluator matched and the run id is known; the buffer is reserved for the
+/// whole scenario at construction, so the tick loop never allocates.
+class TruthPublisher {
+ public:
+  TruthPublisher(node::NodeRuntime& rt, std::uint64_t ticks)
+      : rt_(rt),
+        writer_(rt.participant.make_writer<msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth)),
+        state_reader_(rt.participant.make_reader<msg::DriveStatePubSubType>(pdds::topics::kDriveState, rt.wakeup)) {
+    pending_.resize(ticks + 1);
+  }
+
+  /// The truth of tick `tick` (the drive's periods since the run began).
+  void add(std::uint64_t tick, const SimulatedDrive& drive, double applied_force_n) {
+    if (tick < published_ + queued_ || queued_ + published_ >= pending_.size()) {
+      ++dropped_;  // a tick already held (a repeated answer) or beyond the scenario
+      return;
+    }
+    msg::PlantTruth& t = pending_[queued_ + published_];
+    node::to_msg(drive.plant().truth(), {applied_force_n, drive.last_u_d_v(), drive.last_u_q_v()}, t);
+    t.stamp(node::make_stamp(tick, rt_.period_s, 0));
+    ++queued_;
+  }
+
+  /// Sends what is held once it can be stamped and heard.
+  void flush() {
+    while (state_reader_.take(state_)) {
+      if (state_.stamp().run_id() != 0) run_id_ = state_.stamp().run_id();
+    }
+    if (queued_ == 0 || run_id_ == 0 || writer_.matched_readers() == 0) return;
+    for (; queued_ > 0; --queued_, ++published_) {
+      msg::PlantTruth& t = pending_[published_];
+      t.stamp().run_id(run_id_);
+      writer_.write(t);
+    }
+  }
+
+  /// At the end: waits up to `timeout` for what is held to go out, then for its acknowledgments.
+  void finish(std::chrono::duration<double> timeout) {
+    node::wait_until(rt_.wakeup, timeout, [&] {
+      flush();
+      return queued_ == 0;
+    });
+    if (queued_ > 0) {
+      std::fprintf(stderr, "virtual_drive: %llu PlantTruth samples never sent (%s)\n",
+                   static_cast<unsigned long long>(queued_),
+                   run_id_ == 0 ? "no DriveState of the bridge: run id unknown" : "no PlantTruth reader");
+    }
+    writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  }
+
+  std::uint64_t published() const { return published_; }
+  std::uint64_t dropped() const { return dropped_; }
+
+ private:
+  node::NodeRuntime& rt_;
+  pdds::Writer<msg::PlantTruthPubSubType> writer_;
+  pdds::Reader<msg::DriveStatePubSubType> state_reader_;
+  msg::DriveState state_;
+  std::vector<msg::PlantTruth> pending_;
+  std::uint64_t published_ = 0;
+  std::uint64_t queued_ = 0;
+  std::uint64_t dropped_ = 0;
+  std::uint64_t run_id_ = 0;
+};
+
+co::ObjectDictionary build_dictionary(co::NodeId node, const CanopenRigConfig& c, const co::UnitScaling& scaling,
+                                      std::uint8_t interpolation_ms) {
   co::Cia402DictionaryConfig dc;
   dc.rated_torque = scaling.rated_torque_object();
-  dc.producer_heartbeat_ms = c.heartbeat_producer_ms;
+  dc.producer_heartbeat_ms = c.master.drive_heartbeat_ms;
   dc.interpolation_period_ms = interpolation_ms;
   co::ObjectDictionary od = co::make_cia402_dictionary(node, dc);
 
@@ -121,7 +191,8 @@ co::ObjectDictionary build_dictionary(co::NodeId node, const virtual_drive::Cano
     if (!s) throw std::logic_error(std::string("virtual_drive dictionary: ") + what + ": " + s.detail);
   };
   must(od.set(co::kObjectConsumerHeartbeatTime, 1,
-              co::consumer_heartbeat_entry(static_cast<std::uint8_t>(c.master_node_id), c.consumer_time_ms)),
+              co::consumer_heartbeat_entry(static_cast<std::uint8_t>(c.master.master_node_id),
+                                           c.master.master_heartbeat_timeout_ms)),
        "0x1016.1");
   // RPDO1: controlword, target torque, command tick.
   must(od.set(co::kObjectRpdo1Mapping, 3, co::encode_pdo_mapping({kObjectCommandTick, 0, 32})), "0x1600.3");
@@ -187,22 +258,24 @@ PdoChannel load_pdo(const co::ObjectDictionary& od, std::uint16_t communication_
 
 class VirtualDrive {
  public:
-  VirtualDrive(const Options& opt, const SystemParams& params, const Scenario& scenario,
-               const virtual_drive::CanopenConfig& config, can::CanBus& bus)
+  VirtualDrive(const Options& opt, node::NodeRuntime& rt, const CanopenRigConfig& config, can::CanBus& bus,
+               TruthPublisher* truth)
       : opt_(opt),
+        rt_(rt),
         config_(config),
         bus_(bus),
-        realtime_(opt.clock == "realtime"),
-        period_s_(params.timing.control_period_s),
+        truth_(truth),
+        realtime_(rt.cfg.clock == node::Clock::kRealtime),
+        period_s_(rt.period_s),
         period_ns_(static_cast<std::int64_t>(std::llround(period_s_ * 1e9))),
-        ticks_(scenario_ticks(scenario, period_s_)),
-        node_(config.node_id),
-        scaling_(co::ScalingConfig{config.rated_force_n, config.increments_per_metre}),
+        ticks_(scenario_ticks(rt.cfg.scenario, period_s_)),
+        node_(config.master.node_id),
+        scaling_(config.master.scaling),
         interpolation_ms_(interpolation_ms(period_s_)),
         od_(build_dictionary(node_, config, scaling_, interpolation_ms_)),
         sdo_(od_, node_),
         nmt_(node_),
-        drive_(params, scenario_initial_condition(scenario)) {
+        drive_(rt.cfg.params, scenario_initial_condition(rt.cfg.scenario)) {
     power_.step();  // initialisation done: not ready to switch on -> switch on disabled
     feedback_ = drive_.sample();
     reload_pdos();
@@ -348,10 +421,13 @@ class VirtualDrive {
     if (!realtime_) {
       const auto tick = static_cast<std::uint64_t>(od_.get_or(kObjectCommandTick, 0, 0));
       if (!first_answered_) {
-        first_answered_ = true;  // tick 0's feedback: the initial state
+        first_answered_ = true;  // tick 0's feedback: the initial state; the run's base
+        run_base_ = periods_;
+        if (truth_ != nullptr) truth_->add(0, drive_, applied_force_n_);
       } else if (command_pending_ && tick == (periods_ & 0xFFFFFFFFULL)) {
         command_pending_ = false;
         step_period(now_ns);
+        if (truth_ != nullptr) truth_->add(periods_ - run_base_, drive_, applied_force_n_);
       } else {
         ++unstepped_syncs_;
       }
@@ -400,6 +476,8 @@ class VirtualDrive {
     if (!r.value.accepted) return;
     if (r.value.from != r.value.to) {
       std::printf("virtual_drive: NMT %s -> %s\n", co::to_string(r.value.from), co::to_string(r.value.to));
+      // A master that starts the node begins a run: its first SYNC answered is the run's base.
+      if (r.value.to == co::NmtState::kOperational) first_answered_ = false;
     }
     if (r.value.reset != co::NmtReset::kNone) reset(r.value.reset);
   }
@@ -482,9 +560,9 @@ class VirtualDrive {
   void check_timeouts(std::int64_t now_ns) {
     if (power_.state() != drive::PowerState::kOperationEnabled) return;
     const std::int64_t sync_ref = std::max(last_sync_ns_, enabled_since_ns_);
-    const std::int64_t sync_timeout_ns = static_cast<std::int64_t>(config_.sync_timeout_ms) * 1000000;
+    const std::int64_t sync_timeout_ns = static_cast<std::int64_t>(config_.drive_sync_timeout_ms) * 1000000;
     if (now_ns - sync_ref > sync_timeout_ns) {
-      raise_fault(kEmcySyncLost, "no SYNC for " + std::to_string(config_.sync_timeout_ms) + " ms", now_ns);
+      raise_fault(kEmcySyncLost, "no SYNC for " + std::to_string(config_.drive_sync_timeout_ms) + " ms", now_ns);
       return;
     }
     if (const auto watched = consumer()) {
@@ -499,8 +577,10 @@ class VirtualDrive {
   }
 
   const Options& opt_;
-  virtual_drive::CanopenConfig config_;
+  node::NodeRuntime& rt_;
+  CanopenRigConfig config_;
   can::CanBus& bus_;
+  TruthPublisher* truth_;
   bool realtime_;
   double period_s_;
   std::int64_t period_ns_;
@@ -518,6 +598,7 @@ class VirtualDrive {
 
   double applied_force_n_ = 0.0;
   std::uint64_t periods_ = 0;
+  std::uint64_t run_base_ = 0;
   std::uint16_t previous_controlword_ = 0;
   bool command_pending_ = false;
   bool first_answered_ = false;
@@ -539,12 +620,13 @@ int VirtualDrive::run() {
   std::printf("virtual_drive: node %u on %s, %s clock, %s%" PRIu64 " ticks of %.3g ms (scenario), rated force %.6g N, "
               "%.6g increments/m\n",
               static_cast<unsigned>(node_.value()), bus_.describe().c_str(), realtime_ ? "realtime" : "lockstep",
-              realtime_ ? "until SIGINT/SIGTERM, " : "", ticks_, period_s_ * 1e3, config_.rated_force_n,
-              config_.increments_per_metre);
+              realtime_ ? "until SIGINT/SIGTERM, " : "", ticks_, period_s_ * 1e3, config_.master.scaling.rated_force_n,
+              config_.master.scaling.increments_per_metre);
+  rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "on the CAN bus");
   if (const auto boot = nmt_.boot()) send(*boot);
   std::int64_t next_tick_ns = start_ns_ + period_ns_;
   CanFrame frame{};
-  while (g_stop == 0 && !finished_) {
+  while (!pdds::stop_requested() && !finished_) {
     std::int64_t now = monotonic_ns();
     std::int64_t wait_ns = 2000000;  // lockstep: bounded, for heartbeats and signals
     if (realtime_) wait_ns = std::max<std::int64_t>(0, std::min<std::int64_t>(next_tick_ns - now, 1000000));
@@ -572,6 +654,7 @@ int VirtualDrive::run() {
     }
     const auto hb_ms = static_cast<std::uint16_t>(od_.get_or(co::kObjectProducerHeartbeatTime, 0, 0));
     if (const auto hb = nmt_.poll_heartbeat(hb_ms, static_cast<std::uint64_t>(now / 1000000))) send(*hb);
+    if (truth_ != nullptr) truth_->flush();
   }
   const can::CanBusCounters bus = bus_.counters();
   std::printf("virtual_drive: summary: periods stepped %" PRIu64 " of %" PRIu64 ", SYNCs %" PRIu64
@@ -582,85 +665,50 @@ int VirtualDrive::run() {
               periods_, ticks_, syncs_, unstepped_syncs_, rpdos_, rejected_rpdos_, sdo_requests_, frames_in_,
               frames_out_, send_failures_, malformed_, bus.malformed_dropped, ignored_, emcys_, power_.fault_count(),
               static_cast<unsigned>(power_.error_code()), deadline_misses_, drive::to_string(power_.state()),
-              co::to_string(nmt_.state()), g_stop != 0 ? ", stopped by signal" : "");
+              co::to_string(nmt_.state()), pdds::stop_requested() ? ", stopped by signal" : "");
+  if (truth_ != nullptr) {
+    truth_->finish(std::chrono::duration<double>(opt_.common.peer_timeout_s));
+    std::printf("virtual_drive: PlantTruth: %llu ticks published, %llu repeated answers not published\n",
+                static_cast<unsigned long long>(truth_->published()), static_cast<unsigned long long>(truth_->dropped()));
+  }
   if (power_.fault_count() > 0) {
     std::fprintf(stderr, "virtual_drive: the drive faulted %" PRIu64 " time(s) during the run: exit 5\n",
                  power_.fault_count());
+    rt_.status.publish(node_state::STATE_SAFE, periods_, period_s_, "the drive faulted during the run");
     return kExitSafeState;
   }
+  rt_.status.publish(node_state::STATE_STOPPING, periods_, period_s_, "done");
   return kExitOk;
 }
 
 int run(int argc, char** argv) {
-  CLI::App app{"virtual_drive: the simulated PMLSM drive behind a CiA 402 CANopen slave (no DDS)"};
+  CLI::App app{"virtual_drive: the simulated PMLSM drive behind a CiA 402 CANopen slave"};
   Options opt;
-  app.add_option("--config", opt.config_path, "system parameters (configs/system.yaml)")->capture_default_str();
-  app.add_option("--scenario", opt.scenario_path, "scenario: initial state and, in lockstep, the number of ticks")
-      ->capture_default_str();
-  app.add_option("--set", opt.overrides, "override a system.yaml value: key.path=value (repeatable)");
-  app.add_option("--canopen-config", opt.canopen_path, "the CANopen settings (node id, scaling, heartbeat, SYNC)")
-      ->capture_default_str();
-  app.add_option("--clock", opt.clock, "lockstep: SYNC-driven, one period per command; realtime: own 1 ms clock")
-      ->check(CLI::IsMember({"lockstep", "realtime"}))
-      ->capture_default_str();
-  auto* group = app.add_option("--can-group", opt.can_group, "UDP multicast CAN bus: group address")
-                    ->capture_default_str();
-  auto* port = app.add_option("--can-port", opt.can_port, "UDP multicast CAN bus: port")
-                   ->check(CLI::Range(1, 65535))
-                   ->capture_default_str();
-  auto* iface = app.add_option("--can-iface", opt.can_iface,
-                               "UDP multicast CAN bus: local interface address (0.0.0.0: the default route's)")
-                    ->capture_default_str();
-  app.add_option("--can-interface", opt.can_interface, "SocketCAN interface (can0, vcan0) instead of UDP multicast")
-      ->excludes(group)
-      ->excludes(port)
-      ->excludes(iface);
+  node::add_common_options(app, opt.common);
+  node::add_can_options(app, opt.can);
   app.add_option("--inject-fault-at-tick", opt.inject_fault_at_tick,
                  "fault 0x5000 (device hardware) at this period; cleared by fault reset and enable");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? kExitOk : kExitBadConfig;
+  app.add_flag("--publish-truth", opt.publish_truth,
+               "lockstep: publish PlantTruth on DDS (for the evaluator), stamped with the bridge's run");
+  if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
+  const CanopenRigConfig canopen = node::load_canopen_config(opt.can);
+  node::NodeRuntime rt("virtual_drive", opt.common);
+  if (rt.cfg.command_level == node::CommandLevel::kVoltage) {
+    throw ConfigError("--command-level voltage: the virtual drive runs its own current loop (cyclic synchronous torque)");
   }
-
-  std::vector<ConfigOverride> overrides;
-  for (const auto& text : opt.overrides) overrides.push_back(ConfigOverride::parse(text));
-  const SystemParams params = load_system_params(opt.config_path, overrides);
-  const Scenario scenario = load_scenario(opt.scenario_path, params.timing.control_period_s);
-  const virtual_drive::CanopenConfig canopen = virtual_drive::load_canopen_config(opt.canopen_path);
-
-  std::unique_ptr<can::CanBus> bus;
-  if (!opt.can_interface.empty()) {
-    bus = std::make_unique<can::SocketCanBus>(opt.can_interface);
-  } else {
-    can::UdpMulticastParams p;
-    p.group = opt.can_group;
-    p.port = opt.can_port;
-    p.interface_address = opt.can_iface;
-    try {
-      can::validate(p);
-    } catch (const std::invalid_argument& e) {
-      throw ConfigError(std::string("CAN bus: ") + e.what());
-    }
-    bus = std::make_unique<can::UdpMulticastBus>(p);
+  if (opt.publish_truth && rt.cfg.clock == node::Clock::kRealtime) {
+    throw ConfigError("--publish-truth with --clock realtime: the drive's own clock does not know the master's ticks; "
+                      "PlantTruth is published in lockstep only");
   }
-  VirtualDrive drive(opt, params, scenario, canopen, *bus);
+  std::optional<TruthPublisher> truth;
+  if (opt.publish_truth) truth.emplace(rt, scenario_ticks(rt.cfg.scenario, rt.period_s));
+  const std::unique_ptr<can::CanBus> bus = node::open_can_bus(opt.can);
+  VirtualDrive drive(opt, rt, canopen, *bus, truth ? &*truth : nullptr);
   return drive.run();
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
-  std::setvbuf(stdout, nullptr, _IOLBF, 0);
-  try {
-    return run(argc, argv);
-  } catch (const ConfigError& e) {
-    std::fprintf(stderr, "virtual_drive: config error: %s\n", e.what());
-    return kExitBadConfig;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "virtual_drive: error: %s\n", e.what());
-    return kExitError;
-  }
+  return pmlsm::node::run_node("virtual_drive", [&] { return run(argc, argv); });
 }

@@ -26,7 +26,7 @@ except ImportError as error:
     print(f"SKIP: python-can (Debian: python3-can) is not importable by {sys.executable}: {error}")
     sys.exit(SKIP)
 
-NODE = 1  # configs/canopen/virtual_drive.yaml
+NODE = 1  # configs/canopen/drive.yaml
 
 
 class Checks:
@@ -113,6 +113,8 @@ def main():
     pid = os.getpid()
     parser.add_argument("--group", default=f"239.74.{180 + (pid >> 8) % 40}.{pid & 0xFF}")
     parser.add_argument("--port", type=int, default=43150)
+    parser.add_argument("--domain", type=int, default=int(os.environ.get("PMLSM_TEST_DOMAIN_BASE", "100")) + 47,
+                        help="DDS domain of the drive's NodeStatus (test offset 47)")
     args = parser.parse_args()
     src = os.path.abspath(args.source_dir)
     checks = Checks()
@@ -134,8 +136,9 @@ def main():
     log = open(os.path.join(tmp, "drive.log"), "w+")
     drive = subprocess.Popen(
         [args.drive, "--config", os.path.join(src, "configs/system.yaml"), "--scenario", scenario,
-         "--canopen-config", os.path.join(src, "configs/canopen/virtual_drive.yaml"),
-         "--can-group", args.group, "--can-port", str(args.port), "--can-iface", "127.0.0.1"],
+         "--canopen-config", os.path.join(src, "configs/canopen/drive.yaml"),
+         "--can-group", args.group, "--can-port", str(args.port), "--can-iface", "127.0.0.1",
+         "--domain", str(args.domain), "--profiles", os.path.join(src, "configs/dds/profiles.xml")],
         stdout=log, stderr=subprocess.STDOUT)
     try:
         run_checks(bus, checks, drive)

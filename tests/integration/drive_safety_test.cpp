@@ -213,22 +213,29 @@ TEST(DriveSafety, ASecondControllerIsRefusedAndReportedNeverFollowed) {
   fs::remove_all(dir);
 }
 
-/// virtual_drive on its own group and port (lockstep), its output in `log`.
-test::ChildProcess start_virtual_drive(const fs::path& dir, const std::string& scenario, const std::string& port) {
-  return test::ChildProcess({test::bin("virtual_drive"), "--config", source("configs/system.yaml"), "--scenario", scenario,
-                             "--canopen-config", source("configs/canopen/virtual_drive.yaml"), "--can-group",
-                             "239.74.171.20", "--can-port", port},
-                            (dir / "virtual_drive.log").string());
+/// Both ends of a test's CAN bus: the shipped CANopen file, the test's group and port, then `extra`.
+std::vector<std::string> can_args(const std::string& port, std::vector<std::string> extra = {}) {
+  std::vector<std::string> a{"--canopen-config", source("configs/canopen/drive.yaml"), "--can-group", "239.74.171.20",
+                             "--can-port", port};
+  a.insert(a.end(), extra.begin(), extra.end());
+  return a;
+}
+
+/// virtual_drive on its own group and port (lockstep), on `domain`, its output in dir/virtual_drive.log.
+test::ChildProcess start_virtual_drive(const fs::path& dir, const std::string& domain, const std::string& scenario,
+                                       const std::string& port, std::vector<std::string> extra = {}) {
+  const std::vector<std::string> args = node_args("virtual_drive", domain, scenario, can_args(port, std::move(extra)));
+  return test::ChildProcess(args, (dir / "virtual_drive.log").string());
 }
 
 TEST(VirtualRig, TheBridgeRunsTheControllerAgainstTheVirtualDriveOverTheCanBus) {
   const fs::path dir = test::fresh_dir("pmlsm_virtual_rig", "lockstep");
   const std::string scenario = source("configs/scenarios/pulse.yaml");
   const std::string domain = test_domain(45);
-  test::ChildProcess drive = start_virtual_drive(dir, scenario, "43245");
+  test::ChildProcess drive = start_virtual_drive(dir, domain, scenario, "43245");
   test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
   test::ChildProcess bridge(node_args("drive_bridge", domain, scenario,
-                                      {"--peers", "1", "--can-group", "239.74.171.20", "--can-port", "43245"}),
+                                      can_args("43245", {"--peers", "1"})),
                             (dir / "bridge.log").string());
   const auto code = bridge.wait_for(std::chrono::seconds(60));
   ASSERT_TRUE(code.has_value()) << bridge.output();
@@ -249,10 +256,10 @@ TEST(VirtualRig, ADeadDriveFaultsTheBridgeInsteadOfHangingIt) {
   const fs::path dir = test::fresh_dir("pmlsm_virtual_rig", "dead_drive");
   const std::string scenario = source("configs/scenarios/free_vibration.yaml");
   const std::string domain = test_domain(46);
-  test::ChildProcess drive = start_virtual_drive(dir, scenario, "43246");
+  test::ChildProcess drive = start_virtual_drive(dir, domain, scenario, "43246");
   test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
   test::ChildProcess bridge(node_args("drive_bridge", domain, scenario,
-                                      {"--peers", "1", "--can-group", "239.74.171.20", "--can-port", "43246"}),
+                                      can_args("43246", {"--peers", "1"})),
                             (dir / "bridge.log").string());
   ASSERT_TRUE(bridge.wait_for_output("operation enabled", std::chrono::seconds(30))) << bridge.output();
   drive.signal(SIGKILL);

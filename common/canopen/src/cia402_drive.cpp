@@ -246,8 +246,8 @@ void Cia402Drive::boot() {
   sdo(true, kObjectInterpolationTimePeriod, 1, 1, 1, "interpolation time period value");
   sdo(true, kObjectInterpolationTimePeriod, 2, static_cast<std::uint8_t>(static_cast<std::int8_t>(-3)), 1,
       "interpolation time index");
-  sdo(true, kObjectProducerHeartbeat, 0, config_.drive_heartbeat_ms, 2, "producer heartbeat time");
-  sdo(true, kObjectConsumerHeartbeat, 1,
+  sdo(true, kObjectProducerHeartbeatTime, 0, config_.drive_heartbeat_ms, 2, "producer heartbeat time");
+  sdo(true, kObjectConsumerHeartbeatTime, 1,
       consumer_heartbeat_entry(master_node_.value(), config_.master_heartbeat_timeout_ms), 4,
       "consumer heartbeat time");
   const std::uint32_t mode = sdo(false, kObjectModesOfOperationDisplay, 0, 0, 0, "modes of operation display");

@@ -35,6 +35,7 @@
 #include <string>
 
 #include "pmlsm/can/can_bus.hpp"
+#include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/canopen/cia402_master.hpp"
 #include "pmlsm/canopen/cob_id.hpp"
 #include "pmlsm/canopen/nmt.hpp"
@@ -45,12 +46,6 @@
 
 namespace pmlsm::canopen {
 
-inline constexpr std::uint16_t kObjectModesOfOperation = 0x6060;
-inline constexpr std::uint16_t kObjectModesOfOperationDisplay = 0x6061;
-inline constexpr std::uint16_t kObjectInterpolationTimePeriod = 0x60C2;
-inline constexpr std::uint16_t kObjectProducerHeartbeat = 0x1017;
-inline constexpr std::uint16_t kObjectConsumerHeartbeat = 0x1016;
-inline constexpr std::int8_t kModeCyclicSynchronousTorque = 10;
 
 struct Cia402DriveConfig {
   int node_id = 1;

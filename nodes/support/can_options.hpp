@@ -1,0 +1,39 @@
+// What both ends of a CAN bus take on the command line (drive_bridge, virtual_drive): where
+// the bus is and the CANopen file they share.
+//   --can-group ADDR --can-port N --can-iface ADDR   the UDP multicast bus (python-can's
+//                                                    udp_multicast wire format), the default
+//   --can-interface NAME                             SocketCAN (can0) instead
+//   --canopen-config FILE                            configs/canopen/drive.yaml
+//   --canopen-set key.path=value                     overrides one value of it (repeatable)
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pmlsm/can/can_bus.hpp"
+#include "pmlsm/config/canopen_config.hpp"
+
+namespace pmlsm::node {
+
+struct CanOptions {
+  std::string group = "239.74.163.2";
+  int port = 43113;
+  std::string iface = "127.0.0.1";
+  std::string interface_name;  // SocketCAN when set
+  std::string canopen_path = "configs/canopen/drive.yaml";
+  std::vector<std::string> canopen_overrides;
+};
+
+void add_can_options(CLI::App& app, CanOptions& options);
+
+/// @throws ConfigError for a bad group / port / interface address, std::runtime_error when
+///         the socket cannot be opened.
+std::unique_ptr<can::CanBus> open_can_bus(const CanOptions& options);
+
+/// @throws ConfigError naming the file, key path and value.
+CanopenRigConfig load_canopen_config(const CanOptions& options);
+
+}  // namespace pmlsm::node
