@@ -4,7 +4,7 @@
 // also publishes VelocityReference. It is event-driven: the same code serves
 // the lockstep and the realtime clock.
 //
-// With --compensation topic the PI output gets the compensator's force
+// With --compensation topic (or accel / rnn, the same) the PI output gets the compensator's force
 // (CompensatorOutput, Fig. 4's hybrid controller): output k-1 is applied at
 // tick k (run_compensated in pmlsm/sim/closed_loop.hpp). Lockstep waits for it;
 // realtime uses the newest one no older than 3 ticks and counts the ticks
@@ -48,7 +48,7 @@ class ControllerNode {
         ticks_(scenario_ticks(rt.cfg.scenario, period_s_)),
         voltage_level_(rt.cfg.command_level == node::CommandLevel::kVoltage),
         lockstep_(rt.cfg.clock == node::Clock::kLockstep),
-        compensated_(options.compensation == "topic"),
+        compensated_(options.compensation != "none"),
         peer_timeout_(common.peer_timeout_s),
         feedback_reader_(rt.participant.make_reader<msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, rt.wakeup)),
         command_writer_(rt.participant.make_writer<msg::ForceCommandPubSubType>(pdds::topics::kForceCommand)),
@@ -235,8 +235,10 @@ int run(int argc, char** argv) {
   common.spin_us = 200.0;
   ControllerOptions opt;
   node::add_common_options(app, common);
-  app.add_option("--compensation", opt.compensation, "none (PI only) or topic (add CompensatorOutput to the PI output)")
-      ->check(CLI::IsMember({"none", "topic"}))
+  app.add_option("--compensation", opt.compensation,
+                 "none (PI only) or topic (add CompensatorOutput to the PI output); accel and rnn are topic, named "
+                 "after the compensator that publishes it (launch files pass their compensator arg)")
+      ->check(CLI::IsMember({"none", "topic", "accel", "rnn"}))
       ->capture_default_str();
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   node::NodeRuntime rt("controller", common);

@@ -17,8 +17,7 @@ namespace pmlsm::launch {
 namespace {
 
 const std::vector<std::string> kTopKeys = {"name", "hosts", "nodes", "args"};
-const std::vector<std::string> kNodeKeys = {"name", "executable", "host",
-                                            "args", "env",        "ends_launch"};
+const std::vector<std::string> kNodeKeys = {"name", "executable", "host", "args", "env", "ends_launch", "if"};
 
 std::string join(const std::vector<std::string>& items, const char* sep = ", ") {
   std::string out;
@@ -178,6 +177,33 @@ std::map<std::string, std::string> parse_args(const Location& loc, const YAML::N
   return args;
 }
 
+}  // namespace
+
+bool evaluate_condition(const std::string& text, const std::string& where) {
+  const auto trim = [](const std::string& t) {
+    const auto first = t.find_first_not_of(" \t");
+    if (first == std::string::npos) return std::string();
+    return t.substr(first, t.find_last_not_of(" \t") - first + 1);
+  };
+  const std::string condition = trim(text);
+  if (condition == "true") return true;
+  if (condition == "false") return false;
+  for (const char* op : {"==", "!="}) {
+    const auto at = condition.find(op);
+    if (at == std::string::npos) continue;
+    const std::string left = trim(condition.substr(0, at));
+    const std::string right = trim(condition.substr(at + 2));
+    if (left.empty() || right.empty() || right.find("==") != std::string::npos ||
+        right.find("!=") != std::string::npos) {
+      break;
+    }
+    return (left == right) == (op[0] == '=');
+  }
+  throw LaunchFileError(where + ": '" + text + "': a condition is true, false, A == B or A != B");
+}
+
+namespace {
+
 NodeSpec parse_node(const Location& loc, const YAML::Node& node, const std::string& path,
                     const std::vector<std::string>& hosts,
                     const std::map<std::string, std::string>& args) {
@@ -243,6 +269,10 @@ NodeSpec parse_node(const Location& loc, const YAML::Node& node, const std::stri
   if (const YAML::Node* ends = find(fields, "ends_launch")) {
     spec.ends_launch = bool_value(loc, *ends, path + ".ends_launch");
   }
+  if (const YAML::Node* condition = find(fields, "if")) {
+    const std::string where = loc.at(*condition, path + ".if");
+    spec.enabled = evaluate_condition(substitute_args(string_value(loc, *condition, path + ".if"), args, where), where);
+  }
   return spec;
 }
 
@@ -296,7 +326,14 @@ LaunchDescription parse_launch(const std::string& text, const std::string& sourc
           nodes[i]["name"], path + ".name",
           "'" + spec.name + "' is already the name of nodes[" + std::to_string(it->second) + "]");
     }
-    launch.nodes.push_back(std::move(spec));
+    if (spec.enabled) {
+      launch.nodes.push_back(std::move(spec));
+    } else {
+      launch.left_out.push_back(spec.name);
+    }
+  }
+  if (launch.nodes.empty()) {
+    loc.fail(nodes, "nodes", "every node is left out by its 'if' (left out: " + join(launch.left_out) + ")");
   }
   return launch;
 }

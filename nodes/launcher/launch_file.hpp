@@ -32,13 +32,15 @@ struct NodeSpec {
   std::vector<std::string> args;                         // after substitution
   std::vector<std::pair<std::string, std::string>> env;  // in file order, after substitution
   bool ends_launch = false;
+  bool enabled = true;  // its `if` held (or it had none)
 };
 
 struct LaunchDescription {
   std::string source;  // the file, for messages
   std::string name;
   std::vector<std::string> hosts;           // never empty; default {"local"}
-  std::vector<NodeSpec> nodes;              // never empty, in file order
+  std::vector<NodeSpec> nodes;              // never empty, in file order; the enabled ones
+  std::vector<std::string> left_out;        // names of the nodes whose `if` was false
   std::map<std::string, std::string> args;  // defaults with the overrides applied
 };
 
@@ -75,6 +77,10 @@ std::vector<NodeSpec> select_nodes(const LaunchDescription& launch,
 // @throws ExecutableNotFound saying where it looked
 std::string resolve_executable(const std::string& executable, const std::string& bin_dir,
                                const std::string& path_env);
+
+// A node's `if` after substitution: "true", "false", "A == B" or "A != B" (texts compared
+// after trimming blanks). @throws LaunchFileError naming `where` for anything else.
+bool evaluate_condition(const std::string& text, const std::string& where);
 
 // Quotes `word` for a POSIX shell when needed, so dry-run output can be pasted.
 std::string shell_quote(const std::string& word);

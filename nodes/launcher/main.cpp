@@ -102,6 +102,11 @@ int main(int argc, char** argv) {
     return pmlsm::kExitBadConfig;
   }
   const std::string slice = host_option->count() > 0 ? "host " + host : "all hosts";
+  if (!launch.left_out.empty()) {
+    std::cout << "[launcher] left out by their 'if':";
+    for (const auto& name : launch.left_out) std::cout << " " << name;
+    std::cout << "\n";
+  }
 
   if (bin_dir.empty()) bin_dir = own_folder();
   const char* path_env = std::getenv("PATH");

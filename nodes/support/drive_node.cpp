@@ -313,8 +313,9 @@ int DriveNode::finish(std::uint64_t k, int exit_code, double loop_s) {
               static_cast<unsigned long long>(loop_.statistics().deadline_misses()),
               static_cast<unsigned long long>(c.safe_ticks), static_cast<unsigned long long>(c.drive_stalls),
               drive::to_string(backend_.power_state()));
-  if (exit_code != kExitOk || pdds::stop_requested()) return exit_code;
-  if (!loop_.ever_enabled()) {
+  if (exit_code != kExitOk) return exit_code;
+  // Stopped by a signal: the operator's stop is no failure, but force-off ticks before it still are.
+  if (!loop_.ever_enabled() && !pdds::stop_requested()) {
     std::fprintf(stderr, "%s: the drive was never enabled: no force was applied; run not valid\n", name_.c_str());
     return kExitSafeState;
   }

@@ -7,7 +7,8 @@
 //
 // Exit codes: 0 the scenario ran with force on throughout; 4 the controller was lost (lockstep
 // timeout; realtime with --on-controller-lost exit); 5 the drive spent ticks with force off
-// after it was first enabled (fault, quick stop, disabled) or was never enabled.
+// after it was first enabled (fault, quick stop, disabled; also when stopped by a signal) or was
+// never enabled (a run that ran to its end).
 #pragma once
 
 #include <cstdint>

@@ -275,7 +275,8 @@ class VirtualDrive {
         od_(build_dictionary(node_, config, scaling_, interpolation_ms_)),
         sdo_(od_, node_),
         nmt_(node_),
-        drive_(rt.cfg.params, scenario_initial_condition(rt.cfg.scenario)) {
+        drive_(rt.cfg.params, scenario_initial_condition(rt.cfg.scenario)),
+        motor_constant_n_per_a_(rt.cfg.params.plant.electrical.motor_constant_n_per_a) {
     power_.step();  // initialisation done: not ready to switch on -> switch on disabled
     feedback_ = drive_.sample();
     reload_pdos();
@@ -341,7 +342,8 @@ class VirtualDrive {
     od_.set(co::kObjectModesOfOperationDisplay, 0, od_.get_or(co::kObjectModesOfOperation, 0, 0));
     od_.set(co::kObjectPositionActual, 0, scaling_.metres_to_increments(feedback_.encoder_position_m).value);
     od_.set(co::kObjectVelocityActual, 0, scaling_.velocity_to_increments(feedback_.velocity_mps).value);
-    od_.set(co::kObjectTorqueActual, 0, scaling_.force_to_per_mille(applied_force_n_).value);
+    // Torque actual, as a drive measures it: the force its current loop produces, K_f i_q.
+    od_.set(co::kObjectTorqueActual, 0, scaling_.force_to_per_mille(motor_constant_n_per_a_ * feedback_.i_q_a).value);
     od_.set(kObjectPeriodsStepped, 0, static_cast<std::int64_t>(periods_ & 0xFFFFFFFFULL));
   }
 
@@ -375,8 +377,9 @@ class VirtualDrive {
     if (!command) return;
     const drive::TransitionResult r = power_.request(*command);
     if (r.accepted && r.to != r.from) {
-      std::printf("virtual_drive: controlword 0x%04X (%s): %s -> %s\n", static_cast<unsigned>(cw),
-                  drive::to_string(*command), drive::to_string(r.from), drive::to_string(r.to));
+      std::printf("virtual_drive: controlword 0x%04X (%s): %s -> %s%s [wall %.6f s]\n", static_cast<unsigned>(cw),
+                  drive::to_string(*command), drive::to_string(r.from), drive::to_string(r.to),
+                  power_.force_allowed() ? "" : ", zero force", static_cast<double>(wall_time_ns()) * 1e-9);
       if (r.to == drive::PowerState::kOperationEnabled) enabled_since_ns_ = now_ns;
     } else if (!r.accepted && changed) {
       std::printf("virtual_drive: controlword 0x%04X (%s) refused in %s: %s\n", static_cast<unsigned>(cw),
@@ -433,7 +436,8 @@ class VirtualDrive {
       }
     }
     send_tpdos();
-    if (!realtime_ && periods_ >= ticks_) finished_ = true;
+    // Tick 0 is the initial state: a run of N ticks steps N - 1 periods.
+    if (!realtime_ && first_answered_ && periods_ - run_base_ + 1 >= ticks_) finished_ = true;
   }
 
   void on_rpdo1(const CanFrame& f, std::int64_t now_ns) {
@@ -592,6 +596,7 @@ class VirtualDrive {
   co::SdoServer sdo_;
   co::NmtSlave nmt_;
   SimulatedDrive drive_;
+  double motor_constant_n_per_a_;
   drive::PowerStateMachine power_;
   DriveFeedback feedback_;
   PdoChannel rpdo1_, tpdo1_, tpdo2_;
@@ -662,7 +667,7 @@ int VirtualDrive::run() {
               ", frames in %" PRIu64 " out %" PRIu64 " (send failures %" PRIu64 "), malformed %" PRIu64
               " (bus-level %" PRIu64 "), ignored %" PRIu64 ", EMCYs %" PRIu64 ", faults %" PRIu64
               " (last error 0x%04X), deadline misses %" PRIu64 ", power state %s, NMT %s%s\n",
-              periods_, ticks_, syncs_, unstepped_syncs_, rpdos_, rejected_rpdos_, sdo_requests_, frames_in_,
+              periods_ - run_base_, realtime_ ? ticks_ : ticks_ - 1, syncs_, unstepped_syncs_, rpdos_, rejected_rpdos_, sdo_requests_, frames_in_,
               frames_out_, send_failures_, malformed_, bus.malformed_dropped, ignored_, emcys_, power_.fault_count(),
               static_cast<unsigned>(power_.error_code()), deadline_misses_, drive::to_string(power_.state()),
               co::to_string(nmt_.state()), pdds::stop_requested() ? ", stopped by signal" : "");

@@ -7,7 +7,7 @@ Starts the drive on a test group/port with a short copy of the pulse scenario, t
 boot-up, SDO uploads (0x1000, 0x6041, a missing object -> 0x06020000), SDO downloads of 0x6060
 (10 accepted, 3 refused with 0x06090030), NMT start, enabling through RPDO1 controlwords with
 SYNCs (statusword & 0x6F == 0x27), 20 lockstep ticks with a target torque (periods stepped +1 a
-tick, position moves with the force), a repeated SYNC that must not step, a wrong-DLC RPDO1
+tick, torque actual follows the target through the current loop, position moves with the force), a repeated SYNC that must not step, a wrong-DLC RPDO1
 that is ignored. Exit: 0 PASS, 1 FAIL, 77 skipped (python-can missing).
 """
 
@@ -196,7 +196,7 @@ def run_checks(bus, checks, drive):
 
     torque = 200  # per mille of the rated force
     start_pos = a[3]
-    ok_steps, last_pos = True, a[3]
+    ok_steps, last_pos, actuals = True, a[3], []
     for _ in range(20):
         a = lockstep(bus, 0x0F, torque, periods)
         if a is None or a[4] != periods + 1:
@@ -204,10 +204,12 @@ def run_checks(bus, checks, drive):
             print(f"  tick {periods}: answer {a}")
             break
         periods, last_pos = a[4], a[3]
-        if a[1] != torque:
-            ok_steps = False
-            print(f"  torque actual {a[1]} != {torque}")
-    checks.check(ok_steps, "20 lockstep ticks: periods stepped +1 a tick, torque actual = target")
+        actuals.append(a[1])
+    checks.check(ok_steps, "20 lockstep ticks: periods stepped +1 a tick")
+    # Torque actual is what the current loop makes of the target (K_f i_q): it rises towards
+    # the target and, once the loop has settled, holds it to within 2 per mille.
+    checks.check(len(actuals) == 20 and 0 < actuals[0] and all(abs(t - torque) <= 2 for t in actuals[10:]),
+                 f"torque actual follows the target {torque}: {actuals}")
     checks.check(last_pos > start_pos + 10, f"position moved with the force: {start_pos} -> {last_pos} increments")
 
     drain(bus)

@@ -420,6 +420,41 @@ TEST(LineRelay, SplitsOverlongLines) {
 
 // ---- the repository's own launch files stay valid
 
+TEST(LaunchFile, IfLeavesOutTheNodesWhoseConditionIsFalse) {
+  const char* const text = R"yaml(name: rig
+args: {drive: sim}
+nodes:
+  - {name: plant, executable: plant_sim, if: "$(arg drive) == sim"}
+  - {name: bridge, executable: drive_bridge, if: "$(arg drive) != sim"}
+  - {name: controller, executable: controller, if: "true"}
+  - {name: spare, executable: controller, if: "false"}
+)yaml";
+  const LaunchDescription sim = parse(text);
+  ASSERT_EQ(sim.nodes.size(), 2u);
+  EXPECT_EQ(sim.nodes[0].name, "plant");
+  EXPECT_EQ(sim.nodes[1].name, "controller");
+  EXPECT_EQ(sim.left_out, (std::vector<std::string>{"bridge", "spare"}));
+  const LaunchDescription rig = parse(text, {{"drive", "virtual"}});
+  ASSERT_EQ(rig.nodes.size(), 2u);
+  EXPECT_EQ(rig.nodes[0].name, "bridge");
+  EXPECT_EQ(rig.left_out, (std::vector<std::string>{"plant", "spare"}));
+}
+
+TEST(LaunchFile, AConditionThatIsNoneOfTheFormsIsAnErrorNamingIt) {
+  const std::string base = "name: x\nnodes:\n  - {name: a, executable: b, if: \"";
+  for (const char* bad : {"yes", "", "a = b", "== b", "a ==", "a == b == c"}) {
+    const std::string e = error_of(base + bad + "\"}\n");
+    EXPECT_NE(e.find("nodes[0].if"), std::string::npos) << bad << ": " << e;
+    EXPECT_NE(e.find("a condition is true, false, A == B or A != B"), std::string::npos) << bad << ": " << e;
+  }
+  const std::string none = error_of("name: x\nnodes:\n  - {name: a, executable: b, if: \"false\"}\n");
+  EXPECT_NE(none.find("every node is left out"), std::string::npos) << none;
+  // Names stay unique over every node, left out or not.
+  EXPECT_NE(error_of("name: x\nnodes:\n  - {name: a, executable: b, if: \"false\"}\n  - {name: a, executable: b}\n")
+                .find("already the name"),
+            std::string::npos);
+}
+
 TEST(RepositoryLaunchFiles, AllParse) {
   const std::filesystem::path folder = std::filesystem::path(PMLSM_SOURCE_DIR) / "launch";
   int checked = 0;
