@@ -64,6 +64,19 @@ class BridgeHooks final : public node::DriveNodeHooks {
                    drive::to_string(drive_.power_state()));
       if (!drive_.lost()) node.set_fault_reason(drive_.last_problem());
     }
+    const canopen::Cia402DriveCounters& c = drive_.counters();
+    if (c.foreign_syncs > 0 && !foreign_sync_reported_) {
+      foreign_sync_reported_ = true;
+      std::fprintf(stderr, "%s: tick %llu: a second SYNC producer on the bus (CiA 301 allows one); counted, ignored\n",
+                   node.name().c_str(), static_cast<unsigned long long>(k));
+      node.report("a second SYNC producer on the CAN bus");
+    }
+    if (c.foreign_nmt > 0 && !foreign_nmt_reported_) {
+      foreign_nmt_reported_ = true;
+      std::fprintf(stderr, "%s: tick %llu: an NMT command from another master on the bus; counted\n",
+                   node.name().c_str(), static_cast<unsigned long long>(k));
+      node.report("an NMT command from another master on the CAN bus");
+    }
     if (drive_.stuck_in() && !stuck_reported_) {
       stuck_reported_ = true;
       std::fprintf(stderr, "%s: tick %llu: the drive does not follow the controlword: stuck in %s\n",
@@ -75,10 +88,12 @@ class BridgeHooks final : public node::DriveNodeHooks {
   void flush() override {
     const canopen::Cia402DriveCounters& c = drive_.counters();
     std::printf("drive_bridge: CAN: %llu SYNCs (%llu resent), %llu RPDO1 resent, %llu ticks without TPDOs in time, "
-                "%llu EMCYs\n",
+                "%llu EMCYs, %llu malformed frames of the drive, %llu SYNCs and %llu NMT commands from another "
+                "master\n",
                 static_cast<unsigned long long>(c.syncs), static_cast<unsigned long long>(c.sync_resends),
                 static_cast<unsigned long long>(c.rpdo_resends), static_cast<unsigned long long>(c.tpdo_missing),
-                static_cast<unsigned long long>(c.emcys));
+                static_cast<unsigned long long>(c.emcys), static_cast<unsigned long long>(c.malformed),
+                static_cast<unsigned long long>(c.foreign_syncs), static_cast<unsigned long long>(c.foreign_nmt));
   }
 
  private:
@@ -86,6 +101,8 @@ class BridgeHooks final : public node::DriveNodeHooks {
   const can::CanBus& bus_;
   bool lost_reported_ = false;
   bool stuck_reported_ = false;
+  bool foreign_sync_reported_ = false;
+  bool foreign_nmt_reported_ = false;
   std::uint16_t reported_error_ = 0;
 };
 

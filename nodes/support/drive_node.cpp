@@ -125,6 +125,12 @@ void DriveNode::publish_drive_state(std::uint64_t tick) {
   published_state_ = backend_.power_state();
 }
 
+void DriveNode::report(const std::string& message) {
+  rt_.status.publish(backend_.power_state() == drive::PowerState::kOperationEnabled ? node_state::STATE_RUNNING
+                                                                                     : node_state::STATE_SAFE,
+                     loop_.statistics().ticks(), period_s_, message);
+}
+
 void DriveNode::serve_drive_control() {
   while (control_reader_.take(control_)) {
     const std::string target = control_.drive_name().to_string();

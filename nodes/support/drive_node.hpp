@@ -91,6 +91,8 @@ class DriveNode {
   NodeRuntime& runtime() { return rt_; }
   /// DriveState's fault_reason (at most 127 characters).
   void set_fault_reason(const std::string& reason) { drive_state_.fault_reason(reason.substr(0, 127)); }
+  /// NodeStatus now, with `message` (running or safe, as the drive is).
+  void report(const std::string& message);
   void publish_drive_state(std::uint64_t tick);
 
  private:

@@ -433,6 +433,19 @@ int enable_one(DriveLink& link, const std::string& name) {
     std::printf("%s: %s\n", drive::to_string(*next), answer->request_message().c_str());
     std::fflush(stdout);
     state = *answer;
+    if (power_state_of(state) == now) {
+      // A drive on a fieldbus takes the controlword over its next cycles: wait for it to move
+      // before the next request, instead of sending this one again.
+      const auto moved = link.wait_for_state(name, [now](const msg::DriveState& s) { return power_state_of(s) != now; });
+      if (!moved) {
+        if (dds::stop_requested()) return interrupted();
+        std::cerr << "pmlsm drive enable: drive '" << name << "' stayed in " << drive::to_string(now) << " after "
+                  << drive::to_string(*next) << " on domain " << link.domain() << " for "
+                  << seconds_text(link.timeout_s()) << " s\n";
+        return kExitError;
+      }
+      state = *moved;
+    }
   }
   std::printf("enable: %s is not in operation enabled after %d requests\n", name.c_str(), kMaxEnableSteps);
   print_state_line(state);

@@ -46,6 +46,7 @@ void Cia402DriveConfig::validate() const {
     bad("sync_overflow", "must be in [2, 240], got " + std::to_string(sync_overflow));
   }
   if (enable_timeout_cycles == 0) bad("enable_timeout_cycles", "must be >= 1, got 0");
+  if (max_missed_answers == 0) bad("max_missed_answers", "must be >= 1, got 0");
 }
 
 namespace {
@@ -95,11 +96,24 @@ bool Cia402Drive::service(std::int64_t timeout_ns) {
 
 void Cia402Drive::handle(const can::CanFrame& frame) {
   if (frame.rtr || frame.extended) return;
+  // Our own SYNC and NMT frames are not received back (the bus filters its own sends), so
+  // these came from another producer or master on the bus.
+  if (frame.id == kCobIdSync) {
+    ++counters_.foreign_syncs;
+    return;
+  }
+  if (frame.id == kCobIdNmt) {
+    ++counters_.foreign_nmt;
+    return;
+  }
   const CobIdInfo info = classify(frame.id);
   if (info.node_id != node_.value()) return;
   switch (info.function) {
     case FunctionCode::kTpdo1:
-      if (frame.dlc != 8) return;
+      if (frame.dlc != 8) {
+        ++counters_.malformed;
+        return;
+      }
       statusword_ = get_u16_le(frame.data, 0);
       statusword_valid_ = true;
       torque_actual_ = static_cast<std::int16_t>(get_u16_le(frame.data, 2));
@@ -114,7 +128,10 @@ void Cia402Drive::handle(const can::CanFrame& frame) {
       }
       break;
     case FunctionCode::kTpdo2:
-      if (frame.dlc != 8) return;
+      if (frame.dlc != 8) {
+        ++counters_.malformed;
+        return;
+      }
       position_actual_ = static_cast<std::int32_t>(get_u32_le(frame.data, 0));
       tpdo2_periods_ = get_u32_le(frame.data, 4);
       periods_ = tpdo2_periods_;
@@ -135,8 +152,17 @@ void Cia402Drive::handle(const can::CanFrame& frame) {
     case FunctionCode::kHeartbeat: {
       seen_ = true;
       const Result<HeartbeatMessage> hb = decode_heartbeat(frame);
-      if (hb && hb.value.boot_up()) boot_up_ = true;
+      if (!hb) {
+        ++counters_.malformed;
+        break;
+      }
+      if (hb.value.boot_up()) boot_up_ = true;
       if (heartbeat_) heartbeat_->on_frame(frame, now_ms());
+      if (started_ && hb.value.state != NmtState::kOperational && !lost_) {
+        char text[96];
+        std::snprintf(text, sizeof text, "the drive left NMT operational (heartbeat: %s)", to_string(hb.value.state));
+        lose(text);
+      }
       break;
     }
     case FunctionCode::kSdoTx: {
@@ -231,11 +257,16 @@ void Cia402Drive::boot() {
     boot_up_ = false;
     send(encode_nmt(NmtCommand::kResetCommunication, node_));
   }
+  // After our reset only its boot-up counts: a heartbeat sent before the reset may still be on
+  // its way, and SDOs sent before the drive has reset would be lost in the reset.
   const std::int64_t deadline = now_ns() + config_.boot_timeout_ms * kNsPerMs;
-  while (!seen_) {
+  while (config_.reset_communication ? !boot_up_ : !seen_) {
     const std::int64_t left = deadline - now_ns();
     if (left <= 0) {
-      throw Cia402DriveError("drive node " + std::to_string(node_.value()) + ": no boot-up or heartbeat (COB-ID " +
+      throw Cia402DriveError("drive node " + std::to_string(node_.value()) + ": no " +
+                             (config_.reset_communication ? "boot-up after NMT reset communication"
+                                                          : "boot-up or heartbeat") +
+                             " (COB-ID " +
                              hex(heartbeat_cob_id(node_), 3) + ") within " + std::to_string(config_.boot_timeout_ms) +
                              " ms on " + bus_.describe());
     }
@@ -342,7 +373,16 @@ drive::Measurement Cia402Drive::sample() {
   }
   if (config_.realtime) {
     send_sync(false);
-    if (!wait_answer(std::nullopt, now_ns() + config_.tpdo_deadline_us * 1000LL)) ++counters_.tpdo_missing;
+    if (wait_answer(std::nullopt, now_ns() + config_.tpdo_deadline_us * 1000LL)) {
+      missed_in_row_ = 0;
+    } else {
+      ++counters_.tpdo_missing;
+      if (++missed_in_row_ >= config_.max_missed_answers) {
+        char text[96];
+        std::snprintf(text, sizeof text, "no TPDOs for %u ticks in a row: drive lost", missed_in_row_);
+        lose(text);
+      }
+    }
     last_measurement_ = measurement();
     return last_measurement_;
   }

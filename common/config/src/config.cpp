@@ -550,6 +550,8 @@ CanopenRigConfig parse_canopen_config(const std::string& yaml_text, const std::s
   Section realtime = master.child("realtime");
   m.tpdo_deadline_us =
       static_cast<std::uint32_t>(integer_in(realtime, origin, "master.realtime", "tpdo_deadline_us", 0, 1000000));
+  m.max_missed_answers =
+      static_cast<std::uint32_t>(integer_in(realtime, origin, "master.realtime", "max_missed_answers", 1, 100000));
   realtime.finish();
   master.finish();
   top.finish();

@@ -428,6 +428,63 @@ TEST(Cia402Drive, DriveHeartbeatLossFaults0x8130) {
   EXPECT_NE(std::string(d.last_problem()).find("heartbeat"), std::string::npos) << d.last_problem();
 }
 
+TEST(Cia402Drive, ADriveStoppedByAnotherMasterIsLost) {
+  Rig rig;
+  Cia402Drive& d = rig.enabled();
+  d.sample();
+  d.apply(10.0);
+  EXPECT_FALSE(d.lost());
+  rig.bus.inbox.push_back(encode_heartbeat(NodeId(1), NmtState::kStopped));  // after an NMT stop from elsewhere
+  d.sample();
+  EXPECT_TRUE(d.lost());
+  EXPECT_EQ(d.error_code(), 0x8130);
+  EXPECT_NE(std::string(d.last_problem()).find("left NMT operational (heartbeat: stopped)"), std::string::npos)
+      << d.last_problem();
+}
+
+TEST(Cia402Drive, RealtimeMissingAnswersLoseTheDriveAfterTheLimitInARow) {
+  Rig rig;
+  rig.config.realtime = true;
+  rig.config.max_missed_answers = 4;
+  Cia402Drive& d = rig.enabled();
+  rig.slave.answer_sync = false;
+  for (int i = 0; i < 3; ++i) {
+    d.sample();
+    d.apply(0.0);
+  }
+  EXPECT_FALSE(d.lost()) << "three missed answers are counted, not yet a loss";
+  rig.slave.answer_sync = true;
+  d.sample();  // answered: the run of misses starts again
+  d.apply(0.0);
+  rig.slave.answer_sync = false;
+  for (int i = 0; i < 3; ++i) {
+    d.sample();
+    d.apply(0.0);
+  }
+  EXPECT_FALSE(d.lost());
+  d.sample();
+  EXPECT_TRUE(d.lost());
+  EXPECT_EQ(d.counters().tpdo_missing, 7U);
+  EXPECT_NE(std::string(d.last_problem()).find("no TPDOs for 4 ticks in a row"), std::string::npos) << d.last_problem();
+}
+
+TEST(Cia402Drive, ForeignSyncNmtAndWrongLengthFramesAreCountedAndIgnored) {
+  Rig rig;
+  Cia402Drive& d = rig.enabled();
+  d.sample();
+  d.apply(0.0);
+  rig.bus.inbox.push_back(encode_sync());
+  rig.bus.inbox.push_back(encode_nmt(NmtCommand::kEnterPreOperational, NodeId(2)));
+  CanFrame short_tpdo = make_frame(0x181, 2);
+  rig.bus.inbox.push_back(short_tpdo);
+  d.sample();
+  EXPECT_FALSE(d.lost());
+  EXPECT_EQ(d.counters().foreign_syncs, 1U);
+  EXPECT_EQ(d.counters().foreign_nmt, 1U);
+  EXPECT_EQ(d.counters().malformed, 1U);
+  EXPECT_EQ(d.power_state(), drive::PowerState::kOperationEnabled);
+}
+
 TEST(Cia402Drive, EmcySetsTheErrorCode) {
   Rig rig;
   Cia402Drive& d = rig.enabled();

@@ -18,7 +18,11 @@
 // Before the run (start(), enable_and_wait()) RPDO1 carries command tick periods stepped - 1,
 // which the drive does not step on: the power state walk moves no plant period.
 // Realtime: sample() sends SYNC and takes the newest TPDOs within the deadline (missing ones
-// counted); RPDO1 carries the last periods stepped heard.
+// counted; max_missed_answers in a row: the drive is lost); RPDO1 carries the last periods
+// stepped heard.
+// Once started, a drive heartbeat in another NMT state than operational (an NMT stop or reset
+// from elsewhere) loses the drive: fault 0x8130, zero force. A SYNC or NMT command from another
+// master, and the drive's frames with a wrong length, are counted (counters()) and ignored.
 //
 // Boot (boot()): NMT reset communication (unless disabled), wait for the drive's boot-up or
 // heartbeat; SDO writes 0x6060 = 10 (cyclic
@@ -58,6 +62,8 @@ struct Cia402DriveConfig {
   std::uint32_t sync_retries = 5;
   /// Realtime: how long into the tick sample() waits for the TPDOs.
   std::uint32_t tpdo_deadline_us = 400;
+  /// Realtime: this many ticks in a row without the TPDOs and the drive is lost (fault 0x8130).
+  std::uint32_t max_missed_answers = 10;
   std::uint32_t boot_timeout_ms = 5000;
   /// boot() starts with NMT reset communication to the drive (then waits for its boot-up).
   bool reset_communication = true;
@@ -88,6 +94,9 @@ struct Cia402DriveCounters {
   std::uint64_t tpdo_missing = 0;    ///< realtime: ticks without a full answer in time
   std::uint64_t emcys = 0;
   std::uint64_t stale_tpdos = 0;     ///< answers to an older period, ignored
+  std::uint64_t malformed = 0;       ///< the drive's frames with a wrong length, ignored
+  std::uint64_t foreign_syncs = 0;   ///< SYNCs another producer sent (CiA 301 allows one)
+  std::uint64_t foreign_nmt = 0;     ///< NMT commands another master sent
 };
 
 class Cia402Drive final : public drive::Drive {
@@ -197,6 +206,7 @@ class Cia402Drive final : public drive::Drive {
   char problem_[192] = {};
   std::uint32_t base_ = 0;
   bool started_ = false;
+  std::uint32_t missed_in_row_ = 0;  // realtime: ticks in a row without the TPDOs
   std::uint64_t tick_ = 0;  // the tick the next sample() is
   drive::Measurement last_measurement_;
   Cia402DriveCounters counters_;

@@ -12,7 +12,8 @@
 //   master.heartbeat_timeout_ms    1..65535      > master.heartbeat_ms; written to 0x1016.1
 //   master.drive_heartbeat_timeout_ms 1..65535   > drive.heartbeat_ms when that is not 0
 //   master.boot_timeout_ms, master.sdo_timeout_ms, master.enable_timeout_cycles, master.sync_overflow
-//   master.lockstep.sync_timeout_ms, master.lockstep.sync_retries, master.realtime.tpdo_deadline_us
+//   master.lockstep.sync_timeout_ms, master.lockstep.sync_retries, master.realtime.tpdo_deadline_us,
+//   master.realtime.max_missed_answers
 //
 // Unknown, duplicate or missing keys and out-of-range values are ConfigErrors naming the file,
 // the key path and the value.
