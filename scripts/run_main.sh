@@ -63,6 +63,34 @@ for scenario in pulse free_vibration; do
   done
 done
 echo "cost = sum over the first second of |V_ref - v_L| (eq. 23), true and Kalman-estimated v_L (the paper's best: 5.6)"
+
+# The same six runs on the virtual rig: drive_bridge (the CiA 402 master) and virtual_drive (the
+# simulated drive behind a CiA 402 slave) on the UDP multicast CAN bus (launch/virtual_rig.yaml).
+mkdir -p out/virtual_rig
+echo
+echo "virtual rig (CANopen, lockstep) next to the simulated drive: true cost and 2 % settling time [s]"
+printf '%-15s %-6s %14s %12s %14s %12s %8s\n' scenario comp sim_cost sim_settle rig_cost rig_settle diff_%
+for scenario in pulse free_vibration; do
+  for comp in none accel rnn; do
+    case $comp in none) variant=sim ;; accel) variant=sim_accel ;; rnn) variant=sim_rnn ;; esac
+    log="out/virtual_rig/${scenario}_${comp}.launch.log"
+    if ! ./build/bin/launcher launch/virtual_rig.yaml --arg scenario="configs/scenarios/$scenario.yaml" \
+         --arg out=out/virtual_rig --arg domain="$domain" --arg compensator="$comp" --arg weights="$weights" \
+         --arg label="rig_$comp" >"$log" 2>&1; then
+      cat "$log" >&2
+      echo "run_main: the $scenario run of launch/virtual_rig.yaml (compensator $comp) failed (log above, also in $log)" >&2
+      exit 1
+    fi
+    # Rows: scenario label cost_true cost_est vib track settle|"not settled" ...
+    row() { sed -n "s/^\[evaluator\] \($scenario .*\)/\1/p" "$1" | awk '{s = ($7 == "not") ? "not_settled" : $7; print $3, s}'; }
+    read -r sim_cost sim_settle < <(row "out/${scenario}_${variant}.launch.log")
+    read -r rig_cost rig_settle < <(row "$log")
+    diff=$(awk -v a="$sim_cost" -v b="$rig_cost" 'BEGIN { printf "%+.2f", 100 * (b - a) / a }')
+    printf '%-15s %-6s %14s %12s %14s %12s %8s\n' "$scenario" "$comp" "$sim_cost" "$sim_settle" "$rig_cost" "$rig_settle" "$diff"
+  done
+done
+echo "the torque (per mille of 675 N) and position (1 um) on the bus are the only difference; logs in out/virtual_rig/"
+echo
 echo "distributed lockstep runs over Fast DDS; RNN weights from $weights; logs and traces in out/"
 gnuplot -e "outdir='out'; history='$history'" scripts/plot_traces.gp
 echo "plots: out/pulse.png (Figs. 11-12) out/free_vibration.png (Fig. 10) out/training.png (Figs. 6-7, $history)"

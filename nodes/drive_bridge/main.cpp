@@ -25,6 +25,7 @@
 
 #include "can_options.hpp"
 #include "drive_node.hpp"
+#include "pmlsm/canopen/bus_load.hpp"
 #include "pmlsm/canopen/cia402_drive.hpp"
 
 namespace {
@@ -119,7 +120,8 @@ int run(int argc, char** argv) {
   app.add_flag("--no-reset-communication", no_reset,
                "do not start the boot with NMT reset communication: wait for the drive's own boot-up or heartbeat");
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
-  canopen::Cia402DriveConfig drive_config = node::load_canopen_config(can_options).master;
+  const CanopenRigConfig rig = node::load_canopen_config(can_options);
+  canopen::Cia402DriveConfig drive_config = rig.master;
   drive_config.reset_communication = !no_reset;
   node::NodeRuntime rt("drive_bridge", common);
   node::check_drive_node_options("drive_bridge", opt, common, rt);
@@ -132,6 +134,21 @@ int run(int argc, char** argv) {
                       " ms: the drive is set to a 1 ms interpolation period (0x60C2)");
   }
   drive_config.realtime = rt.cfg.clock == node::Clock::kRealtime;
+  const canopen::BusLoad load = canopen::bus_load(
+      canopen::bridge_cycle_frames(rt.period_s, drive_config.drive_heartbeat_ms, drive_config.master_heartbeat_ms),
+      rig.bitrate_bps, rt.period_s);
+  std::printf("drive_bridge: bus load per %.0f ms cycle at %.0f kbit/s: %.1f %% (%.0f bits; %.1f %% with worst-case bit "
+              "stuffing)\n",
+              rt.period_s * 1e3, rig.bitrate_bps * 1e-3, 100.0 * load.load, load.bits_per_cycle, 100.0 * load.load_worst);
+  if (load.load_worst > 1.0) {
+    throw ConfigError("bus.bitrate_bps " + std::to_string(rig.bitrate_bps) + ": one cycle's frames need up to " +
+                      std::to_string(static_cast<int>(load.bits_per_cycle_worst)) + " bits, more than the bus carries in " +
+                      std::to_string(rt.period_s * 1e3) + " ms");
+  }
+  if (load.load_worst > 0.5) {
+    std::fprintf(stderr, "drive_bridge: warning: the bus is more than half busy at worst; frames of other nodes "
+                         "may delay the PDOs\n");
+  }
   const std::unique_ptr<can::CanBus> bus = node::open_can_bus(can_options);
   canopen::Cia402Drive drive(drive_config, *bus, [] { return monotonic_ns(); });
   BridgeHooks hooks(drive, *bus);

@@ -75,20 +75,33 @@ void Cia402Drive::set_problem(const char* text) noexcept { std::snprintf(problem
 
 void Cia402Drive::send(const can::CanFrame& frame) { bus_.send(frame); }
 
+namespace {
+constexpr int kMaxQueuedFramesPerService = 64;
+}  // namespace
+
 bool Cia402Drive::service(std::int64_t timeout_ns) {
   const std::int64_t now = now_ns();
   if (now >= next_master_heartbeat_ns_) {
     send(encode_heartbeat(master_node_, NmtState::kOperational));
     next_master_heartbeat_ns_ = now + config_.master_heartbeat_ms * kNsPerMs;
   }
+  // What queued while the loop was away (a lockstep tick waits on the controller, a busy host
+  // holds the thread) is taken before the consumer judges the drive: its heartbeats are in
+  // there. Bounded, so a flooded bus cannot hold the loop.
+  can::CanFrame frame{};
+  int queued = 0;
+  while (queued < kMaxQueuedFramesPerService && bus_.receive(frame, std::chrono::nanoseconds(0))) {
+    handle(frame);
+    ++queued;
+  }
   if (heartbeat_ && heartbeat_->poll(now_ms()) == HeartbeatEvent::kTimedOut) {
     lose("drive heartbeat lost");
   }
+  if (queued > 0) return true;
   // Never wait past the next heartbeat we owe.
   std::int64_t wait = timeout_ns;
   if (wait > next_master_heartbeat_ns_ - now) wait = next_master_heartbeat_ns_ - now;
   if (wait < 0) wait = 0;
-  can::CanFrame frame{};
   if (!bus_.receive(frame, std::chrono::nanoseconds(wait))) return false;
   handle(frame);
   return true;

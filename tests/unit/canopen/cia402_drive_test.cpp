@@ -428,6 +428,19 @@ TEST(Cia402Drive, DriveHeartbeatLossFaults0x8130) {
   EXPECT_NE(std::string(d.last_problem()).find("heartbeat"), std::string::npos) << d.last_problem();
 }
 
+TEST(Cia402Drive, HeartbeatsQueuedWhileTheLoopWaitedAreNotALoss) {
+  Rig rig;
+  Cia402Drive& d = rig.enabled();
+  d.sample();
+  d.apply(10.0);
+  // A lockstep tick that waited a second on the controller: the drive's heartbeats queued meanwhile.
+  rig.slave.heartbeat_on = false;
+  rig.bus.inbox.push_back(encode_heartbeat(NodeId(1), NmtState::kOperational));
+  rig.clock.ns += 1000000000;
+  d.sample();
+  EXPECT_FALSE(d.lost()) << d.last_problem();
+}
+
 TEST(Cia402Drive, ADriveStoppedByAnotherMasterIsLost) {
   Rig rig;
   Cia402Drive& d = rig.enabled();
