@@ -18,14 +18,7 @@ work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 
 # The plant prints its own figures at the end of a run; pick them out.
-field() { sed -n "$1" "$2" | head -n 1; }
-rtf_of() { field 's/.*ticks in [0-9.]* s (\([0-9.]*\)x real time).*/\1/p' "$1"; }
-p50_of() { field 's/.*p50 \([0-9.]*\) us.*/\1/p' "$1"; }
-p99_of() { field 's/.*p99 \([0-9.]*\) us.*/\1/p' "$1"; }
-max_of() { field 's/.*max \([0-9.]*\) us.*/\1/p' "$1"; }
-late_of() { field 's/.*late \([0-9]*\),.*/\1/p' "$1"; }
-miss_of() { field 's/.*deadline misses \([0-9]*\).*/\1/p' "$1"; }
-ppm_of() { field 's/.*nominal [0-9.]* us, \([-+0-9.]*\) ppm.*/\1/p' "$1"; }
+source bench/bench_lib.sh
 
 echo "[1/7] in-process loop (baseline)"
 in_process=$("$bin/pmlsm_bench" --benchmark_filter='BM_ClosedLoopTick/integrator:2' 2>/dev/null |

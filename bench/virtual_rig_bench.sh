@@ -20,11 +20,7 @@ port="${PMLSM_CAN_PORT:-43120}"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 
-field() { sed -n "$1" "$2" | head -n 1; }
-rtf_of() { field 's/.*ticks in [0-9.]* s (\([0-9.]*\)x real time).*/\1/p' "$1"; }
-p50_of() { field 's/.*chain latency.* p50 \([0-9.]*\) us.*/\1/p' "$1"; }
-p99_of() { field 's/.*chain latency.* p99 \([0-9.]*\) us.*/\1/p' "$1"; }
-miss_of() { field 's/.*deadline misses \([0-9]*\).*/\1/p' "$1"; }
+source bench/bench_lib.sh
 ratio() { awk -v a="$1" -v b="$2" 'BEGIN { if (a > 0) printf "%.2f", b / a; else print "n/a" }'; }
 
 echo "[1/3] lockstep, PI, pulse: plant_sim, then the virtual rig"

@@ -3,17 +3,16 @@
 #include <stdexcept>
 
 #include "pmlsm/can/socketcan_bus.hpp"
-#include "pmlsm/can/udp_multicast_bus.hpp"
 
 namespace pmlsm::node {
 
 void add_can_options(CLI::App& app, CanOptions& options) {
-  auto* group = app.add_option("--can-group", options.group, "UDP multicast CAN bus: the group address")
+  auto* group = app.add_option("--can-group", options.udp.group, "UDP multicast CAN bus: the group address")
                     ->capture_default_str();
-  auto* port = app.add_option("--can-port", options.port, "UDP multicast CAN bus: the port")
+  auto* port = app.add_option("--can-port", options.udp.port, "UDP multicast CAN bus: the port")
                    ->check(CLI::Range(1, 65535))
                    ->capture_default_str();
-  auto* iface = app.add_option("--can-iface", options.iface,
+  auto* iface = app.add_option("--can-iface", options.udp.interface_address,
                                "UDP multicast CAN bus: the local interface address (0.0.0.0: the default route's)")
                     ->capture_default_str();
   app.add_option("--can-interface", options.interface_name,
@@ -30,16 +29,12 @@ void add_can_options(CLI::App& app, CanOptions& options) {
 
 std::unique_ptr<can::CanBus> open_can_bus(const CanOptions& options) {
   if (!options.interface_name.empty()) return std::make_unique<can::SocketCanBus>(options.interface_name);
-  can::UdpMulticastParams p;
-  p.group = options.group;
-  p.port = options.port;
-  p.interface_address = options.iface;
   try {
-    can::validate(p);
+    can::validate(options.udp);
   } catch (const std::invalid_argument& e) {
     throw ConfigError(std::string("CAN bus: ") + e.what());
   }
-  return std::make_unique<can::UdpMulticastBus>(p);
+  return std::make_unique<can::UdpMulticastBus>(options.udp);
 }
 
 CanopenRigConfig load_canopen_config(const CanOptions& options) {

@@ -14,15 +14,14 @@
 #include <vector>
 
 #include "pmlsm/can/can_bus.hpp"
+#include "pmlsm/can/udp_multicast_bus.hpp"
 #include "pmlsm/config/canopen_config.hpp"
 
 namespace pmlsm::node {
 
 struct CanOptions {
-  std::string group = "239.74.163.2";
-  int port = 43113;
-  std::string iface = "127.0.0.1";
-  std::string interface_name;  // SocketCAN when set
+  can::UdpMulticastParams udp;  // group, port, interface address (its defaults)
+  std::string interface_name;   // SocketCAN when set
   std::string canopen_path = "configs/canopen/drive.yaml";
   std::vector<std::string> canopen_overrides;
 };

@@ -30,6 +30,9 @@ import sys
 import tempfile
 import time
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from can_test_support import Checks, stop  # noqa: E402
+
 SKIP = 77
 try:
     import can
@@ -41,19 +44,6 @@ NODE = 1  # configs/canopen/drive.yaml
 RATED_FORCE_N = 675.0
 
 
-class Checks:
-    def __init__(self):
-        self.passed, self.failed = 0, []
-
-    def check(self, ok, what):
-        print(("PASS " if ok else "FAIL ") + what, flush=True)
-        if ok:
-            self.passed += 1
-        else:
-            self.failed.append(what)
-        return ok
-
-
 def collect(bus, until, frames):
     """Appends (receive time, id, dlc, data) until until() holds or 120 s pass."""
     deadline = time.monotonic() + 120
@@ -61,16 +51,6 @@ def collect(bus, until, frames):
         m = bus.recv(timeout=0.05)
         if m is not None and not m.is_extended_id:
             frames.append((time.monotonic(), m.arbitration_id, m.dlc, bytes(m.data)))
-
-
-def stop(proc):
-    if proc.poll() is None:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
 
 
 def lockstep_checks(args, src, tmp, bus, checks):

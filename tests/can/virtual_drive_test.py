@@ -19,6 +19,9 @@ import sys
 import tempfile
 import time
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from can_test_support import Checks, stop  # noqa: E402
+
 SKIP = 77
 try:
     import can
@@ -27,19 +30,6 @@ except ImportError as error:
     sys.exit(SKIP)
 
 NODE = 1  # configs/canopen/drive.yaml
-
-
-class Checks:
-    def __init__(self):
-        self.passed, self.failed = 0, []
-
-    def check(self, ok, what):
-        print(("PASS " if ok else "FAIL ") + what, flush=True)
-        if ok:
-            self.passed += 1
-        else:
-            self.failed.append(what)
-        return ok
 
 
 def recv_id(bus, cob_id, timeout=2.0, pred=None):
@@ -143,13 +133,7 @@ def main():
     try:
         run_checks(bus, checks, drive)
     finally:
-        if drive.poll() is None:
-            drive.terminate()
-            try:
-                drive.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                drive.kill()
-                drive.wait()
+        stop(drive, timeout=5)
         bus.shutdown()
         log.seek(0)
         print("---- drive output ----\n" + log.read() + "----------------------")
