@@ -8,8 +8,10 @@
 //   - NMT slave: boot-up on start (pre-operational); start / stop / enter pre-operational /
 //     reset node / reset communication honoured; heartbeat producer per 0x1017.
 //   - SDO server (expedited) in pre-operational and operational.
-//   - Dictionary: make_cia402_dictionary plus 0x2001 "periods stepped" (u32 ro, mappable) and
-//     0x2002 "command tick" (u32 rw, mappable). Default PDOs, all synchronous (type 1):
+//   - Dictionary: make_cia402_dictionary plus the device's part from --dictionary
+//     (configs/canopen/virtual_drive_od.yaml, EDS-like: identity, 0x2001 "periods stepped" (u32
+//     ro, mappable) and 0x2002 "command tick" (u32 rw, mappable), the PDOs' defaults), written
+//     as a master would, with every check. The shipped PDOs, all synchronous (type 1):
 //       RPDO1 0x200+id: 0x6040 controlword u16, 0x6071 target torque i16, 0x2002 command tick u32
 //       TPDO1 0x180+id: 0x6041 statusword u16, 0x6077 torque actual i16, 0x606C velocity i32
 //       TPDO2 0x280+id: 0x6064 position actual i32, 0x2001 periods stepped u32
@@ -88,6 +90,7 @@ namespace pdds = pmlsm::dds;
 namespace msg = pmlsm_msgs::msg;
 namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
 
+// The lockstep contract's objects (configs/canopen/virtual_drive_od.yaml declares them).
 constexpr std::uint16_t kObjectPeriodsStepped = 0x2001;
 constexpr std::uint16_t kObjectCommandTick = 0x2002;
 constexpr std::uint16_t kObjectTpdo2Communication = 0x1801;
@@ -98,6 +101,7 @@ constexpr std::uint64_t kMalformedLogLimit = 20;
 struct Options {
   node::CommonOptions common;
   node::CanOptions can;
+  std::string dictionary_path = "configs/canopen/virtual_drive_od.yaml";
   std::optional<std::uint64_t> inject_fault_at_tick;
   bool publish_truth = false;
 };
@@ -168,39 +172,49 @@ class TruthPublisher {
   std::uint64_t run_id_ = 0;
 };
 
-co::ObjectDictionary build_dictionary(co::NodeId node, const CanopenRigConfig& c, const co::UnitScaling& scaling,
-                                      std::uint8_t interpolation_ms) {
+/// The dictionary: CiA 301 / 402's objects (make_cia402_dictionary), then the device's own part
+/// from its description (identity, manufacturer objects, the PDOs' defaults). `device` must outlive
+/// the dictionary (the entries' names point into it). @throws ConfigError naming the object.
+co::ObjectDictionary build_dictionary(co::NodeId node, const CanopenRigConfig& c, const DeviceDictionary& device,
+                                      const co::UnitScaling& scaling, std::uint8_t interpolation_ms) {
   co::Cia402DictionaryConfig dc;
   dc.rated_torque = scaling.rated_torque_object();
   dc.producer_heartbeat_ms = c.master.drive_heartbeat_ms;
   dc.interpolation_period_ms = interpolation_ms;
+  dc.vendor_id = device.vendor_id;
+  dc.product_code = device.product_code;
+  dc.revision_number = device.revision_number;
+  dc.serial_number = device.serial_number;
   co::ObjectDictionary od = co::make_cia402_dictionary(node, dc);
 
-  co::Entry e;
-  e.index = kObjectPeriodsStepped;
-  e.name = "periods stepped";
-  e.type = co::DataType::kU32;
-  e.access = co::Access::kRo;
-  e.pdo_mappable = true;
-  od.add(e);
-  e.index = kObjectCommandTick;
-  e.name = "command tick";
-  e.access = co::Access::kRw;
-  od.add(e);
-
-  const auto must = [](co::Status s, const char* what) {
-    if (!s) throw std::logic_error(std::string("virtual_drive dictionary: ") + what + ": " + s.detail);
+  for (const DictionaryObject& obj : device.objects) {
+    co::Entry e;
+    e.index = obj.index;
+    e.subindex = obj.subindex;
+    e.name = obj.name.c_str();
+    e.type = obj.type;
+    e.access = obj.access;
+    e.pdo_mappable = obj.pdo_mappable;
+    e.value = obj.value;
+    try {
+      od.add(e);
+    } catch (const std::invalid_argument& error) {
+      throw ConfigError(std::string("device dictionary: ") + error.what());
+    }
+  }
+  const auto must = [](co::Status s, const std::string& what) {
+    if (!s) {
+      char code[16];
+      std::snprintf(code, sizeof code, "0x%08X", static_cast<unsigned>(s.abort_code));
+      throw ConfigError("device dictionary: " + what + ": refused (" + s.detail + ", abort " + code + ")");
+    }
   };
   must(od.set(co::kObjectConsumerHeartbeatTime, 1,
               co::consumer_heartbeat_entry(static_cast<std::uint8_t>(c.master.master_node_id),
                                            c.master.master_heartbeat_timeout_ms)),
        "0x1016.1");
-  // RPDO1: controlword, target torque, command tick.
-  must(od.set(co::kObjectRpdo1Mapping, 3, co::encode_pdo_mapping({kObjectCommandTick, 0, 32})), "0x1600.3");
-  must(od.set(co::kObjectRpdo1Mapping, 0, 3), "0x1600.0");
-  // TPDO1: statusword, torque actual, velocity actual.
-  must(od.set(co::kObjectTpdo1Mapping, 3, co::encode_pdo_mapping({co::kObjectVelocityActual, 0, 32})), "0x1A00.3");
-  // TPDO2: position actual, periods stepped; its entries copied from TPDO1's (same checks).
+  // TPDO2's communication and mapping entries, copied from TPDO1's (the same checks); invalid
+  // and empty until the description configures them.
   static const char* const kTpdo2CommNames[6] = {"TPDO2 communication: highest sub-index", "TPDO2 COB-ID",
                                                  "TPDO2 transmission type", "TPDO2 inhibit time", "",
                                                  "TPDO2 event timer"};
@@ -210,7 +224,7 @@ co::ObjectDictionary build_dictionary(co::NodeId node, const CanopenRigConfig& c
     co::Entry copy = *from;
     copy.index = kObjectTpdo2Communication;
     copy.name = kTpdo2CommNames[sub];
-    if (sub == 1) copy.value = co::tpdo_cob_id(2, node);
+    if (sub == 1) copy.value = co::tpdo_cob_id(2, node) | co::kPdoCobIdInvalid;
     od.add(copy);
   }
   for (std::uint8_t sub = 0; sub <= 8; ++sub) {
@@ -218,21 +232,37 @@ co::ObjectDictionary build_dictionary(co::NodeId node, const CanopenRigConfig& c
     if (from == nullptr) throw std::logic_error("virtual_drive dictionary: 0x1A00 lacks a sub-index");
     co::Entry copy = *from;
     copy.index = kObjectTpdo2Mapping;
-    if (sub == 0) {
-      copy.name = "TPDO2 mapping: number of entries";
-      copy.value = 2;
-    } else if (sub == 1) {
-      copy.value = co::encode_pdo_mapping({co::kObjectPositionActual, 0, 32});
-    } else if (sub == 2) {
-      copy.value = co::encode_pdo_mapping({kObjectPeriodsStepped, 0, 32});
-    } else {
-      copy.value = 0;
-    }
+    if (sub == 0) copy.name = "TPDO2 mapping: number of entries";
+    copy.value = 0;
     od.add(copy);
   }
+  // The PDOs' defaults as a master would write them (CiA 301's order, with every check): PDO
+  // invalid, mapping count 0, the entries, the count, the transmission type, PDO valid.
+  for (const PdoDefault& pdo : device.pdos) {
+    const std::uint16_t comm = pdo.channel == "rpdo1"   ? co::kObjectRpdo1Communication
+                               : pdo.channel == "tpdo1" ? co::kObjectTpdo1Communication
+                                                        : kObjectTpdo2Communication;
+    const auto map = static_cast<std::uint16_t>(comm + co::kPdoMappingOffset);
+    const std::uint32_t cob = pdo.cob_id + (pdo.node_relative ? node.value() : 0U);
+    const auto write = [&](std::uint16_t index, std::uint8_t sub, std::uint32_t value, const std::string& what) {
+      must(od.write(index, sub, co::SdoData{value, 0}), pdo.channel + " " + what);
+    };
+    write(comm, 1, cob | co::kPdoCobIdInvalid, "COB-ID (invalid while remapped)");
+    write(map, 0, 0, "mapping count 0");
+    for (std::size_t i = 0; i < pdo.mapping.size(); ++i) {
+      char entry[40];
+      std::snprintf(entry, sizeof entry, "mapping entry %zu (0x%04X:%u:%u)", i + 1,
+                    static_cast<unsigned>(pdo.mapping[i].index), static_cast<unsigned>(pdo.mapping[i].subindex),
+                    static_cast<unsigned>(pdo.mapping[i].bit_length));
+      write(map, static_cast<std::uint8_t>(i + 1), co::encode_pdo_mapping(pdo.mapping[i]), entry);
+    }
+    write(map, 0, static_cast<std::uint32_t>(pdo.mapping.size()), "mapping count");
+    write(comm, 2, pdo.transmission_type, "transmission type");
+    write(comm, 1, cob, "COB-ID");
+  }
   for (std::uint16_t mapping : {co::kObjectRpdo1Mapping, co::kObjectTpdo1Mapping, kObjectTpdo2Mapping}) {
-    const co::Result<co::PdoMap> map = co::read_pdo_map(od, mapping);
-    if (!map) throw std::logic_error("virtual_drive dictionary: default mapping invalid: " + std::string(map.detail));
+    const co::Result<co::PdoMap> pdo_map = co::read_pdo_map(od, mapping);
+    if (!pdo_map) throw ConfigError("device dictionary: mapping invalid: " + std::string(pdo_map.detail));
   }
   return od;
 }
@@ -298,11 +328,12 @@ class IntervalStatistics {
 
 class VirtualDrive {
  public:
-  VirtualDrive(const Options& opt, node::NodeRuntime& rt, const CanopenRigConfig& config, can::CanBus& bus,
-               TruthPublisher* truth)
+  VirtualDrive(const Options& opt, node::NodeRuntime& rt, const CanopenRigConfig& config,
+               const DeviceDictionary& device, can::CanBus& bus, TruthPublisher* truth)
       : opt_(opt),
         rt_(rt),
         config_(config),
+        device_(device),
         bus_(bus),
         truth_(truth),
         realtime_(rt.cfg.clock == node::Clock::kRealtime),
@@ -312,7 +343,7 @@ class VirtualDrive {
         node_(config.master.node_id),
         scaling_(config.master.scaling),
         interpolation_ms_(interpolation_ms(period_s_)),
-        od_(build_dictionary(node_, config, scaling_, interpolation_ms_)),
+        od_(build_dictionary(node_, config_, device_, scaling_, interpolation_ms_)),
         sdo_(od_, node_),
         nmt_(node_),
         drive_(rt.cfg.params, scenario_initial_condition(rt.cfg.scenario)),
@@ -528,7 +559,7 @@ class VirtualDrive {
   }
 
   void reset(co::NmtReset kind) {
-    co::ObjectDictionary fresh = build_dictionary(node_, config_, scaling_, interpolation_ms_);
+    co::ObjectDictionary fresh = build_dictionary(node_, config_, device_, scaling_, interpolation_ms_);
     for (const co::Entry& e : fresh) {
       if (kind == co::NmtReset::kNode || (e.index >= 0x1000 && e.index <= 0x1FFF)) od_.store(e, e.value);
     }
@@ -624,6 +655,7 @@ class VirtualDrive {
   const Options& opt_;
   node::NodeRuntime& rt_;
   CanopenRigConfig config_;
+  DeviceDictionary device_;  // before od_: its entries' names point into it
   can::CanBus& bus_;
   TruthPublisher* truth_;
   bool realtime_;
@@ -739,12 +771,16 @@ int run(int argc, char** argv) {
   Options opt;
   node::add_common_options(app, opt.common);
   node::add_can_options(app, opt.can);
+  app.add_option("--dictionary", opt.dictionary_path,
+                 "the device's part of the object dictionary (identity, manufacturer objects, PDO defaults), EDS-like")
+      ->capture_default_str();
   app.add_option("--inject-fault-at-tick", opt.inject_fault_at_tick,
                  "fault 0x5000 (device hardware) at this period; cleared by fault reset and enable");
   app.add_flag("--publish-truth", opt.publish_truth,
                "lockstep: publish PlantTruth on DDS (for the evaluator), stamped with the bridge's run");
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   const CanopenRigConfig canopen = node::load_canopen_config(opt.can);
+  const DeviceDictionary device = load_device_dictionary(opt.dictionary_path);
   node::NodeRuntime rt("virtual_drive", opt.common);
   if (rt.cfg.command_level == node::CommandLevel::kVoltage) {
     throw ConfigError("--command-level voltage: the virtual drive runs its own current loop (cyclic synchronous torque)");
@@ -756,7 +792,7 @@ int run(int argc, char** argv) {
   std::optional<TruthPublisher> truth;
   if (opt.publish_truth) truth.emplace(rt, scenario_ticks(rt.cfg.scenario, rt.period_s));
   const std::unique_ptr<can::CanBus> bus = node::open_can_bus(opt.can);
-  VirtualDrive drive(opt, rt, canopen, *bus, truth ? &*truth : nullptr);
+  VirtualDrive drive(opt, rt, canopen, device, *bus, truth ? &*truth : nullptr);
   return drive.run();
 }
 

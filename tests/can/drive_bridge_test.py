@@ -62,6 +62,7 @@ def lockstep_checks(args, src, tmp, bus, checks):
          "--arg", "scenario=" + os.path.join(src, "configs/scenarios/pulse.yaml"),
          "--arg", "profiles=" + os.path.join(src, "configs/dds/profiles.xml"),
          "--arg", "canopen_config=" + os.path.join(src, "configs/canopen/drive.yaml"),
+         "--arg", "dictionary=" + os.path.join(src, "configs/canopen/virtual_drive_od.yaml"),
          "--arg", f"domain={args.domain}", "--arg", f"can_group={args.group}", "--arg", f"can_port={args.port}",
          "--arg", "out=" + out],
         stdout=log, stderr=subprocess.STDOUT)
@@ -130,7 +131,8 @@ def realtime_checks(args, src, tmp, bus, checks):
     # Time-outs wide enough for a busy 2-core host (SYNC gaps of 90 ms were seen under load); the
     # NMT stop is still noticed: the drive's SYNC watch and the bridge's heartbeat watch.
     can_args += ["--canopen-set", "drive.sync_timeout_ms=250", "--canopen-set", "master.realtime.max_missed_answers=300"]
-    drive = subprocess.Popen([os.path.join(args.bin_dir, "virtual_drive")] + common + can_args,
+    drive = subprocess.Popen([os.path.join(args.bin_dir, "virtual_drive")] + common + can_args +
+                             ["--dictionary", os.path.join(src, "configs/canopen/virtual_drive_od.yaml")],
                              stdout=logs["drive"], stderr=subprocess.STDOUT)
     controller = subprocess.Popen([os.path.join(args.bin_dir, "controller")] + common + ["--plant-lost-ms", "5000"],
                                   stdout=logs["controller"], stderr=subprocess.STDOUT)

@@ -127,6 +127,7 @@ def main():
     drive = subprocess.Popen(
         [args.drive, "--config", os.path.join(src, "configs/system.yaml"), "--scenario", scenario,
          "--canopen-config", os.path.join(src, "configs/canopen/drive.yaml"),
+         "--dictionary", os.path.join(src, "configs/canopen/virtual_drive_od.yaml"),
          "--can-group", args.group, "--can-port", str(args.port), "--can-iface", "127.0.0.1",
          "--domain", str(args.domain), "--profiles", os.path.join(src, "configs/dds/profiles.xml")],
         stdout=log, stderr=subprocess.STDOUT)

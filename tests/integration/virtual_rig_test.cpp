@@ -44,6 +44,7 @@ std::vector<std::string> can_args(const std::string& port, std::vector<std::stri
 /// virtual_drive on the test's group and port and `domain`; its output in dir/virtual_drive.log.
 test::ChildProcess start_virtual_drive(const fs::path& dir, const std::string& domain, const std::string& scenario,
                                        const std::string& port, std::vector<std::string> extra = {}) {
+  extra.insert(extra.begin(), {"--dictionary", source("configs/canopen/virtual_drive_od.yaml")});
   return test::ChildProcess(node_args("virtual_drive", domain, scenario, can_args(port, std::move(extra))),
                             (dir / "virtual_drive.log").string());
 }
@@ -218,7 +219,8 @@ TEST(VirtualRig, CostsAndSettlingMatchTheSimulatedDriveForEveryCompensatorAndSce
            "--arg", "scenario=" + scenario, "--arg", "profiles=" + source("configs/dds/profiles.xml"), "--arg",
            "domain=" + domain, "--arg", "compensator=" + std::string(compensator), "--arg",
            "weights=" + source("configs/rnn_weights.yaml"), "--arg",
-           "canopen_config=" + source("configs/canopen/drive.yaml"), "--arg", std::string("can_group=") + kCanGroup,
+           "canopen_config=" + source("configs/canopen/drive.yaml"), "--arg",
+           "dictionary=" + source("configs/canopen/virtual_drive_od.yaml"), "--arg", std::string("can_group=") + kCanGroup,
            "--arg", "can_port=43248", "--arg", "out=" + (dir / ("rig_" + tag)).string()},
           (dir / ("rig_" + tag + ".log")).string());
       const auto code = rig.wait_for(std::chrono::seconds(150));

@@ -159,6 +159,20 @@ class Section {
     return out;
   }
 
+  /// A list of scalars as written (texts), e.g. mapping: ["0x6040:0:16", ...].
+  std::vector<std::string> texts(const std::string& key) {
+    const YAML::Node v = required(key);
+    std::vector<std::string> out;
+    if (!v.IsSequence()) throw ConfigError(origin_ + ": " + join(path_, key) + ": expected a list of values");
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (!v[i].IsScalar()) {
+        throw ConfigError(origin_ + ": " + join(path_, key) + "[" + std::to_string(i) + "]: expected a value");
+      }
+      out.push_back(v[i].Scalar());
+    }
+    return out;
+  }
+
   /// A list of sub-sections (mappings), e.g. scenarios: [{file: ..., weight: ...}].
   std::vector<Section> sections(const std::string& key) {
     const YAML::Node v = required(key);
@@ -579,6 +593,150 @@ CanopenRigConfig parse_canopen_config(const std::string& yaml_text, const std::s
 
 CanopenRigConfig load_canopen_config(const std::string& path, const std::vector<ConfigOverride>& overrides) {
   return parse_canopen_config(read_file(path), path, overrides);
+}
+
+namespace {
+// "0x2001", "8193": an unsigned number in C's notation, within [0, max].
+std::uint64_t c_number(const std::string& text, const std::string& origin, const std::string& path, std::uint64_t max) {
+  std::size_t used = 0;
+  unsigned long long v = 0;
+  try {
+    if (!text.empty() && text[0] != '-' && text[0] != '+') v = std::stoull(text, &used, 0);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (text.empty() || used != text.size() || v > max) {
+    throw ConfigError(origin + ": " + path + ": expected a number in [0, " + std::to_string(max) +
+                      "] (decimal or 0x hexadecimal), got '" + text + "'");
+  }
+  return v;
+}
+
+std::int64_t c_signed(const std::string& text, const std::string& origin, const std::string& path) {
+  std::size_t used = 0;
+  long long v = 0;
+  try {
+    v = std::stoll(text, &used, 0);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (text.empty() || used != text.size()) {
+    throw ConfigError(origin + ": " + path + ": expected an integer, got '" + text + "'");
+  }
+  return v;
+}
+}  // namespace
+
+DeviceDictionary parse_device_dictionary(const std::string& yaml_text, const std::string& origin) {
+  YAML::Node root = parse_yaml(yaml_text, origin);
+  Section top(root, origin, "");
+  DeviceDictionary d;
+  Section identity = top.child("identity");
+  d.vendor_id = static_cast<std::uint32_t>(c_number(identity.text("vendor_id"), origin, "identity.vendor_id", 0xFFFFFFFFULL));
+  d.product_code =
+      static_cast<std::uint32_t>(c_number(identity.text("product_code"), origin, "identity.product_code", 0xFFFFFFFFULL));
+  d.revision_number = static_cast<std::uint32_t>(
+      c_number(identity.text("revision_number"), origin, "identity.revision_number", 0xFFFFFFFFULL));
+  d.serial_number =
+      static_cast<std::uint32_t>(c_number(identity.text("serial_number"), origin, "identity.serial_number", 0xFFFFFFFFULL));
+  identity.finish();
+
+  std::size_t i = 0;
+  for (Section& o : top.sections("objects")) {
+    const std::string path = "objects[" + std::to_string(i++) + "]";
+    DictionaryObject obj;
+    obj.index = static_cast<std::uint16_t>(c_number(o.text("index"), origin, path + ".index", 0xFFFF));
+    if (obj.index < 0x2000 || obj.index > 0x5FFF) {
+      throw ConfigError(origin + ": " + path + ".index: a manufacturer-specific object lies in 0x2000-0x5FFF, got " +
+                        o.text("index"));
+    }
+    obj.subindex = static_cast<std::uint8_t>(c_number(o.text("subindex"), origin, path + ".subindex", 0xFF));
+    obj.name = o.text("name");
+    if (obj.name.empty()) throw ConfigError(origin + ": " + path + ".name: must not be empty");
+    const std::string type = o.text("type");
+    static const std::pair<const char*, canopen::DataType> kTypes[] = {
+        {"u8", canopen::DataType::kU8},   {"u16", canopen::DataType::kU16}, {"u32", canopen::DataType::kU32},
+        {"i8", canopen::DataType::kI8},   {"i16", canopen::DataType::kI16}, {"i32", canopen::DataType::kI32}};
+    bool known = false;
+    for (const auto& [name, t] : kTypes) {
+      if (type == name) {
+        obj.type = t;
+        known = true;
+      }
+    }
+    if (!known) throw ConfigError(origin + ": " + path + ".type: one of u8, u16, u32, i8, i16, i32, got '" + type + "'");
+    const std::string access = o.text("access");
+    if (access == "ro") {
+      obj.access = canopen::Access::kRo;
+    } else if (access == "rw") {
+      obj.access = canopen::Access::kRw;
+    } else if (access == "wo") {
+      obj.access = canopen::Access::kWo;
+    } else if (access == "const") {
+      obj.access = canopen::Access::kConst;
+    } else {
+      throw ConfigError(origin + ": " + path + ".access: one of ro, rw, wo, const, got '" + access + "'");
+    }
+    obj.pdo_mappable = o.boolean("pdo_mappable");
+    obj.value = c_signed(o.text("value"), origin, path + ".value");
+    o.finish();
+    for (const DictionaryObject& other : d.objects) {
+      if (other.index == obj.index && other.subindex == obj.subindex) {
+        throw ConfigError(origin + ": " + path + ": object " + o.text("index") + " sub " + std::to_string(obj.subindex) +
+                          " is listed twice");
+      }
+    }
+    d.objects.push_back(std::move(obj));
+  }
+
+  i = 0;
+  for (Section& p : top.sections("pdos")) {
+    const std::string path = "pdos[" + std::to_string(i++) + "]";
+    PdoDefault pdo;
+    pdo.channel = p.text("channel");
+    if (pdo.channel != "rpdo1" && pdo.channel != "tpdo1" && pdo.channel != "tpdo2") {
+      throw ConfigError(origin + ": " + path + ".channel: one of rpdo1, tpdo1, tpdo2, got '" + pdo.channel + "'");
+    }
+    for (const PdoDefault& other : d.pdos) {
+      if (other.channel == pdo.channel) throw ConfigError(origin + ": " + path + ".channel: " + pdo.channel + " is listed twice");
+    }
+    std::string cob = p.text("cob_id");
+    const std::string node_prefix = "$NODEID+";
+    pdo.node_relative = cob.rfind(node_prefix, 0) == 0;
+    if (pdo.node_relative) cob = cob.substr(node_prefix.size());
+    pdo.cob_id = static_cast<std::uint32_t>(c_number(cob, origin, path + ".cob_id", 0x7FF));
+    pdo.transmission_type =
+        static_cast<std::uint8_t>(c_number(p.text("transmission_type"), origin, path + ".transmission_type", 0xFF));
+    const std::vector<std::string> mapping = p.texts("mapping");
+    if (mapping.empty() || mapping.size() > 8) {
+      throw ConfigError(origin + ": " + path + ".mapping: a list of 1 to 8 entries \"0xIIII:SS:BITS\"");
+    }
+    for (std::size_t k = 0; k < mapping.size(); ++k) {
+      const std::string item_path = path + ".mapping[" + std::to_string(k) + "]";
+      const std::string& text = mapping[k];
+      const auto first = text.find(':');
+      const auto second = first == std::string::npos ? std::string::npos : text.find(':', first + 1);
+      if (second == std::string::npos) {
+        throw ConfigError(origin + ": " + item_path + ": expected \"0xIIII:SS:BITS\", got '" + text + "'");
+      }
+      canopen::PdoMapEntry e;
+      e.index = static_cast<std::uint16_t>(c_number(text.substr(0, first), origin, item_path, 0xFFFF));
+      e.subindex = static_cast<std::uint8_t>(c_number(text.substr(first + 1, second - first - 1), origin, item_path, 0xFF));
+      e.bit_length = static_cast<std::uint8_t>(c_number(text.substr(second + 1), origin, item_path, 0xFF));
+      if (e.bit_length != 8 && e.bit_length != 16 && e.bit_length != 32) {
+        throw ConfigError(origin + ": " + item_path + ": the bit length must be 8, 16 or 32, got '" + text + "'");
+      }
+      pdo.mapping.push_back(e);
+    }
+    p.finish();
+    d.pdos.push_back(std::move(pdo));
+  }
+  top.finish();
+  return d;
+}
+
+DeviceDictionary load_device_dictionary(const std::string& path) {
+  return parse_device_dictionary(read_file(path), path);
 }
 
 }  // namespace pmlsm

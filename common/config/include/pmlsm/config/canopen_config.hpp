@@ -24,6 +24,8 @@
 #include <vector>
 
 #include "pmlsm/canopen/cia402_drive.hpp"
+#include "pmlsm/canopen/object_dictionary.hpp"
+#include "pmlsm/canopen/pdo.hpp"
 #include "pmlsm/config/config.hpp"
 
 namespace pmlsm {
@@ -35,6 +37,45 @@ struct CanopenRigConfig {
   std::uint16_t drive_sync_timeout_ms = 10;
   std::uint32_t bitrate_bps = 1000000;
 };
+
+/// The device-specific part of a slave's object dictionary, EDS-like
+/// (configs/canopen/virtual_drive_od.yaml): the identity (0x1018), manufacturer-specific objects
+/// (0x2000-0x5FFF) and the PDOs' default communication and mapping. The CiA 301 / 402 profile
+/// objects (with their value checks) come from canopen::make_cia402_dictionary.
+struct DictionaryObject {
+  std::uint16_t index = 0;
+  std::uint8_t subindex = 0;
+  std::string name;
+  canopen::DataType type = canopen::DataType::kU8;
+  canopen::Access access = canopen::Access::kRo;
+  bool pdo_mappable = false;
+  std::int64_t value = 0;
+};
+
+struct PdoDefault {
+  /// "rpdo1", "tpdo1" or "tpdo2".
+  std::string channel;
+  /// The COB-ID: cob_id + the node id when node_relative (EDS: "$NODEID+0x180").
+  std::uint32_t cob_id = 0;
+  bool node_relative = true;
+  std::uint8_t transmission_type = 1;
+  std::vector<canopen::PdoMapEntry> mapping;
+};
+
+struct DeviceDictionary {
+  std::uint32_t vendor_id = 0;
+  std::uint32_t product_code = 0;
+  std::uint32_t revision_number = 0;
+  std::uint32_t serial_number = 0;
+  std::vector<DictionaryObject> objects;
+  std::vector<PdoDefault> pdos;
+};
+
+/// @throws ConfigError naming the file, key path and value of the first problem (an index
+///         outside 0x2000-0x5FFF, an unknown type or access, a mapping entry "0xIIII:SS:BITS"
+///         whose bit length is not 8, 16 or 32, an unknown or repeated PDO channel).
+DeviceDictionary load_device_dictionary(const std::string& path);
+DeviceDictionary parse_device_dictionary(const std::string& yaml_text, const std::string& origin);
 
 /// @throws ConfigError naming the file, key path and value of the first problem.
 CanopenRigConfig load_canopen_config(const std::string& path, const std::vector<ConfigOverride>& overrides = {});
