@@ -8,7 +8,10 @@ boot-up, SDO uploads (0x1000, 0x6041, a missing object -> 0x06020000), SDO downl
 (10 accepted, 3 refused with 0x06090030), NMT start, enabling through RPDO1 controlwords with
 SYNCs (statusword & 0x6F == 0x27), 20 lockstep ticks with a target torque (periods stepped +1 a
 tick, torque actual follows the target through the current loop, position moves with the force), a repeated SYNC that must not step, a wrong-DLC RPDO1
-that is ignored. Exit: 0 PASS, 1 FAIL, 77 skipped (python-can missing).
+that is ignored, TPDO2 remapped over SDO while pre-operational, NMT reset communication bringing
+the description's mapping back. Then realtime: enabled by controlword with SYNCs and the master's
+heartbeat; the heartbeat stops: EMCY 0x8130 within the consumer time, statusword fault.
+Exit: 0 PASS, 1 FAIL, 77 skipped (python-can missing).
 """
 
 import argparse
@@ -133,11 +136,13 @@ def main():
         stdout=log, stderr=subprocess.STDOUT)
     try:
         run_checks(bus, checks, drive)
+        stop(drive, timeout=5)
+        log.seek(0)
+        print("---- drive output ----\n" + log.read() + "----------------------")
+        realtime_checks(args, src, tmp, bus, checks)
     finally:
         stop(drive, timeout=5)
         bus.shutdown()
-        log.seek(0)
-        print("---- drive output ----\n" + log.read() + "----------------------")
     print(f"{'PASS' if not checks.failed else 'FAIL'}: {checks.passed} checks passed, "
           f"{len(checks.failed)} failed" + "".join(f"\n  failed: {w}" for w in checks.failed))
     return 0 if not checks.failed else 1
@@ -209,7 +214,96 @@ def run_checks(bus, checks, drive):
     checks.check(a is not None and a[4] == periods, f"wrong-DLC RPDO1 ignored: SYNC answered, no step (got {a})")
     a = lockstep(bus, 0x0F, torque, periods)
     checks.check(a is not None and a[4] == periods + 1, f"drive still steps after the malformed frame (got {a})")
+    periods = a[4] if a else periods
     checks.check(drive.poll() is None, "drive still running")
+
+    # Remapping TPDO2 over SDO (CiA 301's order) while pre-operational: position actual only.
+    send(bus, 0x000, [0x80, NODE])  # NMT enter pre-operational
+    recv_id(bus, 0x700 + NODE, timeout=2.0, pred=lambda m: bytes(m.data) == b"\x7f")
+    steps = [(0x1801, 1, 0x80000280 + NODE, 4), (0x1A01, 0, 0, 1), (0x1A01, 1, 0x60640020, 4), (0x1A01, 0, 1, 1),
+             (0x1801, 1, 0x280 + NODE, 4)]
+    answers = [download(bus, i, sub, v, size) for i, sub, v, size in steps]
+    checks.check(all(r is not None and r[0] == 0x60 for r in answers),
+                 f"TPDO2 remapped over SDO: {[r.hex() if r else None for r in answers]}")
+    r = download(bus, 0x1A01, 1, 0x60400010, 4)  # controlword into a TPDO while it is valid: refused
+    checks.check(abort_code(r) is not None, f"a mapping write to a valid PDO is refused (got {r.hex() if r else None})")
+    send(bus, 0x000, [0x01, NODE])
+    recv_id(bus, 0x700 + NODE, timeout=2.0, pred=lambda m: bytes(m.data) == b"\x05")
+    drain(bus)
+    send(bus, 0x080, b"")
+    t2 = recv_id(bus, 0x280 + NODE)
+    checks.check(t2 is not None and len(t2.data) == 4, f"TPDO2 now 4 bytes (got {bytes(t2.data).hex() if t2 else None})")
+
+    # NMT reset communication: boot-up, the communication objects back to the description's.
+    send(bus, 0x000, [0x82, NODE])
+    boot = recv_id(bus, 0x700 + NODE, timeout=2.0, pred=lambda m: bytes(m.data) == b"\x00")
+    checks.check(boot is not None, "boot-up after NMT reset communication")
+    r = upload(bus, 0x1A01, 0)
+    checks.check(r is not None and r[0] == 0x4F and r[4] == 2, f"TPDO2 mapping back to 2 entries (got {r.hex() if r else None})")
+    send(bus, 0x000, [0x01, NODE])
+    recv_id(bus, 0x700 + NODE, timeout=2.0, pred=lambda m: bytes(m.data) == b"\x05")
+    drain(bus)
+    send(bus, 0x080, b"")
+    a = answer(bus)
+    checks.check(a is not None and a[4] == periods, f"TPDO2 of 8 bytes again, periods stepped kept (got {a})")
+
+
+def realtime_checks(args, src, tmp, bus, checks):
+    """Realtime: enabled with SYNCs and the master's heartbeat, then the heartbeat stops (SYNCs go on):
+    fault 0x8130 and its EMCY within the consumer time (350 ms, master.heartbeat_timeout_ms)."""
+    log = open(os.path.join(tmp, "drive_rt.log"), "w+")
+    drive = subprocess.Popen(
+        [args.drive, "--config", os.path.join(src, "configs/system.yaml"), "--clock", "realtime",
+         "--canopen-config", os.path.join(src, "configs/canopen/drive.yaml"),
+         "--canopen-set", "drive.sync_timeout_ms=2000",
+         "--dictionary", os.path.join(src, "configs/canopen/virtual_drive_od.yaml"),
+         "--can-group", args.group, "--can-port", str(args.port), "--can-iface", "127.0.0.1",
+         "--domain", str(args.domain), "--profiles", os.path.join(src, "configs/dds/profiles.xml")],
+        stdout=log, stderr=subprocess.STDOUT)
+    try:
+        if not checks.check(recv_id(bus, 0x700 + NODE, timeout=10.0, pred=lambda m: bytes(m.data) == b"\x00")
+                            is not None, "realtime drive: boot-up"):
+            return
+        send(bus, 0x000, [0x01, NODE])
+        heartbeat = [0x05]
+        for cw in (0x06, 0x07, 0x0F):
+            send(bus, 0x77F, heartbeat)
+            send(bus, 0x200 + NODE, struct.pack("<HhI", cw, 0, 0))
+            send(bus, 0x080, b"")
+            time.sleep(0.01)
+        t_end = time.monotonic() + 0.5
+        next_heartbeat = 0.0
+        while time.monotonic() < t_end:  # enabled, master alive: SYNC every 5 ms, heartbeat every 100 ms
+            if time.monotonic() >= next_heartbeat:
+                send(bus, 0x77F, heartbeat)
+                next_heartbeat = time.monotonic() + 0.1
+            send(bus, 0x080, b"")
+            time.sleep(0.005)
+        r = upload(bus, 0x6041, 0)
+        enabled = r is not None and (struct.unpack_from("<H", r, 4)[0] & 0x6F) == 0x27
+        checks.check(enabled, f"realtime drive enabled by controlword (statusword {r.hex() if r else None})")
+        stopped_at = time.monotonic()
+        emcy = None
+        next_sync = 0.0
+        while time.monotonic() - stopped_at < 2.0 and emcy is None:  # SYNCs go on every 5 ms
+            if time.monotonic() >= next_sync:
+                send(bus, 0x080, b"")
+                next_sync = time.monotonic() + 0.005
+            m = bus.recv(timeout=0.001)
+            if m is not None and m.arbitration_id == 0x80 + NODE and bytes(m.data)[:2] == b"\x30\x81":
+                emcy = time.monotonic()
+        checks.check(emcy is not None, "master heartbeat stopped: EMCY 0x8130 (heartbeat error)")
+        if emcy is not None:
+            print(f"master heartbeat stopped -> EMCY 0x8130 after {1e3 * (emcy - stopped_at):.0f} ms "
+                  f"(consumer time 350 ms, the last heartbeat up to 100 ms before)")
+            checks.check(emcy - stopped_at < 0.35 + 0.3, "within the consumer time (plus scheduling slack)")
+        r = upload(bus, 0x6041, 0)
+        checks.check(r is not None and (struct.unpack_from("<H", r, 4)[0] & 0x4F) in (0x08, 0x0F),
+                     f"statusword: fault reaction active or fault, force off (got {r.hex() if r else None})")
+    finally:
+        stop(drive, timeout=5)
+        log.seek(0)
+        print("---- realtime drive output ----\n" + log.read() + "----------------------")
 
 
 if __name__ == "__main__":
