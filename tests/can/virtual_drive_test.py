@@ -254,6 +254,7 @@ def realtime_checks(args, src, tmp, bus, checks):
     log = open(os.path.join(tmp, "drive_rt.log"), "w+")
     drive = subprocess.Popen(
         [args.drive, "--config", os.path.join(src, "configs/system.yaml"), "--clock", "realtime",
+         "--scenario", os.path.join(src, "configs/scenarios/pulse.yaml"),
          "--canopen-config", os.path.join(src, "configs/canopen/drive.yaml"),
          "--canopen-set", "drive.sync_timeout_ms=2000",
          "--dictionary", os.path.join(src, "configs/canopen/virtual_drive_od.yaml"),

@@ -1,0 +1,83 @@
+// A guard in the compensation path: it watches the oscillation the compensator acts on, from
+// signals the Kalman estimate cannot fool (the measured motor velocity and the compensation
+// force actually applied), and fades the compensation out before it hurts.
+//
+// Both signals are high-passed (second order, corner f_c: the load's resonance lies above it,
+// tracking motion below), so what remains is the oscillatory part: v~ and F~. Over windows of window_s it computes
+//   the oscillation's size   A = rms(v~)                          [m/s]
+//   the power the compensator puts into it   P = mean(F~ v~)       [W]
+// A damping compensator takes energy out of the oscillation (P < 0 on average: the force
+// opposes the oscillating velocity); one that sustains a limit cycle or makes an oscillation
+// grow puts energy in. The guard trips when, with A above the floor min_oscillation_mps,
+//   - P > 0 for windows_to_trip windows in a row (the compensator pumps the oscillation), or
+//   - A grew by more than growth_ratio a window for windows_to_trip windows in a row.
+// Tripped, the compensation's scale ramps from 1 to 0 over fade_s and stays 0 (latched) until
+// reset(). step() never throws and does not allocate; a non-finite input is counted and
+// treated as 0.
+#pragma once
+
+#include <cstdint>
+
+namespace pmlsm {
+
+struct VibrationGuardParams {
+  double control_period_s = 1e-3;
+  double highpass_hz = 5.0;            ///< f_c of the high-pass, > 0, below the Nyquist frequency
+  double window_s = 0.1;               ///< the evaluation window, at least 2 periods
+  double min_oscillation_mps = 2e-3;   ///< A below this is no oscillation to guard against
+  double growth_ratio = 1.25;          ///< A(window) / A(previous) above this is growth, > 1
+  std::uint32_t windows_to_trip = 3;   ///< >= 1
+  double fade_s = 0.05;                ///< >= 0 (0: off at once)
+  void validate() const;
+};
+
+enum class VibrationGuardTrip : std::uint8_t { kNone, kEnergyInjected, kGrowing };
+const char* to_string(VibrationGuardTrip trip) noexcept;
+
+struct VibrationGuardOutput {
+  double scale = 1.0;          ///< multiply the compensation force by this (1 -> 0 after a trip)
+  bool tripped = false;        ///< latched
+  VibrationGuardTrip reason = VibrationGuardTrip::kNone;
+};
+
+struct VibrationGuardCounters {
+  std::uint64_t steps = 0;
+  std::uint64_t rejected_inputs = 0;
+  std::uint64_t windows = 0;
+  std::uint64_t trip_tick = 0;        ///< the step at which it tripped (when tripped)
+  double last_amplitude_mps = 0;      ///< A of the last window
+  double last_power_w = 0;            ///< P of the last window
+};
+
+class VibrationGuard {
+ public:
+  /// @throws std::invalid_argument naming the invalid parameter.
+  explicit VibrationGuard(const VibrationGuardParams& params);
+
+  /// One control period: the measured motor velocity and the compensation force applied in it
+  /// (after the scale of the previous step).
+  VibrationGuardOutput step(double motor_velocity_mps, double compensation_force_n) noexcept;
+  /// Back to scale 1, nothing latched (an operator's decision, after the plant was looked at).
+  void reset() noexcept;
+
+  const VibrationGuardOutput& output() const noexcept { return out_; }
+  const VibrationGuardCounters& counters() const noexcept { return counters_; }
+  const VibrationGuardParams& params() const noexcept { return params_; }
+
+ private:
+  VibrationGuardParams params_;
+  double alpha_;                 // high-pass coefficient
+  std::uint32_t window_steps_;
+  std::uint32_t fade_steps_;
+  double v_prev_ = 0, v_hp1_ = 0, v_hp_ = 0, f_prev_ = 0, f_hp1_ = 0, f_hp_ = 0;
+  bool primed_ = false;
+  std::uint32_t in_window_ = 0;
+  double sum_v2_ = 0, sum_pv_ = 0;
+  double previous_amplitude_ = 0;
+  std::uint32_t injecting_run_ = 0, growing_run_ = 0;
+  std::uint32_t faded_ = 0;
+  VibrationGuardOutput out_;
+  VibrationGuardCounters counters_;
+};
+
+}  // namespace pmlsm

@@ -1,0 +1,130 @@
+// The vibration guard on synthetic signals: a damping force never trips it, a force that feeds
+// the oscillation or an oscillation that grows does, within its windows; the fade, the latch,
+// reset, non-finite inputs and the parameter checks.
+#include "pmlsm/compensation/vibration_guard.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace pmlsm {
+namespace {
+
+constexpr double kT = 1e-3;
+
+VibrationGuardParams params() {
+  VibrationGuardParams p;
+  p.control_period_s = kT;
+  return p;
+}
+
+/// Runs `steps` periods of v(t) = a(t) sin(2 pi f t) + drift(t), F = force(v~, t); returns the
+/// guard's last output.
+template <typename Amplitude, typename Force>
+VibrationGuardOutput run(VibrationGuard& g, int steps, double f_hz, Amplitude amplitude, Force force,
+                         double drift_mps = 0.0) {
+  VibrationGuardOutput out;
+  for (int k = 0; k < steps; ++k) {
+    const double t = k * kT;
+    const double osc = amplitude(t) * std::sin(2 * M_PI * f_hz * t);
+    const double v = osc + drift_mps * (t > 0.05 ? 1.0 : 0.0);
+    out = g.step(v, force(osc, t) * out.scale);
+  }
+  return out;
+}
+
+TEST(VibrationGuard, ADampingForceNeverTripsIt) {
+  VibrationGuard g(params());
+  // 21 Hz at 20 mm/s, decaying as a damped mode does, the force opposing the velocity.
+  const auto out = run(
+      g, 3000, 21.0, [](double t) { return 0.02 * std::exp(-2.0 * t); }, [](double v, double) { return -800.0 * v; },
+      0.2);
+  EXPECT_FALSE(out.tripped);
+  EXPECT_DOUBLE_EQ(out.scale, 1.0);
+  EXPECT_LT(g.counters().last_power_w, 0.0);
+}
+
+TEST(VibrationGuard, AForceThatFeedsTheOscillationTripsItFadesAndLatches) {
+  VibrationGuard g(params());
+  // A sustained 21 Hz limit cycle (3 mm stretch: ~20 mm/s) with the force in phase with it.
+  const auto amplitude = [](double) { return 0.02; };
+  const auto pumping = [](double v, double) { return 500.0 * v; };
+  VibrationGuardOutput out = run(g, 250, 21.0, amplitude, pumping);
+  EXPECT_FALSE(out.tripped) << "two windows are not yet a trend";
+  out = run(g, 60, 21.0, amplitude, pumping);
+  ASSERT_TRUE(out.tripped);
+  EXPECT_EQ(out.reason, VibrationGuardTrip::kEnergyInjected);
+  EXPECT_EQ(g.counters().trip_tick, 300U);  // the third window of 100 periods
+  EXPECT_GT(out.scale, 0.0);                // fading over 50 periods
+  out = run(g, 50, 21.0, amplitude, pumping);
+  EXPECT_DOUBLE_EQ(out.scale, 0.0);
+  out = run(g, 1000, 21.0, [](double) { return 0.0; }, pumping);
+  EXPECT_TRUE(out.tripped) << "latched while the plant is quiet";
+  EXPECT_DOUBLE_EQ(out.scale, 0.0);
+  g.reset();
+  EXPECT_FALSE(g.output().tripped);
+  EXPECT_DOUBLE_EQ(g.output().scale, 1.0);
+}
+
+TEST(VibrationGuard, AGrowingOscillationTripsItWhateverTheForce) {
+  VibrationGuard g(params());
+  // Growing 1.5x a window (e^{4.05 * 0.1}), the compensation silent.
+  const auto out = run(
+      g, 600, 15.0, [](double t) { return 0.003 * std::exp(4.05 * t); }, [](double, double) { return 0.0; });
+  ASSERT_TRUE(out.tripped);
+  EXPECT_EQ(out.reason, VibrationGuardTrip::kGrowing);
+}
+
+TEST(VibrationGuard, OscillationsBelowTheFloorAndSlowMotionAreLeftAlone) {
+  VibrationGuard g(params());
+  // 1 mm/s of ripple with a feeding force: below the 2 mm/s floor.
+  auto out = run(g, 3000, 21.0, [](double) { return 0.001; }, [](double v, double) { return 500.0 * v; });
+  EXPECT_FALSE(out.tripped);
+  // A 0.5 Hz velocity swing (tracking, not vibration) with a force in phase: high-passed away.
+  VibrationGuard slow(params());
+  out = run(slow, 4000, 0.5, [](double) { return 0.2; }, [](double v, double) { return 100.0 * v; });
+  EXPECT_FALSE(out.tripped) << "amplitude " << slow.counters().last_amplitude_mps;
+}
+
+TEST(VibrationGuard, NonFiniteInputsAreCountedNeverPropagated) {
+  VibrationGuard g(params());
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (int k = 0; k < 500; ++k) {
+    const auto out = g.step(k % 7 == 0 ? nan : 0.001 * std::sin(k * 0.1), k % 11 == 0 ? HUGE_VAL : 0.0);
+    ASSERT_TRUE(std::isfinite(out.scale));
+  }
+  EXPECT_GT(g.counters().rejected_inputs, 100U);
+  EXPECT_TRUE(std::isfinite(g.counters().last_amplitude_mps));
+  EXPECT_FALSE(g.output().tripped);
+}
+
+TEST(VibrationGuard, ParametersAreValidatedNamingTheField) {
+  const auto message = [](VibrationGuardParams p) {
+    try {
+      VibrationGuard g(p);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("(accepted)");
+  };
+  VibrationGuardParams p = params();
+  p.highpass_hz = 600.0;
+  EXPECT_NE(message(p).find("highpass_hz: must be below the Nyquist frequency"), std::string::npos);
+  p = params();
+  p.window_s = 1e-3;
+  EXPECT_NE(message(p).find("window_s: must be at least two periods"), std::string::npos);
+  p = params();
+  p.growth_ratio = 1.0;
+  EXPECT_NE(message(p).find("growth_ratio: must be > 1"), std::string::npos);
+  p = params();
+  p.windows_to_trip = 0;
+  EXPECT_NE(message(p).find("windows_to_trip"), std::string::npos);
+  p = params();
+  p.min_oscillation_mps = std::nan("");
+  EXPECT_NE(message(p).find("min_oscillation_mps"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace pmlsm
