@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 #include <exception>
 #include <filesystem>
 #include <string>
@@ -91,6 +92,10 @@ int main(int argc, char** argv) {
     pmlsm::node::print_results_footer(out_dir);
   } catch (const pmlsm::ConfigError& e) {
     std::fprintf(stderr, "config error: %s\n", e.what());
+    return pmlsm::kExitBadConfig;
+  } catch (const std::invalid_argument& e) {
+    // A component refused its parameters (from the config or the command line).
+    std::fprintf(stderr, "config error: parameters refused: %s\n", e.what());
     return pmlsm::kExitBadConfig;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
