@@ -68,7 +68,9 @@ TickRecord ClosedLoop::step(double compensation_force_n) {
   record_truth(drive_.plant().truth(), rec);
 
   // A diverged plant is a fault: zero force (the plant no longer moves either).
-  const double applied_n = drive_.plant().divergence().diverged ? 0.0 : control.force_n;
+  rec.applied_force_n = last_force_n_;
+  rec.force_off = drive_.plant().divergence().diverged;
+  const double applied_n = rec.force_off ? 0.0 : control.force_n;
   drive_.apply_force(applied_n);
   last_force_n_ = applied_n;
   const PlantDivergence& divergence = drive_.plant().divergence();

@@ -51,6 +51,8 @@ struct TickRecord {
   double friction_n = 0;
   double i_q_a = 0;
   double u_q_v = 0;                ///< last q-axis voltage of the previous tick
+  double applied_force_n = 0;      ///< force the drive applied during the previous tick (MotorFeedback's)
+  bool force_off = false;          ///< the drive had its force off at t_k (fault, safe state, not enabled)
   /// Set from the tick whose integration diverged on (PlantDivergence): the plant
   /// entry that left the numbers and its value. The loop applies zero force from the
   /// next tick and the plant stays at its last good state: the run is not valid.
