@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 #include <exception>
 #include <filesystem>
 #include <string>
@@ -16,6 +17,7 @@
 #include "pmlsm/sim/metrics.hpp"
 #include "pmlsm/sim/rnn_training.hpp"
 #include "pmlsm/config/weights_file.hpp"
+#include "pmlsm/util/exit_codes.hpp"
 #include "results_table.hpp"
 #include "trace_csv.hpp"
 
@@ -43,6 +45,7 @@ int main(int argc, char** argv) {
   app.add_flag("--online-learning", online_learning, "RNN online learning, eqs. (16)-(19)");
   CLI11_PARSE(app, argc, argv);
 
+  int exit_code = pmlsm::kExitOk;
   try {
     std::vector<pmlsm::ConfigOverride> overrides;
     for (const auto& text : overrides_text) overrides.push_back(pmlsm::ConfigOverride::parse(text));
@@ -78,15 +81,25 @@ int main(int argc, char** argv) {
       const auto m = pmlsm::compute_metrics(trace, scenario, period);
       const std::string csv = out_dir + "/" + scenario.name + suffix + ".csv";
       pmlsm::write_trace_csv(csv, trace);
-      pmlsm::node::print_results_row(scenario.name + suffix, m);
+      // A plant that diverged is a fault: its row is marked, the run is not valid.
+      const std::string fault = pmlsm::plant_fault_reason(trace);
+      pmlsm::node::print_results_row(scenario.name + suffix, m, fault);
+      if (!fault.empty()) {
+        std::fprintf(stderr, "closed_loop: %s: %s: run not valid\n", scenario.name.c_str(), fault.c_str());
+        exit_code = pmlsm::kExitSafeState;
+      }
     }
     pmlsm::node::print_results_footer(out_dir);
   } catch (const pmlsm::ConfigError& e) {
     std::fprintf(stderr, "config error: %s\n", e.what());
-    return 2;
+    return pmlsm::kExitBadConfig;
+  } catch (const std::invalid_argument& e) {
+    // A component refused its parameters (from the config or the command line).
+    std::fprintf(stderr, "config error: parameters refused: %s\n", e.what());
+    return pmlsm::kExitBadConfig;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
-    return 1;
+    return pmlsm::kExitError;
   }
-  return 0;
+  return exit_code;
 }

@@ -4,8 +4,10 @@
 // (16)-(19)), and publishes CompensatorOutput k. Weights come from --weights
 // (a file the trainer wrote) and/or the NetworkWeights topic; a new set is
 // checked (layer sizes, input scale and G_n equal to the config's, every value
-// finite) and swapped in at a tick boundary, or refused with the reason while
-// the current set stays in use.
+// finite and within +-100, a version above the one in use: WeightSetGate) and
+// swapped in at a tick boundary, or refused with the reason while the current
+// set stays in use. Every set taken or refused is logged with its version,
+// source and cost.
 #include <cstdio>
 
 #include "NetworkWeightsPubSubTypes.h"
@@ -46,15 +48,15 @@ int run(int argc, char** argv) {
   node::NodeRuntime rt("rnn_compensator", common);
   const SystemParams& params = rt.cfg.params;
   RnnCompensator rnn(params.rnn_compensator_params(online_learning));
-  std::uint64_t weights_version = 0;
+  WeightSetGate gate(params);
   bool have_weights = false;
   if (!weights_path.empty()) {
     const RnnWeightsFile file = load_rnn_weights(weights_path);
-    const std::string why = rnn_weights_misfit(file, params);
+    const std::string why = gate.offer(file, 0, weights_path.c_str());
     if (!why.empty()) throw ConfigError(weights_path + ": " + why);
     rnn.set_weights(file.weights);
     have_weights = true;
-    std::printf("rnn_compensator: weights from %s (cost %.3f, %s)\n", weights_path.c_str(), file.cost, file.source.c_str());
+    std::printf("rnn_compensator: weights from %s: %s\n", weights_path.c_str(), gate.last_log().c_str());
   }
   node::CompensatorInputs inputs(rt.participant, rt.wakeup);
   auto weights_reader = rt.participant.make_reader<msg::NetworkWeightsPubSubType>(pdds::topics::kNetworkWeights, rt.wakeup);
@@ -64,7 +66,7 @@ int run(int argc, char** argv) {
 
   msg::CompensatorOutput out;
   msg::NetworkWeights incoming;
-  std::uint64_t tick = 0, answered = 0, refused_sets = 0, swaps = 0;
+  std::uint64_t tick = 0, answered = 0;
   CompensatorView view;
   int exit_code = kExitOk;
   while (answered < ticks && !pdds::stop_requested()) {
@@ -76,18 +78,13 @@ int run(int argc, char** argv) {
     // Weight swaps happen here, between ticks, never inside a step.
     while (!ignore_topic && weights_reader.take(incoming)) {
       const RnnWeightsFile candidate = from_message(incoming);
-      const std::string why = rnn_weights_misfit(candidate, params);
-      if (!why.empty()) {
-        ++refused_sets;
-        std::fprintf(stderr, "rnn_compensator: weight set %llu from '%s' refused, keeping version %llu: %s\n",
-                     static_cast<unsigned long long>(incoming.version()), incoming.source().c_str(),
-                     static_cast<unsigned long long>(weights_version), why.c_str());
+      if (!gate.offer(candidate, incoming.version(), "the NetworkWeights topic").empty()) {
+        std::fprintf(stderr, "rnn_compensator: %s\n", gate.last_log().c_str());
         continue;
       }
+      std::printf("rnn_compensator: %s (tick %llu)\n", gate.last_log().c_str(), static_cast<unsigned long long>(tick));
       rnn.set_weights(candidate.weights);
-      weights_version = incoming.version();
       have_weights = true;
-      ++swaps;
     }
     std::uint32_t out_flags = 0;
     if (have_weights) {
@@ -110,12 +107,12 @@ int run(int argc, char** argv) {
     out.flags(out_flags);
     out.stamp(node::make_stamp(tick, rt.period_s, inputs.run_id()));
     out.estimate_tick(tick);
-    out.weights_version(weights_version);
+    out.weights_version(gate.version());
     writer.write(out);
     answered = tick + 1;
   }
   const CompensatorCounters& c = rnn.counters();
-  rt.status.status().rejected(inputs.rejected() + c.rejected_inputs + refused_sets);
+  rt.status.status().rejected(inputs.rejected() + c.rejected_inputs + gate.refused());
   rt.status.publish(msg::NodeStatus_Constants::STATE_STOPPING, answered, rt.period_s, "done");
   writer.wait_for_acknowledgments(node::kFlushTimeout);
   std::printf("rnn_compensator: %llu ticks answered, online learning %s: %llu updates, k_c clamped %llu, dead-band %llu, "
@@ -124,8 +121,9 @@ int run(int argc, char** argv) {
               static_cast<unsigned long long>(c.updates), static_cast<unsigned long long>(c.kc_clamped),
               static_cast<unsigned long long>(c.kc_deadband), static_cast<unsigned long long>(c.reverted_updates),
               static_cast<unsigned long long>(inputs.rejected() + c.rejected_inputs),
-              static_cast<unsigned long long>(inputs.skipped()), static_cast<unsigned long long>(swaps),
-              static_cast<unsigned long long>(refused_sets));
+              static_cast<unsigned long long>(inputs.skipped()),
+              static_cast<unsigned long long>(gate.taken() - (weights_path.empty() ? 0 : 1)),
+              static_cast<unsigned long long>(gate.refused()));
   return exit_code;
 }
 

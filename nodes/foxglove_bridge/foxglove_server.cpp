@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <atomic>
 #include <mutex>
+#include <set>
 #include <shared_mutex>
 #include <stdexcept>
 #include <thread>
@@ -166,6 +167,7 @@ class Server::Impl {
       std::shared_lock<std::shared_mutex> lock(clients_mutex_);
       c.clients_connected = clients_.size();
     }
+    c.clients_peak = clients_peak_.load();
     c.connections_total = connections_total_.load();
     c.handshakes_failed = handshakes_failed_.load();
     c.frames_sent = frames_sent_.load();
@@ -202,7 +204,10 @@ class Server::Impl {
     return found == clients_.end() ? nullptr : found->second;
   }
 
-  // Handshake: the client must offer our subprotocol (spec), and there is room for it.
+  // Handshake: the client must offer our subprotocol (spec), and there is room for it. Room
+  // counts the clients admitted but not yet open too: websocketpp validates a handshake, then
+  // writes its answer and opens the connection only when that write completes, so in a burst
+  // many handshakes are validated before the first opens (200 at once let 34 past a limit of 8).
   bool validate(connection_hdl hdl) {
     auto con = ws_.get_con_from_hdl(hdl);
     std::size_t connected = 0;
@@ -210,7 +215,7 @@ class Server::Impl {
       std::shared_lock<std::shared_mutex> lock(clients_mutex_);
       connected = clients_.size();
     }
-    if (connected >= options_.max_clients) {
+    if (connected + admitted_.size() >= options_.max_clients) {
       con->set_status(websocketpp::http::status_code::service_unavailable);
       con->set_body("server full: " + std::to_string(options_.max_clients) + " clients\n");
       return false;
@@ -222,17 +227,22 @@ class Server::Impl {
       return false;
     }
     con->select_subprotocol(kSubprotocol);
+    admitted_.insert(hdl);
     return true;
   }
 
   void on_open(connection_hdl hdl) {
+    admitted_.erase(hdl);
     auto con = ws_.get_con_from_hdl(hdl);
     auto client = std::make_shared<Client>(next_client_id_++, hdl, con->get_remote_endpoint(), channel_ids_,
                                            options_.queue_frames);
+    std::size_t now = 0;
     {
       std::unique_lock<std::shared_mutex> lock(clients_mutex_);
       clients_[hdl] = client;
+      now = clients_.size();
     }
+    if (now > clients_peak_.load()) clients_peak_.store(now);
     connections_total_.fetch_add(1);
     con->send(server_info_, websocketpp::frame::opcode::text);
     con->send(advertise_, websocketpp::frame::opcode::text);
@@ -240,6 +250,7 @@ class Server::Impl {
   }
 
   void on_fail(connection_hdl hdl) {
+    admitted_.erase(hdl);  // admitted, then lost before it opened
     auto con = ws_.get_con_from_hdl(hdl);
     // stop_listening() cancels the accept waiting for the next client: no client, nothing refused.
     if (con->get_ec() == asio::error::operation_aborted || con->get_transport_ec() == asio::error::operation_aborted ||
@@ -252,6 +263,7 @@ class Server::Impl {
   }
 
   void on_close(connection_hdl hdl) {
+    admitted_.erase(hdl);
     std::shared_ptr<Client> client;
     {
       std::unique_lock<std::shared_mutex> lock(clients_mutex_);
@@ -375,6 +387,9 @@ class Server::Impl {
   std::uint64_t next_client_id_ = 1;  // network thread only
 
   std::atomic<std::uint64_t> connections_total_{0};
+  std::atomic<std::uint64_t> clients_peak_{0};  // written on the network thread only
+  // Handshakes validated whose connection has not opened (or failed) yet: network thread only.
+  std::set<connection_hdl, std::owner_less<connection_hdl>> admitted_;
   std::atomic<std::uint64_t> handshakes_failed_{0};
   std::atomic<std::uint64_t> frames_sent_{0};
   std::atomic<std::uint64_t> frames_dropped_{0};

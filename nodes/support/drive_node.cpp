@@ -203,6 +203,8 @@ int DriveNode::run() {
   rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "running");
 
   int exit_code = kExitOk;
+  faults_at_start_ = backend_.fault_count();
+  std::uint64_t faults_seen = faults_at_start_;
   const auto loop_start = std::chrono::steady_clock::now();
   clock_.start();
   std::uint64_t k = 0;
@@ -255,6 +257,16 @@ int DriveNode::run() {
                     static_cast<unsigned long long>(events.unanswered_tick), opt_.watchdog_ms,
                     static_cast<unsigned long long>(k));
       drive_state_.fault_reason(reason);
+    }
+    if (backend_.fault_count() != faults_seen) {
+      faults_seen = backend_.fault_count();
+      const char* detail = backend_.fault_detail();
+      if (!events.watchdog_tripped && detail[0] != '\0') {
+        std::fprintf(stderr, "%s: drive fault 0x%04x at tick %llu: %s: zero force\n", name_.c_str(),
+                     backend_.error_code(), static_cast<unsigned long long>(k), detail);
+        rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "drive fault, zero force");
+        set_fault_reason(detail);
+      }
     }
     if (events.controller_lost) {
       std::fprintf(stderr, "%s: no acceptable ForceCommand for %.0f ms at tick %llu: controller lost [wall %.6f s]\n", name_.c_str(),
@@ -325,10 +337,10 @@ int DriveNode::finish(std::uint64_t k, int exit_code, double loop_s) {
     std::fprintf(stderr, "%s: the drive was never enabled: no force was applied; run not valid\n", name_.c_str());
     return kExitSafeState;
   }
-  if (c.safe_ticks > 0) {
-    std::fprintf(stderr, "%s: force was off for %llu of %llu ticks (fault 0x%04x): run not valid\n", name_.c_str(),
+  if (c.safe_ticks > 0 || backend_.fault_count() != faults_at_start_) {
+    std::fprintf(stderr, "%s: force was off for %llu of %llu ticks (fault 0x%04x%s%s): run not valid\n", name_.c_str(),
                  static_cast<unsigned long long>(c.safe_ticks), static_cast<unsigned long long>(k),
-                 backend_.error_code());
+                 backend_.error_code(), backend_.fault_detail()[0] != '\0' ? ": " : "", backend_.fault_detail());
     return kExitSafeState;
   }
   return kExitOk;

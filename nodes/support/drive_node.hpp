@@ -129,6 +129,7 @@ class DriveNode {
   drive::PowerState published_state_ = drive::PowerState::kNotReadyToSwitchOn;
   std::uint64_t refused_requests_ = 0;
   bool watchdog_armed_ = false;
+  std::uint64_t faults_at_start_ = 0;  ///< backend faults before tick 0: later ones make the run not valid
 };
 
 }  // namespace pmlsm::node

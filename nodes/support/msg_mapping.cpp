@@ -93,6 +93,10 @@ void from_msg(const msg::PlantTruth& in, TickRecord& rec) {
 void from_msg(const msg::MotorFeedback& in, TickRecord& rec) {
   rec.encoder_position_m = in.position_m();
   rec.motor_velocity_measured_mps = in.velocity_mps();
+  rec.applied_force_n = in.applied_force_n();
+  DriveTickStatus status;
+  from_msg(in, status);
+  rec.force_off = !force_applied(status);
 }
 
 void from_msg(const msg::MotorFeedback& in, KalmanInput& out) {

@@ -4,6 +4,7 @@
 
 #include <cstdio>
 #include <ctime>
+#include <stdexcept>
 #include <exception>
 
 #include "pmlsm/dds/shutdown.hpp"
@@ -120,6 +121,11 @@ int run_node(const std::string& node_name, const std::function<int()>& body) {
     return body();
   } catch (const ConfigError& e) {
     std::fprintf(stderr, "%s: config error: %s\n", node_name.c_str(), e.what());
+    return kExitBadConfig;
+  } catch (const std::invalid_argument& e) {
+    // A component refused its parameters at construction: they come from the config or the
+    // command line, so this is bad input too (loops never throw once running).
+    std::fprintf(stderr, "%s: config error: parameters refused: %s\n", node_name.c_str(), e.what());
     return kExitBadConfig;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s: error: %s\n", node_name.c_str(), e.what());

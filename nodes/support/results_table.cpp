@@ -30,15 +30,17 @@ std::string seconds_or_never(double s) {
 }  // namespace
 
 void print_results_header() {
-  std::printf("%-24s %10s %10s %14s %14s %12s %12s %14s\n", "scenario", "cost_true", "cost_est",
-              "vib_rms_mm/s", "track_rms_mm/s", "settle_2%_s", "peak_F_N", "est_vL_err_mm/s");
+  std::printf("%-24s %10s %10s %14s %14s %12s %12s %14s %12s %11s\n", "scenario", "cost_true", "cost_est",
+              "vib_rms_mm/s", "track_rms_mm/s", "settle_2%_s", "peak_F_N", "est_vL_err_mm/s", "F_appl_rms_N",
+              "F_off_ticks");
 }
 
 std::string results_row(const std::string& scenario, const ScenarioMetrics& m, const std::string& invalid_reason) {
-  std::string row = format("%-24s %10.3f %10.3f %14.3f %14.3f %12s %12.1f %14.3f", scenario.c_str(),
+  std::string row = format("%-24s %10.3f %10.3f %14.3f %14.3f %12s %12.1f %14.3f %12.1f %11llu", scenario.c_str(),
                            m.cost_true, m.cost_estimated, 1e3 * m.load_vibration_rms_mps,
                            1e3 * m.load_tracking_rms_mps, seconds_or_never(m.load_settling_time_s).c_str(),
-                           m.peak_force_command_n, 1e3 * m.est_load_velocity_rms_error_mps);
+                           m.peak_force_command_n, 1e3 * m.est_load_velocity_rms_error_mps, m.applied_force_rms_n,
+                           static_cast<unsigned long long>(m.force_off_ticks));
   if (!invalid_reason.empty()) row += "  INVALID: " + invalid_reason;
   return row;
 }

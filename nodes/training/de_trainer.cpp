@@ -86,6 +86,13 @@ int run(int argc, char** argv) {
   app.add_option("--wait-workers-s", wait_workers_s, "How long to wait for them")->check(CLI::NonNegativeNumber)->capture_default_str();
   app.add_option("--worker-timeout-s", worker_timeout_s, "A worker silent this long is dead")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_flag("--no-progress", no_progress, "No progress bar on stderr");
+  std::uint64_t first_version = 1;
+  app.add_option("--first-version", first_version,
+                 "Version of the first NetworkWeights set (each better set: +1). A compensator takes only "
+                 "versions above the one it uses: to replace a newer set (a rollback, or a new run after an "
+                 "earlier one) start above that version")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   double linger_s = 0;
   app.add_option("--linger-s", linger_s,
                  "Stay on the domain this long after the end, so compensators that start later still get the "
@@ -160,7 +167,7 @@ int run(int argc, char** argv) {
   for (int size : params.compensator.rnn_layer_sizes) weights_msg.layer_sizes().push_back(static_cast<std::uint16_t>(size));
   weights_msg.input_scale(params.compensator.rnn_input_scale_s2_per_m);
   weights_msg.gain_n(params.compensator.rnn_gain_n);
-  std::uint64_t version = 0;
+  std::uint64_t version = first_version - 1;  // the last published; 0 before the first
   double published_cost = std::numeric_limits<double>::infinity();
 
   const auto start = std::chrono::steady_clock::now();

@@ -73,7 +73,8 @@ double field(const introspect::Decoded& d, const std::string& path) {
 /// Records a lockstep pulse run of plant, controller and estimator into dir/run.mcap.
 /// @return the recorder's output.
 std::string record_lockstep_run(const std::string& domain, const fs::path& dir,
-                                std::vector<std::string> extra_record_args = {}) {
+                                std::vector<std::string> extra_record_args = {},
+                                std::vector<std::string> extra_plant_args = {}, int plant_exit = 0) {
   const std::string scenario = source("configs/scenarios/pulse.yaml");
   std::vector<std::string> record{"record", "-o", (dir / "run.mcap").string(), "--stop-after-idle-s", "2", "--no-progress"};
   record.insert(record.end(), extra_record_args.begin(), extra_record_args.end());
@@ -82,8 +83,11 @@ std::string record_lockstep_run(const std::string& domain, const fs::path& dir,
   test::ChildProcess estimator(node_args("kalman_estimator", domain, scenario), (dir / "estimator.log").string());
   test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
   // Three MotorFeedback readers: controller, estimator and the recorder, all matched before tick 0.
-  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "3"}), (dir / "plant.log").string());
-  for (auto* p : {&plant, &controller, &estimator}) EXPECT_EQ(run_to_end(*p), 0) << p->output();
+  std::vector<std::string> plant_args{"--peers", "3"};
+  plant_args.insert(plant_args.end(), extra_plant_args.begin(), extra_plant_args.end());
+  test::ChildProcess plant(node_args("plant_sim", domain, scenario, plant_args), (dir / "plant.log").string());
+  EXPECT_EQ(run_to_end(plant), plant_exit) << plant.output();
+  for (auto* p : {&controller, &estimator}) EXPECT_EQ(run_to_end(*p), 0) << p->output();
   EXPECT_EQ(run_to_end(recorder), 0) << recorder.output();
   return recorder.output();
 }
@@ -120,7 +124,37 @@ TEST(Record, LockstepRunWholeAndDecodedByThirdPartyReaders) {
   for (const char* png : {"velocities.png", "forces.png", "phase_plane.png"}) {
     EXPECT_GT(fs::exists(dir / "plots" / png) ? fs::file_size(dir / "plots" / png) : 0u, 10000u) << png;
   }
+  EXPECT_EQ(plot.output().find("force off"), std::string::npos) << plot.output();  // the drive was on throughout
   fs::remove_all(dir);
+}
+
+// A run at zero force (a drive never enabled) is plain in the plots: the applied force is drawn
+// with the commands, the force-off ticks are a red band, the titles and the tool say how many.
+TEST(Plot, ARunAtZeroForceIsMarked) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "zero_force");
+  record_lockstep_run(test_domain(61), dir, {}, {"--auto-enable", "false"}, 5);
+  test::ChildProcess plot(pmlsm_args(test_domain(61), {"plot", (dir / "run.mcap").string(), "-o", (dir / "plots").string()}),
+                          (dir / "plot.log").string());
+  EXPECT_EQ(run_to_end(plot), 0) << plot.output();
+  EXPECT_NE(plot.output().find("drive force off for 2000 of 2000 ticks from tick 0"), std::string::npos) << plot.output();
+  const std::string script = test::read_file(dir / "plots" / "plots.gp");
+  EXPECT_NE(script.find("DRIVE FORCE OFF for 2000 of 2000 ticks"), std::string::npos) << script;
+  EXPECT_NE(script.find("filledcurves"), std::string::npos) << script;
+  EXPECT_NE(script.find("F applied by the drive"), std::string::npos) << script;
+  // The applied force is the drive's zero, not the controller's command.
+  std::ifstream data(dir / "plots" / "motor_feedback.dat");
+  double t = 0, v = 0, applied = 1, status = 0, power = 0;
+  int rows = 0;
+  while (data >> t >> v >> applied >> status >> power) {
+    EXPECT_EQ(applied, 0.0) << t;
+    EXPECT_NE(power, 4.0) << t;  // never operation enabled
+    ++rows;
+  }
+  EXPECT_EQ(rows, 2000);
+  for (const char* png : {"velocities.png", "forces.png"}) {
+    EXPECT_GT(fs::exists(dir / "plots" / png) ? fs::file_size(dir / "plots" / png) : 0u, 10000u) << png;
+  }
+  if (!::testing::Test::HasFailure()) fs::remove_all(dir);
 }
 
 TEST(Play, RecordingStandsInForThePlant) {

@@ -124,5 +124,41 @@ TEST(Scenario, PulseCommandShape) {
   EXPECT_THROW(command_shape_from_string("square"), std::invalid_argument);
 }
 
+// A plant whose state leaves the numbers is a fault: the step is undone, the loop applies zero
+// force from the next tick, every record stays finite and the trace names the tick and state.
+// (Configs cannot get there any more: the ranges and the step checks refuse such parameters;
+// an initial load displacement of 500 km is beyond them, which only code can set.)
+TEST(ClosedLoop, ADivergingPlantIsAFaultWithZeroForceAndNoNaN) {
+  const SystemParams p = test::shipped_params();
+  PlantInitialCondition far;
+  far.load_position_m = 5e5;  // 6.9e9 N of spring force: 1e5 m/s within the first current step
+  ClosedLoop loop(p, test::shipped_scenario("pulse"), far);
+  std::vector<TickRecord> trace;
+  for (int k = 0; k < 20; ++k) trace.push_back(loop.step());
+  ASSERT_NE(trace[0].plant_fault_state, nullptr);
+  EXPECT_TRUE(loop.plant().divergence().diverged);
+  const std::string reason = plant_fault_reason(trace);
+  EXPECT_NE(reason.find("plant state "), std::string::npos) << reason;
+  EXPECT_NE(reason.find("at tick 0: zero force from tick 1"), std::string::npos) << reason;
+  for (const TickRecord& r : trace) {
+    for (double x : {r.motor_position_m, r.motor_velocity_mps, r.load_position_m, r.load_velocity_mps,
+                     r.load_accel_mps2, r.spring_force_n, r.est_load_velocity_mps, r.est_load_accel_mps2,
+                     r.force_command_n, r.thrust_n, r.i_q_a}) {
+      ASSERT_TRUE(std::isfinite(x)) << "tick " << r.tick;
+    }
+  }
+  // The plant holds its last good state (the start) and no force is applied after the fault.
+  EXPECT_EQ(trace.back().load_position_m, 5e5);
+  EXPECT_EQ(loop.drive().plant().counters().steps, 1u);  // the first current step diverged; none after it
+  // A healthy start has no fault.
+  EXPECT_EQ(plant_fault_reason(run_scenario(p, test::shipped_scenario("pulse"))), "");
+}
+
+TEST(ClosedLoop, ANonFiniteStartIsRefused) {
+  PlantInitialCondition bad;
+  bad.load_velocity_mps = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(ClosedLoop(test::shipped_params(), test::shipped_scenario("pulse"), bad), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace pmlsm

@@ -46,7 +46,9 @@ std::vector<std::pair<std::string, double>> fields(const TickRecord& r) {
           {"ripple_n", r.ripple_n},
           {"friction_n", r.friction_n},
           {"i_q_a", r.i_q_a},
-          {"u_q_v", r.u_q_v}};
+          {"u_q_v", r.u_q_v},
+          {"applied_force_n", r.applied_force_n},
+          {"force_off", r.force_off ? 1.0 : 0.0}};
 }
 
 // A record whose every field holds its own value (-1000 - index), none of which a mapping
@@ -60,7 +62,7 @@ TickRecord sentinel_record() {
                     &r.load_position_m, &r.load_velocity_mps, &r.load_accel_mps2, &r.spring_force_n,
                     &r.est_motor_velocity_mps, &r.est_load_velocity_mps, &r.est_spring_force_n,
                     &r.est_load_accel_mps2, &r.force_command_n, &r.compensation_force_n, &r.thrust_n,
-                    &r.ripple_n, &r.friction_n, &r.i_q_a, &r.u_q_v}) {
+                    &r.ripple_n, &r.friction_n, &r.i_q_a, &r.u_q_v, &r.applied_force_n}) {
     *f = v;
     v -= 1;
   }
@@ -224,6 +226,8 @@ TEST(MsgMapping, MotorFeedbackIntoTickRecord) {
   TickRecord expected = sentinel_record();
   expected.encoder_position_m = 3.01;
   expected.motor_velocity_measured_mps = 3.02;
+  expected.applied_force_n = 3.06;  // in effect during the previous tick, as the drive says
+  expected.force_off = true;        // safe state and fault bits set
   expect_same_record(r, expected);
 }
 

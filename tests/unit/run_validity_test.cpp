@@ -180,13 +180,14 @@ ScenarioMetrics some_metrics() {
   m.load_settling_time_s = std::numeric_limits<double>::infinity();
   m.peak_force_command_n = 145.9;
   m.est_load_velocity_rms_error_mps = 0.02977;
+  m.applied_force_rms_n = 120.5;
   return m;
 }
 
 TEST(ResultsRow, AValidRunIsTheRowAlone) {
   EXPECT_EQ(results_row("pulse pi", some_metrics()),
             "pulse pi                     65.250     48.515         83.231         83.436  not settled        "
-            "145.9         29.770");
+            "145.9         29.770        120.5           0");
 }
 
 TEST(ResultsRow, AnInvalidRunKeepsItsNumbersAndSaysWhyOnTheSameLine) {

@@ -73,6 +73,11 @@ void JordanRnn::set_weights(const std::vector<double>& weights) {
       throw std::invalid_argument("weights[" + std::to_string(i) + "]: must be finite, got " +
                                   format_value(weights[i]));
     }
+    if (!(std::fabs(weights[i]) <= kMaxAbsWeight)) {
+      throw std::invalid_argument("weights[" + std::to_string(i) + "]: must be within +-" +
+                                  format_value(kMaxAbsWeight) + " (beyond, tanh only switches: a bang-bang), got " +
+                                  format_value(weights[i]));
+    }
   }
   std::copy(weights.begin(), weights.end(), weights_.begin());
 }

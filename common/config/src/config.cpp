@@ -4,9 +4,13 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <cstdint>
 #include <fstream>
 #include <set>
 #include <sstream>
+
+#include "pmlsm/util/validate.hpp"
+#include "yaml_document.hpp"
 
 namespace pmlsm {
 
@@ -19,7 +23,7 @@ std::string join(const std::string& path, const std::string& key) {
 }
 
 std::string read_file(const std::string& path) {
-  std::ifstream in(path);
+  std::ifstream in(path, std::ios::binary);
   if (!in) throw ConfigError(path + ": cannot open file");
   std::ostringstream text;
   text << in.rdbuf();
@@ -27,13 +31,9 @@ std::string read_file(const std::string& path) {
 }
 
 YAML::Node parse_yaml(const std::string& text, const std::string& origin) {
-  try {
-    YAML::Node root = YAML::Load(text);
-    if (!root.IsMap()) throw ConfigError(origin + ": top level must be a mapping of keys");
-    return root;
-  } catch (const YAML::Exception& e) {
-    throw ConfigError(origin + ": YAML parse error: " + e.what());
-  }
+  YAML::Node root = load_yaml_document(text, origin);
+  if (!root.IsMap()) throw ConfigError(origin + ": top level must be a mapping of keys");
+  return root;
 }
 
 // Checks the form of a sourced leaf: exactly value and source, and a source that
@@ -78,10 +78,10 @@ void apply_overrides(YAML::Node& root, const std::vector<ConfigOverride>& overri
     }
     YAML::Node value;
     try {
-      value = YAML::Load(o.value);
-    } catch (const YAML::Exception& e) {
+      value = load_yaml_document(o.value, "override " + o.key_path);
+    } catch (const ConfigError& e) {
       throw ConfigError(origin + ": override " + o.key_path + ": value '" + o.value +
-                        "' is not YAML: " + e.what());
+                        "' is not accepted: " + e.what());
     }
     if (is_sourced_leaf(node)) {
       node["value"] = value;
@@ -92,71 +92,76 @@ void apply_overrides(YAML::Node& root, const std::vector<ConfigOverride>& overri
   }
 }
 
+[[noreturn]] void fail_at(const std::string& origin, const std::string& path, const std::string& what) {
+  throw ConfigError(origin + ": " + path + ": " + what);
+}
+
+std::string describe(const YAML::Node& v) {
+  if (v.IsScalar()) return v.Scalar();
+  YAML::Emitter out;
+  out << YAML::Flow << v;
+  return out.c_str();
+}
+
+bool looks_boolean(const YAML::Node& v) {
+  bool b = false;
+  return YAML::convert<bool>::decode(v, b);
+}
+
+// A finite number (not a boolean that would read as 0 or 1).
+double to_number(const YAML::Node& v, const std::string& origin, const std::string& path) {
+  double out = 0;
+  if (!v.IsScalar() || !YAML::convert<double>::decode(v, out) || looks_boolean(v)) {
+    fail_at(origin, path, "expected a number, got '" + describe(v) + "'");
+  }
+  if (!std::isfinite(out)) fail_at(origin, path, "must be finite, got " + v.Scalar());
+  return out;
+}
+
+// Digits only: no sign, no fraction, no exponent, no hexadecimal.
+std::uint64_t to_whole_number(const YAML::Node& v, const std::string& origin, const std::string& path) {
+  std::uint64_t out = 0;
+  const std::string text = v.IsScalar() ? v.Scalar() : std::string();
+  if (!v.IsScalar() || text.empty() || text.find_first_not_of("0123456789") != std::string::npos ||
+      !YAML::convert<std::uint64_t>::decode(v, out)) {
+    fail_at(origin, path, "expected a non-negative integer, got '" + describe(v) + "'");
+  }
+  return out;
+}
+
+// The value of a leaf: a sourced leaf's value (its form checked) or the plain scalar or list.
+YAML::Node leaf_value(const YAML::Node& v, const std::string& origin, const std::string& path) {
+  if (is_sourced_leaf(v)) {
+    check_sourced_leaf(v, origin, path);
+    return v["value"];
+  }
+  if (v.IsMap()) fail_at(origin, path, "expected a value, got a section '" + describe(v) + "'");
+  return v;
+}
+
 // A mapping being read: hands out values by key, remembers which keys were
 // read, and reports the ones that were not (unknown keys) in finish().
 class Section {
  public:
   Section(YAML::Node node, std::string origin, std::string path)
       : node_(std::move(node)), origin_(std::move(origin)), path_(std::move(path)) {
-    if (!node_.IsMap()) fail(path_, "must be a mapping of keys, got '" + describe(node_) + "'");
+    if (!node_.IsMap()) fail_at(origin_, path_, "must be a mapping of keys, got '" + describe(node_) + "'");
   }
 
   Section child(const std::string& key) {
     return Section(required(key), origin_, join(path_, key));
   }
 
-  double number(const std::string& key) {
-    const YAML::Node v = value(key);
-    double out = 0;
-    if (!v.IsScalar() || !YAML::convert<double>::decode(v, out) || looks_boolean(v)) {
-      fail(join(path_, key), "expected a number, got '" + describe(v) + "'");
-    }
-    if (!std::isfinite(out)) fail(join(path_, key), "must be finite, got " + v.Scalar());
-    return out;
-  }
+  double number(const std::string& key) { return to_number(value(key), origin_, join(path_, key)); }
 
   std::uint64_t unsigned_integer(const std::string& key) {
-    const YAML::Node v = value(key);
-    std::uint64_t out = 0;
-    const std::string text = v.IsScalar() ? v.Scalar() : std::string();
-    if (!v.IsScalar() || text.empty() || text[0] == '-' || !YAML::convert<std::uint64_t>::decode(v, out)) {
-      fail(join(path_, key), "expected a non-negative integer, got '" + describe(v) + "'");
-    }
-    return out;
-  }
-
-  bool boolean(const std::string& key) {
-    const YAML::Node v = value(key);
-    bool out = false;
-    if (!v.IsScalar() || !YAML::convert<bool>::decode(v, out)) {
-      fail(join(path_, key), "expected true or false, got '" + describe(v) + "'");
-    }
-    return out;
+    return to_whole_number(value(key), origin_, join(path_, key));
   }
 
   std::string text(const std::string& key) {
     const YAML::Node v = value(key);
-    if (!v.IsScalar()) fail(join(path_, key), "expected a string, got '" + describe(v) + "'");
+    if (!v.IsScalar()) fail_at(origin_, join(path_, key), "expected a string, got '" + describe(v) + "'");
     return v.Scalar();
-  }
-
-  Eigen::Vector3d vector3(const std::string& key) {
-    const YAML::Node v = value(key);
-    if (!v.IsSequence() || v.size() != 3) {
-      fail(join(path_, key), "expected a list of 3 numbers, got '" + describe(v) + "'");
-    }
-    Eigen::Vector3d out;
-    for (std::size_t i = 0; i < 3; ++i) {
-      double x = 0;
-      if (!v[i].IsScalar() || !YAML::convert<double>::decode(v[i], x) || looks_boolean(v[i])) {
-        fail(join(path_, key) + "[" + std::to_string(i) + "]", "expected a number, got '" + describe(v[i]) + "'");
-      }
-      if (!std::isfinite(x)) {
-        fail(join(path_, key) + "[" + std::to_string(i) + "]", "must be finite, got " + v[i].Scalar());
-      }
-      out(static_cast<Eigen::Index>(i)) = x;
-    }
-    return out;
   }
 
   /// A list of scalars as written (texts), e.g. mapping: ["0x6040:0:16", ...].
@@ -177,7 +182,7 @@ class Section {
   std::vector<Section> sections(const std::string& key) {
     const YAML::Node v = required(key);
     if (!v.IsSequence() || v.size() == 0) {
-      fail(join(path_, key), "expected a non-empty list, got '" + describe(v) + "'");
+      fail_at(origin_, join(path_, key), "expected a non-empty list, got '" + describe(v) + "'");
     }
     std::vector<Section> out;
     for (std::size_t i = 0; i < v.size(); ++i) {
@@ -186,62 +191,22 @@ class Section {
     return out;
   }
 
-  std::vector<int> integer_list(const std::string& key) {
-    const YAML::Node v = value(key);
-    if (!v.IsSequence() || v.size() == 0) {
-      fail(join(path_, key), "expected a list of integers, got '" + describe(v) + "'");
-    }
-    std::vector<int> out;
-    for (std::size_t i = 0; i < v.size(); ++i) {
-      int x = 0;
-      if (!v[i].IsScalar() || !YAML::convert<int>::decode(v[i], x)) {
-        fail(join(path_, key) + "[" + std::to_string(i) + "]", "expected an integer, got '" + describe(v[i]) + "'");
-      }
-      out.push_back(x);
-    }
-    return out;
-  }
-
   void finish() const {
     for (const auto& kv : node_) {
       const auto key = kv.first.as<std::string>();
-      if (used_.count(key) == 0) fail(join(path_, key), "unknown key");
+      if (used_.count(key) == 0) fail_at(origin_, join(path_, key), "unknown key");
     }
   }
 
  private:
-  [[noreturn]] void fail(const std::string& path, const std::string& what) const {
-    throw ConfigError(origin_ + ": " + path + ": " + what);
-  }
-
-  static bool looks_boolean(const YAML::Node& v) {
-    bool b = false;
-    return YAML::convert<bool>::decode(v, b);
-  }
-
-  static std::string describe(const YAML::Node& v) {
-    if (v.IsScalar()) return v.Scalar();
-    YAML::Emitter out;
-    out << YAML::Flow << v;
-    return out.c_str();
-  }
-
   YAML::Node required(const std::string& key) {
     const YAML::Node v = node_[key];
-    if (!v) fail(join(path_, key), "missing key");
+    if (!v) fail_at(origin_, join(path_, key), "missing key");
     used_.insert(key);
     return v;
   }
 
-  YAML::Node value(const std::string& key) {
-    const YAML::Node v = required(key);
-    if (is_sourced_leaf(v)) {
-      check_sourced_leaf(v, origin_, join(path_, key));
-      return v["value"];
-    }
-    if (v.IsMap()) fail(join(path_, key), "expected a value, got a section '" + describe(v) + "'");
-    return v;
-  }
+  YAML::Node value(const std::string& key) { return leaf_value(required(key), origin_, join(path_, key)); }
 
   YAML::Node node_;
   std::string origin_;
@@ -260,21 +225,6 @@ void validate_in(const std::string& origin, F&& check) {
   }
 }
 
-// Ripple (10) and friction (11) sections: the plant's, and the filter's model of them.
-void read_ripple(Section& section, RippleParams& ripple) {
-  ripple.scale_n = section.number("scale_n");
-  ripple.amplitude_1 = section.number("amplitude_1");
-  ripple.amplitude_2 = section.number("amplitude_2");
-  ripple.spatial_freq_1_rad_per_m = section.number("spatial_freq_1_rad_per_m");
-  ripple.spatial_freq_2_rad_per_m = section.number("spatial_freq_2_rad_per_m");
-}
-
-void read_friction(Section& section, FrictionParams& friction) {
-  friction.coulomb_n = section.number("coulomb_n");
-  friction.viscous_n_s_per_m = section.number("viscous_n_s_per_m");
-  friction.regularisation_velocity_mps = section.number("regularisation_velocity_mps");
-}
-
 }  // namespace
 
 ConfigOverride ConfigOverride::parse(const std::string& text) {
@@ -285,114 +235,129 @@ ConfigOverride ConfigOverride::parse(const std::string& text) {
   return ConfigOverride{text.substr(0, eq), text.substr(eq + 1)};
 }
 
+namespace {
+
+// Reads configs/system.yaml by the parameter table (visit_parameters in
+// system_params.hpp): each entry's key path must be present with a value of its
+// kind; every key the table does not name is unknown. The ranges are checked
+// afterwards by SystemParams::validate().
+class TableReader {
+ public:
+  TableReader(YAML::Node root, std::string origin) : root_(std::move(root)), origin_(std::move(origin)) {}
+
+  void real(const std::string& path, double& out, const Plausible&) { out = number(leaf(path), path); }
+
+  template <typename T>
+  void integer(const std::string& path, T& out, const Plausible& range) {
+    const std::uint64_t x = whole_number(leaf(path), path);
+    if (static_cast<double>(x) > range.max) out_of_range(path, static_cast<double>(x), range);
+    out = static_cast<T>(x);
+  }
+
+  void flag(const std::string& path, bool& out) {
+    const YAML::Node v = leaf(path);
+    if (!v.IsScalar() || !YAML::convert<bool>::decode(v, out)) {
+      fail(path, "expected true or false, got '" + describe(v) + "'");
+    }
+  }
+
+  template <typename E>
+  void choice(const std::string& path, E& out, E (*from_string)(const std::string&)) {
+    const YAML::Node v = leaf(path);
+    if (!v.IsScalar()) fail(path, "expected a name, got '" + describe(v) + "'");
+    try {
+      out = from_string(v.Scalar());
+    } catch (const std::invalid_argument& e) {
+      fail(path, e.what());
+    }
+  }
+
+  void vector3(const std::string& path, Eigen::Vector3d& out, const Plausible&) {
+    const YAML::Node v = leaf(path);
+    if (!v.IsSequence() || v.size() != 3) {
+      fail(path, "expected a list of 3 numbers, got '" + describe(v) + "'");
+    }
+    for (std::size_t i = 0; i < 3; ++i) {
+      out(static_cast<Eigen::Index>(i)) = number(v[i], path + "[" + std::to_string(i) + "]");
+    }
+  }
+
+  void integer_list(const std::string& path, std::vector<int>& out, const Plausible& range) {
+    const YAML::Node v = leaf(path);
+    if (!v.IsSequence() || v.size() == 0) {
+      fail(path, "expected a list of integers, got '" + describe(v) + "'");
+    }
+    out.clear();
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      const std::string at = path + "[" + std::to_string(i) + "]";
+      const std::uint64_t x = whole_number(v[i], at);
+      if (static_cast<double>(x) > range.max) out_of_range(at, static_cast<double>(x), range);
+      out.push_back(static_cast<int>(x));
+    }
+  }
+
+  /// Every key of the file that no table entry named is unknown.
+  void finish() const { check_known(root_, ""); }
+
+ private:
+  [[noreturn]] void fail(const std::string& path, const std::string& what) const {
+    fail_at(origin_, path, what);
+  }
+
+  [[noreturn]] void out_of_range(const std::string& path, double value, const Plausible& range) const {
+    fail(path, "must be in [" + format_value(range.min) + ", " + format_value(range.max) + "] (" +
+                   range.reason + "), got " + format_value(value));
+  }
+
+  double number(const YAML::Node& v, const std::string& path) const { return to_number(v, origin_, path); }
+
+  std::uint64_t whole_number(const YAML::Node& v, const std::string& path) const {
+    return to_whole_number(v, origin_, path);
+  }
+
+  // The value at a key path; every section on the way must be a mapping and
+  // every key present. Marks the path and its sections as known.
+  YAML::Node leaf(const std::string& path) {
+    YAML::Node node = root_;
+    std::string walked;
+    std::stringstream parts(path);
+    for (std::string key; std::getline(parts, key, '.');) {
+      if (!node.IsMap() || is_sourced_leaf(node)) {
+        fail(walked, "must be a mapping of keys, got '" + describe(node) + "'");
+      }
+      const YAML::Node child = static_cast<const YAML::Node&>(node)[key];
+      walked = join(walked, key);
+      if (!child) fail(walked, "missing key");
+      known_.insert(walked);
+      node.reset(child);
+    }
+    return leaf_value(node, origin_, path);
+  }
+
+  void check_known(const YAML::Node& node, const std::string& path) const {
+    if (!node.IsMap() || is_sourced_leaf(node)) return;
+    for (const auto& kv : node) {
+      const std::string key = join(path, kv.first.as<std::string>());
+      if (known_.count(key) == 0) fail(key, "unknown key");
+      check_known(kv.second, key);
+    }
+  }
+
+  YAML::Node root_;
+  std::string origin_;
+  std::set<std::string> known_;
+};
+
+}  // namespace
+
 SystemParams parse_system_params(const std::string& yaml_text, const std::string& origin,
                                  const std::vector<ConfigOverride>& overrides) {
   YAML::Node root = parse_yaml(yaml_text, origin);
   apply_overrides(root, overrides, origin);
-  Section top(root, origin, "");
   SystemParams p;
-
-  Section timing = top.child("timing");
-  p.timing.control_period_s = timing.number("control_period_s");
-  p.timing.current_loop_period_s = timing.number("current_loop_period_s");
-  timing.finish();
-
-  Section plant = top.child("plant");
-  p.plant.max_step_s = plant.number("max_step_s");
-  const std::string integrator = plant.text("integrator");
-  validate_in(origin, [&] {
-    try {
-      p.plant.integrator = integrator_from_string(integrator);
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(std::string("plant.integrator: ") + e.what());
-    }
-  });
-  Section el = plant.child("electrical");
-  auto& e = p.plant.electrical;
-  e.resistance_ohm = el.number("resistance_ohm");
-  e.armature_d_inductance_h = el.number("armature_d_inductance_h");
-  e.armature_q_inductance_h = el.number("armature_q_inductance_h");
-  e.mutual_d_inductance_h = el.number("mutual_d_inductance_h");
-  e.mutual_q_inductance_h = el.number("mutual_q_inductance_h");
-  e.damper_d_inductance_h = el.number("damper_d_inductance_h");
-  e.damper_q_inductance_h = el.number("damper_q_inductance_h");
-  e.damper_d_resistance_ohm = el.number("damper_d_resistance_ohm");
-  e.damper_q_resistance_ohm = el.number("damper_q_resistance_ohm");
-  e.motor_constant_n_per_a = el.number("motor_constant_n_per_a");
-  e.pole_pitch_m = el.number("pole_pitch_m");
-  e.pole_pairs = el.number("pole_pairs");
-  el.finish();
-  Section ripple = plant.child("ripple");
-  read_ripple(ripple, p.plant.ripple);
-  ripple.finish();
-  Section friction = plant.child("friction");
-  read_friction(friction, p.plant.friction);
-  friction.finish();
-  Section mech = plant.child("mechanics");
-  p.plant.mechanics.motor_mass_kg = mech.number("motor_mass_kg");
-  p.plant.mechanics.load_mass_kg = mech.number("load_mass_kg");
-  p.plant.mechanics.spring_n_per_m = mech.number("spring_n_per_m");
-  p.plant.mechanics.damping_n_s_per_m = mech.number("damping_n_s_per_m");
-  mech.finish();
-  Section inverter = plant.child("inverter");
-  p.plant.inverter.dc_bus_v = inverter.number("dc_bus_v");
-  inverter.finish();
-  Section encoder = plant.child("encoder");
-  p.plant.encoder.resolution_m = encoder.number("resolution_m");
-  p.plant.encoder.position_noise_std_m = encoder.number("position_noise_std_m");
-  p.plant.encoder.noise_seed = encoder.unsigned_integer("noise_seed");
-  encoder.finish();
-  plant.finish();
-
-  Section cl = top.child("current_loop");
-  p.current_loop.kp_v_per_a = cl.number("kp_v_per_a");
-  p.current_loop.ki_v_per_a_s = cl.number("ki_v_per_a_s");
-  p.current_loop.current_limit_a = cl.number("current_limit_a");
-  cl.finish();
-
-  Section vl = top.child("velocity_loop");
-  p.velocity_loop.kp_n_s_per_m = vl.number("kp_n_s_per_m");
-  p.velocity_loop.ki_n_per_m = vl.number("ki_n_per_m");
-  p.velocity_loop.force_limit_n = vl.number("force_limit_n");
-  vl.finish();
-
-  Section rm = top.child("reference_model");
-  p.reference_model.natural_frequency_rad_s = rm.number("natural_frequency_rad_s");
-  p.reference_model.damping_ratio = rm.number("damping_ratio");
-  rm.finish();
-
-  Section kf = top.child("kalman");
-  p.kalman.process_noise_diag = kf.vector3("process_noise_diag");
-  p.kalman.measurement_noise = kf.number("measurement_noise");
-  p.kalman.initial_covariance_diag = kf.vector3("initial_covariance_diag");
-  Section kf_friction = kf.child("friction_input");
-  p.kalman.friction_input.enabled = kf_friction.boolean("enabled");
-  read_friction(kf_friction, p.kalman.friction_input.model);
-  kf_friction.finish();
-  Section kf_ripple = kf.child("ripple_input");
-  p.kalman.ripple_input.enabled = kf_ripple.boolean("enabled");
-  read_ripple(kf_ripple, p.kalman.ripple_input.model);
-  kf_ripple.finish();
-  kf.finish();
-
-  Section comp = top.child("compensator");
-  Section rnn = comp.child("rnn");
-  auto& c = p.compensator;
-  c.rnn_layer_sizes = rnn.integer_list("layer_sizes");
-  c.rnn_input_scale_s2_per_m = rnn.number("input_scale_s2_per_m");
-  c.rnn_gain_n = rnn.number("gain_n");
-  c.rnn_learning_rate = rnn.number("learning_rate");
-  c.rnn_momentum = rnn.number("momentum");
-  c.rnn_tolerance_mps = rnn.number("tolerance_mps");
-  c.rnn_kc_limit_mps = rnn.number("kc_limit_mps");
-  c.rnn_du_deadband_per_s = rnn.number("du_deadband_per_s");
-  rnn.finish();
-  Section af = comp.child("acceleration_feedback");
-  c.accel_feedback_gain_kg = af.number("gain_kg");
-  af.finish();
-  comp.finish();
-  top.finish();
-
+  TableReader reader(root, origin);
+  visit_parameters(p, reader);
+  reader.finish();
   validate_in(origin, [&] { p.validate(); });
   return p;
 }
@@ -677,7 +642,11 @@ DeviceDictionary parse_device_dictionary(const std::string& yaml_text, const std
     } else {
       throw ConfigError(origin + ": " + path + ".access: one of ro, rw, wo, const, got '" + access + "'");
     }
-    obj.pdo_mappable = o.boolean("pdo_mappable");
+    const std::string mappable = o.text("pdo_mappable");
+    if (mappable != "true" && mappable != "false") {
+      throw ConfigError(origin + ": " + path + ".pdo_mappable: true or false, got '" + mappable + "'");
+    }
+    obj.pdo_mappable = mappable == "true";
     obj.value = c_signed(o.text("value"), origin, path + ".value");
     o.finish();
     for (const DictionaryObject& other : d.objects) {

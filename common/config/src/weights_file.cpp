@@ -17,6 +17,7 @@
 #include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/util/atomic_file.hpp"
 #include "pmlsm/util/validate.hpp"
+#include "yaml_document.hpp"
 
 namespace pmlsm {
 
@@ -227,7 +228,8 @@ void validate_rnn_weights(const RnnWeightsFile& f) {
                                 sizes_text(f.layer_sizes) + ", got " + std::to_string(f.weights.size()));
   }
   for (std::size_t i = 0; i < n; ++i) {
-    require_finite(index_key("weights", i).c_str(), f.weights[i]);
+    const std::string key = index_key("weights", i);
+    require_in_range(key.c_str(), f.weights[i], -JordanRnn::kMaxAbsWeight, JordanRnn::kMaxAbsWeight);
   }
 }
 
@@ -236,12 +238,7 @@ RnnWeightsFile load_rnn_weights(const std::string& path) {
   if (!in) throw ConfigError(path + ": cannot open file");
   std::ostringstream text;
   text << in.rdbuf();
-  YAML::Node root;
-  try {
-    root = YAML::Load(text.str());
-  } catch (const YAML::Exception& e) {
-    throw ConfigError(path + ": YAML parse error: " + e.what());
-  }
+  const YAML::Node root = load_yaml_document(text.str(), path);
   if (!root.IsMap()) throw ConfigError(path + ": top level must be a mapping of keys");
 
   Reader r(root, path);
@@ -318,6 +315,29 @@ std::string rnn_weights_misfit(const RnnWeightsFile& w, const SystemParams& p) {
   if (w.gain_n != p.compensator.rnn_gain_n) {
     return "gain " + format_value(w.gain_n) + " N differs from compensator.rnn.gain_n " + format_value(p.compensator.rnn_gain_n);
   }
+  return {};
+}
+
+WeightSetGate::WeightSetGate(const SystemParams& params) : params_(params) {}
+
+std::string WeightSetGate::offer(const RnnWeightsFile& set, std::uint64_t version, const char* origin) {
+  std::string why = rnn_weights_misfit(set, params_);
+  if (why.empty() && taken_ > 0 && version <= version_) {
+    why = "version " + std::to_string(version) + " does not increase on version " + std::to_string(version_) +
+          " in use (a rollback: start de_trainer with --first-version above " + std::to_string(version_) + ")";
+  }
+  char cost[32];
+  std::snprintf(cost, sizeof cost, set.cost < 0 ? "unknown" : "%.6g", set.cost);
+  if (!why.empty()) {
+    ++refused_;
+    last_log_ = "weight set " + std::to_string(version) + " from '" + set.source + "' (" + origin + ", cost " + cost +
+                ") refused, keeping version " + std::to_string(version_) + ": " + why;
+    return why;
+  }
+  ++taken_;
+  last_log_ = "weight set " + std::to_string(version) + " from '" + set.source + "' (" + origin + ", cost " + cost +
+              ") taken, replacing version " + std::to_string(version_);
+  version_ = version;
   return {};
 }
 

@@ -146,9 +146,59 @@ void PlantParams::validate() const {
   require_in_range("max_step_s", max_step_s, 1e-9, 1e-3);
 }
 
+namespace {
+
+// Largest eigenvalue of L^-1 R for one axis, L = [[L_a, L_m], [L_m, L_D]], R = diag(R_a, R_D):
+// the fastest decay rate of its flux linkages (5)-(8). Real and positive for a passive axis.
+double fastest_pole_per_s(double l_a, double l_m, double l_d, double r_a, double r_d) {
+  const double det_l = l_a * l_d - l_m * l_m;
+  const double trace = (l_d * r_a + l_a * r_d) / det_l;
+  const double det = r_a * r_d / det_l;
+  return 0.5 * trace + std::sqrt(std::max(0.0, 0.25 * trace * trace - det));
+}
+
+void require_rate(const char* name, double value, const char* what, double rate_per_s, double step_s,
+                  double limit) {
+  if (!(rate_per_s * step_s <= limit)) {
+    throw std::invalid_argument(std::string(name) + ": " + what + " = " + format_value(rate_per_s) +
+                                " 1/s times max_step_s " + format_value(step_s) + " must be <= " +
+                                format_value(limit) + " for the explicit integrator, got " +
+                                format_value(value));
+  }
+}
+
+}  // namespace
+
+void PlantParams::check_step() const {
+  // Rates in 1/s; an explicit step h resolves a rate r only while r h is small:
+  // 0.1 for an oscillation (60 steps a period), 0.5 for a decay.
+  const auto& m = mechanics;
+  const double inverse_masses = 1.0 / m.motor_mass_kg + 1.0 / m.load_mass_kg;
+  require_rate("mechanics.spring_n_per_m", m.spring_n_per_m, "the load mode sqrt(k (1/m_M + 1/m_L))",
+               std::sqrt(m.spring_n_per_m * inverse_masses), max_step_s, 0.1);
+  require_rate("mechanics.damping_n_s_per_m", m.damping_n_s_per_m, "the damping rate b (1/m_M + 1/m_L)",
+               m.damping_n_s_per_m * inverse_masses, max_step_s, 0.5);
+  // Friction (11): its slope at v = 0 is 1.5 F_c / v_eps + F_v, acting on m_M.
+  require_rate("friction.regularisation_velocity_mps", friction.regularisation_velocity_mps,
+               "the friction slope (1.5 F_c / v_eps + F_v) / m_M",
+               (1.5 * friction.coulomb_n / friction.regularisation_velocity_mps + friction.viscous_n_s_per_m) /
+                   m.motor_mass_kg,
+               max_step_s, 0.5);
+  const auto& e = electrical;
+  require_rate("electrical.resistance_ohm", e.resistance_ohm, "the fastest d-axis pole of L^-1 R",
+               fastest_pole_per_s(e.armature_d_inductance_h, e.mutual_d_inductance_h, e.damper_d_inductance_h,
+                                  e.resistance_ohm, e.damper_d_resistance_ohm),
+               max_step_s, 0.5);
+  require_rate("electrical.resistance_ohm", e.resistance_ohm, "the fastest q-axis pole of L^-1 R",
+               fastest_pole_per_s(e.armature_q_inductance_h, e.mutual_q_inductance_h, e.damper_q_inductance_h,
+                                  e.resistance_ohm, e.damper_q_resistance_ohm),
+               max_step_s, 0.5);
+}
+
 Plant::Plant(const PlantParams& params)
     : params_(params), noise_rng_(params.encoder.noise_seed), noise_(0.0, 1.0) {
   params_.validate();
+  params_.check_step();
   const auto& e = params_.electrical;
   Coefficients& c = coeff_;
   c.psi_pm = e.permanent_magnet_flux_wb();
@@ -179,6 +229,36 @@ Plant::Plant(const PlantParams& params)
   reset(PlantInitialCondition{});
 }
 
+namespace {
+
+// The first entry of the state that is not finite or beyond any physical motor, or nullptr.
+const char* diverged_entry(const PlantState& s, double& value) {
+  constexpr double kMaxFluxWb = 1e6, kMaxPositionM = 1e6, kMaxVelocityMps = 1e4;
+  const struct {
+    const char* name;
+    double value;
+    double bound;
+  } entries[] = {
+      {"psi_d_wb", s.psi_d_wb, kMaxFluxWb},
+      {"psi_q_wb", s.psi_q_wb, kMaxFluxWb},
+      {"psi_dd_wb", s.psi_dd_wb, kMaxFluxWb},
+      {"psi_qq_wb", s.psi_qq_wb, kMaxFluxWb},
+      {"motor_position_m", s.motor_position_m, kMaxPositionM},
+      {"motor_velocity_mps", s.motor_velocity_mps, kMaxVelocityMps},
+      {"load_position_m", s.load_position_m, kMaxPositionM},
+      {"load_velocity_mps", s.load_velocity_mps, kMaxVelocityMps},
+  };
+  for (const auto& e : entries) {
+    if (!(std::fabs(e.value) <= e.bound)) {  // also true for NaN
+      value = e.value;
+      return e.name;
+    }
+  }
+  return nullptr;
+}
+
+}  // namespace
+
 void Plant::reset(const PlantInitialCondition& initial) {
   state_ = PlantState{};
   // No current: psi_d = psi_D = psi_pm by (5), (7); q-axis fluxes zero.
@@ -192,7 +272,15 @@ void Plant::reset(const PlantInitialCondition& initial) {
   steps_since_resync_ = 0;
   history_valid_ = false;
   last_input_ = PlantInput{};
+  divergence_ = PlantDivergence{};
+  steps_since_reset_ = 0;
+  double bad_value = 0;
+  if (const char* bad = diverged_entry(state_, bad_value)) {
+    throw std::invalid_argument(std::string("initial condition: ") + bad +
+                                ": must be finite and within any motor's range, got " + format_value(bad_value));
+  }
 }
+
 
 PMLSM_ALWAYS_INLINE Plant::StateVector Plant::to_vector(const PlantState& s) {
   return {s.psi_d_wb,         s.psi_q_wb,           s.psi_dd_wb,       s.psi_qq_wb,
@@ -344,6 +432,7 @@ void Plant::integrate(double u_d, double u_q, double load_force, double h, int s
 }
 
 PlantMeasurement Plant::step(const PlantInput& input, double dt_s) {
+  if (divergence_.diverged) return measure();
   if (!(std::isfinite(dt_s) && dt_s > 0.0)) {
     ++counters_.rejected_inputs;
     return measure();
@@ -368,7 +457,17 @@ PlantMeasurement Plant::step(const PlantInput& input, double dt_s) {
   int substeps = static_cast<int>(ratio);
   if (substeps < 1 || static_cast<double>(substeps) < ratio - 1e-9) ++substeps;
   const double h = dt_s / substeps;
+  const PlantState before = state_;
+  const RippleAnchor ripple_before = ripple_phase_;
   integrate(applied.u_d_v, applied.u_q_v, applied.load_force_n, h, substeps);
+  ++steps_since_reset_;
+  double bad_value = 0;
+  if (const char* bad = diverged_entry(state_, bad_value)) {
+    divergence_ = PlantDivergence{true, bad, bad_value, steps_since_reset_};
+    state_ = before;
+    ripple_phase_ = ripple_before;
+    history_valid_ = false;
+  }
   return measure();
 }
 

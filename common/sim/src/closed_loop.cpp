@@ -1,6 +1,7 @@
 #include "pmlsm/sim/closed_loop.hpp"
 
 #include <cmath>
+#include <cstdio>
 
 namespace pmlsm {
 
@@ -28,9 +29,12 @@ void record_truth(const PlantTruth& truth, TickRecord& rec) {
 }
 
 ClosedLoop::ClosedLoop(const SystemParams& params, const Scenario& scenario)
+    : ClosedLoop(params, scenario, scenario_initial_condition(scenario)) {}
+
+ClosedLoop::ClosedLoop(const SystemParams& params, const Scenario& scenario, const PlantInitialCondition& initial)
     : params_(params),
       scenario_(scenario),
-      drive_(params, scenario_initial_condition(scenario)),
+      drive_(params, initial),
       controller_(params, scenario),
       kalman_(params.kalman_params()) {
   params_.validate();
@@ -63,10 +67,32 @@ TickRecord ClosedLoop::step(double compensation_force_n) {
 
   record_truth(drive_.plant().truth(), rec);
 
-  drive_.apply_force(control.force_n);
-  last_force_n_ = control.force_n;
+  // A diverged plant is a fault: zero force (the plant no longer moves either).
+  rec.applied_force_n = last_force_n_;
+  rec.force_off = drive_.plant().divergence().diverged;
+  const double applied_n = rec.force_off ? 0.0 : control.force_n;
+  drive_.apply_force(applied_n);
+  last_force_n_ = applied_n;
+  const PlantDivergence& divergence = drive_.plant().divergence();
+  if (divergence.diverged) {
+    rec.plant_fault_state = divergence.state;
+    rec.plant_fault_value = divergence.value;
+  }
   ++tick_;
   return rec;
+}
+
+std::string plant_fault_reason(const std::vector<TickRecord>& trace) {
+  for (const TickRecord& rec : trace) {
+    if (rec.plant_fault_state == nullptr) continue;
+    char text[200];
+    std::snprintf(text, sizeof text,
+                  "plant state %s = %.6g (not finite or beyond any motor) at tick %llu: zero force from tick %llu",
+                  rec.plant_fault_state, rec.plant_fault_value, static_cast<unsigned long long>(rec.tick),
+                  static_cast<unsigned long long>(rec.tick + 1));
+    return text;
+  }
+  return "";
 }
 
 std::vector<TickRecord> run_scenario(const SystemParams& params, const Scenario& scenario) {

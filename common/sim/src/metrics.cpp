@@ -33,7 +33,7 @@ ScenarioMetrics compute_metrics(const std::vector<TickRecord>& trace, const Scen
     m.cost_estimated += std::abs(trace[k].v_ref_mps - trace[k].est_load_velocity_mps);
   }
 
-  double vib = 0, track = 0, ev = 0, ef = 0;
+  double vib = 0, track = 0, ev = 0, ef = 0, applied = 0;
   for (const TickRecord& r : trace) {
     const double rel = r.load_velocity_mps - r.motor_velocity_mps;
     const double err = r.v_ref_mps - r.load_velocity_mps;
@@ -43,12 +43,15 @@ ScenarioMetrics compute_metrics(const std::vector<TickRecord>& trace, const Scen
     ef += std::pow(r.est_spring_force_n - r.spring_force_n, 2);
     m.peak_force_command_n = std::max(m.peak_force_command_n, std::abs(r.force_command_n));
     m.peak_thrust_n = std::max(m.peak_thrust_n, std::abs(r.thrust_n));
+    applied += r.applied_force_n * r.applied_force_n;
+    if (r.force_off) ++m.force_off_ticks;
   }
   const double dn = static_cast<double>(n);
   m.load_vibration_rms_mps = std::sqrt(vib / dn);
   m.load_tracking_rms_mps = std::sqrt(track / dn);
   m.est_load_velocity_rms_error_mps = std::sqrt(ev / dn);
   m.est_spring_force_rms_error_n = std::sqrt(ef / dn);
+  m.applied_force_rms_n = std::sqrt(applied / dn);
 
   std::vector<double> signal(n);
   if (scenario.initial_load_displacement_m != 0.0) {

@@ -77,11 +77,12 @@ double RnnCost::operator()(const std::vector<double>& weights) const {
   const double worst = std::numeric_limits<double>::infinity();
   if (weights.size() != dimension_) return worst;
   for (double w : weights) {
-    if (!std::isfinite(w)) return worst;
+    if (!(std::fabs(w) <= JordanRnn::kMaxAbsWeight)) return worst;  // also NaN
   }
   double total = 0;
   for (const TrainingScenario& s : scenarios_) {
     const auto trace = run_with_rnn(params_, s.scenario, weights, false, cost_ticks(s.scenario));
+    if (!trace.empty() && trace.back().plant_fault_state != nullptr) return worst;  // a diverged plant
     total += s.weight * scenario_cost(trace, s.scenario);
   }
   return std::isfinite(total) ? total : worst;

@@ -1,5 +1,7 @@
 #include "pmlsm/sim/simulated_drive.hpp"
 
+#include <cstdio>
+
 namespace pmlsm {
 
 SimulatedDrive::SimulatedDrive(const SystemParams& params, const PlantInitialCondition& initial)
@@ -40,7 +42,20 @@ SimulatedDriveBackend::SimulatedDriveBackend(const SystemParams& params, const P
   power_.step();  // initialisation done: not ready to switch on -> switch on disabled (transition 1)
 }
 
+void SimulatedDriveBackend::check_plant() {
+  const PlantDivergence& d = drive_.plant().divergence();
+  if (!d.diverged) return;
+  if (fault_detail_[0] == '\0') {
+    std::snprintf(fault_detail_, sizeof fault_detail_,
+                  "plant state %s = %.6g (not finite or beyond any motor) in tick %llu", d.state, d.value,
+                  static_cast<unsigned long long>(ticks_ == 0 ? 0 : ticks_ - 1));
+  }
+  power_.fault(drive::kErrorPlantDiverged);  // ignored while already faulted
+}
+
 drive::Measurement SimulatedDriveBackend::sample() {
+  ++ticks_;
+  check_plant();
   power_.step();
   const DriveFeedback fb = drive_.sample();
   drive::Measurement m;
@@ -54,6 +69,7 @@ drive::Measurement SimulatedDriveBackend::sample() {
 
 void SimulatedDriveBackend::apply(double force_n) {
   drive_.apply_force(power_.force_allowed() ? force_n : 0.0);
+  check_plant();
 }
 
 }  // namespace pmlsm

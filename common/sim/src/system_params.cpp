@@ -1,5 +1,6 @@
 #include "pmlsm/sim/system_params.hpp"
 
+#include <cfloat>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -87,7 +88,59 @@ AccelFeedbackParams SystemParams::accel_feedback_params() const {
   return AccelFeedbackParams{compensator.accel_feedback_gain_kg, velocity_loop.force_limit_n};
 }
 
+namespace {
+
+// Checks each value of the parameter table against its plausible range.
+class RangeCheck {
+ public:
+  void real(const std::string& path, double value, const Plausible& range) const {
+    check(path, value, range);
+  }
+  template <typename T>
+  void integer(const std::string& path, T value, const Plausible& range) const {
+    const double x = static_cast<double>(value);
+    if (std::isfinite(x) && x != std::trunc(x)) {
+      throw std::invalid_argument(path + ": must be a whole number (" + range.reason + "), got " +
+                                  format_value(x));
+    }
+    check(path, x, range);
+  }
+  void flag(const std::string&, bool) const {}
+  template <typename E, typename F>
+  void choice(const std::string&, E, F) const {}
+  void vector3(const std::string& path, const Eigen::Vector3d& value, const Plausible& range) const {
+    for (int i = 0; i < 3; ++i) check(path + "[" + std::to_string(i) + "]", value(i), range);
+  }
+  void integer_list(const std::string& path, const std::vector<int>& value, const Plausible& range) const {
+    for (std::size_t i = 0; i < value.size(); ++i) {
+      check(path + "[" + std::to_string(i) + "]", value[i], range);
+    }
+  }
+
+ private:
+  static void check(const std::string& path, double value, const Plausible& range) {
+    require_finite(path.c_str(), value);
+    // A subnormal number (|x| < 2.2e-308, not 0) is no physical quantity; it only
+    // overflows whatever divides by it.
+    if (value != 0.0 && std::fabs(value) < DBL_MIN) {
+      throw std::invalid_argument(path + ": must be 0 or at least 2.2e-308 in size (a subnormal number), got " +
+                                  format_value(value));
+    }
+    if (!(value >= range.min && value <= range.max)) {
+      throw std::invalid_argument(path + ": must be in [" + format_value(range.min) + ", " +
+                                  format_value(range.max) + "] (" + range.reason + "), got " +
+                                  format_value(value));
+    }
+  }
+};
+
+}  // namespace
+
 void SystemParams::validate() const {
+  // The plausible ranges first: then the components' checks, which combine values (the
+  // flux maps' L_md^2 < L_ad L_D, the loop's steps), only see plausible numbers.
+  RangeCheck check;
+  visit_parameters(*this, check);
   validate_section("timing", [&] { timing.validate(); });
   validate_section("plant", [&] { plant.validate(); });
   validate_section("current_loop", [&] { current_loop.validate(); });
@@ -97,6 +150,7 @@ void SystemParams::validate() const {
   validate_section("kalman", [&] { kalman_params().validate(); });
   validate_section("compensator.rnn", [&] { rnn_compensator_params(true).validate(); });
   validate_section("compensator.acceleration_feedback", [&] { accel_feedback_params().validate(); });
+  validate_section("plant", [&] { plant.check_step(); });
 }
 
 }  // namespace pmlsm

@@ -376,5 +376,39 @@ TEST(DriveLoop, WithTheSimulatedDriveTheTraceEqualsTheDriveDrivenDirectly) {
             backend.simulated_drive().plant().truth().state.load_velocity_mps);
 }
 
+// The simulated drive faults (0x6100) when its plant diverges: zero force, finite readings,
+// the state named; a fault reset cannot clear it.
+TEST(DriveLoop, ADivergingSimulatedPlantFaultsTheDrive) {
+  const SystemParams p = load_system_params(std::string(PMLSM_SOURCE_DIR) + "/configs/system.yaml", {});
+  PlantInitialCondition far;
+  far.load_position_m = 5e5;
+  SimulatedDriveBackend backend(p, far);
+  DriveLoop loop(params(false), backend);
+  loop.set_run_id(kRun);
+  while (const auto next = next_command_towards_operation_enabled(backend.power_state())) loop.request(*next, 0);
+  ASSERT_EQ(backend.power_state(), PowerState::kOperationEnabled);
+  EXPECT_STREQ(backend.fault_detail(), "");
+  for (std::uint64_t k = 0; k < 5; ++k) {
+    const TickReport& r = loop.begin_tick(k, 0);
+    for (double x : {r.measurement.position_m, r.measurement.velocity_mps, r.measurement.i_q_a,
+                     r.measurement.thrust_force_n}) {
+      ASSERT_TRUE(std::isfinite(x)) << k;
+    }
+    if (k > 1) {
+      EXPECT_EQ(r.applied_force_n, 0.0) << k;  // tick 0 had its force; it diverged at its end
+    }
+    loop.offer(cmd(k, 100.0));
+    loop.end_tick(0);
+  }
+  EXPECT_EQ(backend.error_code(), kErrorPlantDiverged);
+  EXPECT_EQ(backend.fault_count(), 1u);
+  EXPECT_NE(std::string(backend.fault_detail()).find("plant state "), std::string::npos) << backend.fault_detail();
+  EXPECT_NE(std::string(backend.fault_detail()).find("in tick 0"), std::string::npos) << backend.fault_detail();
+  // Fault reset: the next tick faults again.
+  loop.request(DriveCommand::kFaultReset, 0);
+  loop.begin_tick(5, 0);
+  EXPECT_TRUE(backend.power_state() == PowerState::kFaultReactionActive || backend.power_state() == PowerState::kFault);
+}
+
 }  // namespace
 }  // namespace pmlsm::drive

@@ -30,6 +30,12 @@ class JordanRnn {
  public:
   /// Largest accepted layer width (guards against nonsense sizes from files).
   static constexpr int kMaxLayerSize = 4096;
+  /// Largest accepted |weight| of a set handed in (files, the NetworkWeights topic, the
+  /// optimisers' candidates). tanh is saturated beyond |net| = 5 and the network's inputs
+  /// are about +-1.4 (the input scale maps the test accelerations there), so weights far
+  /// beyond 100 only switch neurons between -1 and +1: the compensator becomes a +-G_n
+  /// bang-bang. The shipped set's largest is 2.7 and DE starts in [-1, 1] (Table 1).
+  static constexpr double kMaxAbsWeight = 100.0;
 
   /// layer_sizes: inputs first (including the state unit), output last; >= 2
   /// layers, every size in [1, kMaxLayerSize], last == 1, first >= 2 (at least

@@ -21,9 +21,12 @@
 // numbers with 15 when those suffice), so that a load reads back the identical
 // doubles; it writes one neuron per line.
 // Unknown keys, missing or duplicate keys, another format tag, a wrong count,
-// non-numeric or non-finite values are errors.
+// non-numeric or non-finite values, and weights beyond +-JordanRnn::kMaxAbsWeight (100:
+// beyond it tanh only switches) are errors. The gain and input scale must equal the
+// config's compensator.rnn values, which the config bounds (gain 1 mN to 100 kN).
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -61,5 +64,31 @@ void save_rnn_weights(const std::string& path, const RnnWeightsFile& file);
 /// set, other layer sizes, input scale or gain); empty when it fits. The one
 /// check every loader of weights runs (files, the NetworkWeights topic).
 std::string rnn_weights_misfit(const RnnWeightsFile& file, const SystemParams& params);
+
+/// Which weight sets a running compensator takes: those that fit (rnn_weights_misfit) and
+/// whose version is above the one in use (the first set is taken at any version; a set
+/// from a file is version 0).
+/// A set with a version not above the one in use is a rollback and refused: a trainer
+/// that means to replace a newer set starts its versions above it (de_trainer
+/// --first-version). Every offer leaves a log line (version, origin, source, cost, verdict).
+class WeightSetGate {
+ public:
+  explicit WeightSetGate(const SystemParams& params);
+  /// "" when taken (version() becomes `version`), otherwise why not.
+  /// origin: where the set came from ("the NetworkWeights topic", a file name).
+  std::string offer(const RnnWeightsFile& set, std::uint64_t version, const char* origin);
+  std::uint64_t version() const { return version_; }
+  std::uint64_t taken() const { return taken_; }
+  std::uint64_t refused() const { return refused_; }
+  /// The line describing the last offer, for the node's log.
+  const std::string& last_log() const { return last_log_; }
+
+ private:
+  SystemParams params_;
+  std::uint64_t version_ = 0;
+  std::uint64_t taken_ = 0;
+  std::uint64_t refused_ = 0;
+  std::string last_log_;
+};
 
 }  // namespace pmlsm

@@ -44,10 +44,16 @@ class Drive {
   virtual std::uint64_t fault_count() const = 0;
   /// True for a simulation (MotorFeedback's STATUS_SIMULATED bit).
   virtual bool simulated() const = 0;
+  /// The backend's own account of the last fault it raised itself ("" when none), e.g. the
+  /// simulation's diverged plant state; faults the loop raises are reported by the loop.
+  virtual const char* fault_detail() const { return ""; }
 };
 
 /// Error codes of faults the drive loop raises (CiA 301 / 402 error code classes).
 /// 0x8130 "life guard or heartbeat error": the controller stopped answering.
 inline constexpr std::uint16_t kErrorCommandTimeout = 0x8130;
+/// 0x6100 "internal software": the simulated plant's state left the numbers (not finite or
+/// beyond any motor); the backend stays faulted, a fault reset cannot clear it.
+inline constexpr std::uint16_t kErrorPlantDiverged = 0x6100;
 
 }  // namespace pmlsm::drive

@@ -142,6 +142,12 @@ struct PlantParams {
   double max_step_s = 0;  ///< longest integrator step
   Integrator integrator = Integrator::kRk4;
   void validate() const;
+  /// The explicit integrators are stable and accurate only while every rate of the
+  /// model times max_step_s stays small: the load mode, the damper, the friction
+  /// slope and the fastest electrical pole (see plant.cpp). Separate from validate()
+  /// so that a config's plausible ranges are checked before these combinations.
+  /// @throws std::invalid_argument naming the parameter and the rate.
+  void check_step() const;
 };
 
 /// The integrated state; see the class comment for the meaning of each entry.
@@ -183,6 +189,17 @@ struct PlantTruth {
   double load_accel_mps2 = 0;
 };
 
+/// The plant's state left the numbers: an entry became non-finite or beyond any
+/// physical motor (|position| > 1e6 m, |velocity| > 1e4 m/s, |flux| > 1e6 Wb), which
+/// only a parameter set outside what the integrator resolves can cause. The plant then
+/// keeps the last good state and integrates no more (reset() clears it).
+struct PlantDivergence {
+  bool diverged = false;
+  const char* state = "";   ///< name of the first bad PlantState entry, e.g. "load_position_m"
+  double value = 0;         ///< its value after the step that diverged
+  std::uint64_t step = 0;   ///< the step() call (counted from 1 since reset) that diverged
+};
+
 struct PlantCounters {
   std::uint64_t steps = 0;              ///< step() calls accepted
   std::uint64_t rejected_inputs = 0;    ///< step() calls with a non-finite input or dt
@@ -194,12 +211,17 @@ class Plant {
   /// @throws std::invalid_argument naming the first invalid parameter.
   explicit Plant(const PlantParams& params);
 
+  /// @throws std::invalid_argument for an initial condition that is not finite or beyond
+  /// any motor (see PlantDivergence).
   void reset(const PlantInitialCondition& initial);
 
   /// Integrates over dt_s with the input held. A non-finite input or a dt_s
   /// that is not finite and positive is rejected: the last accepted input is
   /// applied instead (for a bad dt nothing moves) and the rejection counted.
+  /// A step that diverges (see PlantDivergence) is undone and nothing moves after it.
   PlantMeasurement step(const PlantInput& input, double dt_s);
+
+  const PlantDivergence& divergence() const { return divergence_; }
 
   /// Encoder and current reading of the present state (draws noise if configured).
   PlantMeasurement measure();
@@ -260,6 +282,8 @@ class Plant {
   PlantInput history_input_;
   PlantInput last_input_;
   PlantCounters counters_;
+  PlantDivergence divergence_;
+  std::uint64_t steps_since_reset_ = 0;
   std::mt19937_64 noise_rng_;
   std::normal_distribution<double> noise_;
 };

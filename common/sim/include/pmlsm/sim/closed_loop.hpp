@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "pmlsm/estimation/kalman_filter.hpp"
@@ -50,12 +51,25 @@ struct TickRecord {
   double friction_n = 0;
   double i_q_a = 0;
   double u_q_v = 0;                ///< last q-axis voltage of the previous tick
+  double applied_force_n = 0;      ///< force the drive applied during the previous tick (MotorFeedback's)
+  bool force_off = false;          ///< the drive had its force off at t_k (fault, safe state, not enabled)
+  /// Set from the tick whose integration diverged on (PlantDivergence): the plant
+  /// entry that left the numbers and its value. The loop applies zero force from the
+  /// next tick and the plant stays at its last good state: the run is not valid.
+  const char* plant_fault_state = nullptr;
+  double plant_fault_value = 0;
 };
+
+/// "plant state <name> = <value> (not finite or beyond any motor) at tick k: zero force
+/// from tick k+1", or "" when no record of the trace has a plant fault.
+std::string plant_fault_reason(const std::vector<TickRecord>& trace);
 
 class ClosedLoop {
  public:
   /// @throws std::invalid_argument from any component or the scenario.
   ClosedLoop(const SystemParams& params, const Scenario& scenario);
+  /// Starts from `initial` instead of the scenario's initial condition.
+  ClosedLoop(const SystemParams& params, const Scenario& scenario, const PlantInitialCondition& initial);
 
   /// Runs one control tick and returns its record. compensation_force_n is
   /// added to the PI output inside its saturation (the hybrid controller, Fig. 4).

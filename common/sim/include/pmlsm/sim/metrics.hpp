@@ -1,6 +1,7 @@
 // Figures of merit of a closed-loop run, computed from its trace.
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 #include "pmlsm/sim/closed_loop.hpp"
@@ -29,6 +30,11 @@ struct ScenarioMetrics {
   /// RMS of the Kalman filter's load-velocity and spring-force errors over the run.
   double est_load_velocity_rms_error_mps = 0;
   double est_spring_force_rms_error_n = 0;
+  /// RMS of the force the drive applied (MotorFeedback's applied_force_n): near zero for a
+  /// run spent with the force off, whatever the controller commanded.
+  double applied_force_rms_n = 0;
+  /// Ticks at which the drive had its force off (fault, safe state, not enabled): 0 in a valid run.
+  std::uint64_t force_off_ticks = 0;
 };
 
 /// Time from the start of samples[begin, end) after which |value| <= band holds

@@ -67,7 +67,8 @@ class SimulatedDrive {
 /// SimulatedDrive behind the drive seam: the simulated drive's own CiA 402 power state machine
 /// (force only in operation enabled; quick stop and fault reaction end in zero force at once:
 /// the simulation has no stopping ramp of its own). The voltage command level goes around it
-/// to simulated() (simulation only: a real drive runs its own current loop).
+/// to simulated() (simulation only: a real drive runs its own current loop). A plant whose
+/// state diverges (PlantDivergence) faults the drive: zero force, latched for good.
 class SimulatedDriveBackend final : public drive::Drive {
  public:
   /// @throws std::invalid_argument from the plant, current controller or state machine.
@@ -82,14 +83,20 @@ class SimulatedDriveBackend final : public drive::Drive {
   std::uint16_t error_code() const override { return power_.error_code(); }
   std::uint64_t fault_count() const override { return power_.fault_count(); }
   bool simulated() const override { return true; }
+  const char* fault_detail() const override { return fault_detail_; }
 
   SimulatedDrive& simulated_drive() { return drive_; }
   const SimulatedDrive& simulated_drive() const { return drive_; }
 
  private:
   SimulatedDrive drive_;
+  /// A diverged plant faults the drive (kErrorPlantDiverged), again after every fault reset.
+  void check_plant();
+
   drive::PowerStateMachine power_;
   double motor_constant_n_per_a_;
+  std::uint64_t ticks_ = 0;  ///< sample() calls: the tick a divergence is reported at
+  char fault_detail_[160] = "";
 };
 
 }  // namespace pmlsm

@@ -4,6 +4,7 @@
 // the nominal plant, as a drive tuned on the datasheet would be.
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include "pmlsm/compensation/accel_feedback.hpp"
@@ -68,6 +69,34 @@ struct CompensatorTuning {
   double accel_feedback_gain_kg = 0;
 };
 
+/// A parameter's plausible range and why: a config value outside it is refused by
+/// SystemParams::validate() with the range and this reason. The ranges are wide (a
+/// study may move a value by orders of magnitude) but keep every value a physical
+/// motor, drive or filter could have, so that a typo like 1e308 or 1e-320 stops the
+/// program instead of turning the plant state into NaN.
+struct Plausible {
+  double min;
+  double max;
+  const char* reason;
+};
+
+struct SystemParams;
+
+/// Every parameter of SystemParams in one declaration: its key path in
+/// configs/system.yaml, its kind and its plausible range with the reason. The
+/// config loader reads the file by this table (so every key is known and present),
+/// SystemParams::validate() checks the ranges, tests mutate every entry.
+/// The visitor has:
+///   real(path, double&, Plausible)                  a finite number
+///   integer(path, T&, Plausible)                    a whole number (counts, seeds), T double or uint64
+///   flag(path, bool&)
+///   choice(path, E&, E (*from_string)(const std::string&))  one of a set of names
+///   vector3(path, Eigen::Vector3d&, Plausible)      three numbers, each in range
+///   integer_list(path, std::vector<int>&, Plausible)  whole numbers, each in range
+/// Params is SystemParams or const SystemParams.
+template <typename Params, typename Visitor>
+void visit_parameters(Params& p, Visitor& v);
+
 struct SystemParams {
   TimingParams timing;
   PlantParams plant;
@@ -86,5 +115,128 @@ struct SystemParams {
   RnnCompensatorParams rnn_compensator_params(bool online_learning) const;
   AccelFeedbackParams accel_feedback_params() const;
 };
+
+namespace detail {
+
+// The plant's and the Kalman filter's ripple (10) and friction (11) models share their keys.
+template <typename Ripple, typename Visitor>
+void visit_ripple(const std::string& at, Ripple& r, Visitor& v) {
+  v.real(at + ".scale_n", r.scale_n,
+         {0.0, 1e4, "K_s up to 10 kN, the thrust of the largest linear motors"});
+  v.real(at + ".amplitude_1", r.amplitude_1,
+         {-10.0, 10.0, "normalised harmonic amplitude: K_s carries the newtons"});
+  v.real(at + ".amplitude_2", r.amplitude_2,
+         {-10.0, 10.0, "normalised harmonic amplitude: K_s carries the newtons"});
+  v.real(at + ".spatial_freq_1_rad_per_m", r.spatial_freq_1_rad_per_m,
+         {0.0, 1e5, "wavelengths down to 63 um, finer than any pole pitch or detent"});
+  v.real(at + ".spatial_freq_2_rad_per_m", r.spatial_freq_2_rad_per_m,
+         {0.0, 1e5, "wavelengths down to 63 um, finer than any pole pitch or detent"});
+}
+
+template <typename Friction, typename Visitor>
+void visit_friction(const std::string& at, Friction& f, Visitor& v) {
+  v.real(at + ".coulomb_n", f.coulomb_n, {0.0, 1e4, "up to 10 kN, the thrust of the largest linear motors"});
+  v.real(at + ".viscous_n_s_per_m", f.viscous_n_s_per_m,
+         {0.0, 1e5, "up to 10 kN at 0.1 m/s, the largest thrust at a crawl"});
+  v.real(at + ".regularisation_velocity_mps", f.regularisation_velocity_mps,
+         {1e-7, 1.0, "the smoothed band of sign(v): from 0.1 um/s to 1 m/s"});
+}
+
+}  // namespace detail
+
+template <typename Params, typename Visitor>
+void visit_parameters(Params& p, Visitor& v) {
+  v.real("timing.control_period_s", p.timing.control_period_s,
+         {1e-5, 1.0, "a velocity loop between 100 kHz and 1 Hz"});
+  v.real("timing.current_loop_period_s", p.timing.current_loop_period_s,
+         {1e-7, 1e-3, "a current loop between 10 MHz and 1 kHz"});
+
+  v.real("plant.max_step_s", p.plant.max_step_s,
+         {1e-9, 1e-3, "the integrator step: at least one per millisecond, at most a billion per second"});
+  v.choice("plant.integrator", p.plant.integrator, &integrator_from_string);
+  auto& e = p.plant.electrical;
+  const Plausible resistance{1e-3, 1e3, "winding resistances of real motors: 1 mOhm to 1 kOhm"};
+  const Plausible inductance{1e-6, 10.0, "winding inductances of real motors: 1 uH to 10 H"};
+  v.real("plant.electrical.resistance_ohm", e.resistance_ohm, resistance);
+  v.real("plant.electrical.armature_d_inductance_h", e.armature_d_inductance_h, inductance);
+  v.real("plant.electrical.armature_q_inductance_h", e.armature_q_inductance_h, inductance);
+  v.real("plant.electrical.mutual_d_inductance_h", e.mutual_d_inductance_h,
+         {0.0, 10.0, "0 (no damper coupling) to 10 H"});
+  v.real("plant.electrical.mutual_q_inductance_h", e.mutual_q_inductance_h,
+         {0.0, 10.0, "0 (no damper coupling) to 10 H"});
+  v.real("plant.electrical.damper_d_inductance_h", e.damper_d_inductance_h, inductance);
+  v.real("plant.electrical.damper_q_inductance_h", e.damper_q_inductance_h, inductance);
+  v.real("plant.electrical.damper_d_resistance_ohm", e.damper_d_resistance_ohm, resistance);
+  v.real("plant.electrical.damper_q_resistance_ohm", e.damper_q_resistance_ohm, resistance);
+  v.real("plant.electrical.motor_constant_n_per_a", e.motor_constant_n_per_a,
+         {0.1, 1e4, "thrust constants of linear motors: 0.1 N/A to 10 kN/A"});
+  v.real("plant.electrical.pole_pitch_m", e.pole_pitch_m, {1e-3, 1.0, "pole pitches of 1 mm to 1 m"});
+  v.integer("plant.electrical.pole_pairs", e.pole_pairs,
+            {1.0, 1000.0, "a count of pole pairs: a whole number, 1 to 1000"});
+  detail::visit_ripple("plant.ripple", p.plant.ripple, v);
+  detail::visit_friction("plant.friction", p.plant.friction, v);
+  auto& m = p.plant.mechanics;
+  v.real("plant.mechanics.motor_mass_kg", m.motor_mass_kg,
+         {0.01, 1e4, "from a 10 g slider to a 10 t gantry"});
+  v.real("plant.mechanics.load_mass_kg", m.load_mass_kg,
+         {0.01, 1e4, "from a 10 g load to a 10 t one"});
+  v.real("plant.mechanics.spring_n_per_m", m.spring_n_per_m,
+         {1.0, 1e9, "from a rubber band to a short steel coupling; the integrator step bounds it further"});
+  v.real("plant.mechanics.damping_n_s_per_m", m.damping_n_s_per_m,
+         {0.0, 1e6, "0 (undamped) to a stiff hydraulic damper"});
+  v.real("plant.inverter.dc_bus_v", p.plant.inverter.dc_bus_v,
+         {1.0, 2000.0, "from 1 V to the 1500 V DC of the largest industrial inverters"});
+  v.real("plant.encoder.resolution_m", p.plant.encoder.resolution_m,
+         {1e-10, 1e-2, "from an interferometer's 0.1 nm to a 10 mm coarse scale"});
+  v.real("plant.encoder.position_noise_std_m", p.plant.encoder.position_noise_std_m,
+         {0.0, 1e-2, "0 to 10 mm of noise"});
+  v.integer("plant.encoder.noise_seed", p.plant.encoder.noise_seed,
+            {0.0, 18446744073709551615.0, "a seed: any whole number of 64 bits"});
+
+  v.real("current_loop.kp_v_per_a", p.current_loop.kp_v_per_a,
+         {1e-3, 1e5, "1 mV/A to 100 kV/A: L w_c for any motor and a bandwidth up to the sampling"});
+  v.real("current_loop.ki_v_per_a_s", p.current_loop.ki_v_per_a_s,
+         {0.0, 1e9, "0 to R w_c of the stiffest loop"});
+  v.real("current_loop.current_limit_a", p.current_loop.current_limit_a,
+         {1e-3, 1e4, "1 mA to 10 kA"});
+
+  v.real("velocity_loop.kp_n_s_per_m", p.velocity_loop.kp_n_s_per_m,
+         {0.0, 1e6, "above 1e6 N s/m one encoder count per tick (1 mm/s at 1 um, 1 ms) alone would command 1 kN"});
+  v.real("velocity_loop.ki_n_per_m", p.velocity_loop.ki_n_per_m,
+         {0.0, 1e9, "0 to 1 kN per um of accumulated error"});
+  v.real("velocity_loop.force_limit_n", p.velocity_loop.force_limit_n,
+         {1e-3, 1e5, "1 mN to 100 kN, beyond the largest linear motors"});
+
+  v.real("reference_model.natural_frequency_rad_s", p.reference_model.natural_frequency_rad_s,
+         {0.1, 1e4, "0.1 rad/s to 10 krad/s (the loop's 1 ms sampling resolves far less)"});
+  v.real("reference_model.damping_ratio", p.reference_model.damping_ratio,
+         {0.01, 100.0, "from barely damped to overdamped a hundred times"});
+
+  const Plausible noise{0.0, 1e12, "a variance: 0 to 1e12 (a 1 MN or 1 Mm/s standard deviation)"};
+  v.vector3("kalman.process_noise_diag", p.kalman.process_noise_diag, noise);
+  v.real("kalman.measurement_noise", p.kalman.measurement_noise,
+         {1e-15, 1e6, "a variance: positive (the filter divides by it), up to 1e6"});
+  v.vector3("kalman.initial_covariance_diag", p.kalman.initial_covariance_diag, noise);
+  v.flag("kalman.friction_input.enabled", p.kalman.friction_input.enabled);
+  detail::visit_friction("kalman.friction_input", p.kalman.friction_input.model, v);
+  v.flag("kalman.ripple_input.enabled", p.kalman.ripple_input.enabled);
+  detail::visit_ripple("kalman.ripple_input", p.kalman.ripple_input.model, v);
+
+  auto& c = p.compensator;
+  v.integer_list("compensator.rnn.layer_sizes", c.rnn_layer_sizes,
+                 {1.0, 1000.0, "neurons of a layer: a whole number, 1 to 1000"});
+  v.real("compensator.rnn.input_scale_s2_per_m", c.rnn_input_scale_s2_per_m,
+         {1e-6, 1e3, "maps accelerations of 1 mm/s^2 to 1000 km/s^2 into tanh's range"});
+  v.real("compensator.rnn.gain_n", c.rnn_gain_n,
+         {1e-3, 1e5, "1 mN to 100 kN, the range of the force limit"});
+  v.real("compensator.rnn.learning_rate", c.rnn_learning_rate,
+         {0.0, 1.0, "eta of (16): a step larger than the gradient itself diverges"});
+  v.real("compensator.rnn.momentum", c.rnn_momentum, {0.0, 0.999, "alpha of (16): below 1 to contract"});
+  v.real("compensator.rnn.tolerance_mps", c.rnn_tolerance_mps, {0.0, 1.0, "0 to 1 m/s of dead band"});
+  v.real("compensator.rnn.kc_limit_mps", c.rnn_kc_limit_mps, {1e-6, 1e3, "1 um/s to 1 km/s"});
+  v.real("compensator.rnn.du_deadband_per_s", c.rnn_du_deadband_per_s, {1e-6, 1e6, "1e-6 to 1e6 1/s"});
+  v.real("compensator.acceleration_feedback.gain_kg", c.accel_feedback_gain_kg,
+         {0.0, 1e5, "0 to 100 t of virtual mass"});
+}
 
 }  // namespace pmlsm
