@@ -288,5 +288,28 @@ TEST(ConfigMutations, OverridesAreCheckedAsTheFile) {
   }
 }
 
+// configs/training.yaml: sizes that would exhaust memory or time are refused with the key.
+TEST(ConfigMutations, TrainingSizesArePlausible) {
+  const std::string origin = test::source_path("configs/training.yaml");
+  const std::string text = test::read_text("configs/training.yaml");
+  struct Case {
+    const char* path;
+    const char* value;
+  };
+  for (const Case& c : {Case{"population_size", "18446744073709551615"}, Case{"population_size", "100001"},
+                        Case{"max_evaluations", "1000000000000"}, Case{"init_upper", "1e300"},
+                        Case{"init_lower", "-1e300"}, Case{"target_cost", "1e308"}, Case{"mutation_factor", "1e-320"},
+                        Case{"population_size", "1.5"}, Case{"seed", "-1"}}) {
+    SCOPED_TRACE(std::string(c.path) + " = " + c.value);
+    try {
+      parse_training_params(test::edited(text, {{std::string(c.path) + ".value", c.value}}), origin, 1e-3);
+      ADD_FAILURE() << "accepted";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find(c.path), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_NO_THROW(parse_training_params(text, origin, 1e-3));
+}
+
 }  // namespace
 }  // namespace pmlsm

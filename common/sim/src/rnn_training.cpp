@@ -26,10 +26,16 @@ void TrainingParams::validate(double control_period_s) const {
     throw std::invalid_argument("population_size: must be >= 4 (DE draws 3 others), got " +
                                 std::to_string(population_size));
   }
+  // Plausible sizes: the paper's NP is 120; 1e5 members of 91 weights already hold 73 MB.
+  if (population_size > 100000) {
+    throw std::invalid_argument("population_size: must be <= 100000 (the paper's NP is 120), got " +
+                                std::to_string(population_size));
+  }
   require_in_range("mutation_factor", mutation_factor, 1e-9, 2.0);
   require_in_range("crossover_rate", crossover_rate, 0.0, 1.0);
-  require_finite("init_lower", init_lower);
-  require_finite("init_upper", init_upper);
+  // Initial weights inside what a weight set may hold (JordanRnn::kMaxAbsWeight).
+  require_in_range("init_lower", init_lower, -JordanRnn::kMaxAbsWeight, JordanRnn::kMaxAbsWeight);
+  require_in_range("init_upper", init_upper, -JordanRnn::kMaxAbsWeight, JordanRnn::kMaxAbsWeight);
   if (!(init_lower < init_upper)) {
     throw std::invalid_argument("init_upper: must be > init_lower (" + format_value(init_lower) +
                                 "), got " + format_value(init_upper));
@@ -38,11 +44,16 @@ void TrainingParams::validate(double control_period_s) const {
     throw std::invalid_argument("max_evaluations: must be >= population_size, got " +
                                 std::to_string(max_evaluations));
   }
-  require_non_negative("target_cost", target_cost);
+  // 1e9 closed-loop runs: over a month at the ~290 runs/s of the README's 52,000 in 3 minutes.
+  if (max_evaluations > 1000000000) {
+    throw std::invalid_argument("max_evaluations: must be <= 1000000000 (over a month of runs), got " +
+                                std::to_string(max_evaluations));
+  }
+  require_in_range("target_cost", target_cost, 0.0, 1e9);
   if (scenarios.empty()) throw std::invalid_argument("scenarios: at least one is needed");
   for (std::size_t i = 0; i < scenarios.size(); ++i) {
     const std::string name = "scenarios[" + std::to_string(i) + "].weight";
-    require_positive(name.c_str(), scenarios[i].weight);
+    require_in_range(name.c_str(), scenarios[i].weight, 1e-6, 1e6);
     scenarios[i].scenario.validate(control_period_s);
   }
 }
