@@ -3,8 +3,10 @@
 # factor (launch/sim.yaml, 4 nodes), the realtime chain latency MotorFeedback -> ForceCommand
 # p50/p99 (plant_sim + controller, as bench/distributed_bench.sh measures it), and the time
 # from the drive's start until every peer matched (its own start-up, participant creation and,
-# secure, the authentication handshakes included). Three set-ups: open, secure with payloads
-# encrypted (the shipped policy), secure with payloads only signed. Prints figures and ratios.
+# secure, the authentication handshakes included). Three set-ups: open; secure with payloads,
+# discovery and liveliness encrypted and submessages unprotected (metadata_protection: none);
+# the same with every submessage encrypted too (metadata_protection: encrypt). Prints figures
+# and ratios.
 #   bench/security_bench.sh [realtime_seconds]   (default 20)
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -22,12 +24,13 @@ p99_of() { field 's/.*p99 \([0-9.]*\) us.*/\1/p' "$1"; }
 matched_of() { field 's/.*peers matched \([0-9.]*\) ms after start.*/\1/p' "$1"; }
 ratio() { awk -v a="$1" -v b="$2" 'BEGIN { if (a == "" || b == "" || b + 0 == 0) print "n/a"; else printf "%.3g", a / b }'; }
 
-echo "[1/4] keystores: encrypted payloads (configs/security/policy.yaml) and signed-only payloads"
-"$bin/pmlsm" security create "$work/ks_encrypt" --policy configs/security/policy.yaml >/dev/null
-sed 's/^  data_protection: encrypt/  data_protection: sign/' configs/security/policy.yaml >"$work/policy_sign.yaml"
-"$bin/pmlsm" security create "$work/ks_sign" --policy "$work/policy_sign.yaml" >/dev/null
-setups=(open encrypt sign)
-keystore_of() { case "$1" in open) echo none ;; *) echo "$work/ks_$1" ;; esac; }
+echo "[1/4] keystores from configs/security/policy.yaml, metadata_protection none and encrypt"
+for m in none encrypt; do
+  sed "s/^  metadata_protection: [a-z]*/  metadata_protection: $m/" configs/security/policy.yaml >"$work/policy_$m.yaml"
+  "$bin/pmlsm" security create "$work/ks_$m" --policy "$work/policy_$m.yaml" >/dev/null
+done
+setups=(open payload full)
+keystore_of() { case "$1" in open) echo none ;; payload) echo "$work/ks_none" ;; full) echo "$work/ks_encrypt" ;; esac; }
 
 echo "[2/4] lockstep, force level, 4 nodes (launch/sim.yaml), each set-up"
 for s in "${setups[@]}"; do
@@ -49,20 +52,21 @@ done
 
 echo "[4/4] figures"
 echo
-printf '%-44s %14s %14s %14s\n' "figure" "open" "encrypt" "sign"
+printf '%-44s %14s %14s %14s\n' "figure" "open" "payload" "payload+meta"
 row() {  # label, extractor, file prefix
   printf '%-44s' "$1"
   for s in "${setups[@]}"; do printf ' %14s' "$("$2" "$work/$3_$s.log")"; done
   printf '\n'
 }
 row "lockstep real-time factor [x]" rtf_of lockstep
+row "lockstep chain latency p50 [us]" p50_of lockstep
 row "lockstep peers matched after start [ms]" matched_of lockstep
 row "realtime chain latency p50 [us]" p50_of rt
 row "realtime chain latency p99 [us]" p99_of rt
 row "realtime peers matched after start [ms]" matched_of rt
 echo
-for s in encrypt sign; do
-  printf '%-44s lockstep RTF %s, p50 %s, p99 %s, matched %s\n' "ratio secure ($s) / open:" \
+for s in payload full; do
+  printf '%-44s lockstep RTF %s, p50 %s, p99 %s, matched %s\n' "ratio $s / open:" \
     "$(ratio "$(rtf_of "$work/lockstep_$s.log")" "$(rtf_of "$work/lockstep_open.log")")" \
     "$(ratio "$(p50_of "$work/rt_$s.log")" "$(p50_of "$work/rt_open.log")")" \
     "$(ratio "$(p99_of "$work/rt_$s.log")" "$(p99_of "$work/rt_open.log")")" \

@@ -12,6 +12,7 @@
 #include <sys/socket.h>
 
 #include <atomic>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <regex>
@@ -209,29 +210,104 @@ TEST(SecureNodes, ATamperedPermissionsFileIsRefused) {
   fs::remove_all(dir);
 }
 
-TEST(SecureNodes, PermissionsSignedByAnotherCaAreRefused) {
-  const fs::path dir = test::fresh_dir("pmlsm_sec", "perm_other_ca");
+TEST(SecureNodes, PermissionsSignedByAnotherCaOrByTheNodesOwnIdentityAreRefused) {
+  const fs::path dir = test::fresh_dir("pmlsm_sec", "perm_signers");
   const fs::path good = make_keystore(dir, "keystore");
-  const fs::path bad = copy_keystore(good, "resigned");
-  const security::KeystoreLayout ks(bad.string());
-  const auto other_ca = security::make_ca("other permissions CA", {});
-  write(ks.permissions_p7s("controller"),
-        security::sign_smime(security::read_file(ks.permissions_xml("controller"), "xml"), other_ca));
-  expect_controller_refused(dir, test_domain(56), good, bad);
+  const std::string domain = test_domain(56);
+  {
+    const fs::path bad = copy_keystore(good, "other_ca");
+    const security::KeystoreLayout ks(bad.string());
+    const auto other_ca = security::make_ca("other permissions CA", {});
+    write(ks.permissions_p7s("controller"),
+          security::sign_smime(security::read_file(ks.permissions_xml("controller"), "xml"), other_ca));
+    SCOPED_TRACE("signed by another CA");
+    expect_controller_refused(dir, domain, good, bad);
+  }
+  {
+    // CVE-2023-24010's attack on a keystore with two CAs: the node's own key, whose certificate
+    // chains to the identity CA only, cannot make permissions the permissions CA vouches for.
+    const fs::path bad = copy_keystore(good, "self");
+    const security::KeystoreLayout ks(bad.string());
+    write(ks.permissions_p7s("controller"),
+          security::sign_smime(security::read_file(ks.permissions_xml("controller"), "xml"),
+                               pair(ks.identity_cert("controller"), ks.identity_key("controller"))));
+    SCOPED_TRACE("signed by the controller's own identity");
+    expect_controller_refused(dir, domain, good, bad);
+  }
   fs::remove_all(dir);
 }
 
-TEST(SecureNodes, PermissionsSignedByTheNodesOwnIdentityAreRefused) {
-  // CVE-2023-24010's attack on a keystore with two CAs: the node's own key, whose certificate
-  // chains to the identity CA only, cannot make permissions the permissions CA vouches for.
-  const fs::path dir = test::fresh_dir("pmlsm_sec", "self_signed");
-  const fs::path good = make_keystore(dir, "keystore");
-  const fs::path bad = copy_keystore(good, "self");
-  const security::KeystoreLayout ks(bad.string());
-  write(ks.permissions_p7s("controller"),
-        security::sign_smime(security::read_file(ks.permissions_xml("controller"), "xml"),
-                             pair(ks.identity_cert("controller"), ks.identity_key("controller"))));
-  expect_controller_refused(dir, test_domain(57), good, bad);
+TEST(SecureNodes, PlayRefusesTopicsWithLiveWritersUnlessForced) {
+  // Holds with or without security: here on an open domain, the live writer a probe's NodeStatus.
+  const fs::path dir = test::fresh_dir("pmlsm_sec", "play");
+  const std::string domain = test_domain(57);
+  const std::string recording = (dir / "rec.mcap").string();
+  test::ChildProcess maker({test::bin("mcap_write_cdr_sample"), "none", recording, (dir / "cut.mcap").string()},
+                           (dir / "maker.log").string());
+  ASSERT_EQ(maker.wait_for(std::chrono::seconds(30)), std::optional<int>(0)) << maker.output();
+  const auto play = [&](const std::vector<std::string>& extra, const std::string& log) {
+    return std::make_unique<test::ChildProcess>(
+        with({test::bin("pmlsm"), "--domain", domain, "--profiles", source("configs/dds/profiles.xml"), "play",
+              recording, "--topics", "/pmlsm/node_status", "/pmlsm/estimated_state", "--rate", "1000",
+              "--no-progress", "--wait-matched-s", "0"},
+             extra),
+        (dir / log).string());
+  };
+  test::ChildProcess probe({test::bin("security_probe"), "--domain", domain, "--profiles",
+                            source("configs/dds/profiles.xml"), "--say", "live", "--seconds", "20"},
+                           (dir / "probe.log").string());
+  auto refused = play({}, "refused.log");
+  ASSERT_EQ(refused->wait_for(std::chrono::seconds(30)), std::optional<int>(2)) << refused->output();
+  EXPECT_NE(refused->output().find("/pmlsm/node_status: written by security_probe"), std::string::npos)
+      << refused->output();
+  EXPECT_EQ(refused->output().find("/pmlsm/estimated_state: written"), std::string::npos) << refused->output();
+  EXPECT_EQ(refused->output().find("published"), std::string::npos) << "nothing may be played" << refused->output();
+  auto forced = play({"--force"}, "forced.log");
+  ASSERT_EQ(forced->wait_for(std::chrono::seconds(60)), std::optional<int>(0)) << forced->output();
+  EXPECT_NE(forced->output().find("--force: publishing next to live writers"), std::string::npos) << forced->output();
+  EXPECT_NE(forced->output().find("/pmlsm/node_status"), std::string::npos) << forced->output();
+  probe.signal(SIGINT);
+  EXPECT_TRUE(probe.wait_for(std::chrono::seconds(30)).has_value());
+  fs::remove_all(dir);
+}
+
+TEST(SecureNodes, BadSecurityInputIsNamedAndNeverFallsBackToAnOpenParticipant) {
+  const fs::path dir = test::fresh_dir("pmlsm_sec", "bad_input");
+  const std::string domain = test_domain(52);  // no participant is ever made here
+  const fs::path ks = make_keystore(dir, "keystore");
+  const std::string scenario = short_scenario(dir);
+  const auto refused = [&](const std::vector<std::string>& extra, const std::string& expected) {
+    test::ChildProcess controller(node_args("controller", domain, scenario, extra), (dir / "controller.log").string());
+    const auto code = controller.wait_for(std::chrono::seconds(30));
+    ASSERT_TRUE(code.has_value()) << controller.output();
+    EXPECT_EQ(*code, 2) << controller.output();
+    EXPECT_NE(controller.output().find(expected), std::string::npos) << controller.output();
+  };
+  refused({"--keystore", ks.string(), "--identity", "nobody"},
+          "keystore '" + ks.string() + "' has no identity 'nobody'");
+  refused({"--keystore", (dir / "missing").string()}, "keystore '" + (dir / "missing").string() + "' does not exist");
+  refused({"--keystore", ks.string(), "--data-sharing"}, "--data-sharing cannot be combined with security");
+  const fs::path holed = copy_keystore(ks, "holed");
+  fs::remove(security::KeystoreLayout(holed.string()).permissions_p7s("controller"));
+  refused({"--keystore", holed.string()},
+          "cannot read the signed permissions of 'controller' '" + holed.string() + "/identities/controller/permissions.p7s'");
+
+  // A policy naming an unknown topic: the tool names file, line, key and value, and makes nothing.
+  std::ifstream in(source("configs/security/policy.yaml"));
+  std::ostringstream text;
+  text << in.rdbuf();
+  std::string policy = text.str();
+  const auto at = policy.find("/pmlsm/force_command");
+  ASSERT_NE(at, std::string::npos);
+  policy.replace(at, 20, "/pmlsm/forse_command");
+  write((dir / "bad_policy.yaml").string(), policy);
+  test::ChildProcess tool({test::bin("pmlsm"), "security", "create", (dir / "never").string(), "--policy",
+                           (dir / "bad_policy.yaml").string()},
+                          (dir / "tool.log").string());
+  ASSERT_EQ(tool.wait_for(std::chrono::seconds(30)), std::optional<int>(2)) << tool.output();
+  EXPECT_NE(tool.output().find("bad_policy.yaml:"), std::string::npos) << tool.output();
+  EXPECT_NE(tool.output().find(".subscribe[0]: unknown topic '/pmlsm/forse_command'"), std::string::npos) << tool.output();
+  EXPECT_FALSE(fs::exists(dir / "never"));
   fs::remove_all(dir);
 }
 

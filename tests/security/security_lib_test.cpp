@@ -19,7 +19,8 @@ PolicyVocabulary vocabulary() {
 }
 
 const char* kPolicy = R"(governance:
-  data_protection: sign
+  discovery_protection: sign
+  metadata_protection: encrypt
   domains: {min: 3, max: 9}
 identities:
   plant_sim:
@@ -45,8 +46,8 @@ std::string refusal(const std::string& text) {
 
 TEST(SecurityPolicy, ParsesGrantsProtectionAndDomains) {
   const auto p = parse_policy(kPolicy, "p.yaml", vocabulary());
-  EXPECT_EQ(p.data_protection, Protection::kSign);
-  EXPECT_EQ(p.discovery_protection, Protection::kEncrypt);
+  EXPECT_EQ(p.data_protection, Protection::kEncrypt);
+  EXPECT_EQ(p.discovery_protection, Protection::kSign);
   EXPECT_EQ(p.domain_min, 3);
   EXPECT_EQ(p.domain_max, 9);
   ASSERT_EQ(p.grants.size(), 4u);
@@ -80,14 +81,18 @@ TEST(SecurityPolicy, RefusesUnknownOrDuplicatedItemsNamingThem) {
                 .find("listed twice"),
             std::string::npos);
   EXPECT_NE(refusal("governance: {}\n").find("grants nothing"), std::string::npos);
+  EXPECT_NE(refusal("governance:\n  data_protection: sign\nidentities:\n  controller: {}\n")
+                .find("governance.data_protection: 'sign' is refused"),
+            std::string::npos);
 }
 
 TEST(SecurityPolicy, DocumentsCarryTheGrantAndDenyTheRest) {
   const auto p = parse_policy(kPolicy, "p.yaml", vocabulary());
   const std::string gov = governance_xml(p);
   EXPECT_NE(gov.find("<allow_unauthenticated_participants>false</allow_unauthenticated_participants>"), std::string::npos);
-  EXPECT_NE(gov.find("<discovery_protection_kind>ENCRYPT</discovery_protection_kind>"), std::string::npos);
-  EXPECT_NE(gov.find("<data_protection_kind>SIGN</data_protection_kind>"), std::string::npos);
+  EXPECT_NE(gov.find("<discovery_protection_kind>SIGN</discovery_protection_kind>"), std::string::npos);
+  EXPECT_NE(gov.find("<data_protection_kind>ENCRYPT</data_protection_kind>"), std::string::npos);
+  EXPECT_NE(gov.find("<metadata_protection_kind>ENCRYPT</metadata_protection_kind>"), std::string::npos);
   EXPECT_NE(gov.find("<min>3</min><max>9</max>"), std::string::npos);
   const std::string perm = permissions_xml(p, *p.find("controller"), "CN=controller", {"2026-01-01T00:00:00", "2027-01-01T00:00:00"});
   EXPECT_NE(perm.find("<subject_name>CN=controller</subject_name>"), std::string::npos);

@@ -133,10 +133,20 @@ Policy parse_policy(const std::string& yaml_text, const std::string& origin, con
   for (const auto& [key, node] : at.keys(root, "", {"governance", "identities"})) {
     if (key == "governance") {
       for (const auto& [gkey, g] : at.keys(node, "governance",
-                                           {"data_protection", "discovery_protection", "liveliness_protection",
-                                            "rtps_protection", "domains"})) {
+                                           {"data_protection", "metadata_protection", "discovery_protection",
+                                            "liveliness_protection", "rtps_protection", "domains"})) {
         const std::string path = "governance." + gkey;
-        if (gkey == "data_protection") policy.data_protection = parse_protection(at, g, path, false);
+        if (gkey == "data_protection") {
+          policy.data_protection = parse_protection(at, g, path, false);
+          // Measured with Debian's Fast DDS 2.9.1: with payloads only signed (GMAC), every
+          // receiver fails "Error decoding encoded payload" and no sample arrives; the metadata
+          // protection kind makes no difference. A policy must not make a silent, dead bus.
+          if (policy.data_protection == Protection::kSign) {
+            at.fail(g, path, "'sign' is refused: Fast DDS 2.9.1 receivers drop every payload that is signed "
+                             "without being encrypted (README, Security); use encrypt");
+          }
+        }
+        if (gkey == "metadata_protection") policy.metadata_protection = parse_protection(at, g, path, true);
         if (gkey == "discovery_protection") policy.discovery_protection = parse_protection(at, g, path, false);
         if (gkey == "liveliness_protection") policy.liveliness_protection = parse_protection(at, g, path, false);
         if (gkey == "rtps_protection") policy.rtps_protection = parse_protection(at, g, path, true);
@@ -222,7 +232,7 @@ std::string governance_xml(const Policy& p) {
       << "          <enable_liveliness_protection>true</enable_liveliness_protection>\n"
       << "          <enable_read_access_control>true</enable_read_access_control>\n"
       << "          <enable_write_access_control>true</enable_write_access_control>\n"
-      << "          <metadata_protection_kind>" << protection_name(p.data_protection) << "</metadata_protection_kind>\n"
+      << "          <metadata_protection_kind>" << protection_name(p.metadata_protection) << "</metadata_protection_kind>\n"
       << "          <data_protection_kind>" << protection_name(p.data_protection) << "</data_protection_kind>\n"
       << "        </topic_rule>\n"
       << "      </topic_access_rules>\n"
