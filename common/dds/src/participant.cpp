@@ -64,6 +64,10 @@ namespace {
 void make_secure(eprosima::fastdds::dds::DomainParticipantQos& qos, const std::string& keystore,
                  const std::string& identity) {
   const security::KeystoreLayout layout(keystore);
+  if (::access(keystore.c_str(), F_OK) != 0) {
+    throw SecurityConfigError("keystore '" + keystore + "' does not exist (make one with `pmlsm security create " +
+                              keystore + "`)");
+  }
   if (::access(layout.identity_dir(identity).c_str(), F_OK) != 0) {
     throw SecurityConfigError("keystore '" + keystore + "' has no identity '" + identity + "' (" +
                               layout.identity_dir(identity) + " is missing): create it with `pmlsm security " +
