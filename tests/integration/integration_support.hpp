@@ -19,7 +19,8 @@ inline std::string source(const std::string& rel) { return std::string(PMLSM_SOU
 /// A domain of its own per test, so the tests of one ctest run, which run in
 /// parallel, never meet. Offsets: distributed_test.cpp 0..6, compensator_test.cpp
 /// 10..14, training_test.cpp 15..19, tests/interop 20..24, the Foxglove bridge's tests
-/// 25..29, tests/tools 30..39, drive_safety_test.cpp 40..49 (the virtual rig 45..46, CAN ports 43245..43246). PMLSM_TEST_DOMAIN_BASE moves the whole set
+/// 25..29, tests/tools 30..39, drive_safety_test.cpp 40..49 (the virtual rig 45..46, CAN ports 43245..43246),
+/// tests/security 50..59. PMLSM_TEST_DOMAIN_BASE moves the whole set
 /// (default 100), for two test runs on one machine.
 inline std::string test_domain(int offset) {
   const char* base = std::getenv("PMLSM_TEST_DOMAIN_BASE");
