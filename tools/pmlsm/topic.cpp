@@ -185,7 +185,7 @@ void add_topic_commands(CLI::App& app, dds::ParticipantOptions& dds_options, int
   topic->require_subcommand(1);
 
   struct Options {
-    double wait_s = 2.0;
+    double wait_s = -1.0;  // < 0: 2 s open, 5 s secure (each peer's handshake comes first)
     bool verbose = false;
     std::string topic;
     std::uint64_t count = 0;
@@ -196,9 +196,13 @@ void add_topic_commands(CLI::App& app, dds::ParticipantOptions& dds_options, int
   auto o = std::make_shared<Options>();
 
   auto* list = topic->add_subcommand("list", "Topics seen on the domain, with type, writers, readers and QoS");
-  list->add_option("--wait-s", o->wait_s, "How long to listen for discovery")->capture_default_str()->check(CLI::Range(0.1, 600.0));
+  list->add_option("--wait-s", o->wait_s, "How long to listen for discovery (default 2 s, with a keystore 5 s)")
+      ->check(CLI::Range(0.1, 600.0));
   list->add_flag("-v,--verbose", o->verbose, "Every writer and reader with its node and QoS");
-  list->callback([&dds_options, o, &exit_code] { exit_code = run_list(dds_options, o->wait_s, o->verbose); });
+  list->callback([&dds_options, o, &exit_code] {
+    const double wait_s = o->wait_s > 0 ? o->wait_s : (dds_options.keystore.empty() ? 2.0 : 5.0);
+    exit_code = run_list(dds_options, wait_s, o->verbose);
+  });
 
   auto* echo = topic->add_subcommand("echo", "Prints the samples of a topic, decoded");
   echo->add_option("topic", o->topic, "Topic, e.g. /pmlsm/motor_feedback")->required();
