@@ -421,6 +421,34 @@ std::pair<std::string, long> say_and_capture(const fs::path& dir, const std::str
   return {capture.bytes(), probe_counts(listener->output()).heard};
 }
 
+/// Runs a sayer and a listener of `pattern` on the shared-memory transport (profile pmlsm_shm)
+/// and scans Fast DDS's segments in /dev/shm while they run: whether any held the pattern, and
+/// what the listener heard.
+std::pair<bool, long> say_over_shared_memory(const fs::path& dir, const std::string& domain, const fs::path& keystore,
+                                             const std::string& pattern) {
+  const auto probe = [&](const std::vector<std::string>& extra, const std::string& identity, const std::string& log) {
+    std::vector<std::string> a{test::bin("security_probe"), "--domain", domain, "--profiles",
+                               source("configs/dds/profiles.xml"), "--participant-profile", "pmlsm_shm",
+                               "--seconds", "4"};
+    if (!keystore.empty()) a = with(a, {"--keystore", keystore.string(), "--identity", identity});
+    return std::make_unique<test::ChildProcess>(with(a, extra), (dir / log).string());
+  };
+  auto listener = probe({"--listen", pattern}, "pmlsm_topic", "shm_listen.log");
+  auto sayer = probe({"--say", pattern}, "controller", "shm_say.log");
+  bool found = false;
+  while (!sayer->wait_for(std::chrono::milliseconds(200)).has_value()) {
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator("/dev/shm", ec)) {
+      if (entry.path().filename().string().rfind("fastrtps_", 0) != 0) continue;
+      std::ifstream in(entry.path(), std::ios::binary);
+      const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      found = found || bytes.find(pattern) != std::string::npos;
+    }
+  }
+  EXPECT_TRUE(listener->wait_for(std::chrono::seconds(30)).has_value());
+  return {found, probe_counts(listener->output()).heard};
+}
+
 TEST(SecureNodes, PayloadsNeverCrossTheWireInClear) {
   const fs::path dir = test::fresh_dir("pmlsm_sec", "wire");
   const std::string domain = test_domain(59);
@@ -435,6 +463,14 @@ TEST(SecureNodes, PayloadsNeverCrossTheWireInClear) {
   EXPECT_GT(secure_heard, 0) << "the secure listener heard nothing: no data crossed";
   EXPECT_GT(secure_bytes.size(), 10000u);
   EXPECT_EQ(secure_bytes.find(pattern), std::string::npos) << "the payload crossed the wire in clear";
+
+  // The shared-memory transport: the same RTPS messages, so the same protection.
+  const auto [open_in_shm, open_shm_heard] = say_over_shared_memory(dir, domain, {}, pattern);
+  EXPECT_GT(open_shm_heard, 0);
+  EXPECT_TRUE(open_in_shm) << "the scan of /dev/shm did not see the open payload";
+  const auto [secure_in_shm, secure_shm_heard] = say_over_shared_memory(dir, domain, ks, pattern);
+  EXPECT_GT(secure_shm_heard, 0);
+  EXPECT_FALSE(secure_in_shm) << "the payload lay in shared memory in clear";
   fs::remove_all(dir);
 }
 
