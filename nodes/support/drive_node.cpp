@@ -193,6 +193,9 @@ int DriveNode::run() {
                  command_reader_.matched_writers());
     return kExitPeerMissing;
   }
+  std::printf("%s: %d peers matched %.1f ms after start%s\n", name_.c_str(), opt_.peers,
+              static_cast<double>(monotonic_ns() - rt_.start_ns) * 1e-6,
+              rt_.participant.identity().empty() ? "" : " (secure)");
   std::printf("%s: %s clock, %s command level, %llu ticks of %.3g ms, scenario %s, run %016llx\n", name_.c_str(),
               realtime_ ? "realtime" : "lockstep", voltage_level_ ? "voltage" : "force",
               static_cast<unsigned long long>(ticks_), period_s_ * 1e3, rt_.cfg.scenario.name.c_str(),

@@ -16,7 +16,20 @@ void add_dds_options(CLI::App& app, dds::ParticipantOptions& o) {
   app.add_option("--participant-profile", o.participant_profile, "Participant profile in --profiles");
   app.add_option("--domain", o.domain_id, "DDS domain id")->check(CLI::Range(0, 232));
   app.add_flag("--data-sharing", o.data_sharing,
-               "Turn Fast DDS data-sharing on (zero-copy between processes of one host; off by default)");
+               "Turn Fast DDS data-sharing on (zero-copy between processes of one host; off by default; "
+               "not with --keystore)");
+  add_security_options(app, o);
+}
+
+void add_security_options(CLI::App& app, dds::ParticipantOptions& o) {
+  // A function option, so that an empty value (a launch file's default) also falls back to the
+  // environment variable, and "none" overrides it.
+  o.keystore = dds::resolve_keystore("");
+  app.add_option_function<std::string>(
+         "--keystore", [&o](const std::string& value) { o.keystore = dds::resolve_keystore(value); },
+         "DDS Security keystore (`pmlsm security create`): authenticate, obey the identity's permissions, "
+         "encrypt; 'none': open even when $PMLSM_KEYSTORE is set (default: $PMLSM_KEYSTORE, else open)");
+  app.add_option("--identity", o.identity, "The identity in the keystore (default: the node's name)");
 }
 
 void add_common_options(CLI::App& app, CommonOptions& o) {
@@ -122,6 +135,9 @@ int run_node(const std::string& node_name, const std::function<int()>& body) {
   } catch (const ConfigError& e) {
     std::fprintf(stderr, "%s: config error: %s\n", node_name.c_str(), e.what());
     return kExitBadConfig;
+  } catch (const dds::SecurityConfigError& e) {
+    std::fprintf(stderr, "%s: security error: %s\n", node_name.c_str(), e.what());
+    return kExitBadConfig;
   } catch (const std::invalid_argument& e) {
     // A component refused its parameters at construction: they come from the config or the
     // command line, so this is bad input too (loops never throw once running).
@@ -150,7 +166,8 @@ dds::ParticipantOptions named(dds::ParticipantOptions options, const std::string
 }  // namespace
 
 NodeRuntime::NodeRuntime(const std::string& node_name, CommonOptions& options)
-    : cfg(load_config(options)),
+    : start_ns(monotonic_ns()),
+      cfg(load_config(options)),
       period_s(cfg.params.timing.control_period_s),
       realtime(options.realtime),
       wakeup(spin_time(options), std::chrono::nanoseconds(static_cast<std::int64_t>(options.wake_batch_us * 1e3))),

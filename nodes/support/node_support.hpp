@@ -120,14 +120,17 @@ int end_of_feedback_wait(const char* node_name, const CommonOptions& options, Cl
                          std::uint64_t next_tick, double control_period_s, class StatusPublisher& status);
 
 /// Runs a node's body and maps its failures to exit codes with a one-line
-/// message on stderr: ConfigError -> 2, anything else -> 1.
+/// message on stderr: ConfigError and dds::SecurityConfigError -> 2, anything else -> 1.
 int run_node(const std::string& node_name, const std::function<int()>& body);
 
 std::chrono::nanoseconds spin_time(const CommonOptions& options);
 
-/// Only the DDS options (--profiles, --participant-profile, --domain, --data-sharing),
-/// for programs that are not part of the control loop (trainer, workers).
+/// Only the DDS options (--profiles, --participant-profile, --domain, --data-sharing, and
+/// the security options), for programs that are not part of the control loop (trainer, workers).
 void add_dds_options(CLI::App& app, dds::ParticipantOptions& options);
+
+/// --keystore DIR (else $PMLSM_KEYSTORE; "none": open) and --identity NAME.
+void add_security_options(CLI::App& app, dds::ParticipantOptions& options);
 
 /// A stamp for tick `tick` of the run `run_id` (the drive's run this node follows; 0: none yet).
 pmlsm_msgs::msg::Stamp make_stamp(std::uint64_t tick, double control_period_s, std::uint64_t run_id = 0);
@@ -244,6 +247,9 @@ struct NodeRuntime {
   /// @throws ConfigError (exit 2) or std::runtime_error from DDS (exit 1).
   NodeRuntime(const std::string& node_name, CommonOptions& options);
 
+  /// monotonic_ns() before anything else: what start-up costs (a secure participant's
+  /// handshakes among it) is measured from here.
+  std::int64_t start_ns;
   LoadedConfig cfg;
   double period_s;
   /// Before the participant, so Fast DDS's threads inherit priority and timer slack.

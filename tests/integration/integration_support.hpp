@@ -20,8 +20,8 @@ inline std::string source(const std::string& rel) { return std::string(PMLSM_SOU
 /// parallel, never meet. Offsets: distributed_test.cpp 0..6, compensator_test.cpp
 /// 10..14, training_test.cpp 15..19, tests/interop 20..24, the Foxglove bridge's tests
 /// 25..29, tests/tools 30..39, drive_safety_test.cpp 40..44, virtual_rig_test.cpp 45, 46, 48, 49, 70, 71 (CAN
-/// ports 432xx by offset), the python CANopen tests 47, 72 and 73, hardening_test.cpp 60..69.
-/// PMLSM_TEST_DOMAIN_BASE moves the whole set
+/// ports 432xx by offset), the python CANopen tests 47, 72 and 73, tests/security 50..59, hardening_test.cpp
+/// 60..69. PMLSM_TEST_DOMAIN_BASE moves the whole set
 /// (default 100), for two test runs on one machine.
 inline std::string test_domain(int offset) {
   const char* base = std::getenv("PMLSM_TEST_DOMAIN_BASE");

@@ -30,8 +30,10 @@ std::int64_t to_ns(const eprosima::fastrtps::rtps::Time_t& t) {
   return static_cast<std::int64_t>(t.seconds()) * 1000000000LL + static_cast<std::int64_t>(t.nanosec());
 }
 
-dds::ParticipantOptions with_node_name(dds::ParticipantOptions options, const std::string& name) {
+dds::ParticipantOptions with_node_name(dds::ParticipantOptions options, const std::string& name,
+                                       const std::string& identity) {
   if (options.node_name.empty()) options.node_name = name;
+  if (options.identity.empty()) options.identity = identity;
   return options;
 }
 

@@ -168,7 +168,7 @@ class DriveLink {
   DriveLink(const dds::ParticipantOptions& options, const DriveOptions& o, const char* node_name)
       : options_(o),
         domain_(options.domain_id),
-        participant_(with_node_name(options, node_name)),
+        participant_(with_node_name(options, node_name, "pmlsm_drive")),
         state_reader_(participant_.make_reader<msg::DriveStatePubSubType>(dds::topics::kDriveState, wakeup_)),
         control_writer_(participant_.make_writer<msg::DriveControlPubSubType>(dds::topics::kDriveControl)),
         requester_(o.requester.empty() ? default_requester() : o.requester) {

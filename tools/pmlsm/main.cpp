@@ -3,6 +3,7 @@
 //   pmlsm record | play | plot       MCAP recordings
 //   pmlsm launch FILE ...            the launcher (same options)
 //   pmlsm drive status|enable|...    the drive's CiA 402 power state
+//   pmlsm security create|...        the DDS Security keystore
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -14,6 +15,7 @@
 #include "commands.hpp"
 #include "pmlsm/dds/shutdown.hpp"
 #include "pmlsm/introspect/cdr_schema.hpp"
+#include "pmlsm/security/policy.hpp"
 
 namespace {
 
@@ -47,6 +49,13 @@ int main(int argc, char** argv) {
   app.add_option("--participant-profile", dds_options.participant_profile, "Participant profile in them")->capture_default_str();
   app.add_option("--domain", dds_options.domain_id, "DDS domain id")->capture_default_str()->check(CLI::Range(0, 232));
   app.add_option("--node-name", dds_options.node_name, "Participant name others see (default: pmlsm_<command>)");
+  // As the nodes' --keystore (nodes/support): an empty value falls back to the environment.
+  dds_options.keystore = pmlsm::dds::resolve_keystore("");
+  app.add_option_function<std::string>(
+      "--keystore", [&dds_options](const std::string& v) { dds_options.keystore = pmlsm::dds::resolve_keystore(v); },
+      "DDS Security keystore (default: $PMLSM_KEYSTORE, else open; 'none': open)");
+  app.add_option("--identity", dds_options.identity,
+                 "Identity in the keystore (default: pmlsm_topic, pmlsm_record, pmlsm_play or pmlsm_drive)");
   app.add_subcommand("launch", "Starts a launch description: `pmlsm launch FILE [--host H] ...` (see `launcher --help`)");
 
   int exit_code = pmlsm::kExitOk;
@@ -55,6 +64,7 @@ int main(int argc, char** argv) {
   pmlsm::tools::add_play_command(app, dds_options, exit_code);
   pmlsm::tools::add_plot_command(app, exit_code);
   pmlsm::tools::add_drive_command(app, dds_options, exit_code);
+  pmlsm::tools::add_security_command(app, exit_code);
 
   pmlsm::dds::install_shutdown_handlers();
   try {
@@ -64,6 +74,12 @@ int main(int argc, char** argv) {
     return code == 0 ? 0 : pmlsm::kExitBadConfig;
   } catch (const pmlsm::tools::UsageError& e) {
     std::cerr << "pmlsm: " << e.what() << "\n";
+    return pmlsm::kExitBadConfig;
+  } catch (const pmlsm::dds::SecurityConfigError& e) {
+    std::cerr << "pmlsm: security error: " << e.what() << "\n";
+    return pmlsm::kExitBadConfig;
+  } catch (const pmlsm::security::SecurityError& e) {
+    std::cerr << "pmlsm: security error: " << e.what() << "\n";
     return pmlsm::kExitBadConfig;
   } catch (const std::exception& e) {
     std::cerr << "pmlsm: " << e.what() << "\n";

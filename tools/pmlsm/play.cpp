@@ -2,6 +2,11 @@
 // so a recording can stand in for a node: e.g. the plant's MotorFeedback played to a fresh
 // kalman_estimator, whose estimates then equal the recorded ones.
 //
+// A recording played onto a live domain would take over its loop (the controller and the
+// estimator would follow the recorded MotorFeedback while the live drive waits): play first
+// listens for discovery and refuses topics that already have writers there, naming them and
+// their nodes, unless --force.
+//
 // Two passes over the file: the first learns its channels (so a topic selection is checked
 // against what the file holds, and every writer exists before the first sample), the second
 // publishes. What is not whole in a truncated or corrupt file is reported; the rest is played.
@@ -16,6 +21,7 @@
 #include <thread>
 
 #include "commands.hpp"
+#include "discovery.hpp"
 #include "pmlsm/dds/shutdown.hpp"
 #include "pmlsm/mcap/mcap.hpp"
 #include "tool_support.hpp"
@@ -31,6 +37,8 @@ struct PlayOptions {
   double rate = 1.0;
   bool loop = false;
   double wait_matched_s = 2.0;
+  double discovery_s = -1.0;  // < 0: 1.5 s open, 5 s secure (each new peer's handshake first)
+  bool force = false;
   bool no_progress = false;
 };
 
@@ -58,6 +66,35 @@ FileChannels scan(const std::string& path) {
 
 void print_problems(const mcap::ReadReport& report) {
   for (const auto& p : report.problems) std::cerr << "pmlsm play: " << p << "\n";
+}
+
+/// Listens `o.discovery_s` for writers on the selected topics; unless --force, any found is a
+/// UsageError naming each topic and the nodes writing it.
+void refuse_live_writers(dds::Participant& participant, DiscoveryCollector& discovery, FileChannels& file,
+                         const std::set<std::uint16_t>& selected, const PlayOptions& o) {
+  // A secure participant learns of a peer's endpoints only after their handshake, which took
+  // 1-4 s here on a loaded 2-core host.
+  const double wait_s = o.discovery_s >= 0 ? o.discovery_s : (participant.identity().empty() ? 1.5 : 5.0);
+  const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(wait_s));
+  while (Clock::now() < deadline && !dds::stop_requested()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  const std::string own = prefix_text(participant.entity()->guid().guidPrefix);
+  std::string live;
+  for (const auto id : selected) {
+    const auto* entry = dds::find_topic(file.channels[id].topic);
+    const auto writers = discovery.writers_of(entry->spec.name, own);
+    if (writers.empty()) continue;
+    live += "  " + dds::display_name(entry->spec.name) + ": written by";
+    for (const auto& w : writers) live += " " + w;
+    live += "\n";
+  }
+  if (live.empty()) return;
+  if (o.force) {
+    std::cerr << "pmlsm play: --force: publishing next to live writers:\n" << live;
+    return;
+  }
+  throw UsageError("these topics already have live writers on domain " + std::to_string(participant.entity()->get_domain_id()) +
+                   " (playing would take over from them):\n" + live +
+                   "play on another --domain, choose other --topics, or add --force");
 }
 
 int run_play(const dds::ParticipantOptions& dds_options, const PlayOptions& o) {
@@ -98,7 +135,11 @@ int run_play(const dds::ParticipantOptions& dds_options, const PlayOptions& o) {
   }
   if (selected.empty()) throw UsageError(o.file + " holds no project topic to play");
 
-  dds::Participant participant(with_node_name(dds_options, "pmlsm_play"));
+  DiscoveryCollector discovery;
+  dds::ParticipantOptions options = with_node_name(dds_options, "pmlsm_play", "pmlsm_play");
+  options.listener = &discovery;
+  dds::Participant participant(options);
+  refuse_live_writers(participant, discovery, file, selected, o);
   std::map<std::uint16_t, PlayedChannel> played;
   for (const auto id : selected) {
     const auto* entry = dds::find_topic(file.channels[id].topic);
@@ -181,6 +222,10 @@ void add_play_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& 
   play->add_option("--wait-matched-s", o->wait_matched_s, "Wait at most this long for subscribers before playing [s]")
       ->capture_default_str()->check(CLI::NonNegativeNumber);
   play->add_flag("--no-progress", o->no_progress, "No progress line on stderr");
+  play->add_option("--discovery-s", o->discovery_s,
+                   "Listen this long for live writers on the played topics first [s] (default 1.5, with a keystore 5)")
+      ->check(CLI::Range(0.0, 600.0));
+  play->add_flag("--force", o->force, "Play even onto topics that have live writers on the domain");
   play->callback([&dds_options, o, &exit_code] { exit_code = run_play(dds_options, *o); });
 }
 

@@ -72,7 +72,7 @@ int run_record(const dds::ParticipantOptions& dds_options, RecordOptions o) {
   if (o.output.empty()) o.output = default_file_name();
 
   dds::Wakeup wakeup;  // outlives the participant, whose listeners signal it
-  dds::Participant participant(with_node_name(dds_options, "pmlsm_record"));
+  dds::Participant participant(with_node_name(dds_options, "pmlsm_record", "pmlsm_record"));
   mcap::WriterOptions writer_options;
   writer_options.compression = compression;
   writer_options.chunk_size_bytes = o.chunk_size_kib * 1024;

@@ -1,8 +1,4 @@
 // `pmlsm topic list|echo|hz|delay`: what is on the domain, in the style of `ros2 topic`.
-#include <fastdds/dds/domain/DomainParticipantListener.hpp>
-#include <fastdds/rtps/participant/ParticipantDiscoveryInfo.h>
-#include <fastdds/rtps/reader/ReaderDiscoveryInfo.h>
-#include <fastdds/rtps/writer/WriterDiscoveryInfo.h>
 
 #include <chrono>
 #include <cstdio>
@@ -15,6 +11,7 @@
 #include <thread>
 
 #include "commands.hpp"
+#include "discovery.hpp"
 #include "pmlsm/dds/shutdown.hpp"
 #include "pmlsm/introspect/cdr_schema.hpp"
 #include "tool_support.hpp"
@@ -29,106 +26,10 @@ namespace rtps = eprosima::fastrtps::rtps;
 // history (which the recorder's transient-local profile asks for).
 constexpr const char* kMonitorProfile = "pmlsm_monitor";
 
-std::string guid_text(const rtps::GUID_t& guid) {
-  std::ostringstream s;
-  s << guid;
-  return s.str();
-}
-
-std::string prefix_text(const rtps::GuidPrefix_t& prefix) {
-  std::ostringstream s;
-  s << prefix;
-  return s.str();
-}
-
-// ---- topic list ----------------------------------------------------------------------------
-
-struct Endpoint {
-  std::string participant_prefix;
-  bool reliable = false;
-  bool transient_local = false;
-};
-
-struct TopicInfo {
-  std::string type_name;
-  std::map<std::string, Endpoint> writers;  // by endpoint GUID
-  std::map<std::string, Endpoint> readers;
-};
-
-class DiscoveryCollector : public eprosima::fastdds::dds::DomainParticipantListener {
- public:
-  void on_participant_discovery(eprosima::fastdds::dds::DomainParticipant*,
-                                rtps::ParticipantDiscoveryInfo&& info) override {
-    std::lock_guard<std::mutex> lock(mutex_);
-    const std::string prefix = prefix_text(info.info.m_guid.guidPrefix);
-    if (info.status == rtps::ParticipantDiscoveryInfo::DISCOVERED_PARTICIPANT) {
-      participant_names_[prefix] = info.info.m_participantName.to_string();
-    }
-  }
-  void on_publisher_discovery(eprosima::fastdds::dds::DomainParticipant*,
-                              rtps::WriterDiscoveryInfo&& info) override {
-    note(info.info, info.status == rtps::WriterDiscoveryInfo::REMOVED_WRITER, &TopicInfo::writers);
-  }
-  void on_subscriber_discovery(eprosima::fastdds::dds::DomainParticipant*,
-                               rtps::ReaderDiscoveryInfo&& info) override {
-    note(info.info, info.status == rtps::ReaderDiscoveryInfo::REMOVED_READER, &TopicInfo::readers);
-  }
-
-  std::string participant_name(const std::string& prefix) const {
-    const auto found = participant_names_.find(prefix);
-    return found == participant_names_.end() || found->second.empty() ? "?" : found->second;
-  }
-
-  /// One block per topic: type, then each writer and reader with its node and QoS.
-  std::string report(bool verbose) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    std::ostringstream out;
-    for (const auto& [dds_name, topic] : topics_) {
-      if (topic.writers.empty() && topic.readers.empty()) continue;
-      const std::string name = dds::display_name(dds_name);
-      out << name << " [" << topic.type_name << "]";
-      if (dds::find_topic(dds_name) == nullptr) out << " (not a project topic)";
-      out << "  writers: " << topic.writers.size() << "  readers: " << topic.readers.size() << "\n";
-      if (!verbose) continue;
-      const auto list = [&](const char* role, const std::map<std::string, Endpoint>& endpoints) {
-        for (const auto& [guid, e] : endpoints) {
-          out << "    " << role << " " << participant_name(e.participant_prefix) << "  "
-              << (e.reliable ? "reliable" : "best-effort") << ", "
-              << (e.transient_local ? "transient-local" : "volatile") << "\n";
-        }
-      };
-      list("writer", topic.writers);
-      list("reader", topic.readers);
-    }
-    return out.str();
-  }
-
- private:
-  /// Adds or removes one writer or reader (`role` picks which map) of its topic.
-  template <typename ProxyData>
-  void note(const ProxyData& data, bool removed, std::map<std::string, Endpoint> TopicInfo::*role) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    auto& topic = topics_[data.topicName().to_string()];
-    topic.type_name = data.typeName().to_string();
-    const std::string key = guid_text(data.guid());
-    if (removed) {
-      (topic.*role).erase(key);
-      return;
-    }
-    (topic.*role)[key] = Endpoint{prefix_text(data.guid().guidPrefix),
-                                  data.m_qos.m_reliability.kind == eprosima::fastdds::dds::RELIABLE_RELIABILITY_QOS,
-                                  data.m_qos.m_durability.kind != eprosima::fastdds::dds::VOLATILE_DURABILITY_QOS};
-  }
-
-  std::mutex mutex_;
-  std::map<std::string, std::string> participant_names_;
-  std::map<std::string, TopicInfo> topics_;
-};
-
 int run_list(dds::ParticipantOptions options, double wait_s, bool verbose) {
   DiscoveryCollector collector;
   options.listener = &collector;
-  dds::Participant participant(with_node_name(options, "pmlsm_topic_list"));
+  dds::Participant participant(with_node_name(options, "pmlsm_topic_list", "pmlsm_topic"));
   // Discovery has no "done": listen for a while, as `ros2 topic list` does with its daemon.
   const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(wait_s));
   while (Clock::now() < deadline && !dds::stop_requested()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
@@ -143,7 +44,7 @@ int run_list(dds::ParticipantOptions options, double wait_s, bool verbose) {
 struct TopicReader {
   TopicReader(dds::ParticipantOptions options, const std::string& topic_name, const char* tool)
       : entry(*select_topics({topic_name}).front()),
-        participant(with_node_name(options, tool)),
+        participant(with_node_name(options, tool, "pmlsm_topic")),
         reader(participant.make_raw_reader(entry, wakeup, kMonitorProfile)),
         schema(introspect::MessageSchema::parse(entry.schema_idl, entry.type_name)) {}
   const dds::CatalogEntry& entry;
@@ -284,7 +185,7 @@ void add_topic_commands(CLI::App& app, dds::ParticipantOptions& dds_options, int
   topic->require_subcommand(1);
 
   struct Options {
-    double wait_s = 2.0;
+    double wait_s = -1.0;  // < 0: 2 s open, 5 s secure (each peer's handshake comes first)
     bool verbose = false;
     std::string topic;
     std::uint64_t count = 0;
@@ -295,9 +196,13 @@ void add_topic_commands(CLI::App& app, dds::ParticipantOptions& dds_options, int
   auto o = std::make_shared<Options>();
 
   auto* list = topic->add_subcommand("list", "Topics seen on the domain, with type, writers, readers and QoS");
-  list->add_option("--wait-s", o->wait_s, "How long to listen for discovery")->capture_default_str()->check(CLI::Range(0.1, 600.0));
+  list->add_option("--wait-s", o->wait_s, "How long to listen for discovery (default 2 s, with a keystore 5 s)")
+      ->check(CLI::Range(0.1, 600.0));
   list->add_flag("-v,--verbose", o->verbose, "Every writer and reader with its node and QoS");
-  list->callback([&dds_options, o, &exit_code] { exit_code = run_list(dds_options, o->wait_s, o->verbose); });
+  list->callback([&dds_options, o, &exit_code] {
+    const double wait_s = o->wait_s > 0 ? o->wait_s : (dds_options.keystore.empty() ? 2.0 : 5.0);
+    exit_code = run_list(dds_options, wait_s, o->verbose);
+  });
 
   auto* echo = topic->add_subcommand("echo", "Prints the samples of a topic, decoded");
   echo->add_option("topic", o->topic, "Topic, e.g. /pmlsm/motor_feedback")->required();

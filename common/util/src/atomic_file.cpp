@@ -23,9 +23,12 @@ namespace {
 
 }  // namespace
 
-void write_file_atomically(const std::string& path, std::string_view contents) {
+void write_file_atomically(const std::string& path, std::string_view contents, unsigned mode) {
   const std::string temporary = path + ".tmp";
-  const int fd = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  // A temporary file left by a crash would keep its old mode through O_CREAT: start afresh, so a
+  // private key's file is 0600 from its first byte.
+  ::unlink(temporary.c_str());
+  const int fd = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, static_cast<mode_t>(mode));
   if (fd < 0) fail("cannot create '" + temporary + "'", errno);
   const char* data = contents.data();
   std::size_t left = contents.size();

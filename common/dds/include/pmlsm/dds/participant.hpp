@@ -83,7 +83,31 @@ struct ParticipantOptions {
   /// Told about every writer and reader discovered in the domain (`pmlsm topic list`); must
   /// outlive the participant. Set at creation so that no discovery event is missed.
   eprosima::fastdds::dds::DomainParticipantListener* listener = nullptr;
+  /// DDS Security: the keystore made by `pmlsm security` (see common/security's
+  /// keystore_layout.hpp). Set: the participant authenticates as `identity`, is allowed only
+  /// what that identity's permissions grant, and its traffic is protected as the governance
+  /// says; a file missing or refused is an error, never an open participant. Empty: an open
+  /// participant, as without security.
+  std::string keystore;
+  /// The identity in the keystore (default: node_name).
+  std::string identity;
 };
+
+/// Bad security input (keystore file missing or refused, identity absent, an option that
+/// cannot be combined with security): programs exit with code 2 (bad config or input).
+class SecurityConfigError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// The environment variable that names the keystore when --keystore does not.
+inline constexpr const char* kKeystoreEnv = "PMLSM_KEYSTORE";
+/// --keystore value that keeps a participant open even when PMLSM_KEYSTORE is set.
+inline constexpr const char* kNoKeystore = "none";
+
+/// The keystore a --keystore value means: "none" -> "" (open, whatever the environment says);
+/// "" -> $PMLSM_KEYSTORE ("" when unset); anything else itself.
+std::string resolve_keystore(const std::string& option_value);
 
 class Participant;
 
@@ -181,6 +205,8 @@ class Participant {
 
   eprosima::fastdds::dds::DomainParticipant* entity() { return participant_; }
   const std::string& node_name() const { return node_name_; }
+  /// The identity it authenticated as; empty for an open participant.
+  const std::string& identity() const { return identity_; }
 
  private:
   class NotifyingListener;
@@ -200,7 +226,12 @@ class Participant {
                                                     const std::string& profile, Wakeup& wakeup);
   void delete_reader_entity(eprosima::fastdds::dds::DataReader* reader);
 
+  /// Why Fast DDS may have refused an entity: with security, the identity's permissions.
+  std::string refusal_hint(const char* what, const std::string& topic) const;
+
   std::string node_name_;
+  std::string identity_;
+  std::string keystore_;
   bool data_sharing_ = false;
   eprosima::fastdds::dds::DomainParticipant* participant_ = nullptr;
   eprosima::fastdds::dds::Publisher* publisher_ = nullptr;

@@ -19,8 +19,9 @@ class AtomicWriteError : public std::runtime_error {
 /// directory (best effort: some file systems refuse that), so that `path`
 /// holds the old or the new contents after a crash or power cut. Without the
 /// fsync before the rename a crash may leave the new name on empty contents.
-/// The temporary file is removed on every failure. Mode 0644 (before umask).
+/// The temporary file is removed on every failure. Mode `mode` (0644 by default, before umask;
+/// a private key's 0600 is set on the temporary file before anything is written to it).
 /// @throws AtomicWriteError naming what failed, the file and errno's text.
-void write_file_atomically(const std::string& path, std::string_view contents);
+void write_file_atomically(const std::string& path, std::string_view contents, unsigned mode = 0644);
 
 }  // namespace pmlsm
