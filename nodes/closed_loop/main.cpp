@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 
 #include <cmath>
+#include <algorithm>
 #include <cstdio>
 #include <stdexcept>
 #include <exception>
@@ -84,6 +85,13 @@ int main(int argc, char** argv) {
       // A plant that diverged is a fault: its row is marked, the run is not valid.
       const std::string fault = pmlsm::plant_fault_reason(trace);
       pmlsm::node::print_results_row(scenario.name + suffix, m, fault);
+      // The vibration guard's verdict: the compensation ran the whole scenario, or from when it was out.
+      const auto trip = std::find_if(trace.begin(), trace.end(), [](const pmlsm::TickRecord& r) { return r.guard_tripped; });
+      if (trip != trace.end()) {
+        std::printf("  vibration guard: compensation faded out from t = %.3f s (the oscillation grew or did not "
+                    "decay); the rest of the run is PI alone\n",
+                    trip->time_s);
+      }
       if (!fault.empty()) {
         std::fprintf(stderr, "closed_loop: %s: %s: run not valid\n", scenario.name.c_str(), fault.c_str());
         exit_code = pmlsm::kExitSafeState;

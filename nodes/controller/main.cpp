@@ -105,6 +105,7 @@ class ControllerNode {
   std::uint64_t compensation_tick_ = 0;
   bool have_compensation_ = false;
   std::uint64_t compensation_missing_ = 0;
+  bool guard_reported_ = false;
   std::uint64_t next_tick_ = 0;  // ticks up to here are done
   node::FeedbackFollower feedback_follower_{"controller", common_, rt_.cfg.clock};
   std::uint64_t rejected_ = 0;
@@ -210,7 +211,15 @@ int ControllerNode::run() {
       break;
     }
     const VelocityControllerOutput out = controller_->step(k, velocity, applied_compensation_n);
-    publish(k, out, applied_compensation_n);
+    if (out.guard.tripped && !guard_reported_) {
+      // Once: the compensation fades out and stays out; the controller goes on as PI alone.
+      guard_reported_ = true;
+      std::fprintf(stderr, "controller: tick %llu: vibration guard: %s; compensation faded out, PI alone from here\n",
+                   static_cast<unsigned long long>(k), to_string(out.guard.reason));
+      rt_.status.publish(node_state::STATE_RUNNING, k, period_s_,
+                         std::string("vibration guard: compensation out: ") + to_string(out.guard.reason));
+    }
+    publish(k, out, out.compensation_applied_n);
     if (voltage_level_) run_current_loop(k, out.force_n);
     next_tick_ = k + 1;
   }
@@ -223,9 +232,10 @@ int ControllerNode::finish(int exit_code) {
   command_writer_.wait_for_acknowledgments(node::kFlushTimeout);
   if (voltage_level_) voltage_writer_.wait_for_acknowledgments(node::kFlushTimeout);
   reference_writer_.wait_for_acknowledgments(node::kFlushTimeout);
-  std::printf("controller: %llu ticks answered, %llu rejected, compensation %s (%llu ticks without)\n",
+  std::printf("controller: %llu ticks answered, %llu rejected, compensation %s (%llu ticks without)%s\n",
               static_cast<unsigned long long>(next_tick_), static_cast<unsigned long long>(rejected_),
-              opt_.compensation.c_str(), static_cast<unsigned long long>(compensation_missing_));
+              opt_.compensation.c_str(), static_cast<unsigned long long>(compensation_missing_),
+              guard_reported_ ? ", taken out by the vibration guard" : "");
   return exit_code;
 }
 

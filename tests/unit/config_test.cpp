@@ -397,6 +397,24 @@ TEST(ConfigKalmanInputs, ShippedValuesAreThePlantsAndLoad) {
   EXPECT_DOUBLE_EQ(kp.ripple_input.model.scale_n, p.kalman.ripple_input.model.scale_n);
 }
 
+TEST(ConfigKalmanModel, IsTheFiltersOwnSoAPlantOverrideLeavesItNominal) {
+  const std::string path = std::string(PMLSM_SOURCE_DIR) + "/configs/system.yaml";
+  const SystemParams nominal = load_system_params(path);
+  EXPECT_DOUBLE_EQ(nominal.kalman.model.load_mass_kg, nominal.plant.mechanics.load_mass_kg);
+  EXPECT_DOUBLE_EQ(nominal.kalman.model.motor_mass_kg, nominal.plant.mechanics.motor_mass_kg);
+  EXPECT_DOUBLE_EQ(nominal.kalman.model.spring_n_per_m, nominal.plant.mechanics.spring_n_per_m);
+  // A heavier load and a stiffer coupling in the plant: the filter keeps the nominal model.
+  const SystemParams mismatched = load_system_params(
+      path, {ConfigOverride::parse("plant.mechanics.load_mass_kg=2"), ConfigOverride::parse("plant.mechanics.spring_n_per_m=27400")});
+  EXPECT_DOUBLE_EQ(mismatched.plant.mechanics.load_mass_kg, 2.0);
+  EXPECT_DOUBLE_EQ(mismatched.kalman_params().load_mass_kg, 4.0);
+  EXPECT_DOUBLE_EQ(mismatched.kalman_params().spring_n_per_m, 13700.0);
+  // And the model alone.
+  const SystemParams model = load_system_params(path, {ConfigOverride::parse("kalman.model.load_mass_kg=8")});
+  EXPECT_DOUBLE_EQ(model.kalman_params().load_mass_kg, 8.0);
+  EXPECT_DOUBLE_EQ(model.plant.mechanics.load_mass_kg, 4.0);
+}
+
 TEST(ConfigKalmanInputs, OverridesSwitchThemOnAndOff) {
   for (const char* value : {"true", "false"}) {
     SCOPED_TRACE(value);

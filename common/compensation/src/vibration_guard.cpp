@@ -26,6 +26,10 @@ void VibrationGuardParams::validate() const {
   if (!(growth_ratio > 1.0)) {
     throw std::invalid_argument("growth_ratio: must be > 1, got " + format_value(growth_ratio));
   }
+  require_finite("min_decay", min_decay);
+  if (!(min_decay > 0.0 && min_decay < 1.0)) {
+    throw std::invalid_argument("min_decay: must be in (0, 1), got " + format_value(min_decay));
+  }
   if (windows_to_trip < 1) throw std::invalid_argument("windows_to_trip: must be >= 1, got 0");
   require_non_negative("fade_s", fade_s);
 }
@@ -33,7 +37,7 @@ void VibrationGuardParams::validate() const {
 const char* to_string(VibrationGuardTrip trip) noexcept {
   switch (trip) {
     case VibrationGuardTrip::kNone: return "none";
-    case VibrationGuardTrip::kEnergyInjected: return "the compensation put energy into the oscillation";
+    case VibrationGuardTrip::kSustained: return "the oscillation did not decay (a limit cycle)";
     case VibrationGuardTrip::kGrowing: return "the oscillation grew";
   }
   return "unknown";
@@ -85,26 +89,26 @@ VibrationGuardOutput VibrationGuard::step(double motor_velocity_mps, double comp
   f_prev_ = compensation_force_n;
 
   sum_v2_ += v_hp_ * v_hp_;
-  sum_pv_ += f_hp_ * v_hp_;
+  sum_f2_ += f_hp_ * f_hp_;
   if (++in_window_ >= window_steps_) {
     const double n = static_cast<double>(in_window_);
     const double amplitude = std::sqrt(sum_v2_ / n);
-    const double power = sum_pv_ / n;
     ++counters_.windows;
     counters_.last_amplitude_mps = amplitude;
-    counters_.last_power_w = power;
+    counters_.last_force_rms_n = std::sqrt(sum_f2_ / n);
     const bool oscillating = amplitude > params_.min_oscillation_mps;
-    injecting_run_ = oscillating && power > 0.0 ? injecting_run_ + 1 : 0;
+    sustained_run_ = oscillating && previous_amplitude_ > 0.0 && amplitude > (1.0 - params_.min_decay) * previous_amplitude_
+                         ? sustained_run_ + 1
+                         : 0;
     growing_run_ = oscillating && previous_amplitude_ > 0.0 && amplitude > params_.growth_ratio * previous_amplitude_
                        ? growing_run_ + 1
                        : 0;
     previous_amplitude_ = amplitude;
     in_window_ = 0;
-    sum_v2_ = sum_pv_ = 0;
-    if (!out_.tripped && (injecting_run_ >= params_.windows_to_trip || growing_run_ >= params_.windows_to_trip)) {
+    sum_v2_ = sum_f2_ = 0;
+    if (!out_.tripped && (sustained_run_ >= params_.windows_to_trip || growing_run_ >= params_.windows_to_trip)) {
       out_.tripped = true;
-      out_.reason = injecting_run_ >= params_.windows_to_trip ? VibrationGuardTrip::kEnergyInjected
-                                                              : VibrationGuardTrip::kGrowing;
+      out_.reason = growing_run_ >= params_.windows_to_trip ? VibrationGuardTrip::kGrowing : VibrationGuardTrip::kSustained;
       counters_.trip_tick = counters_.steps;
     }
   }

@@ -63,7 +63,8 @@ TickRecord ClosedLoop::step(double compensation_force_n) {
   rec.command_mps = control.command_mps;
   rec.v_ref_mps = control.v_ref_mps;
   rec.force_command_n = control.force_n;
-  rec.compensation_force_n = compensation_force_n;
+  rec.compensation_force_n = control.compensation_applied_n;
+  rec.guard_tripped = control.guard.tripped;
 
   record_truth(drive_.plant().truth(), rec);
 

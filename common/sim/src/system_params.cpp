@@ -57,9 +57,9 @@ ReferenceModelParams SystemParams::reference_model_params() const {
 
 KalmanParams SystemParams::kalman_params() const {
   KalmanParams p;
-  p.motor_mass_kg = plant.mechanics.motor_mass_kg;
-  p.load_mass_kg = plant.mechanics.load_mass_kg;
-  p.spring_n_per_m = plant.mechanics.spring_n_per_m;
+  p.motor_mass_kg = kalman.model.motor_mass_kg;
+  p.load_mass_kg = kalman.model.load_mass_kg;
+  p.spring_n_per_m = kalman.model.spring_n_per_m;
   p.period_s = timing.control_period_s;
   p.process_noise_diag = kalman.process_noise_diag;
   p.measurement_noise = kalman.measurement_noise;
@@ -81,6 +81,19 @@ RnnCompensatorParams SystemParams::rnn_compensator_params(bool online_learning) 
   p.tolerance_mps = compensator.rnn_tolerance_mps;
   p.kc_limit_mps = compensator.rnn_kc_limit_mps;
   p.du_deadband_per_s = compensator.rnn_du_deadband_per_s;
+  return p;
+}
+
+VibrationGuardParams SystemParams::vibration_guard_params() const {
+  VibrationGuardParams p;
+  p.control_period_s = timing.control_period_s;
+  p.highpass_hz = compensator.guard_highpass_hz;
+  p.window_s = compensator.guard_window_s;
+  p.min_oscillation_mps = compensator.guard_min_oscillation_mps;
+  p.growth_ratio = compensator.guard_growth_ratio;
+  p.min_decay = compensator.guard_min_decay;
+  p.windows_to_trip = static_cast<std::uint32_t>(compensator.guard_windows_to_trip);
+  p.fade_s = compensator.guard_fade_s;
   return p;
 }
 
@@ -150,6 +163,7 @@ void SystemParams::validate() const {
   validate_section("kalman", [&] { kalman_params().validate(); });
   validate_section("compensator.rnn", [&] { rnn_compensator_params(true).validate(); });
   validate_section("compensator.acceleration_feedback", [&] { accel_feedback_params().validate(); });
+  validate_section("compensator.guard", [&] { vibration_guard_params().validate(); });
   validate_section("plant", [&] { plant.check_step(); });
 }
 

@@ -1,19 +1,19 @@
-// A guard in the compensation path: it watches the oscillation the compensator acts on, from
-// signals the Kalman estimate cannot fool (the measured motor velocity and the compensation
-// force actually applied), and fades the compensation out before it hurts.
+// A guard in the compensation path: it watches the oscillation the compensator acts on, in the
+// measured motor velocity (a signal the Kalman estimate cannot fool), and fades the compensation
+// out before it hurts.
 //
-// Both signals are high-passed (second order, corner f_c: the load's resonance lies above it,
-// tracking motion below), so what remains is the oscillatory part: v~ and F~. Over windows of window_s it computes
-//   the oscillation's size   A = rms(v~)                          [m/s]
-//   the power the compensator puts into it   P = mean(F~ v~)       [W]
-// A damping compensator takes energy out of the oscillation (P < 0 on average: the force
-// opposes the oscillating velocity); one that sustains a limit cycle or makes an oscillation
-// grow puts energy in. The guard trips when, with A above the floor min_oscillation_mps,
-//   - P > 0 for windows_to_trip windows in a row (the compensator pumps the oscillation), or
-//   - A grew by more than growth_ratio a window for windows_to_trip windows in a row.
+// The velocity is high-passed (second order, corner f_c: the load's modes lie above it, tracking
+// motion below), so what remains is the oscillatory part v~. Over windows of window_s it takes
+// the oscillation's size A = rms(v~) [m/s]. A compensator that damps makes A fall window after
+// window once an edge or a disturbance has excited the load; one that sustains a limit cycle
+// keeps A up, one that destabilises makes it grow. The guard trips when, with A above the floor
+// min_oscillation_mps, windows_to_trip windows in a row
+//   - grew by more than growth_ratio each (kGrowing), or
+//   - did not fall by at least min_decay each, A_k > (1 - min_decay) A_{k-1} (kSustained).
+// The compensation force is recorded alongside (its rms over the window) for the report.
 // Tripped, the compensation's scale ramps from 1 to 0 over fade_s and stays 0 (latched) until
-// reset(). step() never throws and does not allocate; a non-finite input is counted and
-// treated as 0.
+// reset(). step() never throws and does not allocate; a non-finite input is counted and the
+// last finite one used instead.
 #pragma once
 
 #include <cstdint>
@@ -26,12 +26,13 @@ struct VibrationGuardParams {
   double window_s = 0.1;               ///< the evaluation window, at least 2 periods
   double min_oscillation_mps = 2e-3;   ///< A below this is no oscillation to guard against
   double growth_ratio = 1.25;          ///< A(window) / A(previous) above this is growth, > 1
+  double min_decay = 0.2;              ///< a damped oscillation loses at least this share a window, (0, 1)
   std::uint32_t windows_to_trip = 3;   ///< >= 1
   double fade_s = 0.05;                ///< >= 0 (0: off at once)
   void validate() const;
 };
 
-enum class VibrationGuardTrip : std::uint8_t { kNone, kEnergyInjected, kGrowing };
+enum class VibrationGuardTrip : std::uint8_t { kNone, kSustained, kGrowing };
 const char* to_string(VibrationGuardTrip trip) noexcept;
 
 struct VibrationGuardOutput {
@@ -46,7 +47,7 @@ struct VibrationGuardCounters {
   std::uint64_t windows = 0;
   std::uint64_t trip_tick = 0;        ///< the step at which it tripped (when tripped)
   double last_amplitude_mps = 0;      ///< A of the last window
-  double last_power_w = 0;            ///< P of the last window
+  double last_force_rms_n = 0;        ///< rms of the high-passed compensation force of the last window
 };
 
 class VibrationGuard {
@@ -72,9 +73,9 @@ class VibrationGuard {
   double v_prev_ = 0, v_hp1_ = 0, v_hp_ = 0, f_prev_ = 0, f_hp1_ = 0, f_hp_ = 0;
   bool primed_ = false;
   std::uint32_t in_window_ = 0;
-  double sum_v2_ = 0, sum_pv_ = 0;
+  double sum_v2_ = 0, sum_f2_ = 0;
   double previous_amplitude_ = 0;
-  std::uint32_t injecting_run_ = 0, growing_run_ = 0;
+  std::uint32_t sustained_run_ = 0, growing_run_ = 0;
   std::uint32_t faded_ = 0;
   VibrationGuardOutput out_;
   VibrationGuardCounters counters_;

@@ -45,7 +45,8 @@ struct TickRecord {
   double est_spring_force_n = 0;
   double est_load_accel_mps2 = 0;
   double force_command_n = 0;      ///< velocity loop output F_k (PI + compensation, limited)
-  double compensation_force_n = 0; ///< compensator force added to the PI output at t_k
+  double compensation_force_n = 0; ///< compensator force added to the PI output at t_k (after the guard)
+  bool guard_tripped = false;      ///< the vibration guard has taken the compensation out (latched)
   double thrust_n = 0;             ///< true F_dx at t_k
   double ripple_n = 0;
   double friction_n = 0;

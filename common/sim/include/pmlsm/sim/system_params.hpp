@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "pmlsm/compensation/accel_feedback.hpp"
+#include "pmlsm/compensation/vibration_guard.hpp"
 #include "pmlsm/control/current_controller.hpp"
 #include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/estimation/kalman_filter.hpp"
@@ -36,7 +37,16 @@ struct CurrentLoopTuning {
 /// Kalman filter tuning; its model (34) comes from the plant's mechanics. The
 /// friction and ripple models of its input are its own values (what a rig
 /// identifies), not the simulated plant's, so a mismatch can be studied.
+/// The two-mass model the Kalman filter (eqs. 30-33) assumes: its own copy, so that a study of
+/// a plant the model does not match (a heavier load, a stiffer coupling) changes the plant alone.
+struct KalmanModel {
+  double motor_mass_kg = 0;
+  double load_mass_kg = 0;
+  double spring_n_per_m = 0;
+};
+
 struct KalmanTuning {
+  KalmanModel model;
   Eigen::Vector3d process_noise_diag = Eigen::Vector3d::Zero();
   double measurement_noise = 0;
   Eigen::Vector3d initial_covariance_diag = Eigen::Vector3d::Zero();
@@ -67,6 +77,15 @@ struct CompensatorTuning {
   double rnn_kc_limit_mps = 0;
   double rnn_du_deadband_per_s = 0;
   double accel_feedback_gain_kg = 0;
+  /// The vibration guard in the compensation path (pmlsm/compensation/vibration_guard.hpp).
+  bool guard_enabled = true;
+  double guard_highpass_hz = 0;
+  double guard_window_s = 0;
+  double guard_min_oscillation_mps = 0;
+  double guard_growth_ratio = 0;
+  double guard_min_decay = 0;
+  double guard_windows_to_trip = 0;
+  double guard_fade_s = 0;
 };
 
 /// A parameter's plausible range and why: a config value outside it is refused by
@@ -114,6 +133,7 @@ struct SystemParams {
   KalmanParams kalman_params() const;
   RnnCompensatorParams rnn_compensator_params(bool online_learning) const;
   AccelFeedbackParams accel_feedback_params() const;
+  VibrationGuardParams vibration_guard_params() const;
 };
 
 namespace detail {
@@ -212,6 +232,11 @@ void visit_parameters(Params& p, Visitor& v) {
   v.real("reference_model.damping_ratio", p.reference_model.damping_ratio,
          {0.01, 100.0, "from barely damped to overdamped a hundred times"});
 
+  // The filter's model of the mechanics: the ranges of the plant's (the model is of such a plant).
+  v.real("kalman.model.motor_mass_kg", p.kalman.model.motor_mass_kg, {0.01, 1e4, "from a 10 g slider to a 10 t gantry"});
+  v.real("kalman.model.load_mass_kg", p.kalman.model.load_mass_kg, {0.01, 1e4, "from a 10 g load to a 10 t one"});
+  v.real("kalman.model.spring_n_per_m", p.kalman.model.spring_n_per_m,
+         {1.0, 1e9, "from a rubber band to a short steel coupling"});
   const Plausible noise{0.0, 1e12, "a variance: 0 to 1e12 (a 1 MN or 1 Mm/s standard deviation)"};
   v.vector3("kalman.process_noise_diag", p.kalman.process_noise_diag, noise);
   v.real("kalman.measurement_noise", p.kalman.measurement_noise,
@@ -237,6 +262,18 @@ void visit_parameters(Params& p, Visitor& v) {
   v.real("compensator.rnn.du_deadband_per_s", c.rnn_du_deadband_per_s, {1e-6, 1e6, "1e-6 to 1e6 1/s"});
   v.real("compensator.acceleration_feedback.gain_kg", c.accel_feedback_gain_kg,
          {0.0, 1e5, "0 to 100 t of virtual mass"});
+  v.flag("compensator.guard.enabled", c.guard_enabled);
+  v.real("compensator.guard.highpass_hz", c.guard_highpass_hz,
+         {0.01, 1e4, "the corner between tracking motion and vibration: 10 mHz to 10 kHz"});
+  v.real("compensator.guard.window_s", c.guard_window_s, {1e-3, 100.0, "1 ms to 100 s of evaluation window"});
+  v.real("compensator.guard.min_oscillation_mps", c.guard_min_oscillation_mps,
+         {1e-6, 10.0, "1 um/s to 10 m/s: below it there is no oscillation worth guarding against"});
+  v.real("compensator.guard.growth_ratio", c.guard_growth_ratio, {1.0001, 100.0, "more than 1: a growth"});
+  v.real("compensator.guard.min_decay", c.guard_min_decay,
+         {1e-3, 0.999, "a share of the amplitude lost per window: between none and all"});
+  v.integer("compensator.guard.windows_to_trip", c.guard_windows_to_trip,
+            {1.0, 1000.0, "a count of windows in a row: a whole number, 1 to 1000"});
+  v.real("compensator.guard.fade_s", c.guard_fade_s, {0.0, 10.0, "0 (at once) to 10 s"});
 }
 
 }  // namespace pmlsm

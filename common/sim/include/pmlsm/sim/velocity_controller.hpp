@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 
 #include "pmlsm/control/reference_model.hpp"
 #include "pmlsm/sim/scenario.hpp"
@@ -20,6 +21,9 @@ struct VelocityControllerOutput {
   double force_n = 0;      ///< force request after the limit
   double velocity_error_mps = 0;
   bool saturated = false;
+  /// The compensation added: the request times the guard's scale.
+  double compensation_applied_n = 0;
+  VibrationGuardOutput guard;
 };
 
 class VelocityController {
@@ -30,12 +34,15 @@ class VelocityController {
                                 double compensation_force_n);
   const VelocityPi& velocity_pi() const { return velocity_; }
   const ReferenceModel& reference() const { return reference_; }
+  /// The guard in the compensation path (nullptr when compensator.guard.enabled is false).
+  const VibrationGuard* guard() const { return guard_ ? &*guard_ : nullptr; }
 
  private:
   Scenario scenario_;
   double period_s_;
   ReferenceModel reference_;
   VelocityPi velocity_;
+  std::optional<VibrationGuard> guard_;
 };
 
 }  // namespace pmlsm
