@@ -27,9 +27,9 @@ namespace pmlsm::node {
 
 /// How long a node waits at exit for its last samples to be acknowledged: an
 /// observer may be seconds behind a fast lockstep run; a dead reader stops
-/// counting once its lease (3 s, configs/dds/profiles.xml) runs out. Not shorter
-/// when a peer is known dead: Fast DDS 2.9.1 can hang destroying a writer whose dead
-/// reader is still matched (~StatefulWriter waits on the heartbeat event thread).
+/// counting once its lease (3 s, configs/dds/profiles.xml) runs out. (Destroying a
+/// writer whose dead reader is still matched no longer hangs: dds::Participant empties
+/// the histories first, see ~Participant.)
 inline constexpr std::chrono::seconds kFlushTimeout{15};
 
 enum class Clock { kLockstep, kRealtime };

@@ -97,16 +97,30 @@ DdsEvaluator::DdsEvaluator(dds::Participant& participant, dds::Wakeup& wakeup, C
 
 void DdsEvaluator::poll_workers() {
   msg::WorkerStatus status;
+  eprosima::fastdds::dds::SampleInfo info;
   const auto now = std::chrono::steady_clock::now();
-  while (status_reader_.take(status)) {
+  while (status_reader_.take(status, info)) {
+    const std::string id = status.worker_id().to_string();
     const std::string setup_error = status.setup_error().to_string();
-    Worker& w = workers_[status.worker_id().to_string()];
+    const Origin origin = info.sample_identity.writer_guid().guidPrefix;
+    const auto [it, fresh] = workers_.try_emplace(origin);
+    Worker& w = it->second;
+    if (fresh) {
+      w.id = id;
+      for (const auto& [other_origin, other] : workers_) {
+        if (other_origin != origin && other.id == id) {
+          std::fprintf(stderr, "de_trainer: two processes call themselves worker %s: neither gets jobs while both live "
+                       "(give each its own --id)\n", id.c_str());
+          break;
+        }
+      }
+    }
     w.last_seen = now;
     w.slots = std::max<std::uint32_t>(1, status.slots());
     w.run_id = status.run_id();
+    w.held_this_run = w.held_this_run || w.run_id == run_id_;
     if (setup_error != w.setup_error && !setup_error.empty()) {
-      std::fprintf(stderr, "de_trainer: worker %s refused the setup: %s\n", status.worker_id().c_str(),
-                   setup_error.c_str());
+      std::fprintf(stderr, "de_trainer: worker %s refused the setup: %s\n", id.c_str(), setup_error.c_str());
     }
     w.setup_error = setup_error;
   }
@@ -114,9 +128,9 @@ void DdsEvaluator::poll_workers() {
     if (now - it->second.last_seen > worker_timeout_) {
       if (it->second.in_flight > 0) {
         std::fprintf(stderr, "de_trainer: worker %s silent for %lld ms: its %zu jobs go to others\n",
-                     it->first.c_str(), static_cast<long long>(worker_timeout_.count()), it->second.in_flight);
+                     it->second.id.c_str(), static_cast<long long>(worker_timeout_.count()), it->second.in_flight);
       }
-      ++counters_.workers_lost;
+      if (it->second.held_this_run) ++counters_.workers_lost;
       it = workers_.erase(it);
     } else {
       ++it;
@@ -124,11 +138,16 @@ void DdsEvaluator::poll_workers() {
   }
 }
 
+bool DdsEvaluator::usable(const Worker& w) const {
+  if (w.run_id != run_id_ || !w.setup_error.empty()) return false;
+  const auto same_id = std::count_if(workers_.begin(), workers_.end(), [&](const auto& kv) { return kv.second.id == w.id; });
+  return same_id == 1;
+}
+
 std::size_t DdsEvaluator::live_workers() {
   poll_workers();
-  return static_cast<std::size_t>(std::count_if(workers_.begin(), workers_.end(), [&](const auto& kv) {
-    return kv.second.run_id == run_id_ && kv.second.setup_error.empty();
-  }));
+  return static_cast<std::size_t>(
+      std::count_if(workers_.begin(), workers_.end(), [&](const auto& kv) { return usable(kv.second); }));
 }
 
 std::size_t DdsEvaluator::wait_for_workers(std::size_t count, std::chrono::milliseconds timeout) {
@@ -172,8 +191,8 @@ void DdsEvaluator::evaluate(const std::vector<std::vector<double>>& candidates, 
     poll_workers();
     // Jobs of workers that vanished go back to the queue.
     for (auto it = in_flight_.begin(); it != in_flight_.end();) {
-      const auto w = workers_.find(it->second.worker_id);
-      if (w == workers_.end() || w->second.run_id != run_id_) {
+      const auto w = workers_.find(it->second.worker);
+      if (w == workers_.end() || !usable(w->second)) {
         pending.push_front(it->second.index);
         ++counters_.requeued;
         if (w != workers_.end() && w->second.in_flight > 0) --w->second.in_flight;
@@ -189,29 +208,31 @@ void DdsEvaluator::evaluate(const std::vector<std::vector<double>>& candidates, 
       break;
     }
     // Keep every live worker busy with up to 2 x slots jobs in flight.
-    for (auto& [id, w] : workers_) {
-      if (w.run_id != run_id_ || !w.setup_error.empty()) continue;
+    for (auto& [origin, w] : workers_) {
+      if (!usable(w)) continue;
       while (!pending.empty() && w.in_flight < 2 * static_cast<std::size_t>(w.slots)) {
         const std::size_t index = pending.front();
         pending.pop_front();
         const std::uint64_t job = next_job_id_++;
         request.job_id(job);
-        request.worker_id(id);
+        request.worker_id(w.id);
         request.candidate(candidates[index]);
         request_writer_.write(request);
-        in_flight_[job] = Job{index, id};
+        in_flight_[job] = Job{index, origin};
         ++w.in_flight;
       }
     }
     const std::uint64_t seen = wakeup_.generation();
     bool progressed = false;
-    while (result_reader_.take(result)) {
+    eprosima::fastdds::dds::SampleInfo info;
+    while (result_reader_.take(result, info)) {
       const auto it = in_flight_.find(result.job_id());
-      if (result.run_id() != run_id_ || it == in_flight_.end()) {
+      if (result.run_id() != run_id_ || it == in_flight_.end() ||
+          info.sample_identity.writer_guid().guidPrefix != it->second.worker) {
         ++counters_.stale_results;
         continue;
       }
-      auto w = workers_.find(it->second.worker_id);
+      auto w = workers_.find(it->second.worker);
       if (w != workers_.end() && w->second.in_flight > 0) --w->second.in_flight;
       if (result.status() == msg::EvaluationResult_Constants::STATUS_OK) {
         costs[it->second.index] = result.cost();

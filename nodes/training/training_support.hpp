@@ -11,7 +11,15 @@
 // queue with new job ids (a late answer to an old id is ignored). With no live
 // worker the trainer evaluates in its own threads. Costs are pure functions of
 // the weights, so who evaluates never changes the search.
+// A worker is known by the DDS participant its status comes from, not only by the
+// id it gives itself: a second process with the same id (another run on the
+// domain) would otherwise keep a dead worker alive with its own heartbeats, turn
+// its run id back and forth, and answer its requests. An id two live
+// participants claim gets no jobs, and an answer counts only from the participant
+// the job went to.
 #pragma once
+
+#include <fastdds/rtps/common/GuidPrefix_t.hpp>
 
 #include <chrono>
 #include <cstdint>
@@ -48,8 +56,8 @@ struct DispatchCounters {
   std::uint64_t remote_evaluations = 0;
   std::uint64_t local_evaluations = 0;
   std::uint64_t requeued = 0;       ///< jobs sent again (worker lost or refused)
-  std::uint64_t workers_lost = 0;
-  std::uint64_t stale_results = 0;  ///< answers to jobs already re-queued or of another run
+  std::uint64_t workers_lost = 0;   ///< workers of this run that went silent
+  std::uint64_t stale_results = 0;  ///< answers to jobs already re-queued, of another run or by another process
 };
 
 class DdsEvaluator final : public BatchEvaluator {
@@ -64,18 +72,24 @@ class DdsEvaluator final : public BatchEvaluator {
   const DispatchCounters& counters() const { return counters_; }
 
  private:
+  /// The DDS participant a worker's status and results come from.
+  using Origin = eprosima::fastrtps::rtps::GuidPrefix_t;
   struct Worker {
+    std::string id;
     std::chrono::steady_clock::time_point last_seen;
     std::uint32_t slots = 1;
     std::uint64_t run_id = 0;
     std::size_t in_flight = 0;
     std::string setup_error;
+    bool held_this_run = false;  ///< it took this run's setup once: missed when it goes silent
   };
   struct Job {
     std::size_t index;
-    std::string worker_id;
+    Origin worker;
   };
   void poll_workers();
+  /// Holds this run's setup, and no other live participant claims its id.
+  bool usable(const Worker& w) const;
   /// Evaluates candidates[i] for i in `indices` in the local threads, into costs[i].
   void evaluate_locally(const std::vector<std::vector<double>>& candidates, const std::deque<std::size_t>& indices,
                         std::vector<double>& costs);
@@ -87,7 +101,7 @@ class DdsEvaluator final : public BatchEvaluator {
   dds::Writer<pmlsm_msgs::msg::EvaluationRequestPubSubType> request_writer_;
   dds::Reader<pmlsm_msgs::msg::EvaluationResultPubSubType> result_reader_;
   dds::Reader<pmlsm_msgs::msg::WorkerStatusPubSubType> status_reader_;
-  std::map<std::string, Worker> workers_;
+  std::map<Origin, Worker> workers_;
   std::map<std::uint64_t, Job> in_flight_;
   std::uint64_t next_job_id_ = 1;
   DispatchCounters counters_;

@@ -143,6 +143,20 @@ Participant::Participant(const ParticipantOptions& options)
 
 Participant::~Participant() {
   if (participant_ == nullptr) return;
+  // Empty every writer's history first, under the writer's lock. Fast DDS 2.9.1's
+  // ~StatefulWriter releases the history's samples one by one (RTPSWriter::deinit) while
+  // its periodic heartbeat event still runs; that event, fired while a matched reader has
+  // samples unacknowledged (a peer that died and whose lease has not run out yet), walks
+  // the half-released history in add_gaps_for_holes_in_history_ and never ends, holding
+  // the writer's lock: the process hangs on exit (fixed upstream by eProsima/Fast-DDS#4076,
+  // after 2.9). With an empty history deinit has nothing to release. Samples a node wanted
+  // delivered were waited for (wait_for_acknowledgments) before this point.
+  std::vector<eprosima::fastdds::dds::DataWriter*> writers;
+  publisher_->get_datawriters(writers);
+  for (auto* writer : writers) {
+    std::size_t removed = 0;
+    writer->clear_history(&removed);  // RETCODE_ERROR when already empty: nothing to do
+  }
   participant_->delete_contained_entities();
   DomainParticipantFactory::get_instance()->delete_participant(participant_);
 }
