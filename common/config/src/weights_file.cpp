@@ -231,14 +231,10 @@ void validate_rnn_weights(const RnnWeightsFile& f) {
   }
 }
 
-RnnWeightsFile load_rnn_weights(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw ConfigError(path + ": cannot open file");
-  std::ostringstream text;
-  text << in.rdbuf();
+RnnWeightsFile parse_rnn_weights(const std::string& text, const std::string& path) {
   YAML::Node root;
   try {
-    root = YAML::Load(text.str());
+    root = YAML::Load(text);
   } catch (const YAML::Exception& e) {
     throw ConfigError(path + ": YAML parse error: " + e.what());
   }
@@ -289,6 +285,14 @@ RnnWeightsFile load_rnn_weights(const std::string& path) {
     throw ConfigError(path + ": " + e.what());
   }
   return f;
+}
+
+RnnWeightsFile load_rnn_weights(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError(path + ": cannot open file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return parse_rnn_weights(text.str(), path);
 }
 
 void save_rnn_weights(const std::string& path, const RnnWeightsFile& f) {
