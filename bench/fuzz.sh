@@ -24,13 +24,14 @@ if [ ${#targets[@]} -eq 0 ]; then
                           sed -n 's/^  \([a-z_]*\).*/\1/p')
 fi
 
+mkdir -p "$build"
 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER="$cxx" \
-  -DPMLSM_FUZZ=ON -DPMLSM_SANITIZE=address,undefined >"$build.configure.log" 2>&1 ||
-  { cat "$build.configure.log" >&2; exit 1; }
+  -DPMLSM_FUZZ=ON -DPMLSM_SANITIZE=address,undefined >"$build/configure.log" 2>&1 ||
+  { cat "$build/configure.log" >&2; exit 1; }
 build_targets=()
 for t in "${targets[@]}"; do build_targets+=(--target "fuzz_$t"); done
-cmake --build "$build" -j"$jobs" "${build_targets[@]}" >"$build.build.log" 2>&1 ||
-  { tail -40 "$build.build.log" >&2; exit 1; }
+cmake --build "$build" -j"$jobs" "${build_targets[@]}" >"$build/build.log" 2>&1 ||
+  { tail -40 "$build/build.log" >&2; exit 1; }
 
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:symbolize=1}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"

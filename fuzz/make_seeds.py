@@ -5,6 +5,7 @@ seeds it makes and leaves other files in the corpus directories alone."""
 import pathlib
 import shutil
 import struct
+import subprocess
 import zlib
 
 root = pathlib.Path(__file__).resolve().parent.parent
@@ -109,21 +110,35 @@ channel = record(0x04, struct.pack("<HH", 0, 1) + mstr("/pmlsm/force_command") +
 messages = b"".join(record(0x05, struct.pack("<HIQQ", 0, k, 1000 * k, 1000 * k) + bytes([0, 1, 0, 0]) +
                            struct.pack("<QqqdQ", k, k, k, 0.5 * k, k)) for k in range(3))
 inner = schema + channel + messages
-chunk = record(0x06, struct.pack("<QQQI", 0, 2000, len(inner), zlib.crc32(inner)) + mstr("") +
-               struct.pack("<Q", len(inner)) + inner)
 header = record(0x01, mstr("ros2") + mstr("pmlsm fuzz seed"))
-data = magic + header + chunk
-data_end = record(0x0F, struct.pack("<I", zlib.crc32(data)))
-summary_start = len(data) + len(data_end)
-statistics = record(0x0B, struct.pack("<QHII", 3, 1, 1, 1) + struct.pack("<QQ", 0, 2000) + struct.pack("<I", 0))
-summary = schema + channel + statistics
-footer_head = struct.pack("<BQ", 0x02, 20) + struct.pack("<QQ", summary_start, 0)
-footer = footer_head + struct.pack("<I", zlib.crc32(summary + footer_head))
-mcap = data + data_end + summary + footer + magic
+
+
+def compress(tool, data):
+    # The zstd and lz4 command-line tools write the frame formats MCAP uses.
+    return subprocess.run([tool, "-c", "-q"], input=data, stdout=subprocess.PIPE, check=True).stdout
+
+
+def mcap_file(compression):
+    records = inner if compression == "" else compress(compression, inner)
+    chunk = record(0x06, struct.pack("<QQQI", 0, 2000, len(inner), zlib.crc32(inner)) + mstr(compression) +
+                   struct.pack("<Q", len(records)) + records)
+    data = magic + header + chunk
+    data_end = record(0x0F, struct.pack("<I", zlib.crc32(data)))
+    summary_start = len(data) + len(data_end)
+    statistics = record(0x0B, struct.pack("<QHII", 3, 1, 1, 1) + struct.pack("<QQ", 0, 2000) + struct.pack("<I", 0))
+    summary = schema + channel + statistics
+    footer_head = struct.pack("<BQ", 0x02, 20) + struct.pack("<QQ", summary_start, 0)
+    footer = footer_head + struct.pack("<I", zlib.crc32(summary + footer_head))
+    return data + data_end + summary + footer + magic, len(chunk)
+
+
+mcap, chunk_bytes = mcap_file("")
 put("mcap_reader", "three_messages.mcap", mcap)
+put("mcap_reader", "three_messages_zstd.mcap", mcap_file("zstd")[0])
+put("mcap_reader", "three_messages_lz4.mcap", mcap_file("lz4")[0])
 put("mcap_reader", "unchunked.mcap", magic + header + schema + channel + messages +
     record(0x0F, struct.pack("<I", 0)) + struct.pack("<BQ", 0x02, 20) + bytes(20) + magic)
-put("mcap_reader", "truncated.mcap", mcap[: len(magic + header) + len(chunk) // 2])
+put("mcap_reader", "truncated.mcap", mcap[: len(magic + header) + chunk_bytes // 2])
 
 # ---- Foxglove client messages: one per line, 'B' = binary ----------------------------------------
 put("foxglove_protocol", "subscribe.txt",

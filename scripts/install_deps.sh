@@ -25,6 +25,7 @@ packages=(
   nlohmann-json3-dev              # the Foxglove protocol's JSON control messages
   libmsgpack-cxx-dev              # CAN frames on the UDP-multicast virtual bus (python-can's udp_multicast format)
   python3-can                     # python-can 4.1: an independent peer on that bus in the tests
+  clang-14 libclang-rt-14-dev     # libFuzzer and the sanitizer runtimes for clang (bench/fuzz.sh)
 )
 # Node.js and npm run the third-party readers in the tests (@mcap/core, @foxglove/* from npm).
 # Debian's packages only where none is installed: a machine may carry its own Node.js with npm.

@@ -52,16 +52,17 @@ esac
 start=$(date +%s)
 cxx_args=()
 [ -n "${CXX:-}" ] && cxx_args=(-DCMAKE_CXX_COMPILER="$CXX")
+mkdir -p "$build"
 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g" \
-  -DPMLSM_SANITIZE="$sanitize" "${cxx_args[@]}" >"$build.configure.log" 2>&1 ||
-  { cat "$build.configure.log" >&2; exit 1; }
+  -DPMLSM_SANITIZE="$sanitize" "${cxx_args[@]}" >"$build/configure.log" 2>&1 ||
+  { cat "$build/configure.log" >&2; exit 1; }
 if [ "$scope" = all ]; then
-  cmake --build "$build" -j"$jobs" >"$build.build.log" 2>&1 || { tail -40 "$build.build.log" >&2; exit 1; }
+  cmake --build "$build" -j"$jobs" >"$build/build.log" 2>&1 || { tail -40 "$build/build.log" >&2; exit 1; }
 else
   build_targets=()
   for e in "${executables[@]}"; do build_targets+=(--target "$e"); done
-  cmake --build "$build" -j"$jobs" "${build_targets[@]}" >"$build.build.log" 2>&1 ||
-    { tail -40 "$build.build.log" >&2; exit 1; }
+  cmake --build "$build" -j"$jobs" "${build_targets[@]}" >"$build/build.log" 2>&1 ||
+    { tail -40 "$build/build.log" >&2; exit 1; }
 fi
 built=$(date +%s)
 echo "sanitize.sh: $sanitize build ($scope) took $((built - start)) s"
@@ -82,8 +83,8 @@ print(",".join(picked))' "${executables[@]}")
   selection=(-I "0,0,0,$numbers")
 fi
 set +e
-ctest -j"$jobs" --output-on-failure "${selection[@]}" "$@" 2>&1 | tee "$build.ctest.log" | tail -40
+ctest -j"$jobs" --output-on-failure "${selection[@]}" "$@" 2>&1 | tee "$build/ctest.log" | tail -40
 rc=${PIPESTATUS[0]}
 set -e
-echo "sanitize.sh: $sanitize ctest ($scope) took $(( $(date +%s) - built )) s, exit $rc; log $build.ctest.log"
+echo "sanitize.sh: $sanitize ctest ($scope) took $(( $(date +%s) - built )) s, exit $rc; log $build/ctest.log"
 exit "$rc"
