@@ -22,8 +22,8 @@ UNIT_EXECUTABLES=(unit_tests rnn_tests optimiser_tests drive_tests can_tests can
                   canopen_alloc_tests msg_mapping_tests node_support_tests mcap_tests introspect_tests
                   idl_roundtrip_test launch_tests tool_support_tests foxglove_bridge_unit_tests fuzz_regressions)
 # The DDS-free code with threads of its own: the optimiser's thread-pool evaluator, the Foxglove
-# server's per-client queues and its WebSocket thread, the UDP bus's sender and receiver.
-TSAN_EXECUTABLES=(optimiser_tests foxglove_bridge_unit_tests can_tests)
+# server's per-client queues and its WebSocket thread.
+TSAN_EXECUTABLES=(optimiser_tests foxglove_bridge_unit_tests)
 
 case "$mode" in
   address)
