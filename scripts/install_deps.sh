@@ -26,6 +26,7 @@ packages=(
   libmsgpack-cxx-dev              # CAN frames on the UDP-multicast virtual bus (python-can's udp_multicast format)
   python3-can                     # python-can 4.1: an independent peer on that bus in the tests
   libssl-dev openssl              # DDS Security keystores: keys, certificates, S/MIME signatures (pmlsm security)
+  clang-14 libclang-rt-14-dev     # libFuzzer and the sanitizer runtimes for clang (bench/fuzz.sh)
 )
 # Node.js and npm run the third-party readers in the tests (@mcap/core, @foxglove/* from npm).
 # Debian's packages only where none is installed: a machine may carry its own Node.js with npm.

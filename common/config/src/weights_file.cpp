@@ -233,12 +233,8 @@ void validate_rnn_weights(const RnnWeightsFile& f) {
   }
 }
 
-RnnWeightsFile load_rnn_weights(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw ConfigError(path + ": cannot open file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  const YAML::Node root = load_yaml_document(text.str(), path);
+RnnWeightsFile parse_rnn_weights(const std::string& text, const std::string& path) {
+  const YAML::Node root = load_yaml_document(text, path);
   if (!root.IsMap()) throw ConfigError(path + ": top level must be a mapping of keys");
 
   Reader r(root, path);
@@ -286,6 +282,14 @@ RnnWeightsFile load_rnn_weights(const std::string& path) {
     throw ConfigError(path + ": " + e.what());
   }
   return f;
+}
+
+RnnWeightsFile load_rnn_weights(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError(path + ": cannot open file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return parse_rnn_weights(text.str(), path);
 }
 
 void save_rnn_weights(const std::string& path, const RnnWeightsFile& f) {

@@ -53,6 +53,8 @@ void validate_rnn_weights(const RnnWeightsFile& file);
 /// @throws pmlsm::ConfigError (a std::runtime_error) naming the file, the key and the
 /// value of the first problem: "w.yaml: weights[3]: must be finite, got .nan".
 RnnWeightsFile load_rnn_weights(const std::string& path);
+/// The same for a text already read; `origin` names it in messages.
+RnnWeightsFile parse_rnn_weights(const std::string& text, const std::string& origin);
 
 /// Validates, then writes path + ".tmp", flushes and fsyncs it and renames it
 /// over path (atomic: readers see the old or the new file, never a partial one).
