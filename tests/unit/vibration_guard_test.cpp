@@ -76,13 +76,18 @@ TEST(VibrationGuard, ASustainedLimitCycleTripsItFadesAndLatches) {
   EXPECT_DOUBLE_EQ(g.output().scale, 1.0);
 }
 
-TEST(VibrationGuard, AGrowingOscillationTripsItWhateverTheForce) {
+TEST(VibrationGuard, AGrowingOscillationTripsItButOnlyWithCompensationActing) {
+  // Growing 1.5x a window (e^{4.05 * 0.1}), a small compensation force acting.
   VibrationGuard g(params());
-  // Growing 1.5x a window (e^{4.05 * 0.1}), the compensation silent.
   const auto out = run(
-      g, 600, 15.0, [](double t) { return 0.003 * std::exp(4.05 * t); }, [](double, double) { return 0.0; });
+      g, 600, 15.0, [](double t) { return 0.003 * std::exp(4.05 * t); }, [](double v, double) { return 10.0 * v; });
   ASSERT_TRUE(out.tripped);
   EXPECT_EQ(out.reason, VibrationGuardTrip::kGrowing);
+  // The same oscillation with no compensation at all (PI alone): not the guard's to judge.
+  VibrationGuard pi_alone(params());
+  const auto quiet = run(
+      pi_alone, 600, 15.0, [](double t) { return 0.003 * std::exp(4.05 * t); }, [](double, double) { return 0.0; });
+  EXPECT_FALSE(quiet.tripped);
 }
 
 TEST(VibrationGuard, OscillationsBelowTheFloorAndSlowMotionAreLeftAlone) {

@@ -96,7 +96,8 @@ VibrationGuardOutput VibrationGuard::step(double motor_velocity_mps, double comp
     ++counters_.windows;
     counters_.last_amplitude_mps = amplitude;
     counters_.last_force_rms_n = std::sqrt(sum_f2_ / n);
-    const bool oscillating = amplitude > params_.min_oscillation_mps;
+    // Only a window in which some compensation acted can blame it (PI alone is not guarded).
+    const bool oscillating = amplitude > params_.min_oscillation_mps && counters_.last_force_rms_n > 0.0;
     sustained_run_ = oscillating && previous_amplitude_ > 0.0 && amplitude > (1.0 - params_.min_decay) * previous_amplitude_
                          ? sustained_run_ + 1
                          : 0;

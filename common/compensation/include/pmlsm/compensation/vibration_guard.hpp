@@ -10,7 +10,8 @@
 // min_oscillation_mps, windows_to_trip windows in a row
 //   - grew by more than growth_ratio each (kGrowing), or
 //   - did not fall by at least min_decay each, A_k > (1 - min_decay) A_{k-1} (kSustained).
-// The compensation force is recorded alongside (its rms over the window) for the report.
+// A window counts only when some compensation acted in it (its high-passed force not all zero):
+// PI alone is not the guard's to judge.
 // Tripped, the compensation's scale ramps from 1 to 0 over fade_s and stays 0 (latched) until
 // reset(). step() never throws and does not allocate; a non-finite input is counted and the
 // last finite one used instead.
