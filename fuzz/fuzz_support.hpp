@@ -33,8 +33,15 @@ class ByteReader {
   bool empty() const { return position_ >= size_; }
   std::size_t remaining() const { return empty() ? 0 : size_ - position_; }
   std::uint8_t u8() { return empty() ? 0 : data_[position_++]; }
-  std::uint16_t u16() { return static_cast<std::uint16_t>(u8() | (u8() << 8)); }
-  std::uint32_t u32() { return static_cast<std::uint32_t>(u16()) | (static_cast<std::uint32_t>(u16()) << 16); }
+  // Little endian; each byte read in its own statement (the operands of | are unsequenced).
+  std::uint16_t u16() {
+    const std::uint16_t low = u8();
+    return static_cast<std::uint16_t>(low | (u8() << 8));
+  }
+  std::uint32_t u32() {
+    const std::uint32_t low = u16();
+    return low | (static_cast<std::uint32_t>(u16()) << 16);
+  }
 
  private:
   const std::uint8_t* data_;

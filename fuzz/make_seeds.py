@@ -33,6 +33,18 @@ for p in sorted((root / "launch").glob("*.yaml")):
     copy("launch_file", p)
 put("launch_file", "with_args.yaml", "#arg controller=pi\n#arg bad\n" + (root / "launch/sim.yaml").read_text())
 
+# Hostile YAML for every YAML parser: nesting deeper than yaml-cpp's guard, an alias bomb.
+hostile = {
+    "deep_flow.yaml": "a: " + "[" * 5000 + "]" * 5000 + "\n",
+    "deep_map.yaml": "a: " + "{a: " * 3000 + "1" + "}" * 3000 + "\n",
+    "alias_bomb.yaml": "a: &a [x,x,x,x,x,x,x,x,x]\n" + "".join(
+        f"{chr(98 + i)}: &{chr(98 + i)} [" + ",".join(["*" + chr(97 + i)] * 9) + "]\n" for i in range(8)),
+}
+for target in ["config_system", "config_scenario", "config_training", "config_canopen", "weights_file",
+               "launch_file"]:
+    for name, text in hostile.items():
+        put(target, name, text)
+
 # --set overrides: byte 0 picks system (0), scenario (1), training (2), CANopen (3).
 put("config_override", "system.txt", "\x00timing.control_period_s=0.001\nplant.max_step_s=1e-4\n")
 put("config_override", "system_bad.txt", "\x00plant.nonexistent=1\n=2\nnoequals\n")
