@@ -4,7 +4,7 @@
 #
 #   scripts/sanitize.sh address [unit|all]  AddressSanitizer + UndefinedBehaviorSanitizer (and
 #                                           LeakSanitizer) in build-asan:
-#       unit (default): the DDS-free test executables (UNIT_EXECUTABLES below, about 1,000 tests)
+#       unit (default): the DDS-free test executables (UNIT_EXECUTABLES below, 663 tests)
 #       all:            everything, the whole ctest suite (multi-process DDS tests included)
 #   scripts/sanitize.sh thread              ThreadSanitizer in build-tsan over the DDS-free
 #                                           threaded code (TSAN_EXECUTABLES below)
@@ -32,8 +32,15 @@ case "$mode" in
     scope="${1:-unit}"
     if [ "$scope" = unit ] || [ "$scope" = all ]; then shift || true; else scope=unit; fi
     executables=("${UNIT_EXECUTABLES[@]}")
-    # LeakSanitizer on; the stacks of reports symbolised; new/delete mismatches reported.
-    export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1}"
+    # LeakSanitizer on, stack use after return checked.
+    asan_options="detect_leaks=1:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1"
+    # The one suppression, for the DDS tests only: Fast DDS 2.9.1 (Debian's libfastrtps, not
+    # instrumented) allocates a statistics object in StatisticsReaderImpl / StatisticsWriterImpl
+    # and deletes it in ~RTPSReader / ~RTPSWriter with the size of another type (64 bytes
+    # allocated, 56 deleted, for example): new-delete-type-mismatch in every participant's teardown, inside the
+    # library. The DDS-free tests (unit) keep the check.
+    [ "$scope" = all ] && asan_options+=":new_delete_type_mismatch=0"
+    export ASAN_OPTIONS="${ASAN_OPTIONS:-$asan_options}"
     export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
     ;;
   thread)
