@@ -1,6 +1,20 @@
-"""What the python-can tests of tests/can share: the check list and stopping a child process."""
+"""What the python-can tests of tests/can share: python-can itself (or the skip exit when it
+is missing), the check list and stopping a child process."""
 
 import subprocess
+import sys
+
+SKIP = 77
+
+
+def import_can():
+    """python-can, or exit 77 (ctest's skip) naming why it cannot be imported."""
+    try:
+        import can
+    except ImportError as error:
+        print(f"SKIP: python-can (Debian: python3-can) is not importable by {sys.executable}: {error}")
+        sys.exit(SKIP)
+    return can
 
 
 class Checks:

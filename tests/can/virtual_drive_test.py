@@ -23,14 +23,9 @@ import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from can_test_support import Checks, stop  # noqa: E402
+from can_test_support import SKIP, Checks, import_can, stop  # noqa: E402
 
-SKIP = 77
-try:
-    import can
-except ImportError as error:
-    print(f"SKIP: python-can (Debian: python3-can) is not importable by {sys.executable}: {error}")
-    sys.exit(SKIP)
+can = import_can()
 
 NODE = 1  # configs/canopen/drive.yaml
 
