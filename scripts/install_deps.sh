@@ -27,6 +27,7 @@ packages=(
   python3-can                     # python-can 4.1: an independent peer on that bus in the tests
   libssl-dev openssl              # DDS Security keystores: keys, certificates, S/MIME signatures (pmlsm security)
   clang-14 libclang-rt-14-dev     # libFuzzer and the sanitizer runtimes for clang (bench/fuzz.sh)
+  debootstrap                     # a clean Debian root for the package test (scripts/deb_clean_root.sh)
 )
 # Node.js and npm run the third-party readers in the tests (@mcap/core, @foxglove/* from npm).
 # Debian's packages only where none is installed: a machine may carry its own Node.js with npm.
@@ -41,11 +42,40 @@ if [ "$(id -u)" -ne 0 ]; then
 fi
 
 export DEBIAN_FRONTEND=noninteractive
-"${sudo_cmd[@]}" apt-get update -qq
-"${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${packages[@]}" >/dev/null
-echo "install_deps: ${#packages[@]} packages present"
+PROGRESS_NAME=install_deps
+. "$(dirname "${BASH_SOURCE[0]}")/progress.sh"
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install_deps: all ${#packages[@]} Debian packages present" >&2
+else
+  log=/tmp/pmlsm_install_deps.$$.log
+  phase_start "apt-get update" "${#missing[@]} of ${#packages[@]} packages missing: ${missing[*]}"
+  "${sudo_cmd[@]}" apt-get update -qq
+  phase_end
+  # The packages with their dependencies: what apt will fetch and set up (a fresh Debian 12: about
+  # 600 packages, 550 MB downloaded, 3 minutes here).
+  count=$("${sudo_cmd[@]}" apt-get install -s --no-install-recommends "${missing[@]}" | grep -c '^Inst ' || true)
+  phase_start "packages" "installing ${#missing[@]}, $count with their dependencies (apt-get; log $log)"
+  # APT::Status-Fd: apt's machine-readable progress ("dlstatus:i:PERCENT:text" while downloading,
+  # "pmstatus:pkg:PERCENT:text" while unpacking and configuring), turned into percent lines.
+  if ! "${sudo_cmd[@]}" apt-get install -y -q --no-install-recommends -o APT::Status-Fd=3 "${missing[@]}" \
+       3>&1 1>"$log" 2>&1 |
+       awk -F: '/^dlstatus:/ { print int($3) "\tdownloading: " $4; fflush() }
+                /^pmstatus:/ { print int($3) "\tinstalling: " $4; fflush() }' | percent_filter "packages"; then
+    tail -n 30 "$log" >&2
+    echo "install_deps: apt-get install failed (log above, all of it in $log)" >&2
+    exit 1
+  fi
+  phase_end
+  rm -f "$log"
+fi
 
 # The npm packages of the third-party reader tests, at the versions in tests/node/package-lock.json.
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+phase_start "npm packages" "tests/node (npm ci, versions of tests/node/package-lock.json)"
 (cd "$root/tests/node" && npm ci --no-audit --no-fund --loglevel=error >/dev/null)
-echo "install_deps: npm packages of tests/node present"
+phase_end

@@ -1,5 +1,6 @@
 # PNG plots of the comparison runs, like the paper's figures. Inputs (CSV, in outdir):
-#   <scenario>_pi.csv, <scenario>_pi_accel.csv, <scenario>_pi_rnn.csv   (evaluator or closed_loop)
+#   <scenario>_pi.csv, <scenario>_pi_accel.csv, <scenario>_pi_rnn.csv, <scenario>_pi_state.csv
+#   (evaluator or closed_loop)
 #   history: the de_trainer's per-generation CSV (default configs/rnn_weights.history.csv)
 #   gnuplot -e "outdir='out'; history='out/rnn_weights.yaml.history.csv'" scripts/plot_traces.gp
 # Trace columns: 2 time_s, 4 v_ref, 7 x_M, 8 v_M, 9 x_L, 10 v_L, 14 v_L (Kalman), 17 force, 18 compensation.
@@ -16,13 +17,15 @@ set ylabel 'velocity [m/s]'
 plot outdir.'/pulse_pi.csv' using 2:4 with lines lw 2 lc rgb 'black' title 'V_ref', \
      '' using 2:10 with lines lc rgb '#d62728' title 'v_L, PI only', \
      outdir.'/pulse_pi_accel.csv' using 2:10 with lines lc rgb '#1f77b4' title 'v_L, PI + acceleration feedback', \
-     outdir.'/pulse_pi_rnn.csv' using 2:10 with lines lw 2 lc rgb '#2ca02c' title 'v_L, PI + RNN'
+     outdir.'/pulse_pi_rnn.csv' using 2:10 with lines lw 2 lc rgb '#2ca02c' title 'v_L, PI + RNN', \
+     outdir.'/pulse_pi_state.csv' using 2:10 with lines lw 2 lc rgb '#ff7f0e' title 'v_L, PI + state feedback'
 set xlabel 'time [s]'
 set ylabel 'force [N]'
 plot outdir.'/pulse_pi.csv' using 2:17 with lines lc rgb '#d62728' title 'force, PI only', \
      outdir.'/pulse_pi_accel.csv' using 2:17 with lines lc rgb '#1f77b4' title 'force, PI + acceleration feedback', \
      outdir.'/pulse_pi_rnn.csv' using 2:17 with lines lc rgb '#2ca02c' title 'force, PI + RNN', \
-     '' using 2:18 with lines dt 2 lc rgb '#2ca02c' title 'RNN part G_n u_n'
+     '' using 2:18 with lines dt 2 lc rgb '#2ca02c' title 'RNN part G_n u_n', \
+     outdir.'/pulse_pi_state.csv' using 2:17 with lines lc rgb '#ff7f0e' title 'force, PI + state feedback'
 unset multiplot
 
 # Fig. 10: free vibration from 0.02 m, phase plane of the load, and the stretch over time.
@@ -33,13 +36,15 @@ set xlabel 'spring stretch x_L - x_M [m]'
 set ylabel 'load velocity v_L [m/s]'
 plot outdir.'/free_vibration_pi.csv' using ($9-$7):10 with lines lc rgb '#d62728' title 'PI only', \
      outdir.'/free_vibration_pi_accel.csv' using ($9-$7):10 with lines lc rgb '#1f77b4' title 'PI + acceleration feedback', \
-     outdir.'/free_vibration_pi_rnn.csv' using ($9-$7):10 with lines lw 2 lc rgb '#2ca02c' title 'PI + RNN'
+     outdir.'/free_vibration_pi_rnn.csv' using ($9-$7):10 with lines lw 2 lc rgb '#2ca02c' title 'PI + RNN', \
+     outdir.'/free_vibration_pi_state.csv' using ($9-$7):10 with lines lc rgb '#ff7f0e' title 'PI + state feedback'
 set xlabel 'time [s]'
 set ylabel 'x_L - x_M [m]'
 set xrange [0:2]
 plot outdir.'/free_vibration_pi.csv' using 2:($9-$7) with lines lc rgb '#d62728' title 'PI only', \
      outdir.'/free_vibration_pi_accel.csv' using 2:($9-$7) with lines lc rgb '#1f77b4' title 'PI + acceleration feedback', \
-     outdir.'/free_vibration_pi_rnn.csv' using 2:($9-$7) with lines lw 2 lc rgb '#2ca02c' title 'PI + RNN'
+     outdir.'/free_vibration_pi_rnn.csv' using 2:($9-$7) with lines lw 2 lc rgb '#2ca02c' title 'PI + RNN', \
+     outdir.'/free_vibration_pi_state.csv' using 2:($9-$7) with lines lc rgb '#ff7f0e' title 'PI + state feedback'
 unset xrange
 unset multiplot
 

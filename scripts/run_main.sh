@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The main job: installs what is missing, builds, and runs the simulated
 # system as separate DDS processes (lockstep clock) on the paper's two
-# scenarios, three ways: PI only (launch/sim.yaml), PI + load-acceleration
-# feedback (launch/sim_accel.yaml) and PI + the Jordan RNN (launch/sim_rnn.yaml).
+# scenarios, four ways: PI only (launch/sim.yaml), PI + load-acceleration
+# feedback (launch/sim_accel.yaml), PI + the Jordan RNN (launch/sim_rnn.yaml) and PI +
+# model-following state feedback (launch/sim_state.yaml).
 # Prints the comparison table and plots out/pulse.png, out/free_vibration.png
 # and (after a training run) out/training.png. The pulse PI + RNN run is also recorded
 # (out/pulse_pi_rnn.mcap, `pmlsm record`) and plotted from the recording (`pmlsm plot`).
@@ -19,22 +20,36 @@ launcher_args=()
 for a in "$@"; do
   if [ "$a" = "--train" ]; then train=true; else launcher_args+=("$a"); fi
 done
+PROGRESS_NAME=run_main
+. "$root/scripts/progress.sh"
+t_start=$SECONDS
+# Phases, each announced with how far along it is: packages, build, the 12 distributed runs, plots.
+phase_start "[1/4] packages" "Debian packages and npm packages the project needs (scripts/install_deps.sh)"
 "$root/scripts/install_deps.sh"
-"$root/scripts/build.sh" >/dev/null
+phase_end
+phase_start "[2/4] build" "about 15 minutes the first time on 2 cores, seconds after that (scripts/build.sh)"
+"$root/scripts/build.sh"
+phase_end
 cd "$root"
 mkdir -p out
 domain="${PMLSM_DOMAIN:-42}"
 weights=configs/rnn_weights.yaml
 history=configs/rnn_weights.history.csv
 if [ "$train" = true ]; then
+  echo "run_main: training the weights again first (--train: the paper's DE, about 3 minutes)" >&2
   ./build/bin/de_trainer --out out/rnn_weights.yaml --domain "$domain"
   weights=out/rnn_weights.yaml
   history=out/rnn_weights.yaml.history.csv
 fi
 
+phase_start "[3/4] runs" "2 scenarios x 4 systems over DDS, then the same 8 on the virtual CANopen rig"
+run=0
+runs=16
 header=true
 for scenario in pulse free_vibration; do
-  for variant in sim sim_accel sim_rnn; do
+  for variant in sim sim_accel sim_rnn sim_state; do
+    run=$((run + 1))
+    echo "run_main: run $run/$runs: $scenario, launch/$variant.yaml ($((SECONDS - t_start)) s since start)" >&2
     log="out/${scenario}_${variant}.launch.log"
     extra=()
     [ "$variant" = sim_rnn ] && extra=(--arg weights="$weights")
@@ -64,15 +79,17 @@ for scenario in pulse free_vibration; do
 done
 echo "cost = sum over the first second of |V_ref - v_L| (eq. 23), true and Kalman-estimated v_L (the paper's best: 5.6)"
 
-# The same six runs on the virtual rig: drive_bridge (the CiA 402 master) and virtual_drive (the
+# The same eight runs on the virtual rig: drive_bridge (the CiA 402 master) and virtual_drive (the
 # simulated drive behind a CiA 402 slave) on the UDP multicast CAN bus (launch/virtual_rig.yaml).
 mkdir -p out/virtual_rig
 echo
 echo "virtual rig (CANopen, lockstep) next to the simulated drive: true cost and 2 % settling time [s]"
 printf '%-15s %-6s %14s %12s %14s %12s %8s\n' scenario comp sim_cost sim_settle rig_cost rig_settle diff_%
 for scenario in pulse free_vibration; do
-  for comp in none accel rnn; do
-    case $comp in none) variant=sim ;; accel) variant=sim_accel ;; rnn) variant=sim_rnn ;; esac
+  for comp in none accel rnn state; do
+    case $comp in none) variant=sim ;; accel) variant=sim_accel ;; rnn) variant=sim_rnn ;; state) variant=sim_state ;; esac
+    run=$((run + 1))
+    echo "run_main: run $run/$runs: $scenario, launch/virtual_rig.yaml, compensator $comp ($((SECONDS - t_start)) s since start)" >&2
     log="out/virtual_rig/${scenario}_${comp}.launch.log"
     if ! ./build/bin/launcher launch/virtual_rig.yaml --arg scenario="configs/scenarios/$scenario.yaml" \
          --arg out=out/virtual_rig --arg domain="$domain" --arg compensator="$comp" --arg weights="$weights" \
@@ -90,9 +107,13 @@ for scenario in pulse free_vibration; do
   done
 done
 echo "the torque (per mille of 675 N) and position (1 um) on the bus are the only difference; logs in out/virtual_rig/"
+phase_end
 echo
 echo "distributed lockstep runs over Fast DDS; RNN weights from $weights; logs and traces in out/"
+phase_start "[4/4] plots" "gnuplot"
 gnuplot -e "outdir='out'; history='$history'" scripts/plot_traces.gp
 echo "plots: out/pulse.png (Figs. 11-12) out/free_vibration.png (Fig. 10) out/training.png (Figs. 6-7, $history)"
 echo "recording of the pulse PI + RNN run: $recording_summary"
 echo "  plotted from the recording: out/pulse_pi_rnn_plots/{velocities,forces,phase_plane}.png"
+phase_end
+echo "run_main: all done in $((SECONDS - t_start)) s" >&2

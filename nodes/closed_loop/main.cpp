@@ -1,6 +1,7 @@
 // closed_loop: the whole cascade in one process (no DDS). Runs the scenarios,
-// PI only or with a compensator (load-acceleration feedback or the RNN), writes
+// PI only or with a compensator (load-acceleration feedback, the RNN or state feedback), writes
 // a CSV trace of each and prints the results table.
+#include "pmlsm/util/data_files.hpp"
 #include <CLI/CLI.hpp>
 
 #include <cmath>
@@ -12,11 +13,10 @@
 #include <string>
 #include <vector>
 
-#include "pmlsm/compensation/accel_feedback.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/sim/compensated_run.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/sim/metrics.hpp"
-#include "pmlsm/sim/rnn_training.hpp"
 #include "pmlsm/config/weights_file.hpp"
 #include "pmlsm/util/exit_codes.hpp"
 #include "results_table.hpp"
@@ -25,7 +25,7 @@
 int main(int argc, char** argv) {
   CLI::App app{"In-process closed loop of the PMLSM two-mass system: plant, current loop, "
                "velocity PI, reference model and Kalman filter, without DDS."};
-  std::string config_path = "configs/system.yaml";
+  std::string config_path = pmlsm::data_file("configs/system.yaml");
   std::vector<std::string> scenario_paths;
   std::vector<std::string> overrides_text;
   std::string out_dir = "out";
@@ -39,8 +39,10 @@ int main(int argc, char** argv) {
   std::string compensator = "none";
   std::string weights_path;
   bool online_learning = false;
-  app.add_option("--compensator", compensator, "none (PI only), accel (load-acceleration feedback) or rnn")
-      ->check(CLI::IsMember({"none", "accel", "rnn"}))
+  app.add_option("--compensator", compensator,
+                 "none (PI only), accel (load-acceleration feedback), rnn (the paper's network), state (state feedback with "
+                 "inverse-model feedforward): one of " +
+                     pmlsm::compensator_kind_names())
       ->capture_default_str();
   app.add_option("-w,--weights", weights_path, "RNN weights file (with --compensator rnn)")->check(CLI::ExistingFile);
   app.add_flag("--online-learning", online_learning, "RNN online learning, eqs. (16)-(19)");
@@ -56,29 +58,25 @@ int main(int argc, char** argv) {
     for (const auto& path : scenario_paths) scenarios.push_back(pmlsm::load_scenario(path, period));
     std::filesystem::create_directories(out_dir);
 
-    std::vector<double> weights;
-    if (compensator == "rnn") {
+    pmlsm::CompensatorSetup setup;
+    try {
+      setup.kind = pmlsm::compensator_kind_from_string(compensator);
+    } catch (const std::invalid_argument& e) {
+      throw pmlsm::ConfigError(std::string("--compensator: ") + e.what());
+    }
+    setup.online_learning = online_learning;
+    if (setup.kind == pmlsm::CompensatorKind::kRnn) {
       if (weights_path.empty()) throw pmlsm::ConfigError("--compensator rnn: needs --weights FILE");
       const pmlsm::RnnWeightsFile file = pmlsm::load_rnn_weights(weights_path);
       const std::string misfit = pmlsm::rnn_weights_misfit(file, params);
       if (!misfit.empty()) throw pmlsm::ConfigError(weights_path + ": " + misfit + " (" + config_path + ")");
-      weights = file.weights;
+      setup.rnn_weights = file.weights;
     }
     const std::string suffix = compensator == "none" ? "" : "_" + compensator + (online_learning ? "_online" : "");
 
     pmlsm::node::print_results_header();
     for (const pmlsm::Scenario& scenario : scenarios) {
-      std::vector<pmlsm::TickRecord> trace;
-      if (compensator == "rnn") {
-        trace = pmlsm::run_with_rnn(params, scenario, weights, online_learning);
-      } else if (compensator == "accel") {
-        pmlsm::AccelFeedback feedback(params.accel_feedback_params());
-        trace = pmlsm::run_compensated(params, scenario, [&](const pmlsm::CompensatorView& v) {
-          return feedback.step(v.load_accel_mps2);
-        });
-      } else {
-        trace = pmlsm::run_scenario(params, scenario);
-      }
+      const std::vector<pmlsm::TickRecord> trace = pmlsm::run_with_compensator(params, scenario, setup);
       const auto m = pmlsm::compute_metrics(trace, scenario, period);
       const std::string csv = out_dir + "/" + scenario.name + suffix + ".csv";
       pmlsm::write_trace_csv(csv, trace);

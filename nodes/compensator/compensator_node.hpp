@@ -1,4 +1,4 @@
-// What the compensator nodes (rnn_compensator, accel_feedback) share: they
+// What the compensator nodes (rnn_compensator, accel_feedback, state_feedback) share: they
 // read EstimatedState and VelocityReference, pair them by tick, and answer
 // every tick k with CompensatorOutput k. The controller applies output k at
 // tick k+1 (see run_compensated in pmlsm/sim/closed_loop.hpp), so both clocks work
@@ -50,6 +50,9 @@ class CompensatorInputs {
       view.load_accel_mps2 = estimate_.a_load_mps2();
       view.v_load_mps = estimate_.v_load_mps();
       view.v_ref_mps = reference_.v_ref_mps();
+      view.spring_force_n = estimate_.spring_force_n();
+      view.command_mps = reference_.velocity_command_mps();
+      view.a_ref_mps2 = reference_.a_ref_mps2();
       have_estimate_ = have_reference_ = false;
       next_tick_ = tick + 1;
       return true;

@@ -4,11 +4,19 @@
 // also publishes VelocityReference. It is event-driven: the same code serves
 // the lockstep and the realtime clock.
 //
-// With --compensation topic (or accel / rnn, the same) the PI output gets the compensator's force
+// With --compensation topic (or accel / rnn / state, the same) the PI output gets the compensator's force
 // (CompensatorOutput, Fig. 4's hybrid controller): output k-1 is applied at
 // tick k (run_compensated in pmlsm/sim/closed_loop.hpp). Lockstep waits for it;
 // realtime uses the newest one no older than 3 ticks and counts the ticks
 // without (they get no compensation).
+//
+// With an external scenario (command.shape: external) the raw command comes from
+// VelocitySetpoint samples (another node, `pmlsm setpoint`) through ExternalReference
+// (pmlsm/control/external_reference.hpp): rejected setpoints are counted, a source gone quiet
+// brings the command back to zero at the rate limit, and both are reported on NodeStatus. Setpoint
+// age is judged on this node's steady clock, in lockstep as in realtime (the source runs on
+// wall time). A run with a rejected invalid setpoint, or whose source went quiet mid-move,
+// ends with exit code 5: it did not do what was asked.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -21,6 +29,7 @@
 #include "VoltageCommandPubSubTypes.h"
 #include "MotorFeedbackPubSubTypes.h"
 #include "VelocityReferencePubSubTypes.h"
+#include "VelocitySetpointPubSubTypes.h"
 #include "msg_mapping.hpp"
 #include "node_support.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
@@ -59,7 +68,13 @@ class ControllerNode {
         current_steps_(rt.cfg.params.timing.current_steps_per_tick()),
         compensation_reader_(rt.participant.make_reader<msg::CompensatorOutputPubSubType>(
             pdds::topics::kCompensatorOutput, rt.wakeup, pdds::kObserverProfile)),
-        controller_(std::in_place, rt.cfg.params, rt.cfg.scenario) {}
+        controller_(std::in_place, rt.cfg.params, rt.cfg.scenario) {
+    if (rt.cfg.scenario.shape == CommandShape::kExternal) {
+      external_.emplace(external_reference_params(rt.cfg.scenario, period_s_));
+      setpoint_reader_.emplace(
+          rt.participant.make_reader<msg::VelocitySetpointPubSubType>(pdds::topics::kVelocitySetpoint, rt.wakeup));
+    }
+  }
 
   int run();
 
@@ -74,6 +89,8 @@ class ControllerNode {
   /// The voltage command level: the drive's current loop, 32 exchanges per tick.
   void run_current_loop(std::uint64_t k, double force_n);
   int finish(int exit_code);
+  /// External scenario: takes the setpoints that arrived, steps the policy; reports news.
+  double external_command(std::uint64_t k);
 
   const node::CommonOptions& common_;
   ControllerOptions opt_;
@@ -94,6 +111,12 @@ class ControllerNode {
   int current_steps_;
   pdds::Reader<msg::CompensatorOutputPubSubType> compensation_reader_;
   std::optional<VelocityController> controller_;
+  std::optional<ExternalReference> external_;
+  std::optional<pdds::Reader<msg::VelocitySetpointPubSubType>> setpoint_reader_;
+  msg::VelocitySetpoint setpoint_;
+  std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
+  bool external_was_stale_ = true;
+  std::uint64_t reported_rejections_ = 0;
 
   msg::MotorFeedback feedback_;
   msg::ForceCommand command_;
@@ -111,6 +134,37 @@ class ControllerNode {
   std::uint64_t rejected_ = 0;
   double last_velocity_ = 0.0;
 };
+
+double ControllerNode::external_command(std::uint64_t k) {
+  const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+  while (setpoint_reader_->take(setpoint_)) {
+    const Setpoint sp{setpoint_.velocity_mps(), setpoint_.accel_limit_mps2(), setpoint_.session(), setpoint_.sequence_number()};
+    const SetpointVerdict verdict = external_->offer(sp, now_s);
+    // Every rejection is counted; the first few are told (a flood would flood the log).
+    if (verdict != SetpointVerdict::kAccepted && reported_rejections_ < 10) {
+      ++reported_rejections_;
+      char text[160];
+      std::snprintf(text, sizeof text, "setpoint %.6g m/s from '%s' rejected: %s", sp.velocity_mps,
+                    setpoint_.source().c_str(), to_string(verdict));
+      std::fprintf(stderr, "controller: tick %llu: %s\n", static_cast<unsigned long long>(k), text);
+      rt_.status.publish(node_state::STATE_RUNNING, k, period_s_, text);
+    }
+  }
+  const ExternalReferenceOutput out = external_->step(now_s);
+  if (out.stale != external_was_stale_) {
+    external_was_stale_ = out.stale;
+    char text[160];
+    if (out.stale) {
+      std::snprintf(text, sizeof text, "setpoint stale (none for %.3g s): reference ramps to zero from %.6g m/s",
+                    external_->params().timeout_s, out.command_mps - out.accel_mps2 * period_s_);
+    } else {
+      std::snprintf(text, sizeof text, "following setpoints from '%s'", setpoint_.source().c_str());
+    }
+    std::fprintf(stderr, "controller: tick %llu: %s\n", static_cast<unsigned long long>(k), text);
+    rt_.status.publish(node_state::STATE_RUNNING, k, period_s_, text);
+  }
+  return out.command_mps;
+}
 
 void ControllerNode::follow_new_run() {
   controller_.emplace(rt_.cfg.params, rt_.cfg.scenario);
@@ -210,7 +264,9 @@ int ControllerNode::run() {
                                            common_.peer_timeout_s);
       break;
     }
-    const VelocityControllerOutput out = controller_->step(k, velocity, applied_compensation_n);
+    const VelocityControllerOutput out =
+        external_ ? controller_->step_command(external_command(k), velocity, applied_compensation_n)
+                  : controller_->step(k, velocity, applied_compensation_n);
     if (out.guard.tripped && !guard_reported_) {
       // Once: the compensation fades out and stays out; the controller goes on as PI alone.
       guard_reported_ = true;
@@ -227,8 +283,26 @@ int ControllerNode::run() {
 }
 
 int ControllerNode::finish(int exit_code) {
+  std::string external_note;
+  if (external_) {
+    const ExternalReferenceCounters& c = external_->counters();
+    rejected_ += c.rejected;
+    char text[200];
+    std::snprintf(text, sizeof text,
+                  "setpoints: %llu accepted, %llu rejected (%llu invalid), went stale %llu times (%llu mid-move)",
+                  static_cast<unsigned long long>(c.accepted), static_cast<unsigned long long>(c.rejected),
+                  static_cast<unsigned long long>(c.rejected_invalid), static_cast<unsigned long long>(c.stale_episodes),
+                  static_cast<unsigned long long>(c.lost_while_moving));
+    external_note = text;
+    std::printf("controller: %s\n", text);
+    if ((c.rejected_invalid > 0 || c.lost_while_moving > 0) && exit_code == kExitOk) {
+      std::fprintf(stderr, "controller: %s: the run is not valid\n", text);
+      exit_code = kExitSafeState;
+    }
+  }
   rt_.status.status().rejected(rejected_);
-  rt_.status.publish(node_state::STATE_STOPPING, next_tick_, period_s_, "done");
+  rt_.status.publish(node_state::STATE_STOPPING, next_tick_, period_s_,
+                     external_note.empty() ? std::string("done") : "done; " + external_note);
   command_writer_.wait_for_acknowledgments(node::kFlushTimeout);
   if (voltage_level_) voltage_writer_.wait_for_acknowledgments(node::kFlushTimeout);
   reference_writer_.wait_for_acknowledgments(node::kFlushTimeout);
@@ -246,9 +320,9 @@ int run(int argc, char** argv) {
   ControllerOptions opt;
   node::add_common_options(app, common);
   app.add_option("--compensation", opt.compensation,
-                 "none (PI only) or topic (add CompensatorOutput to the PI output); accel and rnn are topic, named "
+                 "none (PI only) or topic (add CompensatorOutput to the PI output); accel, rnn and state are topic, named "
                  "after the compensator that publishes it (launch files pass their compensator arg)")
-      ->check(CLI::IsMember({"none", "topic", "accel", "rnn"}))
+      ->check(CLI::IsMember({"none", "topic", "accel", "rnn", "state"}))
       ->capture_default_str();
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   node::NodeRuntime rt("controller", common);

@@ -439,6 +439,32 @@ std::string resolve_executable(const std::string& executable, const std::string&
                            ")");
 }
 
+std::string slice_yaml(const std::string& name, const std::string& host, const std::vector<NodeSpec>& nodes) {
+  YAML::Emitter out;
+  out << YAML::DoubleQuoted << YAML::BeginMap;
+  out << YAML::Key << "name" << YAML::Value << name;
+  out << YAML::Key << "hosts" << YAML::Value << YAML::Flow << YAML::BeginSeq << host << YAML::EndSeq;
+  out << YAML::Key << "nodes" << YAML::Value << YAML::BeginSeq;
+  for (const auto& node : nodes) {
+    out << YAML::BeginMap;
+    out << YAML::Key << "name" << YAML::Value << node.name;
+    out << YAML::Key << "executable" << YAML::Value << node.executable;
+    out << YAML::Key << "host" << YAML::Value << host;
+    out << YAML::Key << "args" << YAML::Value << YAML::Flow << YAML::BeginSeq;
+    for (const auto& a : node.args) out << a;
+    out << YAML::EndSeq;
+    if (!node.env.empty()) {
+      out << YAML::Key << "env" << YAML::Value << YAML::BeginMap;
+      for (const auto& [key, value] : node.env) out << YAML::Key << key << YAML::Value << value;
+      out << YAML::EndMap;
+    }
+    if (node.ends_launch) out << YAML::Key << "ends_launch" << YAML::Value << YAML::Auto << true;
+    out << YAML::EndMap;
+  }
+  out << YAML::EndSeq << YAML::EndMap;
+  return std::string(out.c_str()) + "\n";
+}
+
 std::string shell_quote(const std::string& word) {
   static const std::string plain =
       "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_@%+=:,./-";

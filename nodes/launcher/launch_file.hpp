@@ -82,6 +82,11 @@ std::string resolve_executable(const std::string& executable, const std::string&
 // after trimming blanks). @throws LaunchFileError naming `where` for anything else.
 bool evaluate_condition(const std::string& text, const std::string& where);
 
+// A launch description holding only `nodes` (already substituted and selected), all on
+// `host`: what a launcher sends to that host's agent. parse_launch() reads it back to the same
+// nodes (an arg value holding "$(" would be substituted again there and is refused).
+std::string slice_yaml(const std::string& name, const std::string& host, const std::vector<NodeSpec>& nodes);
+
 // Quotes `word` for a POSIX shell when needed, so dry-run output can be pasted.
 std::string shell_quote(const std::string& word);
 

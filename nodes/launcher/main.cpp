@@ -11,7 +11,10 @@
 #include <vector>
 
 #include "launch_file.hpp"
+#include "pmlsm/util/data_files.hpp"
+#include "node_support.hpp"
 #include "pmlsm/util/exit_codes.hpp"
+#include "remote.hpp"
 #include "supervisor.hpp"
 
 namespace {
@@ -19,13 +22,6 @@ namespace {
 using pmlsm::launch::ProcessSpec;
 
 constexpr int kMaxMs = 24 * 3600 * 1000;
-
-// The folder of the running program: the nodes are built beside it.
-std::string own_folder() {
-  std::error_code ec;
-  const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
-  return ec ? std::string() : exe.parent_path().string();
-}
 
 std::string quoted_command(const ProcessSpec& p) {
   std::string out;
@@ -79,6 +75,24 @@ int main(int argc, char** argv) {
   app.add_option("--arg", arg_texts, "Set a launch arg: NAME=VALUE (repeatable)")
       ->type_size(1)
       ->allow_extra_args(false);
+  bool agents = false;
+  int agent_wait_ms = 10000;
+  int agent_lease_ms = 2000;
+  pmlsm::launch::RemoteOptions remote;
+  auto* agents_flag = app.add_flag("--agents", agents,
+                                   "Send each host's slice to that host's launch agent (`pmlsm agent`) over DDS "
+                                   "instead of starting the nodes here");
+  app.add_option("--agent-wait-ms", agent_wait_ms,
+                 "--agents: every host's agent must be found within this, or nothing starts")
+      ->check(CLI::Range(1, kMaxMs))
+      ->capture_default_str();
+  app.add_option("--agent-lease-ms", agent_lease_ms,
+                 "--agents: an agent silent this long is lost (the launch stops the rest); agents stop "
+                 "their slice when the launcher is silent this long")
+      ->check(CLI::Range(200, 60000))
+      ->capture_default_str();
+  pmlsm::node::add_dds_options(app, remote.dds);
+  host_option->excludes(agents_flag);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -108,7 +122,27 @@ int main(int argc, char** argv) {
     std::cout << "\n";
   }
 
-  if (bin_dir.empty()) bin_dir = own_folder();
+  if (agents) {
+    if (dry_run) {
+      std::vector<std::string> hosts;
+      for (const auto& n : nodes)
+        if (std::find(hosts.begin(), hosts.end(), n.host) == hosts.end()) hosts.push_back(n.host);
+      for (const auto& h : hosts) {
+        std::vector<pmlsm::launch::NodeSpec> slice;
+        for (const auto& n : nodes)
+          if (n.host == h) slice.push_back(n);
+        std::cout << "# slice for the agent of host " << h << "\n" << pmlsm::launch::slice_yaml(launch.name, h, slice);
+      }
+      return 0;
+    }
+    remote.agent_wait = std::chrono::milliseconds(agent_wait_ms);
+    remote.lease = std::chrono::milliseconds(agent_lease_ms);
+    remote.start_grace_ms = start_grace_ms;
+    remote.stop_timeout_ms = stop_timeout_ms;
+    return pmlsm::node::run_node("launcher", [&] { return pmlsm::launch::run_over_agents(launch, nodes, remote); });
+  }
+
+  if (bin_dir.empty()) bin_dir = pmlsm::program_dir();
   const char* path_env = std::getenv("PATH");
   // Without PATH, the system default search path (as the shell uses).
   const std::string search_path = path_env != nullptr ? path_env : "/usr/bin:/bin";

@@ -7,6 +7,7 @@
 //   --canopen-set key.path=value                     overrides one value of it (repeatable)
 #pragma once
 
+#include "pmlsm/util/data_files.hpp"
 #include <CLI/CLI.hpp>
 
 #include <memory>
@@ -22,7 +23,7 @@ namespace pmlsm::node {
 struct CanOptions {
   can::UdpMulticastParams udp;  // group, port, interface address (its defaults)
   std::string interface_name;   // SocketCAN when set
-  std::string canopen_path = "configs/canopen/drive.yaml";
+  std::string canopen_path = pmlsm::data_file("configs/canopen/drive.yaml");
   std::vector<std::string> canopen_overrides;
 };
 

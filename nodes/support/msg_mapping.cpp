@@ -122,6 +122,7 @@ void to_msg(const VelocityControllerOutput& control, msg::VelocityReference& out
 void from_msg(const msg::VelocityReference& in, TickRecord& rec) {
   rec.command_mps = in.velocity_command_mps();
   rec.v_ref_mps = in.v_ref_mps();
+  rec.a_ref_mps2 = in.a_ref_mps2();
 }
 
 void to_msg(const VelocityControllerOutput& control, double compensation_force_n, std::uint64_t feedback_tick,

@@ -79,7 +79,7 @@ void to_msg(const drive::Drive& drive, const drive::DriveLoop& loop, std::uint64
 
 /// velocity_command_mps, v_ref_mps, a_ref_mps2.
 void to_msg(const VelocityControllerOutput& control, pmlsm_msgs::msg::VelocityReference& out);
-/// command_mps and v_ref_mps.
+/// command_mps, v_ref_mps and a_ref_mps2.
 void from_msg(const pmlsm_msgs::msg::VelocityReference& in, TickRecord& rec);
 
 /// force_n, pi_force_n (= force_n - compensation_force_n: the PI's part), compensation_force_n,

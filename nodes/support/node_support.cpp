@@ -1,3 +1,4 @@
+#include "pmlsm/util/data_files.hpp"
 #include "node_support.hpp"
 
 #include <unistd.h>
@@ -12,6 +13,7 @@
 namespace pmlsm::node {
 
 void add_dds_options(CLI::App& app, dds::ParticipantOptions& o) {
+  o.profiles_file = pmlsm::data_file(o.profiles_file);  // installed programs find theirs (pmlsm/util/data_files.hpp)
   app.add_option("--profiles", o.profiles_file, "Fast DDS XML profiles")->check(CLI::ExistingFile);
   app.add_option("--participant-profile", o.participant_profile, "Participant profile in --profiles");
   app.add_option("--domain", o.domain_id, "DDS domain id")->check(CLI::Range(0, 232));

@@ -3,6 +3,7 @@
 // heartbeat. Nodes stay thin: parse, load, wire topics, run the loop.
 #pragma once
 
+#include "pmlsm/util/data_files.hpp"
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
@@ -36,8 +37,8 @@ enum class Clock { kLockstep, kRealtime };
 enum class CommandLevel { kForce, kVoltage };
 
 struct CommonOptions {
-  std::string config_path = "configs/system.yaml";
-  std::string scenario_path = "configs/scenarios/pulse.yaml";
+  std::string config_path = pmlsm::data_file("configs/system.yaml");
+  std::string scenario_path = pmlsm::data_file("configs/scenarios/pulse.yaml");
   std::vector<std::string> overrides;
   dds::ParticipantOptions dds;
   std::string clock = "lockstep";

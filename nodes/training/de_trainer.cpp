@@ -5,6 +5,7 @@
 // from the checkpoint. Publishes TrainerProgress every generation, and the
 // best NetworkWeights (reliable, transient-local) when it improves; writes the
 // weights file at the end (and on SIGINT, after the current generation).
+#include "pmlsm/util/data_files.hpp"
 #include <unistd.h>
 
 #include <cmath>
@@ -61,8 +62,8 @@ int run(int argc, char** argv) {
   CLI::App app{"Offline weight search of the RNN compensator (DE/rand/1/bin, jDE or CMA-ES)"};
   pdds::ParticipantOptions dds_options;
   node::add_dds_options(app, dds_options);
-  std::string config_path = "configs/system.yaml";
-  std::string training_path = "configs/training.yaml";
+  std::string config_path = pmlsm::data_file("configs/system.yaml");
+  std::string training_path = pmlsm::data_file("configs/training.yaml");
   std::vector<std::string> overrides, training_overrides;
   std::string out_path = "out/rnn_weights.yaml";
   std::string checkpoint_path;
@@ -112,7 +113,8 @@ int run(int argc, char** argv) {
     throw ConfigError("--resume: no checkpoint at " + checkpoint_path);
   }
 
-  const auto cost = std::make_shared<const RnnCost>(params, training.scenarios, training.cost_velocity);
+  const auto cost = std::make_shared<const RnnCost>(params, training.scenarios, training.cost_velocity,
+                                                    training.plants, training.plant_objective);
   DeParams de;
   de.population_size = training.population_size;
   de.dimension = cost->dimension();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <deque>
 #include <fstream>
 #include <limits>
@@ -58,6 +59,23 @@ msg::TrainingSetup make_setup(std::uint64_t run_id, const std::string& system_pa
     setup.scenarios().push_back(text);
   }
   setup.cost_velocity(to_string(training.cost_velocity));
+  if (training.plants.size() > 32) throw ConfigError("plants: at most 32 reach remote workers");
+  for (const PlantVariant& plant : training.plants) {
+    msg::TrainingPlantText text;
+    check_bound("plants " + plant.name + " (name)", plant.name.size(), 64);
+    text.name(plant.name);
+    if (plant.values.size() > 16) throw ConfigError("plants " + plant.name + ": at most 16 values reach remote workers");
+    for (const auto& [key, value] : plant.values) {
+      char number[32];
+      std::snprintf(number, sizeof number, "%.17g", value);  // round-trips the double exactly
+      const std::string item = key + "=" + number;
+      check_bound("plants " + plant.name + " " + key, item.size(), 256);
+      text.moves().push_back(item);
+    }
+    text.weight(plant.weight);
+    setup.plants().push_back(text);
+  }
+  setup.plant_objective(to_string(training.plant_objective));
   return setup;
 }
 
@@ -74,10 +92,25 @@ std::shared_ptr<const RnnCost> cost_from_setup(const msg::TrainingSetup& setup) 
     ts.scenario = parse_scenario(s.yaml().to_string(), "trainer:" + s.origin().to_string(), params.timing.control_period_s);
     scenarios.push_back(ts);
   }
+  std::vector<PlantVariant> plants;
+  for (const auto& p : setup.plants()) {
+    PlantVariant variant{p.name().to_string(), {}, p.weight()};
+    for (const auto& item : p.moves()) {
+      const ConfigOverride o = ConfigOverride::parse(item.to_string());
+      char* end = nullptr;
+      const double value = std::strtod(o.value.c_str(), &end);
+      if (end == o.value.c_str() || *end != '\0') {
+        throw ConfigError(origin + ": plants " + variant.name + ": '" + item.to_string() + "' is no number");
+      }
+      variant.values.emplace_back(o.key_path, value);
+    }
+    plants.push_back(variant);
+  }
   CostVelocity which = CostVelocity::truth;
   try {
     which = cost_velocity_from_string(setup.cost_velocity().to_string());
-    return std::make_shared<const RnnCost>(params, std::move(scenarios), which);
+    return std::make_shared<const RnnCost>(params, std::move(scenarios), which, plants,
+                                           plant_objective_from_string(setup.plant_objective().to_string()));
   } catch (const std::invalid_argument& e) {
     throw ConfigError(origin + ": " + e.what());
   }

@@ -47,6 +47,7 @@
 // undecodable NMT / SYNC / heartbeat) are counted and ignored.
 //
 // Exit codes: 0 ok; 2 bad config or command line; 1 runtime error (socket); 5 the drive faulted.
+#include "pmlsm/util/data_files.hpp"
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
@@ -101,7 +102,7 @@ constexpr std::uint64_t kMalformedLogLimit = 20;
 struct Options {
   node::CommonOptions common;
   node::CanOptions can;
-  std::string dictionary_path = "configs/canopen/virtual_drive_od.yaml";
+  std::string dictionary_path = pmlsm::data_file("configs/canopen/virtual_drive_od.yaml");
   std::optional<std::uint64_t> inject_fault_at_tick;
   bool publish_truth = false;
 };

@@ -1,6 +1,6 @@
 // The compensated control loop as separate processes on real DDS: evaluator,
 // Kalman estimator, controller (--compensation topic), a compensator node
-// (accel_feedback or rnn_compensator) and the plant in lockstep. The trace
+// (accel_feedback, state_feedback or rnn_compensator) and the plant in lockstep. The trace
 // must equal the in-process run_compensated loop's byte for byte.
 #include <gtest/gtest.h>
 
@@ -16,6 +16,7 @@
 #include "child_process.hpp"
 #include "integration_support.hpp"
 #include "pmlsm/compensation/accel_feedback.hpp"
+#include "pmlsm/compensation/state_feedback.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/compensation/jordan_rnn.hpp"
@@ -44,6 +45,7 @@ std::vector<std::string> node_args(const std::string& exe, const std::string& do
   return test::node_args(exe, domain, scenario_path(), std::move(extra));
 }
 
+using test::trace_column;
 using test::trainer_args;
 
 SystemParams system_params() { return load_system_params(source("configs/system.yaml")); }
@@ -62,31 +64,6 @@ RnnWeightsFile pseudo_random_weights(const SystemParams& params, std::uint64_t s
   w.weights.resize(JordanRnn::parameter_count(w.layer_sizes));
   for (double& x : w.weights) x = u(rng);
   return w;
-}
-
-/// The compensation_force_n column of a trace CSV.
-std::vector<double> compensation_column(const std::string& csv) {
-  std::istringstream in(csv);
-  std::string line;
-  std::getline(in, line);
-  std::vector<std::string> header;
-  {
-    std::istringstream h(line);
-    std::string cell;
-    while (std::getline(h, cell, ',')) header.push_back(cell);
-  }
-  const auto it = std::find(header.begin(), header.end(), "compensation_force_n");
-  if (it == header.end()) return {};
-  const std::size_t column = static_cast<std::size_t>(it - header.begin());
-  std::vector<double> values;
-  while (std::getline(in, line)) {
-    std::istringstream row(line);
-    std::string cell;
-    for (std::size_t c = 0; c <= column && std::getline(row, cell, ','); ++c) {
-    }
-    values.push_back(std::strtod(cell.c_str(), nullptr));
-  }
-  return values;
 }
 
 std::size_t nonzero_count(const std::vector<double>& v) {
@@ -130,10 +107,10 @@ void expect_same_trace(const fs::path& dir, const CompensatedRun& run, const std
   write_trace_csv((dir / "in_process.csv").string(), in_process);
   const std::string expected = read_file(dir / "in_process.csv");
   EXPECT_TRUE(run.trace == expected) << "the distributed trace differs from the in-process one (" << dir << ")";
-  const std::size_t distributed_nonzero = nonzero_count(compensation_column(run.trace));
+  const std::size_t distributed_nonzero = nonzero_count(trace_column(run.trace, "compensation_force_n"));
   EXPECT_GT(distributed_nonzero, in_process.size() / 2)
       << "compensation_force_n is (almost) always zero: the compensator is not in the loop";
-  EXPECT_GT(nonzero_count(compensation_column(expected)), in_process.size() / 2);
+  EXPECT_GT(nonzero_count(trace_column(expected, "compensation_force_n")), in_process.size() / 2);
 }
 
 TEST(CompensatorDistributed, AccelFeedbackTraceEqualsInProcess) {
@@ -149,6 +126,24 @@ TEST(CompensatorDistributed, AccelFeedbackTraceEqualsInProcess) {
   });
   expect_same_trace(dir, run, in_process);
   EXPECT_NE(run.compensator_output.find("2000 ticks answered"), std::string::npos) << run.compensator_output;
+  if (!::testing::Test::HasFailure()) fs::remove_all(dir);
+}
+
+TEST(CompensatorDistributed, StateFeedbackTraceEqualsInProcess) {
+  const fs::path dir = fresh_dir("state");
+  const std::string domain = test_domain(78);
+  test::ChildProcess compensator(node_args("state_feedback", domain), (dir / "state_feedback.log").string());
+  const CompensatedRun run = run_loop(dir, domain, compensator);
+
+  const SystemParams params = system_params();
+  StateFeedback feedback(params.state_feedback_params());
+  const auto in_process = run_compensated(params, scenario(params), [&](const CompensatorView& v) {
+    return feedback.step(state_feedback_input(v));
+  });
+  expect_same_trace(dir, run, in_process);
+  EXPECT_NE(run.compensator_output.find("2000 ticks answered"), std::string::npos) << run.compensator_output;
+  EXPECT_NE(run.compensator_output.find("0 rejected, 0 model restarts, 0 skipped"), std::string::npos)
+      << run.compensator_output;
   if (!::testing::Test::HasFailure()) fs::remove_all(dir);
 }
 

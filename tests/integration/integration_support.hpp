@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -18,10 +19,11 @@ inline std::string source(const std::string& rel) { return std::string(PMLSM_SOU
 
 /// A domain of its own per test, so the tests of one ctest run, which run in
 /// parallel, never meet. Offsets: distributed_test.cpp 0..6, compensator_test.cpp
-/// 10..14, training_test.cpp 15..19, tests/interop 20..24, the Foxglove bridge's tests
+/// 10..14 and 78 (state feedback), training_test.cpp 15..19, tests/interop 20..24, the Foxglove bridge's tests
 /// 25..29, tests/tools 30..39, drive_safety_test.cpp 40..44, virtual_rig_test.cpp 45, 46, 48, 49, 70, 71 (CAN
 /// ports 432xx by offset), the python CANopen tests 47, 72 and 73, tests/security 50..59, hardening_test.cpp
-/// 60..69. PMLSM_TEST_DOMAIN_BASE moves the whole set
+/// 60..69, external_reference_test.cpp 74..77, agents_test.cpp 80..85.
+/// PMLSM_TEST_DOMAIN_BASE moves the whole set
 /// (default 100), for two test runs on one machine.
 inline std::string test_domain(int offset) {
   const char* base = std::getenv("PMLSM_TEST_DOMAIN_BASE");
@@ -33,6 +35,31 @@ inline std::string read_file(const std::filesystem::path& p) {
   std::ostringstream s;
   s << in.rdbuf();
   return s.str();
+}
+
+/// One column of a trace CSV (header row first) by its name; empty when there is no such column.
+inline std::vector<double> trace_column(const std::string& csv, const std::string& name) {
+  std::istringstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  std::vector<std::string> header;
+  {
+    std::istringstream h(line);
+    std::string cell;
+    while (std::getline(h, cell, ',')) header.push_back(cell);
+  }
+  const auto it = std::find(header.begin(), header.end(), name);
+  if (it == header.end()) return {};
+  const std::size_t column = static_cast<std::size_t>(it - header.begin());
+  std::vector<double> values;
+  while (std::getline(in, line)) {
+    std::istringstream row(line);
+    std::string cell;
+    for (std::size_t c = 0; c <= column && std::getline(row, cell, ','); ++c) {
+    }
+    values.push_back(std::strtod(cell.c_str(), nullptr));
+  }
+  return values;
 }
 
 /// An empty folder <tmp>/<prefix>_<pid>_<name>.

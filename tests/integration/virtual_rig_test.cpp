@@ -298,8 +298,13 @@ TEST(VirtualRig, AKilledControllerQuickStopsTheDriveWithinTheWatchdog) {
                                                          "--on-controller-lost", "stay", "--canopen-set", kMissedAnswers})),
                             (dir / "bridge.log").string());
   ASSERT_TRUE(bridge.wait_for_output("watchdog armed", std::chrono::seconds(30))) << bridge.output();
-  ASSERT_EQ(bridge.output().find("watchdog: tick"), std::string::npos)
-      << "a watchdog trip before the controller was killed (the host is too busy for 50 ms):\n" << bridge.output();
+  if (bridge.output().find("watchdog: tick") != std::string::npos) {
+    // Not the subject: the host held the controller up for 50 ms before the kill, so the trip the
+    // test provokes cannot be told from the one the load caused.
+    // (The processes end with their ChildProcess, by SIGKILL.)
+    GTEST_SKIP() << "the host is too busy for a 50 ms watchdog: it tripped before the controller was killed:\n"
+                 << bridge.output();
+  }
   const double killed_s = wall_now_s();
   controller.signal(SIGKILL);
   ASSERT_TRUE(drive.wait_for_output("-> quick stop active", std::chrono::seconds(10))) << drive.output();

@@ -18,6 +18,7 @@
 #include <fastdds/rtps/common/SerializedPayload.h>
 #include <fastrtps/utils/fixed_size_string.hpp>
 
+#include "AgentAnnouncePubSubTypes.h"
 #include "CompensatorOutputPubSubTypes.h"
 #include "CurrentFeedbackPubSubTypes.h"
 #include "DriveControlPubSubTypes.h"
@@ -26,13 +27,17 @@
 #include "EvaluationRequestPubSubTypes.h"
 #include "EvaluationResultPubSubTypes.h"
 #include "ForceCommandPubSubTypes.h"
+#include "LaunchRequestPubSubTypes.h"
 #include "MotorFeedbackPubSubTypes.h"
 #include "NetworkWeightsPubSubTypes.h"
+#include "NodeExitPubSubTypes.h"
+#include "NodeOutputPubSubTypes.h"
 #include "NodeStatusPubSubTypes.h"
 #include "PlantTruthPubSubTypes.h"
 #include "TrainerProgressPubSubTypes.h"
 #include "TrainingSetupPubSubTypes.h"
 #include "VelocityReferencePubSubTypes.h"
+#include "VelocitySetpointPubSubTypes.h"
 #include "VoltageCommandPubSubTypes.h"
 #include "WorkerStatusPubSubTypes.h"
 #include "pmlsm/dds/catalog.hpp"
@@ -59,6 +64,9 @@ class Sampler {
   }
   std::int64_t i64(const std::string& path) {
     return record(path, -1'000'000'000'000'000LL - 3 * next());
+  }
+  std::int32_t i32(const std::string& path) {
+    return static_cast<std::int32_t>(record(path, std::int64_t{-100000 - 3 * next()}));
   }
   std::uint32_t u32(const std::string& path) {
     return static_cast<std::uint32_t>(record(path, std::uint64_t{0x80000000U + 7U * next()}));
@@ -231,6 +239,17 @@ msg::VelocityReference velocity_reference(Sampler& s) {
   return v;
 }
 
+msg::VelocitySetpoint velocity_setpoint(Sampler& s) {
+  msg::VelocitySetpoint v;
+  v.stamp(stamp(s));
+  v.velocity_mps(s.real("velocity_mps"));
+  v.accel_limit_mps2(s.real("accel_limit_mps2"));
+  v.session(s.u64("session"));
+  v.sequence_number(s.u64("sequence_number"));
+  v.source(s.text<64>("source"));
+  return v;
+}
+
 msg::EstimatedState estimated_state(Sampler& s) {
   msg::EstimatedState v;
   v.stamp(stamp(s));
@@ -323,6 +342,15 @@ msg::TrainingSetup training_setup(Sampler& s) {
   }
   v.scenarios(scenarios);
   v.cost_velocity(s.text<16>("cost_velocity"));
+  std::vector<msg::TrainingPlantText> plants(2);
+  for (std::size_t i = 0; i < plants.size(); ++i) {
+    const std::string path = Sampler::indexed("plants", i);
+    plants[i].name(s.text<64>(path + ".name"));
+    plants[i].moves(s.texts<256>(path + ".moves", 2));
+    plants[i].weight(s.real(path + ".weight"));
+  }
+  v.plants(plants);
+  v.plant_objective(s.text<32>("plant_objective"));
   return v;
 }
 
@@ -357,6 +385,56 @@ msg::WorkerStatus worker_status(Sampler& s) {
   v.queued(s.u32("queued"));
   v.evaluated(s.u64("evaluated"));
   v.setup_error(s.text<128>("setup_error"));
+  return v;
+}
+
+msg::AgentAnnounce agent_announce(Sampler& s) {
+  msg::AgentAnnounce v;
+  v.stamp(stamp(s));
+  v.host_name(s.text<64>("host_name"));
+  v.agent_id(s.text<64>("agent_id"));
+  v.pid(s.u32("pid"));
+  v.secure(s.flag("secure"));
+  v.launch_id(s.u64("launch_id"));
+  v.lease_ms(s.u32("lease_ms"));
+  v.message(s.text<128>("message"));
+  return v;
+}
+
+msg::LaunchRequest launch_request(Sampler& s) {
+  msg::LaunchRequest v;
+  v.stamp(stamp(s));
+  v.launch_id(s.u64("launch_id"));
+  v.host_name(s.text<64>("host_name"));
+  v.command(s.u8("command"));
+  v.requester(s.text<64>("requester"));
+  v.lease_ms(s.u32("lease_ms"));
+  v.start_grace_ms(s.u32("start_grace_ms"));
+  v.stop_timeout_ms(s.u32("stop_timeout_ms"));
+  v.slice_yaml(s.text<16384>("slice_yaml"));
+  return v;
+}
+
+msg::NodeOutput node_output(Sampler& s) {
+  msg::NodeOutput v;
+  v.stamp(stamp(s));
+  v.launch_id(s.u64("launch_id"));
+  v.host_name(s.text<64>("host_name"));
+  v.node_name(s.text<64>("node_name"));
+  v.stream(s.u8("stream"));
+  v.line_number(s.u64("line_number"));
+  v.line(s.text<1024>("line"));
+  return v;
+}
+
+msg::NodeExit node_exit(Sampler& s) {
+  msg::NodeExit v;
+  v.stamp(stamp(s));
+  v.launch_id(s.u64("launch_id"));
+  v.host_name(s.text<64>("host_name"));
+  v.event(s.u8("event"));
+  v.exit_code(s.i32("exit_code"));
+  v.message(s.text<256>("message"));
   return v;
 }
 
@@ -396,6 +474,7 @@ const CatalogCase kCases[] = {
     {"pmlsm_msgs::msg::VoltageCommand", make_sample<msg::VoltageCommandPubSubType, voltage_command>},
     {"pmlsm_msgs::msg::VelocityReference",
      make_sample<msg::VelocityReferencePubSubType, velocity_reference>},
+    {"pmlsm_msgs::msg::VelocitySetpoint", make_sample<msg::VelocitySetpointPubSubType, velocity_setpoint>},
     {"pmlsm_msgs::msg::EstimatedState", make_sample<msg::EstimatedStatePubSubType, estimated_state>},
     {"pmlsm_msgs::msg::DriveControl", make_sample<msg::DriveControlPubSubType, drive_control>},
     {"pmlsm_msgs::msg::DriveState", make_sample<msg::DriveStatePubSubType, drive_state>},
@@ -411,6 +490,10 @@ const CatalogCase kCases[] = {
     {"pmlsm_msgs::msg::EvaluationResult",
      make_sample<msg::EvaluationResultPubSubType, evaluation_result>},
     {"pmlsm_msgs::msg::WorkerStatus", make_sample<msg::WorkerStatusPubSubType, worker_status>},
+    {"pmlsm_msgs::msg::AgentAnnounce", make_sample<msg::AgentAnnouncePubSubType, agent_announce>},
+    {"pmlsm_msgs::msg::LaunchRequest", make_sample<msg::LaunchRequestPubSubType, launch_request>},
+    {"pmlsm_msgs::msg::NodeOutput", make_sample<msg::NodeOutputPubSubType, node_output>},
+    {"pmlsm_msgs::msg::NodeExit", make_sample<msg::NodeExitPubSubType, node_exit>},
 };
 
 const CatalogCase* find_case(const std::string& type_name) {

@@ -468,3 +468,36 @@ TEST(RepositoryLaunchFiles, AllParse) {
 }
 
 }  // namespace
+
+namespace {
+
+// What a launcher sends an agent reads back to the same nodes: quotes, spaces, colons, '#',
+// numbers that must stay strings, env and ends_launch.
+TEST(SliceYaml, ReadsBackToTheSameNodes) {
+  NodeSpec a;
+  a.name = "plant";
+  a.executable = "plant_sim";
+  a.host = "rig";
+  a.args = {"--set", "plant.x: 1 # not a comment", "3", "it's \"quoted\"", "", "true"};
+  a.env = {{"FASTDDS_DEFAULT_PROFILES_FILE", "configs/dds/profiles.xml"}, {"EMPTY", ""}};
+  a.ends_launch = true;
+  NodeSpec b;
+  b.name = "controller";
+  b.executable = "/opt/pmlsm/bin/controller";
+  b.host = "rig";
+  const auto launch = parse_launch(slice_yaml("pulse", "rig", {a, b}), "slice");
+  EXPECT_EQ(launch.name, "pulse");
+  EXPECT_EQ(launch.hosts, std::vector<std::string>{"rig"});
+  ASSERT_EQ(launch.nodes.size(), 2u);
+  EXPECT_EQ(launch.nodes[0].name, a.name);
+  EXPECT_EQ(launch.nodes[0].executable, a.executable);
+  EXPECT_EQ(launch.nodes[0].host, "rig");
+  EXPECT_EQ(launch.nodes[0].args, a.args);
+  EXPECT_EQ(launch.nodes[0].env, a.env);
+  EXPECT_TRUE(launch.nodes[0].ends_launch);
+  EXPECT_EQ(launch.nodes[1].executable, b.executable);
+  EXPECT_TRUE(launch.nodes[1].args.empty());
+  EXPECT_FALSE(launch.nodes[1].ends_launch);
+}
+
+}  // namespace

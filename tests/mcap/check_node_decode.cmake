@@ -16,7 +16,7 @@ execute_process(
           --expect-topic /pmlsm/node_status --expect-topic /pmlsm/network_weights
           --expect-topic /pmlsm/training/setup
           --expect-topic /pmlsm/drive_state --expect-topic /pmlsm/drive_control
-          --min-messages 175
+          --min-messages 200
           --print-first /pmlsm/motor_feedback --print-first /pmlsm/force_command
           --print-first /pmlsm/node_status --print-first /pmlsm/network_weights
           --print-first /pmlsm/training/setup
@@ -29,7 +29,7 @@ if(NOT result EQUAL 0)
   message(FATAL_ERROR "read_mcap.mjs failed (exit ${result})")
 endif()
 
-# 50 ticks: the two control topics every tick, the other 15 every 10th tick.
+# 50 ticks: the two control topics every tick, the other 20 every 10th tick.
 string(JSON message_count GET "${output}" messages)
 string(JSON topic_count LENGTH "${output}" topics)
 string(JSON motor_feedback_count GET "${output}" topics /pmlsm/motor_feedback)
@@ -39,8 +39,8 @@ macro(expect actual expected what)
     string(APPEND failures "\n  ${what}: got '${actual}', expected '${expected}'")
   endif()
 endmacro()
-expect("${message_count}" 175 "message count")
-expect("${topic_count}" 17 "topics with messages")
+expect("${message_count}" 200 "message count")
+expect("${topic_count}" 22 "topics with messages")
 expect("${motor_feedback_count}" 50 "/pmlsm/motor_feedback messages")
 
 # Each check: topic, JSON path below the decoded message, expected text.

@@ -35,8 +35,13 @@
 #include "TrainerProgressPubSubTypes.h"
 #include "TrainingSetupPubSubTypes.h"
 #include "VelocityReferencePubSubTypes.h"
+#include "VelocitySetpointPubSubTypes.h"
 #include "VoltageCommandPubSubTypes.h"
 #include "WorkerStatusPubSubTypes.h"
+#include "AgentAnnouncePubSubTypes.h"
+#include "LaunchRequestPubSubTypes.h"
+#include "NodeExitPubSubTypes.h"
+#include "NodeOutputPubSubTypes.h"
 #include "pmlsm/dds/catalog.hpp"
 #include "pmlsm/mcap/mcap.hpp"
 
@@ -194,6 +199,11 @@ std::map<std::string, Generator> generators() {
       {"pmlsm_msgs::msg::EvaluationRequest", stamped<msg::EvaluationRequest, msg::EvaluationRequestPubSubType>},
       {"pmlsm_msgs::msg::EvaluationResult", stamped<msg::EvaluationResult, msg::EvaluationResultPubSubType>},
       {"pmlsm_msgs::msg::WorkerStatus", stamped<msg::WorkerStatus, msg::WorkerStatusPubSubType>},
+      {"pmlsm_msgs::msg::VelocitySetpoint", stamped<msg::VelocitySetpoint, msg::VelocitySetpointPubSubType>},
+      {"pmlsm_msgs::msg::AgentAnnounce", stamped<msg::AgentAnnounce, msg::AgentAnnouncePubSubType>},
+      {"pmlsm_msgs::msg::LaunchRequest", stamped<msg::LaunchRequest, msg::LaunchRequestPubSubType>},
+      {"pmlsm_msgs::msg::NodeOutput", stamped<msg::NodeOutput, msg::NodeOutputPubSubType>},
+      {"pmlsm_msgs::msg::NodeExit", stamped<msg::NodeExit, msg::NodeExitPubSubType>},
   };
 }
 

@@ -122,6 +122,34 @@ TEST(RnnCost, ZeroWeightsCostWhatPiOnlyCosts) {
   EXPECT_DOUBLE_EQ(cost(std::vector<double>(91, 0.0)), pi_cost);
 }
 
+// Over plant variants: the costs per plant and the worst ratio to PI alone. A zero network is
+// PI alone on every plant, so its worst ratio is exactly 1; the light, stiff plant changes the cost.
+TEST(RnnCost, PlantVariantsAndTheWorstRatioToPi) {
+  const SystemParams& p = shipped_params();
+  const Scenario pulse = shipped_scenario("pulse");
+  const std::vector<PlantVariant> plants{
+      {"configured", {}, 1.0},
+      {"light_stiff", {{"plant.mechanics.load_mass_kg", 2.0}, {"plant.mechanics.spring_n_per_m", 27400.0}}, 1.0}};
+  const std::vector<double> zero(91, 0.0);
+  const RnnCost worst(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth, plants, PlantObjective::kWorstRatioToPi);
+  EXPECT_DOUBLE_EQ(worst(zero), 1.0);
+  const RnnCost sum(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth, plants, PlantObjective::kWeightedSum);
+  const RnnCost nominal(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth);
+  SystemParams light = p;
+  light.plant.mechanics.load_mass_kg = 2.0;
+  light.plant.mechanics.spring_n_per_m = 27400.0;
+  const RnnCost light_only(light, {{pulse, "pulse", 1.0}}, CostVelocity::truth);
+  EXPECT_DOUBLE_EQ(sum(zero), nominal(zero) + light_only(zero));
+  EXPECT_NE(nominal(zero), light_only(zero));
+  // Only the plant moves; a model key or an unknown one is refused, naming the variant.
+  EXPECT_THROW(RnnCost(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth, {{"m", {{"kalman.model.load_mass_kg", 2.0}}, 1.0}},
+                       PlantObjective::kWeightedSum),
+               std::invalid_argument);
+  EXPECT_THROW(RnnCost(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth, {{"x", {{"plant.nothing", 2.0}}, 1.0}},
+                       PlantObjective::kWeightedSum),
+               std::invalid_argument);
+}
+
 TEST(RnnCost, RejectsWrongSizeAndNonFiniteSetsAsWorst) {
   const SystemParams& p = shipped_params();
   const RnnCost cost(p, {{shipped_scenario("pulse"), "pulse", 1.0}}, CostVelocity::estimated);

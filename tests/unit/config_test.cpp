@@ -268,8 +268,8 @@ TEST(ConfigRejects, OutOfRange) {
   expect_scenario_rejects({
       {"duty cycle above 1", {{"command.duty_cycle.value", "1.5"}},
        {"command.duty_cycle: must be in [0, 1]", "got 1.5"}},
-      {"unknown shape", {{"command.shape.value", "ramp"}},
-       {"command.shape", "'ramp'", "zero, step, pulse, sine"}},
+      {"unknown shape", {{"command.shape.value", "square"}},
+       {"command.shape", "'square'", "zero, step, pulse, sine"}},
   });
 }
 

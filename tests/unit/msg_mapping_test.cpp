@@ -28,6 +28,7 @@ std::vector<std::pair<std::string, double>> fields(const TickRecord& r) {
           {"time_s", r.time_s},
           {"command_mps", r.command_mps},
           {"v_ref_mps", r.v_ref_mps},
+          {"a_ref_mps2", r.a_ref_mps2},
           {"encoder_position_m", r.encoder_position_m},
           {"motor_velocity_measured_mps", r.motor_velocity_measured_mps},
           {"motor_position_m", r.motor_position_m},
@@ -57,7 +58,7 @@ TickRecord sentinel_record() {
   TickRecord r;
   r.tick = 999;
   double v = -1000;
-  for (double* f : {&r.time_s, &r.command_mps, &r.v_ref_mps, &r.encoder_position_m,
+  for (double* f : {&r.time_s, &r.command_mps, &r.v_ref_mps, &r.a_ref_mps2, &r.encoder_position_m,
                     &r.motor_velocity_measured_mps, &r.motor_position_m, &r.motor_velocity_mps,
                     &r.load_position_m, &r.load_velocity_mps, &r.load_accel_mps2, &r.spring_force_n,
                     &r.est_motor_velocity_mps, &r.est_load_velocity_mps, &r.est_spring_force_n,
@@ -274,6 +275,7 @@ TEST(MsgMapping, VelocityReferenceFromTheControllerOutput) {
   TickRecord expected = sentinel_record();
   expected.command_mps = 4.01;
   expected.v_ref_mps = 4.02;
+  expected.a_ref_mps2 = 4.03;
   expect_same_record(r, expected);
 }
 

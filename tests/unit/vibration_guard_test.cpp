@@ -38,7 +38,7 @@ VibrationGuardOutput run(VibrationGuard& g, int steps, double f_hz, Amplitude am
     const double t = k * kT;
     const double osc = amplitude(t) * std::sin(2 * M_PI * f_hz * t);
     const double v = osc + drift_mps * (t > 0.05 ? 1.0 : 0.0);
-    out = g.step(v, force(osc, t) * out.scale);
+    out = g.step({v, 0.0, force(osc, t) * out.scale});
   }
   return out;
 }
@@ -101,11 +101,43 @@ TEST(VibrationGuard, OscillationsBelowTheFloorAndSlowMotionAreLeftAlone) {
   EXPECT_FALSE(out.tripped) << "amplitude " << slow.counters().last_amplitude_mps;
 }
 
+TEST(VibrationGuard, AReferenceMovingAtTheModeIsTrackingNotALimitCycle) {
+  // A 0.3 m/s, 5 Hz sine reference, the motor lagging it by 30 degrees under compensation: the
+  // error oscillates steadily at 5 Hz (0.15 m/s), but the reference's own motion explains it.
+  const auto sine = [](double a, double f, double phase, int k) { return a * std::sin(2 * M_PI * f * k * kT + phase); };
+  VibrationGuard tracking(params());
+  for (int k = 0; k < 3000; ++k) {
+    const double ref = sine(0.3, 5.0, 0.0, k);
+    const double v = sine(0.3, 5.0, -M_PI / 6, k);
+    tracking.step({v, ref, 80.0 * (v - ref)});
+  }
+  EXPECT_FALSE(tracking.output().tripped) << "A " << tracking.counters().last_amplitude_mps << ", A_ref "
+                                          << tracking.counters().last_reference_mps;
+  EXPECT_GT(tracking.counters().last_amplitude_mps, 0.02) << "the error oscillation is well above the floor";
+  // The same motor motion judged against a still reference (or with no reference at all): a
+  // sustained oscillation the reference does not explain.
+  VibrationGuard still(params());
+  for (int k = 0; k < 3000; ++k) {
+    const double v = sine(0.3, 5.0, -M_PI / 6, k);
+    still.step({v, 0.0, 80.0 * v});
+  }
+  EXPECT_TRUE(still.output().tripped);
+  // A 21 Hz limit cycle riding on a slow (0.5 Hz) reference: the reference explains none of it.
+  VibrationGuard riding(params());
+  for (int k = 0; k < 3000; ++k) {
+    const double ref = sine(0.2, 0.5, 0.0, k);
+    const double cycle = sine(0.02, 21.0, 0.0, k);
+    riding.step({ref + cycle, ref, 500.0 * cycle});
+  }
+  EXPECT_TRUE(riding.output().tripped);
+  EXPECT_EQ(riding.output().reason, VibrationGuardTrip::kSustained);
+}
+
 TEST(VibrationGuard, NonFiniteInputsAreCountedNeverPropagated) {
   VibrationGuard g(params());
   const double nan = std::numeric_limits<double>::quiet_NaN();
   for (int k = 0; k < 500; ++k) {
-    const auto out = g.step(k % 7 == 0 ? nan : 0.001 * std::sin(k * 0.1), k % 11 == 0 ? HUGE_VAL : 0.0);
+    const auto out = g.step({k % 7 == 0 ? nan : 0.001 * std::sin(k * 0.1), 0.0, k % 11 == 0 ? HUGE_VAL : 0.0});
     ASSERT_TRUE(std::isfinite(out.scale));
   }
   EXPECT_GT(g.counters().rejected_inputs, 100U);
@@ -137,6 +169,9 @@ TEST(VibrationGuard, ParametersAreValidatedNamingTheField) {
   p = params();
   p.windows_to_trip = 0;
   EXPECT_NE(message(p).find("windows_to_trip"), std::string::npos);
+  p = params();
+  p.max_reference_share = 0.0;
+  EXPECT_NE(message(p).find("max_reference_share"), std::string::npos);
   p = params();
   p.min_oscillation_mps = std::nan("");
   EXPECT_NE(message(p).find("min_oscillation_mps"), std::string::npos);

@@ -1,5 +1,8 @@
 #include "commands.hpp"
 
+#include <unistd.h>
+
+#include <cstdlib>
 #include <sstream>
 
 namespace pmlsm::tools {
@@ -35,6 +38,14 @@ dds::ParticipantOptions with_node_name(dds::ParticipantOptions options, const st
   if (options.node_name.empty()) options.node_name = name;
   if (options.identity.empty()) options.identity = identity;
   return options;
+}
+
+std::string user_at_host() {
+  const char* user = std::getenv("USER");
+  if (user == nullptr || *user == '\0') user = std::getenv("LOGNAME");
+  char host[256] = {};
+  if (user == nullptr || *user == '\0' || gethostname(host, sizeof host - 1) != 0 || host[0] == '\0') return "pmlsm";
+  return std::string(user) + "@" + host;
 }
 
 }  // namespace pmlsm::tools

@@ -33,9 +33,12 @@ std::string writer_key(const eprosima::fastdds::dds::SampleInfo& info);
 std::int64_t to_ns(const eprosima::fastrtps::rtps::Time_t& t);
 
 /// `options` with node_name set to `name` and the security identity to `identity` (one per
-/// command group: pmlsm_topic, pmlsm_record, pmlsm_play, pmlsm_drive), unless the user gave them.
+/// command group: pmlsm_topic, pmlsm_record, pmlsm_play, pmlsm_drive, pmlsm_setpoint), unless the user gave them.
 dds::ParticipantOptions with_node_name(dds::ParticipantOptions options, const std::string& name,
                                        const std::string& identity);
+
+/// "user@host" of who runs the command (requests name their requester), else "pmlsm".
+std::string user_at_host();
 
 // Each registers its subcommand(s); the callback runs the command and stores its exit code.
 // Option storage lives in the callbacks (shared), so it outlives parsing.
@@ -45,7 +48,11 @@ void add_play_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& 
 void add_plot_command(CLI::App& app, int& exit_code);
 /// `pmlsm drive status|enable|disable|quick-stop|fault-reset|shutdown|switch-on` (drive.cpp).
 void add_drive_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code);
+/// `pmlsm setpoint VALUE [--ramp-mps2 A] [--hold-s S]`: a live velocity setpoint (setpoint.cpp).
+void add_setpoint_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code);
 /// `pmlsm security create|create-identity|update-permissions|check|list` (security.cpp).
 void add_security_command(CLI::App& app, int& exit_code);
+/// `pmlsm sweep FILE`: the robustness sweep, in process (sweep.cpp).
+void add_sweep_command(CLI::App& app, int& exit_code);
 
 }  // namespace pmlsm::tools

@@ -74,14 +74,6 @@ struct DriveOptions {
 
 bool every_drive(const std::string& name) { return name.empty() || name == "*"; }
 
-std::string default_requester() {
-  const char* user = std::getenv("USER");
-  if (user == nullptr || *user == '\0') user = std::getenv("LOGNAME");
-  char host[256] = {};
-  if (user == nullptr || *user == '\0' || gethostname(host, sizeof host - 1) != 0 || host[0] == '\0') return "pmlsm";
-  return std::string(user) + "@" + host;
-}
-
 std::string hex(std::uint64_t value, int digits) {
   char text[32];
   std::snprintf(text, sizeof text, "0x%0*llx", digits, static_cast<unsigned long long>(value));
@@ -171,7 +163,7 @@ class DriveLink {
         participant_(with_node_name(options, node_name, "pmlsm_drive")),
         state_reader_(participant_.make_reader<msg::DriveStatePubSubType>(dds::topics::kDriveState, wakeup_)),
         control_writer_(participant_.make_writer<msg::DriveControlPubSubType>(dds::topics::kDriveControl)),
-        requester_(o.requester.empty() ? default_requester() : o.requester) {
+        requester_(o.requester.empty() ? user_at_host() : o.requester) {
     // Unique per process and per request, never 0: the pid in the top 16 bits, the wall clock
     // in microseconds below (48 bits: 8.9 years before it repeats).
     const auto wall_us = std::chrono::duration_cast<std::chrono::microseconds>(

@@ -2,8 +2,11 @@
 //   pmlsm topic list|echo|hz|delay   what is on the domain
 //   pmlsm record | play | plot       MCAP recordings
 //   pmlsm launch FILE ...            the launcher (same options)
+//   pmlsm agent ...                  the launch agent of this host (launch_agent)
 //   pmlsm drive status|enable|...    the drive's CiA 402 power state
+//   pmlsm setpoint VALUE             a live velocity setpoint for the controller
 //   pmlsm security create|...        the DDS Security keystore
+#include "pmlsm/util/data_files.hpp"
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -19,16 +22,17 @@
 
 namespace {
 
-// `pmlsm launch ...` is the launcher beside this program, given the rest of the command line.
-int exec_launcher(int argc, char** argv, int launch_index) {
+// `pmlsm launch ...` is the launcher beside this program, `pmlsm agent ...` the launch agent,
+// given the rest of the command line.
+int exec_launcher(int argc, char** argv, int launch_index, const char* program = "launcher") {
   std::error_code ec;
   const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
-  const std::string launcher = (ec ? std::filesystem::path(".") : self.parent_path()) / "launcher";
+  const std::string launcher = (ec ? std::filesystem::path(".") : self.parent_path()) / program;
   std::vector<char*> args{const_cast<char*>(launcher.c_str())};
   for (int i = launch_index + 1; i < argc; ++i) args.push_back(argv[i]);
   args.push_back(nullptr);
   execv(launcher.c_str(), args.data());
-  std::cerr << "pmlsm launch: cannot run " << launcher << ": " << std::strerror(errno) << "\n";
+  std::cerr << "pmlsm: cannot run " << launcher << ": " << std::strerror(errno) << "\n";
   return pmlsm::kExitError;
 }
 
@@ -38,13 +42,14 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string word = argv[i];
     if (word == "launch") return exec_launcher(argc, argv, i);
+    if (word == "agent") return exec_launcher(argc, argv, i, "launch_agent");
     if (word.empty() || word[0] != '-') break;  // only global options may come before it
   }
 
   CLI::App app{"pmlsm: watch, record, replay and plot the PMLSM control system's DDS topics"};
   app.require_subcommand(1);
   pmlsm::dds::ParticipantOptions dds_options;
-  dds_options.profiles_file = "configs/dds/profiles.xml";
+  dds_options.profiles_file = pmlsm::data_file("configs/dds/profiles.xml");
   app.add_option("--profiles", dds_options.profiles_file, "Fast DDS XML profiles")->capture_default_str();
   app.add_option("--participant-profile", dds_options.participant_profile, "Participant profile in them")->capture_default_str();
   app.add_option("--domain", dds_options.domain_id, "DDS domain id")->capture_default_str()->check(CLI::Range(0, 232));
@@ -55,8 +60,9 @@ int main(int argc, char** argv) {
       "--keystore", [&dds_options](const std::string& v) { dds_options.keystore = pmlsm::dds::resolve_keystore(v); },
       "DDS Security keystore (default: $PMLSM_KEYSTORE, else open; 'none': open)");
   app.add_option("--identity", dds_options.identity,
-                 "Identity in the keystore (default: pmlsm_topic, pmlsm_record, pmlsm_play or pmlsm_drive)");
-  app.add_subcommand("launch", "Starts a launch description: `pmlsm launch FILE [--host H] ...` (see `launcher --help`)");
+                 "Identity in the keystore (default: pmlsm_topic, pmlsm_record, pmlsm_play, pmlsm_drive or pmlsm_setpoint)");
+  app.add_subcommand("launch", "Starts a launch description: `pmlsm launch FILE [--host H | --agents] ...` (see `launcher --help`)");
+  app.add_subcommand("agent", "The launch agent of this host: `pmlsm agent [--host H] [--keystore K | --insecure]` (see `launch_agent --help`)");
 
   int exit_code = pmlsm::kExitOk;
   pmlsm::tools::add_topic_commands(app, dds_options, exit_code);
@@ -64,7 +70,9 @@ int main(int argc, char** argv) {
   pmlsm::tools::add_play_command(app, dds_options, exit_code);
   pmlsm::tools::add_plot_command(app, exit_code);
   pmlsm::tools::add_drive_command(app, dds_options, exit_code);
+  pmlsm::tools::add_setpoint_command(app, dds_options, exit_code);
   pmlsm::tools::add_security_command(app, exit_code);
+  pmlsm::tools::add_sweep_command(app, exit_code);
 
   pmlsm::dds::install_shutdown_handlers();
   try {

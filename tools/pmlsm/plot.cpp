@@ -5,8 +5,6 @@
 // force is seen at a glance; the titles and the tool's output give their count. Samples are decoded from the file's own omgidl schemas, so a recording made by an
 // older build still plots as long as the field names are there. A truncated or corrupt file
 // gives plots of what is whole and a list of what is not.
-#include <spawn.h>
-#include <sys/wait.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -19,10 +17,10 @@
 #include "DriveState.h"
 #include "MotorFeedback.h"
 #include "commands.hpp"
+#include "tool_support.hpp"
 #include "pmlsm/introspect/cdr_schema.hpp"
 #include "pmlsm/mcap/mcap.hpp"
 
-extern char** environ;
 
 namespace pmlsm::tools {
 namespace {
@@ -70,19 +68,6 @@ bool force_off(double status, double power_state) {
 
 std::string data_path(const std::filesystem::path& dir, const std::string& topic) {
   return (dir / (topic.substr(std::string("/pmlsm/").size()) + ".dat")).string();
-}
-
-int run_gnuplot(const std::filesystem::path& script) {
-  const std::string gnuplot = "gnuplot";
-  const std::string script_path = script.string();
-  char* argv[] = {const_cast<char*>(gnuplot.c_str()), const_cast<char*>(script_path.c_str()), nullptr};
-  pid_t pid = 0;
-  if (posix_spawnp(&pid, "gnuplot", nullptr, nullptr, argv, environ) != 0) {
-    throw std::runtime_error("cannot run gnuplot (Debian package gnuplot-nox)");
-  }
-  int status = 0;
-  waitpid(pid, &status, 0);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 1;
 }
 
 int run_plot(const PlotOptions& o) {

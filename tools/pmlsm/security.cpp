@@ -5,6 +5,7 @@
 //   pmlsm security check DIR [NAME...]                     what is wrong with each identity
 //   pmlsm security list DIR                                the identities in it
 // Layout and why two CAs: common/security/include/pmlsm/security/keystore_layout.hpp.
+#include "pmlsm/util/data_files.hpp"
 #include <iostream>
 #include <memory>
 
@@ -20,8 +21,8 @@ namespace {
 const std::vector<std::string>& node_identities() {
   static const std::vector<std::string> names{
       "plant_sim",   "drive_bridge", "virtual_drive", "controller",  "kalman_estimator", "accel_feedback",
-      "rnn_compensator", "evaluator", "foxglove_bridge", "de_trainer", "de_worker",
-      "pmlsm_topic", "pmlsm_record", "pmlsm_play",  "pmlsm_drive"};
+      "state_feedback", "rnn_compensator", "evaluator", "foxglove_bridge", "de_trainer", "de_worker",
+      "pmlsm_topic", "pmlsm_record", "pmlsm_play",  "pmlsm_drive", "pmlsm_setpoint", "launcher", "launch_agent"};
   return names;
 }
 
@@ -34,7 +35,7 @@ security::Policy load(const std::string& path) {
 
 struct SecurityOptions {
   std::string keystore;
-  std::string policy = "configs/security/policy.yaml";
+  std::string policy = data_file("configs/security/policy.yaml");
   std::vector<std::string> names;
   security::KeystoreOptions validity;
 };

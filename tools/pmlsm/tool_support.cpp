@@ -1,10 +1,15 @@
 #include "tool_support.hpp"
 
+#include <spawn.h>
+#include <sys/wait.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <numeric>
 #include <stdexcept>
+
+extern char** environ;
 
 namespace pmlsm::tools {
 
@@ -82,6 +87,19 @@ std::optional<std::uint64_t> stamp_run_id(const std::vector<std::uint8_t>& cdr) 
     value |= byte << (8 * i);
   }
   return value;
+}
+
+int run_gnuplot(const std::filesystem::path& script) {
+  const std::string gnuplot = "gnuplot";
+  const std::string script_path = script.string();
+  char* argv[] = {const_cast<char*>(gnuplot.c_str()), const_cast<char*>(script_path.c_str()), nullptr};
+  pid_t pid = 0;
+  if (posix_spawnp(&pid, "gnuplot", nullptr, nullptr, argv, environ) != 0) {
+    throw std::runtime_error("cannot run gnuplot (Debian package gnuplot-nox)");
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 1;
 }
 
 }  // namespace pmlsm::tools

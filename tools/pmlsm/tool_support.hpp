@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <filesystem>
 #include <map>
 #include <optional>
 #include <string>
@@ -66,5 +67,9 @@ std::optional<std::uint64_t> stamp_run_id(const std::vector<std::uint8_t>& cdr);
 
 /// "12.3 kB", "4.56 MB": sizes as people read them.
 std::string human_bytes(double bytes);
+
+/// Runs `gnuplot SCRIPT` and returns its exit code.
+/// @throws std::runtime_error when gnuplot cannot be started (Debian package gnuplot-nox).
+int run_gnuplot(const std::filesystem::path& script);
 
 }  // namespace pmlsm::tools

@@ -31,6 +31,7 @@ void VibrationGuardParams::validate() const {
     throw std::invalid_argument("min_decay: must be in (0, 1), got " + format_value(min_decay));
   }
   if (windows_to_trip < 1) throw std::invalid_argument("windows_to_trip: must be >= 1, got 0");
+  require_positive("max_reference_share", max_reference_share);
   require_non_negative("fade_s", fade_s);
 }
 
@@ -65,39 +66,54 @@ void VibrationGuard::reset() noexcept {
   counters_.windows = kept.windows;
 }
 
-VibrationGuardOutput VibrationGuard::step(double motor_velocity_mps, double compensation_force_n) noexcept {
+double VibrationGuard::HighPass::step(double x, double alpha) noexcept {
+  // Two first-order sections: 40 dB a decade below f_c, so tracking motion (a few Hz at most)
+  // stays out of the window while the load's resonance (5-25 Hz here) passes.
+  const double y1_new = alpha * (y1 + x - x_prev);
+  y2 = alpha * (y2 + y1_new - y1);
+  y1 = y1_new;
+  x_prev = x;
+  return y2;
+}
+
+VibrationGuardOutput VibrationGuard::step(const VibrationGuardInput& in) noexcept {
   ++counters_.steps;
-  if (!std::isfinite(motor_velocity_mps) || !std::isfinite(compensation_force_n)) {
+  double error_mps = in.motor_velocity_mps - in.reference_velocity_mps;
+  double reference_mps = in.reference_velocity_mps;
+  double force_n = in.compensation_force_n;
+  if (!std::isfinite(error_mps) || !std::isfinite(reference_mps) || !std::isfinite(force_n)) {
     ++counters_.rejected_inputs;
-    motor_velocity_mps = std::isfinite(motor_velocity_mps) ? motor_velocity_mps : v_prev_;
-    compensation_force_n = std::isfinite(compensation_force_n) ? compensation_force_n : f_prev_;
+    error_mps = std::isfinite(error_mps) ? error_mps : e_prev_;
+    reference_mps = std::isfinite(reference_mps) ? reference_mps : r_prev_;
+    force_n = std::isfinite(force_n) ? force_n : f_prev_;
   }
   if (!primed_) {
     primed_ = true;
-    v_prev_ = motor_velocity_mps;
-    f_prev_ = compensation_force_n;
+    error_hp_.x_prev = error_mps;
+    reference_hp_.x_prev = reference_mps;
+    force_hp_.x_prev = force_n;
   }
-  // Two first-order sections: 40 dB a decade below f_c, so tracking motion (a few Hz at most)
-  // stays out of the window while the load's resonance (5-25 Hz here) passes.
-  const double v1 = alpha_ * (v_hp1_ + motor_velocity_mps - v_prev_);
-  const double f1 = alpha_ * (f_hp1_ + compensation_force_n - f_prev_);
-  v_hp_ = alpha_ * (v_hp_ + v1 - v_hp1_);
-  f_hp_ = alpha_ * (f_hp_ + f1 - f_hp1_);
-  v_hp1_ = v1;
-  f_hp1_ = f1;
-  v_prev_ = motor_velocity_mps;
-  f_prev_ = compensation_force_n;
+  e_prev_ = error_mps;
+  r_prev_ = reference_mps;
+  f_prev_ = force_n;
+  const double e_hp = error_hp_.step(error_mps, alpha_);
+  const double r_hp = reference_hp_.step(reference_mps, alpha_);
+  const double f_hp = force_hp_.step(force_n, alpha_);
 
-  sum_v2_ += v_hp_ * v_hp_;
-  sum_f2_ += f_hp_ * f_hp_;
+  sum_e2_ += e_hp * e_hp;
+  sum_r2_ += r_hp * r_hp;
+  sum_f2_ += f_hp * f_hp;
   if (++in_window_ >= window_steps_) {
     const double n = static_cast<double>(in_window_);
-    const double amplitude = std::sqrt(sum_v2_ / n);
+    const double amplitude = std::sqrt(sum_e2_ / n);
     ++counters_.windows;
     counters_.last_amplitude_mps = amplitude;
+    counters_.last_reference_mps = std::sqrt(sum_r2_ / n);
     counters_.last_force_rms_n = std::sqrt(sum_f2_ / n);
-    // Only a window in which some compensation acted can blame it (PI alone is not guarded).
-    const bool oscillating = amplitude > params_.min_oscillation_mps && counters_.last_force_rms_n > 0.0;
+    // Only a window in which some compensation acted can blame it (PI alone is not guarded), and
+    // only one the reference's own motion does not explain.
+    const bool oscillating = amplitude > params_.min_oscillation_mps && counters_.last_force_rms_n > 0.0 &&
+                             amplitude > params_.max_reference_share * counters_.last_reference_mps;
     sustained_run_ = oscillating && previous_amplitude_ > 0.0 && amplitude > (1.0 - params_.min_decay) * previous_amplitude_
                          ? sustained_run_ + 1
                          : 0;
@@ -106,7 +122,7 @@ VibrationGuardOutput VibrationGuard::step(double motor_velocity_mps, double comp
                        : 0;
     previous_amplitude_ = amplitude;
     in_window_ = 0;
-    sum_v2_ = sum_f2_ = 0;
+    sum_e2_ = sum_r2_ = sum_f2_ = 0;
     if (!out_.tripped && (sustained_run_ >= params_.windows_to_trip || growing_run_ >= params_.windows_to_trip)) {
       out_.tripped = true;
       out_.reason = growing_run_ >= params_.windows_to_trip ? VibrationGuardTrip::kGrowing : VibrationGuardTrip::kSustained;

@@ -10,222 +10,13 @@
 #include <sstream>
 
 #include "pmlsm/util/validate.hpp"
+#include "config_reading.hpp"
 #include "yaml_document.hpp"
 
 namespace pmlsm {
 
-namespace {
+using namespace config_reading;
 
-bool is_sourced_leaf(const YAML::Node& node) { return node.IsMap() && node["value"]; }
-
-std::string join(const std::string& path, const std::string& key) {
-  return path.empty() ? key : path + "." + key;
-}
-
-std::string read_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw ConfigError(path + ": cannot open file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-YAML::Node parse_yaml(const std::string& text, const std::string& origin) {
-  YAML::Node root = load_yaml_document(text, origin);
-  if (!root.IsMap()) throw ConfigError(origin + ": top level must be a mapping of keys");
-  return root;
-}
-
-// Checks the form of a sourced leaf: exactly value and source, and a source that
-// says where the value comes from.
-void check_sourced_leaf(const YAML::Node& node, const std::string& origin, const std::string& path) {
-  for (const auto& kv : node) {
-    const auto key = kv.first.as<std::string>();
-    if (key != "value" && key != "source") {
-      throw ConfigError(origin + ": " + path + "." + key + ": unknown key (a sourced value has only 'value' and 'source')");
-    }
-  }
-  if (!node["source"] || !node["source"].IsScalar()) {
-    throw ConfigError(origin + ": " + path + ".source: missing (say 'paper ...' or 'chosen: why')");
-  }
-  const auto source = node["source"].as<std::string>();
-  const bool from_paper = source.rfind("paper", 0) == 0;
-  const bool chosen = source.rfind("chosen:", 0) == 0 &&
-                      source.find_first_not_of(" \t", 7) != std::string::npos;
-  if (!from_paper && !chosen) {
-    throw ConfigError(origin + ": " + path + ".source: must start with 'paper' or 'chosen: <reason>', got '" + source + "'");
-  }
-}
-
-void apply_overrides(YAML::Node& root, const std::vector<ConfigOverride>& overrides,
-                     const std::string& origin) {
-  for (const ConfigOverride& o : overrides) {
-    YAML::Node node = root;
-    std::string walked;
-    std::stringstream parts(o.key_path);
-    std::string part;
-    std::vector<std::string> keys;
-    while (std::getline(parts, part, '.')) keys.push_back(part);
-    for (std::size_t i = 0; i < keys.size(); ++i) {
-      walked = join(walked, keys[i]);
-      if (!node.IsMap() || !node[keys[i]]) {
-        throw ConfigError(origin + ": override " + o.key_path + ": no key '" + walked + "' in the file");
-      }
-      node.reset(node[keys[i]]);
-    }
-    if (node.IsMap() && !is_sourced_leaf(node)) {
-      throw ConfigError(origin + ": override " + o.key_path + ": is a section, not a value");
-    }
-    YAML::Node value;
-    try {
-      value = load_yaml_document(o.value, "override " + o.key_path);
-    } catch (const ConfigError& e) {
-      throw ConfigError(origin + ": override " + o.key_path + ": value '" + o.value +
-                        "' is not accepted: " + e.what());
-    }
-    if (is_sourced_leaf(node)) {
-      node["value"] = value;
-      node["source"] = "chosen: set on the command line";
-    } else {
-      node = value;
-    }
-  }
-}
-
-[[noreturn]] void fail_at(const std::string& origin, const std::string& path, const std::string& what) {
-  throw ConfigError(origin + ": " + path + ": " + what);
-}
-
-std::string describe(const YAML::Node& v) {
-  if (v.IsScalar()) return v.Scalar();
-  YAML::Emitter out;
-  out << YAML::Flow << v;
-  return out.c_str();
-}
-
-bool looks_boolean(const YAML::Node& v) {
-  bool b = false;
-  return YAML::convert<bool>::decode(v, b);
-}
-
-// A finite number (not a boolean that would read as 0 or 1).
-double to_number(const YAML::Node& v, const std::string& origin, const std::string& path) {
-  double out = 0;
-  if (!v.IsScalar() || !YAML::convert<double>::decode(v, out) || looks_boolean(v)) {
-    fail_at(origin, path, "expected a number, got '" + describe(v) + "'");
-  }
-  if (!std::isfinite(out)) fail_at(origin, path, "must be finite, got " + v.Scalar());
-  return out;
-}
-
-// Digits only: no sign, no fraction, no exponent, no hexadecimal.
-std::uint64_t to_whole_number(const YAML::Node& v, const std::string& origin, const std::string& path) {
-  std::uint64_t out = 0;
-  const std::string text = v.IsScalar() ? v.Scalar() : std::string();
-  if (!v.IsScalar() || text.empty() || text.find_first_not_of("0123456789") != std::string::npos ||
-      !YAML::convert<std::uint64_t>::decode(v, out)) {
-    fail_at(origin, path, "expected a non-negative integer, got '" + describe(v) + "'");
-  }
-  return out;
-}
-
-// The value of a leaf: a sourced leaf's value (its form checked) or the plain scalar or list.
-YAML::Node leaf_value(const YAML::Node& v, const std::string& origin, const std::string& path) {
-  if (is_sourced_leaf(v)) {
-    check_sourced_leaf(v, origin, path);
-    return v["value"];
-  }
-  if (v.IsMap()) fail_at(origin, path, "expected a value, got a section '" + describe(v) + "'");
-  return v;
-}
-
-// A mapping being read: hands out values by key, remembers which keys were
-// read, and reports the ones that were not (unknown keys) in finish().
-class Section {
- public:
-  Section(YAML::Node node, std::string origin, std::string path)
-      : node_(std::move(node)), origin_(std::move(origin)), path_(std::move(path)) {
-    if (!node_.IsMap()) fail_at(origin_, path_, "must be a mapping of keys, got '" + describe(node_) + "'");
-  }
-
-  Section child(const std::string& key) {
-    return Section(required(key), origin_, join(path_, key));
-  }
-
-  double number(const std::string& key) { return to_number(value(key), origin_, join(path_, key)); }
-
-  std::uint64_t unsigned_integer(const std::string& key) {
-    return to_whole_number(value(key), origin_, join(path_, key));
-  }
-
-  std::string text(const std::string& key) {
-    const YAML::Node v = value(key);
-    if (!v.IsScalar()) fail_at(origin_, join(path_, key), "expected a string, got '" + describe(v) + "'");
-    return v.Scalar();
-  }
-
-  /// A list of scalars as written (texts), e.g. mapping: ["0x6040:0:16", ...].
-  std::vector<std::string> texts(const std::string& key) {
-    const YAML::Node v = required(key);
-    std::vector<std::string> out;
-    if (!v.IsSequence()) throw ConfigError(origin_ + ": " + join(path_, key) + ": expected a list of values");
-    for (std::size_t i = 0; i < v.size(); ++i) {
-      if (!v[i].IsScalar()) {
-        throw ConfigError(origin_ + ": " + join(path_, key) + "[" + std::to_string(i) + "]: expected a value");
-      }
-      out.push_back(v[i].Scalar());
-    }
-    return out;
-  }
-
-  /// A list of sub-sections (mappings), e.g. scenarios: [{file: ..., weight: ...}].
-  std::vector<Section> sections(const std::string& key) {
-    const YAML::Node v = required(key);
-    if (!v.IsSequence() || v.size() == 0) {
-      fail_at(origin_, join(path_, key), "expected a non-empty list, got '" + describe(v) + "'");
-    }
-    std::vector<Section> out;
-    for (std::size_t i = 0; i < v.size(); ++i) {
-      out.emplace_back(v[i], origin_, join(path_, key) + "[" + std::to_string(i) + "]");
-    }
-    return out;
-  }
-
-  void finish() const {
-    for (const auto& kv : node_) {
-      const auto key = kv.first.as<std::string>();
-      if (used_.count(key) == 0) fail_at(origin_, join(path_, key), "unknown key");
-    }
-  }
-
- private:
-  YAML::Node required(const std::string& key) {
-    const YAML::Node v = node_[key];
-    if (!v) fail_at(origin_, join(path_, key), "missing key");
-    used_.insert(key);
-    return v;
-  }
-
-  YAML::Node value(const std::string& key) { return leaf_value(required(key), origin_, join(path_, key)); }
-
-  YAML::Node node_;
-  std::string origin_;
-  std::string path_;
-  std::set<std::string> used_;
-};
-
-// Runs a section's validate(), turning its std::invalid_argument into a
-// ConfigError with the file name and the section's key path in front.
-template <typename F>
-void validate_in(const std::string& origin, F&& check) {
-  try {
-    check();
-  } catch (const std::invalid_argument& e) {
-    throw ConfigError(origin + ": " + e.what());
-  }
-}
-
-}  // namespace
 
 ConfigOverride ConfigOverride::parse(const std::string& text) {
   const auto eq = text.find('=');
@@ -386,10 +177,73 @@ Scenario parse_scenario(const std::string& yaml_text, const std::string& origin,
       throw std::invalid_argument(std::string("command.shape: ") + e.what());
     }
   });
-  s.amplitude_mps = cmd.number("amplitude_mps");
-  s.frequency_hz = cmd.number("frequency_hz");
-  s.duty_cycle = cmd.number("duty_cycle");
+  // Each shape has its own keys, all required; a key of another shape is unknown.
+  switch (s.shape) {
+    case CommandShape::kZero:
+    case CommandShape::kStep:
+    case CommandShape::kPulse:
+    case CommandShape::kSine:
+      s.amplitude_mps = cmd.number("amplitude_mps");
+      s.frequency_hz = cmd.number("frequency_hz");
+      s.duty_cycle = cmd.number("duty_cycle");
+      break;
+    case CommandShape::kSCurve:
+      s.jerk_mps3 = cmd.number("jerk_mps3");
+      [[fallthrough]];
+    case CommandShape::kTrapezoid:
+      s.hold_s = cmd.number("hold_s");
+      [[fallthrough]];
+    case CommandShape::kRamp:
+      s.amplitude_mps = cmd.number("amplitude_mps");
+      s.accel_mps2 = cmd.number("accel_mps2");
+      s.start_s = cmd.number("start_s");
+      break;
+    case CommandShape::kChirp:
+      s.amplitude_mps = cmd.number("amplitude_mps");
+      s.frequency_hz = cmd.number("start_frequency_hz");
+      s.end_frequency_hz = cmd.number("end_frequency_hz");
+      s.sweep_s = cmd.number("sweep_s");
+      break;
+    case CommandShape::kMultiSine:
+      for (Section& term : cmd.sections("components")) {
+        SineComponent c;
+        c.amplitude_mps = term.number("amplitude_mps");
+        c.frequency_hz = term.number("frequency_hz");
+        c.phase_rad = term.number("phase_rad");
+        term.finish();
+        s.components.push_back(c);
+      }
+      break;
+    case CommandShape::kCsv: {
+      // Read and checked once, here: the control loop only interpolates.
+      s.max_gap_s = cmd.number("max_gap_s");
+      const std::string file = cmd.text("file");
+      s.profile_file = relative_to(origin, file);
+      validate_in(origin, [&] {
+        require_in_range("command.max_gap_s", s.max_gap_s, control_period_s, 3600.0);
+      });
+      std::string text;
+      try {
+        text = read_file(s.profile_file);
+      } catch (const ConfigError& e) {
+        fail_at(origin, "command.file", e.what());
+      }
+      try {
+        s.profile = parse_velocity_profile(text, s.profile_file, s.max_gap_s, kMaxCommandSpeedMps);
+      } catch (const std::invalid_argument& e) {
+        fail_at(origin, "command.file", e.what());
+      }
+      break;
+    }
+    case CommandShape::kExternal:
+      s.timeout_s = cmd.number("timeout_s");
+      s.max_speed_mps = cmd.number("max_speed_mps");
+      s.accel_mps2 = cmd.number("accel_mps2");
+      break;
+  }
   cmd.finish();
+  // Optional: without it the reference model (25) shapes the command, as in the paper.
+  if (top.has("reference_model")) s.use_reference_model = top.flag("reference_model");
   s.initial_load_displacement_m = top.number("initial_load_displacement_m");
   s.cost_window_s = top.number("cost_window_s");
   s.settling_band = top.number("settling_band");
@@ -428,17 +282,39 @@ TrainingParams parse_training_params(const std::string& yaml_text, const std::st
     }
   });
   // Scenario files are named relative to the training file.
-  const auto slash = origin.find_last_of('/');
-  const std::string dir = slash == std::string::npos ? std::string(".") : origin.substr(0, slash);
   for (Section& item : top.sections("scenarios")) {
     const std::string file = item.text("file");
     TrainingScenario ts;
     ts.weight = item.number("weight");
     item.finish();
-    ts.file = file.empty() || file[0] == '/' ? file : dir + "/" + file;
+    ts.file = relative_to(origin, file);
     ts.scenario = load_scenario(ts.file, control_period_s);
     t.scenarios.push_back(ts);
   }
+  // The plants each weight set is scored on: "key.path=value" moves of the configured plant.
+  std::vector<Section> plants = top.sections("plants");
+  for (std::size_t i = 0; i < plants.size(); ++i) {
+    Section& item = plants[i];
+    const std::string at = "plants[" + std::to_string(i) + "]";
+    PlantVariant variant;
+    variant.name = item.text("name");
+    for (const std::string& text : item.texts("set")) {
+      const ConfigOverride o = ConfigOverride::parse(text);
+      const double value = to_number(load_yaml_document(o.value, origin), origin, at + ".set " + o.key_path);
+      variant.values.emplace_back(o.key_path, value);
+    }
+    variant.weight = item.number("weight");
+    item.finish();
+    t.plants.push_back(variant);
+  }
+  const std::string objective = top.text("plant_objective");
+  validate_in(origin, [&] {
+    try {
+      t.plant_objective = plant_objective_from_string(objective);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("plant_objective: ") + e.what());
+    }
+  });
   top.finish();
   validate_in(origin, [&] { t.validate(control_period_s); });
   return t;
@@ -457,6 +333,11 @@ void collect_leaves(const YAML::Node& node, const std::string& path, const std::
     out.push_back({path, node["source"].as<std::string>()});
   } else if (node.IsMap()) {
     for (const auto& kv : node) collect_leaves(kv.second, join(path, kv.first.as<std::string>()), origin, out);
+  } else if (node.IsSequence() && node.size() > 0 && node[0].IsMap()) {
+    // A list of sections (a multi-sine's terms): each item's leaves, as path[i].key.
+    for (std::size_t i = 0; i < node.size(); ++i) {
+      collect_leaves(node[i], path + "[" + std::to_string(i) + "]", origin, out);
+    }
   } else {
     out.push_back({path, ""});
   }

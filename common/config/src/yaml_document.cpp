@@ -20,6 +20,8 @@ class DocumentChecker : public YAML::EventHandler {
   void OnDocumentStart(const YAML::Mark&) override {}
   void OnDocumentEnd() override {}
   void OnNull(const YAML::Mark& mark, YAML::anchor_t) override {
+    // An empty key ("? " alone, or ": value") has no name to read or report.
+    if (!levels_.empty() && levels_.back().map && levels_.back().at_key) fail(mark, "a key must be a plain name, got an empty key");
     node(mark, "~", false);
     value_done();
   }

@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "AgentAnnouncePubSubTypes.h"
 #include "CompensatorOutputPubSubTypes.h"
 #include "CurrentFeedbackPubSubTypes.h"
 #include "DriveControlPubSubTypes.h"
@@ -14,13 +15,17 @@
 #include "EvaluationRequestPubSubTypes.h"
 #include "EvaluationResultPubSubTypes.h"
 #include "ForceCommandPubSubTypes.h"
+#include "LaunchRequestPubSubTypes.h"
 #include "MotorFeedbackPubSubTypes.h"
 #include "NetworkWeightsPubSubTypes.h"
+#include "NodeExitPubSubTypes.h"
+#include "NodeOutputPubSubTypes.h"
 #include "NodeStatusPubSubTypes.h"
 #include "PlantTruthPubSubTypes.h"
 #include "TrainerProgressPubSubTypes.h"
 #include "TrainingSetupPubSubTypes.h"
 #include "VelocityReferencePubSubTypes.h"
+#include "VelocitySetpointPubSubTypes.h"
 #include "VoltageCommandPubSubTypes.h"
 #include "WorkerStatusPubSubTypes.h"
 
@@ -69,6 +74,11 @@ std::vector<CatalogEntry> make_catalog() {
       entry<msg::EvaluationRequestPubSubType>(topics::kEvaluationRequest, "EvaluationRequest"),
       entry<msg::EvaluationResultPubSubType>(topics::kEvaluationResult, "EvaluationResult"),
       entry<msg::WorkerStatusPubSubType>(topics::kWorkerStatus, "WorkerStatus"),
+      entry<msg::VelocitySetpointPubSubType>(topics::kVelocitySetpoint, "VelocitySetpoint"),
+      entry<msg::AgentAnnouncePubSubType>(topics::kAgentAnnounce, "AgentAnnounce"),
+      entry<msg::LaunchRequestPubSubType>(topics::kLaunchRequest, "LaunchRequest"),
+      entry<msg::NodeOutputPubSubType>(topics::kNodeOutput, "NodeOutput"),
+      entry<msg::NodeExitPubSubType>(topics::kNodeExit, "NodeExit"),
   };
 }
 

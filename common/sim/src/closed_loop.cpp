@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 
 namespace pmlsm {
 
@@ -38,6 +39,9 @@ ClosedLoop::ClosedLoop(const SystemParams& params, const Scenario& scenario, con
       controller_(params, scenario),
       kalman_(params.kalman_params()) {
   params_.validate();
+  if (scenario_.shape == CommandShape::kExternal) {
+    throw std::invalid_argument("command.shape: external: its setpoints come over DDS; run it with the controller node");
+  }
   total_ticks_ = scenario_ticks(scenario_, params_.timing.control_period_s);
 }
 
@@ -62,6 +66,7 @@ TickRecord ClosedLoop::step(double compensation_force_n) {
       controller_.step(tick_, feedback.velocity_mps, compensation_force_n);
   rec.command_mps = control.command_mps;
   rec.v_ref_mps = control.v_ref_mps;
+  rec.a_ref_mps2 = control.a_ref_mps2;
   rec.force_command_n = control.force_n;
   rec.compensation_force_n = control.compensation_applied_n;
   rec.guard_tripped = control.guard.tripped;

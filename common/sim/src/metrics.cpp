@@ -61,15 +61,17 @@ ScenarioMetrics compute_metrics(const std::vector<TickRecord>& trace, const Scen
     m.load_settling_time_s =
         settling_time(signal, 0, n, scenario.settling_band * std::abs(scenario.initial_load_displacement_m),
                       control_period_s);
-  } else if (scenario.has_edges() && scenario.amplitude_mps != 0.0) {
+  } else if (scenario.has_constant_segments() && scenario.command_scale_mps() != 0.0) {
     for (std::size_t i = 0; i < n; ++i) signal[i] = trace[i].v_ref_mps - trace[i].load_velocity_mps;
-    const double band = scenario.settling_band * std::abs(scenario.amplitude_mps);
-    // Split the run at every jump of the raw command and take the worst segment.
+    const double band = scenario.settling_band * scenario.command_scale_mps();
+    // Split the run where the raw command changes and take the worst constant segment (two
+    // ticks or more): the flat parts of a step, pulse, ramp, trapezoid, S-curve or profile.
+    // The ticks of a rise or fall change every tick and are tracking, not settling.
     std::size_t begin = 0;
     double worst = 0;
     for (std::size_t i = 1; i <= n; ++i) {
       if (i == n || trace[i].command_mps != trace[i - 1].command_mps) {
-        worst = std::max(worst, settling_time(signal, begin, i, band, control_period_s));
+        if (i - begin >= 2) worst = std::max(worst, settling_time(signal, begin, i, band, control_period_s));
         begin = i;
       }
     }

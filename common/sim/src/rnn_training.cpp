@@ -1,5 +1,6 @@
 #include "pmlsm/sim/rnn_training.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -16,6 +17,37 @@ CostVelocity cost_velocity_from_string(const std::string& text) {
 
 const char* to_string(CostVelocity which) {
   return which == CostVelocity::estimated ? "estimated" : "truth";
+}
+
+PlantObjective plant_objective_from_string(const std::string& text) {
+  if (text == "weighted_sum") return PlantObjective::kWeightedSum;
+  if (text == "worst_ratio_to_pi") return PlantObjective::kWorstRatioToPi;
+  throw std::invalid_argument("expected 'weighted_sum' or 'worst_ratio_to_pi', got '" + text + "'");
+}
+
+const char* to_string(PlantObjective objective) {
+  return objective == PlantObjective::kWeightedSum ? "weighted_sum" : "worst_ratio_to_pi";
+}
+
+SystemParams apply_plant_variant(const SystemParams& params, const PlantVariant& variant) {
+  SystemParams out = params;
+  for (const auto& [key, value] : variant.values) {
+    if (key.rfind("plant.", 0) != 0) {
+      throw std::invalid_argument("plants '" + variant.name + "': " + key +
+                                  ": only the plant moves (plant.*): the models stay as configured");
+    }
+    try {
+      real_parameter(out, key) = value;
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("plants '" + variant.name + "': " + e.what());
+    }
+  }
+  try {
+    out.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("plants '" + variant.name + "': " + e.what());
+  }
+  return out;
 }
 
 void TrainingParams::validate(double control_period_s) const {
@@ -56,21 +88,49 @@ void TrainingParams::validate(double control_period_s) const {
     require_in_range(name.c_str(), scenarios[i].weight, 1e-6, 1e6);
     scenarios[i].scenario.validate(control_period_s);
   }
+  if (plants.empty()) throw std::invalid_argument("plants: at least one (the configured plant: set [])");
+  for (std::size_t i = 0; i < plants.size(); ++i) {
+    const std::string name = "plants[" + std::to_string(i) + "].weight";
+    require_in_range(name.c_str(), plants[i].weight, 1e-6, 1e6);
+  }
 }
 
-RnnCost::RnnCost(const SystemParams& params, std::vector<TrainingScenario> scenarios,
-                 CostVelocity which)
-    : params_(params), scenarios_(std::move(scenarios)), which_(which) {
-  params_.validate();
-  dimension_ = JordanRnn::parameter_count(params_.compensator.rnn_layer_sizes);
+RnnCost::RnnCost(const SystemParams& params, std::vector<TrainingScenario> scenarios, CostVelocity which)
+    : RnnCost(params, std::move(scenarios), which, {PlantVariant{"configured", {}, 1.0}},
+              PlantObjective::kWeightedSum) {}
+
+RnnCost::RnnCost(const SystemParams& params, std::vector<TrainingScenario> scenarios, CostVelocity which,
+                 const std::vector<PlantVariant>& plants, PlantObjective objective)
+    : scenarios_(std::move(scenarios)), which_(which), objective_(objective) {
+  params.validate();
+  control_period_s_ = params.timing.control_period_s;
+  dimension_ = JordanRnn::parameter_count(params.compensator.rnn_layer_sizes);
   for (const TrainingScenario& s : scenarios_) {
     require_positive("weight", s.weight);
-    s.scenario.validate(params_.timing.control_period_s);
+    s.scenario.validate(params.timing.control_period_s);
+  }
+  if (plants.empty()) throw std::invalid_argument("plants: at least one");
+  for (const PlantVariant& variant : plants) {
+    require_positive(("plants '" + variant.name + "' weight").c_str(), variant.weight);
+    Plant plant{variant.name, apply_plant_variant(params, variant), variant.weight, {}};
+    if (objective_ == PlantObjective::kWorstRatioToPi) {
+      for (const TrainingScenario& s : scenarios_) {
+        const auto trace = run_compensated(plant.params, s.scenario, [](const CompensatorView&) { return 0.0; },
+                                           cost_ticks(s.scenario));
+        const double pi_cost = scenario_cost(trace, s.scenario);
+        if (!(pi_cost > 0) || !std::isfinite(pi_cost)) {
+          throw std::invalid_argument("plants '" + variant.name + "': PI alone's cost on " + s.scenario.name +
+                                      " is " + format_value(pi_cost) + ": no ratio to it");
+        }
+        plant.pi_costs.push_back(pi_cost);
+      }
+    }
+    plants_.push_back(std::move(plant));
   }
 }
 
 std::uint64_t RnnCost::cost_ticks(const Scenario& scenario) const {
-  return static_cast<std::uint64_t>(std::llround(scenario.cost_window_s / params_.timing.control_period_s)) + 1;
+  return static_cast<std::uint64_t>(std::llround(scenario.cost_window_s / control_period_s_)) + 1;
 }
 
 double RnnCost::scenario_cost(const std::vector<TickRecord>& trace, const Scenario& scenario) const {
@@ -91,10 +151,20 @@ double RnnCost::operator()(const std::vector<double>& weights) const {
     if (!(std::fabs(w) <= JordanRnn::kMaxAbsWeight)) return worst;  // also NaN
   }
   double total = 0;
-  for (const TrainingScenario& s : scenarios_) {
-    const auto trace = run_with_rnn(params_, s.scenario, weights, false, cost_ticks(s.scenario));
-    if (!trace.empty() && trace.back().plant_fault_state != nullptr) return worst;  // a diverged plant
-    total += s.weight * scenario_cost(trace, s.scenario);
+  for (const Plant& plant : plants_) {
+    double plant_cost = 0;
+    for (std::size_t i = 0; i < scenarios_.size(); ++i) {
+      const TrainingScenario& s = scenarios_[i];
+      const auto trace = run_with_rnn(plant.params, s.scenario, weights, false, cost_ticks(s.scenario));
+      if (!trace.empty() && trace.back().plant_fault_state != nullptr) return worst;  // a diverged plant
+      const double cost = scenario_cost(trace, s.scenario);
+      plant_cost += s.weight * (objective_ == PlantObjective::kWorstRatioToPi ? cost / plant.pi_costs[i] : cost);
+    }
+    if (objective_ == PlantObjective::kWorstRatioToPi) {
+      total = std::max(total, plant.weight * plant_cost);
+    } else {
+      total += plant.weight * plant_cost;
+    }
   }
   return std::isfinite(total) ? total : worst;
 }

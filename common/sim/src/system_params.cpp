@@ -94,11 +94,28 @@ VibrationGuardParams SystemParams::vibration_guard_params() const {
   p.min_decay = compensator.guard_min_decay;
   p.windows_to_trip = static_cast<std::uint32_t>(compensator.guard_windows_to_trip);
   p.fade_s = compensator.guard_fade_s;
+  p.max_reference_share = compensator.guard_max_reference_share;
   return p;
 }
 
 AccelFeedbackParams SystemParams::accel_feedback_params() const {
   return AccelFeedbackParams{compensator.accel_feedback_gain_kg, velocity_loop.force_limit_n};
+}
+
+StateFeedbackParams SystemParams::state_feedback_params() const {
+  StateFeedbackParams p;
+  p.motor_mass_kg = compensator.state_model_motor_mass_kg;
+  p.load_mass_kg = compensator.state_model_load_mass_kg;
+  p.spring_n_per_m = compensator.state_model_spring_n_per_m;
+  p.velocity_gain_n_s_per_m = velocity_loop.kp_n_s_per_m;
+  p.model_frequency_ratio = compensator.state_model_frequency_ratio;
+  p.model_damping_ratio = compensator.state_model_damping_ratio;
+  p.correction_damping_ratio = compensator.state_correction_damping_ratio;
+  p.reference_natural_frequency_rad_s = reference_model.natural_frequency_rad_s;
+  p.reference_damping_ratio = reference_model.damping_ratio;
+  p.period_s = timing.control_period_s;
+  p.force_limit_n = velocity_loop.force_limit_n;
+  return p;
 }
 
 namespace {
@@ -149,6 +166,49 @@ class RangeCheck {
 
 }  // namespace
 
+namespace {
+
+// Finds the real entry of the table with a key path.
+class RealFinder {
+ public:
+  explicit RealFinder(const std::string& path) : path_(path) {}
+  void real(const std::string& path, double& value, const Plausible& range) {
+    if (path == path_) {
+      found_ = &value;
+      range_ = range;
+    }
+  }
+  template <typename T>
+  void integer(const std::string& path, T&, const Plausible&) { other(path); }
+  void flag(const std::string& path, bool&) { other(path); }
+  template <typename E, typename F>
+  void choice(const std::string& path, E&, F) { other(path); }
+  void vector3(const std::string& path, Eigen::Vector3d&, const Plausible&) { other(path); }
+  void integer_list(const std::string& path, std::vector<int>&, const Plausible&) { other(path); }
+
+  double* found_ = nullptr;
+  Plausible range_{0, 0, ""};
+  bool other_kind_ = false;
+
+ private:
+  void other(const std::string& path) { other_kind_ = other_kind_ || path == path_; }
+  std::string path_;
+};
+
+}  // namespace
+
+double& real_parameter(SystemParams& params, const std::string& key_path, Plausible* range) {
+  RealFinder finder(key_path);
+  visit_parameters(params, finder);
+  if (finder.found_ == nullptr) {
+    throw std::invalid_argument(key_path + (finder.other_kind_ ? ": not a real number parameter (a count, flag, "
+                                                                 "choice or list)"
+                                                               : ": no such parameter"));
+  }
+  if (range != nullptr) *range = finder.range_;
+  return *finder.found_;
+}
+
 void SystemParams::validate() const {
   // The plausible ranges first: then the components' checks, which combine values (the
   // flux maps' L_md^2 < L_ad L_D, the loop's steps), only see plausible numbers.
@@ -163,6 +223,7 @@ void SystemParams::validate() const {
   validate_section("kalman", [&] { kalman_params().validate(); });
   validate_section("compensator.rnn", [&] { rnn_compensator_params(true).validate(); });
   validate_section("compensator.acceleration_feedback", [&] { accel_feedback_params().validate(); });
+  validate_section("compensator.state_feedback", [&] { state_feedback_params().validate(); });
   validate_section("compensator.guard", [&] { vibration_guard_params().validate(); });
   validate_section("plant", [&] { plant.check_step(); });
 }

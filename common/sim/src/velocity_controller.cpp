@@ -11,17 +11,41 @@ VelocityController::VelocityController(const SystemParams& params, const Scenari
   if (params.compensator.guard_enabled) guard_.emplace(params.vibration_guard_params());
 }
 
+ExternalReferenceParams external_reference_params(const Scenario& scenario, double control_period_s) {
+  ExternalReferenceParams p;
+  p.timeout_s = scenario.timeout_s;
+  p.max_speed_mps = scenario.max_speed_mps;
+  p.max_accel_mps2 = scenario.accel_mps2;
+  p.period_s = control_period_s;
+  return p;
+}
+
 VelocityControllerOutput VelocityController::step(std::uint64_t tick, double motor_velocity_mps,
                                                   double compensation_force_n) {
+  return step_command(scenario_.command_mps(static_cast<double>(tick) * period_s_), motor_velocity_mps,
+                      compensation_force_n);
+}
+
+VelocityControllerOutput VelocityController::step_command(double command_mps, double motor_velocity_mps,
+                                                          double compensation_force_n) {
   VelocityControllerOutput out;
-  out.command_mps = scenario_.command_mps(static_cast<double>(tick) * period_s_);
-  const ReferenceSample ref = reference_.step(out.command_mps);
+  out.command_mps = command_mps;
+  ReferenceSample ref;
+  if (scenario_.use_reference_model) {
+    ref = reference_.step(out.command_mps);
+  } else {
+    // A profiled reference is smooth already: V_ref = c(t_k), its slope by the backward difference.
+    ref.velocity_mps = out.command_mps;
+    ref.accel_mps2 = !have_last_command_ ? 0.0 : (out.command_mps - last_command_mps_) / period_s_;
+    last_command_mps_ = out.command_mps;
+    have_last_command_ = true;
+  }
   out.v_ref_mps = ref.velocity_mps;
   out.a_ref_mps2 = ref.accel_mps2;
   // The guard's scale of the previous period (it judges what was applied), then its new look.
   const double scale = guard_ ? guard_->output().scale : 1.0;
   out.compensation_applied_n = scale * compensation_force_n;
-  if (guard_) out.guard = guard_->step(motor_velocity_mps, out.compensation_applied_n);
+  if (guard_) out.guard = guard_->step({motor_velocity_mps, ref.velocity_mps, out.compensation_applied_n});
   const VelocityPiOutput f = velocity_.step({ref.velocity_mps, motor_velocity_mps, out.compensation_applied_n});
   out.force_n = f.force_n;
   out.saturated = f.saturated;

@@ -2,16 +2,21 @@
 // measured motor velocity (a signal the Kalman estimate cannot fool), and fades the compensation
 // out before it hurts.
 //
-// The velocity is high-passed (second order, corner f_c: the load's modes lie above it, tracking
-// motion below), so what remains is the oscillatory part v~. Over windows of window_s it takes
-// the oscillation's size A = rms(v~) [m/s]. A compensator that damps makes A fall window after
+// It judges the motor's velocity error e = v_M - V_ref, high-passed (second order, corner f_c:
+// the load's modes lie above it, tracking motion below), so what remains is the oscillatory part
+// e~. The error, not v_M itself: a reference that moves at or above f_c (a 5 Hz sine) would
+// otherwise look like a sustained oscillation. Over windows of window_s it takes the
+// oscillation's size A = rms(e~) [m/s], and the reference's own high-passed size A_ref. A compensator that damps makes A fall window after
 // window once an edge or a disturbance has excited the load; one that sustains a limit cycle
 // keeps A up, one that destabilises makes it grow. The guard trips when, with A above the floor
 // min_oscillation_mps, windows_to_trip windows in a row
 //   - grew by more than growth_ratio each (kGrowing), or
 //   - did not fall by at least min_decay each, A_k > (1 - min_decay) A_{k-1} (kSustained).
 // A window counts only when some compensation acted in it (its high-passed force not all zero):
-// PI alone is not the guard's to judge.
+// PI alone is not the guard's to judge; and only when the reference does not explain it,
+// A > max_reference_share A_ref: a loop tracking a fast reference has a steady error at the
+// reference's frequency that is its bandwidth's, not a limit cycle (a limit cycle needs no
+// reference; one riding on a moving reference still makes A outgrow the tracking error).
 // Tripped, the compensation's scale ramps from 1 to 0 over fade_s and stays 0 (latched) until
 // reset(). step() never throws and does not allocate; a non-finite input is counted and the
 // last finite one used instead.
@@ -29,12 +34,19 @@ struct VibrationGuardParams {
   double growth_ratio = 1.25;          ///< A(window) / A(previous) above this is growth, > 1
   double min_decay = 0.2;              ///< a damped oscillation loses at least this share a window, (0, 1)
   std::uint32_t windows_to_trip = 3;   ///< >= 1
+  double max_reference_share = 1.0;    ///< a window with A <= this x A_ref is the reference's, > 0
   double fade_s = 0.05;                ///< >= 0 (0: off at once)
   void validate() const;
 };
 
 enum class VibrationGuardTrip : std::uint8_t { kNone, kSustained, kGrowing };
 const char* to_string(VibrationGuardTrip trip) noexcept;
+
+struct VibrationGuardInput {
+  double motor_velocity_mps = 0;     ///< measured v_M(k)
+  double reference_velocity_mps = 0; ///< V_ref(k), what the velocity loop follows
+  double compensation_force_n = 0;   ///< the compensation applied (after the previous scale)
+};
 
 struct VibrationGuardOutput {
   double scale = 1.0;          ///< multiply the compensation force by this (1 -> 0 after a trip)
@@ -48,6 +60,7 @@ struct VibrationGuardCounters {
   std::uint64_t windows = 0;
   std::uint64_t trip_tick = 0;        ///< the step at which it tripped (when tripped)
   double last_amplitude_mps = 0;      ///< A of the last window
+  double last_reference_mps = 0;      ///< A_ref of the last window
   double last_force_rms_n = 0;        ///< rms of the high-passed compensation force of the last window
 };
 
@@ -56,9 +69,8 @@ class VibrationGuard {
   /// @throws std::invalid_argument naming the invalid parameter.
   explicit VibrationGuard(const VibrationGuardParams& params);
 
-  /// One control period: the measured motor velocity and the compensation force applied in it
-  /// (after the scale of the previous step).
-  VibrationGuardOutput step(double motor_velocity_mps, double compensation_force_n) noexcept;
+  /// One control period.
+  VibrationGuardOutput step(const VibrationGuardInput& in) noexcept;
   /// Back to scale 1, nothing latched (an operator's decision, after the plant was looked at).
   void reset() noexcept;
 
@@ -71,10 +83,16 @@ class VibrationGuard {
   double alpha_;                 // high-pass coefficient
   std::uint32_t window_steps_;
   std::uint32_t fade_steps_;
-  double v_prev_ = 0, v_hp1_ = 0, v_hp_ = 0, f_prev_ = 0, f_hp1_ = 0, f_hp_ = 0;
+  /// Two first-order high-pass sections in series (one signal).
+  struct HighPass {
+    double x_prev = 0, y1 = 0, y2 = 0;
+    double step(double x, double alpha) noexcept;
+  };
+  HighPass error_hp_, reference_hp_, force_hp_;
+  double e_prev_ = 0, r_prev_ = 0, f_prev_ = 0;
   bool primed_ = false;
   std::uint32_t in_window_ = 0;
-  double sum_v2_ = 0, sum_f2_ = 0;
+  double sum_e2_ = 0, sum_r2_ = 0, sum_f2_ = 0;
   double previous_amplitude_ = 0;
   std::uint32_t sustained_run_ = 0, growing_run_ = 0;
   std::uint32_t faded_ = 0;

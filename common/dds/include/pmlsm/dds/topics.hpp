@@ -22,6 +22,8 @@ inline constexpr TopicSpec kVoltageCommand{"rt/pmlsm/voltage_command", "pmlsm_co
 inline constexpr TopicSpec kPlantTruth{"rt/pmlsm/plant_truth", "pmlsm_observe"};
 inline constexpr TopicSpec kVelocityReference{"rt/pmlsm/velocity_reference", "pmlsm_observe"};
 inline constexpr TopicSpec kEstimatedState{"rt/pmlsm/estimated_state", "pmlsm_observe"};
+// Setpoints from outside the loop for a controller running an external scenario.
+inline constexpr TopicSpec kVelocitySetpoint{"rt/pmlsm/velocity_setpoint", "pmlsm_command"};
 inline constexpr TopicSpec kCompensatorOutput{"rt/pmlsm/compensator_output", "pmlsm_control"};
 // The drive's power state machine: requests in, its state out (latest kept for late joiners).
 inline constexpr TopicSpec kDriveControl{"rt/pmlsm/drive_control", "pmlsm_command"};
@@ -34,6 +36,11 @@ inline constexpr TopicSpec kTrainingSetup{"rt/pmlsm/training/setup", "pmlsm_latc
 inline constexpr TopicSpec kEvaluationRequest{"rt/pmlsm/training/request", "pmlsm_observe"};
 inline constexpr TopicSpec kEvaluationResult{"rt/pmlsm/training/result", "pmlsm_observe"};
 inline constexpr TopicSpec kWorkerStatus{"rt/pmlsm/training/worker_status", "pmlsm_control"};
+// Launch agents (`pmlsm agent`) and the launcher that commands them.
+inline constexpr TopicSpec kAgentAnnounce{"rt/pmlsm/launch/agent", "pmlsm_latched"};
+inline constexpr TopicSpec kLaunchRequest{"rt/pmlsm/launch/request", "pmlsm_command"};
+inline constexpr TopicSpec kNodeOutput{"rt/pmlsm/launch/output", "pmlsm_observe"};
+inline constexpr TopicSpec kNodeExit{"rt/pmlsm/launch/exit", "pmlsm_observe"};
 }  // namespace topics
 
 }  // namespace pmlsm::dds

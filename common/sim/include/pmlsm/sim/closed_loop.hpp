@@ -32,6 +32,7 @@ struct TickRecord {
   double time_s = 0;
   double command_mps = 0;          ///< raw command c(t_k)
   double v_ref_mps = 0;            ///< reference model output
+  double a_ref_mps2 = 0;           ///< its derivative dV_ref/dt
   double encoder_position_m = 0;
   double motor_velocity_measured_mps = 0;
   double motor_position_m = 0;     ///< true
@@ -109,13 +110,22 @@ void record_truth(const PlantTruth& truth, TickRecord& rec);
 std::vector<TickRecord> run_scenario(const SystemParams& params, const Scenario& scenario);
 
 /// What a compensator sees of tick k: the Kalman estimate and V_ref (never the true plant).
+/// (EstimatedState and VelocityReference of tick k carry every field.)
 struct CompensatorView {
   double load_accel_mps2 = 0;  ///< a_L estimate, eq. (36)
   double v_ref_mps = 0;
   double v_load_mps = 0;       ///< estimated load velocity (the paper's V_load)
+  double spring_force_n = 0;   ///< estimated spring force F_s
+  double command_mps = 0;      ///< raw command c(t_k) before the reference model
+  double a_ref_mps2 = 0;       ///< dV_ref/dt
 };
 inline CompensatorView compensator_view(const TickRecord& rec) {
-  return {rec.est_load_accel_mps2, rec.v_ref_mps, rec.est_load_velocity_mps};
+  return {rec.est_load_accel_mps2, rec.v_ref_mps, rec.est_load_velocity_mps,
+          rec.est_spring_force_n,  rec.command_mps, rec.a_ref_mps2};
+}
+/// The part of the view state feedback takes (the in-process loop and the node alike).
+inline StateFeedbackInput state_feedback_input(const CompensatorView& view) {
+  return {view.command_mps, view.v_ref_mps, view.a_ref_mps2, view.v_load_mps, view.spring_force_n};
 }
 
 /// Runs up to max_ticks ticks of a scenario with a compensator in the loop. The

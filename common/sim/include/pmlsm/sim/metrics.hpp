@@ -21,9 +21,13 @@ struct ScenarioMetrics {
   /// Settling time to the band (2 %):
   ///  - with an initial load displacement: time after which |x_L - x_M| stays
   ///    within band * |initial displacement|;
-  ///  - with a step or pulse command: the longest time, over the command's
-  ///    constant segments, after which |V_ref - v_L| stays within band * |amplitude|
-  ///    until the segment ends. Infinity when it never settles.
+  ///  - with a command made of constant segments (step, pulse, the hold and rest of a
+  ///    ramp, trapezoid or S-curve, flat stretches of a CSV profile): the longest time,
+  ///    over the command's constant segments of two ticks or more, after which
+  ///    |V_ref - v_L| stays within band * command_scale_mps() until the segment ends;
+  ///    the rises and falls between them are tracking (load_tracking_rms_mps), not settling.
+  ///    Infinity when it never settles;
+  ///  - sines, chirps, multi-sines: 0 (no segment to settle in; see the tracking RMS).
   double load_settling_time_s = 0;
   double peak_force_command_n = 0;
   double peak_thrust_n = 0;

@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pmlsm/sim/closed_loop.hpp"
@@ -29,6 +30,26 @@ struct TrainingScenario {
   double weight = 1.0;  ///< > 0
 };
 
+/// A plant the weights are scored on: the configured system with some plant parameters moved
+/// (real entries of visit_parameters under plant.*; the estimator's and compensators' models stay).
+struct PlantVariant {
+  std::string name;
+  std::vector<std::pair<std::string, double>> values;  ///< key path, value; empty: the configured plant
+  double weight = 1.0;                                 ///< > 0
+};
+
+/// How the costs over the plants make one number.
+enum class PlantObjective {
+  kWeightedSum,      ///< sum over plants of weight x (the scenarios' weighted cost sum)
+  kWorstRatioToPi,   ///< max over plants of weight x sum over scenarios of weight x cost / PI alone's cost
+};
+PlantObjective plant_objective_from_string(const std::string& text);
+const char* to_string(PlantObjective objective);
+
+/// params with the variant's values set. @throws std::invalid_argument naming the variant and the
+/// key (not a real plant parameter, or the value out of its plausible range).
+SystemParams apply_plant_variant(const SystemParams& params, const PlantVariant& variant);
+
 /// configs/training.yaml: the optimiser and what it is scored on.
 struct TrainingParams {
   std::string optimiser;             ///< "de" (the paper), "jde", "cmaes"
@@ -42,16 +63,24 @@ struct TrainingParams {
   double target_cost = 0;             ///< stop early at or below this cost (0: never)
   CostVelocity cost_velocity = CostVelocity::truth;
   std::vector<TrainingScenario> scenarios;
+  std::vector<PlantVariant> plants;  ///< at least one (the configured plant: no values)
+  PlantObjective plant_objective = PlantObjective::kWeightedSum;
   void validate(double control_period_s) const;
 };
 
 /// The cost of a weight set: thread-safe (each call builds its own loop).
 class RnnCost {
  public:
+  /// On the configured plant alone (the paper's search).
   /// @throws std::invalid_argument when a parameter or scenario is invalid.
   RnnCost(const SystemParams& params, std::vector<TrainingScenario> scenarios, CostVelocity which);
+  /// On each plant variant, the costs combined by objective (PI alone's costs, needed by
+  /// kWorstRatioToPi, are computed here once).
+  RnnCost(const SystemParams& params, std::vector<TrainingScenario> scenarios, CostVelocity which,
+          const std::vector<PlantVariant>& plants, PlantObjective objective);
   std::size_t dimension() const { return dimension_; }
-  /// Weighted sum of (23) over the scenarios; +inf for a wrong-size or non-finite set.
+  /// The objective over plants of the weighted sum of (23) over the scenarios; +inf for a
+  /// wrong-size or non-finite set, or one under which a plant diverged.
   double operator()(const std::vector<double>& weights) const;
   /// Cost (23) of one trace with this object's choice of V_load.
   double scenario_cost(const std::vector<TickRecord>& trace, const Scenario& scenario) const;
@@ -59,9 +88,17 @@ class RnnCost {
   std::uint64_t cost_ticks(const Scenario& scenario) const;
 
  private:
-  SystemParams params_;
+  struct Plant {
+    std::string name;
+    SystemParams params;
+    double weight = 1.0;
+    std::vector<double> pi_costs;  ///< per scenario, PI alone (kWorstRatioToPi)
+  };
+  std::vector<Plant> plants_;
   std::vector<TrainingScenario> scenarios_;
   CostVelocity which_;
+  PlantObjective objective_ = PlantObjective::kWeightedSum;
+  double control_period_s_ = 0;
   std::size_t dimension_ = 0;
 };
 

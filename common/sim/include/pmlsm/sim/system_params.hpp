@@ -11,6 +11,7 @@
 #include "pmlsm/compensation/vibration_guard.hpp"
 #include "pmlsm/control/current_controller.hpp"
 #include "pmlsm/compensation/jordan_rnn.hpp"
+#include "pmlsm/compensation/state_feedback.hpp"
 #include "pmlsm/estimation/kalman_filter.hpp"
 #include "pmlsm/plant/plant.hpp"
 #include "pmlsm/control/reference_model.hpp"
@@ -77,6 +78,14 @@ struct CompensatorTuning {
   double rnn_kc_limit_mps = 0;
   double rnn_du_deadband_per_s = 0;
   double accel_feedback_gain_kg = 0;
+  /// State feedback with inverse-model feedforward (pmlsm/compensation/state_feedback.hpp):
+  /// its own two-mass model (defaults: the nominal plant) and the design of the load's error.
+  double state_model_motor_mass_kg = 0;
+  double state_model_load_mass_kg = 0;
+  double state_model_spring_n_per_m = 0;
+  double state_model_frequency_ratio = 0;
+  double state_model_damping_ratio = 0;
+  double state_correction_damping_ratio = 0;
   /// The vibration guard in the compensation path (pmlsm/compensation/vibration_guard.hpp).
   bool guard_enabled = true;
   double guard_highpass_hz = 0;
@@ -86,6 +95,7 @@ struct CompensatorTuning {
   double guard_min_decay = 0;
   double guard_windows_to_trip = 0;
   double guard_fade_s = 0;
+  double guard_max_reference_share = 0;
 };
 
 /// A parameter's plausible range and why: a config value outside it is refused by
@@ -116,6 +126,11 @@ struct SystemParams;
 template <typename Params, typename Visitor>
 void visit_parameters(Params& p, Visitor& v);
 
+/// A real (not integer, flag or choice) entry of the table by its key path, for tools that
+/// move one parameter (the robustness sweep). range: its plausible range.
+/// @throws std::invalid_argument when no real entry has that key path.
+double& real_parameter(SystemParams& params, const std::string& key_path, Plausible* range = nullptr);
+
 struct SystemParams {
   TimingParams timing;
   PlantParams plant;
@@ -133,6 +148,7 @@ struct SystemParams {
   KalmanParams kalman_params() const;
   RnnCompensatorParams rnn_compensator_params(bool online_learning) const;
   AccelFeedbackParams accel_feedback_params() const;
+  StateFeedbackParams state_feedback_params() const;
   VibrationGuardParams vibration_guard_params() const;
 };
 
@@ -262,6 +278,18 @@ void visit_parameters(Params& p, Visitor& v) {
   v.real("compensator.rnn.du_deadband_per_s", c.rnn_du_deadband_per_s, {1e-6, 1e6, "1e-6 to 1e6 1/s"});
   v.real("compensator.acceleration_feedback.gain_kg", c.accel_feedback_gain_kg,
          {0.0, 1e5, "0 to 100 t of virtual mass"});
+  v.real("compensator.state_feedback.model.motor_mass_kg", c.state_model_motor_mass_kg,
+         {0.01, 1e4, "from a 10 g slider to a 10 t gantry"});
+  v.real("compensator.state_feedback.model.load_mass_kg", c.state_model_load_mass_kg,
+         {0.01, 1e4, "from a 10 g load to a 10 t one"});
+  v.real("compensator.state_feedback.model.spring_n_per_m", c.state_model_spring_n_per_m,
+         {1.0, 1e9, "from a rubber band to a short steel coupling"});
+  v.real("compensator.state_feedback.model_frequency_ratio", c.state_model_frequency_ratio,
+         {1.0, 100.0, "the model's load mode 1 to 100 times the open one sqrt(k / m_L)"});
+  v.real("compensator.state_feedback.model_damping_ratio", c.state_model_damping_ratio,
+         {0.0, 100.0, "from undamped to overdamped a hundred times"});
+  v.real("compensator.state_feedback.correction_damping_ratio", c.state_correction_damping_ratio,
+         {0.0, 100.0, "from none to overdamped a hundred times"});
   v.flag("compensator.guard.enabled", c.guard_enabled);
   v.real("compensator.guard.highpass_hz", c.guard_highpass_hz,
          {0.01, 1e4, "the corner between tracking motion and vibration: 10 mHz to 10 kHz"});
@@ -274,6 +302,8 @@ void visit_parameters(Params& p, Visitor& v) {
   v.integer("compensator.guard.windows_to_trip", c.guard_windows_to_trip,
             {1.0, 1000.0, "a count of windows in a row: a whole number, 1 to 1000"});
   v.real("compensator.guard.fade_s", c.guard_fade_s, {0.0, 10.0, "0 (at once) to 10 s"});
+  v.real("compensator.guard.max_reference_share", c.guard_max_reference_share,
+         {1e-3, 1e3, "the error oscillation over the reference's own: a thousandth to a thousand times"});
 }
 
 }  // namespace pmlsm

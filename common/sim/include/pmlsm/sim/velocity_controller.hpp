@@ -1,5 +1,6 @@
 // The motor-side controller of one control tick: the scenario's raw command,
-// shaped by the reference model (25) into V_ref, and the velocity PI with the
+// shaped by the reference model (25) into V_ref (or taken as V_ref when the
+// scenario bypasses the model), and the velocity PI with the
 // compensator's force added inside its saturation (the hybrid controller,
 // Fig. 4). The controller node and the in-process loop both run it.
 #pragma once
@@ -7,6 +8,7 @@
 #include <cstdint>
 #include <optional>
 
+#include "pmlsm/control/external_reference.hpp"
 #include "pmlsm/control/reference_model.hpp"
 #include "pmlsm/sim/scenario.hpp"
 #include "pmlsm/sim/system_params.hpp"
@@ -30,8 +32,12 @@ class VelocityController {
  public:
   /// @throws std::invalid_argument from the parameters or the scenario.
   VelocityController(const SystemParams& params, const Scenario& scenario);
+  /// Tick k with the scenario's command c(t_k).
   VelocityControllerOutput step(std::uint64_t tick, double motor_velocity_mps,
                                 double compensation_force_n);
+  /// A tick with a command from elsewhere (an external scenario: the setpoints' command).
+  VelocityControllerOutput step_command(double command_mps, double motor_velocity_mps,
+                                        double compensation_force_n);
   const VelocityPi& velocity_pi() const { return velocity_; }
   const ReferenceModel& reference() const { return reference_; }
   /// The guard in the compensation path (nullptr when compensator.guard.enabled is false).
@@ -41,8 +47,13 @@ class VelocityController {
   Scenario scenario_;
   double period_s_;
   ReferenceModel reference_;
+  double last_command_mps_ = 0;  ///< without the reference model: c(t_{k-1})
+  bool have_last_command_ = false;
   VelocityPi velocity_;
   std::optional<VibrationGuard> guard_;
 };
+
+/// An external scenario's setpoint policy at the control period.
+ExternalReferenceParams external_reference_params(const Scenario& scenario, double control_period_s);
 
 }  // namespace pmlsm

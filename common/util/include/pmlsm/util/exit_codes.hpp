@@ -12,6 +12,7 @@ enum ExitCode : int {
   kExitPeerMissing = 3,  ///< a peer never appeared (discovery timeout)
   kExitPeerLost = 4,     ///< a peer stopped answering mid-run
   kExitSafeState = 5,    ///< the drive spent ticks in its safe state or a fault: the run is not valid
+  kExitVerdictFailed = 6,  ///< the job ran to its end and what it judged failed (a sweep run unstable or worse than PI)
 };
 
 // What `code` means in the table above, for reports that name an exit (the
@@ -24,6 +25,7 @@ inline const char* exit_code_meaning(int code) noexcept {
     case kExitPeerMissing: return "a peer never appeared";
     case kExitPeerLost: return "a peer was lost";
     case kExitSafeState: return "ended in the safe state or a fault (run not valid)";
+    case kExitVerdictFailed: return "ran, and what it judged failed its verdict";
     default: return "unknown exit code";
   }
 }

@@ -1,0 +1,114 @@
+// A model-based compensator beyond the paper: model-following state feedback.
+// An internal copy of the nominal loop (two-mass model, velocity PI, force limit) is
+// driven by state feedback with feedforward through the model's inverse, so the model's
+// load follows V_ref as closely as the force limit allows; that force goes to the plant,
+// and a correction on the estimated spring force pulls the plant onto the model.
+// It takes the same inputs as the others (the Kalman estimate and V_ref), so it drops
+// in on the same topics.
+//
+// Inverse model. The stiff velocity PI makes the motor a velocity source: a force
+//   F_c = Kp (v_M* - V_ref) + m_M dV_ref/dt + F_s
+// moves the motor to v_M* (the PI's own Kp (V_ref - v_M) completes Kp (v_M* - v_M);
+// m_M dV_ref/dt carries the motor's inertia, F_s cancels the spring's pull on it).
+// The load (m_L dv_L/dt = F_s, dF_s/dt = k (v_M - v_L)) then follows V_ref exactly when
+//   v_M* = V_ref + (m_L / k) d^2V_ref/dt^2                         (the spring's inverse),
+// and with state feedback on the load's error e = v_L - V_ref,
+//   v_M* = V_ref + (m_L / k) d^2V_ref/dt^2 - c1 de/dt - c0 e,   de/dt = F_s / m_L - dV_ref/dt,
+// the error obeys m_L e'' + k c1 e' + k (1 + c0) e = 0, a mode at w_d = r sqrt(k / m_L) (r times
+// the open load mode, r >= 1) with damping zeta_d:
+//   c0 = r^2 - 1,   c1 = 2 zeta_d w_d m_L / k.
+// d^2V_ref/dt^2 = wn^2 (c - V_ref) - 2 zeta wn dV_ref/dt follows from the reference model
+// (25) and the raw command c.
+//
+// Why an internal model: the inverse asks for kilonewtons at a command step (the jerk of
+// V_ref jumps by wn^2 c), so the force limit clips it, and feedback on the Kalman estimate
+// with the gain the design needs (about 340 kg of load-acceleration feedback) makes the
+// motor jump at 150 Hz, which the filter reads as spring force (its measurement is the
+// encoder's mean velocity over the tick): it oscillates. The law above therefore runs on
+// the model's exact state x_m = [x_M, v_M, x_L, v_L] (ZOH-exact at the period, the PI fed
+// the model's encoder-like mean velocity, its Ki of 0.01 N/m left out, the sum clipped at
+// the force limit as in the drive), and only the difference between the plant and the model goes through the
+// estimate, with a modest gain:
+//   F_c = F_model + (2 zeta_c Kp / sqrt(k m_L) - 1) (F_s,model - F_s,est),
+// the first factor load-acceleration feedback of damping zeta_c on the open load mode, the
+// -1 putting the estimated spring pull in place of the model's.
+//
+// Timing: the force of tick k acts from tick k+1, when the PI follows V_ref(k+1); the model
+// runs one tick ahead of the estimate with the reference model's next output (c held), and
+// the correction compares the estimate with the model's state of the same tick.
+// The force is limited to +-force_limit_n.
+#pragma once
+
+#include <Eigen/Dense>
+#include <cstdint>
+
+namespace pmlsm {
+
+struct StateFeedbackParams {
+  // The two-mass model (its own, like the Kalman filter's).
+  double motor_mass_kg = 0;
+  double load_mass_kg = 0;
+  double spring_n_per_m = 0;
+  double velocity_gain_n_s_per_m = 0;  ///< the velocity PI's Kp the force passes through, > 0
+  // Design.
+  double model_frequency_ratio = 0;    ///< r = w_d / sqrt(k / m_L), >= 1 (c0 >= 0)
+  double model_damping_ratio = 0;      ///< zeta_d, >= 0
+  double correction_damping_ratio = 0; ///< zeta_c, >= 0
+  // The reference model (25) the controller runs, to form d^2V_ref/dt^2 and look ahead.
+  double reference_natural_frequency_rad_s = 0;
+  double reference_damping_ratio = 0;
+  double period_s = 0;
+  double force_limit_n = 0;
+  void validate() const;
+};
+
+/// What the compensator sees of one tick: the reference and the Kalman estimate.
+struct StateFeedbackInput {
+  double command_mps = 0;        ///< raw command c(t_k)
+  double v_ref_mps = 0;          ///< V_ref
+  double a_ref_mps2 = 0;         ///< dV_ref/dt
+  double load_velocity_mps = 0;  ///< estimated v_L: checked, unused (the model carries v_L; the plant is pulled on F_s)
+  double spring_force_n = 0;     ///< estimated F_s (on the load, m_L a_L)
+};
+
+struct StateFeedbackCounters {
+  std::uint64_t steps = 0;
+  std::uint64_t rejected_inputs = 0;  ///< a non-finite input: output 0, the model holds
+  std::uint64_t saturated = 0;
+  std::uint64_t model_resets = 0;     ///< the internal model left the finite numbers: restarted at rest
+};
+
+class StateFeedback {
+ public:
+  /// @throws std::invalid_argument naming the invalid parameter.
+  explicit StateFeedback(const StateFeedbackParams& params);
+  /// Never throws: a non-finite input gives 0 N (the model holds) and is counted.
+  double step(const StateFeedbackInput& in);
+  const StateFeedbackCounters& counters() const { return counters_; }
+  const StateFeedbackParams& params() const { return params_; }
+  double c0() const { return c0_; }
+  double c1_s() const { return c1_s_; }
+  /// The model's load velocity at the tick of the last input (what the plant is pulled onto).
+  double model_load_velocity_mps() const { return model_reported_(3); }
+  /// The model's spring force k (x_M - x_L) at the tick of the last input.
+  double model_spring_force_n() const;
+
+ private:
+  void reset_model();
+
+  StateFeedbackParams params_;
+  double c0_ = 0;
+  double c1_s_ = 0;
+  double correction_gain_ = 0;  ///< 2 zeta_c Kp / sqrt(k m_L) - 1
+  Eigen::Matrix2d reference_phi_;
+  Eigen::Vector2d reference_gamma_;
+  Eigen::Matrix4d model_phi_;
+  Eigen::Vector4d model_gamma_;
+  Eigen::Vector4d model_next_ = Eigen::Vector4d::Zero();     ///< model state one tick ahead
+  Eigen::Vector4d model_at_tick_ = Eigen::Vector4d::Zero();  ///< model state at the next input's tick
+  Eigen::Vector4d model_reported_ = Eigen::Vector4d::Zero(); ///< model state at the last input's tick
+  double model_motor_position_before_m_ = 0;                 ///< x_M one tick before model_next_
+  StateFeedbackCounters counters_;
+};
+
+}  // namespace pmlsm

@@ -1,0 +1,122 @@
+#include "pmlsm/compensation/state_feedback.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "pmlsm/control/reference_model.hpp"
+#include "pmlsm/util/discretize.hpp"
+#include "pmlsm/util/validate.hpp"
+
+namespace pmlsm {
+
+void StateFeedbackParams::validate() const {
+  require_positive("motor_mass_kg", motor_mass_kg);
+  require_positive("load_mass_kg", load_mass_kg);
+  require_positive("spring_n_per_m", spring_n_per_m);
+  require_positive("velocity_gain_n_s_per_m", velocity_gain_n_s_per_m);
+  // c0 = r^2 - 1 >= 0: a load mode no slower than the open one (a negative c0 would feed the
+  // load's velocity error forward, along the error).
+  require_finite("model_frequency_ratio", model_frequency_ratio);
+  if (!(model_frequency_ratio >= 1.0)) {
+    throw std::invalid_argument("model_frequency_ratio: must be >= 1 (the model's load mode no slower than the open "
+                                "one), got " + format_value(model_frequency_ratio));
+  }
+  require_non_negative("model_damping_ratio", model_damping_ratio);
+  require_non_negative("correction_damping_ratio", correction_damping_ratio);
+  require_positive("reference_natural_frequency_rad_s", reference_natural_frequency_rad_s);
+  require_positive("reference_damping_ratio", reference_damping_ratio);
+  require_in_range("period_s", period_s, 1e-6, 1.0);
+  require_positive("force_limit_n", force_limit_n);
+}
+
+StateFeedback::StateFeedback(const StateFeedbackParams& params) : params_(params) {
+  params_.validate();
+  const double m_m = params_.motor_mass_kg;
+  const double m_l = params_.load_mass_kg;
+  const double k = params_.spring_n_per_m;
+  const double r = params_.model_frequency_ratio;
+  const double w = r * std::sqrt(k / m_l);
+  c0_ = r * r - 1.0;
+  c1_s_ = 2.0 * params_.model_damping_ratio * w * m_l / k;
+  correction_gain_ = 2.0 * params_.correction_damping_ratio * params_.velocity_gain_n_s_per_m / std::sqrt(k * m_l) - 1.0;
+
+  // The controller's reference model (25), for its one-tick look ahead.
+  const ReferenceModel reference(
+      {params_.reference_natural_frequency_rad_s, params_.reference_damping_ratio, params_.period_s});
+  reference_phi_ = reference.phi();
+  reference_gamma_ = reference.gamma();
+
+  // x_m = [x_M, v_M, x_L, v_L]: m_M dv_M/dt = F - k (x_M - x_L), m_L dv_L/dt = k (x_M - x_L).
+  Eigen::MatrixXd a_m(4, 4);
+  a_m << 0.0, 1.0, 0.0, 0.0,  //
+      -k / m_m, 0.0, k / m_m, 0.0,  //
+      0.0, 0.0, 0.0, 1.0,  //
+      k / m_l, 0.0, -k / m_l, 0.0;
+  Eigen::MatrixXd b_m(4, 1);
+  b_m << 0.0, 1.0 / m_m, 0.0, 0.0;
+  const DiscreteModel model = discretize_zoh(a_m, b_m, params_.period_s);
+  model_phi_ = model.phi;
+  model_gamma_ = model.gamma;
+}
+
+double StateFeedback::model_spring_force_n() const {
+  return params_.spring_n_per_m * (model_reported_(0) - model_reported_(2));
+}
+
+void StateFeedback::reset_model() {
+  model_next_.setZero();
+  model_at_tick_.setZero();
+  model_reported_.setZero();
+  model_motor_position_before_m_ = 0;
+  ++counters_.model_resets;
+}
+
+double StateFeedback::step(const StateFeedbackInput& in) {
+  ++counters_.steps;
+  if (!std::isfinite(in.command_mps) || !std::isfinite(in.v_ref_mps) || !std::isfinite(in.a_ref_mps2) ||
+      !std::isfinite(in.load_velocity_mps) || !std::isfinite(in.spring_force_n)) {
+    ++counters_.rejected_inputs;
+    return 0.0;
+  }
+  const StateFeedbackParams& p = params_;
+  const double k = p.spring_n_per_m;
+  const double limit = p.force_limit_n;
+
+  // The reference when this force acts: the model (25) one tick on, c held.
+  const Eigen::Vector2d ref =
+      reference_phi_ * Eigen::Vector2d(in.v_ref_mps, in.a_ref_mps2) + reference_gamma_ * in.command_mps;
+  const double v_ref = ref(0);
+  const double a_ref = ref(1);
+  const double wn = p.reference_natural_frequency_rad_s;
+  const double j_ref = wn * wn * (in.command_mps - v_ref) - 2.0 * p.reference_damping_ratio * wn * a_ref;
+
+  // The law on the model's state at that tick, and the model's PI and drive limit.
+  const Eigen::Vector4d& x = model_next_;
+  const double model_spring_n = k * (x(0) - x(2));
+  const double model_motor_velocity_mps = (x(0) - model_motor_position_before_m_) / p.period_s;  // encoder-like mean
+  const double model_pi_n = p.velocity_gain_n_s_per_m * (v_ref - model_motor_velocity_mps);
+  const double motor_offset_mps =
+      (p.load_mass_kg / k) * j_ref + c1_s_ * (a_ref - model_spring_n / p.load_mass_kg) + c0_ * (v_ref - x(3));
+  const double model_force_n = std::clamp(
+      p.velocity_gain_n_s_per_m * motor_offset_mps + p.motor_mass_kg * a_ref + model_spring_n, -limit, limit);
+  const double model_drive_n = std::clamp(model_pi_n + model_force_n, -limit, limit);
+
+  // The plant pulled onto the model: the estimate against the model at the estimate's tick.
+  model_reported_ = model_at_tick_;
+  const double correction_n = correction_gain_ * (model_spring_force_n() - in.spring_force_n);
+  const double force_n = model_force_n + correction_n;
+
+  model_motor_position_before_m_ = x(0);
+  model_at_tick_ = model_next_;
+  model_next_ = model_phi_ * model_next_ + model_gamma_ * model_drive_n;
+  if (!model_next_.allFinite() || !std::isfinite(force_n)) {
+    reset_model();
+    return 0.0;
+  }
+  if (std::abs(force_n) > limit) ++counters_.saturated;
+  return std::clamp(force_n, -limit, limit);
+}
+
+}  // namespace pmlsm

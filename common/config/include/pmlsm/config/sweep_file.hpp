@@ -1,0 +1,26 @@
+// A robustness sweep file (configs/sweeps/*.yaml): the plant family, the compensators, the
+// scenarios and the verdict's thresholds. Read by `pmlsm sweep FILE`.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "pmlsm/config/config.hpp"
+#include "pmlsm/sim/sweep.hpp"
+
+namespace pmlsm {
+
+struct SweepFile {
+  SweepSpec spec;
+  std::string weights_path;                 ///< the RNN's weights (relative paths resolved against the file)
+  std::vector<std::string> scenario_files;  ///< as resolved
+};
+
+/// nominal: the system the plants vary (its timing validates the scenarios, its table the keys).
+/// @throws ConfigError naming the file, the key path, the value and its line.
+SweepFile load_sweep_file(const std::string& path, const SystemParams& nominal,
+                          const std::vector<ConfigOverride>& overrides = {});
+SweepFile parse_sweep_file(const std::string& yaml_text, const std::string& origin, const SystemParams& nominal,
+                           const std::vector<ConfigOverride>& overrides = {});
+
+}  // namespace pmlsm

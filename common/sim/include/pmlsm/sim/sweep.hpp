@@ -1,0 +1,126 @@
+// A robustness sweep: a family of plants (a grid over parameter ranges, its centre and a seeded
+// random sample) x compensators x scenarios, each run in process, judged from its trace. The
+// compensators' models stay as configured (nominal): only the plant moves, as on a rig whose
+// load, coupling or bearings differ from what the estimator and the compensators assume.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/sim/compensated_run.hpp"
+#include "pmlsm/sim/scenario.hpp"
+#include "pmlsm/sim/system_params.hpp"
+
+namespace pmlsm {
+
+/// One plant parameter of the family: a real entry of visit_parameters, between min and max.
+struct SweepRange {
+  std::string key_path;  ///< e.g. plant.mechanics.load_mass_kg (must start with "plant.")
+  double min = 0;
+  double max = 0;
+  /// @throws std::invalid_argument: not a real plant parameter, min not below max, or a bound
+  /// outside the parameter's plausible range.
+  void validate(const SystemParams& nominal) const;
+};
+
+/// How the family is sampled.
+struct PlantSampling {
+  std::uint64_t grid_points = 2;  ///< per parameter, evenly spaced from min to max (2: the corners); 0: no grid
+  bool centre = true;             ///< the centre of the box as well
+  std::uint64_t random = 0;       ///< plants drawn uniformly in the box
+  std::uint64_t seed = 1;         ///< of the random draw
+};
+
+/// What makes a run fail its verdict (besides a non-finite state and the guard tripping).
+struct VerdictParams {
+  /// The tail judged for a limit cycle and saturation: the last tail_s of the run.
+  double tail_s = 0;
+  /// The tail in this many windows: the decay rate is the least-squares slope of the log of
+  /// their RMS values (one window of a mode's period or more each, or the RMS ripples).
+  std::uint64_t tail_windows = 0;
+  /// A spring-stretch oscillation (x_L - x_M, mean removed) of at least this amplitude in the
+  /// tail whose amplitude decays slower than min_decay_rate_per_s is a limit cycle.
+  double limit_cycle_amplitude_m = 0;
+  double min_decay_rate_per_s = 0;
+  /// More than this share of the tail's ticks with the force command at its limit: saturated.
+  double max_saturated_tail_share = 0;
+  void validate() const;
+};
+
+struct SweepSpec {
+  std::vector<SweepRange> ranges;
+  PlantSampling sampling;
+  std::vector<CompensatorKind> compensators;  ///< kNone (PI alone) is always run as the baseline
+  std::vector<Scenario> scenarios;
+  VerdictParams verdict;
+  /// @throws std::invalid_argument naming the first invalid field (the key path of a range
+  /// that is no real plant parameter, inverted bounds, a bound outside its plausible range).
+  void validate(const SystemParams& nominal) const;
+};
+
+/// One plant of the family: its label ("corner 3", "centre", "random 17") and a value per range.
+struct PlantSample {
+  std::string label;
+  std::vector<double> values;
+};
+
+/// The family, in a fixed order: grid (row-major, first parameter slowest), centre, random.
+std::vector<PlantSample> sample_plants(const SweepSpec& spec);
+
+/// nominal with the sample's values set (the estimator's and compensators' models untouched).
+/// @throws std::invalid_argument when a value is out of its plausible range.
+SystemParams plant_variant(const SystemParams& nominal, const SweepSpec& spec, const PlantSample& plant);
+
+/// What one run did.
+struct RunVerdict {
+  double cost = std::numeric_limits<double>::quiet_NaN();  ///< eq. (23), true v_L, first cost window
+  double settling_s = std::numeric_limits<double>::infinity();
+  double last_to_first_window_cost = std::numeric_limits<double>::quiet_NaN();  ///< cost per window: trend
+  double tail_stretch_amplitude_m = 0;  ///< sqrt(2) x RMS of x_L - x_M (mean removed) over the tail
+  double tail_decay_rate_per_s = 0;     ///< -d ln(RMS of a window) / dt over the tail's windows; < 0: growing
+  double saturated_share = 0;           ///< of all ticks, force command at its limit
+  double saturated_tail_share = 0;
+  double guard_trip_s = -1;             ///< time the vibration guard tripped, -1: never
+  bool non_finite = false;              ///< the plant diverged or a non-finite number in the trace
+  bool limit_cycle = false;
+  bool saturated = false;
+  /// "" when the run is clean; else its faults: "non-finite", "limit cycle", "saturated", "guard".
+  std::string faults() const;
+};
+
+/// Judges a trace (pure: tests feed it synthetic ones).
+RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scenario, double control_period_s,
+                     double force_limit_n, const VerdictParams& verdict);
+
+struct SweepRun {
+  std::size_t plant = 0;       ///< index into the samples
+  std::size_t compensator = 0; ///< index into SweepResult::compensators
+  std::size_t scenario = 0;    ///< index into spec.scenarios
+  RunVerdict verdict;
+  /// cost / PI alone's cost on the same plant and scenario (1 for PI itself).
+  double cost_ratio_to_pi = std::numeric_limits<double>::quiet_NaN();
+  /// Clean (faults() empty) and, for a compensator, cheaper than PI alone on this plant. PI
+  /// alone's runs are the baseline: their verdicts are shown, and they pass by definition.
+  bool passed = false;
+};
+
+struct SweepResult {
+  std::vector<PlantSample> plants;
+  std::vector<CompensatorKind> compensators;  ///< kNone first, then the spec's others
+  std::vector<SweepRun> runs;                 ///< plant-major, then compensator, then scenario
+  const SweepRun& run(std::size_t plant, std::size_t compensator, std::size_t scenario) const;
+};
+
+/// Progress: runs done, runs in all (called from the worker threads, one at a time).
+using SweepProgress = std::function<void(std::size_t done, std::size_t total)>;
+
+/// Runs the whole sweep on `threads` threads (0: one per core). rnn_weights for kRnn.
+/// @throws std::invalid_argument from the spec or a plant variant.
+SweepResult run_sweep(const SystemParams& nominal, const SweepSpec& spec, const std::vector<double>& rnn_weights,
+                      unsigned threads, const SweepProgress& progress = {});
+
+}  // namespace pmlsm

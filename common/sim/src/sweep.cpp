@@ -1,0 +1,326 @@
+#include "pmlsm/sim/sweep.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <exception>
+#include <mutex>
+#include <random>
+#include <set>
+#include <stdexcept>
+#include <thread>
+
+#include "pmlsm/sim/metrics.hpp"
+#include "pmlsm/util/validate.hpp"
+
+namespace pmlsm {
+
+void VerdictParams::validate() const {
+  require_in_range("verdict.tail_s", tail_s, 1e-3, 3600.0);
+  require_in_range("verdict.tail_windows", static_cast<double>(tail_windows), 2.0, 1000.0);
+  require_in_range("verdict.limit_cycle_amplitude_m", limit_cycle_amplitude_m, 1e-9, 1.0);
+  require_in_range("verdict.min_decay_rate_per_s", min_decay_rate_per_s, 0.0, 1e4);
+  require_in_range("verdict.max_saturated_tail_share", max_saturated_tail_share, 0.0, 1.0);
+}
+
+namespace {
+// Plants a sweep may hold: 1e5 of them at a few 10 ms per run are hours on one core.
+constexpr double kMaxPlants = 100000;
+}  // namespace
+
+void SweepRange::validate(const SystemParams& nominal) const {
+  if (key_path.rfind("plant.", 0) != 0) {
+    throw std::invalid_argument("key: the sweep moves the plant only (plant.*): the estimator's and the "
+                                "compensators' models stay as configured, got '" + key_path + "'");
+  }
+  SystemParams probe = nominal;
+  Plausible range{0, 0, ""};
+  try {
+    real_parameter(probe, key_path, &range);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("key: ") + e.what());
+  }
+  require_finite("min", min);
+  require_finite("max", max);
+  if (!(min < max)) {
+    throw std::invalid_argument("min (" + format_value(min) + ") must be below max (" + format_value(max) + ") for " +
+                                key_path);
+  }
+  for (const double bound : {min, max}) {
+    if (bound < range.min || bound > range.max) {
+      throw std::invalid_argument(key_path + " must stay in [" + format_value(range.min) + ", " +
+                                  format_value(range.max) + "] (" + range.reason + "), got " + format_value(bound));
+    }
+  }
+}
+
+void SweepSpec::validate(const SystemParams& nominal) const {
+  if (ranges.empty()) throw std::invalid_argument("plants.parameters: at least one parameter to vary");
+  std::set<std::string> seen;
+  for (std::size_t i = 0; i < ranges.size(); ++i) {
+    const SweepRange& r = ranges[i];
+    const std::string at = "plants.parameters[" + std::to_string(i) + "]";
+    if (!seen.insert(r.key_path).second) throw std::invalid_argument(at + ".key: '" + r.key_path + "' twice");
+    try {
+      r.validate(nominal);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(at + ": " + e.what());
+    }
+  }
+  if (sampling.grid_points == 1 || sampling.grid_points > 101) {
+    throw std::invalid_argument("plants.grid_points: must be 0 (no grid) or 2 to 101, got " +
+                                std::to_string(sampling.grid_points));
+  }
+  const double grid = sampling.grid_points == 0
+                          ? 0.0
+                          : std::pow(static_cast<double>(sampling.grid_points), static_cast<double>(ranges.size()));
+  const double plants = grid + (sampling.centre ? 1.0 : 0.0) + static_cast<double>(sampling.random);
+  if (plants < 1 || plants > kMaxPlants) {
+    throw std::invalid_argument("plants: grid, centre and random give " + format_value(plants) +
+                                " plants; must be 1 to " + format_value(kMaxPlants));
+  }
+  std::set<CompensatorKind> kinds;
+  for (CompensatorKind kind : compensators) {
+    if (!kinds.insert(kind).second) {
+      throw std::invalid_argument(std::string("compensators: '") + to_string(kind) + "' twice");
+    }
+  }
+  if (scenarios.empty()) throw std::invalid_argument("scenarios: at least one");
+  for (const Scenario& s : scenarios) s.validate(nominal.timing.control_period_s);
+  verdict.validate();
+}
+
+std::vector<PlantSample> sample_plants(const SweepSpec& spec) {
+  std::vector<PlantSample> plants;
+  const std::size_t dims = spec.ranges.size();
+  const std::uint64_t n = spec.sampling.grid_points;
+  if (n >= 2) {
+    std::uint64_t count = 1;
+    for (std::size_t d = 0; d < dims; ++d) count *= n;
+    for (std::uint64_t index = 0; index < count; ++index) {
+      PlantSample plant{"grid " + std::to_string(index), std::vector<double>(dims)};
+      std::uint64_t rest = index;
+      // Row-major, the first parameter slowest: its digit is the most significant.
+      for (std::size_t d = dims; d-- > 0;) {
+        const double step = static_cast<double>(rest % n) / static_cast<double>(n - 1);
+        rest /= n;
+        const SweepRange& r = spec.ranges[d];
+        plant.values[d] = r.min + step * (r.max - r.min);
+      }
+      plants.push_back(std::move(plant));
+    }
+  }
+  if (spec.sampling.centre) {
+    PlantSample plant{"centre", std::vector<double>(dims)};
+    for (std::size_t d = 0; d < dims; ++d) plant.values[d] = 0.5 * (spec.ranges[d].min + spec.ranges[d].max);
+    plants.push_back(std::move(plant));
+  }
+  // mt19937_64's sequence is fixed by the standard; the mapping to [0, 1) is ours (53 bits),
+  // so a seed gives the same plants with any standard library.
+  std::mt19937_64 rng(spec.sampling.seed);
+  for (std::uint64_t i = 0; i < spec.sampling.random; ++i) {
+    PlantSample plant{"random " + std::to_string(i), std::vector<double>(dims)};
+    for (std::size_t d = 0; d < dims; ++d) {
+      const double u = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+      plant.values[d] = spec.ranges[d].min + u * (spec.ranges[d].max - spec.ranges[d].min);
+    }
+    plants.push_back(std::move(plant));
+  }
+  return plants;
+}
+
+SystemParams plant_variant(const SystemParams& nominal, const SweepSpec& spec, const PlantSample& plant) {
+  SystemParams params = nominal;
+  for (std::size_t d = 0; d < spec.ranges.size(); ++d) real_parameter(params, spec.ranges[d].key_path) = plant.values[d];
+  try {
+    params.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("plant '" + plant.label + "': " + e.what());
+  }
+  return params;
+}
+
+std::string RunVerdict::faults() const {
+  std::string out;
+  const auto add = [&](bool on, const char* what) {
+    if (on) out += (out.empty() ? "" : ", ") + std::string(what);
+  };
+  add(non_finite, "non-finite");
+  add(limit_cycle, "limit cycle");
+  add(saturated, "saturated");
+  add(guard_trip_s >= 0, "guard");
+  return out;
+}
+
+namespace {
+
+bool record_finite(const TickRecord& r) {
+  return std::isfinite(r.force_command_n) && std::isfinite(r.motor_velocity_mps) &&
+         std::isfinite(r.load_velocity_mps) && std::isfinite(r.motor_position_m) && std::isfinite(r.load_position_m);
+}
+
+// RMS of x - mean over values[begin, end).
+double rms_about(const std::vector<double>& values, std::size_t begin, std::size_t end, double mean) {
+  if (end <= begin) return 0.0;
+  double sum = 0;
+  for (std::size_t i = begin; i < end; ++i) sum += (values[i] - mean) * (values[i] - mean);
+  return std::sqrt(sum / static_cast<double>(end - begin));
+}
+
+}  // namespace
+
+RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scenario, double control_period_s,
+                     double force_limit_n, const VerdictParams& verdict) {
+  RunVerdict out;
+  if (trace.empty()) {
+    out.non_finite = true;
+    return out;
+  }
+  for (const TickRecord& r : trace) {
+    if (r.plant_fault_state != nullptr || !record_finite(r)) out.non_finite = true;
+    if (r.guard_tripped && out.guard_trip_s < 0) out.guard_trip_s = r.time_s;
+  }
+  const ScenarioMetrics metrics = compute_metrics(trace, scenario, control_period_s);
+  out.cost = metrics.cost_true;
+  out.settling_s = metrics.load_settling_time_s;
+
+  // Cost (23) per window of the run: a later window cheaper than the first is a decaying error.
+  const auto window = static_cast<std::size_t>(std::llround(scenario.cost_window_s / control_period_s));
+  std::vector<double> window_costs;
+  for (std::size_t begin = 1; window > 0 && begin + window <= trace.size(); begin += window) {
+    double cost = 0;
+    for (std::size_t k = begin; k < begin + window; ++k) cost += std::fabs(trace[k].v_ref_mps - trace[k].load_velocity_mps);
+    window_costs.push_back(cost);
+  }
+  if (window_costs.size() >= 2 && window_costs.front() > 0) {
+    out.last_to_first_window_cost = window_costs.back() / window_costs.front();
+  }
+
+  // The tail: spring stretch x_L - x_M about its mean; its amplitude and how fast it decays.
+  const std::size_t n = trace.size();
+  const std::size_t tail = std::min<std::size_t>(n, static_cast<std::size_t>(std::llround(verdict.tail_s / control_period_s)));
+  const std::size_t begin = n - tail;
+  std::vector<double> stretch(n);
+  for (std::size_t k = 0; k < n; ++k) stretch[k] = trace[k].load_position_m - trace[k].motor_position_m;
+  double mean = 0;
+  for (std::size_t k = begin; k < n; ++k) mean += stretch[k];
+  mean /= static_cast<double>(std::max<std::size_t>(tail, 1));
+  out.tail_stretch_amplitude_m = std::sqrt(2.0) * rms_about(stretch, begin, n, mean);
+  // Decay rate: least-squares slope of ln(RMS) over the windows' centres. A window without
+  // motion (RMS 0) means the oscillation is gone: nothing left to decay.
+  const std::size_t windows = static_cast<std::size_t>(verdict.tail_windows);
+  const std::size_t per_window = tail / windows;
+  double sum_t = 0, sum_y = 0, sum_tt = 0, sum_ty = 0;
+  bool silent = per_window == 0;
+  for (std::size_t w = 0; w < windows && !silent; ++w) {
+    const std::size_t from = begin + w * per_window;
+    const double rms = rms_about(stretch, from, from + per_window, mean);
+    if (!(rms > 0)) {
+      silent = true;
+      break;
+    }
+    const double t = (static_cast<double>(w) + 0.5) * static_cast<double>(per_window) * control_period_s;
+    const double y = std::log(rms);
+    sum_t += t;
+    sum_y += y;
+    sum_tt += t * t;
+    sum_ty += t * y;
+  }
+  const double count = static_cast<double>(windows);
+  const double spread = count * sum_tt - sum_t * sum_t;
+  out.tail_decay_rate_per_s = silent || !(spread > 0) ? std::numeric_limits<double>::infinity()
+                                                      : -(count * sum_ty - sum_t * sum_y) / spread;
+  out.limit_cycle = std::isfinite(out.tail_stretch_amplitude_m) &&
+                    out.tail_stretch_amplitude_m >= verdict.limit_cycle_amplitude_m &&
+                    !(out.tail_decay_rate_per_s >= verdict.min_decay_rate_per_s);
+
+  // Saturation: the force command at its limit (the velocity PI's output after the compensation).
+  std::size_t saturated = 0;
+  std::size_t saturated_tail = 0;
+  const double at_limit = force_limit_n * (1.0 - 1e-9);
+  for (std::size_t k = 0; k < n; ++k) {
+    if (std::fabs(trace[k].force_command_n) >= at_limit) {
+      ++saturated;
+      if (k >= begin) ++saturated_tail;
+    }
+  }
+  out.saturated_share = static_cast<double>(saturated) / static_cast<double>(n);
+  out.saturated_tail_share = tail == 0 ? 0.0 : static_cast<double>(saturated_tail) / static_cast<double>(tail);
+  out.saturated = out.saturated_tail_share > verdict.max_saturated_tail_share;
+  if (out.non_finite) out.limit_cycle = out.saturated = false;  // one fault says it all
+  return out;
+}
+
+const SweepRun& SweepResult::run(std::size_t plant, std::size_t compensator, std::size_t scenario) const {
+  const std::size_t scenarios = runs.size() / std::max<std::size_t>(1, plants.size() * compensators.size());
+  return runs.at((plant * compensators.size() + compensator) * scenarios + scenario);
+}
+
+SweepResult run_sweep(const SystemParams& nominal, const SweepSpec& spec, const std::vector<double>& rnn_weights,
+                      unsigned threads, const SweepProgress& progress) {
+  spec.validate(nominal);
+  SweepResult result;
+  result.plants = sample_plants(spec);
+  result.compensators.push_back(CompensatorKind::kNone);
+  for (CompensatorKind kind : spec.compensators) {
+    if (kind != CompensatorKind::kNone) result.compensators.push_back(kind);
+  }
+  std::vector<SystemParams> variants;
+  variants.reserve(result.plants.size());
+  for (const PlantSample& plant : result.plants) variants.push_back(plant_variant(nominal, spec, plant));
+
+  const std::size_t per_plant = result.compensators.size() * spec.scenarios.size();
+  result.runs.resize(result.plants.size() * per_plant);
+  for (std::size_t i = 0; i < result.runs.size(); ++i) {
+    result.runs[i].plant = i / per_plant;
+    result.runs[i].compensator = (i % per_plant) / spec.scenarios.size();
+    result.runs[i].scenario = i % spec.scenarios.size();
+  }
+
+  std::atomic<std::size_t> next{0};
+  std::size_t done = 0;
+  std::mutex progress_mutex;
+  std::exception_ptr failure;
+  const auto work = [&] {
+    for (;;) {
+      const std::size_t i = next.fetch_add(1);
+      if (i >= result.runs.size()) return;
+      SweepRun& run = result.runs[i];
+      try {
+        const SystemParams& params = variants[run.plant];
+        const Scenario& scenario = spec.scenarios[run.scenario];
+        CompensatorSetup setup;
+        setup.kind = result.compensators[run.compensator];
+        if (setup.kind == CompensatorKind::kRnn) setup.rnn_weights = rnn_weights;
+        const auto trace = run_with_compensator(params, scenario, setup);
+        run.verdict = judge_run(trace, scenario, params.timing.control_period_s,
+                                params.velocity_loop.force_limit_n, spec.verdict);
+      } catch (...) {
+        const std::lock_guard<std::mutex> lock(progress_mutex);
+        if (!failure) failure = std::current_exception();
+        next = result.runs.size();
+        return;
+      }
+      const std::lock_guard<std::mutex> lock(progress_mutex);
+      ++done;
+      if (progress) progress(done, result.runs.size());
+    }
+  };
+  const unsigned count = threads != 0 ? threads : std::max(1u, std::thread::hardware_concurrency());
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < count; ++t) pool.emplace_back(work);
+  work();
+  for (std::thread& t : pool) t.join();
+  if (failure) std::rethrow_exception(failure);
+
+  for (SweepRun& run : result.runs) {
+    const SweepRun& pi = result.run(run.plant, 0, run.scenario);
+    run.cost_ratio_to_pi = pi.verdict.cost > 0 ? run.verdict.cost / pi.verdict.cost
+                                               : std::numeric_limits<double>::quiet_NaN();
+    const bool clean = run.verdict.faults().empty();
+    run.passed = run.compensator == 0 || (clean && run.verdict.cost < pi.verdict.cost);
+  }
+  return result;
+}
+
+}  // namespace pmlsm

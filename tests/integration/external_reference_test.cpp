@@ -1,0 +1,146 @@
+// The external reference over DDS: a controller on an external scenario follows
+// `pmlsm setpoint` (lockstep, with the evaluator's trace of the raw command), never jumping
+// (rate limit), back to zero when the source ends or dies, and a run whose source died
+// mid-move ends with exit code 5. Domains: offsets 74..77.
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "child_process.hpp"
+#include "integration_support.hpp"
+
+namespace pmlsm::test {
+namespace {
+
+namespace fs = std::filesystem;
+using std::chrono::seconds;
+
+// configs/scenarios/external.yaml with its duration replaced (sim seconds; lockstep runs
+// several times faster than real time, the setpoint source on wall time).
+std::string external_scenario(const fs::path& dir, double duration_s) {
+  const std::string text = read_file(source("configs/scenarios/external.yaml"));
+  const std::string changed = std::regex_replace(text, std::regex("duration_s: \\{value: [^,}]+"),
+                                                 "duration_s: {value: " + std::to_string(duration_s));
+  EXPECT_NE(changed, text);
+  const fs::path path = dir / "external.yaml";
+  std::ofstream(path) << changed;
+  return path.string();
+}
+
+std::vector<std::string> setpoint_args(const std::string& domain, std::vector<std::string> extra) {
+  std::vector<std::string> a{bin("pmlsm"), "--domain", domain, "--profiles", source("configs/dds/profiles.xml"),
+                             "setpoint"};
+  a.insert(a.end(), extra.begin(), extra.end());
+  return a;
+}
+
+struct ExternalRun {
+  std::string controller;
+  std::vector<double> command;
+  int controller_exit = -1;
+};
+
+/// Evaluator, estimator, controller and plant in lockstep on an external scenario; `source` is started
+/// once the controller runs, and `during` gets it (to kill it, say).
+template <typename During>
+ExternalRun run_with_setpoints(const fs::path& dir, const std::string& domain, double duration_s,
+                       const std::vector<std::string>& setpoint, During&& during) {
+  const std::string scenario = external_scenario(dir, duration_s);
+  ExternalRun run;
+  ChildProcess evaluator(node_args("evaluator", domain, scenario, {"--out", dir.string(), "--label", "ext"}),
+                         (dir / "evaluator.log").string());
+  ChildProcess estimator(node_args("kalman_estimator", domain, scenario), (dir / "estimator.log").string());
+  ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
+  ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "3"}), (dir / "plant.log").string());
+  EXPECT_TRUE(plant.wait_for_output("lockstep clock", seconds(30))) << plant.output();
+  ChildProcess source_process(setpoint_args(domain, setpoint), (dir / "setpoint.log").string());
+  during(source_process);
+  for (auto* p : {&plant, &controller, &estimator, &evaluator}) {
+    const auto code = p->wait_for(seconds(120));
+    EXPECT_TRUE(code.has_value()) << "still running:\n" << p->output();
+    if (p == &controller && code) run.controller_exit = *code;
+  }
+  run.controller = controller.output();
+  const std::string trace = read_file(dir / "external_ext.csv");
+  EXPECT_FALSE(trace.empty()) << evaluator.output();
+  if (!trace.empty()) run.command = trace_column(trace, "command_mps");
+  return run;
+}
+
+void expect_no_jump(const std::vector<double>& command, double max_accel_mps2, double period_s) {
+  double max_step = 0;
+  for (std::size_t k = 1; k < command.size(); ++k) max_step = std::max(max_step, std::abs(command[k] - command[k - 1]));
+  EXPECT_LE(max_step, max_accel_mps2 * period_s * (1 + 1e-6)) << "the command jumped";
+}
+
+TEST(ExternalReferenceDistributed, ControllerFollowsPmlsmSetpointThenZero) {
+  const fs::path dir = fresh_dir("pmlsm_external", "follow");
+  const std::string domain = test_domain(74);
+  ExternalRun run = run_with_setpoints(dir, domain, 40.0, {"0.2", "--hold-s", "1.0", "--source", "itest"},
+                               [](ChildProcess& source_process) {
+                                 const auto code = source_process.wait_for(seconds(60));
+                                 ASSERT_TRUE(code.has_value()) << source_process.output();
+                                 EXPECT_EQ(*code, 0) << source_process.output();
+                               });
+  EXPECT_EQ(run.controller_exit, 0) << run.controller;
+  EXPECT_NE(run.controller.find("following setpoints from 'itest'"), std::string::npos) << run.controller;
+  EXPECT_NE(run.controller.find("0 rejected (0 invalid)"), std::string::npos) << run.controller;
+  EXPECT_NE(run.controller.find("(0 mid-move)"), std::string::npos) << run.controller;
+  ASSERT_FALSE(run.command.empty());
+  // Reached the setpoint (held 1 s of wall time, some seconds of lockstep), came back to zero.
+  EXPECT_DOUBLE_EQ(*std::max_element(run.command.begin(), run.command.end()), 0.2);
+  EXPECT_EQ(run.command.front(), 0.0);
+  EXPECT_EQ(run.command.back(), 0.0);
+  expect_no_jump(run.command, 3.0, 1e-3);  // external.yaml: accel_mps2 3.0
+  fs::remove_all(dir);
+}
+
+TEST(ExternalReferenceDistributed, SourceKilledMidMoveRampsToZeroAndTheRunIsNotValid) {
+  const fs::path dir = fresh_dir("pmlsm_external", "killed");
+  const std::string domain = test_domain(75);
+  ExternalRun run = run_with_setpoints(dir, domain, 40.0, {"0.2", "--source", "itest"}, [](ChildProcess& source_process) {
+    // Holding until Ctrl-C; killed without its final zero, as a crashed source would be.
+    EXPECT_TRUE(source_process.wait_for_output("until Ctrl-C", seconds(30))) << source_process.output();
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(1500);
+    while (std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    source_process.signal(SIGKILL);
+    source_process.wait_for(seconds(10));
+  });
+  EXPECT_EQ(run.controller_exit, 5) << run.controller;
+  EXPECT_NE(run.controller.find("setpoint stale (none for 0.25 s): reference ramps to zero from 0.2 m/s"),
+            std::string::npos)
+      << run.controller;
+  EXPECT_NE(run.controller.find("(1 mid-move)"), std::string::npos) << run.controller;
+  ASSERT_FALSE(run.command.empty());
+  EXPECT_DOUBLE_EQ(*std::max_element(run.command.begin(), run.command.end()), 0.2);
+  EXPECT_EQ(run.command.back(), 0.0);
+  expect_no_jump(run.command, 3.0, 1e-3);
+  fs::remove_all(dir);
+}
+
+TEST(ExternalReferenceDistributed, PmlsmSetpointWithoutAControllerExits3AndRefusesNaN) {
+  const fs::path dir = fresh_dir("pmlsm_external", "alone");
+  const std::string domain = test_domain(76);
+  ChildProcess alone(setpoint_args(domain, {"0.1", "--wait-s", "1"}), (dir / "alone.log").string());
+  auto code = alone.wait_for(seconds(30));
+  ASSERT_TRUE(code.has_value());
+  EXPECT_EQ(*code, 3) << alone.output();
+  EXPECT_NE(alone.output().find("no controller follows setpoints"), std::string::npos) << alone.output();
+  ChildProcess nan(setpoint_args(domain, {"nan", "--wait-s", "1"}), (dir / "nan.log").string());
+  code = nan.wait_for(seconds(30));
+  ASSERT_TRUE(code.has_value());
+  EXPECT_EQ(*code, 2) << nan.output();
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace pmlsm::test
