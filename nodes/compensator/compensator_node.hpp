@@ -89,4 +89,46 @@ class CompensatorInputs {
   std::uint64_t skipped_ = 0;
 };
 
+/// What run_fixed_law did: the node's exit code and the ticks it answered.
+struct CompensatorLoopResult {
+  int exit_code = kExitOk;
+  std::uint64_t answered = 0;
+};
+
+/// The loop of a compensator whose law is fixed for the run (accel_feedback, state_feedback):
+/// publishes NodeStatus running, then answers every paired tick k with CompensatorOutput k
+/// (force_of(view), u = force / force_limit_n, the training error V_ref - v_L) until the
+/// scenario's ticks are answered, a stop is requested, or the inputs stop coming for the peer
+/// timeout (end_of_failed_wait's exit code). The writer is flushed before it returns.
+template <typename ForceOf>
+CompensatorLoopResult run_fixed_law(const char* node_name, NodeRuntime& rt, const CommonOptions& common,
+                                    CompensatorInputs& inputs, double force_limit_n, ForceOf&& force_of) {
+  auto writer = rt.participant.make_writer<pmlsm_msgs::msg::CompensatorOutputPubSubType>(
+      dds::topics::kCompensatorOutput);
+  const std::uint64_t ticks = scenario_ticks(rt.cfg.scenario, rt.period_s);
+  rt.status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_RUNNING, 0, rt.period_s, "running");
+  pmlsm_msgs::msg::CompensatorOutput out;
+  out.flags(pmlsm_msgs::msg::CompensatorOutput_Constants::FLAG_ENABLED);
+  CompensatorLoopResult result;
+  std::uint64_t tick = 0;
+  CompensatorView view;
+  while (result.answered < ticks && !dds::stop_requested()) {
+    if (!inputs.next(std::chrono::duration<double>(common.peer_timeout_s), tick, view)) {
+      result.exit_code = end_of_failed_wait(node_name, "EstimatedState and VelocityReference",
+                                            "estimator or controller", result.answered, common.peer_timeout_s);
+      break;
+    }
+    const double force_n = force_of(view);
+    out.stamp(make_stamp(tick, rt.period_s, inputs.run_id()));
+    out.estimate_tick(tick);
+    out.force_n(force_n);
+    out.u_n(force_n / force_limit_n);
+    out.training_error_mps(view.v_ref_mps - view.v_load_mps);
+    writer.write(out);
+    result.answered = tick + 1;
+  }
+  writer.wait_for_acknowledgments(kFlushTimeout);
+  return result;
+}
+
 }  // namespace pmlsm::node
