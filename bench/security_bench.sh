@@ -5,8 +5,9 @@
 # from the drive's start until every peer matched (its own start-up, participant creation and,
 # secure, the authentication handshakes included). Three set-ups: open; secure with payloads,
 # discovery and liveliness encrypted and submessages unprotected (metadata_protection: none);
-# the same with every submessage encrypted too (metadata_protection: encrypt). Prints figures
-# and ratios.
+# the same with every submessage encrypted too (metadata_protection: encrypt); whole RTPS
+# messages encrypted instead, payloads and submessages not on their own (rtps_protection:
+# encrypt, data and metadata none: one cipher operation a datagram). Prints figures and ratios.
 #   bench/security_bench.sh [realtime_seconds]   (default 20)
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -24,13 +25,17 @@ p99_of() { field 's/.*p99 \([0-9.]*\) us.*/\1/p' "$1"; }
 matched_of() { field 's/.*peers matched \([0-9.]*\) ms after start.*/\1/p' "$1"; }
 ratio() { awk -v a="$1" -v b="$2" 'BEGIN { if (a == "" || b == "" || b + 0 == 0) print "n/a"; else printf "%.3g", a / b }'; }
 
-echo "[1/4] keystores from configs/security/policy.yaml, metadata_protection none and encrypt"
-for m in none encrypt; do
-  sed "s/^  metadata_protection: [a-z]*/  metadata_protection: $m/" configs/security/policy.yaml >"$work/policy_$m.yaml"
-  "$bin/pmlsm" security create "$work/ks_$m" --policy "$work/policy_$m.yaml" >/dev/null
-done
-setups=(open payload full)
-keystore_of() { case "$1" in open) echo none ;; payload) echo "$work/ks_none" ;; full) echo "$work/ks_encrypt" ;; esac; }
+echo "[1/4] keystores from configs/security/policy.yaml: payload, full (the shipped one), rtps"
+governance() {  # set-up, data, metadata, rtps protection
+  sed -e "s/^  data_protection: [a-z]*/  data_protection: $2/" -e "s/^  metadata_protection: [a-z]*/  metadata_protection: $3/" \
+    -e "s/^  rtps_protection: [a-z]*/  rtps_protection: $4/" configs/security/policy.yaml >"$work/policy_$1.yaml"
+  "$bin/pmlsm" security create "$work/ks_$1" --policy "$work/policy_$1.yaml" >/dev/null
+}
+governance payload encrypt none none
+governance full encrypt encrypt none
+governance rtps none none encrypt
+setups=(open payload full rtps)
+keystore_of() { if [ "$1" = open ]; then echo none; else echo "$work/ks_$1"; fi; }
 
 echo "[2/4] lockstep, force level, 4 nodes (launch/sim.yaml), each set-up"
 for s in "${setups[@]}"; do
@@ -52,7 +57,7 @@ done
 
 echo "[4/4] figures"
 echo
-printf '%-44s %14s %14s %14s\n' "figure" "open" "payload" "payload+meta"
+printf '%-44s %14s %14s %14s %14s\n' "figure" "open" "payload" "payload+meta" "rtps"
 row() {  # label, extractor, file prefix
   printf '%-44s' "$1"
   for s in "${setups[@]}"; do printf ' %14s' "$("$2" "$work/$3_$s.log")"; done
@@ -65,7 +70,7 @@ row "realtime chain latency p50 [us]" p50_of rt
 row "realtime chain latency p99 [us]" p99_of rt
 row "realtime peers matched after start [ms]" matched_of rt
 echo
-for s in payload full; do
+for s in payload full rtps; do
   printf '%-44s lockstep RTF %s, p50 %s, p99 %s, matched %s\n' "ratio $s / open:" \
     "$(ratio "$(rtf_of "$work/lockstep_$s.log")" "$(rtf_of "$work/lockstep_open.log")")" \
     "$(ratio "$(p50_of "$work/rt_$s.log")" "$(p50_of "$work/rt_open.log")")" \

@@ -84,6 +84,21 @@ TEST(SecurityPolicy, RefusesUnknownOrDuplicatedItemsNamingThem) {
   EXPECT_NE(refusal("governance:\n  data_protection: sign\nidentities:\n  controller: {}\n")
                 .find("governance.data_protection: 'sign' is refused"),
             std::string::npos);
+  EXPECT_NE(refusal("governance:\n  data_protection: none\nidentities:\n  controller: {}\n")
+                .find("p.yaml:2:20: governance.data_protection: 'none' leaves every payload in clear"),
+            std::string::npos);
+  EXPECT_NE(refusal("governance:\n  data_protection: none\n  rtps_protection: sign\nidentities:\n  controller: {}\n")
+                .find("allowed only with rtps_protection: encrypt"),
+            std::string::npos);
+}
+
+TEST(SecurityPolicy, PayloadsUnprotectedOnlyInsideEncryptedRtpsMessages) {
+  const auto p = parse_policy("governance:\n  data_protection: none\n  metadata_protection: none\n"
+                              "  rtps_protection: encrypt\nidentities:\n  controller: {}\n",
+                              "p.yaml", vocabulary());
+  const std::string gov = governance_xml(p);
+  EXPECT_NE(gov.find("<rtps_protection_kind>ENCRYPT</rtps_protection_kind>"), std::string::npos);
+  EXPECT_NE(gov.find("<data_protection_kind>NONE</data_protection_kind>"), std::string::npos);
 }
 
 TEST(SecurityPolicy, DocumentsCarryTheGrantAndDenyTheRest) {

@@ -130,6 +130,7 @@ Policy parse_policy(const std::string& yaml_text, const std::string& origin, con
   const Located at(origin);
   Policy policy;
   bool have_identities = false;
+  YAML::Node data_protection_node;
   for (const auto& [key, node] : at.keys(root, "", {"governance", "identities"})) {
     if (key == "governance") {
       for (const auto& [gkey, g] : at.keys(node, "governance",
@@ -137,7 +138,8 @@ Policy parse_policy(const std::string& yaml_text, const std::string& origin, con
                                             "liveliness_protection", "rtps_protection", "domains"})) {
         const std::string path = "governance." + gkey;
         if (gkey == "data_protection") {
-          policy.data_protection = parse_protection(at, g, path, false);
+          policy.data_protection = parse_protection(at, g, path, true);
+          data_protection_node = g;
           // Measured with Debian's Fast DDS 2.9.1: with payloads only signed (GMAC), every
           // receiver fails "Error decoding encoded payload" and no sample arrives; the metadata
           // protection kind makes no difference. A policy must not make a silent, dead bus.
@@ -198,6 +200,12 @@ Policy parse_policy(const std::string& yaml_text, const std::string& origin, con
         policy.grants.push_back(std::move(grant));
       }
     }
+  }
+  // Payloads in clear are allowed only inside whole RTPS messages that are encrypted (one
+  // AES-GCM operation a datagram instead of one a payload and one a submessage).
+  if (policy.data_protection == Protection::kNone && policy.rtps_protection != Protection::kEncrypt) {
+    at.fail(data_protection_node, "governance.data_protection",
+            "'none' leaves every payload in clear on the wire; it is allowed only with rtps_protection: encrypt");
   }
   if (!have_identities || policy.grants.empty()) at.fail(root, "identities", "the policy grants nothing to anyone");
   return policy;
