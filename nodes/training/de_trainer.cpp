@@ -113,8 +113,11 @@ int run(int argc, char** argv) {
     throw ConfigError("--resume: no checkpoint at " + checkpoint_path);
   }
 
-  const auto cost = std::make_shared<const RnnCost>(params, training.scenarios, training.cost_velocity,
-                                                    training.plants, training.plant_objective);
+  const auto cost = training.judge_runs
+                        ? std::make_shared<const RnnCost>(params, training.scenarios, training.cost_velocity,
+                                                          training.plants, training.plant_objective, training.verdict)
+                        : std::make_shared<const RnnCost>(params, training.scenarios, training.cost_velocity,
+                                                          training.plants, training.plant_objective);
   DeParams de;
   de.population_size = training.population_size;
   de.dimension = cost->dimension();

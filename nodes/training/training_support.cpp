@@ -76,6 +76,13 @@ msg::TrainingSetup make_setup(std::uint64_t run_id, const std::string& system_pa
     setup.plants().push_back(text);
   }
   setup.plant_objective(to_string(training.plant_objective));
+  msg::TrainingVerdict& verdict = setup.verdict();
+  verdict.judge_runs(training.judge_runs);
+  verdict.tail_s(training.verdict.tail_s);
+  verdict.tail_windows(training.verdict.tail_windows);
+  verdict.limit_cycle_amplitude_m(training.verdict.limit_cycle_amplitude_m);
+  verdict.min_decay_rate_per_s(training.verdict.min_decay_rate_per_s);
+  verdict.max_saturated_tail_share(training.verdict.max_saturated_tail_share);
   return setup;
 }
 
@@ -109,8 +116,16 @@ std::shared_ptr<const RnnCost> cost_from_setup(const msg::TrainingSetup& setup) 
   CostVelocity which = CostVelocity::truth;
   try {
     which = cost_velocity_from_string(setup.cost_velocity().to_string());
-    return std::make_shared<const RnnCost>(params, std::move(scenarios), which, plants,
-                                           plant_objective_from_string(setup.plant_objective().to_string()));
+    const PlantObjective objective = plant_objective_from_string(setup.plant_objective().to_string());
+    const msg::TrainingVerdict& v = setup.verdict();
+    if (!v.judge_runs()) return std::make_shared<const RnnCost>(params, std::move(scenarios), which, plants, objective);
+    VerdictParams verdict;
+    verdict.tail_s = v.tail_s();
+    verdict.tail_windows = v.tail_windows();
+    verdict.limit_cycle_amplitude_m = v.limit_cycle_amplitude_m();
+    verdict.min_decay_rate_per_s = v.min_decay_rate_per_s();
+    verdict.max_saturated_tail_share = v.max_saturated_tail_share();
+    return std::make_shared<const RnnCost>(params, std::move(scenarios), which, plants, objective, verdict);
   } catch (const std::invalid_argument& e) {
     throw ConfigError(origin + ": " + e.what());
   }

@@ -351,6 +351,14 @@ msg::TrainingSetup training_setup(Sampler& s) {
   }
   v.plants(plants);
   v.plant_objective(s.text<32>("plant_objective"));
+  msg::TrainingVerdict verdict;
+  verdict.judge_runs(s.flag("verdict.judge_runs"));
+  verdict.tail_s(s.real("verdict.tail_s"));
+  verdict.tail_windows(s.u64("verdict.tail_windows"));
+  verdict.limit_cycle_amplitude_m(s.real("verdict.limit_cycle_amplitude_m"));
+  verdict.min_decay_rate_per_s(s.real("verdict.min_decay_rate_per_s"));
+  verdict.max_saturated_tail_share(s.real("verdict.max_saturated_tail_share"));
+  v.verdict(verdict);
   return v;
 }
 

@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <limits>
 
 #include "pmlsm/compensation/accel_feedback.hpp"
@@ -93,6 +95,40 @@ TEST(TrainingConfig, ShippedFileLoadsWithTable1Values) {
   EXPECT_EQ(t.scenarios[0].scenario.name, "pulse");
 }
 
+// An optional verdict section: each run judged whole; only with the worst-ratio objective, and
+// with the sweep file's keys (an unknown one is named).
+TEST(TrainingConfig, AVerdictSectionJudgesRunsWithTheWorstRatioObjectiveOnly) {
+  const std::string robust = source("configs/training_robust.yaml");
+  std::ifstream in(source("configs/training.yaml"));
+  const std::string plain((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_FALSE(load_training_params(robust, 1e-3).judge_runs);
+  const std::string verdict =
+      "verdict:\n"
+      "  tail_s: {value: 0.4, source: \"chosen: test\"}\n"
+      "  tail_windows: {value: 2, source: \"chosen: test\"}\n"
+      "  limit_cycle_amplitude_m: {value: 5.0e-4, source: \"chosen: test\"}\n"
+      "  min_decay_rate_per_s: {value: 0.3, source: \"chosen: test\"}\n"
+      "  max_saturated_tail_share: {value: 0.05, source: \"chosen: test\"}\n";
+  std::ifstream robust_in(robust);
+  const std::string robust_text((std::istreambuf_iterator<char>(robust_in)), std::istreambuf_iterator<char>());
+  const TrainingParams judged = parse_training_params(robust_text + verdict, robust, 1e-3);
+  EXPECT_TRUE(judged.judge_runs);
+  EXPECT_DOUBLE_EQ(judged.verdict.tail_s, 0.4);
+  EXPECT_EQ(judged.verdict.tail_windows, 2u);
+  try {
+    parse_training_params(plain + verdict, source("configs/training.yaml"), 1e-3);
+    ADD_FAILURE() << "a verdict with the weighted-sum objective was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("worst_ratio_to_pi"), std::string::npos) << e.what();
+  }
+  try {
+    parse_training_params(robust_text + verdict + "  tail_ms: {value: 1, source: \"chosen: test\"}\n", robust, 1e-3);
+    ADD_FAILURE() << "an unknown verdict key was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("verdict.tail_ms: unknown key"), std::string::npos) << e.what();
+  }
+}
+
 TEST(TrainingConfig, BadValuesNameTheKey) {
   const std::string path = source("configs/training.yaml");
   const std::vector<std::pair<std::string, std::string>> cases{
@@ -147,6 +183,37 @@ TEST(RnnCost, PlantVariantsAndTheWorstRatioToPi) {
                std::invalid_argument);
   EXPECT_THROW(RnnCost(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth, {{"x", {{"plant.nothing", 2.0}}, 1.0}},
                        PlantObjective::kWeightedSum),
+               std::invalid_argument);
+}
+
+// Runs judged whole: the shipped weights on the light, stiff plant (2 kg, 27,400 N/m) sustain an
+// oscillation the guard takes out at 0.5 s, after which the cost window's ratio alone hides
+// nothing: the judged objective is the plain one plus the fault penalty. On the nominal plant
+// their run is clean and both objectives agree. A verdict needs the worst-ratio objective.
+TEST(RnnCost, JudgedRunsPayForAFaultAfterTheirCost) {
+  const SystemParams& p = shipped_params();
+  const Scenario pulse = shipped_scenario("pulse");
+  const std::vector<double> weights = load_rnn_weights(source("configs/rnn_weights.yaml")).weights;
+  VerdictParams verdict;
+  verdict.tail_s = 0.4;
+  verdict.tail_windows = 2;
+  verdict.limit_cycle_amplitude_m = 5e-4;
+  verdict.min_decay_rate_per_s = 0.3;
+  verdict.max_saturated_tail_share = 0.05;
+  const std::vector<PlantVariant> light_stiff{
+      {"light_stiff", {{"plant.mechanics.load_mass_kg", 2.0}, {"plant.mechanics.spring_n_per_m", 27400.0}}, 1.0}};
+  const std::vector<PlantVariant> nominal{{"configured", {}, 1.0}};
+  const auto objective = PlantObjective::kWorstRatioToPi;
+  const double plain = RnnCost(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth, light_stiff, objective)(weights);
+  const double judged =
+      RnnCost(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth, light_stiff, objective, verdict)(weights);
+  EXPECT_GT(plain, 1.0);  // worse than PI alone there already
+  EXPECT_DOUBLE_EQ(judged, plain + RnnCost::kFaultPenalty);
+  const double nominal_plain = RnnCost(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth, nominal, objective)(weights);
+  EXPECT_LT(nominal_plain, 0.2);
+  EXPECT_DOUBLE_EQ(RnnCost(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth, nominal, objective, verdict)(weights),
+                   nominal_plain);
+  EXPECT_THROW(RnnCost(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth, nominal, PlantObjective::kWeightedSum, verdict),
                std::invalid_argument);
 }
 

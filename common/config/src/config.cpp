@@ -315,6 +315,11 @@ TrainingParams parse_training_params(const std::string& yaml_text, const std::st
       throw std::invalid_argument(std::string("plant_objective: ") + e.what());
     }
   });
+  // Optional: without it the paper's objective, the cost window alone.
+  if (top.has("verdict")) {
+    t.judge_runs = true;
+    t.verdict = read_verdict(top.child("verdict"));
+  }
   top.finish();
   validate_in(origin, [&] { t.validate(control_period_s); });
   return t;

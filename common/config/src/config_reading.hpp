@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "pmlsm/config/config.hpp"
+#include "pmlsm/sim/sweep.hpp"
 #include "yaml_document.hpp"
 
 namespace pmlsm::config_reading {
@@ -285,5 +286,8 @@ inline void validate_in(const std::string& origin, F&& check) {
   }
 }
 
+/// A `verdict:` section (a sweep file's, a training file's): the thresholds of judge_run, read
+/// and finished (sweep_file.cpp).
+VerdictParams read_verdict(Section verdict);
 
 }  // namespace pmlsm::config_reading

@@ -7,6 +7,21 @@
 
 namespace pmlsm {
 
+namespace config_reading {
+
+VerdictParams read_verdict(Section verdict) {
+  VerdictParams out;
+  out.tail_s = verdict.number("tail_s");
+  out.tail_windows = verdict.unsigned_integer("tail_windows");
+  out.limit_cycle_amplitude_m = verdict.number("limit_cycle_amplitude_m");
+  out.min_decay_rate_per_s = verdict.number("min_decay_rate_per_s");
+  out.max_saturated_tail_share = verdict.number("max_saturated_tail_share");
+  verdict.finish();
+  return out;
+}
+
+}  // namespace config_reading
+
 using namespace config_reading;
 
 SweepFile parse_sweep_file(const std::string& yaml_text, const std::string& origin, const SystemParams& nominal,
@@ -58,13 +73,7 @@ SweepFile parse_sweep_file(const std::string& yaml_text, const std::string& orig
     spec.scenarios.push_back(load_scenario(out.scenario_files.back(), nominal.timing.control_period_s));
   }
 
-  Section verdict = top.child("verdict");
-  spec.verdict.tail_s = verdict.number("tail_s");
-  spec.verdict.tail_windows = verdict.unsigned_integer("tail_windows");
-  spec.verdict.limit_cycle_amplitude_m = verdict.number("limit_cycle_amplitude_m");
-  spec.verdict.min_decay_rate_per_s = verdict.number("min_decay_rate_per_s");
-  spec.verdict.max_saturated_tail_share = verdict.number("max_saturated_tail_share");
-  verdict.finish();
+  spec.verdict = read_verdict(top.child("verdict"));
   top.finish();
   validate_in(origin, [&] { spec.validate(nominal); });
   return out;

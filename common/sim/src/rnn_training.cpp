@@ -93,6 +93,13 @@ void TrainingParams::validate(double control_period_s) const {
     const std::string name = "plants[" + std::to_string(i) + "].weight";
     require_in_range(name.c_str(), plants[i].weight, 1e-6, 1e6);
   }
+  if (judge_runs) {
+    if (plant_objective != PlantObjective::kWorstRatioToPi) {
+      throw std::invalid_argument("verdict: judged runs need plant_objective worst_ratio_to_pi (a penalty is a ratio "
+                                  "to PI alone's cost), got " + std::string(to_string(plant_objective)));
+    }
+    verdict.validate();
+  }
 }
 
 RnnCost::RnnCost(const SystemParams& params, std::vector<TrainingScenario> scenarios, CostVelocity which)
@@ -129,6 +136,21 @@ RnnCost::RnnCost(const SystemParams& params, std::vector<TrainingScenario> scena
   }
 }
 
+RnnCost::RnnCost(const SystemParams& params, std::vector<TrainingScenario> scenarios, CostVelocity which,
+                 const std::vector<PlantVariant>& plants, PlantObjective objective, const VerdictParams& verdict)
+    : RnnCost(params, std::move(scenarios), which, plants, objective) {
+  judge_with(verdict);
+}
+
+void RnnCost::judge_with(const VerdictParams& verdict) {
+  if (objective_ != PlantObjective::kWorstRatioToPi) {
+    throw std::invalid_argument("verdict: judged runs need the objective worst_ratio_to_pi");
+  }
+  verdict.validate();
+  verdict_ = verdict;
+  judge_runs_ = true;
+}
+
 std::uint64_t RnnCost::cost_ticks(const Scenario& scenario) const {
   return static_cast<std::uint64_t>(std::llround(scenario.cost_window_s / control_period_s_)) + 1;
 }
@@ -155,10 +177,21 @@ double RnnCost::operator()(const std::vector<double>& weights) const {
     double plant_cost = 0;
     for (std::size_t i = 0; i < scenarios_.size(); ++i) {
       const TrainingScenario& s = scenarios_[i];
-      const auto trace = run_with_rnn(plant.params, s.scenario, weights, false, cost_ticks(s.scenario));
+      const auto trace =
+          run_with_rnn(plant.params, s.scenario, weights, false, judge_runs_ ? UINT64_MAX : cost_ticks(s.scenario));
       if (!trace.empty() && trace.back().plant_fault_state != nullptr) return worst;  // a diverged plant
       const double cost = scenario_cost(trace, s.scenario);
-      plant_cost += s.weight * (objective_ == PlantObjective::kWorstRatioToPi ? cost / plant.pi_costs[i] : cost);
+      if (objective_ != PlantObjective::kWorstRatioToPi) {
+        plant_cost += s.weight * cost;
+        continue;
+      }
+      double ratio = cost / plant.pi_costs[i];
+      if (judge_runs_) {
+        const RunVerdict verdict = judge_run(trace, s.scenario, control_period_s_,
+                                             plant.params.velocity_loop.force_limit_n, verdict_);
+        if (!verdict.faults().empty()) ratio += kFaultPenalty;
+      }
+      plant_cost += s.weight * ratio;
     }
     if (objective_ == PlantObjective::kWorstRatioToPi) {
       total = std::max(total, plant.weight * plant_cost);

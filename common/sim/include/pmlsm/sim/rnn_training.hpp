@@ -3,7 +3,10 @@
 // plant with the Jordan RNN as compensator (online learning off, so a weight
 // set has one cost), scored by eq. (23)-(24):
 //   F_Co = sum_{k=1}^{K} |V_ref(k) - V_load(k)|,  K = cost window / T (1000),
-// summed over the training scenarios with their weights.
+// summed over the training scenarios with their weights. Optionally each run goes on to the
+// scenario's end and is judged as the robustness sweep judges it (pmlsm/sim/sweep.hpp): a run
+// with a limit cycle, a saturated tail, the vibration guard tripped or a non-finite state pays a
+// penalty, so a weight set cannot buy a low cost in the window with a fault after it.
 #pragma once
 
 #include <cstdint>
@@ -14,6 +17,7 @@
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/sim/scenario.hpp"
+#include "pmlsm/sim/sweep.hpp"
 #include "pmlsm/sim/system_params.hpp"
 
 namespace pmlsm {
@@ -65,6 +69,10 @@ struct TrainingParams {
   std::vector<TrainingScenario> scenarios;
   std::vector<PlantVariant> plants;  ///< at least one (the configured plant: no values)
   PlantObjective plant_objective = PlantObjective::kWeightedSum;
+  /// Judge every run whole (with worst_ratio_to_pi only): a faulted run's ratio counts
+  /// RnnCost::kFaultPenalty more.
+  bool judge_runs = false;
+  VerdictParams verdict;  ///< when judge_runs
   void validate(double control_period_s) const;
 };
 
@@ -78,6 +86,12 @@ class RnnCost {
   /// kWorstRatioToPi, are computed here once).
   RnnCost(const SystemParams& params, std::vector<TrainingScenario> scenarios, CostVelocity which,
           const std::vector<PlantVariant>& plants, PlantObjective objective);
+  /// The same, each run judged whole by `verdict` (the objective must be kWorstRatioToPi).
+  RnnCost(const SystemParams& params, std::vector<TrainingScenario> scenarios, CostVelocity which,
+          const std::vector<PlantVariant>& plants, PlantObjective objective, const VerdictParams& verdict);
+  /// What a judged run that failed its verdict adds to its cost ratio: PI alone's whole cost
+  /// again, so a faulted run never looks better than PI alone (ratio 1) on that plant.
+  static constexpr double kFaultPenalty = 1.0;
   std::size_t dimension() const { return dimension_; }
   /// The objective over plants of the weighted sum of (23) over the scenarios; +inf for a
   /// wrong-size or non-finite set, or one under which a plant diverged.
@@ -94,7 +108,10 @@ class RnnCost {
     double weight = 1.0;
     std::vector<double> pi_costs;  ///< per scenario, PI alone (kWorstRatioToPi)
   };
+  void judge_with(const VerdictParams& verdict);
   std::vector<Plant> plants_;
+  bool judge_runs_ = false;
+  VerdictParams verdict_;
   std::vector<TrainingScenario> scenarios_;
   CostVelocity which_;
   PlantObjective objective_ = PlantObjective::kWeightedSum;
