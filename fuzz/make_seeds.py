@@ -27,6 +27,7 @@ copy("config_system", root / "configs/system.yaml")
 for p in sorted((root / "configs/scenarios").glob("*.yaml")):
     copy("config_scenario", p)
 copy("config_training", root / "configs/training.yaml")
+copy("config_training", root / "configs/training_robust.yaml")
 copy("config_canopen", root / "configs/canopen/drive.yaml")
 copy("weights_file", root / "configs/rnn_weights.yaml")
 for p in sorted((root / "launch").glob("*.yaml")):

@@ -99,9 +99,16 @@ TEST(TrainingConfig, ShippedFileLoadsWithTable1Values) {
 // with the sweep file's keys (an unknown one is named).
 TEST(TrainingConfig, AVerdictSectionJudgesRunsWithTheWorstRatioObjectiveOnly) {
   const std::string robust = source("configs/training_robust.yaml");
-  std::ifstream in(source("configs/training.yaml"));
-  const std::string plain((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  EXPECT_FALSE(load_training_params(robust, 1e-3).judge_runs);
+  const std::string paper = source("configs/training.yaml");
+  EXPECT_FALSE(load_training_params(paper, 1e-3).judge_runs);
+  const TrainingParams judged = load_training_params(robust, 1e-3);
+  EXPECT_TRUE(judged.judge_runs);
+  EXPECT_DOUBLE_EQ(judged.verdict.tail_s, 0.4);
+  EXPECT_EQ(judged.verdict.tail_windows, 2u);
+  const auto text_of = [](const std::string& path) {
+    std::ifstream in(path);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
   const std::string verdict =
       "verdict:\n"
       "  tail_s: {value: 0.4, source: \"chosen: test\"}\n"
@@ -109,20 +116,15 @@ TEST(TrainingConfig, AVerdictSectionJudgesRunsWithTheWorstRatioObjectiveOnly) {
       "  limit_cycle_amplitude_m: {value: 5.0e-4, source: \"chosen: test\"}\n"
       "  min_decay_rate_per_s: {value: 0.3, source: \"chosen: test\"}\n"
       "  max_saturated_tail_share: {value: 0.05, source: \"chosen: test\"}\n";
-  std::ifstream robust_in(robust);
-  const std::string robust_text((std::istreambuf_iterator<char>(robust_in)), std::istreambuf_iterator<char>());
-  const TrainingParams judged = parse_training_params(robust_text + verdict, robust, 1e-3);
-  EXPECT_TRUE(judged.judge_runs);
-  EXPECT_DOUBLE_EQ(judged.verdict.tail_s, 0.4);
-  EXPECT_EQ(judged.verdict.tail_windows, 2u);
   try {
-    parse_training_params(plain + verdict, source("configs/training.yaml"), 1e-3);
+    parse_training_params(text_of(paper) + verdict, paper, 1e-3);
     ADD_FAILURE() << "a verdict with the weighted-sum objective was accepted";
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("worst_ratio_to_pi"), std::string::npos) << e.what();
   }
+  // The robust file ends with its verdict section: one more key lands in it.
   try {
-    parse_training_params(robust_text + verdict + "  tail_ms: {value: 1, source: \"chosen: test\"}\n", robust, 1e-3);
+    parse_training_params(text_of(robust) + "  tail_ms: {value: 1, source: \"chosen: test\"}\n", robust, 1e-3);
     ADD_FAILURE() << "an unknown verdict key was accepted";
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("verdict.tail_ms: unknown key"), std::string::npos) << e.what();
