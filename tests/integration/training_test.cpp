@@ -192,6 +192,38 @@ TEST(TrainingDistributed, WorkersGiveTheSameResultAsLocalThreads) {
   if (!HasFailure()) fs::remove_all(dir);
 }
 
+// The robust search (configs/training_robust.yaml: nine plants, two scenarios, each run judged
+// whole) on a worker gives the local result bit for bit: TrainingSetup carries the plants and the
+// verdict, so a worker that dropped either would score differently and steer the search elsewhere.
+TEST(TrainingDistributed, AJudgedSearchOverPlantsGivesTheSameResultOnAWorker) {
+  const fs::path dir = fresh_dir("judged");
+  const std::vector<std::string> robust{"--train-set", "population_size=8", "max_evaluations=16"};
+  const auto with_robust_file = [](std::vector<std::string> args) {
+    const auto at = std::find(args.begin(), args.end(), "--training");
+    if (at != args.end()) *(at + 1) = source("configs/training_robust.yaml");
+    return args;
+  };
+  const std::string local_domain = test_domain(86);
+  const std::string local_out =
+      run_trainer(with_robust_file(trainer_args(local_domain, dir / "local.yaml", robust)), dir / "local.log");
+  const auto local = dispatch_of(local_out);
+  ASSERT_TRUE(local.has_value()) << local_out;
+  if (local->remote > 0) GTEST_SKIP() << "domain " << local_domain << " is shared with another test run";
+  const std::string domain = test_domain(87);
+  test::ChildProcess worker(worker_args(domain, "judged"), (dir / "worker.log").string());
+  const std::string out = run_trainer(
+      with_robust_file(trainer_args(domain, dir / "remote.yaml",
+                                    join(robust, std::vector<std::string>{"--wait-workers", "1", "--wait-workers-s", "30"}))),
+      dir / "remote.log");
+  const auto d = dispatch_of(out);
+  ASSERT_TRUE(d.has_value()) << out;
+  EXPECT_GT(d->remote, 0u) << out;
+  stop_worker(worker);
+  ASSERT_TRUE(fs::exists(dir / "remote.yaml")) << out;
+  expect_same_result(load_rnn_weights((dir / "remote.yaml").string()), load_rnn_weights((dir / "local.yaml").string()));
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
 TEST(TrainingDistributed, KilledWorkerLosesNothing) {
   const Reference& ref = local_reference(17);
   if (!ref.shared_domain.empty()) GTEST_SKIP() << ref.shared_domain;
