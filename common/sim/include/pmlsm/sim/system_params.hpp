@@ -178,6 +178,16 @@ void visit_friction(const std::string& at, Friction& f, Visitor& v) {
          {1e-7, 1.0, "the smoothed band of sign(v): from 0.1 um/s to 1 m/s"});
 }
 
+// The two-mass mechanics: the plant's, and the models of it in the Kalman filter and in state
+// feedback, with one set of ranges.
+template <typename Real, typename Visitor>
+void visit_two_mass(const std::string& at, Real& motor_mass_kg, Real& load_mass_kg, Real& spring_n_per_m, Visitor& v) {
+  v.real(at + ".motor_mass_kg", motor_mass_kg, {0.01, 1e4, "from a 10 g slider to a 10 t gantry"});
+  v.real(at + ".load_mass_kg", load_mass_kg, {0.01, 1e4, "from a 10 g load to a 10 t one"});
+  v.real(at + ".spring_n_per_m", spring_n_per_m,
+         {1.0, 1e9, "from a rubber band to a short steel coupling (for the plant, its integrator step bounds it further)"});
+}
+
 }  // namespace detail
 
 template <typename Params, typename Visitor>
@@ -212,12 +222,7 @@ void visit_parameters(Params& p, Visitor& v) {
   detail::visit_ripple("plant.ripple", p.plant.ripple, v);
   detail::visit_friction("plant.friction", p.plant.friction, v);
   auto& m = p.plant.mechanics;
-  v.real("plant.mechanics.motor_mass_kg", m.motor_mass_kg,
-         {0.01, 1e4, "from a 10 g slider to a 10 t gantry"});
-  v.real("plant.mechanics.load_mass_kg", m.load_mass_kg,
-         {0.01, 1e4, "from a 10 g load to a 10 t one"});
-  v.real("plant.mechanics.spring_n_per_m", m.spring_n_per_m,
-         {1.0, 1e9, "from a rubber band to a short steel coupling; the integrator step bounds it further"});
+  detail::visit_two_mass("plant.mechanics", m.motor_mass_kg, m.load_mass_kg, m.spring_n_per_m, v);
   v.real("plant.mechanics.damping_n_s_per_m", m.damping_n_s_per_m,
          {0.0, 1e6, "0 (undamped) to a stiff hydraulic damper"});
   v.real("plant.inverter.dc_bus_v", p.plant.inverter.dc_bus_v,
@@ -249,10 +254,8 @@ void visit_parameters(Params& p, Visitor& v) {
          {0.01, 100.0, "from barely damped to overdamped a hundred times"});
 
   // The filter's model of the mechanics: the ranges of the plant's (the model is of such a plant).
-  v.real("kalman.model.motor_mass_kg", p.kalman.model.motor_mass_kg, {0.01, 1e4, "from a 10 g slider to a 10 t gantry"});
-  v.real("kalman.model.load_mass_kg", p.kalman.model.load_mass_kg, {0.01, 1e4, "from a 10 g load to a 10 t one"});
-  v.real("kalman.model.spring_n_per_m", p.kalman.model.spring_n_per_m,
-         {1.0, 1e9, "from a rubber band to a short steel coupling"});
+  detail::visit_two_mass("kalman.model", p.kalman.model.motor_mass_kg, p.kalman.model.load_mass_kg,
+                         p.kalman.model.spring_n_per_m, v);
   const Plausible noise{0.0, 1e12, "a variance: 0 to 1e12 (a 1 MN or 1 Mm/s standard deviation)"};
   v.vector3("kalman.process_noise_diag", p.kalman.process_noise_diag, noise);
   v.real("kalman.measurement_noise", p.kalman.measurement_noise,
@@ -278,12 +281,8 @@ void visit_parameters(Params& p, Visitor& v) {
   v.real("compensator.rnn.du_deadband_per_s", c.rnn_du_deadband_per_s, {1e-6, 1e6, "1e-6 to 1e6 1/s"});
   v.real("compensator.acceleration_feedback.gain_kg", c.accel_feedback_gain_kg,
          {0.0, 1e5, "0 to 100 t of virtual mass"});
-  v.real("compensator.state_feedback.model.motor_mass_kg", c.state_model_motor_mass_kg,
-         {0.01, 1e4, "from a 10 g slider to a 10 t gantry"});
-  v.real("compensator.state_feedback.model.load_mass_kg", c.state_model_load_mass_kg,
-         {0.01, 1e4, "from a 10 g load to a 10 t one"});
-  v.real("compensator.state_feedback.model.spring_n_per_m", c.state_model_spring_n_per_m,
-         {1.0, 1e9, "from a rubber band to a short steel coupling"});
+  detail::visit_two_mass("compensator.state_feedback.model", c.state_model_motor_mass_kg, c.state_model_load_mass_kg,
+                         c.state_model_spring_n_per_m, v);
   v.real("compensator.state_feedback.model_frequency_ratio", c.state_model_frequency_ratio,
          {1.0, 100.0, "the model's load mode 1 to 100 times the open one sqrt(k / m_L)"});
   v.real("compensator.state_feedback.model_damping_ratio", c.state_model_damping_ratio,
