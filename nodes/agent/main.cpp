@@ -164,8 +164,14 @@ class SliceProcess {
   std::optional<int> status_;
 };
 
-int slice_exit_code(int status) {
+// The slice's result from its supervisor's wait status. The supervisor ended by the SIGINT the
+// agent sent to stop it counts as stopped cleanly, as the supervisor counts its own nodes: a stop
+// that reaches it just as it ends (its nodes already done, its signals unblocked) kills it by
+// that signal, though nothing failed. Any other signal, SIGKILL after the stop timeout included,
+// is an error.
+int slice_exit_code(int status, bool interrupted_by_agent) {
   if (WIFEXITED(status)) return WEXITSTATUS(status);
+  if (interrupted_by_agent && WIFSIGNALED(status) && WTERMSIG(status) == SIGINT) return kExitOk;
   return kExitError;
 }
 
@@ -236,6 +242,7 @@ int run(int argc, char** argv) {
   std::string message = "idle";
   std::uint32_t stop_timeout_ms = 5000;
   std::optional<SteadyClock::time_point> kill_at;
+  bool interrupted = false;  // the agent sent the slice's supervisor SIGINT
   const auto announce_period = std::chrono::milliseconds(lease_ms / 4);
   auto next_announce = SteadyClock::now();
 
@@ -269,6 +276,7 @@ int run(int argc, char** argv) {
     publish_output(machine.launch_id(), "", msg::NodeOutput_Constants::STREAM_SUPERVISOR, "stopping: " + why);
     std::cout << "launch_agent: stopping launch " << machine.launch_id() << ": " << why << std::endl;
     slice->signal(SIGINT);  // the supervisor stops its nodes: SIGINT, SIGKILL after its stop timeout
+    interrupted = true;
     kill_at = SteadyClock::now() + std::chrono::milliseconds(stop_timeout_ms + 2000);
   };
 
@@ -304,6 +312,7 @@ int run(int argc, char** argv) {
     std::ofstream(file) << yaml_text;
     stop_timeout_ms = r.stop_timeout_ms();
     kill_at.reset();
+    interrupted = false;
     line_number = 0;
     slice = std::make_unique<SliceProcess>(
         launcher, std::vector<std::string>{file.string(), "--start-grace-ms", std::to_string(r.start_grace_ms()),
@@ -371,7 +380,7 @@ int run(int argc, char** argv) {
         kill_at.reset();
       }
       if (const auto status = slice->reap()) {
-        const int code = slice_exit_code(*status);
+        const int code = slice_exit_code(*status, interrupted);
         publish_event(launch_id, msg::NodeExit_Constants::EVENT_ENDED, code,
                       "slice ended with exit code " + std::to_string(code) + " (" + exit_code_meaning(code) + ")");
         slice.reset();
