@@ -2,9 +2,11 @@
 // the training cost (23) of the weight search, and the paper's claim with the
 // shipped weights (configs/rnn_weights.yaml).
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <limits>
@@ -14,6 +16,7 @@
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/sim/metrics.hpp"
 #include "pmlsm/sim/rnn_training.hpp"
+#include "pmlsm/config/sweep_file.hpp"
 #include "pmlsm/config/weights_file.hpp"
 #include "test_support.hpp"
 
@@ -95,40 +98,53 @@ TEST(TrainingConfig, ShippedFileLoadsWithTable1Values) {
   EXPECT_EQ(t.scenarios[0].scenario.name, "pulse");
 }
 
-// An optional verdict section: each run judged whole; only with the worst-ratio objective, and
-// with the sweep file's keys (an unknown one is named).
-TEST(TrainingConfig, AVerdictSectionJudgesRunsWithTheWorstRatioObjectiveOnly) {
+// An optional verdict_from_sweep: each run judged whole by that sweep file's verdict; only with
+// the worst-ratio objective; a missing file or a bad threshold there is named.
+TEST(TrainingConfig, ASweepsVerdictJudgesRunsWithTheWorstRatioObjectiveOnly) {
   const std::string robust = source("configs/training_robust.yaml");
   const std::string paper = source("configs/training.yaml");
   EXPECT_FALSE(load_training_params(paper, 1e-3).judge_runs);
   const TrainingParams judged = load_training_params(robust, 1e-3);
   EXPECT_TRUE(judged.judge_runs);
-  EXPECT_DOUBLE_EQ(judged.verdict.tail_s, 0.4);
-  EXPECT_EQ(judged.verdict.tail_windows, 2u);
+  const VerdictParams sweep = load_sweep_verdict(source("configs/sweeps/plant_family.yaml"));
+  EXPECT_EQ(judged.verdict.tail_s, sweep.tail_s);
+  EXPECT_EQ(judged.verdict.tail_windows, sweep.tail_windows);
+  EXPECT_EQ(judged.verdict.limit_cycle_amplitude_m, sweep.limit_cycle_amplitude_m);
+  EXPECT_EQ(judged.verdict.min_decay_rate_per_s, sweep.min_decay_rate_per_s);
+  EXPECT_EQ(judged.verdict.max_saturated_tail_share, sweep.max_saturated_tail_share);
   const auto text_of = [](const std::string& path) {
     std::ifstream in(path);
     return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   };
-  const std::string verdict =
-      "verdict:\n"
-      "  tail_s: {value: 0.4, source: \"chosen: test\"}\n"
-      "  tail_windows: {value: 2, source: \"chosen: test\"}\n"
-      "  limit_cycle_amplitude_m: {value: 5.0e-4, source: \"chosen: test\"}\n"
-      "  min_decay_rate_per_s: {value: 0.3, source: \"chosen: test\"}\n"
-      "  max_saturated_tail_share: {value: 0.05, source: \"chosen: test\"}\n";
+  const std::string from_sweep =
+      "verdict_from_sweep: {value: sweeps/plant_family.yaml, source: \"chosen: test\"}\n";
   try {
-    parse_training_params(text_of(paper) + verdict, paper, 1e-3);
+    parse_training_params(text_of(paper) + from_sweep, paper, 1e-3);
     ADD_FAILURE() << "a verdict with the weighted-sum objective was accepted";
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("worst_ratio_to_pi"), std::string::npos) << e.what();
   }
-  // The robust file ends with its verdict section: one more key lands in it.
   try {
-    parse_training_params(text_of(robust) + "  tail_ms: {value: 1, source: \"chosen: test\"}\n", robust, 1e-3);
+    load_training_params(robust, 1e-3, {ConfigOverride::parse("verdict_from_sweep=sweeps/nothing.yaml")});
+    ADD_FAILURE() << "a missing sweep file was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("sweeps/nothing.yaml"), std::string::npos) << e.what();
+  }
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("pmlsm_verdict_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::string sweep_text = text_of(source("configs/sweeps/plant_family.yaml"));
+  const auto at = sweep_text.find("  tail_windows:");
+  ASSERT_NE(at, std::string::npos);
+  sweep_text.insert(at, "  tail_ms: {value: 1, source: \"chosen: test\"}\n");
+  std::ofstream(dir / "sweep.yaml") << sweep_text;
+  try {
+    load_training_params(robust, 1e-3, {ConfigOverride::parse("verdict_from_sweep=" + (dir / "sweep.yaml").string())});
     ADD_FAILURE() << "an unknown verdict key was accepted";
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("verdict.tail_ms: unknown key"), std::string::npos) << e.what();
   }
+  fs::remove_all(dir);
 }
 
 TEST(TrainingConfig, BadValuesNameTheKey) {
@@ -196,12 +212,7 @@ TEST(RnnCost, JudgedRunsPayForAFaultAfterTheirCost) {
   const SystemParams& p = shipped_params();
   const Scenario pulse = shipped_scenario("pulse");
   const std::vector<double> weights = load_rnn_weights(source("configs/rnn_weights.yaml")).weights;
-  VerdictParams verdict;
-  verdict.tail_s = 0.4;
-  verdict.tail_windows = 2;
-  verdict.limit_cycle_amplitude_m = 5e-4;
-  verdict.min_decay_rate_per_s = 0.3;
-  verdict.max_saturated_tail_share = 0.05;
+  const VerdictParams verdict = load_sweep_verdict(source("configs/sweeps/plant_family.yaml"));
   const std::vector<PlantVariant> light_stiff{
       {"light_stiff", {{"plant.mechanics.load_mass_kg", 2.0}, {"plant.mechanics.spring_n_per_m", 27400.0}}, 1.0}};
   const std::vector<PlantVariant> nominal{{"configured", {}, 1.0}};

@@ -11,6 +11,7 @@
 
 #include "pmlsm/util/validate.hpp"
 #include "config_reading.hpp"
+#include "pmlsm/config/sweep_file.hpp"
 #include "yaml_document.hpp"
 
 namespace pmlsm {
@@ -315,10 +316,12 @@ TrainingParams parse_training_params(const std::string& yaml_text, const std::st
       throw std::invalid_argument(std::string("plant_objective: ") + e.what());
     }
   });
-  // Optional: without it the paper's objective, the cost window alone.
-  if (top.has("verdict")) {
+  // Optional: each run judged whole by a sweep file's verdict (named relative to the training
+  // file), the thresholds the sweep reports with. Without it the paper's objective, the cost
+  // window alone.
+  if (top.has("verdict_from_sweep")) {
     t.judge_runs = true;
-    t.verdict = read_verdict(top.child("verdict"));
+    t.verdict = load_sweep_verdict(relative_to(origin, top.text("verdict_from_sweep")));
   }
   top.finish();
   validate_in(origin, [&] { t.validate(control_period_s); });

@@ -16,7 +16,6 @@
 #include <vector>
 
 #include "pmlsm/config/config.hpp"
-#include "pmlsm/sim/sweep.hpp"
 #include "yaml_document.hpp"
 
 namespace pmlsm::config_reading {
@@ -285,9 +284,5 @@ inline void validate_in(const std::string& origin, F&& check) {
     throw ConfigError(origin + ": " + e.what());
   }
 }
-
-/// A `verdict:` section (a sweep file's, a training file's): the thresholds of judge_run, read
-/// and finished (sweep_file.cpp).
-VerdictParams read_verdict(Section verdict);
 
 }  // namespace pmlsm::config_reading

@@ -7,7 +7,9 @@
 
 namespace pmlsm {
 
-namespace config_reading {
+using namespace config_reading;
+
+namespace {
 
 VerdictParams read_verdict(Section verdict) {
   VerdictParams out;
@@ -20,9 +22,7 @@ VerdictParams read_verdict(Section verdict) {
   return out;
 }
 
-}  // namespace config_reading
-
-using namespace config_reading;
+}  // namespace
 
 SweepFile parse_sweep_file(const std::string& yaml_text, const std::string& origin, const SystemParams& nominal,
                            const std::vector<ConfigOverride>& overrides) {
@@ -77,6 +77,15 @@ SweepFile parse_sweep_file(const std::string& yaml_text, const std::string& orig
   top.finish();
   validate_in(origin, [&] { spec.validate(nominal); });
   return out;
+}
+
+VerdictParams load_sweep_verdict(const std::string& path) {
+  const std::string text = read_file(path);
+  YAML::Node root = parse_yaml(text, path);
+  Section top(root, path, "");
+  VerdictParams verdict = read_verdict(top.child("verdict"));
+  validate_in(path, [&] { verdict.validate(); });
+  return verdict;
 }
 
 SweepFile load_sweep_file(const std::string& path, const SystemParams& nominal,

@@ -20,6 +20,9 @@ struct SweepFile {
 /// @throws ConfigError naming the file, the key path, the value and its line.
 SweepFile load_sweep_file(const std::string& path, const SystemParams& nominal,
                           const std::vector<ConfigOverride>& overrides = {});
+/// The `verdict:` section of a sweep file alone (a training file judges its runs by it, so the
+/// sweep and the training judge alike). @throws ConfigError naming the file, the key and its line.
+VerdictParams load_sweep_verdict(const std::string& path);
 SweepFile parse_sweep_file(const std::string& yaml_text, const std::string& origin, const SystemParams& nominal,
                            const std::vector<ConfigOverride>& overrides = {});
 
