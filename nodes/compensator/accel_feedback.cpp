@@ -21,7 +21,7 @@ int run(int argc, char** argv) {
   node::CompensatorInputs inputs(rt.participant, rt.wakeup);
   const node::CompensatorLoopResult result =
       node::run_fixed_law("accel_feedback", rt, common, inputs, params.force_limit_n,
-                          [&](const CompensatorView& view) { return feedback.step(view.load_accel_mps2); });
+                          [&](const CompensatorView& view) { return feedback.step(accel_feedback_input(view)); });
   const std::uint64_t answered = result.answered;
   rt.status.status().rejected(inputs.rejected() + feedback.counters().rejected_inputs);
   rt.status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_STOPPING, answered, rt.period_s, "done");

@@ -23,8 +23,11 @@ namespace pdds = pmlsm::dds;
 namespace msg = pmlsm_msgs::msg;
 namespace flags = pmlsm_msgs::msg::CompensatorOutput_Constants;
 
-RnnWeightsFile from_message(const msg::NetworkWeights& m) {
+// NetworkWeights carries no input kind: a set on the topic is the trainer's, which trains for the
+// system file it shares with this node (TrainingSetup), so it takes this node's.
+RnnWeightsFile from_message(const msg::NetworkWeights& m, const SystemParams& params) {
   RnnWeightsFile w;
+  w.on_reference_error = params.compensator.rnn_on_reference_error;
   for (auto size : m.layer_sizes()) w.layer_sizes.push_back(size);
   w.input_scale_s2_per_m = m.input_scale();
   w.gain_n = m.gain_n();
@@ -77,7 +80,7 @@ int run(int argc, char** argv) {
     }
     // Weight swaps happen here, between ticks, never inside a step.
     while (!ignore_topic && weights_reader.take(incoming)) {
-      const RnnWeightsFile candidate = from_message(incoming);
+      const RnnWeightsFile candidate = from_message(incoming, params);
       if (!gate.offer(candidate, incoming.version(), "the NetworkWeights topic").empty()) {
         std::fprintf(stderr, "rnn_compensator: %s\n", gate.last_log().c_str());
         continue;
@@ -88,7 +91,7 @@ int run(int argc, char** argv) {
     }
     std::uint32_t out_flags = 0;
     if (have_weights) {
-      const CompensatorStep step = rnn.step({view.load_accel_mps2, view.v_ref_mps, view.v_load_mps});
+      const CompensatorStep step = rnn.step(rnn_input(view));
       out.force_n(step.force_n);
       out.u_n(step.u_n);
       out.training_error_mps(step.training_error_mps);

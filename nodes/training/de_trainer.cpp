@@ -223,6 +223,7 @@ int run(int argc, char** argv) {
   RnnWeightsFile file;
   file.layer_sizes = params.compensator.rnn_layer_sizes;
   file.input_scale_s2_per_m = params.compensator.rnn_input_scale_s2_per_m;
+  file.on_reference_error = params.compensator.rnn_on_reference_error;
   file.gain_n = params.compensator.rnn_gain_n;
   file.cost = report.best_cost;
   file.source = optimiser->name() + " seed " + std::to_string(de.seed) + " gen " + std::to_string(report.generation) +

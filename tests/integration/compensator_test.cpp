@@ -56,6 +56,7 @@ RnnWeightsFile pseudo_random_weights(const SystemParams& params, std::uint64_t s
   RnnWeightsFile w;
   w.layer_sizes = params.compensator.rnn_layer_sizes;
   w.input_scale_s2_per_m = params.compensator.rnn_input_scale_s2_per_m;
+  w.on_reference_error = params.compensator.rnn_on_reference_error;
   w.gain_n = params.compensator.rnn_gain_n;
   w.cost = -1;
   w.source = "compensator_test seed " + std::to_string(seed);
@@ -122,7 +123,7 @@ TEST(CompensatorDistributed, AccelFeedbackTraceEqualsInProcess) {
   const SystemParams params = system_params();
   AccelFeedback feedback(params.accel_feedback_params());
   const auto in_process = run_compensated(params, scenario(params), [&](const CompensatorView& v) {
-    return feedback.step(v.load_accel_mps2);
+    return feedback.step(accel_feedback_input(v));
   });
   expect_same_trace(dir, run, in_process);
   EXPECT_NE(run.compensator_output.find("2000 ticks answered"), std::string::npos) << run.compensator_output;

@@ -250,6 +250,27 @@ TEST(RnnCompensator, FeedsScaledAccelerationHistoryAndStateUnit) {
   EXPECT_EQ(comp.step({a[0], 0.0, 0.0}).u_n, std::tanh(w[3] + w[0] * (s * a[0])));
 }
 
+TEST(RnnCompensator, OnTheReferenceErrorFeedsTheAccelerationErrorInstead) {
+  RnnCompensatorParams p = base_params();
+  p.layer_sizes = {3, 1};
+  p.online_learning = false;
+  RnnCompensator paper(p);
+  p.on_reference_error = true;
+  RnnCompensator on_error(p);
+  const std::vector<double> w{0.8, -0.4, 0.6, 0.1};
+  paper.set_weights(w);
+  on_error.set_weights(w);
+  // (a_L, dV_ref/dt): the error network sees a_L - dV_ref/dt where the paper's sees a_L.
+  const double a[4][2] = {{3.0, 1.0}, {-5.0, 2.5}, {12.0, -4.0}, {0.5, 0.5}};
+  for (const auto& ak : a) {
+    const double u_error = on_error.step({ak[0], 0.0, 0.0, ak[1]}).u_n;
+    EXPECT_EQ(u_error, paper.step({ak[0] - ak[1], 0.0, 0.0, 123.0}).u_n);
+  }
+  // A non-finite reference acceleration is a rejected input there, ignored by the paper's form.
+  EXPECT_TRUE(on_error.step({1.0, 0.0, 0.0, std::nan("")}).input_rejected);
+  EXPECT_FALSE(paper.step({1.0, 0.0, 0.0, std::nan("")}).input_rejected);
+}
+
 TEST(RnnCompensator, GeneralisesToLongerAccelerationHistory) {
   RnnCompensatorParams p = base_params();
   p.layer_sizes = {4, 1};  // s a(k), s a(k-1), s a(k-2), state unit
@@ -552,6 +573,19 @@ TEST_F(WeightsFile, RoundTripIsBitExact) {
   EXPECT_NO_THROW(comp.set_weights(g.weights));
 }
 
+TEST_F(WeightsFile, CarriesTheInputItWasTrainedOnAndReadsOlderSetsAsThePapers) {
+  RnnWeightsFile f = sample();
+  f.on_reference_error = true;
+  save_rnn_weights(path("error.yaml"), f);
+  EXPECT_TRUE(load_rnn_weights(path("error.yaml")).on_reference_error);
+  f.on_reference_error = false;
+  save_rnn_weights(path("paper.yaml"), f);
+  EXPECT_FALSE(load_rnn_weights(path("paper.yaml")).on_reference_error);
+  // A set written before the key existed was trained on a_L.
+  const std::string older = write_variant("older.yaml", "input:", "");
+  EXPECT_FALSE(load_rnn_weights(older).on_reference_error);
+}
+
 TEST_F(WeightsFile, ReadsTheDocumentedFormat) {
   std::vector<std::string> w(9, "0.5");
   std::ofstream(path("doc.yaml")) << "format: pmlsm-rnn-weights/1\n"
@@ -632,6 +666,10 @@ TEST_F(WeightsFile, BadFilesFailNamingTheProblem) {
   expect_load_error(write_variant("scale.yaml", "input_scale_s2_per_m:", "input_scale_s2_per_m: fast"),
                     {"input_scale_s2_per_m: expected a number, got 'fast'"});
   expect_load_error(write_variant("dup.yaml", "cost:", "cost: 5.3\ncost: 4.0"), {"cost: duplicate key"});
+  expect_load_error(write_variant("input.yaml", "input:", "input: load_velocity"),
+                    {"input: expected load_accel or accel_error, got 'load_velocity'"});
+  expect_load_error(write_variant("input_dup.yaml", "input:", "input: accel_error\ninput: load_accel"),
+                    {"input: duplicate key"});
 
   std::vector<std::string> w(91, "0.25");
   expect_load_error(write_weights("count.yaml", list_of(std::vector<std::string>(90, "0.25"))),
@@ -676,6 +714,7 @@ class WeightGate : public ::testing::Test {
     RnnWeightsFile f;
     f.layer_sizes = params_.compensator.rnn_layer_sizes;
     f.input_scale_s2_per_m = params_.compensator.rnn_input_scale_s2_per_m;
+    f.on_reference_error = params_.compensator.rnn_on_reference_error;
     f.gain_n = params_.compensator.rnn_gain_n;
     f.cost = cost;
     f.source = "de_trainer gen " + std::to_string(seed);
@@ -725,6 +764,11 @@ TEST_F(WeightGate, RefusesImplausibleSetsKeepingTheCurrentOne) {
   RnnWeightsFile gain = fitting(1.0, 3, 0.1);
   gain.gain_n = 1e300;
   EXPECT_NE(gate.offer(gain, 3, "the NetworkWeights topic").find("gain"), std::string::npos);
+  // A set trained on the other input would read every acceleration as something else.
+  RnnWeightsFile other_input = fitting(1.0, 3, 0.1);
+  other_input.on_reference_error = !params_.compensator.rnn_on_reference_error;
+  EXPECT_NE(gate.offer(other_input, 3, "the NetworkWeights topic").find("differs from compensator.rnn.on_reference_error"),
+            std::string::npos);
   EXPECT_EQ(gate.version(), 1u);
   // The optimisers' candidates beyond the bound cost +inf (never become the best set).
   const Scenario pulse =

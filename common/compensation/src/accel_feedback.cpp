@@ -16,13 +16,15 @@ AccelFeedback::AccelFeedback(const AccelFeedbackParams& params) : params_(params
   params_.validate();
 }
 
-double AccelFeedback::step(double load_accel_mps2) {
+double AccelFeedback::step(const AccelFeedbackInput& in) {
   ++counters_.steps;
-  if (!std::isfinite(load_accel_mps2)) {
+  const double accel_mps2 =
+      params_.on_reference_error ? in.load_accel_mps2 - in.reference_accel_mps2 : in.load_accel_mps2;
+  if (!std::isfinite(accel_mps2)) {
     ++counters_.rejected_inputs;
     return 0.0;
   }
-  const double force_n = -params_.gain_kg * load_accel_mps2;
+  const double force_n = -params_.gain_kg * accel_mps2;
   if (std::abs(force_n) > params_.force_limit_n) ++counters_.saturated;
   return std::clamp(force_n, -params_.force_limit_n, params_.force_limit_n);
 }

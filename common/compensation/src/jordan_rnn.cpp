@@ -232,13 +232,15 @@ CompensatorStep RnnCompensator::step(const CompensatorInput& in) {
   CompensatorStep out;
   ++counters_.steps;
   const double s = params_.input_scale_s2_per_m;
-  const double x = s * in.load_accel_mps2;
+  const double signal_mps2 =
+      params_.on_reference_error ? in.load_accel_mps2 - in.reference_accel_mps2 : in.load_accel_mps2;
+  const double x = s * signal_mps2;
   if (!all_finite(in.load_accel_mps2, in.v_ref_mps, in.v_load_mps, x)) {
     ++counters_.rejected_inputs;
     out.input_rejected = true;
     return out;
   }
-  // Inputs: s a_L(k), s a_L(k-1), ..., s a_L(k-m+1); the state unit is inside net_.
+  // Inputs: s a_L(k), s a_L(k-1), ..., s a_L(k-m+1) (or of the error); the state unit is inside net_.
   for (std::size_t i = inputs_.size() - 1; i > 0; --i) inputs_[i] = inputs_[i - 1];
   inputs_[0] = x;
 

@@ -25,6 +25,10 @@ namespace {
 
 const char* const kKeys[] = {"format", "layer_sizes", "input_scale_s2_per_m", "gain_n",
                              "cost",   "source",      "weights"};
+// Optional: absent in sets trained before the key existed (all on the paper's a_L).
+const char* const kInputKey = "input";
+const char* const kInputLoadAccel = "load_accel";
+const char* const kInputAccelError = "accel_error";
 
 std::string describe(const YAML::Node& v) {
   if (v.IsScalar()) return v.Scalar();
@@ -95,8 +99,9 @@ class Reader {
       const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : describe(kv.first);
       bool known = false;
       for (const char* k : kKeys) known = known || key == k;
+      known = known || key == kInputKey;
       if (!known) {
-        fail(key, "unknown key (expected format, layer_sizes, input_scale_s2_per_m, gain_n, cost, "
+        fail(key, "unknown key (expected format, layer_sizes, input_scale_s2_per_m, input, gain_n, cost, "
                   "source, weights)");
       }
       if (!seen.insert(key).second) fail(key, "duplicate key");
@@ -190,6 +195,7 @@ std::string render(const RnnWeightsFile& f) {
   out += std::string("format: ") + kRnnWeightsFormat + "\n";
   out += "layer_sizes: " + sizes_text(f.layer_sizes) + "\n";
   out += "input_scale_s2_per_m: " + format_short(f.input_scale_s2_per_m) + "\n";
+  out += std::string(kInputKey) + ": " + (f.on_reference_error ? kInputAccelError : kInputLoadAccel) + "\n";
   out += "gain_n: " + format_short(f.gain_n) + "\n";
   out += "cost: " + format_short(f.cost) + "\n";
   out += "source: " + yaml_quoted(f.source) + "\n";
@@ -263,6 +269,13 @@ RnnWeightsFile parse_rnn_weights(const std::string& text, const std::string& pat
   }
 
   f.input_scale_s2_per_m = r.number("input_scale_s2_per_m", r.get("input_scale_s2_per_m"));
+  if (root[kInputKey]) {
+    const std::string input = r.text(kInputKey);
+    if (input != kInputLoadAccel && input != kInputAccelError) {
+      r.fail(kInputKey, std::string("expected ") + kInputLoadAccel + " or " + kInputAccelError + ", got '" + input + "'");
+    }
+    f.on_reference_error = input == kInputAccelError;
+  }
   f.gain_n = r.number("gain_n", r.get("gain_n"));
   f.cost = r.number("cost", r.get("cost"));
   f.source = r.text("source");
@@ -315,6 +328,10 @@ std::string rnn_weights_misfit(const RnnWeightsFile& w, const SystemParams& p) {
   if (w.input_scale_s2_per_m != p.compensator.rnn_input_scale_s2_per_m) {
     return "input scale " + format_value(w.input_scale_s2_per_m) + " differs from compensator.rnn.input_scale_s2_per_m " +
            format_value(p.compensator.rnn_input_scale_s2_per_m);
+  }
+  if (w.on_reference_error != p.compensator.rnn_on_reference_error) {
+    return std::string("input ") + (w.on_reference_error ? kInputAccelError : kInputLoadAccel) +
+           " differs from compensator.rnn.on_reference_error " + (p.compensator.rnn_on_reference_error ? "true" : "false");
   }
   if (w.gain_n != p.compensator.rnn_gain_n) {
     return "gain " + format_value(w.gain_n) + " N differs from compensator.rnn.gain_n " + format_value(p.compensator.rnn_gain_n);

@@ -44,7 +44,7 @@ std::vector<TickRecord> run_with_compensator(const SystemParams& params, const S
     case CompensatorKind::kAccel: {
       AccelFeedback feedback(params.accel_feedback_params());
       return run_compensated(
-          params, scenario, [&](const CompensatorView& view) { return feedback.step(view.load_accel_mps2); },
+          params, scenario, [&](const CompensatorView& view) { return feedback.step(accel_feedback_input(view)); },
           max_ticks);
     }
     case CompensatorKind::kRnn:

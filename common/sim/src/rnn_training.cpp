@@ -210,7 +210,7 @@ std::vector<TickRecord> run_with_rnn(const SystemParams& params, const Scenario&
   return run_compensated(
       params, scenario,
       [&rnn](const CompensatorView& view) {
-        return rnn.step({view.load_accel_mps2, view.v_ref_mps, view.v_load_mps}).force_n;
+        return rnn.step(rnn_input(view)).force_n;
       },
       max_ticks);
 }

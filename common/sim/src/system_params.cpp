@@ -73,6 +73,7 @@ RnnCompensatorParams SystemParams::rnn_compensator_params(bool online_learning) 
   RnnCompensatorParams p;
   p.layer_sizes = compensator.rnn_layer_sizes;
   p.input_scale_s2_per_m = compensator.rnn_input_scale_s2_per_m;
+  p.on_reference_error = compensator.rnn_on_reference_error;
   p.gain_n = compensator.rnn_gain_n;
   p.period_s = timing.control_period_s;
   p.online_learning = online_learning;
@@ -99,7 +100,8 @@ VibrationGuardParams SystemParams::vibration_guard_params() const {
 }
 
 AccelFeedbackParams SystemParams::accel_feedback_params() const {
-  return AccelFeedbackParams{compensator.accel_feedback_gain_kg, velocity_loop.force_limit_n};
+  return AccelFeedbackParams{compensator.accel_feedback_gain_kg, velocity_loop.force_limit_n,
+                             compensator.accel_feedback_on_reference_error};
 }
 
 StateFeedbackParams SystemParams::state_feedback_params() const {

@@ -92,6 +92,9 @@ class JordanRnn {
 struct RnnCompensatorParams {
   std::vector<int> layer_sizes{3, 6, 6, 3, 1};
   double input_scale_s2_per_m = 0;  ///< x = input_scale * a_L normalises the load acceleration, > 0
+  /// The network's signal: false, the paper's a_L; true, the error a_L - dV_ref/dt, so that a
+  /// commanded acceleration is no vibration to the network (AccelFeedbackParams says why).
+  bool on_reference_error = false;
   double gain_n = 0;                ///< G_n: force = G_n u_n, > 0
   double period_s = 0;              ///< T_s of (18), > 0
   bool online_learning = false;
@@ -108,6 +111,7 @@ struct CompensatorInput {
   double load_accel_mps2 = 0;  ///< a_L(k), e.g. the Kalman filter's (36)
   double v_ref_mps = 0;        ///< V_ref(k)
   double v_load_mps = 0;       ///< V_load(k) (estimated)
+  double reference_accel_mps2 = 0;  ///< dV_ref/dt(k) (used when on_reference_error)
 };
 
 struct CompensatorStep {
@@ -131,7 +135,8 @@ struct CompensatorCounters {
 
 /// The network compensator of Fig. 4 with online learning (16)-(19).
 ///
-/// Tick k: x = [s a_L(k), s a_L(k-1), ..., s a_L(k-m+1), u_n(k-1)] with
+/// Tick k: x = [s a_L(k), s a_L(k-1), ..., s a_L(k-m+1), u_n(k-1)] (a_L - dV_ref/dt in
+/// place of a_L when on_reference_error) with
 /// m = external_input_count() (m = 2 in the paper), u_n(k) = network(x),
 /// force = G_n u_n(k). Then, when online learning is on and |e| > tolerance,
 /// e = V_ref - V_load, the weights are updated by (17)-(19) with

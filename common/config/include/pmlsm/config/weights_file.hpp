@@ -2,12 +2,15 @@
 // what is needed to use it, as written by the DE trainer and read by the
 // compensator.
 //
-// Format "pmlsm-rnn-weights/1": a YAML mapping with exactly these keys, all required:
+// Format "pmlsm-rnn-weights/1": a YAML mapping with exactly these keys, all required but input:
 //
 //   format: pmlsm-rnn-weights/1
 //   layer_sizes: [3, 6, 6, 3, 1]      # inputs (external inputs + the state unit) first,
 //                                     # output (1 neuron) last; see JordanRnn
 //   input_scale_s2_per_m: 0.02        # s: the network input is s * a_L, > 0
+//   input: accel_error                # the signal the set was trained on: load_accel (a_L, the
+//                                     # paper's; the value when the key is absent) or accel_error
+//                                     # (a_L - dV_ref/dt)
 //   gain_n: 300.0                     # G_n: force = G_n u_n, > 0
 //   cost: 5.3                         # cost (23) of this set, >= 0, or -1 when unknown
 //   source: "de_trainer seed 1 gen 433"   # free text: where the set comes from
@@ -23,7 +26,8 @@
 // Unknown keys, missing or duplicate keys, another format tag, a wrong count,
 // non-numeric or non-finite values, and weights beyond +-JordanRnn::kMaxAbsWeight (100:
 // beyond it tanh only switches) are errors. The gain and input scale must equal the
-// config's compensator.rnn values, which the config bounds (gain 1 mN to 100 kN).
+// config's compensator.rnn values, which the config bounds (gain 1 mN to 100 kN), and the input
+// its compensator.rnn.on_reference_error.
 #pragma once
 
 #include <cstdint>
@@ -37,6 +41,7 @@ namespace pmlsm {
 struct RnnWeightsFile {
   std::vector<int> layer_sizes;
   double input_scale_s2_per_m = 0;
+  bool on_reference_error = false;  ///< input: accel_error (true) or load_accel (false)
   double gain_n = 0;
   double cost = -1;  ///< cost (23) of the set, or -1 when unknown
   std::string source;

@@ -123,6 +123,14 @@ inline CompensatorView compensator_view(const TickRecord& rec) {
   return {rec.est_load_accel_mps2, rec.v_ref_mps, rec.est_load_velocity_mps,
           rec.est_spring_force_n,  rec.command_mps, rec.a_ref_mps2};
 }
+/// The part of the view acceleration feedback takes (the in-process loop and the node alike).
+inline AccelFeedbackInput accel_feedback_input(const CompensatorView& view) {
+  return {view.load_accel_mps2, view.a_ref_mps2};
+}
+/// The part of the view the RNN takes (the in-process loop and the node alike).
+inline CompensatorInput rnn_input(const CompensatorView& view) {
+  return {view.load_accel_mps2, view.v_ref_mps, view.v_load_mps, view.a_ref_mps2};
+}
 /// The part of the view state feedback takes (the in-process loop and the node alike).
 inline StateFeedbackInput state_feedback_input(const CompensatorView& view) {
   return {view.command_mps, view.v_ref_mps, view.a_ref_mps2, view.v_load_mps, view.spring_force_n};

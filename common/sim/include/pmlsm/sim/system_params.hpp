@@ -77,7 +77,9 @@ struct CompensatorTuning {
   double rnn_tolerance_mps = 0;
   double rnn_kc_limit_mps = 0;
   double rnn_du_deadband_per_s = 0;
+  bool rnn_on_reference_error = false;  ///< the network's signal a_L - dV_ref/dt (RnnCompensatorParams)
   double accel_feedback_gain_kg = 0;
+  bool accel_feedback_on_reference_error = false;  ///< F_c = -K_a (a_L - dV_ref/dt)
   /// State feedback with inverse-model feedforward (pmlsm/compensation/state_feedback.hpp):
   /// its own two-mass model (defaults: the nominal plant) and the design of the load's error.
   double state_model_motor_mass_kg = 0;
@@ -279,8 +281,10 @@ void visit_parameters(Params& p, Visitor& v) {
   v.real("compensator.rnn.tolerance_mps", c.rnn_tolerance_mps, {0.0, 1.0, "0 to 1 m/s of dead band"});
   v.real("compensator.rnn.kc_limit_mps", c.rnn_kc_limit_mps, {1e-6, 1e3, "1 um/s to 1 km/s"});
   v.real("compensator.rnn.du_deadband_per_s", c.rnn_du_deadband_per_s, {1e-6, 1e6, "1e-6 to 1e6 1/s"});
+  v.flag("compensator.rnn.on_reference_error", c.rnn_on_reference_error);
   v.real("compensator.acceleration_feedback.gain_kg", c.accel_feedback_gain_kg,
          {0.0, 1e5, "0 to 100 t of virtual mass"});
+  v.flag("compensator.acceleration_feedback.on_reference_error", c.accel_feedback_on_reference_error);
   detail::visit_two_mass("compensator.state_feedback.model", c.state_model_motor_mass_kg, c.state_model_load_mass_kg,
                          c.state_model_spring_n_per_m, v);
   v.real("compensator.state_feedback.model_frequency_ratio", c.state_model_frequency_ratio,
