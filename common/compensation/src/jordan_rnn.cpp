@@ -153,6 +153,7 @@ void RnnCompensatorParams::validate() const {
   JordanRnn::parameter_count(layer_sizes);  // throws "layer_sizes[i]: ..."
   require_positive("input_scale_s2_per_m", input_scale_s2_per_m);
   require_positive("gain_n", gain_n);
+  require_positive("output_scale", output_scale);
   require_positive("period_s", period_s);
   require_non_negative("learning_rate", learning_rate);
   require_finite("momentum", momentum);
@@ -247,7 +248,7 @@ CompensatorStep RnnCompensator::step(const CompensatorInput& in) {
   const double u_prev = net_.state_unit();  // u_n(k-1)
   const double u = net_.forward(inputs_.data());
   out.u_n = u;
-  out.force_n = params_.gain_n * u;
+  out.force_n = params_.gain_n * params_.output_scale * u;
   const double e = in.v_ref_mps - in.v_load_mps;
   out.training_error_mps = e;
 

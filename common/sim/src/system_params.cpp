@@ -75,6 +75,7 @@ RnnCompensatorParams SystemParams::rnn_compensator_params(bool online_learning) 
   p.input_scale_s2_per_m = compensator.rnn_input_scale_s2_per_m;
   p.on_reference_error = compensator.rnn_on_reference_error;
   p.gain_n = compensator.rnn_gain_n;
+  p.output_scale = compensator_gain_scale();
   p.period_s = timing.control_period_s;
   p.online_learning = online_learning;
   p.learning_rate = compensator.rnn_learning_rate;
@@ -99,8 +100,12 @@ VibrationGuardParams SystemParams::vibration_guard_params() const {
   return p;
 }
 
+double SystemParams::compensator_gain_scale() const {
+  return kalman.model.load_mass_kg / compensator.design_load_mass_kg;
+}
+
 AccelFeedbackParams SystemParams::accel_feedback_params() const {
-  return AccelFeedbackParams{compensator.accel_feedback_gain_kg, velocity_loop.force_limit_n,
+  return AccelFeedbackParams{compensator.accel_feedback_gain_kg * compensator_gain_scale(), velocity_loop.force_limit_n,
                              compensator.accel_feedback_on_reference_error};
 }
 
