@@ -55,6 +55,9 @@ void write_csv(const std::filesystem::path& path, const SweepFile& file, const S
   if (!out) throw std::runtime_error("cannot write " + path.string());
   out << "plant,label";
   for (const SweepRange& r : file.spec.ranges) out << "," << r.key_path;
+  // With the models identified per plant: what the commissioning found (empty otherwise).
+  out << ",identified_load_mass_kg,identified_spring_n_per_m,identified_coulomb_n,identified_viscous_n_s_per_m,"
+         "identified_at_bound";
   out << ",compensator,scenario,cost,cost_ratio_to_pi,settling_s,last_to_first_window_cost,tail_stretch_amplitude_mm,"
          "tail_decay_rate_per_s,saturated_share,saturated_tail_share,guard_trip_s,faults,passed\n";
   for (const SweepRun& run : result.runs) {
@@ -62,6 +65,13 @@ void write_csv(const std::filesystem::path& path, const SweepFile& file, const S
     const RunVerdict& v = run.verdict;
     out << run.plant << "," << plant.label;
     for (double value : plant.values) out << "," << num(value, "%.9g");
+    if (result.identified.empty()) {
+      out << ",,,,,";
+    } else {
+      const IdentifiedLoad& id = result.identified[run.plant];
+      out << "," << num(id.load_mass_kg, "%.6g") << "," << num(id.spring_n_per_m, "%.6g") << ","
+          << num(id.coulomb_n, "%.6g") << "," << num(id.viscous_n_s_per_m, "%.6g") << ",\"" << id.at_bound << "\"";
+    }
     out << "," << to_string(result.compensators[run.compensator]) << "," << file.spec.scenarios[run.scenario].name
         << "," << num(v.cost) << "," << num(run.cost_ratio_to_pi) << "," << num(v.settling_s) << ","
         << num(v.last_to_first_window_cost) << "," << num(v.tail_stretch_amplitude_m * 1e3) << ","
@@ -73,7 +83,7 @@ void write_csv(const std::filesystem::path& path, const SweepFile& file, const S
 
 // Per compensator and scenario: how many plants passed, what failed, the spread of the cost
 // ratio to PI and the worst plant. Returns the runs that failed.
-std::size_t print_table(const SweepFile& file, const SweepResult& result) {
+std::size_t print_table(const SystemParams& nominal, const SweepFile& file, const SweepResult& result) {
   std::printf("\n%-6s %-16s %6s %6s %6s %6s %6s %6s %7s %8s %8s %9s  %s\n", "comp", "scenario", "plants", "passed",
               "cycle", "satur", "guard", "nonfin", ">=PI", "ratio50", "ratio_max", "settle_max", "worst plant");
   std::size_t failed = 0;
@@ -114,6 +124,19 @@ std::size_t print_table(const SweepFile& file, const SweepResult& result) {
                   num(ratios[ratios.size() / 2], "%.3f").c_str(), num(worst_ratio, "%.3f").c_str(),
                   num(worst_settling, "%.3f").c_str(), c == 0 ? "" : where.c_str());
     }
+  }
+  if (!result.identified.empty()) {
+    // How far the commissioning's load mode landed from the plant's (the truth is the sweep's to know).
+    double worst_mode_error = 0, worst_mass_error = 0;
+    for (std::size_t p = 0; p < result.plants.size(); ++p) {
+      const SystemParams plant = plant_variant(nominal, file.spec, result.plants[p]);
+      const double true_mode = std::sqrt(plant.plant.mechanics.spring_n_per_m / plant.plant.mechanics.load_mass_kg) / (2 * M_PI);
+      worst_mode_error = std::max(worst_mode_error, std::fabs(result.identified[p].load_mode_hz() / true_mode - 1));
+      worst_mass_error = std::max(worst_mass_error,
+                                  std::fabs(result.identified[p].load_mass_kg / plant.plant.mechanics.load_mass_kg - 1));
+    }
+    std::printf("models identified on every plant (%s, PI alone): load mode within %.1f %%, load mass within %.1f %%\n",
+                file.identification_scenario_file.c_str(), 100 * worst_mode_error, 100 * worst_mass_error);
   }
   std::printf("passed: clean (no limit cycle, no saturated tail, the guard never tripped, finite) and a cost (eq. 23)\n"
               "below PI alone's on the same plant; ratio: cost / PI's cost on that plant. PI alone (none) is the\n"
@@ -202,7 +225,7 @@ int run_sweep_command(const SweepOptions& o) {
   std::filesystem::create_directories(o.out_dir);
   const std::filesystem::path csv = std::filesystem::path(o.out_dir) / "sweep.csv";
   write_csv(csv, file, result);
-  const std::size_t failed = print_table(file, result);
+  const std::size_t failed = print_table(nominal, file, result);
   std::vector<std::filesystem::path> pngs;
   if (o.plots) write_plots(o.out_dir, file, result, pngs);
   std::printf("%zu runs in %.1f s (%.1f runs/s on %u threads); every run: %s", result.runs.size(), seconds,

@@ -74,6 +74,16 @@ SweepFile parse_sweep_file(const std::string& yaml_text, const std::string& orig
   }
 
   spec.verdict = read_verdict(top.child("verdict"));
+  // Optional: without it every plant runs on the configured models.
+  if (top.has("models")) {
+    Section models = top.child("models");
+    spec.identify_models = models.flag("identified");
+    if (spec.identify_models || models.has("identification_scenario")) {
+      out.identification_scenario_file = relative_to(origin, models.text("identification_scenario"));
+      spec.identification_scenario = load_scenario(out.identification_scenario_file, nominal.timing.control_period_s);
+    }
+    models.finish();
+  }
   top.finish();
   validate_in(origin, [&] { spec.validate(nominal); });
   return out;

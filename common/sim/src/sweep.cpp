@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <condition_variable>
 #include <cmath>
 #include <exception>
 #include <mutex>
@@ -87,6 +88,10 @@ void SweepSpec::validate(const SystemParams& nominal) const {
   }
   if (scenarios.empty()) throw std::invalid_argument("scenarios: at least one");
   for (const Scenario& s : scenarios) s.validate(nominal.timing.control_period_s);
+  if (identify_models) {
+    identification_scenario.validate(nominal.timing.control_period_s);
+    identification.validate();
+  }
   verdict.validate();
 }
 
@@ -268,6 +273,7 @@ SweepResult run_sweep(const SystemParams& nominal, const SweepSpec& spec, const 
   std::vector<SystemParams> variants;
   variants.reserve(result.plants.size());
   for (const PlantSample& plant : result.plants) variants.push_back(plant_variant(nominal, spec, plant));
+  if (spec.identify_models) result.identified.resize(variants.size());
 
   const std::size_t per_plant = result.compensators.size() * spec.scenarios.size();
   result.runs.resize(result.plants.size() * per_plant);
@@ -277,15 +283,44 @@ SweepResult run_sweep(const SystemParams& nominal, const SweepSpec& spec, const 
     result.runs[i].scenario = i % spec.scenarios.size();
   }
 
+  // Commissioning first (every plant's identification), then the runs: one pool, two phases.
+  const std::size_t commissioning = spec.identify_models ? variants.size() : 0;
+  const std::size_t jobs = commissioning + result.runs.size();
   std::atomic<std::size_t> next{0};
   std::size_t done = 0;
+  std::size_t commissioned = 0;
+  std::condition_variable all_commissioned;
   std::mutex progress_mutex;
   std::exception_ptr failure;
   const auto work = [&] {
     for (;;) {
-      const std::size_t i = next.fetch_add(1);
-      if (i >= result.runs.size()) return;
-      SweepRun& run = result.runs[i];
+      const std::size_t job = next.fetch_add(1);
+      if (job >= jobs) return;
+      if (job < commissioning) {
+        try {
+          const auto trace = run_scenario(variants[job], spec.identification_scenario);
+          result.identified[job] = identify_load(variants[job], identification_samples(trace), spec.identification);
+          variants[job] = with_identified_load(variants[job], result.identified[job]);
+        } catch (const std::exception& e) {
+          const std::lock_guard<std::mutex> lock(progress_mutex);
+          if (!failure) {
+            failure = std::make_exception_ptr(std::invalid_argument("plant '" + result.plants[job].label +
+                                                                    "': identification: " + e.what()));
+          }
+          next = jobs;
+        }
+        const std::lock_guard<std::mutex> lock(progress_mutex);
+        ++commissioned;
+        all_commissioned.notify_all();
+        continue;
+      }
+      if (commissioning > 0) {
+        // A run needs its plant's identified models: wait until every commissioning job ended.
+        std::unique_lock<std::mutex> lock(progress_mutex);
+        all_commissioned.wait(lock, [&] { return commissioned == commissioning || failure; });
+        if (failure) return;
+      }
+      SweepRun& run = result.runs[job - commissioning];
       try {
         const SystemParams& params = variants[run.plant];
         const Scenario& scenario = spec.scenarios[run.scenario];
@@ -298,7 +333,8 @@ SweepResult run_sweep(const SystemParams& nominal, const SweepSpec& spec, const 
       } catch (...) {
         const std::lock_guard<std::mutex> lock(progress_mutex);
         if (!failure) failure = std::current_exception();
-        next = result.runs.size();
+        next = jobs;
+        all_commissioned.notify_all();
         return;
       }
       const std::lock_guard<std::mutex> lock(progress_mutex);

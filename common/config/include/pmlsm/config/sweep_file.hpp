@@ -1,5 +1,6 @@
 // A robustness sweep file (configs/sweeps/*.yaml): the plant family, the compensators, the
-// scenarios and the verdict's thresholds. Read by `pmlsm sweep FILE`.
+// scenarios and the verdict's thresholds, and optionally (models:) whether every plant is
+// commissioned first (identified: true, on identification_scenario). Read by `pmlsm sweep FILE`.
 #pragma once
 
 #include <string>
@@ -14,6 +15,7 @@ struct SweepFile {
   SweepSpec spec;
   std::string weights_path;                 ///< the RNN's weights (relative paths resolved against the file)
   std::vector<std::string> scenario_files;  ///< as resolved
+  std::string identification_scenario_file; ///< models.identification_scenario, resolved ("" without)
 };
 
 /// nominal: the system the plants vary (its timing validates the scenarios, its table the keys).

@@ -13,9 +13,10 @@
 // motor feels. The motor mass is the motor's (nameplate), not identified.
 //
 // Search: every coordinate in log space inside a box [configured / range_ratio, configured *
-// range_ratio] (each clamped to the parameter's plausible range); a 5 x 5 grid over (m_L, k) with
-// the configured friction, then Nelder-Mead (reflection 1, expansion 2, contraction 1/2, shrink
-// 1/2) from the best grid points until max_evaluations. Deterministic: no random numbers.
+// range_ratio] (each clamped to the parameter's plausible range); Nelder-Mead (reflection 1,
+// expansion 2, contraction 1/2, shrink 1/2) on the friction alone with the configured load (a
+// tenth of the budget), a 5 x 5 grid over (m_L, k) with that friction, then Nelder-Mead on all
+// from the three best grid points, sharing the rest. Deterministic: no random numbers.
 //
 // What the data cannot pin (a mode the excitation never reaches, a friction never crossed) shows
 // as a value at the box's edge: at_bound names it, and `pmlsm identify` refuses to write such a

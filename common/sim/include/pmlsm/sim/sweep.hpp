@@ -1,7 +1,10 @@
 // A robustness sweep: a family of plants (a grid over parameter ranges, its centre and a seeded
 // random sample) x compensators x scenarios, each run in process, judged from its trace. The
 // compensators' models stay as configured (nominal): only the plant moves, as on a rig whose
-// load, coupling or bearings differ from what the estimator and the compensators assume.
+// load, coupling or bearings differ from what the estimator and the compensators assume. Or,
+// with identify_models, each plant is first commissioned as a rig would be: PI alone runs the
+// identification scenario, the load is fitted to what the drive measured (identification.hpp),
+// and every run on that plant uses the identified models.
 #pragma once
 
 #include <cstdint>
@@ -12,6 +15,7 @@
 
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/sim/compensated_run.hpp"
+#include "pmlsm/sim/identification.hpp"
 #include "pmlsm/sim/scenario.hpp"
 #include "pmlsm/sim/system_params.hpp"
 
@@ -57,6 +61,11 @@ struct SweepSpec {
   std::vector<CompensatorKind> compensators;  ///< kNone (PI alone) is always run as the baseline
   std::vector<Scenario> scenarios;
   VerdictParams verdict;
+  /// Commission every plant first (identify_load on identification_scenario, PI alone) and run it
+  /// with the identified models; false: the configured models on every plant.
+  bool identify_models = false;
+  Scenario identification_scenario;
+  IdentificationParams identification;
   /// @throws std::invalid_argument naming the first invalid field (the key path of a range
   /// that is no real plant parameter, inverted bounds, a bound outside its plausible range).
   void validate(const SystemParams& nominal) const;
@@ -110,6 +119,7 @@ struct SweepRun {
 
 struct SweepResult {
   std::vector<PlantSample> plants;
+  std::vector<IdentifiedLoad> identified;     ///< per plant, with identify_models (else empty)
   std::vector<CompensatorKind> compensators;  ///< kNone first, then the spec's others
   std::vector<SweepRun> runs;                 ///< plant-major, then compensator, then scenario
   const SweepRun& run(std::size_t plant, std::size_t compensator, std::size_t scenario) const;
