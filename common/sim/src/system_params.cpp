@@ -1,5 +1,7 @@
 #include "pmlsm/sim/system_params.hpp"
 
+#include <algorithm>
+
 #include <cfloat>
 #include <cmath>
 #include <stdexcept>
@@ -101,7 +103,7 @@ VibrationGuardParams SystemParams::vibration_guard_params() const {
 }
 
 double SystemParams::compensator_gain_scale() const {
-  return kalman.model.load_mass_kg / compensator.design_load_mass_kg;
+  return std::min(compensator.max_gain_scale, kalman.model.load_mass_kg / compensator.design_load_mass_kg);
 }
 
 AccelFeedbackParams SystemParams::accel_feedback_params() const {

@@ -82,6 +82,7 @@ struct CompensatorTuning {
   /// The load mass K_a and the RNN's weights were tuned for: both scale with the Kalman model's
   /// load mass over this one (compensator_gain_scale).
   double design_load_mass_kg = 0;
+  double max_gain_scale = 0;  ///< the schedule's upper limit (the stiff PI's, not the load's)
   bool accel_feedback_on_reference_error = false;  ///< F_c = -K_a (a_L - dV_ref/dt)
   /// State feedback with inverse-model feedforward (pmlsm/compensation/state_feedback.hpp):
   /// its own two-mass model (defaults: the nominal plant) and the design of the load's error.
@@ -152,9 +153,10 @@ struct SystemParams {
   ReferenceModelParams reference_model_params() const;
   KalmanParams kalman_params() const;
   RnnCompensatorParams rnn_compensator_params(bool online_learning) const;
-  /// m_L,model / m_L,design: acceleration feedback's K_a and the RNN's output scale with it, so
-  /// the force per newton of estimated spring force (F = -K_a F_s / m_L) stays what was tuned
-  /// when the model's load is identified lighter or heavier (1 with the nominal model).
+  /// min(max_gain_scale, m_L,model / m_L,design): acceleration feedback's K_a and the RNN's output
+  /// scale with it, so the force per newton of estimated spring force (F = -K_a F_s / m_L) stays
+  /// what was tuned when the model's load is identified lighter or heavier (1 with the nominal
+  /// model); never more than max_gain_scale, where the compensation starts to fight the stiff PI.
   double compensator_gain_scale() const;
   AccelFeedbackParams accel_feedback_params() const;
   StateFeedbackParams state_feedback_params() const;
@@ -293,6 +295,7 @@ void visit_parameters(Params& p, Visitor& v) {
          {0.0, 1e5, "0 to 100 t of virtual mass"});
   v.flag("compensator.acceleration_feedback.on_reference_error", c.accel_feedback_on_reference_error);
   v.real("compensator.design_load_mass_kg", c.design_load_mass_kg, {0.01, 1e4, "from a 10 g load to a 10 t one"});
+  v.real("compensator.max_gain_scale", c.max_gain_scale, {1.0, 100.0, "1 (never above the tuned gains) to 100"});
   detail::visit_two_mass("compensator.state_feedback.model", c.state_model_motor_mass_kg, c.state_model_load_mass_kg,
                          c.state_model_spring_n_per_m, v);
   v.real("compensator.state_feedback.model_frequency_ratio", c.state_model_frequency_ratio,
