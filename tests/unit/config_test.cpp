@@ -376,6 +376,35 @@ TEST(ConfigFiles, ErrorsNameTheFilePath) {
 }
 
 
+// `pmlsm identify` writes its values into a copy of the system file: that copy loads with every
+// check, holds the values to the last bit with the given source, and nothing else changed.
+TEST(ConfigFiles, AWrittenCopyHoldsTheValuesAndTheirSource) {
+  const std::string shipped = source_path("configs/system.yaml");
+  const std::string out = ::testing::TempDir() + "/system_written.yaml";
+  const double mass = 2.2124853533629811;
+  write_system_file_with(shipped, {{"kalman.model.load_mass_kg", mass}, {"kalman.friction_input.coulomb_n", 12.5}},
+                         "chosen: identified (test)", out);
+  const SystemParams before = load_system_params(shipped), after = load_system_params(out);
+  EXPECT_EQ(after.kalman.model.load_mass_kg, mass);
+  EXPECT_EQ(after.kalman.friction_input.model.coulomb_n, 12.5);
+  EXPECT_EQ(after.plant.mechanics.load_mass_kg, before.plant.mechanics.load_mass_kg);
+  EXPECT_EQ(after.compensator.accel_feedback_gain_kg, before.compensator.accel_feedback_gain_kg);
+  const YAML::Node written = YAML::LoadFile(out);
+  EXPECT_EQ(written["kalman"]["model"]["load_mass_kg"]["source"].as<std::string>(), "chosen: identified (test)");
+  EXPECT_EQ(written["kalman"]["model"]["spring_n_per_m"]["source"].as<std::string>().rfind("paper", 0), 0u);
+  // Refused, naming the problem, with nothing written.
+  const std::string refused = ::testing::TempDir() + "/system_refused.yaml";
+  expect_names(error_of([&] { write_system_file_with(shipped, {{"kalman.model.mass", 2.0}}, "chosen: x", refused); }),
+               shipped, {"kalman.model.mass"});
+  expect_names(error_of([&] {
+                 write_system_file_with(shipped, {{"kalman.model.load_mass_kg", -2.0}}, "chosen: x", refused);
+               }),
+               refused, {"kalman.model.load_mass_kg", "-2"});
+  expect_names(error_of([&] { write_system_file_with(shipped, {}, "identified", refused); }), refused,
+               {"'chosen: <reason>'"});
+  EXPECT_FALSE(std::ifstream(refused).good());
+}
+
 // ------------------------------------------- the Kalman filter's disturbance inputs
 
 TEST(ConfigKalmanInputs, ShippedValuesAreThePlantsAndLoad) {

@@ -217,6 +217,15 @@ TEST(SweepFile, ShippedFileLoads) {
   EXPECT_EQ(file.spec.ranges.size(), 4u);
   EXPECT_EQ(sample_plants(file.spec).size(), 16u + 1u + 50u);
   EXPECT_EQ(file.spec.scenarios.size(), 2u);
+  EXPECT_FALSE(file.spec.identify_models);
+  // The identified family: the same plants, each commissioned first.
+  const SweepFile identified = load_sweep_file(
+      std::string(PMLSM_SOURCE_DIR) + "/configs/sweeps/plant_family_identified.yaml", test::shipped_params());
+  EXPECT_TRUE(identified.spec.identify_models);
+  EXPECT_EQ(identified.spec.identification_scenario.name, "identification");
+  const auto a = sample_plants(file.spec), b = sample_plants(identified.spec);
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) EXPECT_EQ(a[i].values, b[i].values) << a[i].label;
 }
 
 TEST(SweepFile, BadInputNamesTheLineAndTheValue) {
@@ -241,6 +250,16 @@ TEST(SweepFile, BadInputNamesTheLineAndTheValue) {
   rejected(sweep_text("compensators: [accel]", "compensators: [accel, magic]"), {"compensators", "'magic'"});
   rejected(sweep_text("random: {value: 0,", "random: {value: -1,"), {"plants.random", "'-1'", "(line 4)"});
   rejected(sweep_text("centre: {value: true,", "centre: {value: 3,"), {"plants.centre", "true or false", "(line 3)"});
+  const std::string scenario = std::string(PMLSM_SOURCE_DIR) + "/configs/scenarios/identification.yaml";
+  EXPECT_NO_THROW(parse_sweep_file(sweep_text() + "models:\n  identified: {value: true, source: \"chosen: x\"}\n"
+                                   "  identification_scenario: {value: " + scenario + ", source: \"chosen: x\"}\n",
+                                   "sweep.yaml", nominal));
+  rejected(sweep_text() + "models:\n  identified: {value: true, source: \"chosen: x\"}\n",
+           {"models.identification_scenario: missing key"});
+  rejected(sweep_text() + "models:\n  identified: {value: yes please, source: \"chosen: x\"}\n",
+           {"models.identified", "true or false"});
+  rejected(sweep_text() + "models:\n  identified: {value: false, source: \"chosen: x\"}\n  by: hand\n",
+           {"models.by: unknown key"});
 }
 
 // The family's centre at the nominal plant: the sweep's run is closed_loop's run, to the bit.
@@ -278,6 +297,32 @@ TEST(SweepRun, SameResultOnOneOrTwoThreads) {
   // know) is where acceleration feedback loses to PI alone; the heavy, soft one it wins.
   EXPECT_FALSE(one.run(1, 1, 0).passed);
   EXPECT_TRUE(one.run(2, 1, 0).verdict.cost < one.run(2, 0, 0).verdict.cost);
+}
+
+// With the models identified per plant, the light stiff corner that acceleration feedback loses
+// on with the shipped models (SameResultOnOneOrTwoThreads) is won, and the sweep reports what
+// the commissioning found.
+TEST(SweepRun, IdentifiedModelsWinTheLightStiffCorner) {
+  const SystemParams& nominal = test::shipped_params();
+  SweepSpec spec;
+  spec.ranges = {{"plant.mechanics.load_mass_kg", 2.0, 8.0}, {"plant.mechanics.spring_n_per_m", 13700.0, 27400.0}};
+  spec.sampling.grid_points = 2;  // the four corners; corner 1 is the light, stiff one
+  spec.sampling.centre = false;
+  spec.sampling.random = 0;
+  spec.compensators = {CompensatorKind::kAccel};
+  spec.scenarios = {test::shipped_scenario("pulse")};
+  spec.verdict = verdict();
+  spec.identify_models = true;
+  spec.identification_scenario = test::shipped_scenario("identification");
+  const SweepResult result = run_sweep(nominal, spec, {}, 2);
+  ASSERT_EQ(result.identified.size(), 4u);
+  const PlantSample& corner = result.plants[1];
+  ASSERT_EQ(corner.values, (std::vector<double>{2.0, 27400.0}));
+  EXPECT_NEAR(result.identified[1].load_mode_hz() / (std::sqrt(27400.0 / 2.0) / (2 * M_PI)), 1.0, 0.01);
+  for (std::size_t p = 0; p < result.plants.size(); ++p) {
+    EXPECT_TRUE(result.run(p, 1, 0).passed) << result.plants[p].label << ": " << result.run(p, 1, 0).verdict.faults()
+                                           << ", ratio " << result.run(p, 1, 0).cost_ratio_to_pi;
+  }
 }
 
 }  // namespace

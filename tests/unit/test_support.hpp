@@ -4,6 +4,7 @@
 #include <string>
 
 #include "pmlsm/config/config.hpp"
+#include "pmlsm/config/weights_file.hpp"
 
 namespace pmlsm::test {
 
@@ -16,6 +17,13 @@ inline const SystemParams& shipped_params() {
 inline Scenario shipped_scenario(const std::string& name) {
   return load_scenario(std::string(PMLSM_SOURCE_DIR) + "/configs/scenarios/" + name + ".yaml",
                        shipped_params().timing.control_period_s);
+}
+
+/// The shipped RNN weights (configs/rnn_weights.yaml), loaded once.
+inline const std::vector<double>& shipped_rnn_weights() {
+  static const std::vector<double> weights =
+      load_rnn_weights(std::string(PMLSM_SOURCE_DIR) + "/configs/rnn_weights.yaml").weights;
+  return weights;
 }
 
 /// The shipped plant without friction, ripple or mechanical damping: the linear

@@ -55,4 +55,7 @@ void add_security_command(CLI::App& app, int& exit_code);
 /// `pmlsm sweep FILE`: the robustness sweep, in process (sweep.cpp).
 void add_sweep_command(CLI::App& app, int& exit_code);
 
+/// `pmlsm identify [RECORDING] | --simulate`: the commissioning identification (identify.cpp).
+void add_identify_command(CLI::App& app, int& exit_code);
+
 }  // namespace pmlsm::tools

@@ -6,6 +6,8 @@
 //   pmlsm drive status|enable|...    the drive's CiA 402 power state
 //   pmlsm setpoint VALUE             a live velocity setpoint for the controller
 //   pmlsm security create|...        the DDS Security keystore
+//   pmlsm sweep FILE                 the robustness sweep over a plant family (in process)
+//   pmlsm identify [RECORDING]       the load fitted to a commissioning run (a recording or --simulate)
 #include "pmlsm/util/data_files.hpp"
 #include <unistd.h>
 
@@ -73,6 +75,7 @@ int main(int argc, char** argv) {
   pmlsm::tools::add_setpoint_command(app, dds_options, exit_code);
   pmlsm::tools::add_security_command(app, exit_code);
   pmlsm::tools::add_sweep_command(app, exit_code);
+  pmlsm::tools::add_identify_command(app, exit_code);
 
   pmlsm::dds::install_shutdown_handlers();
   try {

@@ -20,6 +20,7 @@
 #include "tool_support.hpp"
 #include "pmlsm/introspect/cdr_schema.hpp"
 #include "pmlsm/mcap/mcap.hpp"
+#include "run_validity.hpp"
 
 
 namespace pmlsm::tools {
@@ -62,8 +63,7 @@ constexpr std::uint32_t kForceOffStatus = fb::STATUS_SAFE_STATE | fb::STATUS_FAU
 
 // The drive had its force off at this report (the evaluator's verdict, RunValidity).
 bool force_off(double status, double power_state) {
-  return (static_cast<std::uint32_t>(status) & kForceOffStatus) != 0 ||
-         static_cast<std::uint8_t>(power_state) != ds::POWER_OPERATION_ENABLED;
+  return !node::force_applied({static_cast<std::uint32_t>(status), static_cast<std::uint8_t>(power_state), 0});
 }
 
 std::string data_path(const std::filesystem::path& dir, const std::string& topic) {

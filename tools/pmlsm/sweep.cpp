@@ -33,12 +33,6 @@ struct SweepOptions {
   bool plots = true;
 };
 
-std::vector<ConfigOverride> parse_overrides(const std::vector<std::string>& texts) {
-  std::vector<ConfigOverride> out;
-  for (const std::string& t : texts) out.push_back(ConfigOverride::parse(t));
-  return out;
-}
-
 // A number for the CSV and the table: "nan" / "inf" as such, so no reader takes them for zeros.
 std::string num(double x, const char* format = "%.6g") {
   if (std::isnan(x)) return "nan";

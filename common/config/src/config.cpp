@@ -9,6 +9,7 @@
 #include <set>
 #include <sstream>
 
+#include "pmlsm/util/atomic_file.hpp"
 #include "pmlsm/util/validate.hpp"
 #include "config_reading.hpp"
 #include "pmlsm/config/sweep_file.hpp"
@@ -25,6 +26,12 @@ ConfigOverride ConfigOverride::parse(const std::string& text) {
     throw ConfigError("override '" + text + "': expected key.path=value");
   }
   return ConfigOverride{text.substr(0, eq), text.substr(eq + 1)};
+}
+
+std::vector<ConfigOverride> parse_overrides(const std::vector<std::string>& texts) {
+  std::vector<ConfigOverride> out;
+  for (const std::string& t : texts) out.push_back(ConfigOverride::parse(t));
+  return out;
 }
 
 namespace {
@@ -156,6 +163,40 @@ SystemParams parse_system_params(const std::string& yaml_text, const std::string
 
 SystemParams load_system_params(const std::string& path, const std::vector<ConfigOverride>& overrides) {
   return parse_system_params(read_file(path), path, overrides);
+}
+
+std::string write_system_file_with(const std::string& in_path,
+                                   const std::vector<std::pair<std::string, double>>& values,
+                                   const std::string& source, const std::string& out_path) {
+  if (source.rfind("chosen:", 0) != 0 || source.find_first_not_of(" \t", 7) == std::string::npos) {
+    throw ConfigError(out_path + ": the source of the written values must be 'chosen: <reason>', got '" + source + "'");
+  }
+  YAML::Node root = parse_yaml(read_file(in_path), in_path);
+  std::vector<ConfigOverride> overrides;
+  for (const auto& [key, value] : values) overrides.push_back({key, format_value(value)});
+  apply_overrides(root, overrides, in_path);
+  for (const ConfigOverride& o : overrides) {
+    YAML::Node node = root;
+    std::stringstream parts(o.key_path);
+    std::string part;
+    while (std::getline(parts, part, '.')) node.reset(node[part]);
+    if (!is_sourced_leaf(node)) throw ConfigError(in_path + ": " + o.key_path + ": not a sourced value");
+    node["source"] = source;
+  }
+  YAML::Emitter out;
+  out.SetIndent(2);
+  out << root;
+  if (!out.good()) throw ConfigError(out_path + ": cannot render: " + out.GetLastError());
+  const std::string text = "# Written from " + in_path + " with " + std::to_string(values.size()) +
+                           " values replaced (their source says by what); the comments are in that file.\n" +
+                           out.c_str() + "\n";
+  parse_system_params(text, out_path);  // every check, before anything is replaced
+  try {
+    write_file_atomically(out_path, text);
+  } catch (const AtomicWriteError& e) {
+    throw ConfigError(out_path + ": not written: " + e.what());
+  }
+  return text;
 }
 
 Scenario parse_scenario(const std::string& yaml_text, const std::string& origin,

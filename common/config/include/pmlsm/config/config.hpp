@@ -34,9 +34,21 @@ struct ConfigOverride {
   static ConfigOverride parse(const std::string& text);
 };
 
+/// Every text of a command line's --set list, parsed. @throws ConfigError as ConfigOverride::parse.
+std::vector<ConfigOverride> parse_overrides(const std::vector<std::string>& texts);
+
 /// @throws ConfigError naming the file, key path and value of the first problem.
 SystemParams load_system_params(const std::string& path,
                                 const std::vector<ConfigOverride>& overrides = {});
+
+/// Writes out_path: the system file in_path with every (key path, value) of `values` set and its
+/// source replaced by `source` ("chosen: <reason>"), the rest as it was (comments are not kept:
+/// a header line names in_path). The text is loaded back with every check of
+/// load_system_params before it is written, atomically. Returns what it wrote.
+/// @throws ConfigError naming the file and the key of the first problem.
+std::string write_system_file_with(const std::string& in_path,
+                                   const std::vector<std::pair<std::string, double>>& values,
+                                   const std::string& source, const std::string& out_path);
 SystemParams parse_system_params(const std::string& yaml_text, const std::string& origin,
                                  const std::vector<ConfigOverride>& overrides = {});
 
