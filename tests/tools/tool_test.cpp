@@ -5,10 +5,13 @@
 
 #include <filesystem>
 #include <fstream>
+#include <cmath>
 #include <map>
+#include <tuple>
 
 #include "child_process.hpp"
 #include "integration_support.hpp"
+#include "pmlsm/config/config.hpp"
 #include "pmlsm/introspect/cdr_schema.hpp"
 #include "pmlsm/mcap/mcap.hpp"
 
@@ -70,12 +73,13 @@ double field(const introspect::Decoded& d, const std::string& path) {
   return f != nullptr ? f->as_double().value_or(-1.0) : -1.0;
 }
 
-/// Records a lockstep pulse run of plant, controller and estimator into dir/run.mcap.
+/// Records a lockstep run (the pulse unless named) of plant, controller and estimator into dir/run.mcap.
 /// @return the recorder's output.
 std::string record_lockstep_run(const std::string& domain, const fs::path& dir,
                                 std::vector<std::string> extra_record_args = {},
-                                std::vector<std::string> extra_plant_args = {}, int plant_exit = 0) {
-  const std::string scenario = source("configs/scenarios/pulse.yaml");
+                                std::vector<std::string> extra_plant_args = {}, int plant_exit = 0,
+                                const std::string& scenario_name = "pulse") {
+  const std::string scenario = source("configs/scenarios/" + scenario_name + ".yaml");
   std::vector<std::string> record{"record", "-o", (dir / "run.mcap").string(), "--stop-after-idle-s", "2", "--no-progress"};
   record.insert(record.end(), extra_record_args.begin(), extra_record_args.end());
   test::ChildProcess recorder(pmlsm_args(domain, record), (dir / "record.log").string());
@@ -314,6 +318,66 @@ TEST(Topic, ListEchoHzDelayOnARealtimeLoop) {
   EXPECT_NE(l.find("reader controller"), std::string::npos) << l;
 
   for (auto* p : {&plant, &controller}) EXPECT_EQ(run_to_end(*p), 0) << p->output();
+  fs::remove_all(dir);
+}
+
+// Commissioning on DDS: the PI-alone identification run of a plant the shipped models do not
+// match, recorded, gives `pmlsm identify` the same fit as the in-process commissioning of that
+// plant (the lockstep trace is the in-process one), written into a system file that loads.
+TEST(Identify, ARecordedCommissioningRunGivesTheInProcessFit) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "identify");
+  const std::vector<std::string> plant{"--set", "plant.mechanics.load_mass_kg=2", "plant.mechanics.spring_n_per_m=27400"};
+  record_lockstep_run(test_domain(88), dir, {"/pmlsm/motor_feedback"}, plant, 0, "identification");
+  const std::string recorded = (dir / "recorded.yaml").string(), simulated = (dir / "simulated.yaml").string();
+  const std::vector<std::string> files{"-c", source("configs/system.yaml"), "-s", source("configs/scenarios/identification.yaml")};
+  test::ChildProcess from_file(pmlsm_args(test_domain(88), {"identify", (dir / "run.mcap").string(), "-o", recorded,
+                                                            "-c", source("configs/system.yaml")}),
+                               (dir / "identify.log").string());
+  EXPECT_EQ(run_to_end(from_file), 0) << from_file.output();
+  std::vector<std::string> simulate{"identify", "--simulate", "-o", simulated};
+  simulate.insert(simulate.end(), files.begin(), files.end());
+  simulate.insert(simulate.end(), plant.begin(), plant.end());
+  test::ChildProcess in_process(pmlsm_args(test_domain(88), simulate), (dir / "simulate.log").string());
+  EXPECT_EQ(run_to_end(in_process), 0) << in_process.output();
+  const SystemParams a = load_system_params(recorded), b = load_system_params(simulated);
+  EXPECT_EQ(a.kalman.model.load_mass_kg, b.kalman.model.load_mass_kg);
+  EXPECT_EQ(a.kalman.model.spring_n_per_m, b.kalman.model.spring_n_per_m);
+  EXPECT_EQ(a.kalman.friction_input.model.coulomb_n, b.kalman.friction_input.model.coulomb_n);
+  EXPECT_NEAR(a.kalman.model.load_mass_kg, 2.0, 0.3);
+  EXPECT_NEAR(std::sqrt(a.kalman.model.spring_n_per_m / a.kalman.model.load_mass_kg), std::sqrt(27400.0 / 2.0), 1.5);
+  EXPECT_EQ(a.compensator.state_model_load_mass_kg, a.kalman.model.load_mass_kg);
+  EXPECT_EQ(a.plant.mechanics.load_mass_kg, load_system_params(source("configs/system.yaml")).plant.mechanics.load_mass_kg);
+  fs::remove_all(dir);
+}
+
+// A commissioning run with the drive's force off is no commissioning run; a load the run does not
+// pin (the search box too narrow to reach it) is not written; bad command lines say what is wrong.
+TEST(Identify, RefusesWhatCannotBeFittedAndWritesNothing) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "identify_refused");
+  record_lockstep_run(test_domain(89), dir, {"/pmlsm/motor_feedback"}, {"--auto-enable", "false"}, 5, "identification");
+  const std::string out = (dir / "out.yaml").string();
+  const auto identify = [&](std::vector<std::string> args, const char* log) {
+    args.insert(args.begin(), {"identify", "-c", source("configs/system.yaml"), "-s",
+                               source("configs/scenarios/identification.yaml")});
+    test::ChildProcess p(pmlsm_args(test_domain(89), args), (dir / log).string());
+    const int exit_code = run_to_end(p);
+    return std::make_pair(exit_code, p.output());
+  };
+  auto [code, text] = identify({(dir / "run.mcap").string(), "-o", out}, "off.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("force off at tick 0"), std::string::npos) << text;
+  std::tie(code, text) = identify({"--simulate", "--range-ratio", "1.2", "--set", "plant.mechanics.load_mass_kg=2",
+                                   "plant.mechanics.spring_n_per_m=27400", "-o", out},
+                                  "bound.log");
+  EXPECT_EQ(code, 6) << text;
+  EXPECT_NE(text.find("not pinned"), std::string::npos) << text;
+  std::tie(code, text) = identify({}, "none.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("give a recording or --simulate"), std::string::npos) << text;
+  std::tie(code, text) = identify({(dir / "no_such.mcap").string()}, "missing.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("no such file"), std::string::npos) << text;
+  EXPECT_FALSE(fs::exists(out));
   fs::remove_all(dir);
 }
 
