@@ -171,7 +171,8 @@ void write_plots(const std::filesystem::path& dir, const SweepFile& file, const 
     gp << "set terminal pngcairo size " << 520 * panels << ",480 noenhanced\n"
        << "set output '" << png.string() << "'\n"
        << "set multiplot layout 1," << panels << " title '" << name << ": cost / PI alone on the same plant (log2), "
-       << result.plants.size() << " plants; x: failed its verdict'\n"
+       << result.plants.size() << " plants" << (result.identified.empty() ? "" : ", models identified on each")
+       << "; x: failed its verdict'\n"
        << "set palette defined (-4 '#006837', -1 '#a6d96a', 0 '#ffffbf', 1 '#fdae61', 3 '#a50026')\n"
        << "set cbrange [-4:3]\nset cblabel 'log2(cost / cost PI)'\n"
        << "set xlabel '" << x_key << "'\nset ylabel '" << y_key << "'\nset key off\nset grid\n";
