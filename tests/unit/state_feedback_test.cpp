@@ -38,6 +38,8 @@ TEST(StateFeedback, ValidatesItsParametersNamingTheValue) {
   EXPECT_NE(message([](StateFeedbackParams& p) { p.force_limit_n = 0; }).find("force_limit_n"), std::string::npos);
   EXPECT_NE(message([](StateFeedbackParams& p) { p.correction_damping_ratio = -0.1; }).find("correction_damping_ratio"),
             std::string::npos);
+  EXPECT_NE(message([](StateFeedbackParams& p) { p.max_correction_gain = 0; }).find("max_correction_gain"),
+            std::string::npos);
   // A model mode slower than the open load mode would need c0 < 0.
   const std::string slow = message([](StateFeedbackParams& p) { p.model_frequency_ratio = 0.9; });
   EXPECT_NE(slow.find("model_frequency_ratio"), std::string::npos) << slow;
@@ -72,6 +74,20 @@ TEST(StateFeedback, AtRestGivesNothingAndPullsOnTheSpringForceDifference) {
   EXPECT_EQ(f.step(in), -params.force_limit_n);
   EXPECT_EQ(f.counters().saturated, 1u);
   EXPECT_EQ(f.counters().steps, 12u);
+}
+
+// On a light, soft load (2 kg, 6,850 N/m: sqrt(k m_L) half the nominal's) the design would pull
+// twice as hard per newton of spring force (67.3); the pull stops at max_correction_gain.
+TEST(StateFeedback, TheCorrectionGainStopsAtItsLimit) {
+  StateFeedbackParams params = shipped_params().state_feedback_params();
+  params.load_mass_kg = 2;
+  params.spring_n_per_m = 6850;
+  ASSERT_LT(params.max_correction_gain,
+            2 * params.correction_damping_ratio * params.velocity_gain_n_s_per_m / std::sqrt(6850.0 * 2.0) - 1);
+  StateFeedback f(params);
+  StateFeedbackInput in;
+  in.spring_force_n = 1;
+  EXPECT_NEAR(f.step(in), -params.max_correction_gain, 1e-9);
 }
 
 TEST(StateFeedback, NonFiniteInputGivesZeroAndIsCounted) {

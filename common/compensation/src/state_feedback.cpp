@@ -25,6 +25,7 @@ void StateFeedbackParams::validate() const {
   }
   require_non_negative("model_damping_ratio", model_damping_ratio);
   require_non_negative("correction_damping_ratio", correction_damping_ratio);
+  require_positive("max_correction_gain", max_correction_gain);
   require_positive("reference_natural_frequency_rad_s", reference_natural_frequency_rad_s);
   require_positive("reference_damping_ratio", reference_damping_ratio);
   require_in_range("period_s", period_s, 1e-6, 1.0);
@@ -40,7 +41,9 @@ StateFeedback::StateFeedback(const StateFeedbackParams& params) : params_(params
   const double w = r * std::sqrt(k / m_l);
   c0_ = r * r - 1.0;
   c1_s_ = 2.0 * params_.model_damping_ratio * w * m_l / k;
-  correction_gain_ = 2.0 * params_.correction_damping_ratio * params_.velocity_gain_n_s_per_m / std::sqrt(k * m_l) - 1.0;
+  correction_gain_ = std::min(
+      2.0 * params_.correction_damping_ratio * params_.velocity_gain_n_s_per_m / std::sqrt(k * m_l) - 1.0,
+      params_.max_correction_gain);
 
   // The controller's reference model (25), for its one-tick look ahead.
   const ReferenceModel reference(

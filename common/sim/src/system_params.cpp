@@ -120,6 +120,7 @@ StateFeedbackParams SystemParams::state_feedback_params() const {
   p.model_frequency_ratio = compensator.state_model_frequency_ratio;
   p.model_damping_ratio = compensator.state_model_damping_ratio;
   p.correction_damping_ratio = compensator.state_correction_damping_ratio;
+  p.max_correction_gain = compensator.state_max_correction_gain;
   p.reference_natural_frequency_rad_s = reference_model.natural_frequency_rad_s;
   p.reference_damping_ratio = reference_model.damping_ratio;
   p.period_s = timing.control_period_s;

@@ -54,6 +54,10 @@ struct StateFeedbackParams {
   double model_frequency_ratio = 0;    ///< r = w_d / sqrt(k / m_L), >= 1 (c0 >= 0)
   double model_damping_ratio = 0;      ///< zeta_d, >= 0
   double correction_damping_ratio = 0; ///< zeta_c, >= 0
+  /// The correction's gain per newton of spring-force difference, 2 zeta_c Kp / sqrt(k m_L) - 1,
+  /// stops here: on a light, soft load the design asks for twice the nominal's, and the estimate
+  /// then oscillates as with a larger zeta_c (it reads the motor's own jumps as spring force), > 0.
+  double max_correction_gain = 0;
   // The reference model (25) the controller runs, to form d^2V_ref/dt^2 and look ahead.
   double reference_natural_frequency_rad_s = 0;
   double reference_damping_ratio = 0;
@@ -99,7 +103,7 @@ class StateFeedback {
   StateFeedbackParams params_;
   double c0_ = 0;
   double c1_s_ = 0;
-  double correction_gain_ = 0;  ///< 2 zeta_c Kp / sqrt(k m_L) - 1
+  double correction_gain_ = 0;  ///< min(2 zeta_c Kp / sqrt(k m_L) - 1, max_correction_gain)
   Eigen::Matrix2d reference_phi_;
   Eigen::Vector2d reference_gamma_;
   Eigen::Matrix4d model_phi_;

@@ -92,6 +92,7 @@ struct CompensatorTuning {
   double state_model_frequency_ratio = 0;
   double state_model_damping_ratio = 0;
   double state_correction_damping_ratio = 0;
+  double state_max_correction_gain = 0;
   /// The vibration guard in the compensation path (pmlsm/compensation/vibration_guard.hpp).
   bool guard_enabled = true;
   double guard_highpass_hz = 0;
@@ -304,6 +305,8 @@ void visit_parameters(Params& p, Visitor& v) {
          {0.0, 100.0, "from undamped to overdamped a hundred times"});
   v.real("compensator.state_feedback.correction_damping_ratio", c.state_correction_damping_ratio,
          {0.0, 100.0, "from none to overdamped a hundred times"});
+  v.real("compensator.state_feedback.max_correction_gain", c.state_max_correction_gain,
+         {1e-3, 1e4, "newtons of correction per newton of spring-force difference"});
   v.flag("compensator.guard.enabled", c.guard_enabled);
   v.real("compensator.guard.highpass_hz", c.guard_highpass_hz,
          {0.01, 1e4, "the corner between tracking motion and vibration: 10 mHz to 10 kHz"});
