@@ -76,6 +76,28 @@ TEST(VibrationGuard, ASustainedLimitCycleTripsItFadesAndLatches) {
   EXPECT_DOUBLE_EQ(g.output().scale, 1.0);
 }
 
+// The compensation at its limit most of each window (a saturated compensator damping a large
+// start): the motor's oscillation cannot decay, so it is not judged sustained; growth still is.
+TEST(VibrationGuard, ASaturatedCompensationIsNotJudgedSustainedButGrowthStillTrips) {
+  VibrationGuardParams p = params();
+  p.compensation_limit_n = 675;
+  p.max_saturated_share = 0.5;
+  const auto bang_bang = [](double v, double) { return v >= 0 ? -675.0 : 675.0; };
+  VibrationGuard held(p);
+  const auto steady = run(held, 1000, 10.0, [](double) { return 0.05; }, bang_bang);
+  EXPECT_FALSE(held.output().tripped) << to_string(steady.reason);
+  EXPECT_EQ(held.counters().windows, 10u);
+  VibrationGuard growing(p);
+  const auto out = run(growing, 1000, 10.0, [](double t) { return 0.01 * std::exp(4.05 * t); }, bang_bang);
+  EXPECT_TRUE(out.tripped);
+  EXPECT_EQ(out.reason, VibrationGuardTrip::kGrowing);
+  // The same steady oscillation with the force below its limit is a limit cycle.
+  VibrationGuard unsaturated(p);
+  run(unsaturated, 1000, 10.0, [](double) { return 0.05; }, [](double v, double) { return 500.0 * v; });
+  EXPECT_TRUE(unsaturated.output().tripped);
+  EXPECT_EQ(unsaturated.output().reason, VibrationGuardTrip::kSustained);
+}
+
 TEST(VibrationGuard, AGrowingOscillationTripsItButOnlyWithCompensationActing) {
   // Growing 1.5x a window (e^{4.05 * 0.1}), a small compensation force acting.
   VibrationGuard g(params());
@@ -169,6 +191,12 @@ TEST(VibrationGuard, ParametersAreValidatedNamingTheField) {
   p = params();
   p.windows_to_trip = 0;
   EXPECT_NE(message(p).find("windows_to_trip"), std::string::npos);
+  p = params();
+  p.max_saturated_share = 0;
+  EXPECT_NE(message(p).find("max_saturated_share: must be in (0, 1]"), std::string::npos);
+  p = params();
+  p.compensation_limit_n = -1;
+  EXPECT_NE(message(p).find("compensation_limit_n"), std::string::npos);
   p = params();
   p.max_reference_share = 0.0;
   EXPECT_NE(message(p).find("max_reference_share"), std::string::npos);

@@ -32,6 +32,11 @@ void VibrationGuardParams::validate() const {
   }
   if (windows_to_trip < 1) throw std::invalid_argument("windows_to_trip: must be >= 1, got 0");
   require_positive("max_reference_share", max_reference_share);
+  require_positive("compensation_limit_n", compensation_limit_n);
+  require_finite("max_saturated_share", max_saturated_share);
+  if (!(max_saturated_share > 0.0 && max_saturated_share <= 1.0)) {
+    throw std::invalid_argument("max_saturated_share: must be in (0, 1], got " + format_value(max_saturated_share));
+  }
   require_non_negative("fade_s", fade_s);
 }
 
@@ -100,6 +105,7 @@ VibrationGuardOutput VibrationGuard::step(const VibrationGuardInput& in) noexcep
   const double r_hp = reference_hp_.step(reference_mps, alpha_);
   const double f_hp = force_hp_.step(force_n, alpha_);
 
+  if (std::fabs(force_n) >= params_.compensation_limit_n * (1.0 - 1e-9)) ++saturated_in_window_;
   sum_e2_ += e_hp * e_hp;
   sum_r2_ += r_hp * r_hp;
   sum_f2_ += f_hp * f_hp;
@@ -114,7 +120,9 @@ VibrationGuardOutput VibrationGuard::step(const VibrationGuardInput& in) noexcep
     // only one the reference's own motion does not explain.
     const bool oscillating = amplitude > params_.min_oscillation_mps && counters_.last_force_rms_n > 0.0 &&
                              amplitude > params_.max_reference_share * counters_.last_reference_mps;
-    sustained_run_ = oscillating && previous_amplitude_ > 0.0 && amplitude > (1.0 - params_.min_decay) * previous_amplitude_
+    const bool saturated = static_cast<double>(saturated_in_window_) > params_.max_saturated_share * n;
+    sustained_run_ = oscillating && !saturated && previous_amplitude_ > 0.0 &&
+                             amplitude > (1.0 - params_.min_decay) * previous_amplitude_
                          ? sustained_run_ + 1
                          : 0;
     growing_run_ = oscillating && previous_amplitude_ > 0.0 && amplitude > params_.growth_ratio * previous_amplitude_
@@ -123,6 +131,7 @@ VibrationGuardOutput VibrationGuard::step(const VibrationGuardInput& in) noexcep
     previous_amplitude_ = amplitude;
     in_window_ = 0;
     sum_e2_ = sum_r2_ = sum_f2_ = 0;
+    saturated_in_window_ = 0;
     if (!out_.tripped && (sustained_run_ >= params_.windows_to_trip || growing_run_ >= params_.windows_to_trip)) {
       out_.tripped = true;
       out_.reason = growing_run_ >= params_.windows_to_trip ? VibrationGuardTrip::kGrowing : VibrationGuardTrip::kSustained;

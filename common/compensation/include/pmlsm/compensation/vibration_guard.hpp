@@ -17,6 +17,10 @@
 // A > max_reference_share A_ref: a loop tracking a fast reference has a steady error at the
 // reference's frequency that is its bandwidth's, not a limit cycle (a limit cycle needs no
 // reference; one riding on a moving reference still makes A outgrow the tracking error).
+// A window in which the compensation sat at its limit (compensation_limit_n) for more than
+// max_saturated_share of its ticks is not judged for a sustained oscillation: a saturated
+// compensator forces the motor at a constant amplitude while it damps the load (the free
+// vibration's first 0.4 s on a light load), so the motor cannot show the decay; growth still is.
 // Tripped, the compensation's scale ramps from 1 to 0 over fade_s and stays 0 (latched) until
 // reset(). step() never throws and does not allocate; a non-finite input is counted and the
 // last finite one used instead.
@@ -35,6 +39,8 @@ struct VibrationGuardParams {
   double min_decay = 0.2;              ///< a damped oscillation loses at least this share a window, (0, 1)
   std::uint32_t windows_to_trip = 3;   ///< >= 1
   double max_reference_share = 1.0;    ///< a window with A <= this x A_ref is the reference's, > 0
+  double compensation_limit_n = 1e300; ///< the compensation's own limit, > 0
+  double max_saturated_share = 1.0;    ///< above this share of a window at the limit: not judged sustained, (0, 1]
   double fade_s = 0.05;                ///< >= 0 (0: off at once)
   void validate() const;
 };
@@ -93,6 +99,7 @@ class VibrationGuard {
   bool primed_ = false;
   std::uint32_t in_window_ = 0;
   double sum_e2_ = 0, sum_r2_ = 0, sum_f2_ = 0;
+  std::uint32_t saturated_in_window_ = 0;
   double previous_amplitude_ = 0;
   std::uint32_t sustained_run_ = 0, growing_run_ = 0;
   std::uint32_t faded_ = 0;

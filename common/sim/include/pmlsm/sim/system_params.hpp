@@ -103,6 +103,7 @@ struct CompensatorTuning {
   double guard_windows_to_trip = 0;
   double guard_fade_s = 0;
   double guard_max_reference_share = 0;
+  double guard_max_saturated_share = 0;
 };
 
 /// A parameter's plausible range and why: a config value outside it is refused by
@@ -321,6 +322,8 @@ void visit_parameters(Params& p, Visitor& v) {
   v.real("compensator.guard.fade_s", c.guard_fade_s, {0.0, 10.0, "0 (at once) to 10 s"});
   v.real("compensator.guard.max_reference_share", c.guard_max_reference_share,
          {1e-3, 1e3, "the error oscillation over the reference's own: a thousandth to a thousand times"});
+  v.real("compensator.guard.max_saturated_share", c.guard_max_saturated_share,
+         {1e-3, 1.0, "a share of a window's ticks: above it a window at the compensation's limit is not judged sustained"});
 }
 
 }  // namespace pmlsm
