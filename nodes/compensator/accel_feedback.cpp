@@ -25,8 +25,10 @@ int run(int argc, char** argv) {
   const std::uint64_t answered = result.answered;
   rt.status.status().rejected(inputs.rejected() + feedback.counters().rejected_inputs);
   rt.status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_STOPPING, answered, rt.period_s, "done");
-  std::printf("accel_feedback: K_a %.1f kg, %llu ticks answered, %llu saturated, %llu rejected, %llu skipped\n",
-              rt.cfg.params.compensator.accel_feedback_gain_kg, static_cast<unsigned long long>(answered),
+  std::printf("accel_feedback: K_a %.1f kg (x %.3f on the model's load)%s, %llu ticks answered, %llu saturated, "
+              "%llu rejected, %llu skipped\n",
+              params.gain_kg, rt.cfg.params.compensator_gain_scale(),
+              params.on_reference_error ? " on the error to the reference" : "", static_cast<unsigned long long>(answered),
               static_cast<unsigned long long>(feedback.counters().saturated),
               static_cast<unsigned long long>(inputs.rejected() + feedback.counters().rejected_inputs),
               static_cast<unsigned long long>(inputs.skipped()));

@@ -174,10 +174,15 @@ IdentifiedLoad identify_load(const SystemParams& configured, const std::vector<I
                                 std::to_string(kMinJudgedSamples) + "), got " + std::to_string(samples.size()));
   }
   for (std::size_t i = 0; i < samples.size(); ++i) {
+    const IdentificationSample& s = samples[i];
+    if (std::isfinite(s.motor_velocity_measured_mps) && std::isfinite(s.encoder_position_m) &&
+        std::isfinite(s.applied_force_n)) {
+      continue;
+    }
     const std::string at = "samples[" + std::to_string(i) + "].";
-    require_finite((at + "motor_velocity_measured_mps").c_str(), samples[i].motor_velocity_measured_mps);
-    require_finite((at + "encoder_position_m").c_str(), samples[i].encoder_position_m);
-    require_finite((at + "applied_force_n").c_str(), samples[i].applied_force_n);
+    require_finite((at + "motor_velocity_measured_mps").c_str(), s.motor_velocity_measured_mps);
+    require_finite((at + "encoder_position_m").c_str(), s.encoder_position_m);
+    require_finite((at + "applied_force_n").c_str(), s.applied_force_n);
   }
 
   // The coordinates: the load always, the friction when the filter models it (and has some to scale).
