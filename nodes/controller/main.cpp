@@ -45,6 +45,11 @@ namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
 
 struct ControllerOptions {
   std::string compensation = "none";
+  // Readers of the commands to wait for before the first answer: a sample written before a
+  // reader matched is lost to it, and a lockstep drive that never enables itself steps 300
+  // ticks in 30 ms, before an observer (the evaluator) may have matched the controller.
+  int command_readers = 0;    ///< ForceCommand readers (the drive, the evaluator, a recorder)
+  int reference_readers = 0;  ///< VelocityReference readers (the evaluator, a compensator)
 };
 
 class ControllerNode {
@@ -241,6 +246,20 @@ void ControllerNode::run_current_loop(std::uint64_t k, double force_n) {
 }
 
 int ControllerNode::run() {
+  if (opt_.command_readers > 0 || opt_.reference_readers > 0) {
+    rt_.status.publish(node_state::STATE_WAITING, 0, period_s_, "waiting for readers");
+    const bool matched = node::wait_until(rt_.wakeup, peer_timeout_, [&] {
+      return command_writer_.matched_readers() >= static_cast<std::size_t>(opt_.command_readers) &&
+             reference_writer_.matched_readers() >= static_cast<std::size_t>(opt_.reference_readers);
+    });
+    if (!matched) {
+      if (pdds::stop_requested()) return finish(kExitOk);
+      std::fprintf(stderr, "controller: readers missing after %.1f s: %zu of %d ForceCommand readers, %zu of %d "
+                   "VelocityReference readers\n", common_.peer_timeout_s, command_writer_.matched_readers(),
+                   opt_.command_readers, reference_writer_.matched_readers(), opt_.reference_readers);
+      return finish(kExitPeerMissing);
+    }
+  }
   rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "running");
   int exit_code = kExitOk;
   while (next_tick_ < ticks_ && !pdds::stop_requested()) {
@@ -323,6 +342,14 @@ int run(int argc, char** argv) {
                  "none (PI only) or topic (add CompensatorOutput to the PI output); accel, rnn and state are topic, named "
                  "after the compensator that publishes it (launch files pass their compensator arg)")
       ->check(CLI::IsMember({"none", "topic", "accel", "rnn", "state"}))
+      ->capture_default_str();
+  app.add_option("--command-readers", opt.command_readers,
+                 "ForceCommand readers to wait for before the first answer (0: answer at once)")
+      ->check(CLI::Range(0, 64))
+      ->capture_default_str();
+  app.add_option("--reference-readers", opt.reference_readers,
+                 "VelocityReference readers to wait for before the first answer (0: answer at once)")
+      ->check(CLI::Range(0, 64))
       ->capture_default_str();
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   node::NodeRuntime rt("controller", common);

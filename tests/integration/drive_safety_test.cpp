@@ -49,7 +49,11 @@ TEST(DriveSafety, ARunThatNeverEnabledTheDriveEndsWith5AndTheEvaluatorMarksItInv
   test::ChildProcess evaluator(node_args("evaluator", domain, scenario, {"--out", dir.string()}),
                                (dir / "evaluator.log").string());
   test::ChildProcess estimator(node_args("kalman_estimator", domain, scenario), (dir / "estimator.log").string());
-  test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
+  // The drive never enabled steps its 300 ticks in about 30 ms: the controller answers only once
+  // the drive and the evaluator read its commands (without, 2 of 10 runs lost them all to a late match).
+  test::ChildProcess controller(
+      node_args("controller", domain, scenario, {"--command-readers", "2", "--reference-readers", "1"}),
+      (dir / "controller.log").string());
   test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "3", "--auto-enable", "false"}),
                            (dir / "plant.log").string());
   const auto plant_code = plant.wait_for(std::chrono::seconds(60));
@@ -58,10 +62,26 @@ TEST(DriveSafety, ARunThatNeverEnabledTheDriveEndsWith5AndTheEvaluatorMarksItInv
   EXPECT_NE(plant.output().find("never enabled"), std::string::npos) << plant.output();
   const auto evaluator_code = evaluator.wait_for(std::chrono::seconds(60));
   ASSERT_TRUE(evaluator_code.has_value()) << evaluator.output();
-  EXPECT_EQ(*evaluator_code, 5) << evaluator.output();
+  EXPECT_EQ(*evaluator_code, 5) << evaluator.output() << "\ncontroller:\n" << controller.output();
   EXPECT_NE(evaluator.output().find("INVALID: drive force off for 300 ticks from tick 0"), std::string::npos)
       << evaluator.output();
   for (auto* p : {&controller, &estimator}) EXPECT_TRUE(p->wait_for(std::chrono::seconds(30)).has_value());
+  fs::remove_all(dir);
+}
+
+// A controller told to wait for its readers gives up after the peer timeout, naming what is missing.
+TEST(DriveSafety, AControllerWithoutItsReadersSaysWhichAndExits3) {
+  const fs::path dir = test::fresh_dir("pmlsm_no_readers", "run");
+  const std::string scenario = short_pulse(dir, 0.3);
+  test::ChildProcess controller(node_args("controller", test_domain(90), scenario,
+                                          {"--command-readers", "2", "--reference-readers", "1", "--peer-timeout-s", "1"}),
+                                (dir / "controller.log").string());
+  const auto code = controller.wait_for(std::chrono::seconds(30));
+  ASSERT_TRUE(code.has_value()) << controller.output();
+  EXPECT_EQ(*code, 3) << controller.output();
+  EXPECT_NE(controller.output().find("readers missing after 1.0 s: 0 of 2 ForceCommand readers, 0 of 1 VelocityReference readers"),
+            std::string::npos)
+      << controller.output();
   fs::remove_all(dir);
 }
 
