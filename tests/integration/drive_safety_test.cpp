@@ -215,9 +215,12 @@ TEST(DriveSafety, ASecondControllerIsRefusedAndReportedNeverFollowed) {
   const auto at = out.find("foreign ");
   ASSERT_NE(at, std::string::npos) << out;
   EXPECT_GT(std::stoull(out.substr(at + 8)), 0u) << out;
-  EXPECT_EQ(*code, 0) << out;
   ASSERT_TRUE(evaluator.wait_for(std::chrono::seconds(60)).has_value()) << evaluator.output();
   for (auto* c : {&first, &second, &estimator}) c->wait_for(std::chrono::seconds(30));
+  // Both controllers' own words when the drive lost its owner (seen once in a clean-clone CI run:
+  // the owner stopped answering at tick 137, 3 ticks after the refusal).
+  EXPECT_EQ(*code, 0) << out << "\nfirst controller:\n" << first.output() << "\nsecond controller:\n"
+                      << second.output();
 
   const auto in_process = [&](const std::vector<ConfigOverride>& overrides, const std::string& name) {
     const SystemParams params = load_system_params(source("configs/system.yaml"), overrides);
