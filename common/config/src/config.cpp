@@ -174,15 +174,7 @@ std::string write_system_file_with(const std::string& in_path,
   YAML::Node root = parse_yaml(read_file(in_path), in_path);
   std::vector<ConfigOverride> overrides;
   for (const auto& [key, value] : values) overrides.push_back({key, format_value(value)});
-  apply_overrides(root, overrides, in_path);
-  for (const ConfigOverride& o : overrides) {
-    YAML::Node node = root;
-    std::stringstream parts(o.key_path);
-    std::string part;
-    while (std::getline(parts, part, '.')) node.reset(node[part]);
-    if (!is_sourced_leaf(node)) throw ConfigError(in_path + ": " + o.key_path + ": not a sourced value");
-    node["source"] = source;
-  }
+  apply_overrides(root, overrides, in_path, source);
   YAML::Emitter out;
   out.SetIndent(2);
   out << root;

@@ -69,8 +69,9 @@ inline void check_sourced_leaf(const YAML::Node& node, const std::string& origin
   }
 }
 
+// A sourced leaf's source becomes `source`: by default what --set says of its values.
 inline void apply_overrides(YAML::Node& root, const std::vector<ConfigOverride>& overrides,
-                     const std::string& origin) {
+                     const std::string& origin, const std::string& source = "chosen: set on the command line") {
   for (const ConfigOverride& o : overrides) {
     YAML::Node node = root;
     std::string walked;
@@ -97,7 +98,7 @@ inline void apply_overrides(YAML::Node& root, const std::vector<ConfigOverride>&
     }
     if (is_sourced_leaf(node)) {
       node["value"] = value;
-      node["source"] = "chosen: set on the command line";
+      node["source"] = source;
     } else {
       node = value;
     }
