@@ -107,8 +107,17 @@ int run(int argc, char** argv) {
   for (const auto& o : overrides) parsed_overrides.push_back(ConfigOverride::parse(o));
   for (const auto& o : training_overrides) parsed_training_overrides.push_back(ConfigOverride::parse(o));
   const SystemParams params = load_system_params(config_path, parsed_overrides);
-  const TrainingParams training =
+  TrainingParams training =
       load_training_params(training_path, params.timing.control_period_s, parsed_training_overrides);
+  if (training.identify_models) {
+    training.plants = commissioned_plants(params, std::move(training.plants), training.identification_scenario);
+    for (const PlantVariant& plant : training.plants) {
+      std::printf("de_trainer: plant %s commissioned (%s):", plant.name.c_str(),
+                  training.identification_scenario_file.c_str());
+      for (const auto& [key, value] : plant.models) std::printf(" %s=%.6g", key.c_str(), value);
+      std::printf("\n");
+    }
+  }
   if (resume && !file_exists(checkpoint_path)) {
     throw ConfigError("--resume: no checkpoint at " + checkpoint_path);
   }
@@ -126,6 +135,9 @@ int run(int argc, char** argv) {
   de.init_lower = training.init_lower;
   de.init_upper = training.init_upper;
   de.seed = training.seed;
+  if (training.start == TrainingStart::kAccelerationFeedback) {
+    de.first_member = rnn_weights_from_acceleration_feedback(params);
+  }
 
   dds_options.node_name = "de_trainer";
   pdds::Wakeup wakeup;  // outlives the participant, whose listeners signal it
@@ -153,9 +165,9 @@ int run(int argc, char** argv) {
                 static_cast<unsigned long long>(optimiser->report().generation),
                 static_cast<unsigned long long>(optimiser->report().evaluations));
   }
-  std::printf("de_trainer: %s, NP %llu, D %zu, F %.2f, CR %.2f, seed %llu, budget %llu evaluations, cost on %s V_load, run %llu\n",
+  std::printf("de_trainer: %s, NP %llu, D %zu, F %.2f, CR %.2f, seed %llu, start %s, budget %llu evaluations, cost on %s V_load, run %llu\n",
               optimiser->name().c_str(), static_cast<unsigned long long>(de.population_size), de.dimension,
-              de.mutation_factor, de.crossover_rate, static_cast<unsigned long long>(de.seed),
+              de.mutation_factor, de.crossover_rate, static_cast<unsigned long long>(de.seed), to_string(training.start),
               static_cast<unsigned long long>(training.max_evaluations), to_string(training.cost_velocity),
               static_cast<unsigned long long>(run_id));
 

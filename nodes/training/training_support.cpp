@@ -29,6 +29,35 @@ void check_bound(const std::string& what, std::size_t size, std::size_t bound) {
                       std::to_string(bound));
   }
 }
+
+using Assignments = std::vector<std::pair<std::string, double>>;
+using AssignmentTexts = std::vector<eprosima::fastrtps::fixed_string<256>>;
+
+/// "key.path=value" items, the value as %.17g (round-trips the double exactly); at most 16.
+void put_assignments(const Assignments& assignments, const std::string& what, AssignmentTexts& out) {
+  if (assignments.size() > 16) throw ConfigError(what + ": at most 16 values reach remote workers");
+  for (const auto& [key, value] : assignments) {
+    char number[32];
+    std::snprintf(number, sizeof number, "%.17g", value);
+    const std::string item = key + "=" + number;
+    check_bound(what + " " + key, item.size(), 256);
+    out.push_back(item);
+  }
+}
+
+/// The items put_assignments wrote. @throws ConfigError naming `what` and an item that is no number.
+Assignments take_assignments(const AssignmentTexts& items, const std::string& what) {
+  Assignments out;
+  for (const auto& item : items) {
+    const ConfigOverride o = ConfigOverride::parse(item.to_string());
+    char* end = nullptr;
+    const double value = std::strtod(o.value.c_str(), &end);
+    if (end == o.value.c_str() || *end != '\0') throw ConfigError(what + ": '" + item.to_string() + "' is no number");
+    out.emplace_back(o.key_path, value);
+  }
+  return out;
+}
+
 }  // namespace
 
 msg::TrainingSetup make_setup(std::uint64_t run_id, const std::string& system_path,
@@ -64,15 +93,9 @@ msg::TrainingSetup make_setup(std::uint64_t run_id, const std::string& system_pa
     msg::TrainingPlantText text;
     check_bound("plants " + plant.name + " (name)", plant.name.size(), 64);
     text.name(plant.name);
-    if (plant.values.size() > 16) throw ConfigError("plants " + plant.name + ": at most 16 values reach remote workers");
-    for (const auto& [key, value] : plant.values) {
-      char number[32];
-      std::snprintf(number, sizeof number, "%.17g", value);  // round-trips the double exactly
-      const std::string item = key + "=" + number;
-      check_bound("plants " + plant.name + " " + key, item.size(), 256);
-      text.moves().push_back(item);
-    }
+    put_assignments(plant.values, "plants " + plant.name, text.moves());
     text.weight(plant.weight);
+    put_assignments(plant.models, "plants " + plant.name + " models", text.models());
     setup.plants().push_back(text);
   }
   setup.plant_objective(to_string(training.plant_objective));
@@ -102,15 +125,8 @@ std::shared_ptr<const RnnCost> cost_from_setup(const msg::TrainingSetup& setup) 
   std::vector<PlantVariant> plants;
   for (const auto& p : setup.plants()) {
     PlantVariant variant{p.name().to_string(), {}, p.weight()};
-    for (const auto& item : p.moves()) {
-      const ConfigOverride o = ConfigOverride::parse(item.to_string());
-      char* end = nullptr;
-      const double value = std::strtod(o.value.c_str(), &end);
-      if (end == o.value.c_str() || *end != '\0') {
-        throw ConfigError(origin + ": plants " + variant.name + ": '" + item.to_string() + "' is no number");
-      }
-      variant.values.emplace_back(o.key_path, value);
-    }
+    variant.values = take_assignments(p.moves(), origin + ": plants " + variant.name);
+    variant.models = take_assignments(p.models(), origin + ": plants " + variant.name + " models");
     plants.push_back(variant);
   }
   CostVelocity which = CostVelocity::truth;

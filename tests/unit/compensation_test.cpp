@@ -12,6 +12,8 @@
 #include <limits>
 
 #include "pmlsm/compensation/accel_feedback.hpp"
+#include "pmlsm/compensation/jordan_rnn.hpp"
+#include "pmlsm/sim/identification.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/sim/metrics.hpp"
@@ -203,6 +205,72 @@ TEST(TrainingConfig, BadValuesNameTheKey) {
       EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
     }
   }
+}
+
+// `start: acceleration_feedback`: the network's equivalent of the configured law. For small
+// signals its force is acceleration feedback's (within 1 %), on the same signal; it bends below
+// the law as it nears G_n. Both must read the same signal; the file's key is optional (random)
+// and a bad value is named.
+TEST(TrainingStart, TheNetworkEquivalentOfAccelerationFeedback) {
+  SystemParams p = shipped_params();
+  p.compensator.rnn_on_reference_error = true;
+  p.compensator.accel_feedback_on_reference_error = true;
+  RnnCompensator rnn(p.rnn_compensator_params(false));
+  rnn.set_weights(rnn_weights_from_acceleration_feedback(p));
+  AccelFeedback law(p.accel_feedback_params());
+  for (const auto& [a_load, a_ref] : std::vector<std::pair<double, double>>{{0.2, 0.0}, {-0.3, 0.1}, {0.5, 0.6}}) {
+    const double expected = law.step({a_load, a_ref});
+    EXPECT_NEAR(rnn.step({a_load, 0.0, 0.0, a_ref}).force_n, expected, 0.01 * std::abs(expected)) << a_load;
+  }
+  EXPECT_LT(std::abs(rnn.step({4.0, 0.0, 0.0, 0.0}).force_n), std::abs(law.step({4.0, 0.0})));
+  p.compensator.rnn_on_reference_error = false;
+  try {
+    rnn_weights_from_acceleration_feedback(p);
+    ADD_FAILURE() << "a network on a_L was started from the law on the error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("compensator.rnn.on_reference_error"), std::string::npos) << e.what();
+  }
+  const std::string path = source("configs/training.yaml");
+  EXPECT_EQ(load_training_params(path, 1e-3).start, TrainingStart::kRandom);
+  EXPECT_EQ(load_training_params(source("configs/training_from_accel.yaml"), 1e-3).start,
+            TrainingStart::kAccelerationFeedback);
+  try {
+    load_training_params(path, 1e-3, {ConfigOverride::parse("start=best_guess")});
+    ADD_FAILURE() << "start=best_guess was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("start: expected 'random' or 'acceleration_feedback', got 'best_guess'"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+// Plants commissioned for training: each variant carries what identify_load fitted on it (the
+// models' keys of identified_parameters), applied after its moves; the same as the sweep's
+// commissioning (with_identified_load). Only those keys may follow a plant.
+TEST(RnnCost, CommissionedPlantsCarryTheirIdentifiedModels) {
+  const SystemParams& p = shipped_params();
+  const Scenario identification = shipped_scenario("identification");
+  const PlantVariant light{"light_stiff", {{"plant.mechanics.load_mass_kg", 2.0}, {"plant.mechanics.spring_n_per_m", 27400.0}}, 1.0};
+  const std::vector<PlantVariant> plants = commissioned_plants(p, {light}, identification);
+  ASSERT_EQ(plants.size(), 1u);
+  const SystemParams on_plant = apply_plant_variant(p, light);
+  const IdentifiedLoad fit = identify_load(on_plant, identification_samples(run_scenario(on_plant, identification)));
+  EXPECT_EQ(plants[0].models, identified_parameters(fit));
+  const SystemParams commissioned = apply_plant_variant(p, plants[0]);
+  EXPECT_EQ(commissioned.kalman.model.load_mass_kg, with_identified_load(on_plant, fit).kalman.model.load_mass_kg);
+  EXPECT_NEAR(commissioned.kalman.model.load_mass_kg, 2.0, 0.3);
+  EXPECT_EQ(commissioned.plant.mechanics.load_mass_kg, 2.0);
+  PlantVariant bad = light;
+  bad.models = {{"velocity_loop.kp_n_s_per_m", 1.0}};
+  try {
+    apply_plant_variant(p, bad);
+    ADD_FAILURE() << "a controller gain passed as an identified model";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("not a model commissioning identifies"), std::string::npos) << e.what();
+  }
+  const TrainingParams t = load_training_params(source("configs/training_from_accel.yaml"), 1e-3);
+  EXPECT_TRUE(t.identify_models);
+  EXPECT_EQ(t.identification_scenario.name, "identification");
 }
 
 TEST(RnnCost, ZeroWeightsCostWhatPiOnlyCosts) {

@@ -35,6 +35,13 @@ double sphere(const std::vector<double>& x) {
   return sum;
 }
 
+/// The sphere moved to (1, ..., 1).
+double shifted_sphere_cost(const std::vector<double>& x) {
+  double sum = 0;
+  for (double v : x) sum += (v - 1) * (v - 1);
+  return sum;
+}
+
 double rosenbrock(const std::vector<double>& x) {
   double sum = 0;
   for (std::size_t i = 0; i + 1 < x.size(); ++i) {
@@ -703,6 +710,35 @@ TEST(Optimisers, RunAndCheckpointAtTable1Sizes) {
     EXPECT_LE(optimiser->report().best_cost, first.best_cost);
   }
   std::remove(path.c_str());
+}
+
+// A search started from a known candidate: its cost is in the first report and the search never
+// ends above it. The candidate is the sphere's optimum here, away from the init box, so only
+// the start can have found it; without it no member comes near. The other members are drawn
+// as without it, and a wrong-size or non-finite candidate is refused naming the field.
+TEST(Optimisers, AFirstMemberStartsTheSearchAndIsNeverLost) {
+  ThreadPoolEvaluator evaluator(shifted_sphere_cost, 2);
+  DeParams p = small_params(12, 4);
+  p.init_lower = 5;
+  p.init_upper = 6;
+  for (auto kind : {OptimiserKind::de, OptimiserKind::jde, OptimiserKind::cmaes}) {
+    auto drawn = make_optimiser(kind, p, evaluator);
+    DeParams started = p;
+    started.first_member = {1, 1, 1, 1};
+    auto from_member = make_optimiser(kind, started, evaluator);
+    SCOPED_TRACE(from_member->name());
+    const OptimiserReport without = drawn->step();
+    const OptimiserReport with = from_member->step();
+    EXPECT_GT(without.best_cost, 10.0);
+    EXPECT_EQ(with.best_cost, 0.0);
+    EXPECT_EQ(with.best, started.first_member);
+    EXPECT_EQ(run_generations(*from_member, 5).best_cost, 0.0);
+  }
+  DeParams wrong = p;
+  wrong.first_member = {1, 1, 1};
+  EXPECT_THROW_WITH(wrong.validate(), std::invalid_argument, "first_member: expected 4 values, got 3");
+  wrong.first_member = {1, 1, kNan, 1};
+  EXPECT_THROW_WITH(wrong.validate(), std::invalid_argument, "first_member[2]: must be finite");
 }
 
 INSTANTIATE_TEST_SUITE_P(Pagmo, PagmoOptimiserTest,

@@ -154,6 +154,39 @@ TEST(JordanRnn, GradientMatchesCentralDifferences) {
   }
 }
 
+// The chain of linear_chain_weights: for small inputs the network is u = gain x_0, whatever the
+// other inputs and the state unit; the links are even (|gain|^(1/4) for 3-6-6-3-1), the sign on
+// the output's; large inputs saturate towards sign(gain x_0). A gain whose links would pass the
+// largest weight, a zero or non-finite gain, are refused.
+TEST(JordanRnn, LinearChainWeightsActAsTheLinearLawForSmallInputs) {
+  const std::vector<int> sizes{3, 6, 6, 3, 1};
+  const double gain = -11.85;
+  const std::vector<double> w = JordanRnn::linear_chain_weights(sizes, gain);
+  ASSERT_EQ(w.size(), 91u);
+  JordanRnn net(sizes);
+  net.set_weights(w);
+  for (double x0 : {-1e-3, 2e-4, 5e-3}) {
+    for (double other : {0.0, 0.7}) {
+      net.reset_state(other);
+      const double inputs[2] = {x0, -other};
+      EXPECT_NEAR(net.forward(inputs), gain * x0, 5e-3 * std::abs(gain * x0)) << x0 << " " << other;
+    }
+  }
+  const double big[2] = {1.4, 0.0};
+  EXPECT_LT(net.forward(big), -0.9);
+  std::size_t nonzero = 0;
+  for (double x : w) nonzero += x != 0.0;
+  EXPECT_EQ(nonzero, 4u);
+  EXPECT_NEAR(std::abs(w[0]), std::pow(11.85, 0.25), 1e-12);
+  JordanRnn direct({2, 1});
+  direct.set_weights(JordanRnn::linear_chain_weights({2, 1}, 0.5));
+  EXPECT_EQ(direct.weights(), (std::vector<double>{0.5, 0.0, 0.0}));
+  expect_invalid([&] { JordanRnn::linear_chain_weights(sizes, 0.0); }, {"gain: must be finite and not 0"});
+  expect_invalid([&] { JordanRnn::linear_chain_weights(sizes, kNan); }, {"gain"});
+  expect_invalid([&] { JordanRnn::linear_chain_weights({2, 1}, 150.0); }, {"gain: 150", "above the largest weight"});
+  expect_invalid([&] { JordanRnn::linear_chain_weights({2, 2}, 1.0); }, {"layer_sizes[1]"});
+}
+
 TEST(JordanRnn, StateUnitCarriesThePreviousOutput) {
   JordanRnn net({2, 1});
   const double w0 = 0.3, w1 = 0.9, b = 0.2;

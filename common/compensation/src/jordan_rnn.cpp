@@ -46,6 +46,26 @@ std::size_t JordanRnn::parameter_count(const std::vector<int>& layer_sizes) {
   return count;
 }
 
+std::vector<double> JordanRnn::linear_chain_weights(const std::vector<int>& layer_sizes, double gain) {
+  std::vector<double> weights(parameter_count(layer_sizes), 0.0);
+  if (!std::isfinite(gain) || gain == 0.0) {
+    throw std::invalid_argument("gain: must be finite and not 0, got " + format_value(gain));
+  }
+  const std::size_t links = layer_sizes.size() - 1;
+  const double link = std::pow(std::abs(gain), 1.0 / static_cast<double>(links));
+  if (!(link <= kMaxAbsWeight)) {
+    throw std::invalid_argument("gain: " + format_value(gain) + " needs links of " + format_value(link) +
+                                ", above the largest weight " + format_value(kMaxAbsWeight));
+  }
+  // Neuron 0 of each layer: its incoming weights start the layer's rows, input 0 first.
+  std::size_t offset = 0;
+  for (std::size_t l = 1; l <= links; ++l) {
+    weights[offset] = l == links ? std::copysign(link, gain) : link;
+    offset += static_cast<std::size_t>(layer_sizes[l]) * (static_cast<std::size_t>(layer_sizes[l - 1]) + 1);
+  }
+  return weights;
+}
+
 JordanRnn::JordanRnn(std::vector<int> layer_sizes) : sizes_(std::move(layer_sizes)) {
   weights_.assign(parameter_count(sizes_), 0.0);
   activation_offset_.resize(sizes_.size());

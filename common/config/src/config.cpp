@@ -305,6 +305,17 @@ TrainingParams parse_training_params(const std::string& yaml_text, const std::st
   t.init_lower = top.number("init_lower");
   t.init_upper = top.number("init_upper");
   t.seed = top.unsigned_integer("seed");
+  // Optional (the paper draws every member): a member that applies acceleration feedback.
+  if (top.has("start")) {
+    const std::string start = top.text("start");
+    validate_in(origin, [&] {
+      try {
+        t.start = training_start_from_string(start);
+      } catch (const std::invalid_argument& e) {
+        throw std::invalid_argument(std::string("start: ") + e.what());
+      }
+    });
+  }
   t.max_evaluations = top.unsigned_integer("max_evaluations");
   t.target_cost = top.number("target_cost");
   const std::string velocity = top.text("cost_velocity");
@@ -355,6 +366,16 @@ TrainingParams parse_training_params(const std::string& yaml_text, const std::st
   if (top.has("verdict_from_sweep")) {
     t.judge_runs = true;
     t.verdict = load_sweep_verdict(relative_to(origin, top.text("verdict_from_sweep")));
+  }
+  // Optional, as a sweep file's: every plant commissioned first (commissioned_plants).
+  if (top.has("models")) {
+    Section models = top.child("models");
+    t.identify_models = models.flag("identified");
+    if (t.identify_models || models.has("identification_scenario")) {
+      t.identification_scenario_file = relative_to(origin, models.text("identification_scenario"));
+      t.identification_scenario = load_scenario(t.identification_scenario_file, control_period_s);
+    }
+    models.finish();
   }
   top.finish();
   validate_in(origin, [&] { t.validate(control_period_s); });

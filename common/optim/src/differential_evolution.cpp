@@ -59,6 +59,7 @@ void DifferentialEvolution::initialise_population() {
   for (auto& member : population) {
     for (double& x : member) x = params_.init_lower + width * uniform_unit(rng_);
   }
+  if (!params_.first_member.empty()) population.front() = params_.first_member;
   std::vector<double> costs;
   evaluate_batch(*evaluator_, population, costs);
   population_ = std::move(population);
@@ -187,6 +188,7 @@ void DifferentialEvolution::load_checkpoint(const std::string& path) {
   loaded.init_lower = in.number("init_lower");
   loaded.init_upper = in.number("init_upper");
   loaded.seed = in.count("seed");
+  loaded.first_member = params_.first_member;  // the caller's: a checkpoint does not carry it
   try {
     loaded.validate();
   } catch (const std::invalid_argument& e) {

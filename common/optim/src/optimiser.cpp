@@ -38,6 +38,15 @@ void DeParams::validate() const {
     throw std::invalid_argument("init_upper: init_upper - init_lower must be finite, got " +
                                 format_value(init_upper) + " - " + format_value(init_lower));
   }
+  if (!first_member.empty()) {
+    if (first_member.size() != dimension) {
+      throw std::invalid_argument("first_member: expected " + std::to_string(dimension) + " values, got " +
+                                  std::to_string(first_member.size()));
+    }
+    for (std::size_t i = 0; i < first_member.size(); ++i) {
+      require_finite(("first_member[" + std::to_string(i) + "]").c_str(), first_member[i]);
+    }
+  }
 }
 
 // ---------------------------------------------------------------------------

@@ -36,6 +36,7 @@
 
 #include "pmlsm/optim/pagmo_optimisers.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -225,6 +226,7 @@ OptimiserReport PagmoOptimiser::step() {
     const double width = params_.init_upper - params_.init_lower;
     std::vector<double> dvs(params_.population_size * params_.dimension);
     for (double& x : dvs) x = params_.init_lower + width * uniform_unit(next->init_rng);
+    std::copy(params_.first_member.begin(), params_.first_member.end(), dvs.begin());
     const pagmo::bfe batch_evaluator{BatchEvaluatorBfe{*evaluator_}};
     const std::vector<double> costs = batch_evaluator(next->population.get_problem(), dvs);
     for (std::size_t i = 0; i < params_.population_size; ++i) {
@@ -234,17 +236,22 @@ OptimiserReport PagmoOptimiser::step() {
     }
     next->initialised = true;
   }
+  // Best so far: the initial population (CMA-ES replaces all of it in its first generation), then
+  // every population after evolve(): every candidate CMA-ES evaluated is in it, and a jDE trial
+  // that is not there lost to its parent, so scanning the population suffices.
+  const auto take_best = [&next] {
+    const auto& costs = next->population.get_f();
+    for (std::size_t i = 0; i < costs.size(); ++i) {
+      if (costs[i][0] < next->best_cost || next->best.empty()) {
+        next->best_cost = costs[i][0];
+        next->best = next->population.get_x()[i];
+      }
+    }
+  };
+  if (next->generation == 0) take_best();
   next->population = next->algorithm.evolve(next->population);
   ++next->generation;
-  // Best so far: every candidate CMA-ES evaluated is in the population after evolve(),
-  // and a jDE trial that is not there lost to its parent, so scanning the population suffices.
-  const auto& costs = next->population.get_f();
-  for (std::size_t i = 0; i < costs.size(); ++i) {
-    if (costs[i][0] < next->best_cost || next->best.empty()) {
-      next->best_cost = costs[i][0];
-      next->best = next->population.get_x()[i];
-    }
-  }
+  take_best();
   state_ = std::move(next);
   return report();
 }

@@ -29,6 +29,50 @@ const char* to_string(PlantObjective objective) {
   return objective == PlantObjective::kWeightedSum ? "weighted_sum" : "worst_ratio_to_pi";
 }
 
+TrainingStart training_start_from_string(const std::string& text) {
+  if (text == "random") return TrainingStart::kRandom;
+  if (text == "acceleration_feedback") return TrainingStart::kAccelerationFeedback;
+  throw std::invalid_argument("expected 'random' or 'acceleration_feedback', got '" + text + "'");
+}
+
+const char* to_string(TrainingStart start) {
+  return start == TrainingStart::kRandom ? "random" : "acceleration_feedback";
+}
+
+std::vector<double> rnn_weights_from_acceleration_feedback(const SystemParams& params) {
+  const CompensatorTuning& c = params.compensator;
+  if (c.rnn_on_reference_error != c.accel_feedback_on_reference_error) {
+    throw std::invalid_argument(
+        std::string("start acceleration_feedback: the network reads ") +
+        (c.rnn_on_reference_error ? "a_L - dV_ref/dt" : "a_L") + " (compensator.rnn.on_reference_error) but "
+        "acceleration feedback acts on " + (c.accel_feedback_on_reference_error ? "a_L - dV_ref/dt" : "a_L") +
+        " (compensator.acceleration_feedback.on_reference_error): set them alike");
+  }
+  // F = G_n u_n = -K_a a and x_0 = s a: u_n = -(K_a / (G_n s)) x_0.
+  const double gain = -c.accel_feedback_gain_kg / (c.rnn_gain_n * c.rnn_input_scale_s2_per_m);
+  try {
+    return JordanRnn::linear_chain_weights(c.rnn_layer_sizes, gain);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("start acceleration_feedback: ") + e.what());
+  }
+}
+
+std::vector<PlantVariant> commissioned_plants(const SystemParams& params, std::vector<PlantVariant> plants,
+                                              const Scenario& identification) {
+  for (PlantVariant& plant : plants) {
+    PlantVariant moved = plant;
+    moved.models.clear();
+    const SystemParams on_plant = apply_plant_variant(params, moved);
+    try {
+      const IdentifiedLoad load = identify_load(on_plant, identification_samples(run_scenario(on_plant, identification)));
+      plant.models = identified_parameters(load);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("plants '" + plant.name + "': identification: " + e.what());
+    }
+  }
+  return plants;
+}
+
 SystemParams apply_plant_variant(const SystemParams& params, const PlantVariant& variant) {
   SystemParams out = params;
   for (const auto& [key, value] : variant.values) {
@@ -40,6 +84,21 @@ SystemParams apply_plant_variant(const SystemParams& params, const PlantVariant&
       real_parameter(out, key) = value;
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument("plants '" + variant.name + "': " + e.what());
+    }
+  }
+  // Only what commissioning identifies (one list: identified_parameters) may follow the plant.
+  const auto identified_keys = identified_parameters(IdentifiedLoad{});
+  for (const auto& [key, value] : variant.models) {
+    const bool identified = std::any_of(identified_keys.begin(), identified_keys.end(),
+                                        [&key = key](const auto& entry) { return entry.first == key; });
+    if (!identified) {
+      throw std::invalid_argument("plants '" + variant.name + "': models " + key +
+                                  ": not a model commissioning identifies");
+    }
+    try {
+      real_parameter(out, key) = value;
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("plants '" + variant.name + "': models " + e.what());
     }
   }
   try {

@@ -43,6 +43,18 @@ class JordanRnn {
   /// @throws std::invalid_argument naming the bad entry ("layer_sizes[2]: must be >= 1, got 0").
   explicit JordanRnn(std::vector<int> layer_sizes);
 
+  /// The weights of a network that acts, for small inputs, as the linear law u_n = gain x_0 (x_0
+  /// its first external input; the other inputs and the state unit unused): one chain through the
+  /// first neuron of every layer, every link |gain|^(1/L) (L = layer_sizes.size() - 1 links, the
+  /// output's carrying the sign), every other weight and bias 0; tanh'(0) = 1, so the chain's gain
+  /// is the product. Spread evenly, no link amplifies what a search adds upstream more than the
+  /// law needs. tanh bends the chain as the signal grows and saturates it towards +-1 (the force
+  /// limit G_n is reached at |x_0| = 1 / |gain|). A search can start from a known linear law
+  /// (acceleration feedback) and look for better.
+  /// @throws std::invalid_argument for invalid sizes, a zero or non-finite gain, or a link above
+  /// kMaxAbsWeight.
+  static std::vector<double> linear_chain_weights(const std::vector<int>& layer_sizes, double gain);
+
   /// Number of weights and biases of a network of these sizes.
   /// @throws std::invalid_argument as the constructor for invalid sizes.
   static std::size_t parameter_count(const std::vector<int>& layer_sizes);

@@ -67,6 +67,12 @@ struct DeParams {
   double crossover_rate = 0.7;                 // CR, (22); in [0, 1]
   double init_lower = -1.0, init_upper = 1.0;  // Table 1; lower < upper, finite
   std::uint64_t seed = 1;
+  /// Empty, or `dimension` finite values that replace the initial population's member 0 after
+  /// the draw (the other members and the random stream stay as without it): a search started
+  /// from a known candidate. DE keeps it until a trial beats it; CMA-ES centres its first
+  /// generation on the best initial member. Used before the first generation only (a checkpoint
+  /// does not carry it).
+  std::vector<double> first_member;
   /// @throws std::invalid_argument "population_size: must be >= 4, got 3" style.
   void validate() const;
 };

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/sim/identification.hpp"
 #include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/sim/scenario.hpp"
 #include "pmlsm/sim/sweep.hpp"
@@ -40,6 +41,9 @@ struct PlantVariant {
   std::string name;
   std::vector<std::pair<std::string, double>> values;  ///< key path, value; empty: the configured plant
   double weight = 1.0;                                 ///< > 0
+  /// The models a commissioning run identified on this plant (identified_parameters: the Kalman
+  /// filter's and state feedback's), set after the moves; empty: the configured models.
+  std::vector<std::pair<std::string, double>> models;
 };
 
 /// How the costs over the plants make one number.
@@ -50,9 +54,32 @@ enum class PlantObjective {
 PlantObjective plant_objective_from_string(const std::string& text);
 const char* to_string(PlantObjective objective);
 
-/// params with the variant's values set. @throws std::invalid_argument naming the variant and the
+/// Each plant commissioned as a rig (and the sweep's `models: identified`) would be: PI alone
+/// runs `identification` on it, identify_load fits its load, and the variant carries the
+/// identified models. @throws std::invalid_argument naming the plant when a fit fails.
+std::vector<PlantVariant> commissioned_plants(const SystemParams& params, std::vector<PlantVariant> plants,
+                                              const Scenario& identification);
+
+/// params with the variant's values set, then its models. @throws std::invalid_argument naming the variant and the
 /// key (not a real plant parameter, or the value out of its plausible range).
 SystemParams apply_plant_variant(const SystemParams& params, const PlantVariant& variant);
+
+/// Where the search starts: every member drawn (the paper), or one member the network's
+/// equivalent of the configured acceleration feedback (rnn_weights_from_acceleration_feedback),
+/// the rest drawn. CMA-ES centres its first generation on the best initial member, DE keeps a
+/// member until a better trial replaces it: either way the search ends no worse than that law.
+enum class TrainingStart { kRandom, kAccelerationFeedback };
+TrainingStart training_start_from_string(const std::string& text);
+const char* to_string(TrainingStart start);
+
+/// The weights with which the RNN applies, for small signals, the configured acceleration
+/// feedback: G_n u_n = -K_a a with a the network's signal, u_n = -(K_a / (G_n s)) x_0
+/// (JordanRnn::linear_chain_weights). Both compensators scale by the same gain schedule. The RNN's
+/// output neuron saturates softly towards G_n where acceleration feedback clips at its limit.
+/// @throws std::invalid_argument when the two read different signals (compensator.rnn.on_reference_error
+/// differs from compensator.acceleration_feedback.on_reference_error) or the chain's weights
+/// would exceed JordanRnn::kMaxAbsWeight.
+std::vector<double> rnn_weights_from_acceleration_feedback(const SystemParams& params);
 
 /// configs/training.yaml: the optimiser and what it is scored on.
 struct TrainingParams {
@@ -63,6 +90,7 @@ struct TrainingParams {
   double init_lower = 0;             ///< initial weights uniform in [lower, upper]
   double init_upper = 0;
   std::uint64_t seed = 0;
+  TrainingStart start = TrainingStart::kRandom;
   std::uint64_t max_evaluations = 0;  ///< budget; the run stops at the first generation that reaches it
   double target_cost = 0;             ///< stop early at or below this cost (0: never)
   CostVelocity cost_velocity = CostVelocity::truth;
@@ -73,6 +101,11 @@ struct TrainingParams {
   /// RnnCost::kFaultPenalty more.
   bool judge_runs = false;
   VerdictParams verdict;  ///< when judge_runs
+  /// Commission every plant first (commissioned_plants) and score the weights with the models
+  /// identified there, as a rig runs them; false: the configured models on every plant.
+  bool identify_models = false;
+  std::string identification_scenario_file;
+  Scenario identification_scenario;  ///< when identify_models
   void validate(double control_period_s) const;
 };
 
