@@ -348,6 +348,7 @@ msg::TrainingSetup training_setup(Sampler& s) {
     plants[i].name(s.text<64>(path + ".name"));
     plants[i].moves(s.texts<256>(path + ".moves", 2));
     plants[i].weight(s.real(path + ".weight"));
+    plants[i].models(s.texts<256>(path + ".models", 2));
   }
   v.plants(plants);
   v.plant_objective(s.text<32>("plant_objective"));
