@@ -43,7 +43,7 @@ struct PlantVariant {
   double weight = 1.0;                                 ///< > 0
   /// The models a commissioning run identified on this plant (identified_parameters: the Kalman
   /// filter's and state feedback's), set after the moves; empty: the configured models.
-  std::vector<std::pair<std::string, double>> models;
+  std::vector<std::pair<std::string, double>> models{};
 };
 
 /// How the costs over the plants make one number.
