@@ -368,15 +368,10 @@ TrainingParams parse_training_params(const std::string& yaml_text, const std::st
     t.verdict = load_sweep_verdict(relative_to(origin, top.text("verdict_from_sweep")));
   }
   // Optional, as a sweep file's: every plant commissioned first (commissioned_plants).
-  if (top.has("models")) {
-    Section models = top.child("models");
-    t.identify_models = models.flag("identified");
-    if (t.identify_models || models.has("identification_scenario")) {
-      t.identification_scenario_file = relative_to(origin, models.text("identification_scenario"));
-      t.identification_scenario = load_scenario(t.identification_scenario_file, control_period_s);
-    }
-    models.finish();
-  }
+  ModelsSection models = read_models_section(top, origin, control_period_s);
+  t.identify_models = models.identify;
+  t.identification_scenario_file = models.identification_scenario_file;
+  t.identification_scenario = std::move(models.identification_scenario);
   top.finish();
   validate_in(origin, [&] { t.validate(control_period_s); });
   return t;

@@ -286,4 +286,26 @@ inline void validate_in(const std::string& origin, F&& check) {
   }
 }
 
+/// The optional `models:` section of sweep and training files: whether every plant is
+/// commissioned first, and the run that commissions it (named relative to the file). Without the
+/// section: the configured models on every plant.
+struct ModelsSection {
+  bool identify = false;
+  std::string identification_scenario_file;  ///< "" without one
+  Scenario identification_scenario;
+};
+
+inline ModelsSection read_models_section(Section& top, const std::string& origin, double control_period_s) {
+  ModelsSection out;
+  if (!top.has("models")) return out;
+  Section models = top.child("models");
+  out.identify = models.flag("identified");
+  if (out.identify || models.has("identification_scenario")) {
+    out.identification_scenario_file = relative_to(origin, models.text("identification_scenario"));
+    out.identification_scenario = load_scenario(out.identification_scenario_file, control_period_s);
+  }
+  models.finish();
+  return out;
+}
+
 }  // namespace pmlsm::config_reading

@@ -1,6 +1,7 @@
 #include "pmlsm/config/sweep_file.hpp"
 
 #include <stdexcept>
+#include <utility>
 
 
 #include "config_reading.hpp"
@@ -74,16 +75,10 @@ SweepFile parse_sweep_file(const std::string& yaml_text, const std::string& orig
   }
 
   spec.verdict = read_verdict(top.child("verdict"));
-  // Optional: without it every plant runs on the configured models.
-  if (top.has("models")) {
-    Section models = top.child("models");
-    spec.identify_models = models.flag("identified");
-    if (spec.identify_models || models.has("identification_scenario")) {
-      out.identification_scenario_file = relative_to(origin, models.text("identification_scenario"));
-      spec.identification_scenario = load_scenario(out.identification_scenario_file, nominal.timing.control_period_s);
-    }
-    models.finish();
-  }
+  ModelsSection models = read_models_section(top, origin, nominal.timing.control_period_s);
+  spec.identify_models = models.identify;
+  out.identification_scenario_file = models.identification_scenario_file;
+  spec.identification_scenario = std::move(models.identification_scenario);
   top.finish();
   validate_in(origin, [&] { spec.validate(nominal); });
   return out;

@@ -308,4 +308,9 @@ std::vector<IdentificationSample> identification_samples(const std::vector<TickR
   return samples;
 }
 
+IdentifiedLoad commission_load(const SystemParams& on_plant, const Scenario& identification,
+                               const IdentificationParams& params) {
+  return identify_load(on_plant, identification_samples(run_scenario(on_plant, identification)), params);
+}
+
 }  // namespace pmlsm

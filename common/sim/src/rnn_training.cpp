@@ -64,8 +64,7 @@ std::vector<PlantVariant> commissioned_plants(const SystemParams& params, std::v
     moved.models.clear();
     const SystemParams on_plant = apply_plant_variant(params, moved);
     try {
-      const IdentifiedLoad load = identify_load(on_plant, identification_samples(run_scenario(on_plant, identification)));
-      plant.models = identified_parameters(load);
+      plant.models = identified_parameters(commission_load(on_plant, identification));
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument("plants '" + plant.name + "': identification: " + e.what());
     }

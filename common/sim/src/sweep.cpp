@@ -298,8 +298,7 @@ SweepResult run_sweep(const SystemParams& nominal, const SweepSpec& spec, const 
       if (job >= jobs) return;
       if (job < commissioning) {
         try {
-          const auto trace = run_scenario(variants[job], spec.identification_scenario);
-          result.identified[job] = identify_load(variants[job], identification_samples(trace), spec.identification);
+          result.identified[job] = commission_load(variants[job], spec.identification_scenario, spec.identification);
           variants[job] = with_identified_load(variants[job], result.identified[job]);
         } catch (const std::exception& e) {
           const std::lock_guard<std::mutex> lock(progress_mutex);

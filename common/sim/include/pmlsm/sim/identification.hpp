@@ -76,6 +76,14 @@ std::vector<std::pair<std::string, double>> identified_parameters(const Identifi
 /// @throws std::invalid_argument when a value is outside its plausible range.
 SystemParams with_identified_load(const SystemParams& configured, const IdentifiedLoad& load);
 
+/// Commissioning in process, as `pmlsm identify --simulate` and a rig do it: PI alone runs
+/// `identification` on the plant of `on_plant` (run_scenario), and identify_load fits the load to
+/// what the drive measured, from the models configured there. The sweep's `models: identified` and
+/// the trainer's commissioned plants both use it.
+/// @throws std::invalid_argument as identify_load.
+IdentifiedLoad commission_load(const SystemParams& on_plant, const Scenario& identification,
+                               const IdentificationParams& params = {});
+
 /// The samples of an in-process trace: what the drive measured and applied, never the truth.
 std::vector<IdentificationSample> identification_samples(const std::vector<TickRecord>& trace);
 
