@@ -58,13 +58,15 @@ void write_csv(const std::filesystem::path& path, const SweepFile& file, const S
     const PlantSample& plant = result.plants[run.plant];
     const RunVerdict& v = run.verdict;
     out << run.plant << "," << plant.label;
-    for (double value : plant.values) out << "," << num(value, "%.9g");
+    // Plant values and identified models round-trip (%.17g): a row's runs are reproduced exactly
+    // by closed_loop with those values --set (the loops are sensitive in the sixth digit).
+    for (double value : plant.values) out << "," << num(value, "%.17g");
     if (result.identified.empty()) {
       out << ",,,,,";
     } else {
       const IdentifiedLoad& id = result.identified[run.plant];
-      out << "," << num(id.load_mass_kg, "%.6g") << "," << num(id.spring_n_per_m, "%.6g") << ","
-          << num(id.coulomb_n, "%.6g") << "," << num(id.viscous_n_s_per_m, "%.6g") << ",\"" << id.at_bound << "\"";
+      out << "," << num(id.load_mass_kg, "%.17g") << "," << num(id.spring_n_per_m, "%.17g") << ","
+          << num(id.coulomb_n, "%.17g") << "," << num(id.viscous_n_s_per_m, "%.17g") << ",\"" << id.at_bound << "\"";
     }
     out << "," << to_string(result.compensators[run.compensator]) << "," << file.spec.scenarios[run.scenario].name
         << "," << num(v.cost) << "," << num(run.cost_ratio_to_pi) << "," << num(v.settling_s) << ","
