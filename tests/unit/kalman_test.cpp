@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/sim/compensated_run.hpp"
+#include "pmlsm/sim/sweep.hpp"
 #include "pmlsm/estimation/kalman_filter.hpp"
 #include "pmlsm/sim/metrics.hpp"
 #include "pmlsm/plant/plant.hpp"
@@ -219,8 +221,11 @@ TEST(KalmanDisturbanceInput, RippleIsThePlantsEquation10) {
 
 TEST(KalmanDisturbanceInput, TimeUpdateUsesForcePlusFrictionAndRippleOfThePeriod) {
   // u_{k-1} = F_{k-1} + F_friction(y_k) + F_ripple((x_{k-1} + x_k) / 2): a filter with
-  // the inputs on must match the paper's filter fed that u by hand.
-  const KalmanParams off = with_disturbance_input(test::shipped_params().kalman_params(), false, false);
+  // the inputs on must match the paper's filter fed that u by hand (the standstill hold off: it
+  // replaces some measurement updates, tested on its own below).
+  KalmanParams shipped = test::shipped_params().kalman_params();
+  shipped.standstill_hold.enabled = false;
+  const KalmanParams off = with_disturbance_input(shipped, false, false);
   const KalmanParams on = with_disturbance_input(off, true, true);
   KalmanFilter modelled(on), by_hand(off);
   double position_m = 0.0, previous_m = 0.0;
@@ -286,6 +291,107 @@ TEST(KalmanDisturbanceInput, ShrinksTheFreeVibrationEstimateError) {
   EXPECT_LT(with_friction, 0.7 * without);  // measured 67.5 / 108.5 = 0.62
   EXPECT_LT(with_both, 0.7 * without);
   EXPECT_LT(with_both, 0.2 * paper);        // measured 68.2 / 588.6 = 0.12
+}
+
+// ------------------------------------------- the standstill hold
+
+/// Largest |F_s| estimate and the number of sign changes of F_s over `steps` steps of a motor at
+/// rest (y = 0, no force), from a start with the load swinging (F_s = start_n, v_L = v_M = 0).
+struct HeldSwing {
+  double largest_late_n = 0;  ///< max |F_s-hat| over the second half of the steps
+  int sign_changes = 0;
+  std::uint64_t holds = 0;
+};
+HeldSwing swing_at_rest(const KalmanParams& p, double start_n, int steps) {
+  KalmanFilter kf(p);
+  kf.reset(Eigen::Vector3d(0.0, 0.0, start_n));
+  HeldSwing out;
+  double previous_n = start_n;
+  for (int k = 0; k < steps; ++k) {
+    const double f_n = kf.step({0.0, 0.0, 0.0}).spring_force_n;
+    if (k >= steps / 2) out.largest_late_n = std::max(out.largest_late_n, std::abs(f_n));
+    if ((f_n > 0) != (previous_n > 0)) ++out.sign_changes;
+    previous_n = f_n;
+  }
+  out.holds = kf.counters().standstill_holds;
+  return out;
+}
+
+TEST(KalmanStandstillHold, KeepsTheSwingOfALoadOnAStuckMotor) {
+  // Nominal model: the load swings on the clamped spring at sqrt(k / m_L) = 58.5 rad/s (107 ms);
+  // 12 N is above the held share (0.25 x 20 N). 200 ms of y = 0, as the encoder of a stuck
+  // motor reads.
+  KalmanParams held = test::shipped_params().kalman_params();
+  ASSERT_TRUE(held.standstill_hold.enabled);
+  KalmanParams normal = held;
+  normal.standstill_hold.enabled = false;
+  const HeldSwing with = swing_at_rest(held, 12.0, 200), without = swing_at_rest(normal, 12.0, 200);
+  std::printf("[ kalman     ] load swinging at 12 N on a motor at rest, 200 ms: |F_s-hat| over the last 100 ms "
+              "up to %.2f N with the hold (%d sign changes), %.2f N without (%d)\n",
+              with.largest_late_n, with.sign_changes, without.largest_late_n, without.sign_changes);
+  EXPECT_EQ(with.holds, 200u);
+  EXPECT_EQ(without.holds, 0u);
+  EXPECT_GT(with.largest_late_n, 0.5 * 12.0);  // the swing is kept ...
+  EXPECT_GE(with.sign_changes, 3);             // ... and swings: nearly four half periods in 200 ms
+  EXPECT_LT(without.largest_late_n, 0.2 * 12.0);  // the normal update explains it away
+}
+
+TEST(KalmanStandstillHold, LeavesSmallSwingsMovingMotorsAndThePapersFilterAlone) {
+  const KalmanParams p = test::shipped_params().kalman_params();
+  // Below the share (0.25 x 20 N = 5 N): the normal update.
+  EXPECT_EQ(swing_at_rest(p, 4.0, 50).holds, 0u);
+  EXPECT_GT(swing_at_rest(p, 6.0, 1).holds, 0u);
+  // A motor moving faster than max_velocity_mps: the encoder sees the forces, no hold.
+  KalmanFilter moving(p);
+  moving.reset(Eigen::Vector3d(0.0, 0.0, 12.0));
+  moving.step({2.0 * p.standstill_hold.max_velocity_mps, 0.0, 0.0});
+  EXPECT_EQ(moving.counters().standstill_holds, 0u);
+  // Without the friction input (the paper's filter) the hold is off.
+  KalmanParams paper = p;
+  paper.friction_input.enabled = false;
+  EXPECT_EQ(swing_at_rest(paper, 12.0, 50).holds, 0u);
+}
+
+TEST(KalmanStandstillHold, BadValuesThrowNamingTheValue) {
+  KalmanParams p = test::shipped_params().kalman_params();
+  p.standstill_hold.max_velocity_mps = 0;
+  EXPECT_NE(construction_error(p).find("standstill_hold.max_velocity_mps: must be > 0"), std::string::npos);
+  p = test::shipped_params().kalman_params();
+  p.standstill_hold.min_ring_share = -0.5;
+  EXPECT_NE(construction_error(p).find("standstill_hold.min_ring_share: must be >= 0"), std::string::npos);
+}
+
+// In the loop: a heavy, soft load (8 kg, 6,850 N/m, 30 N of bearing friction; the filter's model
+// that plant's) under acceleration feedback. After the pulse's edges the motor sticks while the
+// load still swings; without the hold the estimate loses the swing and the compensation leaves it.
+TEST(KalmanStandstillHold, DampsTheSwingLeftOnAHeavySoftLoad) {
+  const Scenario pulse = test::shipped_scenario("pulse");
+  const auto run = [&](bool hold) {
+    SystemParams p = test::shipped_params();
+    for (const auto& [key, value] : std::vector<std::pair<std::string, double>>{
+             {"plant.mechanics.load_mass_kg", 8.0}, {"plant.mechanics.spring_n_per_m", 6850.0},
+             {"plant.friction.coulomb_n", 30.0}, {"plant.friction.viscous_n_s_per_m", 15.0},
+             {"kalman.model.load_mass_kg", 8.0}, {"kalman.model.spring_n_per_m", 6850.0},
+             {"kalman.friction_input.coulomb_n", 30.0}, {"kalman.friction_input.viscous_n_s_per_m", 15.0}}) {
+      real_parameter(p, key) = value;
+    }
+    p.kalman.standstill_hold.enabled = hold;
+    p.validate();
+    const auto trace = run_with_compensator(p, pulse, {CompensatorKind::kAccel, {}, false});
+    VerdictParams verdict;
+    verdict.tail_s = 0.4;
+    verdict.tail_windows = 2;
+    verdict.limit_cycle_amplitude_m = 5e-4;
+    verdict.min_decay_rate_per_s = 0.3;
+    verdict.max_saturated_tail_share = 0.05;
+    return judge_run(trace, pulse, p.timing.control_period_s, p.velocity_loop.force_limit_n, verdict);
+  };
+  const RunVerdict with = run(true), without = run(false);
+  std::printf("[ kalman     ] 8 kg, 6850 N/m, 30 N, acceleration feedback, pulse: tail swing %.2f mm with the hold, "
+              "%.2f mm without; cost %.2f and %.2f\n",
+              with.tail_stretch_amplitude_m * 1e3, without.tail_stretch_amplitude_m * 1e3, with.cost, without.cost);
+  EXPECT_LT(with.tail_stretch_amplitude_m, 0.7 * without.tail_stretch_amplitude_m);  // measured 1.08 / 1.97 mm
+  EXPECT_LT(with.cost, without.cost);
 }
 
 }  // namespace

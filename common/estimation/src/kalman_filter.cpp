@@ -8,6 +8,11 @@
 
 namespace pmlsm {
 
+void KalmanStandstillHold::validate() const {
+  require_positive("max_velocity_mps", max_velocity_mps);
+  require_non_negative("min_ring_share", min_ring_share);
+}
+
 void KalmanParams::validate() const {
   require_positive("motor_mass_kg", motor_mass_kg);
   require_positive("load_mass_kg", load_mass_kg);
@@ -22,6 +27,7 @@ void KalmanParams::validate() const {
   require_non_negative("initial_covariance_diag[2]", initial_covariance_diag(2));
   validate_section("friction_input", [&] { friction_input.validate(); });
   validate_section("ripple_input", [&] { ripple_input.validate(); });
+  validate_section("standstill_hold", [&] { standstill_hold.validate(); });
 }
 
 Eigen::Matrix3d KalmanFilter::continuous_a(const KalmanParams& p) {
@@ -89,14 +95,31 @@ KalmanEstimate KalmanFilter::step(const KalmanInput& in) {
       disturbance_modelled
           ? last_input_n_ + modelled_disturbance_n(in.motor_velocity_measured_mps, in.motor_position_m)
           : last_input_n_;
+  // The standstill hold's test, on the estimate before this step (see the header).
+  const double y = in.motor_velocity_measured_mps;
+  bool hold = false;
+  if (params_.standstill_hold.enabled && params_.friction_input.enabled && std::isfinite(y) &&
+      std::abs(y) <= params_.standstill_hold.max_velocity_mps) {
+    const double swing_n = std::hypot(x_(2), std::sqrt(params_.spring_n_per_m * params_.load_mass_kg) * (x_(1) - x_(0)));
+    hold = swing_n >= params_.standstill_hold.min_ring_share * params_.friction_input.model.coulomb_n;
+  }
   // Time update (28), (29).
   x_ = phi_ * x_ + gamma_ * input_n;
   p_ = phi_ * p_ * phi_.transpose() + q_;
 
   KalmanEstimate out;
   out.input_force_n = input_n;
-  const double y = in.motor_velocity_measured_mps;
-  if (std::isfinite(y)) {
+  if (hold) {
+    // v_M = y_k; v_L and F_s keep their prediction, and v_M no longer correlates with them.
+    out.innovation_mps = y - x_(0);
+    x_(0) = y;
+    p_.row(0).setZero();
+    p_.col(0).setZero();
+    p_(0, 0) = params_.measurement_noise;
+    out.measurement_used = true;
+    out.standstill_held = true;
+    ++counters_.standstill_holds;
+  } else if (std::isfinite(y)) {
     // Measurement update (30)-(32) with C = [1 0 0]: C P C^T = P(0,0).
     const double s = p_(0, 0) + params_.measurement_noise;
     const Eigen::Vector3d gain = p_.col(0) / s;

@@ -43,7 +43,11 @@ class PredictionError {
 
   double mean_square(const SystemParams& p) const {
     try {
-      KalmanFilter filter(p.kalman_params());
+      // A model is judged by the innovations of the measurement update alone: the standstill hold
+      // would skip them whenever the filter holds a swing, so J would jump with the model.
+      KalmanParams filter_params = p.kalman_params();
+      filter_params.standstill_hold.enabled = false;
+      KalmanFilter filter(filter_params);
       double sum = 0;
       for (std::size_t k = 0; k < samples_.size(); ++k) {
         const IdentificationSample& s = samples_[k];

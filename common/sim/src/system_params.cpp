@@ -68,6 +68,7 @@ KalmanParams SystemParams::kalman_params() const {
   p.initial_covariance_diag = kalman.initial_covariance_diag;
   p.friction_input = kalman.friction_input;
   p.ripple_input = kalman.ripple_input;
+  p.standstill_hold = kalman.standstill_hold;
   return p;
 }
 

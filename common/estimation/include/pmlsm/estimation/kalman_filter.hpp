@@ -31,6 +31,20 @@
 // unmodelled force on the motor (20 N of friction, 13 N of ripple at 13 Hz,
 // close to the 10.2 Hz load mode) is read as spring force; with the
 // disturbance in the input that error is gone.
+//
+// Standstill hold (optional). Near rest the bearing friction is not the model's F_c s(v): a stuck
+// or creeping motor carries any friction in [-F_c, F_c], whatever the force on it. A motor at
+// rest with the load still swinging then reads, to the filter, as a motor that no force moves:
+// the innovation explains it away as F_s = 0, and within a few tens of milliseconds the estimate
+// has lost a swing the encoder cannot see (on an 8 kg, 6,850 N/m load with 30 N of friction a
+// 2 mm, 13 N swing outlives the move while F_s-hat reads 0; the compensation, acting on the
+// estimate, never breaks the motor free to damp it). With the hold, while
+//   |y_k| <= max_velocity_mps  and  A = sqrt(F_s^2 + k m_L (v_L - v_M)^2) >= min_ring_share F_c
+// (A: the load's swing against the motor, in spring-force units, from the estimate before the
+// step; F_c: friction_input's), the measurement sets v_M = y_k alone and v_L, F_s run on the
+// model (no correction: y_k says nothing about them while friction is unknown). A small swing
+// (below the share) is left to the normal update: a compensator's jitter at rest keeps the motor
+// moving enough for it to be seen and damped, and the nominal runs stay as they were.
 #pragma once
 
 #include <Eigen/Dense>
@@ -60,6 +74,17 @@ struct KalmanRippleInput {
   double force_n(double motor_position_m) const { return ripple_force_n(model, motor_position_m); }
 };
 
+/// The standstill hold (see the header comment). It acts only with friction_input enabled: it
+/// completes that friction model near rest, and its F_c scales the swing that is held (the
+/// paper's filter, friction as process noise, has neither).
+struct KalmanStandstillHold {
+  bool enabled = false;
+  double max_velocity_mps = 0;  ///< |y_k| at or below this: the motor may be stuck, > 0
+  double min_ring_share = 0;    ///< held only while A >= this x F_c, >= 0
+  /// @throws std::invalid_argument naming the first invalid value.
+  void validate() const;
+};
+
 struct KalmanParams {
   double motor_mass_kg = 0;
   double load_mass_kg = 0;
@@ -70,6 +95,7 @@ struct KalmanParams {
   Eigen::Vector3d initial_covariance_diag = Eigen::Vector3d::Zero();  ///< P_0 diagonal
   KalmanFrictionInput friction_input;  ///< off: the paper's filter
   KalmanRippleInput ripple_input;      ///< off: the paper's filter
+  KalmanStandstillHold standstill_hold;  ///< off: the paper's filter
   void validate() const;
 };
 
@@ -88,12 +114,14 @@ struct KalmanEstimate {
   double input_force_n = 0;    ///< u_{k-1} used in the time update (force + modelled disturbance)
   Eigen::Vector3d covariance_diag = Eigen::Vector3d::Zero();
   bool measurement_used = false;
+  bool standstill_held = false;  ///< the standstill hold replaced the measurement update
 };
 
 struct KalmanCounters {
   std::uint64_t steps = 0;
   std::uint64_t rejected_measurements = 0;  ///< non-finite y: time update only
   std::uint64_t rejected_inputs = 0;        ///< non-finite u (or position, with the ripple input): the last finite one is used
+  std::uint64_t standstill_holds = 0;       ///< steps the standstill hold kept v_L and F_s on the model
 };
 
 class KalmanFilter {

@@ -53,6 +53,7 @@ struct KalmanTuning {
   Eigen::Vector3d initial_covariance_diag = Eigen::Vector3d::Zero();
   KalmanFrictionInput friction_input;
   KalmanRippleInput ripple_input;
+  KalmanStandstillHold standstill_hold;
 };
 
 struct VelocityLoopTuning {
@@ -278,6 +279,11 @@ void visit_parameters(Params& p, Visitor& v) {
   detail::visit_friction("kalman.friction_input", p.kalman.friction_input.model, v);
   v.flag("kalman.ripple_input.enabled", p.kalman.ripple_input.enabled);
   detail::visit_ripple("kalman.ripple_input", p.kalman.ripple_input.model, v);
+  v.flag("kalman.standstill_hold.enabled", p.kalman.standstill_hold.enabled);
+  v.real("kalman.standstill_hold.max_velocity_mps", p.kalman.standstill_hold.max_velocity_mps,
+         {1e-6, 1.0, "1 um/s to 1 m/s: a few encoder counts a period"});
+  v.real("kalman.standstill_hold.min_ring_share", p.kalman.standstill_hold.min_ring_share,
+         {0.0, 100.0, "0 (every swing at rest) to 100 times the bearing friction"});
 
   auto& c = p.compensator;
   v.integer_list("compensator.rnn.layer_sizes", c.rnn_layer_sizes,
