@@ -378,13 +378,7 @@ TEST(KalmanStandstillHold, DampsTheSwingLeftOnAHeavySoftLoad) {
     p.kalman.standstill_hold.enabled = hold;
     p.validate();
     const auto trace = run_with_compensator(p, pulse, {CompensatorKind::kAccel, {}, false});
-    VerdictParams verdict;
-    verdict.tail_s = 0.4;
-    verdict.tail_windows = 2;
-    verdict.limit_cycle_amplitude_m = 5e-4;
-    verdict.min_decay_rate_per_s = 0.3;
-    verdict.max_saturated_tail_share = 0.05;
-    return judge_run(trace, pulse, p.timing.control_period_s, p.velocity_loop.force_limit_n, verdict);
+    return judge_run(trace, pulse, p.timing.control_period_s, p.velocity_loop.force_limit_n, test::family_verdict());
   };
   const RunVerdict with = run(true), without = run(false);
   std::printf("[ kalman     ] 8 kg, 6850 N/m, 30 N, acceleration feedback, pulse: tail swing %.2f mm with the hold, "
