@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "pmlsm/config/sweep_file.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/sim/compensated_run.hpp"
 #include "pmlsm/sim/sweep.hpp"
@@ -362,10 +363,13 @@ TEST(KalmanStandstillHold, BadValuesThrowNamingTheValue) {
 }
 
 // In the loop: a heavy, soft load (8 kg, 6,850 N/m, 30 N of bearing friction; the filter's model
-// that plant's) under acceleration feedback. After the pulse's edges the motor sticks while the
-// load still swings; without the hold the estimate loses the swing and the compensation leaves it.
+// that plant's) under acceleration feedback, judged as the identified family's sweep judges. After
+// the pulse's edges the motor sticks while the load still swings; without the hold the estimate
+// loses the swing and the compensation leaves it.
 TEST(KalmanStandstillHold, DampsTheSwingLeftOnAHeavySoftLoad) {
   const Scenario pulse = test::shipped_scenario("pulse");
+  const VerdictParams verdict =
+      load_sweep_verdict(std::string(PMLSM_SOURCE_DIR) + "/configs/sweeps/plant_family_identified.yaml");
   const auto run = [&](bool hold) {
     SystemParams p = test::shipped_params();
     for (const auto& [key, value] : std::vector<std::pair<std::string, double>>{
@@ -378,7 +382,7 @@ TEST(KalmanStandstillHold, DampsTheSwingLeftOnAHeavySoftLoad) {
     p.kalman.standstill_hold.enabled = hold;
     p.validate();
     const auto trace = run_with_compensator(p, pulse, {CompensatorKind::kAccel, {}, false});
-    return judge_run(trace, pulse, p.timing.control_period_s, p.velocity_loop.force_limit_n, test::family_verdict());
+    return judge_run(trace, pulse, p.timing.control_period_s, p.velocity_loop.force_limit_n, verdict);
   };
   const RunVerdict with = run(true), without = run(false);
   std::printf("[ kalman     ] 8 kg, 6850 N/m, 30 N, acceleration feedback, pulse: tail swing %.2f mm with the hold, "

@@ -5,7 +5,6 @@
 
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/config/weights_file.hpp"
-#include "pmlsm/sim/sweep.hpp"
 
 namespace pmlsm::test {
 
@@ -36,17 +35,6 @@ inline SystemParams ideal_params() {
   p.plant.ripple.scale_n = 0;
   p.plant.mechanics.damping_n_s_per_m = 0;
   return p;
-}
-
-/// The verdict of the shipped sweep files (configs/sweeps/plant_family*.yaml).
-inline VerdictParams family_verdict() {
-  VerdictParams v;
-  v.tail_s = 0.4;
-  v.tail_windows = 2;
-  v.limit_cycle_amplitude_m = 5e-4;
-  v.min_decay_rate_per_s = 0.3;
-  v.max_saturated_tail_share = 0.05;
-  return v;
 }
 
 }  // namespace pmlsm::test

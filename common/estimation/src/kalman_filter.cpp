@@ -49,6 +49,7 @@ KalmanFilter::KalmanFilter(const KalmanParams& params) : params_(params) {
   phi_ = d.phi;
   gamma_ = d.gamma;
   q_ = params_.process_noise_diag.asDiagonal();
+  load_impedance_n_s_per_m_ = std::sqrt(params_.spring_n_per_m * params_.load_mass_kg);
   reset();
 }
 
@@ -100,7 +101,7 @@ KalmanEstimate KalmanFilter::step(const KalmanInput& in) {
   bool hold = false;
   if (params_.standstill_hold.enabled && params_.friction_input.enabled && std::isfinite(y) &&
       std::abs(y) <= params_.standstill_hold.max_velocity_mps) {
-    const double swing_n = std::hypot(x_(2), std::sqrt(params_.spring_n_per_m * params_.load_mass_kg) * (x_(1) - x_(0)));
+    const double swing_n = std::hypot(x_(2), load_impedance_n_s_per_m_ * (x_(1) - x_(0)));
     hold = swing_n >= params_.standstill_hold.min_ring_share * params_.friction_input.model.coulomb_n;
   }
   // Time update (28), (29).

@@ -149,6 +149,7 @@ class KalmanFilter {
   Eigen::Matrix3d phi_;
   Eigen::Vector3d gamma_;
   Eigen::Matrix3d q_;
+  double load_impedance_n_s_per_m_ = 0;  ///< sqrt(k m_L): the standstill hold's v_L - v_M in force units
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d p_;
   double last_input_n_ = 0;
