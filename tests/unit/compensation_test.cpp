@@ -139,6 +139,23 @@ TEST(TrainingConfig, ShippedFileLoadsWithTable1Values) {
   EXPECT_EQ(t.scenarios[0].scenario.name, "pulse");
 }
 
+// The search over commissioned plants (configs/training_commissioned.yaml): from the law, every
+// plant fitted first, judged by the identified sweep's own verdict, the worst plant counting.
+TEST(TrainingConfig, TheCommissionedSearchFitsEveryPlantAndJudgesByTheIdentifiedSweep) {
+  const TrainingParams t = load_training_params(source("configs/training_commissioned.yaml"), 1e-3);
+  EXPECT_EQ(t.start, TrainingStart::kAccelerationFeedback);
+  EXPECT_TRUE(t.identify_models);
+  EXPECT_EQ(t.identification_scenario.name, "identification");
+  EXPECT_EQ(t.plant_objective, PlantObjective::kWorstRatioToPi);
+  ASSERT_TRUE(t.judge_runs);
+  const VerdictParams sweep = load_sweep_verdict(source("configs/sweeps/plant_family_identified.yaml"));
+  EXPECT_EQ(t.verdict.limit_cycle_amplitude_m, sweep.limit_cycle_amplitude_m);
+  EXPECT_EQ(t.verdict.min_decay_rate_per_s, sweep.min_decay_rate_per_s);
+  ASSERT_EQ(t.plants.size(), 11u);
+  EXPECT_TRUE(t.plants[0].values.empty()) << "the configured plant first";
+  for (const PlantVariant& plant : t.plants) EXPECT_TRUE(plant.models.empty()) << plant.name << ": fitted by the trainer, not the file";
+}
+
 // An optional verdict_from_sweep: each run judged whole by that sweep file's verdict; only with
 // the worst-ratio objective; a missing file or a bad threshold there is named.
 TEST(TrainingConfig, ASweepsVerdictJudgesRunsWithTheWorstRatioObjectiveOnly) {
