@@ -346,9 +346,10 @@ TEST(VirtualRig, AKilledControllerQuickStopsTheDriveWithinTheWatchdog) {
     bridge.signal(SIGINT);
     bridge.wait_for(std::chrono::seconds(30));
     const std::string summary = bridge.output();
-    const auto stalls_at = summary.find("drive stalls ");
+    const std::string stalls_label = "drive stalls ";
+    const auto stalls_at = summary.find(stalls_label);
     ASSERT_NE(stalls_at, std::string::npos) << summary;
-    const unsigned long long stalls = std::strtoull(summary.c_str() + stalls_at + 13, nullptr, 10);
+    const unsigned long long stalls = std::strtoull(summary.c_str() + stalls_at + stalls_label.size(), nullptr, 10);
     ASSERT_NE(summary.find("controller lost"), std::string::npos) << summary;
     ASSERT_GT(stalls, 0u) << "neither the watchdog nor a stall, yet no trip:\n" << summary;
     drive.signal(SIGINT);
