@@ -112,6 +112,10 @@ int run(int argc, char** argv) {
   if (training.identify_models) {
     training.plants = commissioned_plants(params, std::move(training.plants), training.identification_scenario);
     for (const PlantVariant& plant : training.plants) {
+      if (!plant.commission) {
+        std::printf("de_trainer: plant %s on the configured models (commission: false)\n", plant.name.c_str());
+        continue;
+      }
       std::printf("de_trainer: plant %s commissioned (%s):", plant.name.c_str(),
                   training.identification_scenario_file.c_str());
       for (const auto& [key, value] : plant.models) std::printf(" %s=%.6g", key.c_str(), value);

@@ -153,6 +153,8 @@ TEST(TrainingConfig, TheCommissionedSearchFitsEveryPlantAndJudgesByTheIdentified
   EXPECT_EQ(t.verdict.min_decay_rate_per_s, sweep.min_decay_rate_per_s);
   ASSERT_EQ(t.plants.size(), 11u);
   EXPECT_TRUE(t.plants[0].values.empty()) << "the configured plant first";
+  EXPECT_FALSE(t.plants[0].commission) << "the configured plant judged on the models the main job runs";
+  for (std::size_t i = 1; i < t.plants.size(); ++i) EXPECT_TRUE(t.plants[i].commission) << t.plants[i].name;
   for (const PlantVariant& plant : t.plants) EXPECT_TRUE(plant.models.empty()) << plant.name << ": fitted by the trainer, not the file";
 }
 
@@ -277,6 +279,12 @@ TEST(RnnCost, CommissionedPlantsCarryTheirIdentifiedModels) {
   EXPECT_EQ(commissioned.kalman.model.load_mass_kg, with_identified_load(on_plant, fit).kalman.model.load_mass_kg);
   EXPECT_NEAR(commissioned.kalman.model.load_mass_kg, 2.0, 0.3);
   EXPECT_EQ(commissioned.plant.mechanics.load_mass_kg, 2.0);
+  PlantVariant as_configured = light;
+  as_configured.commission = false;
+  const std::vector<PlantVariant> kept = commissioned_plants(p, {as_configured, light}, identification);
+  ASSERT_EQ(kept.size(), 2u);
+  EXPECT_TRUE(kept[0].models.empty()) << "commission: false keeps the configured models";
+  EXPECT_EQ(kept[1].models, plants[0].models);
   PlantVariant bad = light;
   bad.models = {{"velocity_loop.kp_n_s_per_m", 1.0}};
   try {
@@ -295,6 +303,21 @@ TEST(RnnCost, CommissionedPlantsCarryTheirIdentifiedModels) {
       path, 1e-3);
   EXPECT_TRUE(t.identify_models);
   EXPECT_EQ(t.identification_scenario.name, "identification");
+  for (const PlantVariant& plant : t.plants) EXPECT_TRUE(plant.commission) << plant.name << ": commissioned unless told";
+  const std::string commissioned_path = source("configs/training_commissioned.yaml");
+  std::ifstream commissioned_in(commissioned_path);
+  std::string commissioned_text((std::istreambuf_iterator<char>(commissioned_in)), std::istreambuf_iterator<char>());
+  const std::string configured_models = "commission: {value: false";
+  const std::size_t at = commissioned_text.find(configured_models);
+  ASSERT_NE(at, std::string::npos);
+  commissioned_text.replace(at, configured_models.size(), "commission: {value: maybe");
+  try {
+    parse_training_params(commissioned_text, commissioned_path, 1e-3);
+    ADD_FAILURE() << "commission: maybe was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("commission"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("maybe"), std::string::npos) << e.what();
+  }
 }
 
 TEST(RnnCost, ZeroWeightsCostWhatPiOnlyCosts) {

@@ -349,6 +349,7 @@ TrainingParams parse_training_params(const std::string& yaml_text, const std::st
       variant.values.emplace_back(o.key_path, value);
     }
     variant.weight = item.number("weight");
+    if (item.has("commission")) variant.commission = item.flag("commission");
     item.finish();
     t.plants.push_back(variant);
   }

@@ -60,6 +60,7 @@ std::vector<double> rnn_weights_from_acceleration_feedback(const SystemParams& p
 std::vector<PlantVariant> commissioned_plants(const SystemParams& params, std::vector<PlantVariant> plants,
                                               const Scenario& identification) {
   for (PlantVariant& plant : plants) {
+    if (!plant.commission) continue;
     PlantVariant moved = plant;
     moved.models.clear();
     const SystemParams on_plant = apply_plant_variant(params, moved);

@@ -44,6 +44,9 @@ struct PlantVariant {
   /// The models a commissioning run identified on this plant (identified_parameters: the Kalman
   /// filter's and state feedback's), set after the moves; empty: the configured models.
   std::vector<std::pair<std::string, double>> models{};
+  /// False: commissioned_plants leaves this plant on the configured models, as the main job runs
+  /// the configured plant.
+  bool commission = true;
 };
 
 /// How the costs over the plants make one number.
