@@ -6,7 +6,6 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
-#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
@@ -200,8 +199,8 @@ double settling_or_segment_s(const std::map<std::string, std::vector<double>>& c
 }
 
 // The bar: on the virtual rig (lockstep) every cost within 2 % of the simulated drive's (of
-// the spread of its costs, for acceleration feedback: below) and every settling time within
-// 0.05 s; the quantisation of torque (0.675 N) and position (1 um) is the only difference. Both
+// the spread of its costs for the compensators: below) and every settling time within 0.05 s (of
+// that spread's settling times); the quantisation of torque (0.675 N) and position (1 um) is the only difference. Both
 // tables are printed side by side.
 TEST(VirtualRig, CostsAndSettlingMatchTheSimulatedDriveForEveryCompensatorAndScenario) {
   const fs::path dir = test::fresh_dir("pmlsm_virtual_rig", "costs");
@@ -237,17 +236,25 @@ TEST(VirtualRig, CostsAndSettlingMatchTheSimulatedDriveForEveryCompensatorAndSce
       ASSERT_TRUE(rig_row.has_value()) << rig.output();
       const double diff = (rig_row->cost_true - sim_row->cost_true) / sim_row->cost_true;
       // Acceleration feedback on the error to the reference and the RNN searched from it cost so
-      // little (5.8, 5.4) that the trace's sensitivity shows: their force scaled in its sixth digit
+      // little (5.8, 5.7) that the trace's sensitivity shows: their force scaled in its sixth digit
       // (compensator.design_load_mass_kg, the gain schedule both follow) moves the simulated cost
       // by up to 3 % and 6 % (the encoder's 1 um steps and the friction's stick decide). The rig
       // must then lie within 2 % of that spread of the simulated drive's own costs.
+      const bool free_vibration = std::string(scenario_name) == "free_vibration";
+      const std::string sim_csv = std::string(scenario_name) + (std::string(compensator) == "none" ? "" : std::string("_") + compensator) + ".csv";
+      const double sim_settle_s = settling_or_segment_s(read_columns(dir / ("sim_" + tag) / sim_csv), free_vibration);
       double sim_low = sim_row->cost_true, sim_high = sim_row->cost_true;
+      // The settling time is as sensitive as the cost (a segment whose last tick leaves the band
+      // counts whole): the rig's must lie within 0.05 s of the nudged simulations' range.
+      double settle_low_s = sim_settle_s, settle_high_s = sim_settle_s;
       if (std::string(compensator) != "none") {
         const double design_kg = load_system_params(source("configs/system.yaml")).compensator.design_load_mass_kg;
         for (const double change : {-2e-6, -1e-6, 1e-6, 2e-6}) {
           std::vector<std::string> args = sim_args;
           char value[64];
           std::snprintf(value, sizeof value, "compensator.design_load_mass_kg=%.17g", design_kg * (1 + change));
+          const fs::path nudged_dir = dir / ("sim_" + tag + "_nudged_" + std::to_string(static_cast<int>(change * 1e6)));
+          *(std::find(args.begin(), args.end(), std::string("--out")) + 1) = nudged_dir.string();
           args.insert(args.end(), {"--set", value});
           test::ChildProcess nudged(args, (dir / ("sim_" + tag + "_nudged.log")).string());
           ASSERT_EQ(nudged.wait_for(std::chrono::seconds(120)), std::optional<int>(0)) << nudged.output();
@@ -255,21 +262,26 @@ TEST(VirtualRig, CostsAndSettlingMatchTheSimulatedDriveForEveryCompensatorAndSce
           ASSERT_TRUE(row.has_value()) << nudged.output();
           sim_low = std::min(sim_low, row->cost_true);
           sim_high = std::max(sim_high, row->cost_true);
+          const double settle_s = settling_or_segment_s(read_columns(nudged_dir / sim_csv), free_vibration);
+          settle_low_s = std::min(settle_low_s, settle_s);
+          settle_high_s = std::max(settle_high_s, settle_s);
         }
       }
       EXPECT_TRUE(std::fabs(diff) <= 0.02 || (rig_row->cost_true >= 0.98 * sim_low && rig_row->cost_true <= 1.02 * sim_high))
           << "simulated: " << sim_row->text << " (" << sim_low << " to " << sim_high << " with the gain nudged)\nvirtual rig: "
           << rig_row->text;
-      const bool free_vibration = std::string(scenario_name) == "free_vibration";
-      const std::string sim_csv = std::string(scenario_name) + (std::string(compensator) == "none" ? "" : std::string("_") + compensator) + ".csv";
-      const double sim_settle_s = settling_or_segment_s(read_columns(dir / ("sim_" + tag) / sim_csv), free_vibration);
       const double rig_settle_s = settling_or_segment_s(
           read_columns(dir / ("rig_" + tag) / (std::string(scenario_name) + "_virtual_rig.csv")), free_vibration);
-      EXPECT_LE(std::fabs(sim_settle_s - rig_settle_s), 0.05)
-          << "simulated: " << sim_row->text << "\nvirtual rig: " << rig_row->text;
-      char line[200];
-      char spread[64] = "";
-      if (sim_high > sim_low) std::snprintf(spread, sizeof spread, " (simulated %.3f-%.3f, K_a nudged)", sim_low, sim_high);
+      EXPECT_TRUE(rig_settle_s >= settle_low_s - 0.05 && rig_settle_s <= settle_high_s + 0.05)
+          << "settling: simulated " << sim_settle_s << " s (" << settle_low_s << " to " << settle_high_s
+          << " s with the gain nudged), virtual rig " << rig_settle_s << " s\nsimulated: " << sim_row->text
+          << "\nvirtual rig: " << rig_row->text;
+      char line[256];
+      char spread[96] = "";
+      if (sim_high > sim_low) {
+        std::snprintf(spread, sizeof spread, " (simulated %.3f-%.3f, settling %.3f-%.3f s, K_a nudged)", sim_low, sim_high,
+                      settle_low_s, settle_high_s);
+      }
       std::snprintf(line, sizeof line, "%-14s / %-6s  %20.3f  %16.3f  %+7.3f   %.3f / %.3f%s%s\n", scenario_name,
                     compensator, sim_row->cost_true, rig_row->cost_true, 100.0 * diff, sim_settle_s, rig_settle_s,
                     sim_row->settle_s && rig_row->settle_s ? "" : " (a segment outside the band at its end counts whole)",
