@@ -306,7 +306,8 @@ TEST(RnnCost, CommissionedPlantsCarryTheirIdentifiedModels) {
   for (const PlantVariant& plant : t.plants) EXPECT_TRUE(plant.commission) << plant.name << ": commissioned unless told";
   const std::string commissioned_path = source("configs/training_commissioned.yaml");
   std::ifstream commissioned_in(commissioned_path);
-  std::string commissioned_text((std::istreambuf_iterator<char>(commissioned_in)), std::istreambuf_iterator<char>());
+  const std::string commissioned_file((std::istreambuf_iterator<char>(commissioned_in)), std::istreambuf_iterator<char>());
+  std::string commissioned_text = commissioned_file;
   const std::string configured_models = "commission: {value: false";
   const std::size_t at = commissioned_text.find(configured_models);
   ASSERT_NE(at, std::string::npos);
@@ -317,6 +318,18 @@ TEST(RnnCost, CommissionedPlantsCarryTheirIdentifiedModels) {
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("commission"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("maybe"), std::string::npos) << e.what();
+  }
+  // Without commissioning the key would say nothing: refused, named.
+  std::string uncommissioned = commissioned_file;
+  const std::size_t models_at = uncommissioned.find("\nmodels:");
+  ASSERT_NE(models_at, std::string::npos);
+  uncommissioned.erase(models_at + 1);
+  try {
+    parse_training_params(uncommissioned, commissioned_path, 1e-3);
+    ADD_FAILURE() << "a plant's commission key without models.identified was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("plants[0].commission: only with models.identified: true"), std::string::npos)
+        << e.what();
   }
 }
 

@@ -338,6 +338,7 @@ TrainingParams parse_training_params(const std::string& yaml_text, const std::st
   }
   // The plants each weight set is scored on: "key.path=value" moves of the configured plant.
   std::vector<Section> plants = top.sections("plants");
+  std::string commission_key;  // the first plant that says whether it is commissioned
   for (std::size_t i = 0; i < plants.size(); ++i) {
     Section& item = plants[i];
     const std::string at = "plants[" + std::to_string(i) + "]";
@@ -349,7 +350,10 @@ TrainingParams parse_training_params(const std::string& yaml_text, const std::st
       variant.values.emplace_back(o.key_path, value);
     }
     variant.weight = item.number("weight");
-    if (item.has("commission")) variant.commission = item.flag("commission");
+    if (item.has("commission")) {
+      variant.commission = item.flag("commission");
+      if (commission_key.empty()) commission_key = at + ".commission";
+    }
     item.finish();
     t.plants.push_back(variant);
   }
@@ -371,6 +375,11 @@ TrainingParams parse_training_params(const std::string& yaml_text, const std::st
   // Optional, as a sweep file's: every plant commissioned first (commissioned_plants).
   ModelsSection models = read_models_section(top, origin, control_period_s);
   t.identify_models = models.identify;
+  if (!t.identify_models && !commission_key.empty()) {
+    validate_in(origin, [&] {
+      throw std::invalid_argument(commission_key + ": only with models.identified: true (no plant is commissioned)");
+    });
+  }
   t.identification_scenario_file = models.identification_scenario_file;
   t.identification_scenario = std::move(models.identification_scenario);
   top.finish();
