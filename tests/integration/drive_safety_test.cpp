@@ -4,6 +4,7 @@
 // new run, a second controller is refused and reported.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <csignal>
 #include <filesystem>
 #include <fstream>
@@ -11,9 +12,11 @@
 #include <string>
 #include <vector>
 
+#include "ForceCommandPubSubTypes.h"
 #include "child_process.hpp"
 #include "integration_support.hpp"
 #include "pmlsm/config/config.hpp"
+#include "pmlsm/dds/participant.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
 #include "trace_csv.hpp"
 
@@ -234,6 +237,58 @@ TEST(DriveSafety, ASecondControllerIsRefusedAndReportedNeverFollowed) {
   EXPECT_TRUE(followed_first != followed_second)
       << "the load moved like neither one-controller run: the drive mixed two controllers (" << dir << ")";
   fs::remove_all(dir);
+}
+
+// The drive's command reader keeps what any writer can replay (a writer's whole transient-local
+// history). A controller that matches late sends the drive every command of its history at once;
+// the drive refuses them, but a shallower reader drops its oldest sample for each one and can
+// drop the owner's command before the drive took it: the lockstep drive then waits for a command
+// that never comes and stops as "controller lost" (seen in a clean-clone CI run: a second
+// controller matched at tick 456, 89 of its commands reached the drive, the owner's tick 499 did
+// not). Here the owner's command waits unread while a late writer replays a full history.
+TEST(DriveSafety, ALateWritersHistoryCannotPushTheOwnersCommandOutOfTheDrivesReader) {
+  dds::ParticipantOptions options;
+  options.profiles_file = source("configs/dds/profiles.xml");
+  options.domain_id = std::stoi(test_domain(91));
+  options.node_name = "command_reader_probe";
+  dds::Participant participant(options);
+  dds::Wakeup wakeup;
+  using Command = pmlsm_msgs::msg::ForceCommandPubSubType;
+  auto reader = participant.make_reader<Command>(dds::topics::kForceCommand, wakeup);
+  auto owner = participant.make_writer<Command>(dds::topics::kForceCommand);
+  auto late = participant.make_writer<Command>(dds::topics::kForceCommand);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while ((owner.matched_readers() < 1 || late.matched_readers() < 1) && std::chrono::steady_clock::now() < deadline) {
+    wakeup.wait_for(wakeup.generation(), std::chrono::milliseconds(10));
+  }
+  ASSERT_GE(owner.matched_readers(), 1u);
+  ASSERT_GE(late.matched_readers(), 1u);
+  pmlsm_msgs::msg::ForceCommand command;
+  command.stamp().tick(499);
+  command.force_n(12.5);
+  ASSERT_TRUE(owner.write(command));
+  ASSERT_TRUE(owner.wait_for_acknowledgments(std::chrono::seconds(10)));
+  // One writer's history: the pmlsm_control writer profile's depth (configs/dds/profiles.xml).
+  constexpr int kWriterHistory = 4096;
+  for (int i = 0; i < kWriterHistory; ++i) {
+    command.stamp().tick(static_cast<std::uint64_t>(i));
+    command.force_n(-1.0);
+    ASSERT_TRUE(late.write(command)) << "sample " << i;
+  }
+  // The drive reads only now: first what the reader holds, then what the late writer sends again.
+  int taken = 0;
+  bool owners_taken = false;
+  const auto drain_deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (taken < kWriterHistory + 1 && std::chrono::steady_clock::now() < drain_deadline) {
+    const std::uint64_t seen = wakeup.generation();
+    while (reader.take(command)) {
+      ++taken;
+      if (command.force_n() == 12.5 && command.stamp().tick() == 499) owners_taken = true;
+    }
+    wakeup.wait_for(seen, std::chrono::milliseconds(20));
+  }
+  EXPECT_TRUE(owners_taken) << taken << " samples taken; the owner's command was dropped for the late writer's";
+  EXPECT_EQ(taken, kWriterHistory + 1) << "every sample of both writers, none lost";
 }
 
 }  // namespace
