@@ -3,6 +3,7 @@
 // Each test has its own DDS domain and CAN port (offsets 45, 46, 48, 49, 70..72; ports 432xx).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
