@@ -199,10 +199,10 @@ double settling_or_segment_s(const std::map<std::string, std::vector<double>>& c
   return worst_s;
 }
 
-// The bar: on the virtual rig (lockstep) every cost within 2 % of the simulated drive's (of
-// the spread of its costs for the compensators: below) and every settling time within 0.05 s (of
-// that spread's settling times); the quantisation of torque (0.675 N) and position (1 um) is the only difference. Both
-// tables are printed side by side.
+// The bar: on the virtual rig (lockstep) every cost within 2 % of the simulated drive's
+// and every settling time within 0.05 s (for the compensators, of the range of the simulated
+// drive's own costs and settling times: below); the quantisation of torque (0.675 N) and position
+// (1 um) is the only difference. Both tables are printed side by side.
 TEST(VirtualRig, CostsAndSettlingMatchTheSimulatedDriveForEveryCompensatorAndScenario) {
   const fs::path dir = test::fresh_dir("pmlsm_virtual_rig", "costs");
   const std::string domain = test_domain(48);
@@ -257,7 +257,7 @@ TEST(VirtualRig, CostsAndSettlingMatchTheSimulatedDriveForEveryCompensatorAndSce
           const fs::path nudged_dir = dir / ("sim_" + tag + "_nudged_" + std::to_string(static_cast<int>(change * 1e6)));
           *(std::find(args.begin(), args.end(), std::string("--out")) + 1) = nudged_dir.string();
           args.insert(args.end(), {"--set", value});
-          test::ChildProcess nudged(args, (dir / ("sim_" + tag + "_nudged.log")).string());
+          test::ChildProcess nudged(args, nudged_dir.string() + ".log");
           ASSERT_EQ(nudged.wait_for(std::chrono::seconds(120)), std::optional<int>(0)) << nudged.output();
           const auto row = find_row(nudged.output(), "", scenario_name);
           ASSERT_TRUE(row.has_value()) << nudged.output();

@@ -8,7 +8,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <limits>
 
 #include "pmlsm/compensation/accel_feedback.hpp"
@@ -20,6 +19,7 @@
 #include "pmlsm/sim/rnn_training.hpp"
 #include "pmlsm/config/sweep_file.hpp"
 #include "pmlsm/config/weights_file.hpp"
+#include "config_edit.hpp"
 #include "test_support.hpp"
 
 namespace pmlsm {
@@ -172,14 +172,10 @@ TEST(TrainingConfig, ASweepsVerdictJudgesRunsWithTheWorstRatioObjectiveOnly) {
   EXPECT_EQ(judged.verdict.limit_cycle_amplitude_m, sweep.limit_cycle_amplitude_m);
   EXPECT_EQ(judged.verdict.min_decay_rate_per_s, sweep.min_decay_rate_per_s);
   EXPECT_EQ(judged.verdict.max_saturated_tail_share, sweep.max_saturated_tail_share);
-  const auto text_of = [](const std::string& path) {
-    std::ifstream in(path);
-    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  };
   const std::string from_sweep =
       "verdict_from_sweep: {value: sweeps/plant_family.yaml, source: \"chosen: test\"}\n";
   try {
-    parse_training_params(text_of(paper) + from_sweep, paper, 1e-3);
+    parse_training_params(test::read_text("configs/training.yaml") + from_sweep, paper, 1e-3);
     ADD_FAILURE() << "a verdict with the weighted-sum objective was accepted";
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("worst_ratio_to_pi"), std::string::npos) << e.what();
@@ -193,7 +189,7 @@ TEST(TrainingConfig, ASweepsVerdictJudgesRunsWithTheWorstRatioObjectiveOnly) {
   namespace fs = std::filesystem;
   const fs::path dir = fs::temp_directory_path() / ("pmlsm_verdict_" + std::to_string(::getpid()));
   fs::create_directories(dir);
-  std::string sweep_text = text_of(source("configs/sweeps/plant_family.yaml"));
+  std::string sweep_text = test::read_text("configs/sweeps/plant_family.yaml");
   const auto at = sweep_text.find("  tail_windows:");
   ASSERT_NE(at, std::string::npos);
   sweep_text.insert(at, "  tail_ms: {value: 1, source: \"chosen: test\"}\n");
@@ -294,8 +290,7 @@ TEST(RnnCost, CommissionedPlantsCarryTheirIdentifiedModels) {
     EXPECT_NE(std::string(e.what()).find("not a model commissioning identifies"), std::string::npos) << e.what();
   }
   const std::string path = source("configs/training_robust.yaml");
-  std::ifstream in(path);
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string text = test::read_text("configs/training_robust.yaml");
   EXPECT_FALSE(parse_training_params(text, path, 1e-3).identify_models);
   const TrainingParams t = parse_training_params(
       text + "models:\n  identified: {value: true, source: \"chosen: test\"}\n"
@@ -305,8 +300,7 @@ TEST(RnnCost, CommissionedPlantsCarryTheirIdentifiedModels) {
   EXPECT_EQ(t.identification_scenario.name, "identification");
   for (const PlantVariant& plant : t.plants) EXPECT_TRUE(plant.commission) << plant.name << ": commissioned unless told";
   const std::string commissioned_path = source("configs/training_commissioned.yaml");
-  std::ifstream commissioned_in(commissioned_path);
-  const std::string commissioned_file((std::istreambuf_iterator<char>(commissioned_in)), std::istreambuf_iterator<char>());
+  const std::string commissioned_file = test::read_text("configs/training_commissioned.yaml");
   std::string commissioned_text = commissioned_file;
   const std::string configured_models = "commission: {value: false";
   const std::size_t at = commissioned_text.find(configured_models);
