@@ -6,6 +6,7 @@
 // measured motor velocity, then publishes EstimatedState (v_M, v_L, F_s, a_L,
 // and the input u the prediction used). The in-process loop feeds the filter
 // the same three values, so the traces are identical.
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 
@@ -25,7 +26,8 @@ namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
 
 class KalmanEstimatorNode {
  public:
-  KalmanEstimatorNode(const node::CommonOptions& common, node::NodeRuntime& rt)
+  /// estimate_readers: EstimatedState readers to wait for before the first estimate (0: at once).
+  KalmanEstimatorNode(const node::CommonOptions& common, node::NodeRuntime& rt, int estimate_readers)
       : common_(common),
         rt_(rt),
         period_s_(rt.period_s),
@@ -35,7 +37,8 @@ class KalmanEstimatorNode {
         feedback_reader_(rt.participant.make_reader<msg::MotorFeedbackPubSubType>(
             pdds::topics::kMotorFeedback, rt.wakeup, pdds::kObserverProfile)),
         estimate_writer_(rt.participant.make_writer<msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState)),
-        filter_(rt.cfg.params.kalman_params()) {}
+        filter_(rt.cfg.params.kalman_params()),
+        estimate_readers_(estimate_readers) {}
 
   int run();
 
@@ -52,6 +55,7 @@ class KalmanEstimatorNode {
   pdds::Reader<msg::MotorFeedbackPubSubType> feedback_reader_;
   pdds::Writer<msg::EstimatedStatePubSubType> estimate_writer_;
   KalmanFilter filter_;
+  int estimate_readers_;
 
   msg::MotorFeedback feedback_;
   msg::EstimatedState estimate_;
@@ -74,6 +78,20 @@ void KalmanEstimatorNode::estimate(std::uint64_t k) {
 }
 
 int KalmanEstimatorNode::run() {
+  // A drive that runs a short scenario fast can be done before an observer's EstimatedState reader
+  // matched; the estimates written before the match would then reach nobody.
+  if (estimate_readers_ > 0) {
+    rt_.status.publish(node_state::STATE_WAITING, 0, period_s_, "waiting for readers");
+    const bool matched = node::wait_until(rt_.wakeup, std::chrono::duration<double>(common_.peer_timeout_s), [&] {
+      return estimate_writer_.matched_readers() >= static_cast<std::size_t>(estimate_readers_);
+    });
+    if (!matched) {
+      if (pdds::stop_requested()) return finish(kExitOk);
+      std::fprintf(stderr, "kalman_estimator: readers missing after %.1f s: %zu of %d EstimatedState readers\n",
+                   common_.peer_timeout_s, estimate_writer_.matched_readers(), estimate_readers_);
+      return finish(kExitPeerMissing);
+    }
+  }
   rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "running");
   int exit_code = kExitOk;
   while (next_tick_ < ticks_ && !pdds::stop_requested()) {
@@ -106,9 +124,14 @@ int run(int argc, char** argv) {
   node::CommonOptions common;
   common.spin_us = 0.0;
   node::add_common_options(app, common);
+  int estimate_readers = 0;
+  app.add_option("--estimate-readers", estimate_readers,
+                 "EstimatedState readers to wait for before the first estimate (0: estimate at once)")
+      ->check(CLI::Range(0, 64))
+      ->capture_default_str();
   if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
   node::NodeRuntime rt("kalman_estimator", common);
-  KalmanEstimatorNode node(common, rt);
+  KalmanEstimatorNode node(common, rt, estimate_readers);
   return node.run();
 }
 

@@ -51,9 +51,12 @@ TEST(DriveSafety, ARunThatNeverEnabledTheDriveEndsWith5AndTheEvaluatorMarksItInv
   const std::string domain = test_domain(40);
   test::ChildProcess evaluator(node_args("evaluator", domain, scenario, {"--out", dir.string()}),
                                (dir / "evaluator.log").string());
-  test::ChildProcess estimator(node_args("kalman_estimator", domain, scenario), (dir / "estimator.log").string());
   // The drive never enabled steps its 300 ticks in about 30 ms: the controller answers only once
-  // the drive and the evaluator read its commands (without, 2 of 10 runs lost them all to a late match).
+  // the drive and the evaluator read its commands (without, 2 of 10 runs lost them all to a late
+  // match), the estimator estimates only once the evaluator reads it (a clean-clone CI run had
+  // every EstimatedState missing at the evaluator).
+  test::ChildProcess estimator(node_args("kalman_estimator", domain, scenario, {"--estimate-readers", "1"}),
+                               (dir / "estimator.log").string());
   test::ChildProcess controller(
       node_args("controller", domain, scenario, {"--command-readers", "2", "--reference-readers", "1"}),
       (dir / "controller.log").string());
@@ -72,8 +75,8 @@ TEST(DriveSafety, ARunThatNeverEnabledTheDriveEndsWith5AndTheEvaluatorMarksItInv
   fs::remove_all(dir);
 }
 
-// A controller told to wait for its readers gives up after the peer timeout, naming what is missing.
-TEST(DriveSafety, AControllerWithoutItsReadersSaysWhichAndExits3) {
+// A controller or an estimator told to wait for its readers gives up after the peer timeout, naming what is missing.
+TEST(DriveSafety, AControllerOrEstimatorWithoutItsReadersSaysWhichAndExits3) {
   const fs::path dir = test::fresh_dir("pmlsm_no_readers", "run");
   const std::string scenario = short_pulse(dir, 0.3);
   test::ChildProcess controller(node_args("controller", test_domain(90), scenario,
@@ -85,6 +88,15 @@ TEST(DriveSafety, AControllerWithoutItsReadersSaysWhichAndExits3) {
   EXPECT_NE(controller.output().find("readers missing after 1.0 s: 0 of 2 ForceCommand readers, 0 of 1 VelocityReference readers"),
             std::string::npos)
       << controller.output();
+  // The estimator told to wait for its readers alike.
+  test::ChildProcess estimator(
+      node_args("kalman_estimator", test_domain(90), scenario, {"--estimate-readers", "1", "--peer-timeout-s", "1"}),
+      (dir / "estimator.log").string());
+  const auto estimator_code = estimator.wait_for(std::chrono::seconds(30));
+  ASSERT_TRUE(estimator_code.has_value()) << estimator.output();
+  EXPECT_EQ(*estimator_code, 3) << estimator.output();
+  EXPECT_NE(estimator.output().find("readers missing after 1.0 s: 0 of 1 EstimatedState readers"), std::string::npos)
+      << estimator.output();
   fs::remove_all(dir);
 }
 
