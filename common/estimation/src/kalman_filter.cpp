@@ -18,6 +18,7 @@ void KalmanParams::validate() const {
   require_positive("load_mass_kg", load_mass_kg);
   require_positive("spring_n_per_m", spring_n_per_m);
   require_in_range("period_s", period_s, 1e-6, 1.0);
+  require_in_range("thrust_lag_s", thrust_lag_s, 0.0, 1.0);
   require_non_negative("process_noise_diag[0]", process_noise_diag(0));
   require_non_negative("process_noise_diag[1]", process_noise_diag(1));
   require_non_negative("process_noise_diag[2]", process_noise_diag(2));
@@ -57,6 +58,7 @@ void KalmanFilter::reset(const Eigen::Vector3d& initial_state) {
   x_ = initial_state;
   p_ = params_.initial_covariance_diag.asDiagonal();
   last_input_n_ = 0;
+  thrust_n_ = 0;
   last_position_m_ = 0;
   have_last_position_ = false;
 }
@@ -91,11 +93,18 @@ KalmanEstimate KalmanFilter::step(const KalmanInput& in) {
     ++counters_.rejected_inputs;
   }
   // u_{k-1} = F_{k-1} (+ F_friction(v_k) + F_ripple(xbar_k) when modelled; see the header).
+  double force_n = last_input_n_;
+  if (params_.thrust_lag_s > 0) {
+    const double decay = std::exp(-params_.period_s / params_.thrust_lag_s);
+    const double start_n = thrust_n_;
+    force_n = last_input_n_ + (start_n - last_input_n_) * (params_.thrust_lag_s / params_.period_s) * (1.0 - decay);
+    thrust_n_ = last_input_n_ + (start_n - last_input_n_) * decay;
+  }
   const bool disturbance_modelled = params_.friction_input.enabled || params_.ripple_input.enabled;
   const double input_n =
       disturbance_modelled
-          ? last_input_n_ + modelled_disturbance_n(in.motor_velocity_measured_mps, in.motor_position_m)
-          : last_input_n_;
+          ? force_n + modelled_disturbance_n(in.motor_velocity_measured_mps, in.motor_position_m)
+          : force_n;
   // The standstill hold's test, on the estimate before this step (see the header).
   const double y = in.motor_velocity_measured_mps;
   bool hold = false;

@@ -69,6 +69,7 @@ KalmanParams SystemParams::kalman_params() const {
   p.friction_input = kalman.friction_input;
   p.ripple_input = kalman.ripple_input;
   p.standstill_hold = kalman.standstill_hold;
+  p.thrust_lag_s = kalman.thrust_lag_s;
   return p;
 }
 
