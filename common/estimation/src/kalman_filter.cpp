@@ -92,7 +92,8 @@ KalmanEstimate KalmanFilter::step(const KalmanInput& in) {
   } else {
     ++counters_.rejected_inputs;
   }
-  // u_{k-1} = F_{k-1} (+ F_friction(v_k) + F_ripple(xbar_k) when modelled; see the header).
+  // u_{k-1} = F_{k-1}, or with the thrust lag the period's mean thrust Fbar_k (+ F_friction(v_k) +
+  // F_ripple(xbar_k) when modelled; see the header).
   double force_n = last_input_n_;
   if (params_.thrust_lag_s > 0) {
     const double decay = std::exp(-params_.period_s / params_.thrust_lag_s);

@@ -273,9 +273,9 @@ void visit_parameters(Params& p, Visitor& v) {
                          p.kalman.model.spring_n_per_m, v);
   const Plausible noise{0.0, 1e12, "a variance: 0 to 1e12 (a 1 MN or 1 Mm/s standard deviation)"};
   v.vector3("kalman.process_noise_diag", p.kalman.process_noise_diag, noise);
-  v.real("kalman.thrust_lag_s", p.kalman.thrust_lag_s, {0.0, 1.0, "0 (thrust = command) to 1 s"});
   v.real("kalman.measurement_noise", p.kalman.measurement_noise,
          {1e-15, 1e6, "a variance: positive (the filter divides by it), up to 1e6"});
+  v.real("kalman.thrust_lag_s", p.kalman.thrust_lag_s, {0.0, 1.0, "0 (thrust = command) to 1 s"});
   v.vector3("kalman.initial_covariance_diag", p.kalman.initial_covariance_diag, noise);
   v.flag("kalman.friction_input.enabled", p.kalman.friction_input.enabled);
   detail::visit_friction("kalman.friction_input", p.kalman.friction_input.model, v);
