@@ -324,7 +324,7 @@ TEST(KalmanThrustLag, BadValuesThrowNamingTheValue) {
 
 // Behaviour in the loop: a compensation force that chatters at 167 Hz (+-300 N, a period of six
 // ticks, as the RNN did on stiff 5 kg plants) on top of the free vibration. The current loop
-// (3000 rad/s) leaves each step of the command 30 % short in its period; a filter that takes the
+// (3000 rad/s) leaves each step of the command 32 % short in its period; a filter that takes the
 // command for the thrust reads the shortfall as spring force, and so feeds the chatter back to
 // the compensator that made it.
 TEST(KalmanThrustLag, KeepsACompensatorsChatterOutOfTheSpringForceEstimate) {
