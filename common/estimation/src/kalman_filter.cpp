@@ -51,6 +51,11 @@ KalmanFilter::KalmanFilter(const KalmanParams& params) : params_(params) {
   gamma_ = d.gamma;
   q_ = params_.process_noise_diag.asDiagonal();
   load_impedance_n_s_per_m_ = std::sqrt(params_.spring_n_per_m * params_.load_mass_kg);
+  if (params_.thrust_lag_s > 0) {
+    lag_decay_ = std::exp(-params_.period_s / params_.thrust_lag_s);
+    lag_over_period_ = params_.thrust_lag_s / params_.period_s;
+    lag_rise_ = 1.0 - lag_decay_;
+  }
   reset();
 }
 
@@ -96,10 +101,11 @@ KalmanEstimate KalmanFilter::step(const KalmanInput& in) {
   // F_ripple(xbar_k) when modelled; see the header).
   double force_n = last_input_n_;
   if (params_.thrust_lag_s > 0) {
-    const double decay = std::exp(-params_.period_s / params_.thrust_lag_s);
-    const double start_n = thrust_n_;
-    force_n = last_input_n_ + (start_n - last_input_n_) * (params_.thrust_lag_s / params_.period_s) * (1.0 - decay);
-    thrust_n_ = last_input_n_ + (start_n - last_input_n_) * decay;
+    const double lag_n = thrust_n_ - last_input_n_;  // Fhat_{k-1} - F_{k-1}
+    // Evaluated in this order, (lag_n tau_i / T)(1 - e^{-T / tau_i}): the shipped weights were
+    // searched on these bits, and the loop's stick-slip carries a last-digit change to the cost.
+    force_n = last_input_n_ + lag_n * lag_over_period_ * lag_rise_;
+    thrust_n_ = last_input_n_ + lag_n * lag_decay_;
   }
   const bool disturbance_modelled = params_.friction_input.enabled || params_.ripple_input.enabled;
   const double input_n =

@@ -167,6 +167,9 @@ class KalmanFilter {
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d p_;
   double last_input_n_ = 0;
+  double lag_decay_ = 0;           ///< e^{-T / tau_i}
+  double lag_over_period_ = 0;     ///< tau_i / T
+  double lag_rise_ = 0;            ///< 1 - e^{-T / tau_i}
   double thrust_n_ = 0;            ///< the lag model's thrust at t_{k-1}
   double last_position_m_ = 0;     ///< x_{k-1}, for the ripple input's midpoint
   bool have_last_position_ = false;
