@@ -34,7 +34,7 @@ struct VibrationGuardParams {
   double control_period_s = 1e-3;
   double highpass_hz = 5.0;            ///< f_c of the high-pass, > 0, below the Nyquist frequency
   double window_s = 0.1;               ///< the evaluation window, at least 2 periods
-  double min_oscillation_mps = 2e-3;   ///< A below this is no oscillation to guard against
+  double min_oscillation_mps = 4e-3;   ///< A below this is no oscillation to guard against
   double growth_ratio = 1.25;          ///< A(window) / A(previous) above this is growth, > 1
   double min_decay = 0.2;              ///< a damped oscillation loses at least this share a window, (0, 1)
   std::uint32_t windows_to_trip = 3;   ///< >= 1
