@@ -122,7 +122,7 @@ TEST(Identification, TheIdentifiedLoadSetsTheModelsAndSchedulesTheGains) {
   EXPECT_DOUBLE_EQ(p.accel_feedback_params().gain_kg, 0.5 * shipped.accel_feedback_params().gain_kg);
   EXPECT_DOUBLE_EQ(p.rnn_compensator_params(false).output_scale, 0.5);
   IdentifiedLoad heavy = light;
-  heavy.load_mass_kg = 8.0;
+  heavy.load_mass_kg = 12.0;  // 3x the design load: above the limit
   const SystemParams q = with_identified_load(shipped, heavy);
   EXPECT_DOUBLE_EQ(q.compensator_gain_scale(), shipped.compensator.max_gain_scale);
   IdentifiedLoad absurd = light;
