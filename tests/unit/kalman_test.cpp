@@ -441,8 +441,11 @@ TEST(KalmanStandstillHold, DampsTheSwingLeftOnAHeavySoftLoad) {
     p.kalman.standstill_hold.enabled = hold;
     // The filter the hold was found on, the command taken for the thrust: with the current loop's
     // lag modelled the estimate keeps more of the swing without the hold (tail 1.11 mm, the hold's
-    // 1.07 mm: it no longer halves it, and both stay over the verdict's 0.5 mm).
+    // 1.07 mm: it no longer halves it, and both stay over the verdict's 0.5 mm). And the gain
+    // schedule's limit of that time, K_a 200 kg on this load: at the shipped limit (320 kg) the hold
+    // still shrinks the tail (0.54 against 0.82 mm) but costs a little (16.80 against 16.22).
     p.kalman.thrust_lag_s = 0.0;
+    p.compensator.max_gain_scale = 1.25;
     p.validate();
     const auto trace = run_with_compensator(p, pulse, {CompensatorKind::kAccel, {}, false});
     return judge_run(trace, pulse, p.timing.control_period_s, p.velocity_loop.force_limit_n, verdict);
