@@ -86,9 +86,9 @@ class ControllerNode {
  private:
   /// The drive restarted: what this loop integrated belongs to the old run.
   void follow_new_run();
-  /// The compensator's force for tick k (0 when there is none), into `applied_n`; false when
-  /// lockstep waited for it in vain.
-  bool compensation_for(std::uint64_t k, double& applied_n);
+  /// The compensator's force for tick k and its share of the compensator's range (none: zero),
+  /// into `applied`; false when lockstep waited for it in vain.
+  bool compensation_for(std::uint64_t k, Compensation& applied);
   bool take_compensation(std::uint64_t k);
   void publish(std::uint64_t k, const VelocityControllerOutput& out, double applied_compensation_n);
   /// The voltage command level: the drive's current loop, 32 exchanges per tick.
@@ -129,7 +129,7 @@ class ControllerNode {
   msg::CurrentFeedback current_feedback_;
   msg::VoltageCommand voltage_command_;
   msg::CompensatorOutput compensator_output_;
-  double compensation_n_ = 0.0;
+  Compensation compensation_;
   std::uint64_t compensation_tick_ = 0;
   bool have_compensation_ = false;
   std::uint64_t compensation_missing_ = 0;
@@ -174,25 +174,26 @@ double ControllerNode::external_command(std::uint64_t k) {
 void ControllerNode::follow_new_run() {
   controller_.emplace(rt_.cfg.params, rt_.cfg.scenario);
   have_compensation_ = false;
-  compensation_n_ = 0.0;
+  compensation_ = {};
   last_velocity_ = 0.0;
 }
 
 bool ControllerNode::take_compensation(std::uint64_t k) {
   while (compensation_reader_.take(compensator_output_)) {
     const std::uint64_t t = compensator_output_.stamp().tick();
-    if ((have_compensation_ && t <= compensation_tick_) || !std::isfinite(compensator_output_.force_n())) {
+    if ((have_compensation_ && t <= compensation_tick_) || !std::isfinite(compensator_output_.force_n()) ||
+        !std::isfinite(compensator_output_.u_n())) {
       ++rejected_;
       continue;
     }
     compensation_tick_ = t;
-    compensation_n_ = compensator_output_.force_n();
+    compensation_ = {compensator_output_.force_n(), std::fabs(compensator_output_.u_n())};
     have_compensation_ = true;
   }
   return have_compensation_ && compensation_tick_ + 1 >= k;
 }
 
-bool ControllerNode::compensation_for(std::uint64_t k, double& applied_n) {
+bool ControllerNode::compensation_for(std::uint64_t k, Compensation& applied) {
   // Output k-1 belongs to tick k; lockstep waits for it, realtime takes what is there.
   if (lockstep_) {
     if (!node::wait_until(rt_.wakeup, peer_timeout_, [&] { return take_compensation(k); })) return false;
@@ -200,7 +201,7 @@ bool ControllerNode::compensation_for(std::uint64_t k, double& applied_n) {
     take_compensation(k);
   }
   if (have_compensation_ && compensation_tick_ + 3 >= k) {
-    applied_n = compensation_n_;
+    applied = compensation_;
   } else {
     ++compensation_missing_;
   }
@@ -277,15 +278,15 @@ int ControllerNode::run() {
       velocity = last_velocity_;
     }
     last_velocity_ = velocity;
-    double applied_compensation_n = 0.0;
-    if (compensated_ && k > 0 && !compensation_for(k, applied_compensation_n)) {
+    Compensation compensation;
+    if (compensated_ && k > 0 && !compensation_for(k, compensation)) {
       exit_code = node::end_of_failed_wait("controller", "CompensatorOutput", "compensator", k - 1,
                                            common_.peer_timeout_s);
       break;
     }
     const VelocityControllerOutput out =
-        external_ ? controller_->step_command(external_command(k), velocity, applied_compensation_n)
-                  : controller_->step(k, velocity, applied_compensation_n);
+        external_ ? controller_->step_command(external_command(k), velocity, compensation)
+                  : controller_->step(k, velocity, compensation);
     if (out.guard.tripped && !guard_reported_) {
       // Once: the compensation fades out and stays out; the controller goes on as PI alone.
       guard_reported_ = true;

@@ -18,6 +18,7 @@
 #include "pmlsm/compensation/accel_feedback.hpp"
 #include "pmlsm/compensation/state_feedback.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/sim/compensated_run.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/sim/rnn_training.hpp"
@@ -121,10 +122,7 @@ TEST(CompensatorDistributed, AccelFeedbackTraceEqualsInProcess) {
   const CompensatedRun run = run_loop(dir, domain, compensator);
 
   const SystemParams params = system_params();
-  AccelFeedback feedback(params.accel_feedback_params());
-  const auto in_process = run_compensated(params, scenario(params), [&](const CompensatorView& v) {
-    return feedback.step(accel_feedback_input(v));
-  });
+  const auto in_process = run_with_compensator(params, scenario(params), {CompensatorKind::kAccel, {}, false});
   expect_same_trace(dir, run, in_process);
   EXPECT_NE(run.compensator_output.find("2000 ticks answered"), std::string::npos) << run.compensator_output;
   if (!::testing::Test::HasFailure()) fs::remove_all(dir);
@@ -137,10 +135,7 @@ TEST(CompensatorDistributed, StateFeedbackTraceEqualsInProcess) {
   const CompensatedRun run = run_loop(dir, domain, compensator);
 
   const SystemParams params = system_params();
-  StateFeedback feedback(params.state_feedback_params());
-  const auto in_process = run_compensated(params, scenario(params), [&](const CompensatorView& v) {
-    return feedback.step(state_feedback_input(v));
-  });
+  const auto in_process = run_with_compensator(params, scenario(params), {CompensatorKind::kState, {}, false});
   expect_same_trace(dir, run, in_process);
   EXPECT_NE(run.compensator_output.find("2000 ticks answered"), std::string::npos) << run.compensator_output;
   EXPECT_NE(run.compensator_output.find("0 rejected, 0 model restarts, 0 skipped"), std::string::npos)

@@ -80,10 +80,10 @@ TEST(ClosedLoop, CompensationForceEntersTheForceCommand) {
   const Scenario scenario = test::shipped_scenario("free_vibration");
   ClosedLoop loop(params, scenario);
   std::vector<TickRecord> trace;
-  double compensation = 0;
+  Compensation compensation;
   while (!loop.done()) {
     trace.push_back(loop.step(compensation));
-    compensation = -80.0 * loop.plant().truth().load_accel_mps2;
+    compensation.force_n = -80.0 * loop.plant().truth().load_accel_mps2;
   }
   const ScenarioMetrics m = compute_metrics(trace, scenario, params.timing.control_period_s);
   std::printf("[ closed loop] PI + true acceleration feedback: settles in %.2f s\n", m.load_settling_time_s);

@@ -14,6 +14,7 @@
 #include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/sim/identification.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/sim/compensated_run.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/sim/metrics.hpp"
 #include "pmlsm/sim/rnn_training.hpp"
@@ -76,7 +77,8 @@ TEST(AccelFeedback, OnTheReferenceErrorTracksASineBetterThanPiAlone) {
     const Scenario s = shipped_scenario(scenario_name);
     AccelFeedback feedback(p.accel_feedback_params());
     const auto trace = run_compensated(p, s, [&](const CompensatorView& v) {
-      return compensated ? feedback.step(accel_feedback_input(v)) : 0.0;
+      return compensated ? clamped_compensation(feedback.step(accel_feedback_input(v)), feedback.params().force_limit_n)
+                         : Compensation{};
     });
     return compute_metrics(trace, s, p.timing.control_period_s).cost_true;
   };
@@ -94,8 +96,7 @@ TEST(AccelFeedback, DampsThePulseTestInTheLoop) {
   const SystemParams& p = shipped_params();
   const Scenario pulse = shipped_scenario("pulse");
   const double pi_cost = compute_metrics(run_scenario(p, pulse), pulse, p.timing.control_period_s).cost_true;
-  AccelFeedback feedback(p.accel_feedback_params());
-  const auto trace = run_compensated(p, pulse, [&](const CompensatorView& v) { return feedback.step(accel_feedback_input(v)); });
+  const auto trace = run_with_compensator(p, pulse, {CompensatorKind::kAccel, {}, false});
   const ScenarioMetrics m = compute_metrics(trace, pulse, p.timing.control_period_s);
   EXPECT_LT(m.cost_true, pi_cost / 3) << "PI only " << pi_cost;
   // The force of tick k's estimate is applied at tick k+1.
@@ -113,8 +114,7 @@ TEST(AccelFeedback, DampsThePulseTestInTheLoop) {
 TEST(AccelFeedback, SettlesTheFreeVibrationOnlyWithTheShippedFilter) {
   const Scenario free = shipped_scenario("free_vibration");
   const auto settling_s = [&](const SystemParams& p) {
-    AccelFeedback feedback(p.accel_feedback_params());
-    const auto trace = run_compensated(p, free, [&](const CompensatorView& v) { return feedback.step(accel_feedback_input(v)); });
+    const auto trace = run_with_compensator(p, free, {CompensatorKind::kAccel, {}, false});
     return compute_metrics(trace, free, p.timing.control_period_s).load_settling_time_s;
   };
   SystemParams paper = shipped_params();
@@ -428,11 +428,7 @@ TEST(ShippedWeights, RnnBeatsPiOnlyAndThePapersAccelerationFeedbackOnThePulseTes
   const auto accel_cost = [&](bool on_reference_error) {
     SystemParams q = p;
     q.compensator.accel_feedback_on_reference_error = on_reference_error;
-    AccelFeedback feedback(q.accel_feedback_params());
-    return compute_metrics(
-               run_compensated(q, pulse, [&](const CompensatorView& v) { return feedback.step(accel_feedback_input(v)); }),
-               pulse, period)
-        .cost_true;
+    return compute_metrics(run_with_compensator(q, pulse, {CompensatorKind::kAccel, {}, false}), pulse, period).cost_true;
   };
   const double papers_accel = accel_cost(false), shipped_accel = accel_cost(true);
   const ScenarioMetrics rnn = compute_metrics(run_with_rnn(p, pulse, file.weights, false), pulse, period);

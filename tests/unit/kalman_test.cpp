@@ -336,7 +336,7 @@ TEST(KalmanThrustLag, KeepsACompensatorsChatterOutOfTheSpringForceEstimate) {
     double sum = 0;
     std::size_t n = 0;
     for (int k = 0; k < 1000; ++k) {
-      const TickRecord r = loop.step(k % 6 < 3 ? 300.0 : -300.0);
+      const TickRecord r = loop.step({k % 6 < 3 ? 300.0 : -300.0, 0.0});
       if (k < 200) continue;  // the start (F_s = -274 N, unknown to the filter) found
       sum += std::pow(r.est_spring_force_n - r.spring_force_n, 2);
       ++n;

@@ -335,8 +335,8 @@ TEST(ReferenceLoop, WithoutTheReferenceModelVrefIsTheCommand) {
   VelocityController shaped(params, s);
   double max_gap_shaped = 0;
   for (std::uint64_t k = 0; k < 400; ++k) {
-    const VelocityControllerOutput a = bypass.step(k, 0.0, 0.0);
-    const VelocityControllerOutput b = shaped.step(k, 0.0, 0.0);
+    const VelocityControllerOutput a = bypass.step(k, 0.0, {});
+    const VelocityControllerOutput b = shaped.step(k, 0.0, {});
     EXPECT_EQ(a.v_ref_mps, a.command_mps);
     EXPECT_LE(std::abs(a.a_ref_mps2), 3.0 + 1e-9);
     max_gap_shaped = std::max(max_gap_shaped, std::abs(b.v_ref_mps - b.command_mps));

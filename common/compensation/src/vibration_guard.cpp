@@ -32,7 +32,10 @@ void VibrationGuardParams::validate() const {
   }
   if (windows_to_trip < 1) throw std::invalid_argument("windows_to_trip: must be >= 1, got 0");
   require_positive("max_reference_share", max_reference_share);
-  require_positive("compensation_limit_n", compensation_limit_n);
+  require_finite("saturated_output_share", saturated_output_share);
+  if (!(saturated_output_share > 0.0 && saturated_output_share <= 1.0)) {
+    throw std::invalid_argument("saturated_output_share: must be in (0, 1], got " + format_value(saturated_output_share));
+  }
   require_finite("max_saturated_share", max_saturated_share);
   if (!(max_saturated_share > 0.0 && max_saturated_share <= 1.0)) {
     throw std::invalid_argument("max_saturated_share: must be in (0, 1], got " + format_value(max_saturated_share));
@@ -86,7 +89,8 @@ VibrationGuardOutput VibrationGuard::step(const VibrationGuardInput& in) noexcep
   double error_mps = in.motor_velocity_mps - in.reference_velocity_mps;
   double reference_mps = in.reference_velocity_mps;
   double force_n = in.compensation_force_n;
-  if (!std::isfinite(error_mps) || !std::isfinite(reference_mps) || !std::isfinite(force_n)) {
+  if (!std::isfinite(error_mps) || !std::isfinite(reference_mps) || !std::isfinite(force_n) ||
+      !std::isfinite(in.compensation_output_share)) {
     ++counters_.rejected_inputs;
     error_mps = std::isfinite(error_mps) ? error_mps : e_prev_;
     reference_mps = std::isfinite(reference_mps) ? reference_mps : r_prev_;
@@ -105,7 +109,8 @@ VibrationGuardOutput VibrationGuard::step(const VibrationGuardInput& in) noexcep
   const double r_hp = reference_hp_.step(reference_mps, alpha_);
   const double f_hp = force_hp_.step(force_n, alpha_);
 
-  if (std::fabs(force_n) >= params_.compensation_limit_n * (1.0 - 1e-9)) ++saturated_in_window_;
+  // A non-finite share counts as not saturated: the window is then judged, never excused.
+  if (std::fabs(in.compensation_output_share) >= params_.saturated_output_share) ++saturated_in_window_;
   sum_e2_ += e_hp * e_hp;
   sum_r2_ += r_hp * r_hp;
   sum_f2_ += f_hp * f_hp;

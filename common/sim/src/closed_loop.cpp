@@ -45,7 +45,7 @@ ClosedLoop::ClosedLoop(const SystemParams& params, const Scenario& scenario, con
   total_ticks_ = scenario_ticks(scenario_, params_.timing.control_period_s);
 }
 
-TickRecord ClosedLoop::step(double compensation_force_n) {
+TickRecord ClosedLoop::step(const Compensation& compensation) {
   TickRecord rec;
   rec.tick = tick_;
   rec.time_s = static_cast<double>(tick_) * params_.timing.control_period_s;
@@ -63,7 +63,7 @@ TickRecord ClosedLoop::step(double compensation_force_n) {
   rec.est_load_accel_mps2 = est.load_accel_mps2;
 
   const VelocityControllerOutput control =
-      controller_.step(tick_, feedback.velocity_mps, compensation_force_n);
+      controller_.step(tick_, feedback.velocity_mps, compensation);
   rec.command_mps = control.command_mps;
   rec.v_ref_mps = control.v_ref_mps;
   rec.a_ref_mps2 = control.a_ref_mps2;

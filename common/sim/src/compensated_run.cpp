@@ -40,11 +40,14 @@ std::vector<TickRecord> run_with_compensator(const SystemParams& params, const S
                                              const CompensatorSetup& setup, std::uint64_t max_ticks) {
   switch (setup.kind) {
     case CompensatorKind::kNone:
-      return run_compensated(params, scenario, [](const CompensatorView&) { return 0.0; }, max_ticks);
+      return run_compensated(params, scenario, [](const CompensatorView&) { return Compensation{}; }, max_ticks);
     case CompensatorKind::kAccel: {
       AccelFeedback feedback(params.accel_feedback_params());
       return run_compensated(
-          params, scenario, [&](const CompensatorView& view) { return feedback.step(accel_feedback_input(view)); },
+          params, scenario,
+          [&](const CompensatorView& view) {
+            return clamped_compensation(feedback.step(accel_feedback_input(view)), feedback.params().force_limit_n);
+          },
           max_ticks);
     }
     case CompensatorKind::kRnn:
@@ -52,7 +55,10 @@ std::vector<TickRecord> run_with_compensator(const SystemParams& params, const S
     case CompensatorKind::kState: {
       StateFeedback feedback(params.state_feedback_params());
       return run_compensated(
-          params, scenario, [&](const CompensatorView& view) { return feedback.step(state_feedback_input(view)); },
+          params, scenario,
+          [&](const CompensatorView& view) {
+            return clamped_compensation(feedback.step(state_feedback_input(view)), feedback.params().force_limit_n);
+          },
           max_ticks);
     }
   }

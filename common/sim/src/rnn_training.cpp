@@ -181,7 +181,7 @@ RnnCost::RnnCost(const SystemParams& params, std::vector<TrainingScenario> scena
     Plant plant{variant.name, apply_plant_variant(params, variant), variant.weight, {}};
     if (objective_ == PlantObjective::kWorstRatioToPi) {
       for (const TrainingScenario& s : scenarios_) {
-        const auto trace = run_compensated(plant.params, s.scenario, [](const CompensatorView&) { return 0.0; },
+        const auto trace = run_compensated(plant.params, s.scenario, [](const CompensatorView&) { return Compensation{}; },
                                            cost_ticks(s.scenario));
         const double pi_cost = scenario_cost(trace, s.scenario);
         if (!(pi_cost > 0) || !std::isfinite(pi_cost)) {
@@ -269,7 +269,8 @@ std::vector<TickRecord> run_with_rnn(const SystemParams& params, const Scenario&
   return run_compensated(
       params, scenario,
       [&rnn](const CompensatorView& view) {
-        return rnn.step(rnn_input(view)).force_n;
+        const CompensatorStep step = rnn.step(rnn_input(view));
+        return Compensation{step.force_n, std::fabs(step.u_n)};
       },
       max_ticks);
 }

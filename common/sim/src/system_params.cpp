@@ -101,7 +101,7 @@ VibrationGuardParams SystemParams::vibration_guard_params() const {
   p.windows_to_trip = static_cast<std::uint32_t>(compensator.guard_windows_to_trip);
   p.fade_s = compensator.guard_fade_s;
   p.max_reference_share = compensator.guard_max_reference_share;
-  p.compensation_limit_n = velocity_loop.force_limit_n;
+  p.saturated_output_share = compensator.guard_saturated_output_share;
   p.max_saturated_share = compensator.guard_max_saturated_share;
   return p;
 }

@@ -21,13 +21,13 @@ ExternalReferenceParams external_reference_params(const Scenario& scenario, doub
 }
 
 VelocityControllerOutput VelocityController::step(std::uint64_t tick, double motor_velocity_mps,
-                                                  double compensation_force_n) {
+                                                  const Compensation& compensation) {
   return step_command(scenario_.command_mps(static_cast<double>(tick) * period_s_), motor_velocity_mps,
-                      compensation_force_n);
+                      compensation);
 }
 
 VelocityControllerOutput VelocityController::step_command(double command_mps, double motor_velocity_mps,
-                                                          double compensation_force_n) {
+                                                          const Compensation& compensation) {
   VelocityControllerOutput out;
   out.command_mps = command_mps;
   ReferenceSample ref;
@@ -44,8 +44,11 @@ VelocityControllerOutput VelocityController::step_command(double command_mps, do
   out.a_ref_mps2 = ref.accel_mps2;
   // The guard's scale of the previous period (it judges what was applied), then its new look.
   const double scale = guard_ ? guard_->output().scale : 1.0;
-  out.compensation_applied_n = scale * compensation_force_n;
-  if (guard_) out.guard = guard_->step({motor_velocity_mps, ref.velocity_mps, out.compensation_applied_n});
+  out.compensation_applied_n = scale * compensation.force_n;
+  if (guard_) {
+    out.guard =
+        guard_->step({motor_velocity_mps, ref.velocity_mps, out.compensation_applied_n, compensation.output_share});
+  }
   const VelocityPiOutput f = velocity_.step({ref.velocity_mps, motor_velocity_mps, out.compensation_applied_n});
   out.force_n = f.force_n;
   out.saturated = f.saturated;

@@ -17,10 +17,13 @@
 // A > max_reference_share A_ref: a loop tracking a fast reference has a steady error at the
 // reference's frequency that is its bandwidth's, not a limit cycle (a limit cycle needs no
 // reference; one riding on a moving reference still makes A outgrow the tracking error).
-// A window in which the compensation sat at its limit (compensation_limit_n) for more than
-// max_saturated_share of its ticks is not judged for a sustained oscillation: a saturated
-// compensator forces the motor at a constant amplitude while it damps the load (the free
-// vibration's first 0.4 s on a light load), so the motor cannot show the decay; growth still is.
+// A window in which the compensator sat at its own limit for more than max_saturated_share of
+// its ticks is not judged for a sustained oscillation: a saturated compensator forces the motor
+// at a constant amplitude while it damps the load (the free vibration's first 0.4 s on a light
+// load), so the motor cannot show the decay; growth still is. At its limit means an output share
+// |F_c| / F_c,max of at least saturated_output_share, as the compensator reports it: a clamped law
+// reaches 1, the RNN's tanh output u_n only comes near it (at |u_n| = 0.9 its slope is a fifth of
+// the linear one, and the output barely answers its input).
 // Tripped, the compensation's scale ramps from 1 to 0 over fade_s and stays 0 (latched) until
 // reset(). step() never throws and does not allocate; a non-finite input is counted and the
 // last finite one used instead.
@@ -39,7 +42,7 @@ struct VibrationGuardParams {
   double min_decay = 0.2;              ///< a damped oscillation loses at least this share a window, (0, 1)
   std::uint32_t windows_to_trip = 3;   ///< >= 1
   double max_reference_share = 1.0;    ///< a window with A <= this x A_ref is the reference's, > 0
-  double compensation_limit_n = 1e300; ///< the compensation's own limit, > 0
+  double saturated_output_share = 1.0; ///< |F_c| / F_c,max at or above this: at the limit, (0, 1]
   double max_saturated_share = 1.0;    ///< above this share of a window at the limit: not judged sustained, (0, 1]
   double fade_s = 0.05;                ///< >= 0 (0: off at once)
   void validate() const;
@@ -52,6 +55,7 @@ struct VibrationGuardInput {
   double motor_velocity_mps = 0;     ///< measured v_M(k)
   double reference_velocity_mps = 0; ///< V_ref(k), what the velocity loop follows
   double compensation_force_n = 0;   ///< the compensation applied (after the previous scale)
+  double compensation_output_share = 0; ///< the compensator's |F_c| / F_c,max, [0, 1] (|u_n| for the RNN)
 };
 
 struct VibrationGuardOutput {

@@ -73,9 +73,9 @@ class ClosedLoop {
   /// Starts from `initial` instead of the scenario's initial condition.
   ClosedLoop(const SystemParams& params, const Scenario& scenario, const PlantInitialCondition& initial);
 
-  /// Runs one control tick and returns its record. compensation_force_n is
+  /// Runs one control tick and returns its record. The compensation's force is
   /// added to the PI output inside its saturation (the hybrid controller, Fig. 4).
-  TickRecord step(double compensation_force_n = 0.0);
+  TickRecord step(const Compensation& compensation = {});
 
   std::uint64_t tick() const { return tick_; }
   std::uint64_t total_ticks() const { return total_ticks_; }
@@ -141,7 +141,7 @@ inline StateFeedbackInput state_feedback_input(const CompensatorView& view) {
 /// the one-tick delay of the distributed system, where the estimator and the
 /// compensator run while the plant integrates tick k (1 ms, 3.7 degrees at the
 /// 10.2 Hz load mode), so they never lengthen the plant-controller chain.
-/// compensate: double(const CompensatorView&) -> force [N].
+/// compensate: Compensation(const CompensatorView&): the force [N] and its share of the compensator's range.
 template <typename Compensate>
 std::vector<TickRecord> run_compensated(const SystemParams& params, const Scenario& scenario,
                                         Compensate&& compensate,
@@ -150,10 +150,10 @@ std::vector<TickRecord> run_compensated(const SystemParams& params, const Scenar
   std::vector<TickRecord> trace;
   const std::uint64_t ticks = std::min(loop.total_ticks(), max_ticks);
   trace.reserve(ticks);
-  double compensation_n = 0;
+  Compensation compensation;
   while (trace.size() < ticks) {
-    trace.push_back(loop.step(compensation_n));
-    compensation_n = compensate(compensator_view(trace.back()));
+    trace.push_back(loop.step(compensation));
+    compensation = compensate(compensator_view(trace.back()));
   }
   return trace;
 }

@@ -106,6 +106,7 @@ struct CompensatorTuning {
   double guard_fade_s = 0;
   double guard_max_reference_share = 0;
   double guard_max_saturated_share = 0;
+  double guard_saturated_output_share = 0;
 };
 
 /// A parameter's plausible range and why: a config value outside it is refused by
@@ -332,6 +333,8 @@ void visit_parameters(Params& p, Visitor& v) {
          {1e-3, 1e3, "the error oscillation over the reference's own: a thousandth to a thousand times"});
   v.real("compensator.guard.max_saturated_share", c.guard_max_saturated_share,
          {1e-3, 1.0, "a share of a window's ticks: above it a window at the compensation's limit is not judged sustained"});
+  v.real("compensator.guard.saturated_output_share", c.guard_saturated_output_share,
+         {1e-3, 1.0, "a share of the compensator's own output range: at or above it the compensator is at its limit"});
 }
 
 }  // namespace pmlsm

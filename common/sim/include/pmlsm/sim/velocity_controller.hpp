@@ -5,6 +5,7 @@
 // Fig. 4). The controller node and the in-process loop both run it.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <optional>
 
@@ -15,6 +16,19 @@
 #include "pmlsm/control/velocity_pi.hpp"
 
 namespace pmlsm {
+
+/// What a compensator hands the velocity loop for one tick: its force, and how much of its own
+/// range that is, |F_c| / F_c,max in [0, 1] (the RNN's |u_n|, a clamped law's |F_c| / its limit;
+/// CompensatorOutput.u_n on DDS), by which the vibration guard knows a saturated compensator.
+struct Compensation {
+  double force_n = 0;
+  double output_share = 0;
+};
+
+/// A law clamped to +-force_limit_n: its share is |F_c / limit| (as the compensator nodes' u_n).
+inline Compensation clamped_compensation(double force_n, double force_limit_n) {
+  return {force_n, std::fabs(force_n / force_limit_n)};
+}
 
 struct VelocityControllerOutput {
   double command_mps = 0;  ///< raw command c(t_k)
@@ -33,11 +47,10 @@ class VelocityController {
   /// @throws std::invalid_argument from the parameters or the scenario.
   VelocityController(const SystemParams& params, const Scenario& scenario);
   /// Tick k with the scenario's command c(t_k).
-  VelocityControllerOutput step(std::uint64_t tick, double motor_velocity_mps,
-                                double compensation_force_n);
+  VelocityControllerOutput step(std::uint64_t tick, double motor_velocity_mps, const Compensation& compensation);
   /// A tick with a command from elsewhere (an external scenario: the setpoints' command).
   VelocityControllerOutput step_command(double command_mps, double motor_velocity_mps,
-                                        double compensation_force_n);
+                                        const Compensation& compensation);
   const VelocityPi& velocity_pi() const { return velocity_; }
   const ReferenceModel& reference() const { return reference_; }
   /// The guard in the compensation path (nullptr when compensator.guard.enabled is false).
