@@ -106,6 +106,7 @@ msg::TrainingSetup make_setup(std::uint64_t run_id, const std::string& system_pa
   verdict.limit_cycle_amplitude_m(training.verdict.limit_cycle_amplitude_m);
   verdict.min_decay_rate_per_s(training.verdict.min_decay_rate_per_s);
   verdict.max_saturated_tail_share(training.verdict.max_saturated_tail_share);
+  verdict.max_free_vibration_settling_s(training.verdict.max_free_vibration_settling_s);
   return setup;
 }
 
@@ -141,6 +142,7 @@ std::shared_ptr<const RnnCost> cost_from_setup(const msg::TrainingSetup& setup) 
     verdict.limit_cycle_amplitude_m = v.limit_cycle_amplitude_m();
     verdict.min_decay_rate_per_s = v.min_decay_rate_per_s();
     verdict.max_saturated_tail_share = v.max_saturated_tail_share();
+    verdict.max_free_vibration_settling_s = v.max_free_vibration_settling_s();
     return std::make_shared<const RnnCost>(params, std::move(scenarios), which, plants, objective, verdict);
   } catch (const std::invalid_argument& e) {
     throw ConfigError(origin + ": " + e.what());

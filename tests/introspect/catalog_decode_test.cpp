@@ -359,6 +359,7 @@ msg::TrainingSetup training_setup(Sampler& s) {
   verdict.limit_cycle_amplitude_m(s.real("verdict.limit_cycle_amplitude_m"));
   verdict.min_decay_rate_per_s(s.real("verdict.min_decay_rate_per_s"));
   verdict.max_saturated_tail_share(s.real("verdict.max_saturated_tail_share"));
+  verdict.max_free_vibration_settling_s(s.real("verdict.max_free_vibration_settling_s"));
   v.verdict(verdict);
   return v;
 }

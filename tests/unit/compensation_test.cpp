@@ -172,6 +172,7 @@ TEST(TrainingConfig, ASweepsVerdictJudgesRunsWithTheWorstRatioObjectiveOnly) {
   EXPECT_EQ(judged.verdict.limit_cycle_amplitude_m, sweep.limit_cycle_amplitude_m);
   EXPECT_EQ(judged.verdict.min_decay_rate_per_s, sweep.min_decay_rate_per_s);
   EXPECT_EQ(judged.verdict.max_saturated_tail_share, sweep.max_saturated_tail_share);
+  EXPECT_EQ(judged.verdict.max_free_vibration_settling_s, sweep.max_free_vibration_settling_s);
   const std::string from_sweep =
       "verdict_from_sweep: {value: sweeps/plant_family.yaml, source: \"chosen: test\"}\n";
   try {

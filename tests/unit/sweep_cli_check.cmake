@@ -30,6 +30,7 @@ verdict:
   limit_cycle_amplitude_m: {value: 5.0e-4, source: \"chosen: test\"}
   min_decay_rate_per_s: {value: 0.3, source: \"chosen: test\"}
   max_saturated_tail_share: {value: 0.05, source: \"chosen: test\"}
+  max_free_vibration_settling_s: {value: 1.0, source: \"chosen: test\"}
 ")
 endfunction()
 

@@ -30,6 +30,7 @@ VerdictParams verdict() {
   v.limit_cycle_amplitude_m = 5e-4;
   v.min_decay_rate_per_s = 0.3;
   v.max_saturated_tail_share = 0.05;
+  v.max_free_vibration_settling_s = 1.0;
   return v;
 }
 
@@ -110,7 +111,7 @@ TEST(SweepVerdict, SustainedOscillationIsALimitCycleADecayingOneIsNot) {
   EXPECT_TRUE(cycle.limit_cycle);
   EXPECT_NEAR(cycle.tail_stretch_amplitude_m, 2e-3, 1e-4);
   EXPECT_NEAR(cycle.tail_decay_rate_per_s, 0.0, 0.1);  // 4.2 periods a window: the RMS ripples a little
-  EXPECT_EQ(cycle.faults(), "limit cycle");
+  EXPECT_EQ(cycle.faults(), "limit cycle, slow");  // 2 mm never inside the 0.4 mm band
 
   const RunVerdict growing = judge_run(oscillation(2e-3, -0.5, 21.0, 2.0), s, kT, 675, verdict());
   EXPECT_TRUE(growing.limit_cycle);
@@ -128,6 +129,32 @@ TEST(SweepVerdict, SustainedOscillationIsALimitCycleADecayingOneIsNot) {
   const RunVerdict rest = judge_run(oscillation(0.0, 0.0, 21.0, 2.0), s, kT, 675, verdict());
   EXPECT_FALSE(rest.limit_cycle);
   EXPECT_EQ(rest.faults(), "");
+}
+
+// The family's free-vibration target: the spring stretch inside the scenario's band (2 % of the
+// 20 mm start) for good within max_free_vibration_settling_s. 20 mm e^{-r t} enters 0.4 mm at
+// ln(50) / r: 0.78 s at 5 1/s, 1.30 s at 3 1/s.
+TEST(SweepVerdict, AFreeVibrationSettledLaterThanAllowedIsSlowOtherScenariosAreNot) {
+  Scenario s = zero_scenario(2.0);
+  const RunVerdict fast = judge_run(oscillation(2e-2, 5.0, 10.0, 2.0), s, kT, 675, verdict());
+  EXPECT_LT(fast.settling_s, 0.79);
+  EXPECT_GT(fast.settling_s, 0.6);
+  EXPECT_FALSE(fast.slow);
+  EXPECT_EQ(fast.faults(), "");
+  const RunVerdict late = judge_run(oscillation(2e-2, 3.0, 10.0, 2.0), s, kT, 675, verdict());
+  EXPECT_GT(late.settling_s, 1.0);
+  EXPECT_LT(late.settling_s, 1.31);
+  EXPECT_TRUE(late.slow);
+  EXPECT_FALSE(late.limit_cycle);
+  EXPECT_EQ(late.faults(), "slow");
+  VerdictParams longer = verdict();
+  longer.max_free_vibration_settling_s = 1.5;
+  EXPECT_FALSE(judge_run(oscillation(2e-2, 3.0, 10.0, 2.0), s, kT, 675, longer).slow);
+  // A scenario that does not start from a load displacement: its settling is shown, not judged.
+  s.initial_load_displacement_m = 0.0;
+  EXPECT_FALSE(judge_run(oscillation(2e-2, 3.0, 10.0, 2.0), s, kT, 675, verdict()).slow);
+  longer.max_free_vibration_settling_s = 0.0;
+  EXPECT_THROW(longer.validate(), std::invalid_argument);
 }
 
 TEST(SweepVerdict, SaturatedTailNonFiniteAndGuard) {
@@ -200,6 +227,7 @@ verdict:
   limit_cycle_amplitude_m: {value: 5.0e-4, source: "chosen: test"}
   min_decay_rate_per_s: {value: 0.3, source: "chosen: test"}
   max_saturated_tail_share: {value: 0.05, source: "chosen: test"}
+  max_free_vibration_settling_s: {value: 1.0, source: "chosen: test"}
 )";
 
 std::string sweep_text(const std::string& from = "", const std::string& to = "") {

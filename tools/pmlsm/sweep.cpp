@@ -80,12 +80,12 @@ void write_csv(const std::filesystem::path& path, const SweepFile& file, const S
 // Per compensator and scenario: how many plants passed, what failed, the spread of the cost
 // ratio to PI and the worst plant. Returns the runs that failed.
 std::size_t print_table(const SystemParams& nominal, const SweepFile& file, const SweepResult& result) {
-  std::printf("\n%-6s %-16s %6s %6s %6s %6s %6s %6s %7s %8s %8s %9s  %s\n", "comp", "scenario", "plants", "passed",
-              "cycle", "satur", "guard", "nonfin", ">=PI", "ratio50", "ratio_max", "settle_max", "worst plant");
+  std::printf("\n%-6s %-16s %6s %6s %6s %6s %6s %6s %6s %7s %8s %8s %9s  %s\n", "comp", "scenario", "plants", "passed",
+              "cycle", "satur", "guard", "slow", "nonfin", ">=PI", "ratio50", "ratio_max", "settle_max", "worst plant");
   std::size_t failed = 0;
   for (std::size_t c = 0; c < result.compensators.size(); ++c) {
     for (std::size_t s = 0; s < file.spec.scenarios.size(); ++s) {
-      std::size_t passed = 0, cycles = 0, saturated = 0, guard = 0, non_finite = 0, worse = 0;
+      std::size_t passed = 0, cycles = 0, saturated = 0, guard = 0, slow = 0, non_finite = 0, worse = 0;
       std::vector<double> ratios;
       double worst_ratio = -1, worst_settling = 0;
       std::size_t worst_plant = 0;
@@ -96,6 +96,7 @@ std::size_t print_table(const SystemParams& nominal, const SweepFile& file, cons
         cycles += v.limit_cycle ? 1 : 0;
         saturated += v.saturated ? 1 : 0;
         guard += v.guard_trip_s >= 0 ? 1 : 0;
+        slow += v.slow ? 1 : 0;
         non_finite += v.non_finite ? 1 : 0;
         if (c != 0 && !(v.cost < result.run(p, 0, s).verdict.cost)) ++worse;
         ratios.push_back(run.cost_ratio_to_pi);
@@ -114,9 +115,9 @@ std::size_t print_table(const SystemParams& nominal, const SweepFile& file, cons
         where += (d ? " " : "") + short_key(file.spec.ranges[d].key_path) + "=" + num(wp.values[d], "%.4g");
       }
       where += ")";
-      std::printf("%-6s %-16s %6zu %6s %6zu %6zu %6zu %6zu %7s %8s %8s %9s  %s\n",
+      std::printf("%-6s %-16s %6zu %6s %6zu %6zu %6zu %6zu %6zu %7s %8s %8s %9s  %s\n",
                   to_string(result.compensators[c]), file.spec.scenarios[s].name.c_str(), result.plants.size(),
-                  c == 0 ? "-" : std::to_string(passed).c_str(), cycles, saturated, guard, non_finite, c == 0 ? "-" : std::to_string(worse).c_str(),
+                  c == 0 ? "-" : std::to_string(passed).c_str(), cycles, saturated, guard, slow, non_finite, c == 0 ? "-" : std::to_string(worse).c_str(),
                   num(ratios[ratios.size() / 2], "%.3f").c_str(), num(worst_ratio, "%.3f").c_str(),
                   num(worst_settling, "%.3f").c_str(), c == 0 ? "" : where.c_str());
     }

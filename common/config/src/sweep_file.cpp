@@ -19,6 +19,7 @@ VerdictParams read_verdict(Section verdict) {
   out.limit_cycle_amplitude_m = verdict.number("limit_cycle_amplitude_m");
   out.min_decay_rate_per_s = verdict.number("min_decay_rate_per_s");
   out.max_saturated_tail_share = verdict.number("max_saturated_tail_share");
+  out.max_free_vibration_settling_s = verdict.number("max_free_vibration_settling_s");
   verdict.finish();
   return out;
 }

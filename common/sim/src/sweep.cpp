@@ -22,6 +22,7 @@ void VerdictParams::validate() const {
   require_in_range("verdict.limit_cycle_amplitude_m", limit_cycle_amplitude_m, 1e-9, 1.0);
   require_in_range("verdict.min_decay_rate_per_s", min_decay_rate_per_s, 0.0, 1e4);
   require_in_range("verdict.max_saturated_tail_share", max_saturated_tail_share, 0.0, 1.0);
+  require_in_range("verdict.max_free_vibration_settling_s", max_free_vibration_settling_s, 1e-3, 3600.0);
 }
 
 namespace {
@@ -154,6 +155,7 @@ std::string RunVerdict::faults() const {
   add(limit_cycle, "limit cycle");
   add(saturated, "saturated");
   add(guard_trip_s >= 0, "guard");
+  add(slow, "slow");
   return out;
 }
 
@@ -188,6 +190,7 @@ RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scena
   const ScenarioMetrics metrics = compute_metrics(trace, scenario, control_period_s);
   out.cost = metrics.cost_true;
   out.settling_s = metrics.load_settling_time_s;
+  out.slow = scenario.initial_load_displacement_m != 0.0 && !(out.settling_s <= verdict.max_free_vibration_settling_s);
 
   // Cost (23) per window of the run: a later window cheaper than the first is a decaying error.
   const auto window = static_cast<std::size_t>(std::llround(scenario.cost_window_s / control_period_s));
@@ -252,7 +255,7 @@ RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scena
   out.saturated_share = static_cast<double>(saturated) / static_cast<double>(n);
   out.saturated_tail_share = tail == 0 ? 0.0 : static_cast<double>(saturated_tail) / static_cast<double>(tail);
   out.saturated = out.saturated_tail_share > verdict.max_saturated_tail_share;
-  if (out.non_finite) out.limit_cycle = out.saturated = false;  // one fault says it all
+  if (out.non_finite) out.limit_cycle = out.saturated = out.slow = false;  // one fault says it all
   return out;
 }
 

@@ -52,6 +52,11 @@ struct VerdictParams {
   double min_decay_rate_per_s = 0;
   /// More than this share of the tail's ticks with the force command at its limit: saturated.
   double max_saturated_tail_share = 0;
+  /// A free vibration (a scenario that starts from a load displacement) whose spring stretch is
+  /// not inside the scenario's settling band for good after this long is slow. Other scenarios'
+  /// settling is the velocity PI's (its tiny K_i leaves friction's error near the band) and is
+  /// shown, not judged.
+  double max_free_vibration_settling_s = 0;
   void validate() const;
 };
 
@@ -97,7 +102,8 @@ struct RunVerdict {
   bool non_finite = false;              ///< the plant diverged or a non-finite number in the trace
   bool limit_cycle = false;
   bool saturated = false;
-  /// "" when the run is clean; else its faults: "non-finite", "limit cycle", "saturated", "guard".
+  bool slow = false;                    ///< a free vibration settled later than the verdict allows
+  /// "" when the run is clean; else its faults: "non-finite", "limit cycle", "saturated", "guard", "slow".
   std::string faults() const;
 };
 
