@@ -5,8 +5,8 @@
 //   F_Co = sum_{k=1}^{K} |V_ref(k) - V_load(k)|,  K = cost window / T (1000),
 // summed over the training scenarios with their weights. Optionally each run goes on to the
 // scenario's end and is judged as the robustness sweep judges it (pmlsm/sim/sweep.hpp): a run
-// with a limit cycle, a saturated tail, the vibration guard tripped or a non-finite state pays a
-// penalty, so a weight set cannot buy a low cost in the window with a fault after it.
+// with a limit cycle, a saturated tail, the vibration guard tripped, a slow free vibration or a
+// non-finite state pays a penalty, so a weight set cannot buy a low cost in the window with a fault after it.
 #pragma once
 
 #include <cstdint>
