@@ -437,10 +437,10 @@ TEST(ShippedWeights, RnnBeatsPiOnlyAndThePapersAccelerationFeedbackOnThePulseTes
               rnn.cost_true, papers_accel, shipped_accel);
   EXPECT_LT(rnn.cost_true, pi.cost_true / 5) << "PI only " << pi.cost_true;
   EXPECT_LT(rnn.cost_true, papers_accel) << "the paper's acceleration feedback";
-  // Searched from the shipped law (configs/training_commissioned.yaml). With the current loop's
-  // lag in the filter (kalman.thrust_lag_s) the law's own pulse fell to 5.41 and the network's to
-  // 5.60: it no longer beats the law (5.66 against 5.82 before), and stays within 5 % of it.
-  EXPECT_LT(rnn.cost_true, 1.05 * shipped_accel) << "acceleration feedback on the reference error";
+  // Searched from the shipped law (configs/training_commissioned.yaml): the target is the RNN at
+  // most acceleration feedback (measured 5.04 against 5.41; with the compensators' force nudged
+  // in its sixth digit 5.04-5.69 against 5.41-5.69, README).
+  EXPECT_LT(rnn.cost_true, shipped_accel) << "acceleration feedback on the reference error";
   EXPECT_LT(rnn.load_vibration_rms_mps, pi.load_vibration_rms_mps / 3);
   // The file records the objective it was trained to: its training file's, recomputed here on
   // the plants commissioned as the trainer commissions them.
@@ -453,14 +453,14 @@ TEST(ShippedWeights, RnnBeatsPiOnlyAndThePapersAccelerationFeedbackOnThePulseTes
 }
 
 // The free-vibration target (Fig. 10) with the shipped weights: the load within
-// 2 % of the 0.02 m start in under 0.5 s (trained on the pulse test only).
+// 2 % of the 0.02 m start in under 0.5 s (the search judges the free vibration too).
 TEST(ShippedWeights, RnnSettlesTheFreeVibrationInUnderHalfASecond) {
   const SystemParams& p = shipped_params();
   const Scenario free = shipped_scenario("free_vibration");
   const RnnWeightsFile file = load_rnn_weights(source("configs/rnn_weights.yaml"));
   const ScenarioMetrics m = compute_metrics(run_with_rnn(p, free, file.weights, false), free, p.timing.control_period_s);
   std::printf("[ rnn        ] free vibration settles in %.3f s\n", m.load_settling_time_s);
-  EXPECT_LT(m.load_settling_time_s, 0.5);  // measured 0.429 s
+  EXPECT_LT(m.load_settling_time_s, 0.5);  // measured 0.441 s
 }
 
 }  // namespace
