@@ -242,9 +242,13 @@ int run(int argc, char** argv) {
   file.on_reference_error = params.compensator.rnn_on_reference_error;
   file.gain_n = params.compensator.rnn_gain_n;
   file.cost = report.best_cost;
+  // The system overrides the search ran with belong to its provenance: the same command remakes
+  // the same bits, and a check of the file's cost must judge it as it was searched.
+  std::string searched_with;
+  for (const auto& o : overrides) searched_with += " " + o;
   file.source = optimiser->name() + " seed " + std::to_string(de.seed) + " gen " + std::to_string(report.generation) +
                 " evals " + std::to_string(report.evaluations) + " (" + to_string(training.cost_velocity) +
-                " V_load, " + training_path + ")";
+                " V_load, " + training_path + (searched_with.empty() ? "" : ", --set" + searched_with) + ")";
   file.weights = report.best;
   save_rnn_weights(out_path, file);
   const auto& c = evaluator.counters();

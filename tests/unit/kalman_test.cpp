@@ -442,7 +442,7 @@ TEST(KalmanStandstillHold, DampsTheSwingLeftOnAHeavySoftLoad) {
     // The filter the hold was found on, the command taken for the thrust: with the current loop's
     // lag modelled the estimate keeps more of the swing without the hold (tail 1.11 mm, the hold's
     // 1.07 mm: it no longer halves it, and both stay over the verdict's 0.5 mm). And the gain
-    // schedule's limit of that time, K_a 200 kg on this load: at the shipped limit (320 kg) the hold
+    // schedule's limit of that time, K_a 200 kg on this load: at a limit of 2 (320 kg) the hold
     // still shrinks the tail (0.54 against 0.82 mm) but costs a little (16.80 against 16.22).
     p.kalman.thrust_lag_s = 0.0;
     p.compensator.max_gain_scale = 1.25;
