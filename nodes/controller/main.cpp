@@ -187,7 +187,7 @@ bool ControllerNode::take_compensation(std::uint64_t k) {
       continue;
     }
     compensation_tick_ = t;
-    compensation_ = {compensator_output_.force_n(), std::fabs(compensator_output_.u_n())};
+    compensation_ = compensation_from_output(compensator_output_.force_n(), compensator_output_.u_n());
     have_compensation_ = true;
   }
   return have_compensation_ && compensation_tick_ + 1 >= k;

@@ -270,7 +270,7 @@ std::vector<TickRecord> run_with_rnn(const SystemParams& params, const Scenario&
       params, scenario,
       [&rnn](const CompensatorView& view) {
         const CompensatorStep step = rnn.step(rnn_input(view));
-        return Compensation{step.force_n, std::fabs(step.u_n)};
+        return compensation_from_output(step.force_n, step.u_n);
       },
       max_ticks);
 }

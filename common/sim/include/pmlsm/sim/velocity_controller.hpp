@@ -25,9 +25,13 @@ struct Compensation {
   double output_share = 0;
 };
 
-/// A law clamped to +-force_limit_n: its share is |F_c / limit| (as the compensator nodes' u_n).
+/// A compensator's force and its output u_n (CompensatorOutput.u_n, |u_n| <= 1 of its range):
+/// the share is |u_n|. The in-process loops and the controller node map it here alike.
+inline Compensation compensation_from_output(double force_n, double u_n) { return {force_n, std::fabs(u_n)}; }
+
+/// A law clamped to +-force_limit_n: its output is F_c / limit (as the compensator nodes' u_n).
 inline Compensation clamped_compensation(double force_n, double force_limit_n) {
-  return {force_n, std::fabs(force_n / force_limit_n)};
+  return compensation_from_output(force_n, force_n / force_limit_n);
 }
 
 struct VelocityControllerOutput {
