@@ -10,6 +10,7 @@ packages=(
   libeigen3-dev                   # matrices, matrix exponential (exact discretisation)
   libyaml-cpp-dev                 # configs/*.yaml
   libcli11-dev                    # command lines
+  libboost-context-dev            # fibers: a container's components on one chain thread
   libgtest-dev                    # unit tests
   libpagmo-dev                    # jDE and CMA-ES, compared with the paper's DE/rand/1/bin
   libbenchmark-dev                # speed benchmark

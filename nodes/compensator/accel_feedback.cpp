@@ -10,33 +10,52 @@ namespace {
 
 using namespace pmlsm;
 
-int run(int argc, char** argv) {
-  CLI::App app{"Load-acceleration feedback compensator F = -K_a a_L on DDS (the RNN's baseline)"};
-  node::CommonOptions common;
-  node::add_common_options(app, common);
-  if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
-  node::NodeRuntime rt("accel_feedback", common);
-  const AccelFeedbackParams params = rt.cfg.params.accel_feedback_params();
-  AccelFeedback feedback(params);
-  node::CompensatorInputs inputs(rt.participant, rt.wakeup);
-  const node::CompensatorLoopResult result =
-      node::run_fixed_law("accel_feedback", rt, common, inputs, params.force_limit_n,
-                          [&](const CompensatorView& view) { return feedback.step(accel_feedback_input(view)); });
-  const std::uint64_t answered = result.answered;
-  rt.status.status().rejected(inputs.rejected() + feedback.counters().rejected_inputs);
-  rt.status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_STOPPING, answered, rt.period_s, "done");
-  std::printf("accel_feedback: K_a %.1f kg (x %.3f on the model's load)%s, %llu ticks answered, %llu saturated, "
-              "%llu rejected, %llu skipped\n",
-              params.gain_kg, rt.cfg.params.compensator_gain_scale(),
-              params.on_reference_error ? " on the error to the reference" : "", static_cast<unsigned long long>(answered),
-              static_cast<unsigned long long>(feedback.counters().saturated),
-              static_cast<unsigned long long>(inputs.rejected() + feedback.counters().rejected_inputs),
-              static_cast<unsigned long long>(inputs.skipped()));
-  return result.exit_code;
-}
+class AccelFeedbackComponent final : public node::Component {
+ public:
+  AccelFeedbackComponent(const node::ComponentContext& context, node::CommonOptions common)
+      : common_(std::move(common)),
+        rt_("accel_feedback", common_, context),
+        params_(rt_.cfg.params.accel_feedback_params()),
+        law_(params_),
+        inputs_(rt_.participant, rt_.wakeup),
+        writer_(rt_.participant.make_writer<pmlsm_msgs::msg::CompensatorOutputPubSubType>(pmlsm::dds::topics::kCompensatorOutput)) {}
+
+  int run() override {
+    const node::CompensatorLoopResult result =
+        node::run_fixed_law("accel_feedback", rt_, common_, inputs_, writer_, params_.force_limit_n,
+                            [&](const CompensatorView& view) { return law_.step(accel_feedback_input(view)); });
+    const std::uint64_t answered = result.answered;
+    rt_.status.status().rejected(inputs_.rejected() + law_.counters().rejected_inputs);
+    rt_.status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_STOPPING, answered, rt_.period_s, "done");
+    std::printf("accel_feedback: K_a %.1f kg (x %.3f on the model's load)%s, %llu ticks answered, %llu saturated, "
+                "%llu rejected, %llu skipped\n",
+                params_.gain_kg, rt_.cfg.params.compensator_gain_scale(),
+                params_.on_reference_error ? " on the error to the reference" : "", static_cast<unsigned long long>(answered),
+                static_cast<unsigned long long>(law_.counters().saturated),
+                static_cast<unsigned long long>(inputs_.rejected() + law_.counters().rejected_inputs),
+                static_cast<unsigned long long>(inputs_.skipped()));
+    return result.exit_code;
+  }
+
+ private:
+  node::CommonOptions common_;
+  node::NodeRuntime rt_;
+  AccelFeedbackParams params_;
+  AccelFeedback law_;
+  node::CompensatorInputs inputs_;
+  node::CompensatorWriter writer_;
+};
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  return pmlsm::node::run_node("accel_feedback", [&] { return run(argc, argv); });
+namespace pmlsm::node {
+
+MadeComponent make_accel_feedback(const ComponentContext& context, int argc, char** argv) {
+  CLI::App app{"Load-acceleration feedback compensator F = -K_a a_L on DDS (the RNN's baseline)"};
+  CommonOptions common;
+  add_common_options(app, common);
+  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  return {std::make_unique<AccelFeedbackComponent>(context, std::move(common))};
 }
+
+}  // namespace pmlsm::node

@@ -95,6 +95,8 @@ struct CompensatorLoopResult {
   std::uint64_t answered = 0;
 };
 
+using CompensatorWriter = dds::Writer<pmlsm_msgs::msg::CompensatorOutputPubSubType>;
+
 /// The loop of a compensator whose law is fixed for the run (accel_feedback, state_feedback):
 /// publishes NodeStatus running, then answers every paired tick k with CompensatorOutput k
 /// (force_of(view), u = force / force_limit_n, the training error V_ref - v_L) until the
@@ -102,9 +104,8 @@ struct CompensatorLoopResult {
 /// timeout (end_of_failed_wait's exit code). The writer is flushed before it returns.
 template <typename ForceOf>
 CompensatorLoopResult run_fixed_law(const char* node_name, NodeRuntime& rt, const CommonOptions& common,
-                                    CompensatorInputs& inputs, double force_limit_n, ForceOf&& force_of) {
-  auto writer = rt.participant.make_writer<pmlsm_msgs::msg::CompensatorOutputPubSubType>(
-      dds::topics::kCompensatorOutput);
+                                    CompensatorInputs& inputs, CompensatorWriter& writer, double force_limit_n,
+                                    ForceOf&& force_of) {
   const std::uint64_t ticks = scenario_ticks(rt.cfg.scenario, rt.period_s);
   rt.status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_RUNNING, 0, rt.period_s, "running");
   pmlsm_msgs::msg::CompensatorOutput out;

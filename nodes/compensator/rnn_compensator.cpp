@@ -37,61 +37,80 @@ RnnWeightsFile from_message(const msg::NetworkWeights& m, const SystemParams& pa
   return w;
 }
 
-int run(int argc, char** argv) {
-  CLI::App app{"Jordan RNN vibration compensator on DDS"};
+struct RnnOptions {
   node::CommonOptions common;
-  node::add_common_options(app, common);
   std::string weights_path;
   bool online_learning = false;
   bool ignore_topic = false;
-  app.add_option("-w,--weights", weights_path, "Weights file (from de_trainer)")->check(CLI::ExistingFile);
-  app.add_flag("--online-learning", online_learning, "Refine the weights online, eqs. (16)-(19)");
-  app.add_flag("--no-weights-topic", ignore_topic, "Do not take weight sets from the NetworkWeights topic");
-  if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
-  node::NodeRuntime rt("rnn_compensator", common);
-  const SystemParams& params = rt.cfg.params;
-  RnnCompensator rnn(params.rnn_compensator_params(online_learning));
-  WeightSetGate gate(params);
-  bool have_weights = false;
-  if (!weights_path.empty()) {
-    const RnnWeightsFile file = load_rnn_weights(weights_path);
-    const std::string why = gate.offer(file, 0, weights_path.c_str());
-    if (!why.empty()) throw ConfigError(weights_path + ": " + why);
-    rnn.set_weights(file.weights);
-    have_weights = true;
-    std::printf("rnn_compensator: weights from %s: %s\n", weights_path.c_str(), gate.last_log().c_str());
+};
+
+class RnnCompensatorComponent final : public node::Component {
+ public:
+  RnnCompensatorComponent(const node::ComponentContext& context, RnnOptions options)
+      : opt_(std::move(options)),
+        rt_("rnn_compensator", opt_.common, context),
+        params_(rt_.cfg.params),
+        rnn_(params_.rnn_compensator_params(opt_.online_learning)),
+        gate_(params_),
+        inputs_(rt_.participant, rt_.wakeup),
+        weights_reader_(rt_.participant.make_reader<msg::NetworkWeightsPubSubType>(pdds::topics::kNetworkWeights, rt_.wakeup)),
+        writer_(rt_.participant.make_writer<msg::CompensatorOutputPubSubType>(pdds::topics::kCompensatorOutput)),
+        ticks_(scenario_ticks(rt_.cfg.scenario, rt_.period_s)) {
+    if (!opt_.weights_path.empty()) {
+      const RnnWeightsFile file = load_rnn_weights(opt_.weights_path);
+      const std::string why = gate_.offer(file, 0, opt_.weights_path.c_str());
+      if (!why.empty()) throw ConfigError(opt_.weights_path + ": " + why);
+      rnn_.set_weights(file.weights);
+      have_weights_ = true;
+      std::printf("rnn_compensator: weights from %s: %s\n", opt_.weights_path.c_str(), gate_.last_log().c_str());
+    }
   }
-  node::CompensatorInputs inputs(rt.participant, rt.wakeup);
-  auto weights_reader = rt.participant.make_reader<msg::NetworkWeightsPubSubType>(pdds::topics::kNetworkWeights, rt.wakeup);
-  auto writer = rt.participant.make_writer<msg::CompensatorOutputPubSubType>(pdds::topics::kCompensatorOutput);
-  const std::uint64_t ticks = scenario_ticks(rt.cfg.scenario, rt.period_s);
-  rt.status.publish(msg::NodeStatus_Constants::STATE_RUNNING, 0, rt.period_s, have_weights ? "running" : "running, no weights yet");
+
+  int run() override;
+
+ private:
+  RnnOptions opt_;
+  node::NodeRuntime rt_;
+  const SystemParams& params_;
+  RnnCompensator rnn_;
+  WeightSetGate gate_;
+  bool have_weights_ = false;
+  node::CompensatorInputs inputs_;
+  pdds::Reader<msg::NetworkWeightsPubSubType> weights_reader_;
+  pdds::Writer<msg::CompensatorOutputPubSubType> writer_;
+  std::uint64_t ticks_;
+};
+
+int RnnCompensatorComponent::run() {
+  const bool online_learning = opt_.online_learning;
+  rt_.status.publish(msg::NodeStatus_Constants::STATE_RUNNING, 0, rt_.period_s,
+                     have_weights_ ? "running" : "running, no weights yet");
 
   msg::CompensatorOutput out;
   msg::NetworkWeights incoming;
   std::uint64_t tick = 0, answered = 0;
   CompensatorView view;
   int exit_code = kExitOk;
-  while (answered < ticks && !pdds::stop_requested()) {
-    if (!inputs.next(std::chrono::duration<double>(common.peer_timeout_s), tick, view)) {
+  while (answered < ticks_ && !pdds::stop_requested()) {
+    if (!inputs_.next(std::chrono::duration<double>(opt_.common.peer_timeout_s), tick, view)) {
       exit_code = node::end_of_failed_wait("rnn_compensator", "EstimatedState and VelocityReference", "estimator or controller",
-                                           answered, common.peer_timeout_s);
+                                           answered, opt_.common.peer_timeout_s);
       break;
     }
     // Weight swaps happen here, between ticks, never inside a step.
-    while (!ignore_topic && weights_reader.take(incoming)) {
-      const RnnWeightsFile candidate = from_message(incoming, params);
-      if (!gate.offer(candidate, incoming.version(), "the NetworkWeights topic").empty()) {
-        std::fprintf(stderr, "rnn_compensator: %s\n", gate.last_log().c_str());
+    while (!opt_.ignore_topic && weights_reader_.take(incoming)) {
+      const RnnWeightsFile candidate = from_message(incoming, params_);
+      if (!gate_.offer(candidate, incoming.version(), "the NetworkWeights topic").empty()) {
+        std::fprintf(stderr, "rnn_compensator: %s\n", gate_.last_log().c_str());
         continue;
       }
-      std::printf("rnn_compensator: %s (tick %llu)\n", gate.last_log().c_str(), static_cast<unsigned long long>(tick));
-      rnn.set_weights(candidate.weights);
-      have_weights = true;
+      std::printf("rnn_compensator: %s (tick %llu)\n", gate_.last_log().c_str(), static_cast<unsigned long long>(tick));
+      rnn_.set_weights(candidate.weights);
+      have_weights_ = true;
     }
     std::uint32_t out_flags = 0;
-    if (have_weights) {
-      const CompensatorStep step = rnn.step(rnn_input(view));
+    if (have_weights_) {
+      const CompensatorStep step = rnn_.step(rnn_input(view));
       out.force_n(step.force_n);
       out.u_n(step.u_n);
       out.training_error_mps(step.training_error_mps);
@@ -108,30 +127,41 @@ int run(int argc, char** argv) {
       out.k_c_mps(0.0);
     }
     out.flags(out_flags);
-    out.stamp(node::make_stamp(tick, rt.period_s, inputs.run_id()));
+    out.stamp(node::make_stamp(tick, rt_.period_s, inputs_.run_id()));
     out.estimate_tick(tick);
-    out.weights_version(gate.version());
-    writer.write(out);
+    out.weights_version(gate_.version());
+    writer_.write(out);
     answered = tick + 1;
   }
-  const CompensatorCounters& c = rnn.counters();
-  rt.status.status().rejected(inputs.rejected() + c.rejected_inputs + gate.refused());
-  rt.status.publish(msg::NodeStatus_Constants::STATE_STOPPING, answered, rt.period_s, "done");
-  writer.wait_for_acknowledgments(node::kFlushTimeout);
+  const CompensatorCounters& c = rnn_.counters();
+  rt_.status.status().rejected(inputs_.rejected() + c.rejected_inputs + gate_.refused());
+  rt_.status.publish(msg::NodeStatus_Constants::STATE_STOPPING, answered, rt_.period_s, "done");
+  writer_.wait_for_acknowledgments(node::kFlushTimeout);
   std::printf("rnn_compensator: %llu ticks answered, online learning %s: %llu updates, k_c clamped %llu, dead-band %llu, "
               "reverted %llu; %llu input(s) rejected, %llu skipped; %llu weight set(s) taken, %llu refused\n",
               static_cast<unsigned long long>(answered), online_learning ? "on" : "off",
               static_cast<unsigned long long>(c.updates), static_cast<unsigned long long>(c.kc_clamped),
               static_cast<unsigned long long>(c.kc_deadband), static_cast<unsigned long long>(c.reverted_updates),
-              static_cast<unsigned long long>(inputs.rejected() + c.rejected_inputs),
-              static_cast<unsigned long long>(inputs.skipped()),
-              static_cast<unsigned long long>(gate.taken() - (weights_path.empty() ? 0 : 1)),
-              static_cast<unsigned long long>(gate.refused()));
+              static_cast<unsigned long long>(inputs_.rejected() + c.rejected_inputs),
+              static_cast<unsigned long long>(inputs_.skipped()),
+              static_cast<unsigned long long>(gate_.taken() - (opt_.weights_path.empty() ? 0 : 1)),
+              static_cast<unsigned long long>(gate_.refused()));
   return exit_code;
 }
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  return pmlsm::node::run_node("rnn_compensator", [&] { return run(argc, argv); });
+namespace pmlsm::node {
+
+MadeComponent make_rnn_compensator(const ComponentContext& context, int argc, char** argv) {
+  CLI::App app{"Jordan RNN vibration compensator on DDS"};
+  RnnOptions opt;
+  add_common_options(app, opt.common);
+  app.add_option("-w,--weights", opt.weights_path, "Weights file (from de_trainer)")->check(CLI::ExistingFile);
+  app.add_flag("--online-learning", opt.online_learning, "Refine the weights online, eqs. (16)-(19)");
+  app.add_flag("--no-weights-topic", opt.ignore_topic, "Do not take weight sets from the NetworkWeights topic");
+  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  return {std::make_unique<RnnCompensatorComponent>(context, std::move(opt))};
 }
+
+}  // namespace pmlsm::node

@@ -10,34 +10,53 @@ namespace {
 
 using namespace pmlsm;
 
-int run(int argc, char** argv) {
-  CLI::App app{"Model-following state feedback compensator on DDS (inverse-model feedforward, estimated spring force)"};
-  node::CommonOptions common;
-  node::add_common_options(app, common);
-  if (const auto code = node::parse_command_line(app, argc, argv)) return *code;
-  node::NodeRuntime rt("state_feedback", common);
-  const StateFeedbackParams params = rt.cfg.params.state_feedback_params();
-  StateFeedback feedback(params);
-  node::CompensatorInputs inputs(rt.participant, rt.wakeup);
-  const node::CompensatorLoopResult result =
-      node::run_fixed_law("state_feedback", rt, common, inputs, params.force_limit_n,
-                          [&](const CompensatorView& view) { return feedback.step(state_feedback_input(view)); });
-  const std::uint64_t answered = result.answered;
-  const StateFeedbackCounters& counters = feedback.counters();
-  rt.status.status().rejected(inputs.rejected() + counters.rejected_inputs + counters.model_resets);
-  rt.status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_STOPPING, answered, rt.period_s, "done");
-  std::printf(
-      "state_feedback: model %.1f/%.1f kg, %.0f N/m, %llu ticks answered, %llu saturated, %llu rejected, "
-      "%llu model restarts, %llu skipped\n",
-      params.motor_mass_kg, params.load_mass_kg, params.spring_n_per_m, static_cast<unsigned long long>(answered),
-      static_cast<unsigned long long>(counters.saturated),
-      static_cast<unsigned long long>(inputs.rejected() + counters.rejected_inputs),
-      static_cast<unsigned long long>(counters.model_resets), static_cast<unsigned long long>(inputs.skipped()));
-  return result.exit_code;
-}
+class StateFeedbackComponent final : public node::Component {
+ public:
+  StateFeedbackComponent(const node::ComponentContext& context, node::CommonOptions common)
+      : common_(std::move(common)),
+        rt_("state_feedback", common_, context),
+        params_(rt_.cfg.params.state_feedback_params()),
+        law_(params_),
+        inputs_(rt_.participant, rt_.wakeup),
+        writer_(rt_.participant.make_writer<pmlsm_msgs::msg::CompensatorOutputPubSubType>(pmlsm::dds::topics::kCompensatorOutput)) {}
+
+  int run() override {
+    const node::CompensatorLoopResult result =
+        node::run_fixed_law("state_feedback", rt_, common_, inputs_, writer_, params_.force_limit_n,
+                            [&](const CompensatorView& view) { return law_.step(state_feedback_input(view)); });
+    const std::uint64_t answered = result.answered;
+    const StateFeedbackCounters& counters = law_.counters();
+    rt_.status.status().rejected(inputs_.rejected() + counters.rejected_inputs + counters.model_resets);
+    rt_.status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_STOPPING, answered, rt_.period_s, "done");
+    std::printf(
+        "state_feedback: model %.1f/%.1f kg, %.0f N/m, %llu ticks answered, %llu saturated, %llu rejected, "
+        "%llu model restarts, %llu skipped\n",
+        params_.motor_mass_kg, params_.load_mass_kg, params_.spring_n_per_m, static_cast<unsigned long long>(answered),
+        static_cast<unsigned long long>(counters.saturated),
+        static_cast<unsigned long long>(inputs_.rejected() + counters.rejected_inputs),
+        static_cast<unsigned long long>(counters.model_resets), static_cast<unsigned long long>(inputs_.skipped()));
+    return result.exit_code;
+  }
+
+ private:
+  node::CommonOptions common_;
+  node::NodeRuntime rt_;
+  StateFeedbackParams params_;
+  StateFeedback law_;
+  node::CompensatorInputs inputs_;
+  node::CompensatorWriter writer_;
+};
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  return pmlsm::node::run_node("state_feedback", [&] { return run(argc, argv); });
+namespace pmlsm::node {
+
+MadeComponent make_state_feedback(const ComponentContext& context, int argc, char** argv) {
+  CLI::App app{"Model-following state feedback compensator on DDS (inverse-model feedforward, estimated spring force)"};
+  CommonOptions common;
+  add_common_options(app, common);
+  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  return {std::make_unique<StateFeedbackComponent>(context, std::move(common))};
 }
+
+}  // namespace pmlsm::node

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -16,8 +17,11 @@ namespace pmlsm::launch {
 
 namespace {
 
-const std::vector<std::string> kTopKeys = {"name", "hosts", "nodes", "args"};
+const std::vector<std::string> kTopKeys = {"name", "hosts", "nodes", "args", "containers"};
 const std::vector<std::string> kNodeKeys = {"name", "executable", "host", "args", "env", "ends_launch", "if"};
+const std::vector<std::string> kContainerKeys = {"name", "components", "host", "args", "if"};
+/// The program that runs components in one process (nodes/container).
+constexpr const char* kContainerExecutable = "container";
 
 std::string join(const std::vector<std::string>& items, const char* sep = ", ") {
   std::string out;
@@ -276,6 +280,108 @@ NodeSpec parse_node(const Location& loc, const YAML::Node& node, const std::stri
   return spec;
 }
 
+std::vector<std::string> string_list(const Location& loc, const YAML::Node& node, const std::string& path,
+                                     const std::map<std::string, std::string>& args) {
+  if (!node.IsSequence()) loc.fail(node, path, "must be a list of strings, got " + describe(node));
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    const std::string item_path = path + "[" + std::to_string(i) + "]";
+    out.push_back(substitute_args(string_value(loc, node[i], item_path), args, loc.at(node[i], item_path)));
+  }
+  return out;
+}
+
+// One `containers:` entry against the nodes already parsed: replaces its components in
+// `launch.nodes` (when its `if` holds). `taken` collects the nodes already in a container.
+void apply_container(const Location& loc, const YAML::Node& node, const std::string& path,
+                     const std::vector<NodeSpec>& all_nodes, std::set<std::string>& taken, LaunchDescription& launch) {
+  if (!node.IsMap()) loc.fail(node, path, "must be a map with name and components, got " + describe(node));
+  const auto fields = checked_fields(loc, node, path, kContainerKeys);
+  const YAML::Node& name_node = require(loc, node, fields, path, "name");
+  const std::string name = string_value(loc, name_node, path + ".name");
+  if (!matches(name, node_name_char)) {
+    loc.fail(name_node, path + ".name", "'" + name + "' is not a container name ([A-Za-z0-9_-]+)");
+  }
+  for (const auto& n : all_nodes) {
+    if (n.name == name) loc.fail(name_node, path + ".name", "'" + name + "' is already the name of a node");
+  }
+  if (name == "launcher") loc.fail(name_node, path + ".name", "'launcher' is reserved for the launcher's own messages");
+  if (const YAML::Node* condition = find(fields, "if")) {
+    const std::string where = loc.at(*condition, path + ".if");
+    if (!evaluate_condition(substitute_args(string_value(loc, *condition, path + ".if"), launch.args, where), where)) {
+      launch.left_out.push_back(name);
+      return;
+    }
+  }
+  const YAML::Node& list = require(loc, node, fields, path, "components");
+  const std::vector<std::string> names = string_list(loc, list, path + ".components", launch.args);
+  if (names.empty()) loc.fail(list, path + ".components", "must list at least one node");
+
+  NodeSpec spec;
+  spec.name = name;
+  spec.executable = kContainerExecutable;
+  spec.args = {"--name", name};
+  if (const YAML::Node* own = find(fields, "args")) {
+    const auto more = string_list(loc, *own, path + ".args", launch.args);
+    spec.args.insert(spec.args.end(), more.begin(), more.end());
+  }
+  std::optional<std::string> host;
+  if (const YAML::Node* h = find(fields, "host")) host = string_value(loc, *h, path + ".host");
+  std::size_t first_index = launch.nodes.size();
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    const std::string item_path = path + ".components[" + std::to_string(i) + "]";
+    const auto in_file = std::find_if(all_nodes.begin(), all_nodes.end(), [&](const NodeSpec& n) { return n.name == names[i]; });
+    if (in_file == all_nodes.end()) {
+      std::vector<std::string> known;
+      for (const auto& n : all_nodes) known.push_back(n.name);
+      loc.fail(list[i], item_path, "'" + names[i] + "' is not a node of this file (nodes: " + join(known) + ")");
+    }
+    if (!taken.insert(names[i]).second) loc.fail(list[i], item_path, "'" + names[i] + "' is already in a container");
+    if (!in_file->enabled) continue;  // left out by its own `if`
+    if (!in_file->env.empty()) {
+      loc.fail(list[i], item_path, "'" + names[i] + "' sets env: the components of a container share one process's "
+                                   "environment; run it alone or move the variables to the launch");
+    }
+    if (in_file->executable.find('/') != std::string::npos) {
+      loc.fail(list[i], item_path, "'" + names[i] + "' runs '" + in_file->executable +
+                                   "': a container makes components by node name (plant_sim, controller, ...), not paths");
+    }
+    // With its own `host` the container takes its components there; without, they share one.
+    if (!host) host = in_file->host;
+    if (!find(fields, "host") && in_file->host != *host) {
+      loc.fail(list[i], item_path, "'" + names[i] + "' is on host " + in_file->host + ", the container on " + *host +
+                                   ": a container is one process on one host");
+    }
+    const auto at = std::find_if(launch.nodes.begin(), launch.nodes.end(), [&](const NodeSpec& n) { return n.name == names[i]; });
+    first_index = std::min(first_index, static_cast<std::size_t>(at - launch.nodes.begin()));
+    spec.components.push_back(names[i]);
+    spec.ends_launch = spec.ends_launch || in_file->ends_launch;
+  }
+  if (spec.components.empty()) {
+    launch.left_out.push_back(name);  // every component left out by its own `if`
+    return;
+  }
+  bool known_host = false;
+  for (const auto& h : launch.hosts) known_host = known_host || h == *host;
+  if (!known_host) loc.fail(node, path + ".host", "'" + *host + "' is not among hosts [" + join(launch.hosts) + "]");
+  spec.host = *host;
+  // Each component's command line, in the order of `nodes` (the container sorts the chain itself).
+  for (const auto& n : launch.nodes) {
+    if (std::find(spec.components.begin(), spec.components.end(), n.name) == spec.components.end()) continue;
+    spec.args.push_back("--component");
+    spec.args.push_back(n.name);
+    spec.args.push_back(n.executable);
+    spec.args.insert(spec.args.end(), n.args.begin(), n.args.end());
+  }
+  std::vector<NodeSpec> rest;
+  for (std::size_t i = 0; i < launch.nodes.size(); ++i) {
+    if (i == first_index) rest.push_back(spec);
+    const auto& n = launch.nodes[i];
+    if (std::find(spec.components.begin(), spec.components.end(), n.name) == spec.components.end()) rest.push_back(n);
+  }
+  launch.nodes = std::move(rest);
+}
+
 }  // namespace
 
 LaunchDescription parse_launch(const std::string& text, const std::string& source,
@@ -317,9 +423,11 @@ LaunchDescription parse_launch(const std::string& text, const std::string& sourc
     loc.fail(nodes, "nodes", "must be a list of nodes, got " + describe(nodes));
   if (nodes.size() == 0) loc.fail(nodes, "nodes", "must list at least one node");
   std::map<std::string, std::size_t> index_of;
+  std::vector<NodeSpec> all_nodes;
   for (std::size_t i = 0; i < nodes.size(); ++i) {
     const std::string path = "nodes[" + std::to_string(i) + "]";
     NodeSpec spec = parse_node(loc, nodes[i], path, launch.hosts, launch.args);
+    all_nodes.push_back(spec);
     const auto [it, inserted] = index_of.emplace(spec.name, i);
     if (!inserted) {
       loc.fail(
@@ -334,6 +442,22 @@ LaunchDescription parse_launch(const std::string& text, const std::string& sourc
   }
   if (launch.nodes.empty()) {
     loc.fail(nodes, "nodes", "every node is left out by its 'if' (left out: " + join(launch.left_out) + ")");
+  }
+  if (const YAML::Node* containers = find(fields, "containers")) {
+    if (!containers->IsSequence()) {
+      loc.fail(*containers, "containers", "must be a list of containers, got " + describe(*containers));
+    }
+    std::set<std::string> taken;
+    std::set<std::string> container_names;
+    for (std::size_t i = 0; i < containers->size(); ++i) {
+      const std::string path = "containers[" + std::to_string(i) + "]";
+      const YAML::Node entry = (*containers)[i];
+      if (entry.IsMap() && entry["name"] && entry["name"].IsScalar() &&
+          !container_names.insert(entry["name"].Scalar()).second) {
+        loc.fail(entry["name"], path + ".name", "'" + entry["name"].Scalar() + "' is already the name of a container");
+      }
+      apply_container(loc, entry, path, all_nodes, taken, launch);
+    }
   }
   return launch;
 }

@@ -33,6 +33,8 @@ struct NodeSpec {
   std::vector<std::pair<std::string, std::string>> env;  // in file order, after substitution
   bool ends_launch = false;
   bool enabled = true;  // its `if` held (or it had none)
+  /// A container: the nodes it runs as components, in file order (empty for a plain node).
+  std::vector<std::string> components;
 };
 
 struct LaunchDescription {
@@ -40,7 +42,7 @@ struct LaunchDescription {
   std::string name;
   std::vector<std::string> hosts;           // never empty; default {"local"}
   std::vector<NodeSpec> nodes;              // never empty, in file order; the enabled ones
-  std::vector<std::string> left_out;        // names of the nodes whose `if` was false
+  std::vector<std::string> left_out;        // names of the nodes (and containers) whose `if` was false
   std::map<std::string, std::string> args;  // defaults with the overrides applied
 };
 
@@ -48,6 +50,9 @@ using ArgOverrides = std::map<std::string, std::string>;
 
 // Parses and validates a launch description held in `text`; `source` names it in
 // messages. Overrides replace declared arg defaults; an undeclared one is an error.
+// An enabled entry of `containers:` (name, components, optional host, args, if) replaces its
+// components in `nodes` by one node that runs the `container` executable with them, at the
+// place of its first component; its args are the container's own options.
 // @throws LaunchFileError
 LaunchDescription parse_launch(const std::string& text, const std::string& source,
                                const ArgOverrides& overrides = {});

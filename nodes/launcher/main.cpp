@@ -36,6 +36,11 @@ void print_dry_run(const pmlsm::launch::NodeSpec& node, const ProcessSpec& proce
                    const std::string& not_found) {
   std::cout << node.name << " (host " << node.host << (node.ends_launch ? ", ends the launch" : "")
             << ")\n";
+  if (!node.components.empty()) {
+    std::cout << "  container of:";
+    for (const auto& c : node.components) std::cout << " " << c;
+    std::cout << "\n";
+  }
   for (const auto& [key, value] : node.env) {
     std::cout << "  env: " << key << "=" << pmlsm::launch::shell_quote(value) << "\n";
   }

@@ -130,6 +130,7 @@ class DriveNode {
   std::uint64_t refused_requests_ = 0;
   bool watchdog_armed_ = false;
   std::uint64_t faults_at_start_ = 0;  ///< backend faults before tick 0: later ones make the run not valid
+  double cpu_at_start_s_ = 0.0;        ///< the process's CPU time when the loop started
 };
 
 }  // namespace pmlsm::node

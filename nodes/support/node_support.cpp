@@ -161,19 +161,30 @@ pmlsm_msgs::msg::Stamp make_stamp(std::uint64_t tick, double control_period_s, s
 }
 
 namespace {
-dds::ParticipantOptions named(dds::ParticipantOptions options, const std::string& node_name) {
+dds::ParticipantOptions named(dds::ParticipantOptions options, const std::string& node_name,
+                              const ComponentContext& context, Clock clock) {
   options.node_name = node_name;
+  options.local_bus = context.local_bus;
+  options.pace_remote_readers = context.local_bus != nullptr && clock == Clock::kLockstep;
   return options;
 }
 }  // namespace
 
-NodeRuntime::NodeRuntime(const std::string& node_name, CommonOptions& options)
+int run_standalone(const char* node_name, ComponentFactory make, int argc, char** argv) {
+  return run_node(node_name, [&] {
+    MadeComponent made = make(ComponentContext{}, argc, argv);
+    return made.component ? made.component->run() : made.exit_code;
+  });
+}
+
+NodeRuntime::NodeRuntime(const std::string& node_name, CommonOptions& options, const ComponentContext& context)
     : start_ns(monotonic_ns()),
       cfg(load_config(options)),
       period_s(cfg.params.timing.control_period_s),
       realtime(options.realtime),
-      wakeup(spin_time(options), std::chrono::nanoseconds(static_cast<std::int64_t>(options.wake_batch_us * 1e3))),
-      participant(named(options.dds, node_name)),
+      wakeup(spin_time(options), std::chrono::nanoseconds(static_cast<std::int64_t>(options.wake_batch_us * 1e3)),
+             context.local_bus != nullptr ? &context.local_bus->scheduler() : nullptr),
+      participant(named(options.dds, node_name, context, cfg.clock)),
       status(participant, node_name) {
   if (options.realtime.rt_priority > 0 || options.realtime.cpu_dma_latency_us >= 0) {
     std::printf("%s: real-time setup: %s\n", node_name.c_str(), realtime.summary().c_str());

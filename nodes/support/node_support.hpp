@@ -16,6 +16,7 @@
 
 #include "NodeStatusPubSubTypes.h"
 #include "StampPubSubTypes.h"
+#include "component.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/dds/participant.hpp"
 #include "pmlsm/dds/shutdown.hpp"
@@ -245,8 +246,10 @@ class FeedbackFollower {
 /// its participant, the wake-up its readers signal and its NodeStatus writer.
 /// Declared in this order, so they are made in it (and torn down in reverse).
 struct NodeRuntime {
+  /// In a container (`context` with its bus), the participant's endpoints also take the
+  /// in-process path and the wakeup hands the chain thread on instead of blocking it.
   /// @throws ConfigError (exit 2) or std::runtime_error from DDS (exit 1).
-  NodeRuntime(const std::string& node_name, CommonOptions& options);
+  NodeRuntime(const std::string& node_name, CommonOptions& options, const ComponentContext& context = {});
 
   /// monotonic_ns() before anything else: what start-up costs (a secure participant's
   /// handshakes among it) is measured from here.

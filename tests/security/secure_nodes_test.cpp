@@ -504,3 +504,71 @@ TEST(SecureNodes, PayloadsNeverCrossTheWireInClear) {
 
 }  // namespace
 }  // namespace pmlsm
+
+namespace pmlsm {
+namespace {
+
+// Components in one container keep one participant each, with their own identity: the
+// permissions of that identity decide what the component may write and read, in the process as
+// on the wire (an endpoint the identity may not have is never made, so it has no in-process
+// path either).
+std::vector<std::string> in_container(const std::string& name, const std::string& type, std::vector<std::string> args) {
+  args.erase(args.begin());  // the program: the container makes the component
+  args.insert(args.begin(), {"--component", name, type});
+  return args;
+}
+
+TEST(SecureContainer, AComponentMayNotWriteWhatItsIdentityMayNot) {
+  const fs::path dir = test::fresh_dir("pmlsm_sec", "container_permission");
+  const std::string domain = test_domain(125);
+  const fs::path ks = make_keystore(dir, "keystore");
+  const std::string scenario = short_scenario(dir);
+  std::vector<std::string> argv{test::bin("container"), "--name", "chain"};
+  for (const auto& c : {in_container("plant_sim", "plant_sim",
+                                     node_args("plant_sim", domain, scenario, {"--keystore", ks.string(), "--peers", "1"})),
+                        in_container("controller", "controller",
+                                     node_args("controller", domain, scenario,
+                                               {"--keystore", ks.string(), "--identity", "kalman_estimator"}))}) {
+    argv.insert(argv.end(), c.begin(), c.end());
+  }
+  test::ChildProcess chain(argv, (dir / "chain.log").string());
+  const auto code = chain.wait_for(std::chrono::seconds(60));
+  ASSERT_TRUE(code.has_value()) << chain.output();
+  EXPECT_EQ(*code, 2) << chain.output();
+  const std::string out = chain.output();
+  EXPECT_NE(out.find("identity 'kalman_estimator' may not publish 'rt/pmlsm/force_command'"), std::string::npos) << out;
+  EXPECT_NE(out.find("component controller (controller) was not made: exit 2"), std::string::npos) << out;
+  EXPECT_EQ(out.find("components on one chain thread"), std::string::npos) << out;
+  fs::remove_all(dir);
+}
+
+TEST(SecureContainer, AnOpenIntruderNeitherSeesNorCommandsTheComposedSecureChain) {
+  const fs::path dir = test::fresh_dir("pmlsm_sec", "container_intruder");
+  const std::string domain = test_domain(126);
+  const fs::path ks = make_keystore(dir, "keystore");
+  const std::string scenario = short_scenario(dir);
+  test::ChildProcess probe({test::bin("security_probe"), "--domain", domain, "--profiles",
+                            source("configs/dds/profiles.xml"), "--intrude", "--seconds", "10"},
+                           (dir / "probe.log").string());
+  std::vector<std::string> argv{test::bin("container"), "--name", "chain"};
+  for (const auto& c : {in_container("plant_sim", "plant_sim",
+                                     node_args("plant_sim", domain, scenario, {"--keystore", ks.string(), "--peers", "1"})),
+                        in_container("controller", "controller",
+                                     node_args("controller", domain, scenario, {"--keystore", ks.string()}))}) {
+    argv.insert(argv.end(), c.begin(), c.end());
+  }
+  test::ChildProcess chain(argv, (dir / "chain.log").string());
+  const auto code = chain.wait_for(std::chrono::seconds(60));
+  ASSERT_TRUE(code.has_value()) << chain.output();
+  EXPECT_EQ(*code, 0) << chain.output();
+  EXPECT_NE(chain.output().find("(secure)"), std::string::npos) << chain.output();
+  EXPECT_NE(chain.output().find("rejected 0, foreign 0"), std::string::npos) << chain.output();
+  ASSERT_TRUE(probe.wait_for(std::chrono::seconds(30)).has_value()) << probe.output();
+  const auto c = probe_counts(probe.output());
+  EXPECT_EQ(c.feedback, 0) << probe.output();
+  EXPECT_EQ(c.force_matched, 0) << probe.output();
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace pmlsm

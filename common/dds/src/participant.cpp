@@ -11,15 +11,42 @@
 #include <thread>
 
 #include "pmlsm/security/keystore_layout.hpp"
+#include "pmlsm/util/clock.hpp"
 
 namespace pmlsm::dds {
 
 using eprosima::fastdds::dds::DomainParticipantFactory;
 using ReturnCode = eprosima::fastrtps::types::ReturnCode_t;
 
+std::int64_t monotonic_ns_now() { return monotonic_ns(); }
+
+void notify_wakeup(Wakeup& wakeup) { wakeup.notify(); }
+
+eprosima::fastrtps::rtps::Time_t wall_clock_now() {
+  eprosima::fastrtps::rtps::Time_t t;
+  eprosima::fastrtps::rtps::Time_t::now(t);
+  return t;
+}
+
 std::uint64_t Wakeup::generation() const { return generation_.load(std::memory_order_acquire); }
 
+void Wakeup::sleep_until_ns(std::int64_t ns) {
+  if (cooperative()) {
+    scheduler_->sleep_until(ns);
+  } else {
+    sleep_until_monotonic_ns(ns);
+  }
+}
+
 bool Wakeup::wait_for(std::uint64_t seen, std::chrono::nanoseconds timeout) {
+  if (cooperative()) {
+    const std::int64_t now = monotonic_ns();
+    if (batch_.count() > 0) {
+      scheduler_->sleep_until(now + std::min(timeout, batch_).count());
+      return generation_.load(std::memory_order_acquire) != seen;
+    }
+    return scheduler_->wait(generation_, seen, now + timeout.count());
+  }
   if (batch_.count() > 0) {
     std::this_thread::sleep_for(std::min(timeout, batch_));
     return generation_.load(std::memory_order_acquire) != seen;
@@ -39,6 +66,21 @@ bool Wakeup::wait_for(std::uint64_t seen, std::chrono::nanoseconds timeout) {
 }
 
 void Wakeup::notify() {
+  if (scheduler_ != nullptr && scheduler_->on_scheduler_thread()) {
+    // A component of the container wrote: its readers' fibers look at the generation.
+    generation_.fetch_add(1, std::memory_order_acq_rel);
+    return;
+  }
+  if (scheduler_ != nullptr) {
+    // From Fast DDS's threads (a sample from outside): the chain thread may be idle.
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      generation_.fetch_add(1, std::memory_order_acq_rel);
+    }
+    cv_.notify_all();
+    scheduler_->wake();
+    return;
+  }
   if (batch_.count() > 0) {
     generation_.fetch_add(1, std::memory_order_acq_rel);
     return;
@@ -88,7 +130,13 @@ void make_secure(eprosima::fastdds::dds::DomainParticipantQos& qos, const std::s
 class Participant::NotifyingListener : public eprosima::fastdds::dds::DataReaderListener {
  public:
   explicit NotifyingListener(Wakeup& wakeup) : wakeup_(wakeup) {}
-  void on_data_available(eprosima::fastdds::dds::DataReader*) override { wakeup_.notify(); }
+  void on_data_available(eprosima::fastdds::dds::DataReader*) override {
+    arrived.store(true, std::memory_order_release);
+    wakeup_.notify();
+  }
+  /// Something arrived over DDS since the reader last looked (a container's reader looks at DDS
+  /// only then).
+  std::atomic<bool> arrived{true};
   void on_subscription_matched(eprosima::fastdds::dds::DataReader*,
                                const eprosima::fastdds::dds::SubscriptionMatchedStatus&) override {
     wakeup_.notify();
@@ -99,7 +147,11 @@ class Participant::NotifyingListener : public eprosima::fastdds::dds::DataReader
 };
 
 Participant::Participant(const ParticipantOptions& options)
-    : node_name_(options.node_name), keystore_(options.keystore), data_sharing_(options.data_sharing) {
+    : node_name_(options.node_name),
+      keystore_(options.keystore),
+      data_sharing_(options.data_sharing),
+      local_bus_(options.local_bus),
+      pace_remote_readers_(options.pace_remote_readers) {
   if (!keystore_.empty()) {
     identity_ = options.identity.empty() ? options.node_name : options.identity;
     if (identity_.empty()) throw SecurityConfigError("a secure participant needs an identity (--identity)");
@@ -159,6 +211,26 @@ Participant::~Participant() {
   }
   participant_->delete_contained_entities();
   DomainParticipantFactory::get_instance()->delete_participant(participant_);
+  // After the entities: the bus owns the writers' listeners.
+  if (local_bus_ != nullptr) local_bus_->remove_owner(this);
+}
+
+std::atomic<bool>& Participant::last_arrival_flag() { return listeners_.back()->arrived; }
+
+bool Participant::keeps_state(eprosima::fastdds::dds::DataWriter* writer) {
+  const auto qos = writer->get_qos();
+  return qos.durability().kind != eprosima::fastdds::dds::VOLATILE_DURABILITY_QOS &&
+         qos.history().kind == eprosima::fastdds::dds::KEEP_LAST_HISTORY_QOS && qos.history().depth == 1;
+}
+
+Participant::QueueShape Participant::queue_shape(eprosima::fastdds::dds::DataReader* reader) {
+  const auto qos = reader->get_qos();
+  if (qos.history().kind == eprosima::fastdds::dds::KEEP_ALL_HISTORY_QOS) {
+    const std::int32_t max = qos.resource_limits().max_samples;
+    // Unlimited (<= 0): as deep as the deepest history of the profiles.
+    return {static_cast<std::size_t>(max > 0 ? max : 8192), true};
+  }
+  return {static_cast<std::size_t>(std::max<std::int32_t>(1, qos.history().depth)), false};
 }
 
 eprosima::fastdds::dds::Topic* Participant::create_topic(const std::string& name,
@@ -195,13 +267,14 @@ Writer<RawPubSubType> Participant::make_raw_writer(const CatalogEntry& entry, co
 }
 
 eprosima::fastdds::dds::DataWriter* Participant::create_writer(eprosima::fastdds::dds::Topic* topic,
-                                                               const std::string& profile) {
+                                                               const std::string& profile,
+                                                               eprosima::fastdds::dds::DataWriterListener* listener) {
   eprosima::fastdds::dds::DataWriterQos qos;
   if (publisher_->get_datawriter_qos_from_profile(profile, qos) != ReturnCode::RETCODE_OK) {
     throw std::runtime_error("no data_writer profile '" + profile + "' in the DDS profiles");
   }
   if (!data_sharing_) qos.data_sharing().off();
-  auto* writer = publisher_->create_datawriter(topic, qos);
+  auto* writer = publisher_->create_datawriter(topic, qos, listener);
   if (writer == nullptr && !keystore_.empty()) throw SecurityConfigError(refusal_hint("publish", topic->get_name()));
   if (writer == nullptr) {
     throw std::runtime_error("cannot create writer on '" + topic->get_name() + "' with profile '" +
@@ -234,6 +307,9 @@ std::string Participant::refusal_hint(const char* what, const std::string& topic
 }
 
 void Participant::delete_reader_entity(eprosima::fastdds::dds::DataReader* reader) {
+  if (local_bus_ != nullptr) {
+    throw std::logic_error("deleting a reader of a component in a container: its local queue would dangle");
+  }
   const auto* listener = reader->get_listener();
   const std::string topic = reader->get_topicdescription()->get_name();
   if (subscriber_->delete_datareader(reader) != ReturnCode::RETCODE_OK) {

@@ -23,7 +23,11 @@ bool TickClock::wait_next_tick() {
   next_ns_ += period_ns_;
   std::int64_t now = monotonic_ns();
   const bool missed = now > next_ns_;
-  sleep_until_monotonic_ns(next_ns_ - wake_early_ns_);
+  if (sleeper_ != nullptr) {
+    sleeper_(sleeper_context_, next_ns_ - wake_early_ns_);
+  } else {
+    sleep_until_monotonic_ns(next_ns_ - wake_early_ns_);
+  }
   // No yield while polling: the poll is short, and at SCHED_FIFO a yield would hand the core
   // to this node's own threads just when the tick must start.
   if (wake_early_ns_ > 0) {

@@ -31,12 +31,16 @@
 #include <vector>
 
 #include "pmlsm/dds/catalog.hpp"
+#include "pmlsm/dds/fiber_scheduler.hpp"
+#include "pmlsm/dds/local_bus.hpp"
 #include "pmlsm/dds/raw_type.hpp"
 #include "pmlsm/dds/topics.hpp"
 
 namespace pmlsm::dds {
 
-/// Signalled by readers' listeners when data arrives; the loop thread waits on it.
+/// Signalled by readers' listeners when data arrives; the loop thread waits on it. In a
+/// container (a scheduler given) the loop is a fiber and waiting hands the chain thread to the
+/// next component (see fiber_scheduler.hpp); spinning is then pointless and not done.
 class Wakeup {
  public:
   /// spin: how long wait_for() polls (yielding the core) before it sleeps.
@@ -46,8 +50,8 @@ class Wakeup {
   /// every sample (on a virtual machine a wake-up costs tens of microseconds
   /// of the cores the chain needs).
   explicit Wakeup(std::chrono::nanoseconds spin = std::chrono::nanoseconds(0),
-                  std::chrono::nanoseconds batch = std::chrono::nanoseconds(0))
-      : spin_(spin), batch_(batch) {
+                  std::chrono::nanoseconds batch = std::chrono::nanoseconds(0), FiberScheduler* scheduler = nullptr)
+      : spin_(spin), batch_(batch), scheduler_(scheduler) {
     if (spin.count() < 0 || batch.count() < 0) {
       throw std::invalid_argument("Wakeup: spin and batch must not be negative, got " +
                                   std::to_string(spin.count()) + " ns and " + std::to_string(batch.count()) + " ns");
@@ -61,10 +65,18 @@ class Wakeup {
   /// @return false on timeout.
   bool wait_for(std::uint64_t seen, std::chrono::nanoseconds timeout);
   void notify();
+  /// Sleeps until the CLOCK_MONOTONIC time `ns` (in a container: lets the other components run).
+  void sleep_until_ns(std::int64_t ns);
+  /// The container's scheduler; nullptr for a node alone in its process.
+  FiberScheduler* scheduler() const { return scheduler_; }
 
  private:
+  /// In a fiber of the container's scheduler (false before the container runs).
+  bool cooperative() const { return scheduler_ != nullptr && scheduler_->on_scheduler_thread(); }
+
   std::chrono::nanoseconds spin_;
   std::chrono::nanoseconds batch_;
+  FiberScheduler* scheduler_;
   std::mutex mutex_;
   std::condition_variable cv_;
   std::atomic<std::uint64_t> generation_{0};
@@ -91,6 +103,14 @@ struct ParticipantOptions {
   std::string keystore;
   /// The identity in the keystore (default: node_name).
   std::string identity;
+  /// The container's in-process path (local_bus.hpp); nullptr for a node alone in its process.
+  /// Must outlive the participant.
+  LocalBus* local_bus = nullptr;
+  /// In a container running lockstep: a writer with readers outside the process lets them keep
+  /// up (see Writer::write). A lockstep chain in one process runs far faster than a reader
+  /// behind a socket takes samples, and a reliable writer's KEEP_LAST history would drop what
+  /// they have not acknowledged yet. Never in realtime: the chain does not wait for observers.
+  bool pace_remote_readers = false;
 };
 
 /// Bad security input (keystore file missing or refused, identity absent, an option that
@@ -111,20 +131,47 @@ std::string resolve_keystore(const std::string& option_value);
 
 class Participant;
 
+/// CLOCK_MONOTONIC in ns (pmlsm/util/clock.hpp's, without pulling it into every node).
+std::int64_t monotonic_ns_now();
+
 template <typename PubSubType>
 class Writer {
  public:
   using Message = typename PubSubType::type;
   /// @return false when Fast DDS refuses the sample (counted by the caller).
   bool write(const Message& sample) {
+    if (local_ != nullptr) {
+      local_->deliver(sample, guid_);
+      // DDS only for readers outside the process, or for state a late joiner must get.
+      if (!keeps_state_ && remote_->count() == 0) return true;
+      if (pace_ && ++since_paced_ >= kPaceEvery) {
+        since_paced_ = 0;
+        wait_for_acknowledgments(kPaceTimeout);
+      }
+    }
     return writer_->write(const_cast<Message*>(&sample));
   }
+  /// Readers outside the container matched (in a container); -1 for a node alone in its process.
+  int remote_readers() const { return remote_ != nullptr ? remote_->count() : -1; }
   eprosima::fastdds::dds::DataWriter* entity() { return writer_; }
   /// Blocks until every matched reliable reader acknowledged all samples, or
   /// the timeout passes. Call before exiting: a writer deleted with samples
   /// still unacknowledged takes them with it (the last tick's command, say).
   bool wait_for_acknowledgments(std::chrono::duration<double> timeout) {
     const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(timeout).count();
+    if (scheduler_ != nullptr && scheduler_->on_scheduler_thread()) {
+      // In a container: ask without blocking and sleep between, so the other components run.
+      const std::int64_t deadline = monotonic_ns_now() + ns;
+      for (;;) {
+        if (writer_->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(0, 0)) ==
+            eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+          return true;
+        }
+        const std::int64_t now = monotonic_ns_now();
+        if (now >= deadline) return false;
+        scheduler_->sleep_until(std::min(deadline, now + 200000));
+      }
+    }
     const eprosima::fastrtps::Duration_t t(static_cast<std::int32_t>(ns / 1000000000),
                                            static_cast<std::uint32_t>(ns % 1000000000));
     return writer_->wait_for_acknowledgments(t) == eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK;
@@ -136,36 +183,65 @@ class Writer {
   friend class Participant;
   explicit Writer(eprosima::fastdds::dds::DataWriter* writer) : writer_(writer) {}
   eprosima::fastdds::dds::DataWriter* writer_;
+  // In a container:
+  /// Lockstep pacing: every this many samples to DDS, wait until the readers outside acknowledged
+  /// all (far below the writers' history of 4096, so none is dropped unacknowledged).
+  static constexpr unsigned kPaceEvery = 256;
+  static constexpr std::chrono::seconds kPaceTimeout{10};
+  bool pace_ = false;
+  unsigned since_paced_ = 0;
+  LocalTopic<Message>* local_ = nullptr;
+  RemoteReaders* remote_ = nullptr;
+  FiberScheduler* scheduler_ = nullptr;
+  Guid guid_;
+  bool keeps_state_ = false;
 };
 
 template <typename PubSubType>
 class Reader {
  public:
   using Message = typename PubSubType::type;
-  /// Takes the next valid sample, if any, without blocking.
+  /// Takes the next valid sample, if any, without blocking. In a container, samples of writers
+  /// in the process come from the local queue; DDS brings those of writers outside (and copies
+  /// of the local ones while a reader outside makes the local writers write to DDS: dropped).
   bool take(Message& out) {
     eprosima::fastdds::dds::SampleInfo info;
-    while (reader_->take_next_sample(&out, &info) ==
-           eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
-      if (info.valid_data) return true;
-    }
-    return false;
+    return take(out, info);
   }
   /// As take(), with the sample's info (source and reception times, writer and sequence number).
   bool take(Message& out, eprosima::fastdds::dds::SampleInfo& info) {
-    while (reader_->take_next_sample(&out, &info) ==
-           eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
-      if (info.valid_data) return true;
+    if (local_ == nullptr) return take_from_dds(out, info);
+    // DDS only when its listener said something came: an empty DDS take costs locks every tick.
+    if (dds_pending_->exchange(false, std::memory_order_acq_rel)) dds_backlog_ = true;
+    if (dds_backlog_) {
+      if (take_from_dds(out, info)) return true;
+      dds_backlog_ = false;
     }
-    return false;
+    return local_->pop(out, &info);
   }
+  /// Samples a full local queue dropped (KEEP_LAST) or refused (KEEP_ALL); 0 outside a container.
+  std::uint64_t local_losses() const { return local_ != nullptr ? local_->overwritten() + local_->refused() : 0; }
   std::size_t matched_writers() const;
   eprosima::fastdds::dds::DataReader* entity() { return reader_; }
 
  private:
   friend class Participant;
   explicit Reader(eprosima::fastdds::dds::DataReader* reader) : reader_(reader) {}
+  bool take_from_dds(Message& out, eprosima::fastdds::dds::SampleInfo& info) {
+    while (reader_->take_next_sample(&out, &info) == eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+      if (!info.valid_data) continue;
+      // A writer of this process: the queue had the sample already.
+      if (topic_ != nullptr && topic_->is_local_writer(info.sample_identity.writer_guid())) continue;
+      return true;
+    }
+    return false;
+  }
   eprosima::fastdds::dds::DataReader* reader_;
+  // In a container:
+  LocalQueue<Message>* local_ = nullptr;
+  const LocalTopicBase* topic_ = nullptr;
+  std::atomic<bool>* dds_pending_ = nullptr;  ///< set by the DDS reader's listener on every arrival
+  bool dds_backlog_ = true;                   ///< DDS may hold samples: drain before the queue
 };
 
 class Participant {
@@ -179,15 +255,38 @@ class Participant {
 
   template <typename PubSubType>
   Writer<PubSubType> make_writer(const TopicSpec& spec) {
-    return Writer<PubSubType>(create_writer(topic_for<PubSubType>(spec), spec.qos_profile));
+    using Message = typename PubSubType::type;
+    if (local_bus_ == nullptr) return Writer<PubSubType>(create_writer(topic_for<PubSubType>(spec), spec.qos_profile));
+    // The listener must be there from the start: it counts the readers outside the process.
+    LocalTopic<Message>& local = local_bus_->topic<Message>(spec.name);
+    RemoteReaders& remote = local_bus_->track_writer(this, local);
+    auto* entity = create_writer(topic_for<PubSubType>(spec), spec.qos_profile, &remote);
+    Writer<PubSubType> writer(entity);
+    writer.local_ = &local;
+    writer.guid_ = entity->guid();
+    local_bus_->add_writer(remote, writer.guid_);
+    writer.remote_ = &remote;
+    writer.scheduler_ = &local_bus_->scheduler();
+    writer.keeps_state_ = keeps_state(entity);
+    writer.pace_ = pace_remote_readers_;
+    return writer;
   }
 
   /// The reader's listener notifies `wakeup` on every arrival. `qos_profile`
   /// replaces the topic's own, e.g. the deep observer profile for a monitor.
   template <typename PubSubType>
   Reader<PubSubType> make_reader(const TopicSpec& spec, Wakeup& wakeup, const char* qos_profile = nullptr) {
-    return Reader<PubSubType>(create_reader(topic_for<PubSubType>(spec),
+    using Message = typename PubSubType::type;
+    Reader<PubSubType> reader(create_reader(topic_for<PubSubType>(spec),
                                             qos_profile != nullptr ? qos_profile : spec.qos_profile, wakeup));
+    if (local_bus_ != nullptr) {
+      LocalTopic<Message>& local = local_bus_->topic<Message>(spec.name);
+      const QueueShape shape = queue_shape(reader.entity());
+      reader.local_ = &local_bus_->add_reader(this, local, reader.entity()->guid(), shape.capacity, shape.keep_all, wakeup);
+      reader.topic_ = &local;
+      reader.dds_pending_ = &last_arrival_flag();
+    }
+    return reader;
   }
 
   /// Endpoints that carry serialized samples of a catalog topic (recorder, player, bridge).
@@ -221,7 +320,18 @@ class Participant {
   eprosima::fastdds::dds::Topic* create_topic(const std::string& name,
                                               eprosima::fastdds::dds::TypeSupport type);
   eprosima::fastdds::dds::DataWriter* create_writer(eprosima::fastdds::dds::Topic* topic,
-                                                    const std::string& profile);
+                                                    const std::string& profile,
+                                                    eprosima::fastdds::dds::DataWriterListener* listener = nullptr);
+  /// TRANSIENT_LOCAL with a history of one: the newest sample is state a late joiner must get.
+  static bool keeps_state(eprosima::fastdds::dds::DataWriter* writer);
+  struct QueueShape {
+    std::size_t capacity;
+    bool keep_all;
+  };
+  /// The flag the listener of the reader made last sets on every arrival.
+  std::atomic<bool>& last_arrival_flag();
+  /// A local queue as deep as the reader's history QoS.
+  static QueueShape queue_shape(eprosima::fastdds::dds::DataReader* reader);
   eprosima::fastdds::dds::DataReader* create_reader(eprosima::fastdds::dds::Topic* topic,
                                                     const std::string& profile, Wakeup& wakeup);
   void delete_reader_entity(eprosima::fastdds::dds::DataReader* reader);
@@ -238,6 +348,10 @@ class Participant {
   eprosima::fastdds::dds::Subscriber* subscriber_ = nullptr;
   std::map<std::string, eprosima::fastdds::dds::Topic*> topics_;
   std::vector<std::unique_ptr<NotifyingListener>> listeners_;
+  /// The container's in-process path; it owns this participant's local endpoints until the
+  /// participant is destroyed.
+  LocalBus* local_bus_ = nullptr;
+  bool pace_remote_readers_ = false;
 };
 
 template <typename PubSubType>

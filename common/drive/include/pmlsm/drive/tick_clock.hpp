@@ -23,7 +23,17 @@ class TickClock {
   bool wait_next_tick();
   bool realtime() const { return realtime_; }
 
+  /// How the clock sleeps until a CLOCK_MONOTONIC time: by default clock_nanosleep; a node in
+  /// a container hands the thread to the other components instead (its Wakeup).
+  using Sleeper = void (*)(void* context, std::int64_t until_ns);
+  void set_sleeper(Sleeper sleeper, void* context) {
+    sleeper_ = sleeper;
+    sleeper_context_ = context;
+  }
+
  private:
+  Sleeper sleeper_ = nullptr;
+  void* sleeper_context_ = nullptr;
   std::int64_t period_ns_;
   bool realtime_;
   std::int64_t wake_early_ns_;

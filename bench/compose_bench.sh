@@ -1,0 +1,95 @@
+#!/usr/bin/env bash
+# Components in one container process against one process per node, side by side in one run
+# on this machine (launch/sim_rnn.yaml: plant_sim, controller, kalman_estimator,
+# rnn_compensator, evaluator):
+#   - lockstep, composed and separate, each run `repeats` times: real-time factor (median and
+#     range) and their ratio; the voltage level (32 exchanges a tick) composed;
+#   - realtime, composed, untuned, `runs` runs of `seconds` s: the container's CPU (cores),
+#     chain latency, watchdog trips, deadline misses; the same with one recorder outside
+#     (`pmlsm record`), and one separate-process run for comparison;
+#   - realtime, composed, tuned (SCHED_FIFO 80, memory locked, cpu_dma_latency 0, the plant
+#     polling the clock for the last 100 us; needs root): deadline misses.
+# Prints figures only; exits 1 when a run did not end with exit 0.
+#   bench/compose_bench.sh [repeats] [runs] [seconds]   (default 5 3 10)
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$root"
+bin=build/bin
+repeats="${1:-5}"
+runs="${2:-3}"
+seconds="${3:-10}"
+domain="${PMLSM_DOMAIN:-47}"
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+source bench/bench_lib.sh
+cores_of() { field 's/.*process CPU over the loop: [0-9.]* us a tick, \([0-9.]*\) cores.*/\1/p' "$1"; }
+cpu_tick_of() { field 's/.*process CPU over the loop: \([0-9.]*\) us a tick.*/\1/p' "$1"; }
+trips_of() { grep -c "watchdog: tick" "$1" || true; }
+# median and range of the numbers on stdin: "median (min-max)"
+summary() { sort -g | awk '{ v[NR] = $1 } END { if (NR == 0) { print "n/a"; exit }
+  m = (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2; printf "%.4g (%.4g-%.4g, %d runs)", m, v[1], v[NR], NR }'; }
+median() { sort -g | awk '{ v[NR] = $1 } END { if (NR == 0) print ""; else print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2 }'; }
+failed=0
+run() {  # run LOG launcher-args...: the launcher, its exit code noted
+  local log="$1"; shift
+  if ! "$bin/launcher" launch/sim_rnn.yaml --arg domain="$domain" --arg out="$work" "$@" >"$log" 2>&1; then
+    echo "  run failed (exit $?): $log"; tail -n 5 "$log"; failed=1
+  fi
+}
+
+echo "[1/5] lockstep, sim_rnn, composed and separate, ${repeats} runs each (alternating)"
+for i in $(seq "$repeats"); do
+  run "$work/lock_comp_$i.log" --arg compose=true
+  run "$work/lock_sep_$i.log" --arg compose=false
+done
+echo "[2/5] lockstep, voltage level (32 exchanges a tick), composed and separate"
+"$bin/launcher" launch/sim.yaml --arg domain="$domain" --arg out="$work" --arg compose=true \
+  --arg command_level=voltage >"$work/volt_comp.log" 2>&1 || { echo "  voltage composed failed"; failed=1; }
+"$bin/launcher" launch/sim.yaml --arg domain="$domain" --arg out="$work" --arg compose=false \
+  --arg command_level=voltage >"$work/volt_sep.log" 2>&1 || { echo "  voltage separate failed"; failed=1; }
+
+sed "s/^duration_s: .*/duration_s: ${seconds}.0/" configs/scenarios/pulse.yaml >"$work/long.yaml"
+echo "[3/5] realtime, composed, untuned, ${runs} runs of ${seconds} s"
+for i in $(seq "$runs"); do
+  run "$work/rt_comp_$i.log" --arg compose=true --arg clock=realtime --arg scenario="$work/long.yaml"
+done
+echo "[4/5] realtime, composed with a recorder outside; and separate processes, ${seconds} s each"
+"$bin/pmlsm" --domain "$domain" record --no-progress -o "$work/rec.mcap" >"$work/recorder.log" 2>&1 &
+recorder=$!
+sleep 2  # the recorder's readers match before the run starts
+run "$work/rt_rec.log" --arg compose=true --arg clock=realtime --arg scenario="$work/long.yaml"
+kill -INT "$recorder" 2>/dev/null || true
+wait "$recorder" || true
+run "$work/rt_sep.log" --arg compose=false --arg clock=realtime --arg scenario="$work/long.yaml"
+echo "[5/5] realtime, composed, tuned (rt_priority=80 cpu_dma_latency_us=0 wake_early_us=100), ${runs} runs"
+for i in $(seq "$runs"); do
+  run "$work/rt_tuned_$i.log" --arg compose=true --arg clock=realtime --arg scenario="$work/long.yaml" \
+    --arg rt_priority=80 --arg cpu_dma_latency_us=0 --arg wake_early_us=100
+done
+
+ratio() { awk -v a="$1" -v b="$2" 'BEGIN { if (a == "" || b == "" || b + 0 == 0) print "n/a"; else printf "%.3g", a / b }'; }
+each() { for f in "$work"/$1; do "$2" "$f"; done; }
+comp_rtf=$(each 'lock_comp_*.log' rtf_of | median); sep_rtf=$(each 'lock_sep_*.log' rtf_of | median)
+echo
+printf '%-56s %s\n' "figure" "value"
+printf '%-56s %sx\n' "lockstep, composed, real-time factor" "$(each 'lock_comp_*.log' rtf_of | summary)"
+printf '%-56s %sx\n' "lockstep, separate processes, real-time factor" "$(each 'lock_sep_*.log' rtf_of | summary)"
+printf '%-56s %s\n' "  composed / separate (medians)" "$(ratio "$comp_rtf" "$sep_rtf")"
+printf '%-56s %s us composed, %s us separate (plant process only)\n' "  process CPU a tick (medians)" \
+  "$(each 'lock_comp_*.log' cpu_tick_of | median)" "$(each 'lock_sep_*.log' cpu_tick_of | median)"
+printf '%-56s %sx composed, %sx separate\n' "lockstep voltage level, real-time factor" \
+  "$(rtf_of "$work/volt_comp.log")" "$(rtf_of "$work/volt_sep.log")"
+printf '%-56s %s\n' "realtime composed untuned: container CPU, cores" "$(each 'rt_comp_*.log' cores_of | summary)"
+printf '%-56s %s\n' "  chain latency p50, us" "$(each 'rt_comp_*.log' p50_of | summary)"
+printf '%-56s %s\n' "  chain latency p99, us" "$(each 'rt_comp_*.log' p99_of | summary)"
+printf '%-56s %s of %s runs; deadline misses %s\n' "  watchdog trips" \
+  "$(for f in "$work"/rt_comp_*.log; do [ "$(trips_of "$f")" -gt 0 ] && echo x; done | wc -l)" "$runs" \
+  "$(each 'rt_comp_*.log' miss_of | paste -sd+ | bc)"
+printf '%-56s %s cores (%s without), p50 %s us\n' "  with one recorder outside" "$(cores_of "$work/rt_rec.log")" \
+  "$(each 'rt_comp_*.log' cores_of | median)" "$(p50_of "$work/rt_rec.log")"
+printf '%-56s %s cores (plant process only), p50 %s us, trips %s\n' "realtime separate processes" \
+  "$(cores_of "$work/rt_sep.log")" "$(p50_of "$work/rt_sep.log")" "$(trips_of "$work/rt_sep.log")"
+printf '%-56s %s of %s ticks; p50 %s us, p99 %s us\n' "realtime composed tuned: deadline misses" \
+  "$(each 'rt_tuned_*.log' miss_of | paste -sd+ | bc)" "$((runs * seconds * 1000))" \
+  "$(each 'rt_tuned_*.log' p50_of | median)" "$(each 'rt_tuned_*.log' p99_of | median)"
+exit "$failed"

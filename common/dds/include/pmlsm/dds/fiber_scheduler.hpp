@@ -1,0 +1,82 @@
+// Cooperative scheduling of a container's components on one thread (the chain thread).
+//
+// Every component runs its own loop, as it does alone in its process; in a container each loop
+// is a fiber (Boost.Context: a stack of its own, switched without a system call) and waits
+// through its Wakeup, which hands the thread to the next component instead of blocking it. A
+// hop from one component to the next is then a function-call-sized switch, not a thread
+// wake-up (tens of microseconds of kernel time on a virtual machine), and a lockstep run is
+// stepped in one fixed order: deterministic and fast.
+//
+// Order: after every switch the scheduler looks for work from the first fiber on, so the
+// fibers spawned first (the drive, then the controller) run as soon as they can.
+//
+// Threads: run() and every fiber run on the thread that called run(); wake() may be called
+// from any thread (Fast DDS's listener threads when a sample arrives from outside).
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace pmlsm::dds {
+
+class FiberScheduler {
+ public:
+  /// @throws std::invalid_argument for a stack under 64 KiB.
+  explicit FiberScheduler(std::size_t stack_bytes = std::size_t{2} << 20);
+  ~FiberScheduler();
+  FiberScheduler(const FiberScheduler&) = delete;
+  FiberScheduler& operator=(const FiberScheduler&) = delete;
+
+  /// Adds a fiber that runs `body` once run() starts. `body` must not throw (a fiber's
+  /// exception cannot cross the switch: catch inside and report). Not while running.
+  /// @throws std::logic_error when called from a running fiber.
+  void spawn(std::string name, std::function<void()> body);
+
+  /// Runs every fiber until each has returned, on the calling thread.
+  void run();
+
+  /// True on the thread inside run() (the fibers' thread).
+  bool on_scheduler_thread() const;
+
+  /// From a fiber: suspends it until `*generation` differs from `seen` or CLOCK_MONOTONIC reaches
+  /// `deadline_ns`, whichever is first. Returns true when the generation moved.
+  bool wait(const std::atomic<std::uint64_t>& generation, std::uint64_t seen, std::int64_t deadline_ns);
+  /// From a fiber: suspends it until CLOCK_MONOTONIC reaches `deadline_ns`.
+  void sleep_until(std::int64_t deadline_ns);
+
+  /// Something a fiber may wait for happened. Any thread; from the scheduler's own thread it
+  /// costs nothing (the thread is running, nobody to wake).
+  void wake();
+
+  /// Switches performed so far (to and from fibers), for the loop statistics.
+  std::uint64_t switches() const { return switches_; }
+
+ private:
+  struct Fiber;
+  bool runnable(const Fiber& fiber, std::int64_t now_ns) const;
+  /// Suspends the current fiber, back to the scheduler loop.
+  void suspend();
+  /// Blocks the thread until wake() or `deadline_ns`.
+  void idle_until(std::int64_t deadline_ns);
+
+  std::size_t stack_bytes_;
+  std::vector<std::unique_ptr<Fiber>> fibers_;
+  Fiber* current_ = nullptr;
+  std::thread::id thread_;
+  std::atomic<bool> running_{false};
+  std::uint64_t switches_ = 0;
+
+  std::mutex idle_mutex_;
+  std::condition_variable idle_cv_;
+  bool woken_ = false;  ///< under idle_mutex_
+};
+
+}  // namespace pmlsm::dds

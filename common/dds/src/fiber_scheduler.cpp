@@ -1,0 +1,146 @@
+#include "pmlsm/dds/fiber_scheduler.hpp"
+
+#include <boost/context/fiber.hpp>
+#include <boost/context/protected_fixedsize_stack.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <limits>
+#include <stdexcept>
+#include <utility>
+
+#include "pmlsm/util/clock.hpp"
+
+namespace pmlsm::dds {
+
+namespace bctx = boost::context;
+
+struct FiberScheduler::Fiber {
+  std::string name;
+  std::function<void()> body;
+  bctx::fiber context;         ///< the fiber's continuation while it is suspended
+  bctx::fiber back;            ///< the scheduler's continuation while the fiber runs
+  bool started = false;
+  bool done = false;
+  // What the fiber waits for: a generation to move past `seen` (when `generation` is set) or
+  // CLOCK_MONOTONIC to reach `deadline_ns`.
+  const std::atomic<std::uint64_t>* generation = nullptr;
+  std::uint64_t seen = 0;
+  std::int64_t deadline_ns = 0;
+};
+
+FiberScheduler::FiberScheduler(std::size_t stack_bytes) : stack_bytes_(stack_bytes) {
+  if (stack_bytes < (std::size_t{64} << 10)) {
+    throw std::invalid_argument("FiberScheduler: stack of " + std::to_string(stack_bytes) +
+                                " bytes: must be at least 64 KiB");
+  }
+}
+
+FiberScheduler::~FiberScheduler() = default;
+
+void FiberScheduler::spawn(std::string name, std::function<void()> body) {
+  if (running_) throw std::logic_error("FiberScheduler::spawn(" + name + "): the scheduler is running");
+  auto fiber = std::make_unique<Fiber>();
+  fiber->name = std::move(name);
+  fiber->body = std::move(body);
+  fibers_.push_back(std::move(fiber));
+}
+
+bool FiberScheduler::on_scheduler_thread() const {
+  return running_.load(std::memory_order_acquire) && std::this_thread::get_id() == thread_;
+}
+
+bool FiberScheduler::runnable(const Fiber& fiber, std::int64_t now_ns) const {
+  if (fiber.done) return false;
+  if (!fiber.started) return true;
+  if (fiber.generation != nullptr && fiber.generation->load(std::memory_order_acquire) != fiber.seen) return true;
+  return now_ns >= fiber.deadline_ns;
+}
+
+void FiberScheduler::run() {
+  thread_ = std::this_thread::get_id();
+  running_.store(true, std::memory_order_release);
+  for (;;) {
+    bool all_done = true;
+    bool ran = false;
+    std::int64_t earliest = std::numeric_limits<std::int64_t>::max();
+    const std::int64_t now = monotonic_ns();
+    for (auto& owned : fibers_) {
+      Fiber& f = *owned;
+      if (f.done) continue;
+      all_done = false;
+      if (!runnable(f, now)) {
+        earliest = std::min(earliest, f.deadline_ns);
+        continue;
+      }
+      current_ = &f;
+      ++switches_;
+      if (!f.started) {
+        f.started = true;
+        f.context = bctx::fiber(std::allocator_arg, bctx::protected_fixedsize_stack(stack_bytes_),
+                                [this, &f](bctx::fiber&& back) {
+                                  f.back = std::move(back);
+                                  f.body();
+                                  f.done = true;
+                                  return std::move(f.back);
+                                });
+      }
+      f.context = std::move(f.context).resume();
+      current_ = nullptr;
+      ran = true;
+      break;  // from the first fiber again: the chain's fibers come first
+    }
+    if (all_done) break;
+    if (!ran) idle_until(earliest);
+  }
+  running_.store(false, std::memory_order_release);
+}
+
+void FiberScheduler::suspend() {
+  Fiber& f = *current_;
+  f.back = std::move(f.back).resume();
+}
+
+bool FiberScheduler::wait(const std::atomic<std::uint64_t>& generation, std::uint64_t seen, std::int64_t deadline_ns) {
+  if (current_ == nullptr) throw std::logic_error("FiberScheduler::wait: not called from a fiber");
+  Fiber& f = *current_;
+  f.generation = &generation;
+  f.seen = seen;
+  f.deadline_ns = deadline_ns;
+  suspend();
+  f.generation = nullptr;
+  return generation.load(std::memory_order_acquire) != seen;
+}
+
+void FiberScheduler::sleep_until(std::int64_t deadline_ns) {
+  if (current_ == nullptr) throw std::logic_error("FiberScheduler::sleep_until: not called from a fiber");
+  Fiber& f = *current_;
+  f.generation = nullptr;
+  f.deadline_ns = deadline_ns;
+  suspend();
+}
+
+void FiberScheduler::wake() {
+  if (on_scheduler_thread()) return;  // running: it looks at every generation before it idles
+  {
+    std::lock_guard<std::mutex> lock(idle_mutex_);
+    woken_ = true;
+  }
+  idle_cv_.notify_one();
+}
+
+void FiberScheduler::idle_until(std::int64_t deadline_ns) {
+  std::unique_lock<std::mutex> lock(idle_mutex_);
+  if (!woken_) {
+    // steady_clock is CLOCK_MONOTONIC, the clock of every deadline here.
+    const auto deadline = std::chrono::steady_clock::time_point(std::chrono::nanoseconds(deadline_ns));
+    if (deadline_ns == std::numeric_limits<std::int64_t>::max()) {
+      idle_cv_.wait(lock, [this] { return woken_; });
+    } else {
+      idle_cv_.wait_until(lock, deadline, [this] { return woken_; });
+    }
+  }
+  woken_ = false;
+}
+
+}  // namespace pmlsm::dds

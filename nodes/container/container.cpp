@@ -1,0 +1,139 @@
+#include "container.hpp"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <memory>
+
+#include "node_support.hpp"
+#include "pmlsm/dds/fiber_scheduler.hpp"
+#include "pmlsm/dds/local_bus.hpp"
+#include "pmlsm/util/exit_codes.hpp"
+
+namespace pmlsm::container {
+
+const std::vector<ComponentType>& component_types() {
+  static const std::vector<ComponentType> types = {
+      {"plant_sim", node::make_plant_sim, 0},
+      {"drive_bridge", node::make_drive_bridge, 0},
+      {"controller", node::make_controller, 1},
+      {"kalman_estimator", node::make_kalman_estimator, 2},
+      {"rnn_compensator", node::make_rnn_compensator, 2},
+      {"accel_feedback", node::make_accel_feedback, 2},
+      {"state_feedback", node::make_state_feedback, 2},
+      {"evaluator", node::make_evaluator, 3},
+  };
+  return types;
+}
+
+std::vector<std::string> component_type_names() {
+  std::vector<std::string> names;
+  for (const auto& t : component_types()) names.emplace_back(t.name);
+  return names;
+}
+
+namespace {
+
+const ComponentType& type_of(const std::string& name) {
+  for (const auto& t : component_types()) {
+    if (name == t.name) return t;
+  }
+  throw ContainerSpecError("unknown component type '" + name + "'");
+}
+
+/// argv for a component: its name, then its args (valid while `args` lives).
+std::vector<char*> argv_of(const std::string& name, std::vector<std::string>& args) {
+  std::vector<char*> argv;
+  argv.push_back(const_cast<char*>(name.c_str()));
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  return argv;
+}
+
+double seconds(const timeval& t) { return static_cast<double>(t.tv_sec) + static_cast<double>(t.tv_usec) * 1e-6; }
+
+struct Slot {
+  ComponentSpec spec;
+  const ComponentType* type;
+  std::unique_ptr<node::Component> component;
+};
+
+}  // namespace
+
+ContainerResult run_container(const ContainerOptions& options, const std::vector<ComponentSpec>& specs) {
+  ContainerResult result;
+  dds::FiberScheduler scheduler(options.stack_bytes);
+  dds::LocalBus bus(scheduler);
+  std::vector<Slot> slots;
+  for (const auto& spec : specs) slots.push_back({spec, &type_of(spec.type), nullptr});
+  // The chain first: the drive, then the controller (stable among equals: the file's order).
+  std::stable_sort(slots.begin(), slots.end(), [](const Slot& a, const Slot& b) { return a.type->order < b.type->order; });
+
+  // Make every component before any runs: a bad one stops the container with nothing running.
+  const node::ComponentContext context{&bus};
+  for (auto& slot : slots) {
+    std::vector<std::string> args = slot.spec.args;
+    std::vector<char*> argv = argv_of(slot.spec.name, args);
+    bool made = false;
+    const int code = node::run_node(slot.spec.type, [&] {
+      node::MadeComponent m = slot.type->make(context, static_cast<int>(argv.size()) - 1, argv.data());
+      made = m.component != nullptr;
+      slot.component = std::move(m.component);
+      return m.exit_code;
+    });
+    if (!made) {
+      std::fprintf(stderr, "container %s: component %s (%s) was not made: exit %d (%s); nothing runs\n",
+                   options.name.c_str(), slot.spec.name.c_str(), slot.spec.type.c_str(), code,
+                   exit_code_meaning(code));
+      // Destroyed in reverse, before the bus and the scheduler.
+      for (auto it = slots.rbegin(); it != slots.rend(); ++it) it->component.reset();
+      result.exit_code = code;
+      result.exits.push_back({slot.spec.name, slot.spec.type, code});
+      return result;
+    }
+  }
+  std::printf("container %s: %zu components on one chain thread:", options.name.c_str(), slots.size());
+  for (const auto& slot : slots) std::printf(" %s", slot.spec.name.c_str());
+  std::printf("\n");
+
+  rusage before{};
+  getrusage(RUSAGE_SELF, &before);
+  const auto wall_start = std::chrono::steady_clock::now();
+  for (auto& slot : slots) {
+    scheduler.spawn(slot.spec.name, [&slot, &result, &options] {
+      const int code = node::run_node(slot.spec.type, [&] { return slot.component->run(); });
+      // Gone as a process that exits: its participant leaves the domain now.
+      node::run_node(slot.spec.type, [&] {
+        slot.component.reset();
+        return 0;
+      });
+      result.exits.push_back({slot.spec.name, slot.spec.type, code});
+      if (code != kExitOk && result.exit_code == kExitOk) result.exit_code = code;
+      std::printf("container %s: component %s (%s) exited %d (%s)\n", options.name.c_str(), slot.spec.name.c_str(),
+                  slot.spec.type.c_str(), code, exit_code_meaning(code));
+    });
+  }
+  scheduler.run();
+  rusage after{};
+  getrusage(RUSAGE_SELF, &after);
+  result.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  result.cpu_user_s = seconds(after.ru_utime) - seconds(before.ru_utime);
+  result.cpu_system_s = seconds(after.ru_stime) - seconds(before.ru_stime);
+  result.switches = scheduler.switches();
+  std::printf("container %s: CPU %.3f s user + %.3f s system in %.3f s wall (%.3f cores), %llu fiber switches\n",
+              options.name.c_str(), result.cpu_user_s, result.cpu_system_s, result.wall_s,
+              result.wall_s > 0.0 ? (result.cpu_user_s + result.cpu_system_s) / result.wall_s : 0.0,
+              static_cast<unsigned long long>(result.switches));
+  for (const auto& e : result.exits) {
+    if (e.exit_code != kExitOk) {
+      std::fprintf(stderr, "container %s: exit %d: first failure %s (%s): %s\n", options.name.c_str(), result.exit_code,
+                   e.name.c_str(), e.type.c_str(), exit_code_meaning(e.exit_code));
+      break;
+    }
+  }
+  return result;
+}
+
+}  // namespace pmlsm::container

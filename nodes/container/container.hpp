@@ -1,0 +1,58 @@
+// A container: several components in one process. Every component keeps its own name,
+// options, participant (identity, permissions), NodeStatus and exit code; their loops run as
+// fibers of one chain thread (pmlsm/dds/fiber_scheduler.hpp) and their samples to each other go
+// through the in-process path (pmlsm/dds/local_bus.hpp), while every topic still reaches the
+// rest of the domain.
+//
+// Lifecycle: every component is made first, in order (parse, config, participant, endpoints);
+// if one fails, those made are destroyed and the container ends with that component's exit
+// code (2 for bad options or config) before anything runs. Then all run; a component that ends
+// is destroyed at once (its participant leaves the domain, as a process that exits), so its
+// peers see it gone exactly as they would see a process go. The container's exit code is the
+// first non-zero exit of a component, in the order they ended (as the launcher's).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "component.hpp"
+#include "container_spec.hpp"
+
+namespace pmlsm::container {
+
+/// A component type the container can make, and its place on the chain thread (lower first:
+/// the drive, then the controller, then the rest).
+struct ComponentType {
+  const char* name;
+  node::ComponentFactory make;
+  int order;
+};
+
+/// Every component type of this project.
+const std::vector<ComponentType>& component_types();
+std::vector<std::string> component_type_names();
+
+struct ComponentExit {
+  std::string name;
+  std::string type;
+  int exit_code = 0;
+};
+
+struct ContainerResult {
+  int exit_code = 0;                ///< the first non-zero exit, in the order they ended
+  std::vector<ComponentExit> exits;  ///< in the order they ended
+  double cpu_user_s = 0.0, cpu_system_s = 0.0, wall_s = 0.0;
+  std::uint64_t switches = 0;
+};
+
+struct ContainerOptions {
+  std::string name = "container";
+  std::size_t stack_bytes = std::size_t{2} << 20;
+};
+
+/// Makes and runs the components of `specs` (types already checked); prints one line per
+/// component exit and a summary. Exceptions of a component are mapped to its exit code.
+ContainerResult run_container(const ContainerOptions& options, const std::vector<ComponentSpec>& specs);
+
+}  // namespace pmlsm::container

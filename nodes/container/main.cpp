@@ -1,0 +1,54 @@
+// container: runs several components in one process (see container.hpp), e.g.
+//   container --name chain --component plant_sim plant_sim --peers 1 --component controller controller
+// The launcher builds this command line from a launch file's `containers:` entry.
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "container.hpp"
+#include "container_spec.hpp"
+#include "node_support.hpp"
+#include "realtime_setup.hpp"
+
+int main(int argc, char** argv) {
+  using namespace pmlsm;
+  return node::run_node("container", [&] {
+    const std::vector<std::string> args(argv + 1, argv + argc);
+    container::ContainerCommandLine line;
+    try {
+      line = container::split_container_command_line(args, container::component_type_names());
+    } catch (const container::ContainerSpecError& e) {
+      std::fprintf(stderr, "container: %s\n", e.what());
+      return static_cast<int>(kExitBadConfig);
+    }
+    CLI::App app{"Runs several components (nodes) in one process: one chain thread, samples between them in-process"};
+    container::ContainerOptions options;
+    node::RealtimeOptions realtime;
+    std::size_t stack_kib = options.stack_bytes >> 10;
+    app.add_option("--name", options.name, "The container's name in its messages")->capture_default_str();
+    app.add_option("--stack-kib", stack_kib, "Stack of each component's fiber")
+        ->check(CLI::Range(64, 1 << 20))
+        ->capture_default_str();
+    app.add_option("--rt-priority", realtime.rt_priority,
+                   "SCHED_FIFO priority 1..99 of the chain thread (and the DDS threads), memory locked (0: normal)")
+        ->check(CLI::Range(0, 99));
+    app.add_option("--cpu-dma-latency-us", realtime.cpu_dma_latency_us,
+                   "While the container runs, keep the cores out of idle states slower to leave than this (-1: none)")
+        ->check(CLI::Range(-1, 10000000));
+    app.footer("Then: --component NAME TYPE [the node's own options]... (types: plant_sim, drive_bridge, controller, "
+               "kalman_estimator, rnn_compensator, accel_feedback, state_feedback, evaluator)");
+    std::vector<std::string> own = line.own_args;
+    std::vector<char*> own_argv{argv[0]};
+    for (auto& a : own) own_argv.push_back(a.data());
+    if (const auto code = node::parse_command_line(app, static_cast<int>(own_argv.size()), own_argv.data())) return *code;
+    options.stack_bytes = stack_kib << 10;
+    // Before any participant: the chain thread (this one) and Fast DDS's threads inherit it.
+    const node::RealtimeSetup setup(realtime);
+    if (realtime.rt_priority > 0 || realtime.cpu_dma_latency_us >= 0) {
+      std::printf("container %s: real-time setup: %s\n", options.name.c_str(), setup.summary().c_str());
+    }
+    return container::run_container(options, line.components).exit_code;
+  });
+}

@@ -1,0 +1,383 @@
+// controller: the motor-side velocity loop on DDS. For every MotorFeedback
+// tick it runs the reference model (25) on the scenario's command and the
+// velocity PI, and answers with ForceCommand (feedback_tick = that tick); it
+// also publishes VelocityReference. It is event-driven: the same code serves
+// the lockstep and the realtime clock.
+//
+// With --compensation topic (or accel / rnn / state, the same) the PI output gets the compensator's force
+// (CompensatorOutput, Fig. 4's hybrid controller): output k-1 is applied at
+// tick k (run_compensated in pmlsm/sim/closed_loop.hpp). Lockstep waits for it;
+// realtime uses the newest one no older than 3 ticks and counts the ticks
+// without (they get no compensation).
+//
+// With an external scenario (command.shape: external) the raw command comes from
+// VelocitySetpoint samples (another node, `pmlsm setpoint`) through ExternalReference
+// (pmlsm/control/external_reference.hpp): rejected setpoints are counted, a source gone quiet
+// brings the command back to zero at the rate limit, and both are reported on NodeStatus. Setpoint
+// age is judged on this node's steady clock, in lockstep as in realtime (the source runs on
+// wall time). A run with a rejected invalid setpoint, or whose source went quiet mid-move,
+// ends with exit code 5: it did not do what was asked.
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <optional>
+#include <string>
+
+#include "CompensatorOutputPubSubTypes.h"
+#include "CurrentFeedbackPubSubTypes.h"
+#include "ForceCommandPubSubTypes.h"
+#include "VoltageCommandPubSubTypes.h"
+#include "MotorFeedbackPubSubTypes.h"
+#include "VelocityReferencePubSubTypes.h"
+#include "VelocitySetpointPubSubTypes.h"
+#include "msg_mapping.hpp"
+#include "node_support.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/control/current_controller.hpp"
+#include "pmlsm/sim/velocity_controller.hpp"
+
+namespace {
+
+using namespace pmlsm;
+namespace pdds = pmlsm::dds;
+namespace msg = pmlsm_msgs::msg;
+namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
+
+struct ControllerOptions {
+  std::string compensation = "none";
+  // Readers of the commands to wait for before the first answer: a sample written before a
+  // reader matched is lost to it, and a lockstep drive that never enables itself steps 300
+  // ticks in 30 ms, before an observer (the evaluator) may have matched the controller.
+  int command_readers = 0;    ///< ForceCommand readers (the drive, the evaluator, a recorder)
+  int reference_readers = 0;  ///< VelocityReference readers (the evaluator, a compensator)
+};
+
+class ControllerNode {
+ public:
+  ControllerNode(const node::CommonOptions& common, const ControllerOptions& options, node::NodeRuntime& rt)
+      : common_(common),
+        opt_(options),
+        rt_(rt),
+        period_s_(rt.period_s),
+        ticks_(scenario_ticks(rt.cfg.scenario, period_s_)),
+        voltage_level_(rt.cfg.command_level == node::CommandLevel::kVoltage),
+        lockstep_(rt.cfg.clock == node::Clock::kLockstep),
+        compensated_(options.compensation != "none"),
+        peer_timeout_(common.peer_timeout_s),
+        feedback_reader_(rt.participant.make_reader<msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, rt.wakeup)),
+        command_writer_(rt.participant.make_writer<msg::ForceCommandPubSubType>(pdds::topics::kForceCommand)),
+        reference_writer_(rt.participant.make_writer<msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference)),
+        current_reader_(rt.participant.make_reader<msg::CurrentFeedbackPubSubType>(pdds::topics::kCurrentFeedback, rt.wakeup)),
+        voltage_writer_(rt.participant.make_writer<msg::VoltageCommandPubSubType>(pdds::topics::kVoltageCommand)),
+        current_loop_(rt.cfg.params.current_controller_params()),
+        current_steps_(rt.cfg.params.timing.current_steps_per_tick()),
+        compensation_reader_(rt.participant.make_reader<msg::CompensatorOutputPubSubType>(
+            pdds::topics::kCompensatorOutput, rt.wakeup, pdds::kObserverProfile)),
+        controller_(std::in_place, rt.cfg.params, rt.cfg.scenario) {
+    if (rt.cfg.scenario.shape == CommandShape::kExternal) {
+      external_.emplace(external_reference_params(rt.cfg.scenario, period_s_));
+      setpoint_reader_.emplace(
+          rt.participant.make_reader<msg::VelocitySetpointPubSubType>(pdds::topics::kVelocitySetpoint, rt.wakeup));
+    }
+  }
+
+  int run();
+
+ private:
+  /// The drive restarted: what this loop integrated belongs to the old run.
+  void follow_new_run();
+  /// The compensator's force for tick k and its share of the compensator's range (none: zero),
+  /// into `applied`; false when lockstep waited for it in vain.
+  bool compensation_for(std::uint64_t k, Compensation& applied);
+  bool take_compensation(std::uint64_t k);
+  void publish(std::uint64_t k, const VelocityControllerOutput& out, double applied_compensation_n);
+  /// The voltage command level: the drive's current loop, 32 exchanges per tick.
+  void run_current_loop(std::uint64_t k, double force_n);
+  int finish(int exit_code);
+  /// External scenario: takes the setpoints that arrived, steps the policy; reports news.
+  double external_command(std::uint64_t k);
+
+  const node::CommonOptions& common_;
+  ControllerOptions opt_;
+  node::NodeRuntime& rt_;
+  double period_s_;
+  std::uint64_t ticks_;
+  bool voltage_level_;
+  bool lockstep_;
+  bool compensated_;
+  std::chrono::duration<double> peer_timeout_;
+  pdds::Reader<msg::MotorFeedbackPubSubType> feedback_reader_;
+  pdds::Writer<msg::ForceCommandPubSubType> command_writer_;
+  pdds::Writer<msg::VelocityReferencePubSubType> reference_writer_;
+  // The voltage command level: this node also runs the drive's current loop.
+  pdds::Reader<msg::CurrentFeedbackPubSubType> current_reader_;
+  pdds::Writer<msg::VoltageCommandPubSubType> voltage_writer_;
+  CurrentController current_loop_;
+  int current_steps_;
+  pdds::Reader<msg::CompensatorOutputPubSubType> compensation_reader_;
+  std::optional<VelocityController> controller_;
+  std::optional<ExternalReference> external_;
+  std::optional<pdds::Reader<msg::VelocitySetpointPubSubType>> setpoint_reader_;
+  msg::VelocitySetpoint setpoint_;
+  std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
+  bool external_was_stale_ = true;
+  std::uint64_t reported_rejections_ = 0;
+
+  msg::MotorFeedback feedback_;
+  msg::ForceCommand command_;
+  msg::VelocityReference reference_;
+  msg::CurrentFeedback current_feedback_;
+  msg::VoltageCommand voltage_command_;
+  msg::CompensatorOutput compensator_output_;
+  Compensation compensation_;
+  std::uint64_t compensation_tick_ = 0;
+  bool have_compensation_ = false;
+  std::uint64_t compensation_missing_ = 0;
+  bool guard_reported_ = false;
+  std::uint64_t next_tick_ = 0;  // ticks up to here are done
+  node::FeedbackFollower feedback_follower_{"controller", common_, rt_.cfg.clock};
+  std::uint64_t rejected_ = 0;
+  double last_velocity_ = 0.0;
+};
+
+double ControllerNode::external_command(std::uint64_t k) {
+  const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+  while (setpoint_reader_->take(setpoint_)) {
+    const Setpoint sp{setpoint_.velocity_mps(), setpoint_.accel_limit_mps2(), setpoint_.session(), setpoint_.sequence_number()};
+    const SetpointVerdict verdict = external_->offer(sp, now_s);
+    // Every rejection is counted; the first few are told (a flood would flood the log).
+    if (verdict != SetpointVerdict::kAccepted && reported_rejections_ < 10) {
+      ++reported_rejections_;
+      char text[160];
+      std::snprintf(text, sizeof text, "setpoint %.6g m/s from '%s' rejected: %s", sp.velocity_mps,
+                    setpoint_.source().c_str(), to_string(verdict));
+      std::fprintf(stderr, "controller: tick %llu: %s\n", static_cast<unsigned long long>(k), text);
+      rt_.status.publish(node_state::STATE_RUNNING, k, period_s_, text);
+    }
+  }
+  const ExternalReferenceOutput out = external_->step(now_s);
+  if (out.stale != external_was_stale_) {
+    external_was_stale_ = out.stale;
+    char text[160];
+    if (out.stale) {
+      std::snprintf(text, sizeof text, "setpoint stale (none for %.3g s): reference ramps to zero from %.6g m/s",
+                    external_->params().timeout_s, out.command_mps - out.accel_mps2 * period_s_);
+    } else {
+      std::snprintf(text, sizeof text, "following setpoints from '%s'", setpoint_.source().c_str());
+    }
+    std::fprintf(stderr, "controller: tick %llu: %s\n", static_cast<unsigned long long>(k), text);
+    rt_.status.publish(node_state::STATE_RUNNING, k, period_s_, text);
+  }
+  return out.command_mps;
+}
+
+void ControllerNode::follow_new_run() {
+  controller_.emplace(rt_.cfg.params, rt_.cfg.scenario);
+  have_compensation_ = false;
+  compensation_ = {};
+  last_velocity_ = 0.0;
+}
+
+bool ControllerNode::take_compensation(std::uint64_t k) {
+  while (compensation_reader_.take(compensator_output_)) {
+    const std::uint64_t t = compensator_output_.stamp().tick();
+    if ((have_compensation_ && t <= compensation_tick_) || !std::isfinite(compensator_output_.force_n()) ||
+        !std::isfinite(compensator_output_.u_n())) {
+      ++rejected_;
+      continue;
+    }
+    compensation_tick_ = t;
+    compensation_ = compensation_from_output(compensator_output_.force_n(), compensator_output_.u_n());
+    have_compensation_ = true;
+  }
+  return have_compensation_ && compensation_tick_ + 1 >= k;
+}
+
+bool ControllerNode::compensation_for(std::uint64_t k, Compensation& applied) {
+  // Output k-1 belongs to tick k; lockstep waits for it, realtime takes what is there.
+  if (lockstep_) {
+    if (!node::wait_until(rt_.wakeup, peer_timeout_, [&] { return take_compensation(k); })) return false;
+  } else {
+    take_compensation(k);
+  }
+  if (have_compensation_ && compensation_tick_ + 3 >= k) {
+    applied = compensation_;
+  } else {
+    ++compensation_missing_;
+  }
+  return true;
+}
+
+void ControllerNode::publish(std::uint64_t k, const VelocityControllerOutput& out, double applied_compensation_n) {
+  command_.stamp(node::make_stamp(k, period_s_, feedback_follower_.run().current()));
+  node::to_msg(out, applied_compensation_n, k, command_);
+  command_writer_.write(command_);
+  // After the command: the plant waits for it, the evaluator for this one.
+  reference_.stamp(command_.stamp());
+  node::to_msg(out, reference_);
+  reference_writer_.write(reference_);
+}
+
+void ControllerNode::run_current_loop(std::uint64_t k, double force_n) {
+  for (int sub = 0; sub < current_steps_; ++sub) {
+    bool got_current = false;
+    const bool current_ok = node::wait_until(rt_.wakeup, peer_timeout_, [&] {
+      while (!got_current && current_reader_.take(current_feedback_)) {
+        if (current_feedback_.stamp().tick() == k && current_feedback_.substep() == static_cast<std::uint32_t>(sub)) {
+          got_current = true;
+        } else {
+          ++rejected_;
+        }
+      }
+      return got_current;
+    });
+    if (!current_ok) return;
+    // The current controller rejects (and counts) non-finite measurements itself.
+    const CurrentControllerOutput u = current_loop_.step(
+        {force_n, current_feedback_.i_d_a(), current_feedback_.i_q_a(), current_feedback_.velocity_mps()});
+    voltage_command_.stamp(current_feedback_.stamp());
+    voltage_command_.substep(current_feedback_.substep());
+    voltage_command_.u_d_v(u.u_d_v);
+    voltage_command_.u_q_v(u.u_q_v);
+    voltage_command_.i_d_ref_a(0.0);
+    voltage_command_.i_q_ref_a(u.i_q_ref_a);
+    voltage_command_.saturated(u.voltage_limited);
+    voltage_writer_.write(voltage_command_);
+  }
+}
+
+int ControllerNode::run() {
+  if (opt_.command_readers > 0 || opt_.reference_readers > 0) {
+    rt_.status.publish(node_state::STATE_WAITING, 0, period_s_, "waiting for readers");
+    const bool matched = node::wait_until(rt_.wakeup, peer_timeout_, [&] {
+      return command_writer_.matched_readers() >= static_cast<std::size_t>(opt_.command_readers) &&
+             reference_writer_.matched_readers() >= static_cast<std::size_t>(opt_.reference_readers);
+    });
+    if (!matched) {
+      if (pdds::stop_requested()) return finish(kExitOk);
+      std::fprintf(stderr, "controller: readers missing after %.1f s: %zu of %d ForceCommand readers, %zu of %d "
+                   "VelocityReference readers\n", common_.peer_timeout_s, command_writer_.matched_readers(),
+                   opt_.command_readers, reference_writer_.matched_readers(), opt_.reference_readers);
+      return finish(kExitPeerMissing);
+    }
+  }
+  rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "running");
+  int exit_code = kExitOk;
+  while (next_tick_ < ticks_ && !pdds::stop_requested()) {
+    const auto next =
+        feedback_follower_.next(rt_.wakeup, feedback_reader_, feedback_, next_tick_, period_s_, rt_.status, rejected_);
+    if (next == node::FeedbackFollower::Next::kEnded) {
+      exit_code = feedback_follower_.exit_code();
+      break;
+    }
+    if (next == node::FeedbackFollower::Next::kNewRun) follow_new_run();
+    const std::uint64_t k = feedback_.stamp().tick();
+    double velocity = feedback_.velocity_mps();
+    if (!std::isfinite(velocity)) {
+      ++rejected_;  // answer with the last good measurement rather than pass a NaN on
+      velocity = last_velocity_;
+    }
+    last_velocity_ = velocity;
+    Compensation compensation;
+    if (compensated_ && k > 0 && !compensation_for(k, compensation)) {
+      exit_code = node::end_of_failed_wait("controller", "CompensatorOutput", "compensator", k - 1,
+                                           common_.peer_timeout_s);
+      break;
+    }
+    const VelocityControllerOutput out =
+        external_ ? controller_->step_command(external_command(k), velocity, compensation)
+                  : controller_->step(k, velocity, compensation);
+    if (out.guard.tripped && !guard_reported_) {
+      // Once: the compensation fades out and stays out; the controller goes on as PI alone.
+      guard_reported_ = true;
+      std::fprintf(stderr, "controller: tick %llu: vibration guard: %s; compensation faded out, PI alone from here\n",
+                   static_cast<unsigned long long>(k), to_string(out.guard.reason));
+      rt_.status.publish(node_state::STATE_RUNNING, k, period_s_,
+                         std::string("vibration guard: compensation out: ") + to_string(out.guard.reason));
+    }
+    publish(k, out, out.compensation_applied_n);
+    if (voltage_level_) run_current_loop(k, out.force_n);
+    next_tick_ = k + 1;
+  }
+  return finish(exit_code);
+}
+
+int ControllerNode::finish(int exit_code) {
+  std::string external_note;
+  if (external_) {
+    const ExternalReferenceCounters& c = external_->counters();
+    rejected_ += c.rejected;
+    char text[200];
+    std::snprintf(text, sizeof text,
+                  "setpoints: %llu accepted, %llu rejected (%llu invalid), went stale %llu times (%llu mid-move)",
+                  static_cast<unsigned long long>(c.accepted), static_cast<unsigned long long>(c.rejected),
+                  static_cast<unsigned long long>(c.rejected_invalid), static_cast<unsigned long long>(c.stale_episodes),
+                  static_cast<unsigned long long>(c.lost_while_moving));
+    external_note = text;
+    std::printf("controller: %s\n", text);
+    if ((c.rejected_invalid > 0 || c.lost_while_moving > 0) && exit_code == kExitOk) {
+      std::fprintf(stderr, "controller: %s: the run is not valid\n", text);
+      exit_code = kExitSafeState;
+    }
+  }
+  rt_.status.status().rejected(rejected_);
+  rt_.status.publish(node_state::STATE_STOPPING, next_tick_, period_s_,
+                     external_note.empty() ? std::string("done") : "done; " + external_note);
+  command_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  if (voltage_level_) voltage_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  reference_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  std::printf("controller: %llu ticks answered, %llu rejected, compensation %s (%llu ticks without)%s\n",
+              static_cast<unsigned long long>(next_tick_), static_cast<unsigned long long>(rejected_),
+              opt_.compensation.c_str(), static_cast<unsigned long long>(compensation_missing_),
+              guard_reported_ ? ", taken out by the vibration guard" : "");
+  return exit_code;
+}
+
+class ControllerComponent final : public node::Component {
+ public:
+  ControllerComponent(const node::ComponentContext& context, node::CommonOptions common, const ControllerOptions& opt)
+      : common_(std::move(common)), rt_("controller", common_, context), node_(common_, opt, checked(rt_, common_)) {}
+  int run() override { return node_.run(); }
+
+ private:
+  static node::NodeRuntime& checked(node::NodeRuntime& rt, const node::CommonOptions& common) {
+    if (common.wake_batch_us > 0.0) {
+      throw ConfigError("--wake-batch-us " + std::to_string(common.wake_batch_us) +
+                        ": the controller is on the control chain; batching would pace the loop");
+    }
+    return rt;
+  }
+
+  node::CommonOptions common_;
+  node::NodeRuntime rt_;
+  ControllerNode node_;
+};
+
+}  // namespace
+
+namespace pmlsm::node {
+
+MadeComponent make_controller(const ComponentContext& context, int argc, char** argv) {
+  CLI::App app{"Velocity loop (reference model + PI) of the PMLSM on DDS"};
+  CommonOptions common;
+  common.spin_us = 200.0;
+  ControllerOptions opt;
+  add_common_options(app, common);
+  app.add_option("--compensation", opt.compensation,
+                 "none (PI only) or topic (add CompensatorOutput to the PI output); accel, rnn and state are topic, named "
+                 "after the compensator that publishes it (launch files pass their compensator arg)")
+      ->check(CLI::IsMember({"none", "topic", "accel", "rnn", "state"}))
+      ->capture_default_str();
+  app.add_option("--command-readers", opt.command_readers,
+                 "ForceCommand readers to wait for before the first answer (0: answer at once)")
+      ->check(CLI::Range(0, 64))
+      ->capture_default_str();
+  app.add_option("--reference-readers", opt.reference_readers,
+                 "VelocityReference readers to wait for before the first answer (0: answer at once)")
+      ->check(CLI::Range(0, 64))
+      ->capture_default_str();
+  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  return {std::make_unique<ControllerComponent>(context, std::move(common), opt)};
+}
+
+}  // namespace pmlsm::node

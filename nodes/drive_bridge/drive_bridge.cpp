@@ -1,0 +1,192 @@
+// drive_bridge: a real (or virtual) CiA 402 servo drive on CAN, on DDS. The same drive node as
+// plant_sim (nodes/support/drive_node.hpp: the drive loop, MotorFeedback and DriveState,
+// ForceCommand, DriveControl, watchdog, summary, exit codes) with the CANopen master
+// (pmlsm::canopen::Cia402Drive) as its backend instead of the simulation. MotorFeedback's
+// STATUS_SIMULATED bit is off; there is no PlantTruth and no voltage command level.
+//
+// Bus: UDP multicast (python-can's udp_multicast: --can-group, --can-port, --can-iface) by
+// default, SocketCAN with --can-interface NAME. The drive (node id, rated force, encoder,
+// heartbeats, time-outs): configs/canopen/drive.yaml (--canopen-config, --canopen-set), the
+// file the virtual drive reads too. Cyclic synchronous torque at 1 ms.
+//
+// Before tick 0 (once the DDS peers are there) the drive is booted (boot-up or heartbeat, SDO
+// set-up, NMT start) and, with --auto-enable, walked to operation enabled without stepping it.
+// Lockstep: each tick is one SYNC exchange in which the drive steps one period with the
+// previous tick's command; realtime: a SYNC each tick, the TPDOs taken within
+// master.realtime.tpdo_deadline_us. A drive that stops answering (after
+// master.lockstep.sync_retries resends) or whose
+// heartbeat is lost is a fault 0x8130: force off, the run ends not valid (exit 5).
+//
+// Exit codes as plant_sim's; a drive that cannot be booted or enabled: 1, with the reason.
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "can_options.hpp"
+#include "drive_node.hpp"
+#include "pmlsm/canopen/bus_load.hpp"
+#include "pmlsm/canopen/cia402_drive.hpp"
+
+namespace {
+
+using namespace pmlsm;
+
+/// drive_bridge's own parts of the drive node: the CANopen boot, the enable walk, and the
+/// drive's problems reported once each.
+class BridgeHooks final : public node::DriveNodeHooks {
+ public:
+  BridgeHooks(canopen::Cia402Drive& drive, const can::CanBus& bus) : drive_(drive), bus_(bus) {}
+
+  void before_run(node::DriveNode& node) override {
+    drive_.boot();
+    drive_.start();
+    std::printf("%s: drive node %d booted on %s: cyclic synchronous torque, rated force %.1f N, %g increments/m, "
+                "periods stepped %u, %s\n",
+                node.name().c_str(), drive_.config().node_id, bus_.describe().c_str(),
+                drive_.config().scaling.rated_force_n, drive_.config().scaling.increments_per_metre,
+                drive_.periods_stepped(), drive::to_string(drive_.power_state()));
+  }
+  void enable_at_start(node::DriveNode& node) override {
+    drive_.enable_and_wait();
+    std::printf("%s: drive %s (auto-enable)\n", node.name().c_str(), drive::to_string(drive_.power_state()));
+  }
+  void after_tick(node::DriveNode& node, std::uint64_t k) override {
+    if (drive_.lost() && !lost_reported_) {
+      lost_reported_ = true;
+      std::fprintf(stderr, "%s: tick %llu: drive lost: %s: fault 0x%04x, zero force\n", node.name().c_str(),
+                   static_cast<unsigned long long>(k), drive_.last_problem(), drive_.error_code());
+      node.set_fault_reason(std::string("drive lost: ") + drive_.last_problem());
+    }
+    if (drive_.error_code() != reported_error_) {
+      reported_error_ = drive_.error_code();
+      std::fprintf(stderr, "%s: tick %llu: drive error code 0x%04x (%s), drive %s\n", node.name().c_str(),
+                   static_cast<unsigned long long>(k), reported_error_, drive_.last_problem(),
+                   drive::to_string(drive_.power_state()));
+      if (!drive_.lost()) node.set_fault_reason(drive_.last_problem());
+    }
+    const canopen::Cia402DriveCounters& c = drive_.counters();
+    if (c.foreign_syncs > 0 && !foreign_sync_reported_) {
+      foreign_sync_reported_ = true;
+      std::fprintf(stderr, "%s: tick %llu: a second SYNC producer on the bus (CiA 301 allows one); counted, ignored\n",
+                   node.name().c_str(), static_cast<unsigned long long>(k));
+      node.report("a second SYNC producer on the CAN bus");
+    }
+    if (c.foreign_nmt > 0 && !foreign_nmt_reported_) {
+      foreign_nmt_reported_ = true;
+      std::fprintf(stderr, "%s: tick %llu: an NMT command from another master on the bus; counted\n",
+                   node.name().c_str(), static_cast<unsigned long long>(k));
+      node.report("an NMT command from another master on the CAN bus");
+    }
+    if (drive_.stuck_in() && !stuck_reported_) {
+      stuck_reported_ = true;
+      std::fprintf(stderr, "%s: tick %llu: the drive does not follow the controlword: stuck in %s\n",
+                   node.name().c_str(), static_cast<unsigned long long>(k), drive::to_string(*drive_.stuck_in()));
+    } else if (!drive_.stuck_in()) {
+      stuck_reported_ = false;
+    }
+  }
+  void flush() override {
+    const canopen::Cia402DriveCounters& c = drive_.counters();
+    std::printf("drive_bridge: CAN: %llu SYNCs (%llu resent), %llu RPDO1 resent, %llu ticks without TPDOs in time, "
+                "%llu EMCYs, %llu malformed frames of the drive, %llu SYNCs and %llu NMT commands from another "
+                "master\n",
+                static_cast<unsigned long long>(c.syncs), static_cast<unsigned long long>(c.sync_resends),
+                static_cast<unsigned long long>(c.rpdo_resends), static_cast<unsigned long long>(c.tpdo_missing),
+                static_cast<unsigned long long>(c.emcys), static_cast<unsigned long long>(c.malformed),
+                static_cast<unsigned long long>(c.foreign_syncs), static_cast<unsigned long long>(c.foreign_nmt));
+  }
+
+ private:
+  canopen::Cia402Drive& drive_;
+  const can::CanBus& bus_;
+  bool lost_reported_ = false;
+  bool stuck_reported_ = false;
+  bool foreign_sync_reported_ = false;
+  bool foreign_nmt_reported_ = false;
+  std::uint16_t reported_error_ = 0;
+};
+
+struct BridgeOptions {
+  node::CommonOptions common;
+  node::DriveNodeOptions drive;
+  node::CanOptions can;
+  bool no_reset = false;
+};
+
+class DriveBridgeComponent final : public node::Component {
+ public:
+  DriveBridgeComponent(const node::ComponentContext& context, BridgeOptions options)
+      : opt_(std::move(options)),
+        rig_(node::load_canopen_config(opt_.can)),
+        rt_("drive_bridge", opt_.common, context),
+        drive_config_(checked_config()),
+        bus_(node::open_can_bus(opt_.can)),
+        drive_(drive_config_, *bus_, [] { return monotonic_ns(); }),
+        hooks_(drive_, *bus_),
+        node_("drive_bridge", opt_.common, opt_.drive, rt_, drive_, hooks_) {}
+  int run() override { return node_.run(); }
+
+ private:
+  /// The master's configuration after the checks against the runtime. @throws ConfigError
+  canopen::Cia402DriveConfig checked_config();
+
+  BridgeOptions opt_;
+  CanopenRigConfig rig_;
+  node::NodeRuntime rt_;
+  canopen::Cia402DriveConfig drive_config_;
+  std::unique_ptr<can::CanBus> bus_;
+  canopen::Cia402Drive drive_;
+  BridgeHooks hooks_;
+  node::DriveNode node_;
+};
+
+canopen::Cia402DriveConfig DriveBridgeComponent::checked_config() {
+  canopen::Cia402DriveConfig drive_config = rig_.master;
+  drive_config.reset_communication = !opt_.no_reset;
+  node::check_drive_node_options("drive_bridge", opt_.drive, opt_.common, rt_);
+  if (rt_.cfg.command_level == node::CommandLevel::kVoltage) {
+    throw ConfigError("--command-level voltage: a CiA 402 drive runs its own current loop (cyclic synchronous "
+                      "torque); drive_bridge takes force commands only");
+  }
+  if (std::abs(rt_.period_s - 1e-3) > 1e-9) {
+    throw ConfigError("control period " + std::to_string(rt_.period_s * 1e3) +
+                      " ms: the drive is set to a 1 ms interpolation period (0x60C2)");
+  }
+  drive_config.realtime = rt_.cfg.clock == node::Clock::kRealtime;
+  const canopen::BusLoad load = canopen::bus_load(
+      canopen::bridge_cycle_frames(rt_.period_s, drive_config.drive_heartbeat_ms, drive_config.master_heartbeat_ms),
+      rig_.bitrate_bps, rt_.period_s);
+  std::printf("drive_bridge: bus load per %.0f ms cycle at %.0f kbit/s: %.1f %% (%.0f bits; %.1f %% with worst-case bit "
+              "stuffing)\n",
+              rt_.period_s * 1e3, rig_.bitrate_bps * 1e-3, 100.0 * load.load, load.bits_per_cycle, 100.0 * load.load_worst);
+  if (load.load_worst > 1.0) {
+    throw ConfigError("bus.bitrate_bps " + std::to_string(rig_.bitrate_bps) + ": one cycle's frames need up to " +
+                      std::to_string(static_cast<int>(load.bits_per_cycle_worst)) + " bits, more than the bus carries in " +
+                      std::to_string(rt_.period_s * 1e3) + " ms");
+  }
+  if (load.load_worst > 0.5) {
+    std::fprintf(stderr, "drive_bridge: warning: the bus is more than half busy at worst; frames of other nodes "
+                         "may delay the PDOs\n");
+  }
+  return drive_config;
+}
+
+}  // namespace
+
+namespace pmlsm::node {
+
+MadeComponent make_drive_bridge(const ComponentContext& context, int argc, char** argv) {
+  CLI::App app{"Bridge from DDS to a CiA 402 servo drive on CAN (cyclic synchronous torque)"};
+  BridgeOptions opt;
+  opt.common.spin_us = 200.0;
+  add_common_options(app, opt.common);
+  add_drive_node_options(app, opt.drive);
+  add_can_options(app, opt.can);
+  app.add_flag("--no-reset-communication", opt.no_reset,
+               "do not start the boot with NMT reset communication: wait for the drive's own boot-up or heartbeat");
+  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  return {std::make_unique<DriveBridgeComponent>(context, std::move(opt))};
+}
+
+}  // namespace pmlsm::node

@@ -1,0 +1,258 @@
+// evaluator: the rig's scope. Collects every tick of MotorFeedback,
+// PlantTruth, VelocityReference, ForceCommand and EstimatedState into the
+// same records the in-process loop writes, and when the scenario's last tick
+// is complete prints the results table and writes <out>/<scenario>.csv.
+// It reads PlantTruth, which no controller may: evaluation only.
+//
+// It never presents an invalid run as valid:
+//   - a tick at which the drive had its force off (MotorFeedback STATUS_SAFE_STATE or
+//     STATUS_FAULT, or a power state other than operation enabled) marks the row INVALID with
+//     the reason; the CSV is still written and the exit code is kExitSafeState (5);
+//   - a sample of any topic stamped with another run_id than the first one seen (0 ignored)
+//     means the drive restarted mid-run: no table, no CSV, exit kExitPeerLost (4).
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "EstimatedStatePubSubTypes.h"
+#include "ForceCommandPubSubTypes.h"
+#include "MotorFeedbackPubSubTypes.h"
+#include "PlantTruthPubSubTypes.h"
+#include "VelocityReferencePubSubTypes.h"
+#include "msg_mapping.hpp"
+#include "node_support.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/sim/metrics.hpp"
+#include "results_table.hpp"
+#include "run_validity.hpp"
+#include "trace_csv.hpp"
+
+namespace {
+
+using namespace pmlsm;
+namespace pdds = pmlsm::dds;
+namespace msg = pmlsm_msgs::msg;
+namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
+
+enum Part : unsigned { kFeedback = 1, kTruth = 2, kReference = 4, kCommand = 8, kEstimate = 16, kAll = 31 };
+
+struct EvaluatorOptions {
+  std::string out_dir = "out";
+  bool print_header = true;
+  std::string label;
+};
+
+class EvaluatorNode {
+ public:
+  EvaluatorNode(const node::CommonOptions& common, const EvaluatorOptions& options, node::NodeRuntime& rt)
+      : common_(common),
+        opt_(options),
+        rt_(rt),
+        period_s_(rt.period_s),
+        ticks_(scenario_ticks(rt.cfg.scenario, period_s_)),
+        feedback_reader_(observe<msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback)),
+        truth_reader_(observe<msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth)),
+        reference_reader_(observe<msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference)),
+        command_reader_(observe<msg::ForceCommandPubSubType>(pdds::topics::kForceCommand)),
+        estimate_reader_(observe<msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState)),
+        trace_(ticks_),
+        parts_(ticks_, 0) {}
+
+  int run();
+
+ private:
+  template <typename PubSubType>
+  pdds::Reader<PubSubType> observe(const pdds::TopicSpec& topic) {
+    return rt_.participant.make_reader<PubSubType>(topic, rt_.wakeup, pdds::kObserverProfile);
+  }
+  /// The record of `tick` with `part` now in, or null (and counted) outside the scenario or for a duplicate.
+  TickRecord* mark(std::uint64_t tick, Part part);
+  /// A sample of another run than the first one seen ends the collection.
+  bool same_run(const msg::Stamp& stamp);
+  /// Takes what arrived on every topic; true when every tick is complete or the drive restarted.
+  bool drain();
+  void collect();
+  int report_incomplete();
+  int report_results();
+
+  const node::CommonOptions& common_;
+  EvaluatorOptions opt_;
+  node::NodeRuntime& rt_;
+  double period_s_;
+  std::uint64_t ticks_;
+  pdds::Reader<msg::MotorFeedbackPubSubType> feedback_reader_;
+  pdds::Reader<msg::PlantTruthPubSubType> truth_reader_;
+  pdds::Reader<msg::VelocityReferencePubSubType> reference_reader_;
+  pdds::Reader<msg::ForceCommandPubSubType> command_reader_;
+  pdds::Reader<msg::EstimatedStatePubSubType> estimate_reader_;
+
+  std::vector<TickRecord> trace_;
+  std::vector<unsigned> parts_;
+  std::uint64_t complete_ = 0;
+  std::uint64_t rejected_ = 0;
+  node::RunValidity validity_;  // the drive's status at every tick
+  node::RunIdTracker run_;      // the drive's run every sample must belong to
+  std::optional<node::RunChange> restart_;
+  node::DriveTickStatus drive_status_;
+  msg::MotorFeedback feedback_;
+  msg::PlantTruth truth_;
+  msg::VelocityReference reference_;
+  msg::ForceCommand command_;
+  msg::EstimatedState estimate_;
+};
+
+TickRecord* EvaluatorNode::mark(std::uint64_t tick, Part part) {
+  if (tick >= ticks_ || (parts_[tick] & part) != 0) {
+    ++rejected_;  // outside the scenario or a duplicate
+    return nullptr;
+  }
+  parts_[tick] |= part;
+  if (parts_[tick] == kAll) ++complete_;
+  TickRecord& r = trace_[tick];
+  r.tick = tick;
+  r.time_s = static_cast<double>(tick) * period_s_;
+  return &r;
+}
+
+bool EvaluatorNode::same_run(const msg::Stamp& stamp) {
+  if (!restart_) restart_ = run_.observe(stamp.run_id(), stamp.tick());
+  return !restart_;
+}
+
+bool EvaluatorNode::drain() {
+  while (!restart_ && feedback_reader_.take(feedback_)) {
+    if (!same_run(feedback_.stamp())) break;
+    if (TickRecord* r = mark(feedback_.stamp().tick(), kFeedback)) {
+      node::from_msg(feedback_, *r);
+      node::from_msg(feedback_, drive_status_);
+      validity_.add(feedback_.stamp().tick(), drive_status_);
+    }
+  }
+  while (!restart_ && truth_reader_.take(truth_)) {
+    if (!same_run(truth_.stamp())) break;
+    if (TickRecord* r = mark(truth_.stamp().tick(), kTruth)) node::from_msg(truth_, *r);
+  }
+  while (!restart_ && reference_reader_.take(reference_)) {
+    if (!same_run(reference_.stamp())) break;
+    if (TickRecord* r = mark(reference_.stamp().tick(), kReference)) node::from_msg(reference_, *r);
+  }
+  while (!restart_ && command_reader_.take(command_)) {
+    if (!same_run(command_.stamp())) break;
+    if (TickRecord* r = mark(command_.feedback_tick(), kCommand)) node::from_msg(command_, *r);
+  }
+  while (!restart_ && estimate_reader_.take(estimate_)) {
+    if (!same_run(estimate_.stamp())) break;
+    if (TickRecord* r = mark(estimate_.feedback_tick(), kEstimate)) node::from_msg(estimate_, *r);
+  }
+  return complete_ == ticks_ || restart_.has_value();
+}
+
+void EvaluatorNode::collect() {
+  // Done when every tick is complete; no new complete tick for the peer timeout ends it (checked
+  // every 100 ms, so a stall is reported after the timeout, not up to twice it).
+  std::uint64_t last_complete = 0;
+  auto last_progress = std::chrono::steady_clock::now();
+  const auto stall_limit = std::chrono::duration<double>(common_.peer_timeout_s);
+  while (!pdds::stop_requested()) {
+    if (node::wait_until(rt_.wakeup, std::chrono::milliseconds(100), [this] { return drain(); })) break;
+    const auto now = std::chrono::steady_clock::now();
+    if (complete_ != last_complete) {
+      last_complete = complete_;
+      last_progress = now;
+    } else if (now - last_progress >= stall_limit) {
+      break;
+    }
+  }
+}
+
+int EvaluatorNode::report_incomplete() {
+  std::fprintf(stderr, "evaluator: only %llu of %llu ticks complete (%s); no results\n",
+               static_cast<unsigned long long>(complete_), static_cast<unsigned long long>(ticks_),
+               pdds::stop_requested() ? "stopped" : "peers silent");
+  // Which topics are missing, and from where: tells a late join from a loss.
+  const char* names[] = {"MotorFeedback", "PlantTruth", "VelocityReference", "ForceCommand", "EstimatedState"};
+  for (unsigned bit = 0; bit < 5; ++bit) {
+    std::uint64_t missing = 0, first = ticks_;
+    for (std::uint64_t t = 0; t < ticks_; ++t) {
+      if ((parts_[t] & (1u << bit)) == 0) {
+        ++missing;
+        first = std::min(first, t);
+      }
+    }
+    if (missing > 0) {
+      std::fprintf(stderr, "evaluator: %s missing for %llu ticks, the first %llu\n", names[bit],
+                   static_cast<unsigned long long>(missing), static_cast<unsigned long long>(first));
+    }
+  }
+  if (!validity_.valid()) {
+    std::fprintf(stderr, "evaluator: the ticks received are INVALID as well: %s\n", validity_.reason().c_str());
+  }
+  rt_.status.publish(node_state::STATE_ERROR, complete_, period_s_, "incomplete run");
+  // Stopped or stalled before the run was complete: no results, and never exit 0 for that.
+  return pdds::stop_requested() ? kExitError : kExitPeerLost;
+}
+
+int EvaluatorNode::report_results() {
+  const Scenario& scenario = rt_.cfg.scenario;
+  const ScenarioMetrics m = compute_metrics(trace_, scenario, period_s_);
+  std::filesystem::create_directories(opt_.out_dir);
+  const std::string run_name = opt_.label.empty() ? scenario.name : scenario.name + "_" + opt_.label;
+  write_trace_csv(opt_.out_dir + "/" + run_name + ".csv", trace_);
+  const std::string invalid_reason = validity_.reason();  // empty: valid
+  if (opt_.print_header) node::print_results_header();
+  node::print_results_row(opt_.label.empty() ? scenario.name : scenario.name + " " + opt_.label, m, invalid_reason);
+  std::fflush(stdout);
+  rt_.status.status().rejected(rejected_);
+  if (!invalid_reason.empty()) {
+    rt_.status.publish(node_state::STATE_ERROR, ticks_, period_s_, "invalid run: drive force off");
+    return kExitSafeState;
+  }
+  rt_.status.publish(node_state::STATE_STOPPING, ticks_, period_s_, "done");
+  return kExitOk;
+}
+
+int EvaluatorNode::run() {
+  rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "collecting");
+  collect();
+  if (restart_) {
+    std::fprintf(stderr, "%s\n", node::restart_message("evaluator", *restart_).c_str());
+    rt_.status.publish(node_state::STATE_ERROR, complete_, period_s_, "drive restarted mid-run");
+    return kExitPeerLost;
+  }
+  return complete_ < ticks_ ? report_incomplete() : report_results();
+}
+
+class EvaluatorComponent final : public node::Component {
+ public:
+  EvaluatorComponent(const node::ComponentContext& context, node::CommonOptions common, const EvaluatorOptions& opt)
+      : common_(std::move(common)), rt_("evaluator", common_, context), node_(common_, opt, rt_) {}
+  int run() override { return node_.run(); }
+
+ private:
+  node::CommonOptions common_;
+  node::NodeRuntime rt_;
+  EvaluatorNode node_;
+};
+
+}  // namespace
+
+namespace pmlsm::node {
+
+MadeComponent make_evaluator(const ComponentContext& context, int argc, char** argv) {
+  CLI::App app{"Collects a distributed run's topics per tick, prints the results table, writes the CSV trace"};
+  CommonOptions common;
+  common.spin_us = 0.0;
+  EvaluatorOptions opt;
+  add_common_options(app, common);
+  app.add_option("-o,--out", opt.out_dir, "Folder for the CSV trace");
+  app.add_option("--header", opt.print_header, "Print the table header (true/false)");
+  app.add_option("--label", opt.label, "Names this run in the table and the CSV (<scenario>_<label>.csv), e.g. pi_rnn");
+  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  return {std::make_unique<EvaluatorComponent>(context, std::move(common), opt)};
+}
+
+}  // namespace pmlsm::node

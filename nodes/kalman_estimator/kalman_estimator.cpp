@@ -1,0 +1,152 @@
+// kalman_estimator: the Kalman filter of section 3.5 on DDS. For every
+// MotorFeedback tick k it predicts with the force the drive applied over the
+// last tick (MotorFeedback.applied_force_n, u_{k-1}; plus the modelled friction
+// and ripple of that tick, from the encoder velocity and position, when
+// kalman.friction_input / ripple_input are enabled) and updates with the
+// measured motor velocity, then publishes EstimatedState (v_M, v_L, F_s, a_L,
+// and the input u the prediction used). The in-process loop feeds the filter
+// the same three values, so the traces are identical.
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "EstimatedStatePubSubTypes.h"
+#include "MotorFeedbackPubSubTypes.h"
+#include "msg_mapping.hpp"
+#include "node_support.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/estimation/kalman_filter.hpp"
+
+namespace {
+
+using namespace pmlsm;
+namespace pdds = pmlsm::dds;
+namespace msg = pmlsm_msgs::msg;
+namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
+
+class KalmanEstimatorNode {
+ public:
+  /// estimate_readers: EstimatedState readers to wait for before the first estimate (0: at once).
+  KalmanEstimatorNode(const node::CommonOptions& common, node::NodeRuntime& rt, int estimate_readers)
+      : common_(common),
+        rt_(rt),
+        period_s_(rt.period_s),
+        ticks_(scenario_ticks(rt.cfg.scenario, period_s_)),
+        // Deep history: the estimator is off the lockstep chain and may fall behind;
+        // it must still see every tick.
+        feedback_reader_(rt.participant.make_reader<msg::MotorFeedbackPubSubType>(
+            pdds::topics::kMotorFeedback, rt.wakeup, pdds::kObserverProfile)),
+        estimate_writer_(rt.participant.make_writer<msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState)),
+        filter_(rt.cfg.params.kalman_params()),
+        estimate_readers_(estimate_readers) {}
+
+  int run();
+
+ private:
+  /// The drive restarted: the estimate belongs to the old run; start afresh as at start-up.
+  void follow_new_run();
+  void estimate(std::uint64_t k);
+  int finish(int exit_code);
+
+  const node::CommonOptions& common_;
+  node::NodeRuntime& rt_;
+  double period_s_;
+  std::uint64_t ticks_;
+  pdds::Reader<msg::MotorFeedbackPubSubType> feedback_reader_;
+  pdds::Writer<msg::EstimatedStatePubSubType> estimate_writer_;
+  KalmanFilter filter_;
+  int estimate_readers_;
+
+  msg::MotorFeedback feedback_;
+  msg::EstimatedState estimate_;
+  KalmanInput input_;
+  std::uint64_t next_tick_ = 0;  // ticks up to here are done
+  node::FeedbackFollower feedback_follower_{"kalman_estimator", common_, rt_.cfg.clock};
+  std::uint64_t rejected_ = 0;
+};
+
+void KalmanEstimatorNode::follow_new_run() {
+  filter_.reset();
+}
+
+void KalmanEstimatorNode::estimate(std::uint64_t k) {
+  // The filter itself rejects (and counts) a non-finite measurement or input.
+  node::from_msg(feedback_, input_);
+  node::to_msg(filter_.step(input_), k, estimate_);
+  estimate_.stamp(node::make_stamp(k, period_s_, feedback_follower_.run().current()));  // the run this estimate follows
+  estimate_writer_.write(estimate_);
+}
+
+int KalmanEstimatorNode::run() {
+  // A drive that runs a short scenario fast can be done before an observer's EstimatedState reader
+  // matched; the estimates written before the match would then reach nobody.
+  if (estimate_readers_ > 0) {
+    rt_.status.publish(node_state::STATE_WAITING, 0, period_s_, "waiting for readers");
+    const bool matched = node::wait_until(rt_.wakeup, std::chrono::duration<double>(common_.peer_timeout_s), [&] {
+      return estimate_writer_.matched_readers() >= static_cast<std::size_t>(estimate_readers_);
+    });
+    if (!matched) {
+      if (pdds::stop_requested()) return finish(kExitOk);
+      std::fprintf(stderr, "kalman_estimator: readers missing after %.1f s: %zu of %d EstimatedState readers\n",
+                   common_.peer_timeout_s, estimate_writer_.matched_readers(), estimate_readers_);
+      return finish(kExitPeerMissing);
+    }
+  }
+  rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "running");
+  int exit_code = kExitOk;
+  while (next_tick_ < ticks_ && !pdds::stop_requested()) {
+    const auto next =
+        feedback_follower_.next(rt_.wakeup, feedback_reader_, feedback_, next_tick_, period_s_, rt_.status, rejected_);
+    if (next == node::FeedbackFollower::Next::kEnded) {
+      exit_code = feedback_follower_.exit_code();
+      break;
+    }
+    if (next == node::FeedbackFollower::Next::kNewRun) follow_new_run();
+    const std::uint64_t k = feedback_.stamp().tick();
+    estimate(k);
+    next_tick_ = k + 1;
+  }
+  return finish(exit_code);
+}
+
+int KalmanEstimatorNode::finish(int exit_code) {
+  const auto& c = filter_.counters();
+  rt_.status.status().rejected(rejected_ + c.rejected_measurements + c.rejected_inputs);
+  rt_.status.publish(node_state::STATE_STOPPING, next_tick_, period_s_, "done");
+  estimate_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  std::printf("kalman_estimator: %llu ticks, %llu rejected\n", static_cast<unsigned long long>(next_tick_),
+              static_cast<unsigned long long>(rejected_ + c.rejected_measurements + c.rejected_inputs));
+  return exit_code;
+}
+
+class KalmanEstimatorComponent final : public node::Component {
+ public:
+  KalmanEstimatorComponent(const node::ComponentContext& context, node::CommonOptions common, int estimate_readers)
+      : common_(std::move(common)), rt_("kalman_estimator", common_, context), node_(common_, rt_, estimate_readers) {}
+  int run() override { return node_.run(); }
+
+ private:
+  node::CommonOptions common_;
+  node::NodeRuntime rt_;
+  KalmanEstimatorNode node_;
+};
+
+}  // namespace
+
+namespace pmlsm::node {
+
+MadeComponent make_kalman_estimator(const ComponentContext& context, int argc, char** argv) {
+  CLI::App app{"Kalman estimator of the load velocity and spring force on DDS"};
+  CommonOptions common;
+  common.spin_us = 0.0;
+  add_common_options(app, common);
+  int estimate_readers = 0;
+  app.add_option("--estimate-readers", estimate_readers,
+                 "EstimatedState readers to wait for before the first estimate (0: estimate at once)")
+      ->check(CLI::Range(0, 64))
+      ->capture_default_str();
+  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  return {std::make_unique<KalmanEstimatorComponent>(context, std::move(common), estimate_readers)};
+}
+
+}  // namespace pmlsm::node

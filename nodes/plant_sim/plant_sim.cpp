@@ -1,0 +1,174 @@
+// plant_sim: the simulated servo drive on DDS, a thin adapter over the drive loop
+// (common/drive/drive_loop.hpp: arbitration, watchdog, power states, statistics) with the
+// simulated drive as its backend. Publishes MotorFeedback (what the drive measures),
+// PlantTruth (evaluation only) and DriveState; applies ForceCommand; obeys DriveControl.
+//
+// Clocks:
+//  - lockstep: the plant is the clock. It publishes tick k and integrates to k+1 only when the
+//    command answering tick k has arrived: deterministic, as fast as the machine goes.
+//  - realtime: ticks on absolute time. The plant waits at most --command-deadline-us into the
+//    tick for that tick's command, then holds the newest one; the watchdog faults the drive
+//    when feedback stays unanswered for --watchdog-ms; a controller silent for
+//    --controller-lost-ms is lost.
+//
+// Power: the drive starts in switch on disabled. With --auto-enable (the default; simulation
+// launch files say so) it walks to operation enabled once its peers are there; otherwise an
+// operator enables it (`pmlsm drive enable`). A latched fault is cleared by fault reset and
+// enable (`pmlsm drive fault-reset`, `pmlsm drive enable`), never by a restart.
+//
+// Exit codes: 0 the scenario ran with force on throughout; 4 the controller was lost (lockstep
+// timeout; realtime with --on-controller-lost exit); 5 the drive spent ticks with force off
+// after it was first enabled (fault, quick stop, disabled) or was never enabled.
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "CurrentFeedbackPubSubTypes.h"
+#include "PlantTruthPubSubTypes.h"
+#include "VoltageCommandPubSubTypes.h"
+#include "drive_node.hpp"
+#include "msg_mapping.hpp"
+#include "node_support.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/sim/simulated_drive.hpp"
+
+namespace {
+
+using namespace pmlsm;
+namespace pdds = pmlsm::dds;
+namespace msg = pmlsm_msgs::msg;
+
+/// plant_sim's own parts of the drive node: PlantTruth, and the current loop's exchange at the
+/// voltage command level.
+class PlantSimHooks final : public node::DriveNodeHooks {
+ public:
+  PlantSimHooks(node::NodeRuntime& rt, const node::CommonOptions& common)
+      : rt_(rt),
+        common_(common),
+        voltage_level_(rt.cfg.command_level == node::CommandLevel::kVoltage),
+        truth_writer_(rt.participant.make_writer<msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth)),
+        current_writer_(rt.participant.make_writer<msg::CurrentFeedbackPubSubType>(pdds::topics::kCurrentFeedback)),
+        voltage_reader_(
+            rt.participant.make_reader<msg::VoltageCommandPubSubType>(pdds::topics::kVoltageCommand, rt.wakeup)),
+        backend_(rt.cfg.params, scenario_initial_condition(rt.cfg.scenario)) {}
+
+  SimulatedDriveBackend& backend() { return backend_; }
+  void attach(node::DriveNode& node) { node_ = &node; }
+
+  bool peers_ready() override {
+    return !voltage_level_ || (current_writer_.matched_readers() >= 1 && voltage_reader_.matched_writers() >= 1);
+  }
+  void before_publish(std::uint64_t /*k*/, const drive::TickReport& report) override {
+    const SimulatedDrive& simulated = backend_.simulated_drive();
+    node::to_msg(simulated.plant().truth(), {report.applied_force_n, simulated.last_u_d_v(), simulated.last_u_q_v()},
+                 truth_);
+    truth_.stamp(node_->feedback().stamp());
+  }
+  void after_publish(std::uint64_t /*k*/) override { truth_writer_.write(truth_); }
+  const char* during_tick(std::uint64_t k) override {
+    return voltage_level_ && !exchange_voltages(k) ? "no VoltageCommand" : nullptr;
+  }
+  bool apply_force() override { return !voltage_level_; }
+  void flush() override {
+    truth_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+    if (voltage_level_) current_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  }
+  std::uint64_t extra_late() const override { return stale_voltages_; }
+  std::uint64_t extra_rejected() const override { return rejected_voltages_; }
+
+ private:
+  bool exchange_voltages(std::uint64_t k) {
+    // 32 exchanges per tick: currents out, the controller's voltage back.
+    SimulatedDrive& drive = backend_.simulated_drive();
+    const bool enabled = backend_.power_state() == drive::PowerState::kOperationEnabled;
+    for (int sub = 0; sub < drive.current_steps_per_tick(); ++sub) {
+      const PlantMeasurement& m = drive.measurement();
+      current_feedback_.stamp(node_->feedback().stamp());
+      current_feedback_.substep(static_cast<std::uint32_t>(sub));
+      current_feedback_.i_d_a(m.i_d_a);
+      current_feedback_.i_q_a(m.i_q_a);
+      current_feedback_.velocity_mps(drive.tick_velocity_mps());
+      current_feedback_.position_m(m.encoder_position_m);
+      current_writer_.write(current_feedback_);
+      bool answered = false;
+      const bool ok = node::wait_until(rt_.wakeup, std::chrono::duration<double>(common_.peer_timeout_s), [&] {
+        while (!answered && voltage_reader_.take(voltage_command_)) {
+          if (voltage_command_.stamp().tick() != k || voltage_command_.substep() != static_cast<std::uint32_t>(sub)) {
+            ++stale_voltages_;
+          } else {
+            if (std::isfinite(voltage_command_.u_d_v()) && std::isfinite(voltage_command_.u_q_v())) {
+              u_d_v_ = voltage_command_.u_d_v();
+              u_q_v_ = voltage_command_.u_q_v();
+            } else {
+              ++rejected_voltages_;  // the last finite voltage is held
+            }
+            answered = true;
+          }
+        }
+        return answered;
+      });
+      if (!ok) return false;
+      // Force off outside operation enabled: no voltage either.
+      drive.apply_voltage(enabled ? u_d_v_ : 0.0, enabled ? u_q_v_ : 0.0);
+    }
+    return true;
+  }
+
+  node::NodeRuntime& rt_;
+  const node::CommonOptions& common_;
+  bool voltage_level_;
+  pdds::Writer<msg::PlantTruthPubSubType> truth_writer_;
+  pdds::Writer<msg::CurrentFeedbackPubSubType> current_writer_;
+  pdds::Reader<msg::VoltageCommandPubSubType> voltage_reader_;
+  SimulatedDriveBackend backend_;
+  node::DriveNode* node_ = nullptr;
+  msg::PlantTruth truth_;
+  msg::CurrentFeedback current_feedback_;
+  msg::VoltageCommand voltage_command_;
+  double u_d_v_ = 0.0, u_q_v_ = 0.0;  // held voltage at the voltage command level
+  std::uint64_t stale_voltages_ = 0, rejected_voltages_ = 0;
+};
+
+class PlantSimComponent final : public node::Component {
+ public:
+  PlantSimComponent(const node::ComponentContext& context, node::CommonOptions common, const node::DriveNodeOptions& opt)
+      : common_(std::move(common)),
+        rt_("plant_sim", common_, context),
+        hooks_(checked(rt_, opt, common_), common_),
+        node_("plant_sim", common_, opt, rt_, hooks_.backend(), hooks_) {
+    hooks_.attach(node_);
+  }
+  int run() override { return node_.run(); }
+
+ private:
+  static node::NodeRuntime& checked(node::NodeRuntime& rt, const node::DriveNodeOptions& opt,
+                                    const node::CommonOptions& common) {
+    node::check_drive_node_options("plant_sim", opt, common, rt);
+    return rt;
+  }
+
+  node::CommonOptions common_;
+  node::NodeRuntime rt_;
+  PlantSimHooks hooks_;
+  node::DriveNode node_;
+};
+
+}  // namespace
+
+namespace pmlsm::node {
+
+MadeComponent make_plant_sim(const ComponentContext& context, int argc, char** argv) {
+  CLI::App app{"Simulated PMLSM servo drive (plant + drive current loop) on DDS"};
+  CommonOptions common;
+  common.spin_us = 200.0;
+  DriveNodeOptions opt;
+  add_common_options(app, common);
+  add_drive_node_options(app, opt);
+  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  return {std::make_unique<PlantSimComponent>(context, std::move(common), opt)};
+}
+
+}  // namespace pmlsm::node

@@ -1,0 +1,168 @@
+// Components in one container process: the same trace as separate processes and as the
+// in-process loop, every topic still on the bus for readers outside, bad input refused before
+// anything runs, a failing component reported with the exit code separate processes give.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "child_process.hpp"
+#include "integration_support.hpp"
+
+namespace pmlsm {
+namespace {
+
+namespace fs = std::filesystem;
+using std::chrono::seconds;
+using test::bin;
+using test::node_args;
+using test::read_file;
+using test::source;
+using test::test_domain;
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("pmlsm_container_" + std::to_string(getpid()) + "_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+/// A component's arguments: as node_args() without the program (the container makes it).
+std::vector<std::string> component(const std::string& name, const std::string& type, const std::string& domain,
+                                   const std::string& scenario, std::vector<std::string> extra = {}) {
+  std::vector<std::string> args = node_args(type, domain, scenario, std::move(extra));
+  args.erase(args.begin());
+  args.insert(args.begin(), {"--component", name, type});
+  return args;
+}
+
+std::vector<std::string> container(std::vector<std::vector<std::string>> components) {
+  std::vector<std::string> argv{bin("container"), "--name", "chain"};
+  for (auto& c : components) argv.insert(argv.end(), c.begin(), c.end());
+  return argv;
+}
+
+std::vector<std::string> launch(const std::string& file, const std::string& domain, const fs::path& out,
+                                const std::string& compose) {
+  return {bin("launcher"), source(file), "--arg", "domain=" + domain, "--arg", "out=" + out.string(),
+          "--arg", "compose=" + compose, "--arg", "config=" + source("configs/system.yaml"),
+          "--arg", "scenario=" + source("configs/scenarios/pulse.yaml"),
+          "--arg", "profiles=" + source("configs/dds/profiles.xml"),
+          "--arg", "weights=" + source("configs/rnn_weights.yaml"), "--arg", "keystore=none"};
+}
+
+TEST(Container, ComposedLockstepTraceEqualsSeparateProcessesAndTheInProcessLoop) {
+  const fs::path dir = scratch("trace");
+  test::ChildProcess composed(launch("launch/sim_rnn.yaml", test_domain(120), dir / "composed", "true"),
+                              (dir / "composed.log").string());
+  const auto composed_code = composed.wait_for(seconds(120));
+  ASSERT_TRUE(composed_code.has_value()) << composed.output();
+  ASSERT_EQ(*composed_code, 0) << composed.output();
+  const std::string log = composed.output();
+  EXPECT_NE(log.find("container chain: 5 components on one chain thread"), std::string::npos) << log;
+  EXPECT_NE(log.find("component controller (controller) exited 0 (ok)"), std::string::npos) << log;
+
+  test::ChildProcess separate(launch("launch/sim_rnn.yaml", test_domain(121), dir / "separate", "false"),
+                              (dir / "separate.log").string());
+  const auto separate_code = separate.wait_for(seconds(180));
+  ASSERT_TRUE(separate_code.has_value()) << separate.output();
+  ASSERT_EQ(*separate_code, 0) << separate.output();
+  EXPECT_EQ(separate.output().find("container"), std::string::npos) << separate.output();
+
+  test::ChildProcess in_process({bin("closed_loop"), "--config", source("configs/system.yaml"), "--scenario",
+                                 source("configs/scenarios/pulse.yaml"), "--out", (dir / "in_process").string(),
+                                 "--compensator", "rnn", "--weights", source("configs/rnn_weights.yaml")},
+                                (dir / "closed_loop.log").string());
+  ASSERT_EQ(in_process.wait_for(seconds(60)).value_or(-1), 0) << in_process.output();
+
+  const std::string composed_csv = read_file(dir / "composed" / "pulse_pi_rnn.csv");
+  ASSERT_FALSE(composed_csv.empty()) << log;
+  EXPECT_TRUE(composed_csv == read_file(dir / "separate" / "pulse_pi_rnn.csv")) << "composed != separate (" << dir << ")";
+  EXPECT_TRUE(composed_csv == read_file(dir / "in_process" / "pulse_rnn.csv")) << "composed != closed_loop (" << dir << ")";
+  fs::remove_all(dir);
+}
+
+TEST(Container, AReaderOutsideTheContainerStillGetsEveryTickOfEveryTopic) {
+  // The evaluator alone in its process reads MotorFeedback, PlantTruth, ForceCommand,
+  // VelocityReference and EstimatedState over DDS from the composed chain: every tick, and the
+  // same trace as the in-process loop. A writer in a container hands DDS only what it writes
+  // once a reader outside matched, so the chain waits for the evaluator's readers (as the
+  // launch files do for observers that must see tick 0), and lockstep paces itself to them.
+  const fs::path dir = scratch("outside");
+  const std::string domain = test_domain(122);
+  const std::string scenario = source("configs/scenarios/free_vibration.yaml");
+  test::ChildProcess evaluator(node_args("evaluator", domain, scenario, {"--out", dir.string()}),
+                               (dir / "evaluator.log").string());
+  test::ChildProcess chain(container({component("plant_sim", "plant_sim", domain, scenario, {"--peers", "3"}),
+                                      component("controller", "controller", domain, scenario,
+                                                {"--command-readers", "2", "--reference-readers", "1"}),
+                                      component("kalman_estimator", "kalman_estimator", domain, scenario,
+                                                {"--estimate-readers", "1"})}),
+                           (dir / "chain.log").string());
+  ASSERT_EQ(chain.wait_for(seconds(60)).value_or(-1), 0) << chain.output();
+  ASSERT_EQ(evaluator.wait_for(seconds(60)).value_or(-1), 0) << evaluator.output();
+  test::ChildProcess in_process({bin("closed_loop"), "--config", source("configs/system.yaml"), "--scenario", scenario,
+                                 "--out", (dir / "in_process").string()},
+                                (dir / "closed_loop.log").string());
+  ASSERT_EQ(in_process.wait_for(seconds(60)).value_or(-1), 0) << in_process.output();
+  const std::string outside = read_file(dir / "free_vibration.csv");
+  ASSERT_FALSE(outside.empty()) << evaluator.output();
+  EXPECT_TRUE(outside == read_file(dir / "in_process" / "free_vibration.csv")) << dir;
+  fs::remove_all(dir);
+}
+
+TEST(Container, BadInputIsRefusedWithExit2NamingTheComponentBeforeAnythingRuns) {
+  const fs::path dir = scratch("bad");
+  const std::string domain = test_domain(123);
+  const std::string scenario = source("configs/scenarios/pulse.yaml");
+  struct Case {
+    std::vector<std::string> argv;
+    std::string says;
+  };
+  const std::vector<Case> cases = {
+      {{bin("container"), "--component", "turbine", "wind_turbine"}, "component 'turbine': unknown type 'wind_turbine'"},
+      {container({component("twice", "plant_sim", domain, scenario), component("twice", "controller", domain, scenario)}),
+       "component name 'twice' is used twice"},
+      {container({component("plant_sim", "plant_sim", domain, scenario),
+                  component("controller", "controller", domain, scenario, {"--set", "plant.mechanics.load_mass_kg=-4"})}),
+       "component controller (controller) was not made: exit 2"},
+      {container({component("plant_sim", "plant_sim", domain, scenario, {"--no-such-option"})}),
+       "component plant_sim (plant_sim) was not made: exit 2"},
+      {{bin("container"), "--name", "empty"}, "no component"},
+  };
+  for (const auto& c : cases) {
+    test::ChildProcess p(c.argv, (dir / "bad.log").string());
+    const auto code = p.wait_for(seconds(30));
+    ASSERT_TRUE(code.has_value()) << p.output();
+    EXPECT_EQ(*code, 2) << p.output();
+    EXPECT_NE(p.output().find(c.says), std::string::npos) << p.output();
+    EXPECT_EQ(p.output().find("components on one chain thread"), std::string::npos) << "it ran: " << p.output();
+  }
+  fs::remove_all(dir);
+}
+
+TEST(Container, AFailingComponentIsNamedAndTheDriveEndsAsWithSeparateProcesses) {
+  // The controller waits for a compensator that is not there: it ends with 4 (compensator lost),
+  // the drive then misses its commands and ends with 4 (controller lost), as separate processes do.
+  const fs::path dir = scratch("fault");
+  const std::string domain = test_domain(124);
+  const std::string scenario = source("configs/scenarios/pulse.yaml");
+  test::ChildProcess chain(
+      container({component("plant_sim", "plant_sim", domain, scenario, {"--peers", "1", "--peer-timeout-s", "3"}),
+                 component("controller", "controller", domain, scenario,
+                           {"--compensation", "topic", "--peer-timeout-s", "0.5"})}),
+      (dir / "chain.log").string());
+  const auto code = chain.wait_for(seconds(60));
+  ASSERT_TRUE(code.has_value()) << chain.output();
+  EXPECT_EQ(*code, 4) << chain.output();
+  const std::string out = chain.output();
+  EXPECT_NE(out.find("controller: no CompensatorOutput for tick 0"), std::string::npos) << out;
+  EXPECT_NE(out.find("component controller (controller) exited 4"), std::string::npos) << out;
+  EXPECT_NE(out.find("controller lost; safe state"), std::string::npos) << out;
+  EXPECT_NE(out.find("exit 4: first failure controller (controller)"), std::string::npos) << out;
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace pmlsm
