@@ -8,7 +8,9 @@
 #     chain latency, watchdog trips, deadline misses; the same with one recorder outside
 #     (`pmlsm record`), and one separate-process run for comparison;
 #   - realtime, composed, tuned (SCHED_FIFO 80, memory locked, cpu_dma_latency 0, the plant
-#     polling the clock for the last 100 us; needs root): deadline misses.
+#     polling the clock for the last 100 us; needs root): deadline misses;
+#   - realtime, composed, secured (a keystore made by `pmlsm security create`), untuned: chain
+#     latency against the open runs', watchdog trips.
 # Prints figures only; exits 1 when a run did not end with exit 0.
 #   bench/compose_bench.sh [repeats] [runs] [seconds]   (default 5 3 10)
 set -euo pipefail
@@ -32,39 +34,47 @@ median() { sort -g | awk '{ v[NR] = $1 } END { if (NR == 0) print ""; else print
 failed=0
 run() {  # run LOG launcher-args...: the launcher, its exit code noted
   local log="$1"; shift
-  if ! "$bin/launcher" launch/sim_rnn.yaml --arg domain="$domain" --arg out="$work" "$@" >"$log" 2>&1; then
-    echo "  run failed (exit $?): $log"; tail -n 5 "$log"; failed=1
+  local code=0
+  "$bin/launcher" launch/sim_rnn.yaml --arg domain="$domain" --arg out="$work" "$@" >"$log" 2>&1 || code=$?
+  if [ "$code" -ne 0 ]; then
+    echo "  run failed (exit $code): $(basename "$log")"; { grep -E "watchdog|fault|lost|first failure" "$log" || true; } | head -n 5; failed=1
   fi
 }
 
-echo "[1/5] lockstep, sim_rnn, composed and separate, ${repeats} runs each (alternating)"
+echo "[1/6] lockstep, sim_rnn, composed and separate, ${repeats} runs each (alternating)"
 for i in $(seq "$repeats"); do
   run "$work/lock_comp_$i.log" --arg compose=true
   run "$work/lock_sep_$i.log" --arg compose=false
 done
-echo "[2/5] lockstep, voltage level (32 exchanges a tick), composed and separate"
+echo "[2/6] lockstep, voltage level (32 exchanges a tick), composed and separate"
 "$bin/launcher" launch/sim.yaml --arg domain="$domain" --arg out="$work" --arg compose=true \
   --arg command_level=voltage >"$work/volt_comp.log" 2>&1 || { echo "  voltage composed failed"; failed=1; }
 "$bin/launcher" launch/sim.yaml --arg domain="$domain" --arg out="$work" --arg compose=false \
   --arg command_level=voltage >"$work/volt_sep.log" 2>&1 || { echo "  voltage separate failed"; failed=1; }
 
 sed "s/^duration_s: .*/duration_s: ${seconds}.0/" configs/scenarios/pulse.yaml >"$work/long.yaml"
-echo "[3/5] realtime, composed, untuned, ${runs} runs of ${seconds} s"
+echo "[3/6] realtime, composed, untuned, ${runs} runs of ${seconds} s"
 for i in $(seq "$runs"); do
   run "$work/rt_comp_$i.log" --arg compose=true --arg clock=realtime --arg scenario="$work/long.yaml"
 done
-echo "[4/5] realtime, composed with a recorder outside; and separate processes, ${seconds} s each"
+echo "[4/6] realtime, composed with a recorder outside; and separate processes, ${seconds} s each"
 "$bin/pmlsm" --domain "$domain" record --no-progress -o "$work/rec.mcap" >"$work/recorder.log" 2>&1 &
 recorder=$!
-sleep 2  # the recorder's readers match before the run starts
+sleep 2  # the recorder's readers match before the run starts (a lockstep run would wait for them)
 run "$work/rt_rec.log" --arg compose=true --arg clock=realtime --arg scenario="$work/long.yaml"
 kill -INT "$recorder" 2>/dev/null || true
 wait "$recorder" || true
 run "$work/rt_sep.log" --arg compose=false --arg clock=realtime --arg scenario="$work/long.yaml"
-echo "[5/5] realtime, composed, tuned (rt_priority=80 cpu_dma_latency_us=0 wake_early_us=100), ${runs} runs"
+echo "[5/6] realtime, composed, tuned (rt_priority=80 cpu_dma_latency_us=0 wake_early_us=100), ${runs} runs"
 for i in $(seq "$runs"); do
   run "$work/rt_tuned_$i.log" --arg compose=true --arg clock=realtime --arg scenario="$work/long.yaml" \
     --arg rt_priority=80 --arg cpu_dma_latency_us=0 --arg wake_early_us=100
+done
+echo "[6/6] realtime, composed, secured, untuned, ${runs} runs"
+"$bin/pmlsm" security create "$work/keystore" >"$work/keystore.log" 2>&1
+for i in $(seq "$runs"); do
+  run "$work/rt_sec_$i.log" --arg compose=true --arg clock=realtime --arg scenario="$work/long.yaml" \
+    --arg keystore="$work/keystore"
 done
 
 ratio() { awk -v a="$1" -v b="$2" 'BEGIN { if (a == "" || b == "" || b + 0 == 0) print "n/a"; else printf "%.3g", a / b }'; }
@@ -84,12 +94,18 @@ printf '%-56s %s\n' "  chain latency p50, us" "$(each 'rt_comp_*.log' p50_of | s
 printf '%-56s %s\n' "  chain latency p99, us" "$(each 'rt_comp_*.log' p99_of | summary)"
 printf '%-56s %s of %s runs; deadline misses %s\n' "  watchdog trips" \
   "$(for f in "$work"/rt_comp_*.log; do [ "$(trips_of "$f")" -gt 0 ] && echo x; done | wc -l)" "$runs" \
-  "$(each 'rt_comp_*.log' miss_of | paste -sd+ | bc)"
+  "$(each 'rt_comp_*.log' miss_of | awk '{ s += $1 } END { print s + 0 }')"
 printf '%-56s %s cores (%s without), p50 %s us\n' "  with one recorder outside" "$(cores_of "$work/rt_rec.log")" \
   "$(each 'rt_comp_*.log' cores_of | median)" "$(p50_of "$work/rt_rec.log")"
 printf '%-56s %s cores (plant process only), p50 %s us, trips %s\n' "realtime separate processes" \
   "$(cores_of "$work/rt_sep.log")" "$(p50_of "$work/rt_sep.log")" "$(trips_of "$work/rt_sep.log")"
+trip_runs() { for f in "$work"/$1; do [ "$(trips_of "$f")" -gt 0 ] && echo x; done | wc -l; }
+printf '%-56s %s\n' "realtime composed secured: chain latency p50, us" "$(each 'rt_sec_*.log' p50_of | summary)"
+printf '%-56s %s (secured / open medians)\n' "  p50 ratio" \
+  "$(ratio "$(each 'rt_sec_*.log' p50_of | median)" "$(each 'rt_comp_*.log' p50_of | median)")"
+printf '%-56s %s of %s runs; container CPU %s cores (median)\n' "  watchdog trips" "$(trip_runs 'rt_sec_*.log')" "$runs" \
+  "$(each 'rt_sec_*.log' cores_of | median)"
 printf '%-56s %s of %s ticks; p50 %s us, p99 %s us\n' "realtime composed tuned: deadline misses" \
-  "$(each 'rt_tuned_*.log' miss_of | paste -sd+ | bc)" "$((runs * seconds * 1000))" \
+  "$(each 'rt_tuned_*.log' miss_of | awk '{ s += $1 } END { print s + 0 }')" "$((runs * seconds * 1000))" \
   "$(each 'rt_tuned_*.log' p50_of | median)" "$(each 'rt_tuned_*.log' p99_of | median)"
 exit "$failed"

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdio>
 #include <memory>
+#include <optional>
 
 #include "node_support.hpp"
 #include "pmlsm/dds/fiber_scheduler.hpp"
@@ -18,12 +19,12 @@ const std::vector<ComponentType>& component_types() {
   static const std::vector<ComponentType> types = {
       {"plant_sim", node::make_plant_sim, 0},
       {"drive_bridge", node::make_drive_bridge, 0},
-      {"controller", node::make_controller, 1},
-      {"kalman_estimator", node::make_kalman_estimator, 2},
-      {"rnn_compensator", node::make_rnn_compensator, 2},
-      {"accel_feedback", node::make_accel_feedback, 2},
-      {"state_feedback", node::make_state_feedback, 2},
-      {"evaluator", node::make_evaluator, 3},
+      {"controller", node::make_controller, 0},
+      {"kalman_estimator", node::make_kalman_estimator, 1},
+      {"rnn_compensator", node::make_rnn_compensator, 1},
+      {"accel_feedback", node::make_accel_feedback, 1},
+      {"state_feedback", node::make_state_feedback, 1},
+      {"evaluator", node::make_evaluator, 2},
   };
   return types;
 }
@@ -68,8 +69,9 @@ ContainerResult run_container(const ContainerOptions& options, const std::vector
   dds::LocalBus bus(scheduler);
   std::vector<Slot> slots;
   for (const auto& spec : specs) slots.push_back({spec, &type_of(spec.type), nullptr});
-  // The chain first: the drive, then the controller (stable among equals: the file's order).
-  std::stable_sort(slots.begin(), slots.end(), [](const Slot& a, const Slot& b) { return a.type->order < b.type->order; });
+  // The chain first (stable among equals: the file's order), so made and spawned in that order.
+  std::stable_sort(slots.begin(), slots.end(),
+                   [](const Slot& a, const Slot& b) { return a.type->priority < b.type->priority; });
 
   // Make every component before any runs: a bad one stops the container with nothing running.
   const node::ComponentContext context{&bus};
@@ -94,6 +96,21 @@ ContainerResult run_container(const ContainerOptions& options, const std::vector
       return result;
     }
   }
+  // The chain thread's real-time setup, now that every participant and its threads exist.
+  std::optional<node::RealtimeSetup> realtime;
+  if (options.realtime.rt_priority > 0 || options.realtime.cpu_dma_latency_us >= 0) {
+    const int code = node::run_node("container", [&] {
+      realtime.emplace(options.realtime);
+      return 0;
+    });
+    if (code != kExitOk) {
+      for (auto it = slots.rbegin(); it != slots.rend(); ++it) it->component.reset();
+      result.exit_code = code;
+      return result;
+    }
+    std::printf("container %s: real-time setup of the chain thread: %s\n", options.name.c_str(),
+                realtime->summary().c_str());
+  }
   std::printf("container %s: %zu components on one chain thread:", options.name.c_str(), slots.size());
   for (const auto& slot : slots) std::printf(" %s", slot.spec.name.c_str());
   std::printf("\n");
@@ -113,7 +130,7 @@ ContainerResult run_container(const ContainerOptions& options, const std::vector
       if (code != kExitOk && result.exit_code == kExitOk) result.exit_code = code;
       std::printf("container %s: component %s (%s) exited %d (%s)\n", options.name.c_str(), slot.spec.name.c_str(),
                   slot.spec.type.c_str(), code, exit_code_meaning(code));
-    });
+    }, slot.type->priority);
   }
   scheduler.run();
   rusage after{};

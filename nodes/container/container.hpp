@@ -18,15 +18,17 @@
 
 #include "component.hpp"
 #include "container_spec.hpp"
+#include "realtime_setup.hpp"
 
 namespace pmlsm::container {
 
-/// A component type the container can make, and its place on the chain thread (lower first:
-/// the drive, then the controller, then the rest).
+/// A component type the container can make, and its priority on the chain thread (lower first:
+/// 0 the chain, drive and controller; 1 the estimator and the compensators, which feed the next
+/// tick; 2 the observers). See pmlsm/dds/fiber_scheduler.hpp.
 struct ComponentType {
   const char* name;
   node::ComponentFactory make;
-  int order;
+  int priority;
 };
 
 /// Every component type of this project.
@@ -49,6 +51,10 @@ struct ContainerResult {
 struct ContainerOptions {
   std::string name = "container";
   std::size_t stack_bytes = std::size_t{2} << 20;
+  /// For the chain thread alone, applied once every component is made: Fast DDS's threads keep
+  /// normal scheduling (in a container they carry nothing of the chain, and a real-time thread
+  /// of theirs that spins would starve the kernel's own workers on a 2-core machine).
+  node::RealtimeOptions realtime;
 };
 
 /// Makes and runs the components of `specs` (types already checked); prints one line per

@@ -10,7 +10,6 @@
 #include "container.hpp"
 #include "container_spec.hpp"
 #include "node_support.hpp"
-#include "realtime_setup.hpp"
 
 int main(int argc, char** argv) {
   using namespace pmlsm;
@@ -25,14 +24,15 @@ int main(int argc, char** argv) {
     }
     CLI::App app{"Runs several components (nodes) in one process: one chain thread, samples between them in-process"};
     container::ContainerOptions options;
-    node::RealtimeOptions realtime;
+    node::RealtimeOptions& realtime = options.realtime;
     std::size_t stack_kib = options.stack_bytes >> 10;
     app.add_option("--name", options.name, "The container's name in its messages")->capture_default_str();
     app.add_option("--stack-kib", stack_kib, "Stack of each component's fiber")
         ->check(CLI::Range(64, 1 << 20))
         ->capture_default_str();
     app.add_option("--rt-priority", realtime.rt_priority,
-                   "SCHED_FIFO priority 1..99 of the chain thread (and the DDS threads), memory locked (0: normal)")
+                   "SCHED_FIFO priority 1..99 of the chain thread, memory locked (0: normal; Fast DDS's threads "
+                   "stay normal; the components' own --rt-priority and --cpu-dma-latency-us are not applied)")
         ->check(CLI::Range(0, 99));
     app.add_option("--cpu-dma-latency-us", realtime.cpu_dma_latency_us,
                    "While the container runs, keep the cores out of idle states slower to leave than this (-1: none)")
@@ -44,11 +44,6 @@ int main(int argc, char** argv) {
     for (auto& a : own) own_argv.push_back(a.data());
     if (const auto code = node::parse_command_line(app, static_cast<int>(own_argv.size()), own_argv.data())) return *code;
     options.stack_bytes = stack_kib << 10;
-    // Before any participant: the chain thread (this one) and Fast DDS's threads inherit it.
-    const node::RealtimeSetup setup(realtime);
-    if (realtime.rt_priority > 0 || realtime.cpu_dma_latency_us >= 0) {
-      std::printf("container %s: real-time setup: %s\n", options.name.c_str(), setup.summary().c_str());
-    }
     return container::run_container(options, line.components).exit_code;
   });
 }

@@ -181,13 +181,19 @@ NodeRuntime::NodeRuntime(const std::string& node_name, CommonOptions& options, c
     : start_ns(monotonic_ns()),
       cfg(load_config(options)),
       period_s(cfg.params.timing.control_period_s),
-      realtime(options.realtime),
+      // In a container the container sets up its chain thread (container --rt-priority).
+      realtime(context.local_bus == nullptr ? options.realtime : RealtimeOptions{}),
       wakeup(spin_time(options), std::chrono::nanoseconds(static_cast<std::int64_t>(options.wake_batch_us * 1e3)),
              context.local_bus != nullptr ? &context.local_bus->scheduler() : nullptr),
       participant(named(options.dds, node_name, context, cfg.clock)),
       status(participant, node_name) {
   if (options.realtime.rt_priority > 0 || options.realtime.cpu_dma_latency_us >= 0) {
-    std::printf("%s: real-time setup: %s\n", node_name.c_str(), realtime.summary().c_str());
+    if (context.local_bus != nullptr) {
+      std::printf("%s: in a container: --rt-priority and --cpu-dma-latency-us are the container's (its chain "
+                  "thread's)\n", node_name.c_str());
+    } else {
+      std::printf("%s: real-time setup: %s\n", node_name.c_str(), realtime.summary().c_str());
+    }
   }
 }
 

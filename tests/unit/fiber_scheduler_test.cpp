@@ -85,6 +85,49 @@ TEST(FiberScheduler, SleepingFibersWakeInDeadlineOrder) {
   EXPECT_GE(monotonic_ns() - start, 30'000'000);
 }
 
+TEST(FiberScheduler, AFiberBehindItsDeadlinesDoesNotStarveTheOthers) {
+  // A drive catching up after the host held the thread: every tick's deadline has passed. The
+  // controller that answers must still get the thread between two of the drive's ticks.
+  FiberScheduler scheduler;
+  std::atomic<std::uint64_t> feedback{0};
+  std::vector<int> answered_after;  // the drive's ticks done when the controller ran
+  int drive_ticks = 0;
+  scheduler.spawn("drive", [&] {
+    const std::int64_t long_ago = monotonic_ns() - 1'000'000'000;
+    for (int k = 0; k < 5; ++k) {
+      ++drive_ticks;
+      feedback.fetch_add(1);
+      scheduler.sleep_until(long_ago);  // the next tick is overdue already
+    }
+  });
+  scheduler.spawn("controller", [&] {
+    for (int k = 0; k < 5; ++k) {
+      const std::uint64_t seen = static_cast<std::uint64_t>(k);
+      if (feedback.load() == seen) {
+        ASSERT_TRUE(scheduler.wait(feedback, seen, monotonic_ns() + 10'000'000'000));
+      }
+      answered_after.push_back(drive_ticks);
+    }
+  });
+  scheduler.run();
+  EXPECT_EQ(answered_after, (std::vector<int>{1, 2, 3, 4, 5}));
+}
+
+TEST(FiberScheduler, TheChainGoesBeforeAnObserverThatCouldAlsoGo) {
+  // The evaluator's report (long work) must not run while the drive could take its command.
+  FiberScheduler scheduler;
+  std::vector<std::string> order;
+  scheduler.spawn("observer", [&] { order.push_back("observer"); }, 2);
+  scheduler.spawn("estimator", [&] { order.push_back("estimator"); }, 1);
+  scheduler.spawn("drive", [&] {
+    order.push_back("drive");
+    scheduler.sleep_until(0);  // overdue: can go again at once, and goes before the others
+    order.push_back("drive again");
+  }, 0);
+  scheduler.run();
+  EXPECT_EQ(order, (std::vector<std::string>{"drive", "drive again", "estimator", "observer"}));
+}
+
 TEST(FiberScheduler, AWakeFromAnotherThreadEndsAnIdleWait) {
   // Fast DDS's listener threads deliver samples from outside the container this way.
   FiberScheduler scheduler;

@@ -18,6 +18,7 @@ namespace bctx = boost::context;
 struct FiberScheduler::Fiber {
   std::string name;
   std::function<void()> body;
+  int priority = 0;
   bctx::fiber context;         ///< the fiber's continuation while it is suspended
   bctx::fiber back;            ///< the scheduler's continuation while the fiber runs
   bool started = false;
@@ -38,11 +39,12 @@ FiberScheduler::FiberScheduler(std::size_t stack_bytes) : stack_bytes_(stack_byt
 
 FiberScheduler::~FiberScheduler() = default;
 
-void FiberScheduler::spawn(std::string name, std::function<void()> body) {
+void FiberScheduler::spawn(std::string name, std::function<void()> body, int priority) {
   if (running_) throw std::logic_error("FiberScheduler::spawn(" + name + "): the scheduler is running");
   auto fiber = std::make_unique<Fiber>();
   fiber->name = std::move(name);
   fiber->body = std::move(body);
+  fiber->priority = priority;
   fibers_.push_back(std::move(fiber));
 }
 
@@ -60,38 +62,46 @@ bool FiberScheduler::runnable(const Fiber& fiber, std::int64_t now_ns) const {
 void FiberScheduler::run() {
   thread_ = std::this_thread::get_id();
   running_.store(true, std::memory_order_release);
+  std::size_t next = 0;  // round robin among equals: where the next look for work starts
+  const std::size_t n = fibers_.size();
   for (;;) {
     bool all_done = true;
-    bool ran = false;
     std::int64_t earliest = std::numeric_limits<std::int64_t>::max();
     const std::int64_t now = monotonic_ns();
-    for (auto& owned : fibers_) {
-      Fiber& f = *owned;
+    std::size_t chosen = n;
+    for (std::size_t step = 0; step < n; ++step) {
+      const std::size_t index = (next + step) % n;
+      const Fiber& f = *fibers_[index];
       if (f.done) continue;
       all_done = false;
       if (!runnable(f, now)) {
         earliest = std::min(earliest, f.deadline_ns);
         continue;
       }
-      current_ = &f;
-      ++switches_;
-      if (!f.started) {
-        f.started = true;
-        f.context = bctx::fiber(std::allocator_arg, bctx::protected_fixedsize_stack(stack_bytes_),
-                                [this, &f](bctx::fiber&& back) {
-                                  f.back = std::move(back);
-                                  f.body();
-                                  f.done = true;
-                                  return std::move(f.back);
-                                });
-      }
-      f.context = std::move(f.context).resume();
-      current_ = nullptr;
-      ran = true;
-      break;  // from the first fiber again: the chain's fibers come first
+      if (chosen == n || f.priority < fibers_[chosen]->priority) chosen = index;
     }
     if (all_done) break;
-    if (!ran) idle_until(earliest);
+    if (chosen == n) {
+      idle_until(earliest);
+      continue;
+    }
+    Fiber& f = *fibers_[chosen];
+    current_ = &f;
+    ++switches_;
+    if (!f.started) {
+      f.started = true;
+      f.context = bctx::fiber(std::allocator_arg, bctx::protected_fixedsize_stack(stack_bytes_),
+                              [this, &f](bctx::fiber&& back) {
+                                f.back = std::move(back);
+                                f.body();
+                                f.done = true;
+                                return std::move(f.back);
+                              });
+    }
+    f.context = std::move(f.context).resume();
+    current_ = nullptr;
+    // Its equals that can go get the thread before it runs again.
+    next = (chosen + 1) % n;
   }
   running_.store(false, std::memory_order_release);
 }

@@ -7,8 +7,12 @@
 // wake-up (tens of microseconds of kernel time on a virtual machine), and a lockstep run is
 // stepped in one fixed order: deterministic and fast.
 //
-// Order: after every switch the scheduler looks for work from the first fiber on, so the
-// fibers spawned first (the drive, then the controller) run as soon as they can.
+// Order: every fiber has a priority (lower goes first). Among the fibers that can go, one of
+// the lowest priority runs; among equals, round robin in the order they were spawned. A
+// container gives the chain (the drive and the controller) the first priority, then the
+// estimator and the compensators, then the observers: an observer's long work (the evaluator's
+// report at the end) never holds a tick of the chain, and a drive catching up on ticks after
+// the host held the thread never starves the controller that answers them.
 //
 // Threads: run() and every fiber run on the thread that called run(); wake() may be called
 // from any thread (Fast DDS's listener threads when a sample arrives from outside).
@@ -35,10 +39,10 @@ class FiberScheduler {
   FiberScheduler(const FiberScheduler&) = delete;
   FiberScheduler& operator=(const FiberScheduler&) = delete;
 
-  /// Adds a fiber that runs `body` once run() starts. `body` must not throw (a fiber's
-  /// exception cannot cross the switch: catch inside and report). Not while running.
-  /// @throws std::logic_error when called from a running fiber.
-  void spawn(std::string name, std::function<void()> body);
+  /// Adds a fiber that runs `body` once run() starts, with `priority` (lower goes first). `body`
+  /// must not throw (a fiber's exception cannot cross the switch: catch inside and report).
+  /// Not while running. @throws std::logic_error when called from a running fiber.
+  void spawn(std::string name, std::function<void()> body, int priority = 0);
 
   /// Runs every fiber until each has returned, on the calling thread.
   void run();
