@@ -166,3 +166,37 @@ TEST(Container, AFailingComponentIsNamedAndTheDriveEndsAsWithSeparateProcesses) 
 
 }  // namespace
 }  // namespace pmlsm
+
+namespace pmlsm {
+namespace {
+
+TEST(Container, TheVirtualRigComposedGivesTheSameTraceAsSeparateProcesses) {
+  // drive_bridge, controller, estimator, the RNN and the evaluator in one container; the
+  // virtual drive alone on the other end of the UDP multicast CAN bus.
+  const fs::path dir = scratch("virtual_rig");
+  std::string csv[2];
+  for (int composed = 0; composed < 2; ++composed) {
+    const fs::path out = dir / (composed ? "composed" : "separate");
+    test::ChildProcess rig(
+        {bin("launcher"), source("launch/virtual_rig.yaml"), "--arg", "config=" + source("configs/system.yaml"),
+         "--arg", "scenario=" + source("configs/scenarios/pulse.yaml"), "--arg",
+         "profiles=" + source("configs/dds/profiles.xml"), "--arg", "domain=" + test_domain(127 + composed), "--arg",
+         "compensator=rnn", "--arg", "weights=" + source("configs/rnn_weights.yaml"), "--arg",
+         "canopen_config=" + source("configs/canopen/drive.yaml"), "--arg",
+         "dictionary=" + source("configs/canopen/virtual_drive_od.yaml"), "--arg", "can_group=239.74.163.2", "--arg",
+         "can_port=" + std::to_string(43291 + composed), "--arg", "keystore=none", "--arg",
+         std::string("compose=") + (composed ? "true" : "false"), "--arg", "out=" + out.string()},
+        (dir / (composed ? "composed.log" : "separate.log")).string());
+    const auto code = rig.wait_for(seconds(150));
+    ASSERT_TRUE(code.has_value()) << rig.output();
+    ASSERT_EQ(*code, 0) << rig.output();
+    EXPECT_EQ(rig.output().find("components on one chain thread") != std::string::npos, composed == 1) << rig.output();
+    csv[composed] = read_file(out / "pulse_virtual_rig.csv");
+    ASSERT_FALSE(csv[composed].empty()) << rig.output();
+  }
+  EXPECT_TRUE(csv[0] == csv[1]) << "the composed virtual rig's trace differs (" << dir << ")";
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace pmlsm
