@@ -17,6 +17,8 @@ namespace pmlsm::node {
 
 namespace {
 namespace pdds = pmlsm::dds;
+namespace msg = pmlsm_msgs::msg;
+namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
 
 /// User + system CPU time of the whole process so far.
 double process_cpu_s() {
@@ -25,8 +27,6 @@ double process_cpu_s() {
   return static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
          static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec) * 1e-6;
 }
-namespace msg = pmlsm_msgs::msg;
-namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
 }  // namespace
 
 void add_drive_node_options(CLI::App& app, DriveNodeOptions& opt) {

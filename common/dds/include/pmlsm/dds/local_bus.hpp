@@ -265,12 +265,6 @@ class LocalBus {
   /// Removes every endpoint `owner` registered (a participant being destroyed).
   void remove_owner(const void* owner);
 
-  /// Readers of `topic` in the process (for tests and the statistics).
-  template <typename Message>
-  std::size_t local_readers(const std::string& name) {
-    return topic<Message>(name).queues_.size();
-  }
-
  private:
   struct WriterEntry {
     const void* owner;

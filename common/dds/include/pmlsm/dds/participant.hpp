@@ -67,8 +67,6 @@ class Wakeup {
   void notify();
   /// Sleeps until the CLOCK_MONOTONIC time `ns` (in a container: lets the other components run).
   void sleep_until_ns(std::int64_t ns);
-  /// The container's scheduler; nullptr for a node alone in its process.
-  FiberScheduler* scheduler() const { return scheduler_; }
 
  private:
   /// In a fiber of the container's scheduler (false before the container runs).
@@ -151,8 +149,6 @@ class Writer {
     }
     return writer_->write(const_cast<Message*>(&sample));
   }
-  /// Readers outside the container matched (in a container); -1 for a node alone in its process.
-  int remote_readers() const { return remote_ != nullptr ? remote_->count() : -1; }
   eprosima::fastdds::dds::DataWriter* entity() { return writer_; }
   /// Blocks until every matched reliable reader acknowledged all samples, or
   /// the timeout passes. Call before exiting: a writer deleted with samples
@@ -219,8 +215,6 @@ class Reader {
     }
     return local_->pop(out, &info);
   }
-  /// Samples a full local queue dropped (KEEP_LAST) or refused (KEEP_ALL); 0 outside a container.
-  std::uint64_t local_losses() const { return local_ != nullptr ? local_->overwritten() + local_->refused() : 0; }
   std::size_t matched_writers() const;
   eprosima::fastdds::dds::DataReader* entity() { return reader_; }
 
