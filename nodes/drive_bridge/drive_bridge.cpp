@@ -78,6 +78,12 @@ class BridgeHooks final : public node::DriveNodeHooks {
                    node.name().c_str(), static_cast<unsigned long long>(k));
       node.report("an NMT command from another master on the CAN bus");
     }
+    if (c.foreign_rpdos > 0 && !foreign_rpdo_reported_) {
+      foreign_rpdo_reported_ = true;
+      std::fprintf(stderr, "%s: tick %llu: another master's RPDO to the drive on the bus (COB-ID of this bridge's "
+                   "drive, not sent by it); counted\n", node.name().c_str(), static_cast<unsigned long long>(k));
+      node.report("an RPDO from another master on the CAN bus");
+    }
     if (drive_.stuck_in() && !stuck_reported_) {
       stuck_reported_ = true;
       std::fprintf(stderr, "%s: tick %llu: the drive does not follow the controlword: stuck in %s\n",
@@ -89,12 +95,13 @@ class BridgeHooks final : public node::DriveNodeHooks {
   void flush() override {
     const canopen::Cia402DriveCounters& c = drive_.counters();
     std::printf("drive_bridge: CAN: %llu SYNCs (%llu resent), %llu RPDO1 resent, %llu ticks without TPDOs in time, "
-                "%llu EMCYs, %llu malformed frames of the drive, %llu SYNCs and %llu NMT commands from another "
-                "master\n",
+                "%llu EMCYs, %llu malformed frames of the drive, %llu SYNCs, %llu NMT commands and %llu RPDOs from "
+                "another master\n",
                 static_cast<unsigned long long>(c.syncs), static_cast<unsigned long long>(c.sync_resends),
                 static_cast<unsigned long long>(c.rpdo_resends), static_cast<unsigned long long>(c.tpdo_missing),
                 static_cast<unsigned long long>(c.emcys), static_cast<unsigned long long>(c.malformed),
-                static_cast<unsigned long long>(c.foreign_syncs), static_cast<unsigned long long>(c.foreign_nmt));
+                static_cast<unsigned long long>(c.foreign_syncs), static_cast<unsigned long long>(c.foreign_nmt),
+                static_cast<unsigned long long>(c.foreign_rpdos));
   }
 
  private:
@@ -104,6 +111,7 @@ class BridgeHooks final : public node::DriveNodeHooks {
   bool stuck_reported_ = false;
   bool foreign_sync_reported_ = false;
   bool foreign_nmt_reported_ = false;
+  bool foreign_rpdo_reported_ = false;
   std::uint16_t reported_error_ = 0;
 };
 

@@ -122,6 +122,14 @@ void Cia402Drive::handle(const can::CanFrame& frame) {
   const CobIdInfo info = classify(frame.id);
   if (info.node_id != node_.value()) return;
   switch (info.function) {
+    case FunctionCode::kRpdo1:
+    case FunctionCode::kRpdo2:
+    case FunctionCode::kRpdo3:
+    case FunctionCode::kRpdo4:
+      // Not ours (the bus does not give us our own frames back): a second master commands the
+      // drive. Counted and reported; the drive decides what it takes.
+      ++counters_.foreign_rpdos;
+      return;
     case FunctionCode::kTpdo1:
       if (frame.dlc != 8) {
         ++counters_.malformed;

@@ -481,11 +481,15 @@ TEST(Cia402Drive, RealtimeMissingAnswersLoseTheDriveAfterTheLimitInARow) {
   EXPECT_NE(std::string(d.last_problem()).find("no TPDOs for 4 ticks in a row"), std::string::npos) << d.last_problem();
 }
 
-TEST(Cia402Drive, ForeignSyncNmtAndWrongLengthFramesAreCountedAndIgnored) {
+TEST(Cia402Drive, ForeignSyncNmtRpdoAndWrongLengthFramesAreCountedAndIgnored) {
   Rig rig;
   Cia402Drive& d = rig.enabled();
   d.sample();
   d.apply(0.0);
+  // A second master commanding our drive (node 1): RPDO1 and RPDO3; node 2's RPDO is not ours.
+  rig.bus.inbox.push_back(make_frame(0x201, 8));
+  rig.bus.inbox.push_back(make_frame(0x401, 8));
+  rig.bus.inbox.push_back(make_frame(0x202, 8));
   rig.bus.inbox.push_back(encode_sync());
   rig.bus.inbox.push_back(encode_nmt(NmtCommand::kEnterPreOperational, NodeId(2)));
   CanFrame short_tpdo = make_frame(0x181, 2);
@@ -494,6 +498,7 @@ TEST(Cia402Drive, ForeignSyncNmtAndWrongLengthFramesAreCountedAndIgnored) {
   EXPECT_FALSE(d.lost());
   EXPECT_EQ(d.counters().foreign_syncs, 1U);
   EXPECT_EQ(d.counters().foreign_nmt, 1U);
+  EXPECT_EQ(d.counters().foreign_rpdos, 2U);
   EXPECT_EQ(d.counters().malformed, 1U);
   EXPECT_EQ(d.power_state(), drive::PowerState::kOperationEnabled);
 }

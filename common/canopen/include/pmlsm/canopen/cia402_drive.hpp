@@ -97,6 +97,7 @@ struct Cia402DriveCounters {
   std::uint64_t malformed = 0;       ///< the drive's frames with a wrong length, ignored
   std::uint64_t foreign_syncs = 0;   ///< SYNCs another producer sent (CiA 301 allows one)
   std::uint64_t foreign_nmt = 0;     ///< NMT commands another master sent
+  std::uint64_t foreign_rpdos = 0;   ///< RPDOs to this drive another master sent (this one sends RPDO1 only)
 };
 
 class Cia402Drive final : public drive::Drive {
