@@ -92,6 +92,16 @@ class BridgeHooks final : public node::DriveNodeHooks {
       stuck_reported_ = false;
     }
   }
+  void at_end(node::DriveNode& node) override {
+    // Realtime, the drive runs on its own clock and faults when SYNC stops while it is enabled:
+    // disable it first (controlword shutdown, zero torque), so a run that ended well ends with
+    // the drive ready to switch on, not faulted. Lockstep: the drive counts its periods and ends.
+    if (!node.realtime() || drive_.power_state() != drive::PowerState::kOperationEnabled) return;
+    const drive::TransitionResult r = drive_.request(drive::DriveCommand::kShutdown);
+    if (!r.accepted) return;
+    drive_.apply(0.0);
+    std::printf("%s: run ended: drive disabled (shutdown) before the last SYNC\n", node.name().c_str());
+  }
   void flush() override {
     const canopen::Cia402DriveCounters& c = drive_.counters();
     std::printf("drive_bridge: CAN: %llu SYNCs (%llu resent), %llu RPDO1 resent, %llu ticks without TPDOs in time, "

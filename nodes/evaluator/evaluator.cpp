@@ -10,10 +10,15 @@
 //     the reason; the CSV is still written and the exit code is kExitSafeState (5);
 //   - a sample of any topic stamped with another run_id than the first one seen (0 ignored)
 //     means the drive restarted mid-run: no table, no CSV, exit kExitPeerLost (4).
+// With --truth optional (a real drive, or the virtual rig in realtime, has no PlantTruth): when
+// every other topic is complete and no PlantTruth sample came within a second, the row is
+// printed with the truth's columns n/a and marked "(no PlantTruth)", and the CSV's true-plant
+// columns are nan. A PlantTruth that came for some ticks and not others is an incomplete run.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -39,11 +44,22 @@ namespace msg = pmlsm_msgs::msg;
 namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
 
 enum Part : unsigned { kFeedback = 1, kTruth = 2, kReference = 4, kCommand = 8, kEstimate = 16, kAll = 31 };
+constexpr unsigned kAllButTruth = kAll & ~static_cast<unsigned>(kTruth);
+/// --truth optional: how long after the other topics are complete a first PlantTruth may come.
+constexpr std::chrono::seconds kTruthGrace{1};
+
+/// The fields from PlantTruth (record_truth in pmlsm/sim/closed_loop.cpp, and u_q_v) as nan.
+void clear_truth(TickRecord& r) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  r.motor_position_m = r.motor_velocity_mps = r.load_position_m = r.load_velocity_mps = nan;
+  r.load_accel_mps2 = r.spring_force_n = r.thrust_n = r.ripple_n = r.friction_n = r.i_q_a = r.u_q_v = nan;
+}
 
 struct EvaluatorOptions {
   std::string out_dir = "out";
   bool print_header = true;
   std::string label;
+  bool truth_optional = false;  ///< --truth optional
 };
 
 class EvaluatorNode {
@@ -75,6 +91,8 @@ class EvaluatorNode {
   bool same_run(const msg::Stamp& stamp);
   /// Takes what arrived on every topic; true when every tick is complete or the drive restarted.
   bool drain();
+  /// --truth optional: every other topic complete and no PlantTruth within the grace.
+  bool without_truth();
   void collect();
   int report_incomplete();
   int report_results();
@@ -93,6 +111,9 @@ class EvaluatorNode {
   std::vector<TickRecord> trace_;
   std::vector<unsigned> parts_;
   std::uint64_t complete_ = 0;
+  std::uint64_t complete_but_truth_ = 0;  ///< ticks with every topic but PlantTruth in
+  bool any_truth_ = false;
+  std::optional<std::chrono::steady_clock::time_point> truthless_since_;
   std::uint64_t rejected_ = 0;
   node::RunValidity validity_;  // the drive's status at every tick
   node::RunIdTracker run_;      // the drive's run every sample must belong to
@@ -112,6 +133,9 @@ TickRecord* EvaluatorNode::mark(std::uint64_t tick, Part part) {
   }
   parts_[tick] |= part;
   if (parts_[tick] == kAll) ++complete_;
+  // Once per tick: when the last of the four topics other than PlantTruth arrives.
+  if (part != kTruth && (parts_[tick] & kAllButTruth) == kAllButTruth) ++complete_but_truth_;
+  if (part == kTruth) any_truth_ = true;
   TickRecord& r = trace_[tick];
   r.tick = tick;
   r.time_s = static_cast<double>(tick) * period_s_;
@@ -148,7 +172,14 @@ bool EvaluatorNode::drain() {
     if (!same_run(estimate_.stamp())) break;
     if (TickRecord* r = mark(estimate_.feedback_tick(), kEstimate)) node::from_msg(estimate_, *r);
   }
-  return complete_ == ticks_ || restart_.has_value();
+  return complete_ == ticks_ || restart_.has_value() || without_truth();
+}
+
+bool EvaluatorNode::without_truth() {
+  if (!opt_.truth_optional || any_truth_ || complete_but_truth_ < ticks_) return false;
+  const auto now = std::chrono::steady_clock::now();
+  if (!truthless_since_) truthless_since_ = now;
+  return now - *truthless_since_ >= kTruthGrace;
 }
 
 void EvaluatorNode::collect() {
@@ -198,13 +229,21 @@ int EvaluatorNode::report_incomplete() {
 
 int EvaluatorNode::report_results() {
   const Scenario& scenario = rt_.cfg.scenario;
+  const bool has_truth = any_truth_;
+  if (!has_truth) {
+    // Nothing true is known: nan, never a zero that reads as a value.
+    for (TickRecord& r : trace_) clear_truth(r);
+    std::printf("evaluator: no PlantTruth on the domain (a real drive, or the virtual rig in realtime): the true "
+                "load's columns are n/a; cost_est is the Kalman estimate's\n");
+  }
   const ScenarioMetrics m = compute_metrics(trace_, scenario, period_s_);
   std::filesystem::create_directories(opt_.out_dir);
   const std::string run_name = opt_.label.empty() ? scenario.name : scenario.name + "_" + opt_.label;
   write_trace_csv(opt_.out_dir + "/" + run_name + ".csv", trace_);
   const std::string invalid_reason = validity_.reason();  // empty: valid
   if (opt_.print_header) node::print_results_header();
-  node::print_results_row(opt_.label.empty() ? scenario.name : scenario.name + " " + opt_.label, m, invalid_reason);
+  node::print_results_row(opt_.label.empty() ? scenario.name : scenario.name + " " + opt_.label, m, invalid_reason,
+                          has_truth);
   std::fflush(stdout);
   rt_.status.status().rejected(rejected_);
   if (!invalid_reason.empty()) {
@@ -223,7 +262,8 @@ int EvaluatorNode::run() {
     rt_.status.publish(node_state::STATE_ERROR, complete_, period_s_, "drive restarted mid-run");
     return kExitPeerLost;
   }
-  return complete_ < ticks_ ? report_incomplete() : report_results();
+  return complete_ == ticks_ || (without_truth() && complete_but_truth_ == ticks_) ? report_results()
+                                                                                  : report_incomplete();
 }
 
 class EvaluatorComponent final : public node::Component {
@@ -251,7 +291,14 @@ MadeComponent make_evaluator(const ComponentContext& context, int argc, char** a
   app.add_option("-o,--out", opt.out_dir, "Folder for the CSV trace");
   app.add_option("--header", opt.print_header, "Print the table header (true/false)");
   app.add_option("--label", opt.label, "Names this run in the table and the CSV (<scenario>_<label>.csv), e.g. pi_rnn");
+  std::string truth = "required";
+  app.add_option("--truth", truth,
+                 "required: PlantTruth must come for every tick; optional: a drive without it (a real one, the virtual "
+                 "rig in realtime) gets the table from the other topics, the true load's columns n/a")
+      ->check(CLI::IsMember({"required", "optional"}))
+      ->capture_default_str();
   if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  opt.truth_optional = truth == "optional";
   return {std::make_unique<EvaluatorComponent>(context, std::move(common), opt)};
 }
 

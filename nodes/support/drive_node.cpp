@@ -311,6 +311,7 @@ int DriveNode::run() {
     }
   }
   const double loop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - loop_start).count();
+  if (exit_code == kExitOk) hooks_.at_end(*this);
   return finish(k, exit_code, loop_s);
 }
 

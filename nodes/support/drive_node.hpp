@@ -66,6 +66,10 @@ class DriveNodeHooks {
   virtual bool apply_force() { return true; }
   /// After end_tick and the loop's own reports.
   virtual void after_tick(DriveNode& /*node*/, std::uint64_t /*k*/) {}
+  /// The run ended well (its last tick done, or stopped by a signal), before the summary: a
+  /// backend behind a bus may hand the drive over cleanly (the bridge disables it before its
+  /// SYNC stops, so the drive does not fault for the SYNC it no longer gets).
+  virtual void at_end(DriveNode& /*node*/) {}
   /// Waits for the node's own writers at the end.
   virtual void flush() {}
   /// Added to the summary's late and rejected counts.

@@ -35,18 +35,27 @@ void print_results_header() {
               "F_off_ticks");
 }
 
-std::string results_row(const std::string& scenario, const ScenarioMetrics& m, const std::string& invalid_reason) {
-  std::string row = format("%-24s %10.3f %10.3f %14.3f %14.3f %12s %12.1f %14.3f %12.1f %11llu", scenario.c_str(),
-                           m.cost_true, m.cost_estimated, 1e3 * m.load_vibration_rms_mps,
-                           1e3 * m.load_tracking_rms_mps, seconds_or_never(m.load_settling_time_s).c_str(),
-                           m.peak_force_command_n, 1e3 * m.est_load_velocity_rms_error_mps, m.applied_force_rms_n,
-                           static_cast<unsigned long long>(m.force_off_ticks));
+std::string results_row(const std::string& scenario, const ScenarioMetrics& m, const std::string& invalid_reason,
+                        bool has_truth) {
+  std::string row;
+  if (has_truth) {
+    row = format("%-24s %10.3f %10.3f %14.3f %14.3f %12s %12.1f %14.3f %12.1f %11llu", scenario.c_str(), m.cost_true,
+                 m.cost_estimated, 1e3 * m.load_vibration_rms_mps, 1e3 * m.load_tracking_rms_mps,
+                 seconds_or_never(m.load_settling_time_s).c_str(), m.peak_force_command_n,
+                 1e3 * m.est_load_velocity_rms_error_mps, m.applied_force_rms_n,
+                 static_cast<unsigned long long>(m.force_off_ticks));
+  } else {
+    row = format("%-24s %10s %10.3f %14s %14s %12s %12.1f %14s %12.1f %11llu  (no PlantTruth)", scenario.c_str(), "n/a",
+                 m.cost_estimated, "n/a", "n/a", "n/a", m.peak_force_command_n, "n/a", m.applied_force_rms_n,
+                 static_cast<unsigned long long>(m.force_off_ticks));
+  }
   if (!invalid_reason.empty()) row += "  INVALID: " + invalid_reason;
   return row;
 }
 
-void print_results_row(const std::string& scenario, const ScenarioMetrics& m, const std::string& invalid_reason) {
-  std::printf("%s\n", results_row(scenario, m, invalid_reason).c_str());
+void print_results_row(const std::string& scenario, const ScenarioMetrics& m, const std::string& invalid_reason,
+                       bool has_truth) {
+  std::printf("%s\n", results_row(scenario, m, invalid_reason, has_truth).c_str());
 }
 
 void print_results_footer(const std::string& out_dir) {

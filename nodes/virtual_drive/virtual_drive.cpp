@@ -786,8 +786,10 @@ class VirtualDriveComponent final : public node::Component {
       throw ConfigError("--command-level voltage: the virtual drive runs its own current loop (cyclic synchronous torque)");
     }
     if (opt_.publish_truth && rt_.cfg.clock == node::Clock::kRealtime) {
-      throw ConfigError("--publish-truth with --clock realtime: the drive's own clock does not know the master's ticks; "
-                        "PlantTruth is published in lockstep only");
+      // The drive's own clock does not know the master's ticks: no truth to stamp them with. The
+      // evaluator (--truth optional) then reports what the bridge's topics give.
+      std::printf("virtual_drive: --publish-truth: PlantTruth is published in lockstep only; realtime: none\n");
+      return std::nullopt;
     }
     std::optional<TruthPublisher> truth;
     if (opt_.publish_truth) truth.emplace(rt_, scenario_ticks(rt_.cfg.scenario, rt_.period_s));
@@ -818,7 +820,7 @@ MadeComponent make_virtual_drive(const ComponentContext& context, int argc, char
   app.add_option("--inject-fault-at-tick", opt.inject_fault_at_tick,
                  "fault 0x5000 (device hardware) at this period; cleared by fault reset and enable");
   app.add_flag("--publish-truth", opt.publish_truth,
-               "lockstep: publish PlantTruth on DDS (for the evaluator), stamped with the bridge's run");
+               "lockstep: publish PlantTruth on DDS (for the evaluator), stamped with the bridge's run (realtime: none)");
   if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
   return {std::make_unique<VirtualDriveComponent>(context, std::move(opt))};
 }

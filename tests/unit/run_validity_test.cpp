@@ -198,6 +198,17 @@ TEST(ResultsRow, AnInvalidRunKeepsItsNumbersAndSaysWhyOnTheSameLine) {
   EXPECT_EQ(invalid.find('\n'), std::string::npos);
 }
 
+TEST(ResultsRow, WithoutPlantTruthTheTrueLoadsColumnsReadNaAndTheRowSaysSo) {
+  ScenarioMetrics m = some_metrics();
+  m.cost_true = std::numeric_limits<double>::quiet_NaN();  // what a trace of nan truth gives
+  EXPECT_EQ(results_row("pulse virtual_rig", m, "", false),
+            "pulse virtual_rig               n/a     48.515            n/a            n/a          n/a        "
+            "145.9            n/a        120.5           0  (no PlantTruth)");
+  EXPECT_EQ(results_row("pulse virtual_rig", m, "drive force off", false).find("  (no PlantTruth)  INVALID: drive force off"),
+            std::string("pulse virtual_rig               n/a     48.515            n/a            n/a          n/a        "
+                        "145.9            n/a        120.5           0").size());
+}
+
 TEST(ResultsRow, ALongScenarioNameIsNotCut) {
   const std::string name(300, 'x');
   EXPECT_EQ(results_row(name, some_metrics()).rfind(name, 0), 0u);
