@@ -191,8 +191,10 @@ void EvaluatorNode::collect() {
   while (!pdds::stop_requested()) {
     if (node::wait_until(rt_.wakeup, std::chrono::milliseconds(100), [this] { return drain(); })) break;
     const auto now = std::chrono::steady_clock::now();
-    if (complete_ != last_complete) {
-      last_complete = complete_;
+    // Progress: ticks complete, or (--truth optional) complete but for PlantTruth.
+    const std::uint64_t progress = complete_ + complete_but_truth_;
+    if (progress != last_complete) {
+      last_complete = progress;
       last_progress = now;
     } else if (now - last_progress >= stall_limit) {
       break;
