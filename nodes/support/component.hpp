@@ -54,5 +54,6 @@ MadeComponent make_state_feedback(const ComponentContext& context, int argc, cha
 MadeComponent make_evaluator(const ComponentContext& context, int argc, char** argv);
 MadeComponent make_drive_bridge(const ComponentContext& context, int argc, char** argv);
 MadeComponent make_virtual_drive(const ComponentContext& context, int argc, char** argv);
+MadeComponent make_de_worker(const ComponentContext& context, int argc, char** argv);
 
 }  // namespace pmlsm::node
