@@ -306,16 +306,25 @@ void apply_container(const Location& loc, const YAML::Node& node, const std::str
     if (n.name == name) loc.fail(name_node, path + ".name", "'" + name + "' is already the name of a node");
   }
   if (name == "launcher") loc.fail(name_node, path + ".name", "'launcher' is reserved for the launcher's own messages");
+  bool enabled = true;
   if (const YAML::Node* condition = find(fields, "if")) {
     const std::string where = loc.at(*condition, path + ".if");
-    if (!evaluate_condition(substitute_args(string_value(loc, *condition, path + ".if"), launch.args, where), where)) {
-      launch.left_out.push_back(name);
-      return;
-    }
+    enabled = evaluate_condition(substitute_args(string_value(loc, *condition, path + ".if"), launch.args, where), where);
   }
   const YAML::Node& list = require(loc, node, fields, path, "components");
   const std::vector<std::string> names = string_list(loc, list, path + ".components", launch.args);
   if (names.empty()) loc.fail(list, path + ".components", "must list at least one node");
+  if (!enabled) {
+    // Left out, but its names checked all the same: a typo shows whatever the args.
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      const bool known = std::any_of(all_nodes.begin(), all_nodes.end(), [&](const NodeSpec& n) { return n.name == names[i]; });
+      if (!known) {
+        loc.fail(list[i], path + ".components[" + std::to_string(i) + "]", "'" + names[i] + "' is not a node of this file");
+      }
+    }
+    launch.left_out.push_back(name);
+    return;
+  }
 
   NodeSpec spec;
   spec.name = name;

@@ -100,6 +100,9 @@ TEST(ContainerLaunch, MalformedContainersAreRefusedWithTheirPlace) {
   EXPECT_NE(error_of(with_components("[plant_sim, nowhere]")).find("containers[0].components[1]: 'nowhere' is not a node"),
             std::string::npos);
   EXPECT_NE(error_of(with_components("[]")).find("must list at least one node"), std::string::npos);
+  // Checked when the container is left out too.
+  EXPECT_NE(error_of(with_components("[plant_sim, nowhere]"), {{"compose", "false"}}).find("'nowhere' is not a node"),
+            std::string::npos);
   // A node in two containers.
   std::string twice = base + "  - name: other\n    components: [controller]\n";
   EXPECT_NE(error_of(twice).find("'controller' is already in a container"), std::string::npos);
