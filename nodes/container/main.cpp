@@ -3,6 +3,7 @@
 // The launcher builds this command line from a launch file's `containers:` entry.
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -16,11 +17,19 @@ int main(int argc, char** argv) {
   return node::run_node("container", [&] {
     const std::vector<std::string> args(argv + 1, argv + argc);
     container::ContainerCommandLine line;
+    bool help = false;
+    for (const auto& a : args) {
+      if (a == container::kComponentFlag) break;
+      help = help || a == "-h" || a == "--help";
+    }
     try {
       line = container::split_container_command_line(args, container::component_type_names());
     } catch (const container::ContainerSpecError& e) {
-      std::fprintf(stderr, "container: %s\n", e.what());
-      return static_cast<int>(kExitBadConfig);
+      if (!help) {
+        std::fprintf(stderr, "container: %s\n", e.what());
+        return static_cast<int>(kExitBadConfig);
+      }
+      line.own_args.assign(args.begin(), std::find(args.begin(), args.end(), container::kComponentFlag));
     }
     CLI::App app{"Runs several components (nodes) in one process: one chain thread, samples between them in-process"};
     container::ContainerOptions options;
@@ -37,8 +46,9 @@ int main(int argc, char** argv) {
     app.add_option("--cpu-dma-latency-us", realtime.cpu_dma_latency_us,
                    "While the container runs, keep the cores out of idle states slower to leave than this (-1: none)")
         ->check(CLI::Range(-1, 10000000));
-    app.footer("Then: --component NAME TYPE [the node's own options]... (types: plant_sim, drive_bridge, controller, "
-               "kalman_estimator, rnn_compensator, accel_feedback, state_feedback, evaluator)");
+    std::string types;
+    for (const auto& t : container::component_type_names()) types += (types.empty() ? "" : ", ") + t;
+    app.footer("Then: --component NAME TYPE [the node's own options]... (types: " + types + ")");
     std::vector<std::string> own = line.own_args;
     std::vector<char*> own_argv{argv[0]};
     for (auto& a : own) own_argv.push_back(a.data());

@@ -125,8 +125,6 @@ class LocalQueue {
     return true;
   }
 
-  std::size_t size() const { return size_; }
-  std::size_t capacity() const { return slots_.size(); }
   std::uint64_t overwritten() const { return overwritten_; }
   std::uint64_t refused() const { return refused_; }
 
