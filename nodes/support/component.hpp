@@ -55,5 +55,10 @@ MadeComponent make_evaluator(const ComponentContext& context, int argc, char** a
 MadeComponent make_drive_bridge(const ComponentContext& context, int argc, char** argv);
 MadeComponent make_virtual_drive(const ComponentContext& context, int argc, char** argv);
 MadeComponent make_de_worker(const ComponentContext& context, int argc, char** argv);
+// Components that block their thread (minutes of computing, a network server's batches, child
+// processes): each runs alone in its process, never on a container's chain thread.
+MadeComponent make_de_trainer(const ComponentContext& context, int argc, char** argv);
+MadeComponent make_foxglove_bridge(const ComponentContext& context, int argc, char** argv);
+MadeComponent make_launch_agent(const ComponentContext& context, int argc, char** argv);
 
 }  // namespace pmlsm::node

@@ -251,7 +251,7 @@ co::ObjectDictionary build_dictionary(co::NodeId node, const CanopenRigConfig& c
     write(comm, 1, cob | co::kPdoCobIdInvalid, "COB-ID (invalid while remapped)");
     write(map, 0, 0, "mapping count 0");
     for (std::size_t i = 0; i < pdo.mapping.size(); ++i) {
-      char entry[40];
+      char entry[80];  // the longest: 20 digits of %zu, 4 hex digits, 3 + 3 decimals
       std::snprintf(entry, sizeof entry, "mapping entry %zu (0x%04X:%u:%u)", i + 1,
                     static_cast<unsigned>(pdo.mapping[i].index), static_cast<unsigned>(pdo.mapping[i].subindex),
                     static_cast<unsigned>(pdo.mapping[i].bit_length));

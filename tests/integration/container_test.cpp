@@ -3,8 +3,10 @@
 // anything runs, a failing component reported with the exit code separate processes give.
 #include <gtest/gtest.h>
 
+#include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,19 +31,13 @@ fs::path scratch(const std::string& name) {
   return dir;
 }
 
-/// A component's arguments: as node_args() without the program (the container makes it).
 std::vector<std::string> component(const std::string& name, const std::string& type, const std::string& domain,
                                    const std::string& scenario, std::vector<std::string> extra = {}) {
-  std::vector<std::string> args = node_args(type, domain, scenario, std::move(extra));
-  args.erase(args.begin());
-  args.insert(args.begin(), {"--component", name, type});
-  return args;
+  return test::component_args(name, type, domain, scenario, std::move(extra));
 }
 
-std::vector<std::string> container(std::vector<std::vector<std::string>> components) {
-  std::vector<std::string> argv{bin("container"), "--name", "chain"};
-  for (auto& c : components) argv.insert(argv.end(), c.begin(), c.end());
-  return argv;
+std::vector<std::string> container(const std::vector<std::vector<std::string>>& components) {
+  return test::container_args("chain", components);
 }
 
 std::vector<std::string> launch(const std::string& file, const std::string& domain, const fs::path& out,
@@ -162,6 +158,32 @@ TEST(Container, AFailingComponentIsNamedAndTheDriveEndsAsWithSeparateProcesses) 
   EXPECT_NE(out.find("component controller (controller) exited 4"), std::string::npos) << out;
   EXPECT_NE(out.find("controller lost; safe state"), std::string::npos) << out;
   EXPECT_NE(out.find("exit 4: first failure controller (controller)"), std::string::npos) << out;
+  fs::remove_all(dir);
+}
+
+TEST(Container, AKilledContainerFaultsTheDriveWithinItsWatchdogAsAKilledControllerDoes) {
+  // Realtime: the simulated drive alone, the controller and the estimator in a container that
+  // is SIGKILLed mid-run. The drive's 3 ms watchdog faults it (zero force at once), and with its
+  // controller lost it ends with 4, exactly as when a controller process is killed.
+  const fs::path dir = scratch("killed");
+  const std::string domain = test_domain(130);
+  const std::string scenario = source("configs/scenarios/pulse.yaml");
+  test::ChildProcess chain(container({component("controller", "controller", domain, scenario, {"--clock", "realtime"}),
+                                      component("kalman_estimator", "kalman_estimator", domain, scenario,
+                                                {"--clock", "realtime"})}),
+                           (dir / "chain.log").string());
+  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "2", "--clock", "realtime"}),
+                           (dir / "plant.log").string());
+  ASSERT_TRUE(plant.wait_for_output("watchdog armed", seconds(30))) << plant.output() << chain.output();
+  chain.signal(SIGKILL);
+  EXPECT_EQ(chain.wait_for(seconds(10)), std::optional<int>(-SIGKILL)) << chain.output();
+  const auto code = plant.wait_for(seconds(30));
+  ASSERT_TRUE(code.has_value()) << plant.output();
+  EXPECT_EQ(*code, 4) << plant.output();
+  const std::string out = plant.output();
+  EXPECT_NE(out.find("unanswered for 3.0 ms"), std::string::npos) << out;
+  EXPECT_NE(out.find("fault 0x8130, zero force"), std::string::npos) << out;
+  EXPECT_NE(out.find("controller lost"), std::string::npos) << out;
   fs::remove_all(dir);
 }
 

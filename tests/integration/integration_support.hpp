@@ -23,9 +23,10 @@ inline std::string source(const std::string& rel) { return std::string(PMLSM_SOU
 /// 25..29, tests/tools 30..39, drive_safety_test.cpp 40..44, virtual_rig_test.cpp 45, 46, 48, 49, 70, 71 (CAN
 /// ports 432xx by offset), the python CANopen tests 47, 72 and 73, tests/security 50..59, hardening_test.cpp
 /// 60..69, external_reference_test.cpp 74..77, agents_test.cpp 80..85, tests/tools' identify 88, 89,
-/// drive_safety_test.cpp 90, 91.
+/// drive_safety_test.cpp 90, 91, container_test.cpp 120..124, 127..130, secure_nodes_test.cpp's containers
+/// 125, 126, virtual_rig_test.cpp's container 131.
 /// PMLSM_TEST_DOMAIN_BASE moves the whole set
-/// (default 100), for two test runs on one machine: 0..141 (the largest offset is 91, and a
+/// (default 100), for two test runs on one machine: 0..101 (the largest offset is 131, and a
 /// domain id above 232 is refused by every node, so a test there fails).
 inline std::string test_domain(int offset) {
   const char* base = std::getenv("PMLSM_TEST_DOMAIN_BASE");
@@ -80,6 +81,24 @@ inline std::vector<std::string> node_args(const std::string& exe, const std::str
                              "--scenario", scenario,   "--profiles", source("configs/dds/profiles.xml")};
   a.insert(a.end(), extra.begin(), extra.end());
   return a;
+}
+
+/// One component of a container: `--component NAME TYPE` and node_args()'s arguments after the program.
+inline std::vector<std::string> component_args(const std::string& name, const std::string& type,
+                                               const std::string& domain, const std::string& scenario,
+                                               std::vector<std::string> extra = {}) {
+  std::vector<std::string> args = node_args(type, domain, scenario, std::move(extra));
+  args.erase(args.begin());
+  args.insert(args.begin(), {"--component", name, type});
+  return args;
+}
+
+/// The container `name` with these components (component_args()).
+inline std::vector<std::string> container_args(const std::string& name,
+                                               const std::vector<std::vector<std::string>>& components) {
+  std::vector<std::string> argv{bin("container"), "--name", name};
+  for (const auto& c : components) argv.insert(argv.end(), c.begin(), c.end());
+  return argv;
 }
 
 /// de_trainer on the shipped configs, one local thread, no progress bar.

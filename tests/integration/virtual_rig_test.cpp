@@ -327,6 +327,38 @@ TEST(VirtualRig, AKilledBridgeLeavesTheDriveAtZeroForceWithinItsSyncTimeout) {
   fs::remove_all(dir);
 }
 
+// Realtime, the container of bridge and controller (the rig's `rig_chain`) SIGKILLed mid-run: as
+// for a killed bridge process, no SYNC reaches the drive; it faults within its SYNC time-out.
+TEST(VirtualRig, AKilledContainerOfBridgeAndControllerLeavesTheDriveAtZeroForceWithinItsSyncTimeout) {
+  const fs::path dir = test::fresh_dir("pmlsm_virtual_rig", "container_killed");
+  const std::string scenario = source("configs/scenarios/free_vibration.yaml");
+  const std::string domain = test_domain(131);
+  test::ChildProcess drive = start_virtual_drive(dir, domain, scenario, "43294", {"--clock", "realtime", "--canopen-set", kSyncTimeout});
+  test::ChildProcess chain(
+      test::container_args(
+          "rig_chain",
+          {test::component_args("drive_bridge", "drive_bridge", domain, scenario,
+                                can_args("43294", {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "50",
+                                                   "--canopen-set", kMissedAnswers})),
+           test::component_args("controller", "controller", domain, scenario, {"--clock", "realtime"})}),
+      (dir / "chain.log").string());
+  ASSERT_TRUE(drive.wait_for_output("-> operation enabled", std::chrono::seconds(30))) << chain.output();
+  ASSERT_TRUE(chain.wait_for_output("operation enabled (auto-enable)", std::chrono::seconds(30))) << chain.output();
+  const double killed_s = wall_now_s();
+  chain.signal(SIGKILL);
+  ASSERT_TRUE(drive.wait_for_output("FAULT 0x8700", std::chrono::seconds(10)))
+      << "the drive did not notice the master's end:\n" << drive.output();
+  const auto fault_s = wall_time_of(drive.output(), "FAULT 0x8700");
+  ASSERT_TRUE(fault_s.has_value()) << drive.output();
+  std::printf("container SIGKILL -> virtual drive fault 0x8700, zero force: %.1f ms (SYNC time-out 50 ms)\n",
+              (*fault_s - killed_s) * 1e3);
+  EXPECT_GE(*fault_s, killed_s) << "the drive faulted before the container died:\n" << drive.output();
+  EXPECT_NE(drive.output().find("no SYNC for 50 ms"), std::string::npos) << drive.output();
+  drive.signal(SIGINT);
+  EXPECT_EQ(drive.wait_for(std::chrono::seconds(10)), std::optional<int>(5)) << drive.output();
+  fs::remove_all(dir);
+}
+
 // Realtime, the controller SIGKILLed: the bridge's watchdog trips within its time plus a tick and
 // the drive gets the quick stop through the controlword (zero force).
 TEST(VirtualRig, AKilledControllerQuickStopsTheDriveWithinTheWatchdog) {
