@@ -143,6 +143,15 @@ ContainerResult run_container(const ContainerOptions& options, const std::vector
               options.name.c_str(), result.cpu_user_s, result.cpu_system_s, result.wall_s,
               result.wall_s > 0.0 ? (result.cpu_user_s + result.cpu_system_s) / result.wall_s : 0.0,
               static_cast<unsigned long long>(result.switches));
+  // Losses between components: a reader that fell a whole history behind its writer.
+  for (const auto& [topic, lost] : bus.losses()) {
+    result.local_losses += lost.overwritten + lost.refused;
+    std::printf("container %s: in-process path: %s lost %llu sample(s) (%llu overwritten, keep last; %llu refused, "
+                "keep all)\n",
+                options.name.c_str(), topic.c_str(), static_cast<unsigned long long>(lost.overwritten + lost.refused),
+                static_cast<unsigned long long>(lost.overwritten), static_cast<unsigned long long>(lost.refused));
+  }
+  if (result.local_losses == 0) std::printf("container %s: in-process path: no sample lost\n", options.name.c_str());
   for (const auto& e : result.exits) {
     if (e.exit_code != kExitOk) {
       std::fprintf(stderr, "container %s: exit %d: first failure %s (%s): %s\n", options.name.c_str(), result.exit_code,

@@ -46,6 +46,7 @@ struct ContainerResult {
   std::vector<ComponentExit> exits;  ///< in the order they ended
   double cpu_user_s = 0.0, cpu_system_s = 0.0, wall_s = 0.0;
   std::uint64_t switches = 0;
+  std::uint64_t local_losses = 0;  ///< samples the in-process readers lost (printed per topic)
 };
 
 struct ContainerOptions {

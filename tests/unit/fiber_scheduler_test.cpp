@@ -207,6 +207,22 @@ TEST(LocalQueue, KeepAllRefusesTheNewestWhenFullAndCountsIt) {
   EXPECT_EQ(got, (std::vector<int>{1, 2}));
 }
 
+TEST(LocalQueue, TheTopicsLossesSumEveryReadersQueue) {
+  Wakeup wakeup;
+  pmlsm::dds::LocalLosses topic;
+  LocalQueue<int> fast(2, false, wakeup, &topic);
+  LocalQueue<int> slow(1, false, wakeup, &topic);
+  LocalQueue<int> keep_all(1, true, wakeup, &topic);
+  const auto now = pmlsm::dds::wall_clock_now();
+  for (int i = 1; i <= 3; ++i) {
+    fast.push(i, writer_guid(1), now);
+    slow.push(i, writer_guid(1), now);
+    keep_all.push(i, writer_guid(1), now);
+  }
+  EXPECT_EQ(topic.overwritten, 1u + 2u);
+  EXPECT_EQ(topic.refused, 2u);
+}
+
 TEST(LocalQueue, EverySampleSignalsTheReadersWakeupAndCarriesItsWriter) {
   Wakeup wakeup;
   LocalQueue<int> queue(4, false, wakeup);

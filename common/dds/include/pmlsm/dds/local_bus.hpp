@@ -50,6 +50,13 @@ void notify_wakeup(Wakeup& wakeup);
 /// Wall-clock time as Fast DDS stamps samples.
 eprosima::fastrtps::rtps::Time_t wall_clock_now();
 
+/// Samples a topic's in-process readers lost, over the container's run (the queues of
+/// components that ended included).
+struct LocalLosses {
+  std::uint64_t overwritten = 0;  ///< KEEP_LAST: the oldest sample made room for a new one
+  std::uint64_t refused = 0;      ///< KEEP_ALL: the newest sample did not fit
+};
+
 /// What a topic's local endpoints share, whatever the message type.
 class LocalTopicBase {
  public:
@@ -68,6 +75,8 @@ class LocalTopicBase {
     std::lock_guard<std::mutex> lock(mutex_);
     return std::find(reader_handles_.begin(), reader_handles_.end(), reader) != reader_handles_.end();
   }
+  /// Counted on the chain thread by its queues.
+  const LocalLosses& losses() const { return losses_; }
 
  protected:
   friend class LocalBus;
@@ -77,6 +86,7 @@ class LocalTopicBase {
   mutable std::mutex mutex_;  ///< guards the two lists below (Fast DDS's threads read them)
   std::vector<Guid> writers_;
   std::vector<eprosima::fastrtps::rtps::InstanceHandle_t> reader_handles_;
+  LocalLosses losses_;
 };
 
 /// One in-process reader's queue: a ring of preallocated samples (no allocation per sample for
@@ -84,9 +94,10 @@ class LocalTopicBase {
 template <typename Message>
 class LocalQueue {
  public:
+  /// `topic_losses`: where the topic's losses are summed too (none: this queue's only).
   /// @throws std::invalid_argument for a capacity of 0.
-  LocalQueue(std::size_t capacity, bool keep_all, Wakeup& wakeup)
-      : slots_(capacity), keep_all_(keep_all), wakeup_(wakeup) {
+  LocalQueue(std::size_t capacity, bool keep_all, Wakeup& wakeup, LocalLosses* topic_losses = nullptr)
+      : slots_(capacity), keep_all_(keep_all), wakeup_(wakeup), topic_losses_(topic_losses) {
     if (capacity == 0) throw std::invalid_argument("LocalQueue: capacity must be at least 1");
   }
 
@@ -94,11 +105,13 @@ class LocalQueue {
     if (size_ == slots_.size()) {
       if (keep_all_) {
         ++refused_;  // KEEP_ALL: the held samples stay, the newest is refused
+        if (topic_losses_ != nullptr) ++topic_losses_->refused;
         return;
       }
       head_ = (head_ + 1) % slots_.size();  // KEEP_LAST: the oldest makes room
       --size_;
       ++overwritten_;
+      if (topic_losses_ != nullptr) ++topic_losses_->overwritten;
     }
     Slot& slot = slots_[(head_ + size_) % slots_.size()];
     slot.sample = sample;
@@ -137,6 +150,7 @@ class LocalQueue {
   std::vector<Slot> slots_;
   bool keep_all_;
   Wakeup& wakeup_;
+  LocalLosses* topic_losses_;
   std::size_t head_ = 0;
   std::size_t size_ = 0;
   std::uint64_t overwritten_ = 0;
@@ -246,7 +260,7 @@ class LocalBus {
   template <typename Message>
   LocalQueue<Message>& add_reader(const void* owner, LocalTopic<Message>& topic, const Guid& guid,
                                   std::size_t capacity, bool keep_all, Wakeup& wakeup) {
-    auto queue = std::make_unique<LocalQueue<Message>>(capacity, keep_all, wakeup);
+    auto queue = std::make_unique<LocalQueue<Message>>(capacity, keep_all, wakeup, &topic.losses_);
     LocalQueue<Message>& ref = *queue;
     topic.queues_.push_back(&ref);
     {
@@ -262,6 +276,15 @@ class LocalBus {
 
   /// Removes every endpoint `owner` registered (a participant being destroyed).
   void remove_owner(const void* owner);
+
+  /// Every topic whose in-process readers lost samples, by name, with its losses.
+  std::vector<std::pair<std::string, LocalLosses>> losses() const {
+    std::vector<std::pair<std::string, LocalLosses>> out;
+    for (const auto& [name, topic] : topics_) {
+      if (topic->losses().overwritten + topic->losses().refused > 0) out.emplace_back(name, topic->losses());
+    }
+    return out;
+  }
 
  private:
   struct WriterEntry {
