@@ -65,7 +65,7 @@ else
   # "pmstatus:pkg:PERCENT:text" while unpacking and configuring), turned into percent lines.
   if ! "${sudo_cmd[@]}" apt-get install -y -q --no-install-recommends -o APT::Status-Fd=3 "${missing[@]}" \
        3>&1 1>"$log" 2>&1 |
-       awk -F: '/^dlstatus:/ { print int($3) "\tdownloading: " $4; fflush() }
+       line_awk -F: '/^dlstatus:/ { print int($3) "\tdownloading: " $4; fflush() }
                 /^pmstatus:/ { print int($3) "\tinstalling: " $4; fflush() }' | percent_filter "packages"; then
     tail -n 30 "$log" >&2
     echo "install_deps: apt-get install failed (log above, all of it in $log)" >&2

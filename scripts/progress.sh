@@ -5,6 +5,7 @@
 #   phase_end                   "<script>: LABEL done in N s"
 #   percent_filter     reads lines, prints "<script>: <what> NN% ..." when the percent moves by
 #                      a step (every line on a terminal, rewritten in place); other lines pass
+#   line_awk ARGS...   awk reading its input line by line (for pipes of progress lines)
 # PROGRESS_NAME names the script in the messages.
 PROGRESS_NAME="${PROGRESS_NAME:-$(basename "$0" .sh)}"
 _phase_label=""
@@ -21,16 +22,28 @@ phase_end() {
 }
 
 # Lines "PERCENT<TAB>TEXT" on stdin (made by the callers' awk) become progress lines on stderr.
-# Not on a terminal (CI logs): one line per 5 % step; on a terminal: one line rewritten in place.
+# Not on a terminal (CI logs): one line per 5 % step, and the line of the moment when 20 s went
+# by without one (a log is then never silent longer than the slowest step); on a terminal: one
+# line rewritten in place.
+# mawk (Debian's awk) reads a pipe in blocks of kilobytes, so progress lines would arrive in
+# bursts minutes apart; its -W interactive reads line by line. Other awks read lines already.
+if awk -W version 2>&1 | head -n 1 | grep -q mawk; then
+  line_awk() { awk -W interactive "$@"; }
+else
+  line_awk() { awk "$@"; }
+fi
+
 percent_filter() {
   local step=5 tty=0
   [ -t 2 ] && tty=1
-  awk -v name="$PROGRESS_NAME" -v what="$1" -v step="$step" -v tty="$tty" -F '\t' '
-    BEGIN { last = -step }
+  line_awk -v name="$PROGRESS_NAME" -v what="$1" -v step="$step" -v tty="$tty" -F '\t' '
+    BEGIN { last = -step; printed = systime() }
     {
       p = int($1); if (p < last) last = -step;  # a new pass (download, then install)
       if (tty) { printf "\r\033[K%s: %s %3d%% %s", name, what, p, substr($2, 1, 70) > "/dev/stderr"; shown = 1 }
-      else if (p >= last + step || (p == 100 && last != 100)) { printf "%s: %s %3d%% %s\n", name, what, p, $2 > "/dev/stderr"; last = p }
+      else if (p >= last + step || (p == 100 && last != 100) || systime() - printed >= 20) {
+        printf "%s: %s %3d%% %s\n", name, what, p, $2 > "/dev/stderr"; if (p >= last + step) last = p; printed = systime()
+      }
       fflush("/dev/stderr")
     }
     END { if (tty && shown) printf "\n" > "/dev/stderr" }'

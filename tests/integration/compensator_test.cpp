@@ -41,7 +41,7 @@ fs::path fresh_dir(const std::string& name) { return test::fresh_dir("pmlsm_comp
 const std::string kScenarioName = "pulse";
 std::string scenario_path() { return source("configs/scenarios/" + kScenarioName + ".yaml"); }
 
-std::vector<std::string> node_args(const std::string& exe, const std::string& domain,
+std::vector<std::string> scenario_node_args(const std::string& exe, const std::string& domain,
                                    std::vector<std::string> extra = {}) {
   return test::node_args(exe, domain, scenario_path(), std::move(extra));
 }
@@ -82,12 +82,12 @@ struct CompensatedRun {
 /// Every process must end with exit 0 within the deadline.
 CompensatedRun run_loop(const fs::path& dir, const std::string& domain, test::ChildProcess& compensator) {
   CompensatedRun result;
-  test::ChildProcess evaluator(node_args("evaluator", domain, {"--out", dir.string(), "--label", "comp"}),
+  test::ChildProcess evaluator(scenario_node_args("evaluator", domain, {"--out", dir.string(), "--label", "comp"}),
                                (dir / "evaluator.log").string());
-  test::ChildProcess estimator(node_args("kalman_estimator", domain), (dir / "estimator.log").string());
-  test::ChildProcess controller(node_args("controller", domain, {"--compensation", "topic"}),
+  test::ChildProcess estimator(scenario_node_args("kalman_estimator", domain), (dir / "estimator.log").string());
+  test::ChildProcess controller(scenario_node_args("controller", domain, {"--compensation", "topic"}),
                                 (dir / "controller.log").string());
-  test::ChildProcess plant(node_args("plant_sim", domain, {"--peers", "3"}), (dir / "plant.log").string());
+  test::ChildProcess plant(scenario_node_args("plant_sim", domain, {"--peers", "3"}), (dir / "plant.log").string());
   for (auto* p : {&plant, &controller, &compensator, &estimator, &evaluator}) {
     const auto code = p->wait_for(seconds(60));
     EXPECT_TRUE(code.has_value()) << "still running:\n" << p->output();
@@ -118,7 +118,7 @@ void expect_same_trace(const fs::path& dir, const CompensatedRun& run, const std
 TEST(CompensatorDistributed, AccelFeedbackTraceEqualsInProcess) {
   const fs::path dir = fresh_dir("accel");
   const std::string domain = test_domain(10);
-  test::ChildProcess compensator(node_args("accel_feedback", domain), (dir / "accel_feedback.log").string());
+  test::ChildProcess compensator(scenario_node_args("accel_feedback", domain), (dir / "accel_feedback.log").string());
   const CompensatedRun run = run_loop(dir, domain, compensator);
 
   const SystemParams params = system_params();
@@ -131,7 +131,7 @@ TEST(CompensatorDistributed, AccelFeedbackTraceEqualsInProcess) {
 TEST(CompensatorDistributed, StateFeedbackTraceEqualsInProcess) {
   const fs::path dir = fresh_dir("state");
   const std::string domain = test_domain(78);
-  test::ChildProcess compensator(node_args("state_feedback", domain), (dir / "state_feedback.log").string());
+  test::ChildProcess compensator(scenario_node_args("state_feedback", domain), (dir / "state_feedback.log").string());
   const CompensatedRun run = run_loop(dir, domain, compensator);
 
   const SystemParams params = system_params();
@@ -153,7 +153,7 @@ void expect_rnn_trace_equals_in_process(bool online_learning, int domain_offset)
 
   std::vector<std::string> extra{"--weights", weights_path};
   if (online_learning) extra.push_back("--online-learning");
-  test::ChildProcess compensator(node_args("rnn_compensator", domain, extra), (dir / "rnn.log").string());
+  test::ChildProcess compensator(scenario_node_args("rnn_compensator", domain, extra), (dir / "rnn.log").string());
   const CompensatedRun run = run_loop(dir, domain, compensator);
 
   expect_same_trace(dir, run, run_with_rnn(params, scenario(params), weights.weights, online_learning));
@@ -211,7 +211,7 @@ TEST(CompensatorDistributed, RnnRefusesBadWeightsFile) {
       {"other_gain.yaml", "gain"},
   };
   for (const auto& [file, why] : cases) {
-    test::ChildProcess p(node_args("rnn_compensator", test_domain(13), {"--weights", (dir / file).string()}),
+    test::ChildProcess p(scenario_node_args("rnn_compensator", test_domain(13), {"--weights", (dir / file).string()}),
                          (dir / (file + ".log")).string());
     const auto code = p.wait_for(seconds(30));
     ASSERT_TRUE(code.has_value()) << file << " still running:\n" << p.output();
@@ -220,7 +220,7 @@ TEST(CompensatorDistributed, RnnRefusesBadWeightsFile) {
     EXPECT_NE(p.output().find(why), std::string::npos) << file << ": " << p.output();
   }
   // The unchanged file is accepted (so the refusals above are about the changes).
-  test::ChildProcess p(node_args("rnn_compensator", test_domain(13),
+  test::ChildProcess p(scenario_node_args("rnn_compensator", test_domain(13),
                                  {"--weights", (dir / "good.yaml").string(), "--peer-timeout-s", "0.5"}),
                        (dir / "good.log").string());
   const auto code = p.wait_for(seconds(30));
@@ -245,7 +245,7 @@ TEST(CompensatorDistributed, RnnRefusesWrongSizeWeightsFromTopicAndKeepsItsOwn) 
   save_rnn_weights(weights_path, weights);
 
   test::ChildProcess compensator(
-      node_args("rnn_compensator", domain, {"--weights", weights_path, "--peer-timeout-s", "60"}),
+      scenario_node_args("rnn_compensator", domain, {"--weights", weights_path, "--peer-timeout-s", "60"}),
       (dir / "rnn.log").string());
   ASSERT_TRUE(compensator.wait_for_output("weights from", seconds(30))) << compensator.output();
   {

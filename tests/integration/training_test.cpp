@@ -27,7 +27,7 @@ using test::read_file;
 using test::source;
 using test::test_domain;
 
-fs::path fresh_dir(const std::string& name) { return test::fresh_dir("pmlsm_train", name); }
+fs::path train_dir(const std::string& name) { return test::fresh_dir("pmlsm_train", name); }
 
 // The search every test runs: NP 8, 160 evaluations of a ~5 ms closed-loop run each: the
 // initial population and 19 generations (generation g has made NP (g + 1) evaluations).
@@ -102,7 +102,7 @@ struct Reference {
 /// domain before it starts any worker there (so that no worker of its own can join it).
 const Reference& local_reference(int domain_offset) {
   static const Reference reference = [domain_offset] {
-    const fs::path dir = fresh_dir("reference");
+    const fs::path dir = train_dir("reference");
     const std::string domain = test_domain(domain_offset);
     const std::string out = run_trainer(trainer_args(domain, dir / "w.yaml", kTrainSet), dir / "trainer.log");
     Reference r;
@@ -172,7 +172,7 @@ TEST(TrainingDistributed, WorkersGiveTheSameResultAsLocalThreads) {
   const Reference& ref = local_reference(15);
   if (!ref.shared_domain.empty()) GTEST_SKIP() << ref.shared_domain;
   const RnnWeightsFile& reference = ref.weights;
-  const fs::path dir = fresh_dir("workers");
+  const fs::path dir = train_dir("workers");
   const std::string domain = test_domain(16);
   test::ChildProcess w1(worker_args(domain, "w1"), (dir / "w1.log").string());
   test::ChildProcess w2(worker_args(domain, "w2"), (dir / "w2.log").string());
@@ -196,7 +196,7 @@ TEST(TrainingDistributed, WorkersGiveTheSameResultAsLocalThreads) {
 // whole) on a worker gives the local result bit for bit: TrainingSetup carries the plants and the
 // verdict, so a worker that dropped either would score differently and steer the search elsewhere.
 TEST(TrainingDistributed, AJudgedSearchOverPlantsGivesTheSameResultOnAWorker) {
-  const fs::path dir = fresh_dir("judged");
+  const fs::path dir = train_dir("judged");
   const std::vector<std::string> robust{"--train-set", "population_size=8", "max_evaluations=16"};
   const auto with_robust_file = [](std::vector<std::string> args) {
     const auto at = std::find(args.begin(), args.end(), "--training");
@@ -228,7 +228,7 @@ TEST(TrainingDistributed, KilledWorkerLosesNothing) {
   const Reference& ref = local_reference(17);
   if (!ref.shared_domain.empty()) GTEST_SKIP() << ref.shared_domain;
   const RnnWeightsFile& reference = ref.weights;
-  const fs::path dir = fresh_dir("killed_worker");
+  const fs::path dir = train_dir("killed_worker");
   const std::string domain = test_domain(17);
   test::ChildProcess w1(worker_args(domain, "w1"), (dir / "w1.log").string());
   test::ChildProcess w2(worker_args(domain, "w2"), (dir / "w2.log").string());
@@ -282,7 +282,7 @@ TEST(TrainingDistributed, KilledTrainerResumesFromCheckpoint) {
   const Reference& ref = local_reference(18);
   if (!ref.shared_domain.empty()) GTEST_SKIP() << ref.shared_domain;
   const RnnWeightsFile& reference = ref.weights;
-  const fs::path dir = fresh_dir("resume");
+  const fs::path dir = train_dir("resume");
   const std::string domain = test_domain(18);
   const std::vector<std::string> args = trainer_args(domain, dir / "w.yaml", kTrainSet);
   unsigned long long killed_at = 0;
@@ -313,7 +313,7 @@ TEST(TrainingDistributed, KilledTrainerResumesFromCheckpoint) {
 }
 
 TEST(TrainingDistributed, BadTrainingConfigExits2) {
-  const fs::path dir = fresh_dir("badcfg");
+  const fs::path dir = train_dir("badcfg");
   const std::vector<std::pair<std::string, std::string>> cases{
       {"nonsense=1", "nonsense"},
       {"crossover_rate=2", "crossover_rate"},

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "container_spec.hpp"
+#include "launch_test_support.hpp"
 #include "launch_file.hpp"
 
 namespace {
@@ -42,14 +43,7 @@ containers:
     args: [--rt-priority, "0"]
 )yaml";
 
-std::string error_of(const std::string& text, const ArgOverrides& overrides = {}) {
-  try {
-    parse_launch(text, "launch.yaml", overrides);
-  } catch (const LaunchFileError& e) {
-    return e.what();
-  }
-  return "";
-}
+using launch_test::error_of;
 
 TEST(ContainerLaunch, AContainerReplacesItsComponentsByOneNodeAtTheFirstOnesPlace) {
   const LaunchDescription d = parse_launch(kComposable, "launch.yaml");

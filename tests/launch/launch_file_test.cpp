@@ -35,15 +35,7 @@ LaunchDescription parse(const std::string& text, const ArgOverrides& overrides =
   return parse_launch(text, "launch.yaml", overrides);
 }
 
-// The message of the LaunchFileError that parsing `text` throws, or "" if none.
-std::string error_of(const std::string& text, const ArgOverrides& overrides = {}) {
-  try {
-    parse(text, overrides);
-  } catch (const LaunchFileError& e) {
-    return e.what();
-  }
-  return "";
-}
+using launch_test::error_of;
 
 TEST(LaunchFile, ParsesEveryField) {
   const LaunchDescription d = parse(kExample);

@@ -18,6 +18,16 @@
 
 namespace launch_test {
 
+std::string error_of(const std::string& text, const pmlsm::launch::ArgOverrides& overrides) {
+  try {
+    pmlsm::launch::parse_launch(text, "launch.yaml", overrides);
+  } catch (const pmlsm::launch::LaunchFileError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+
 bool wait_until(const std::function<bool()>& condition, std::chrono::milliseconds timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   for (;;) {

@@ -12,9 +12,14 @@
 #include <string>
 #include <vector>
 
+#include "launch_file.hpp"
+
 namespace launch_test {
 
 using namespace std::chrono_literals;
+
+/// The message of the LaunchFileError that parsing `text` (as "launch.yaml") throws, or "" if none.
+std::string error_of(const std::string& text, const pmlsm::launch::ArgOverrides& overrides = {});
 
 // Polls `condition` every few milliseconds until it holds or `timeout` passes.
 bool wait_until(const std::function<bool()>& condition, std::chrono::milliseconds timeout);

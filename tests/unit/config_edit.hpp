@@ -24,6 +24,12 @@ inline std::string read_text(const std::string& relative) {
   return text.str();
 }
 
+/// The shipped configs/system.yaml, read once.
+inline const std::string& system_text() {
+  static const std::string text = read_text("configs/system.yaml");
+  return text;
+}
+
 /// Sets the node at a dotted key path to a YAML text (adding the last key if
 /// new), or removes the key when yaml is empty.
 struct Edit {

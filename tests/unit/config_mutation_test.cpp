@@ -21,12 +21,8 @@
 namespace pmlsm {
 namespace {
 
-constexpr const char* kOrigin = "mutated.yaml";
-
-const std::string& system_text() {
-  static const std::string text = test::read_text("configs/system.yaml");
-  return text;
-}
+constexpr const char* kMutatedOrigin = "mutated.yaml";
+using test::system_text;
 
 enum class Kind { kReal, kInteger, kFlag, kChoice, kVector3, kIntegerList };
 
@@ -66,7 +62,7 @@ std::vector<Leaf> table_leaves() {
 // The message of the ConfigError the text raises, or "" when it loads.
 std::string load_error(const std::string& text) {
   try {
-    parse_system_params(text, kOrigin);
+    parse_system_params(text, kMutatedOrigin);
   } catch (const ConfigError& e) {
     return e.what();
   }
@@ -133,7 +129,7 @@ TEST(ConfigMutations, TableCoversEveryLeafOfTheShippedFile) {
   std::set<std::string> table;
   for (const Leaf& leaf : table_leaves()) EXPECT_TRUE(table.insert(leaf.path).second) << leaf.path << " twice";
   std::set<std::string> file;
-  for (const SourcedLeaf& leaf : list_leaf_sources(system_text(), kOrigin)) file.insert(leaf.key_path);
+  for (const SourcedLeaf& leaf : list_leaf_sources(system_text(), kMutatedOrigin)) file.insert(leaf.key_path);
   EXPECT_EQ(table, file);
   EXPECT_GE(table.size(), 60u);
 }
@@ -149,7 +145,7 @@ TEST(ConfigMutations, EveryLeafEveryClassIsRefusedNamingKeyAndValue) {
       ADD_FAILURE() << what << ": accepted";
       return;
     }
-    EXPECT_EQ(message.rfind(std::string(kOrigin) + ": ", 0), 0u) << what << ": " << message;
+    EXPECT_EQ(message.rfind(std::string(kMutatedOrigin) + ": ", 0), 0u) << what << ": " << message;
     EXPECT_NE(message.find(path), std::string::npos) << what << ": key not named: " << message;
     if (!value.empty()) {
       EXPECT_TRUE(names_value(message, value)) << what << ": value not named: " << message;
@@ -217,7 +213,7 @@ TEST(ConfigMutations, ImplausibleValuesNameTheRangeAndReason) {
     EXPECT_TRUE(names_value(message, c.value)) << message;
   }
   // The same ranges hold for SystemParams built in code.
-  SystemParams p = parse_system_params(system_text(), kOrigin);
+  SystemParams p = parse_system_params(system_text(), kMutatedOrigin);
   p.plant.electrical.pole_pairs = 1.5;
   EXPECT_THROW(p.validate(), std::invalid_argument);
 }
@@ -267,7 +263,7 @@ TEST(ConfigMutations, WholeFileClassesAreRefused) {
     SCOPED_TRACE(c.what);
     const std::string message = load_error(c.text);
     ASSERT_FALSE(message.empty()) << "accepted";
-    EXPECT_EQ(message.rfind(std::string(kOrigin) + ": ", 0), 0u) << message;
+    EXPECT_EQ(message.rfind(std::string(kMutatedOrigin) + ": ", 0), 0u) << message;
     EXPECT_NE(message.find(c.expected), std::string::npos) << message;
   }
 }
@@ -280,7 +276,7 @@ TEST(ConfigMutations, OverridesAreCheckedAsTheFile) {
     SCOPED_TRACE(text);
     const ConfigOverride o = ConfigOverride::parse(text);
     try {
-      parse_system_params(system_text(), kOrigin, {o});
+      parse_system_params(system_text(), kMutatedOrigin, {o});
       ADD_FAILURE() << "accepted";
     } catch (const ConfigError& e) {
       EXPECT_NE(std::string(e.what()).find(o.key_path), std::string::npos) << e.what();

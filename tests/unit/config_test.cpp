@@ -26,10 +26,7 @@ using test::Edit;
 using test::read_text;
 using test::source_path;
 
-const std::string& system_text() {
-  static const std::string text = read_text("configs/system.yaml");
-  return text;
-}
+using test::system_text;
 const std::string& pulse_text() {
   static const std::string text = read_text("configs/scenarios/pulse.yaml");
   return text;

@@ -109,6 +109,8 @@ inline void apply_overrides(YAML::Node& root, const std::vector<ConfigOverride>&
   throw ConfigError(origin + ": " + path + ": " + what);
 }
 
+/// A value as an error message quotes it: a scalar as written, anything else (an empty value:
+/// "~", a list, a mapping) in flow style.
 inline std::string describe(const YAML::Node& v) {
   if (v.IsScalar()) return v.Scalar();
   YAML::Emitter out;

@@ -17,6 +17,7 @@
 #include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/util/atomic_file.hpp"
 #include "pmlsm/util/validate.hpp"
+#include "config_reading.hpp"
 #include "yaml_document.hpp"
 
 namespace pmlsm {
@@ -30,13 +31,7 @@ const char* const kInputKey = "input";
 const char* const kInputLoadAccel = "load_accel";
 const char* const kInputAccelError = "accel_error";
 
-std::string describe(const YAML::Node& v) {
-  if (v.IsScalar()) return v.Scalar();
-  if (v.IsNull()) return "";
-  YAML::Emitter out;
-  out << YAML::Flow << v;
-  return out.c_str();
-}
+using config_reading::describe;
 
 // A YAML number as written: plain (unquoted) scalar, decimal with optional
 // exponent, or the YAML special values .nan / .inf / -.inf (returned as such, so

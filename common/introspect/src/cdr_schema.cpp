@@ -19,7 +19,10 @@
 #include "pmlsm/introspect/cdr_schema.hpp"
 
 namespace pmlsm::introspect {
-namespace {
+// Named rather than anonymous: MessageSchema::Impl holds these types, and a class with linkage
+// may not hold types of an anonymous namespace outside the main file (-Wsubobject-linkage, in
+// a unity build).
+namespace schema_detail {
 
 // ------------------------------------------------------------------------------ type tree
 
@@ -1057,7 +1060,9 @@ void collect_paths(const TypeNode& type, std::string& path, std::vector<std::str
   }
 }
 
-}  // namespace
+}  // namespace schema_detail
+
+using namespace schema_detail;
 
 struct MessageSchema::Impl {
   std::deque<TypeNode> nodes;  // every type of the IDL; a deque keeps the links between them valid

@@ -30,13 +30,12 @@ using detail::put_u32;
 using detail::put_u64;
 using detail::put_u8;
 
-namespace {
-// One entry of a MessageIndex record.
+// One entry of a MessageIndex record. (Not in an anonymous namespace: Writer::Impl holds them,
+// see -Wsubobject-linkage.)
 struct IndexEntry {
   std::uint64_t log_time_ns;
   std::uint64_t offset_in_chunk_bytes;  // from the start of the chunk's uncompressed records
 };
-}  // namespace
 
 struct Writer::Impl {
   Impl(const std::string& path_in, WriterOptions options_in)

@@ -59,7 +59,7 @@
 namespace pmlsm {
 namespace {
 
-constexpr double kInfinity = std::numeric_limits<double>::infinity();
+using detail::kInfinity;
 
 // pagmo's numbering (sade.hpp): 7 = DE/rand/1/bin (2 would be rand/1/exp); adaptation 1 = jDE.
 constexpr unsigned kSadeRand1Bin = 7;

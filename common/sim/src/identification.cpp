@@ -98,7 +98,14 @@ std::pair<Point, double> nelder_mead(F&& f, std::size_t dims, const Point& start
   while (spent + n + 2 <= budget) {
     // Order: best first.
     std::array<std::size_t, 5> order{0, 1, 2, 3, 4};
-    std::sort(order.begin(), order.begin() + n, [&](std::size_t a, std::size_t b) { return fv[a] < fv[b]; });
+    // A stable insertion sort, as std::sort is on 5 elements (the same order on ties), written
+    // out because GCC 12 cannot see that n <= 5 through std::sort (-Warray-bounds).
+    for (std::size_t i = 1; i < n && i < order.size(); ++i) {
+      const std::size_t key = order[i];
+      std::size_t j = i;
+      for (; j > 0 && fv[key] < fv[order[j - 1]]; --j) order[j] = order[j - 1];
+      order[j] = key;
+    }
     std::array<Point, 5> sv{};
     std::array<double, 5> sf{};
     for (std::size_t i = 0; i < n; ++i) {

@@ -14,7 +14,7 @@ namespace {
 
 using namespace pmlsm::canopen;
 
-const NodeId kNode(3);
+const NodeId kDictionaryNode(3);
 
 Entry entry(std::uint16_t index, std::uint8_t sub, const char* name, DataType type, Access access,
             std::int64_t value = 0) {
@@ -29,7 +29,7 @@ Entry entry(std::uint16_t index, std::uint8_t sub, const char* name, DataType ty
 }
 
 CanFrame raw_request(std::array<std::uint8_t, 8> data, std::uint8_t dlc = 8) {
-  CanFrame f = make_frame(sdo_rx_cob_id(kNode), dlc);
+  CanFrame f = make_frame(sdo_rx_cob_id(kDictionaryNode), dlc);
   f.data = data;
   return f;
 }
@@ -137,7 +137,7 @@ TEST(ObjectDictionaryTest, ApplicationSetIgnoresAccessButNotTheTypeRange) {
 
 class SdoServerTest : public ::testing::Test {
  protected:
-  SdoServerTest() : od(16), server(od, kNode) {
+  SdoServerTest() : od(16), server(od, kDictionaryNode) {
     od.add(entry(0x1000, 0, "device type", DataType::kU32, Access::kConst, 0x00020192));
     od.add(entry(0x1018, 0, "identity: highest sub", DataType::kU8, Access::kConst, 1));
     od.add(entry(0x1018, 1, "vendor", DataType::kU32, Access::kRo, 0x1234));
@@ -156,10 +156,10 @@ class SdoServerTest : public ::testing::Test {
   }
 
   SdoServerResult upload(std::uint16_t index, std::uint8_t sub) {
-    return server.handle(sdo_upload_request(kNode, index, sub));
+    return server.handle(sdo_upload_request(kDictionaryNode, index, sub));
   }
   SdoServerResult download(std::uint16_t index, std::uint8_t sub, std::uint32_t data, std::uint8_t size) {
-    return server.handle(sdo_download_request(kNode, index, sub, data, size).value);
+    return server.handle(sdo_download_request(kDictionaryNode, index, sub, data, size).value);
   }
 
   ObjectDictionary od;
@@ -241,12 +241,12 @@ TEST_F(SdoServerTest, OtherNodesFramesAndClientAbortsGetNoAnswer) {
   SdoServerResult r = server.handle(sdo_upload_request(NodeId(4), 0x1000, 0));
   EXPECT_FALSE(r.respond);
   EXPECT_EQ(r.status.error, Error::kWrongCobId);
-  CanFrame rtr = sdo_upload_request(kNode, 0x1000, 0);
+  CanFrame rtr = sdo_upload_request(kDictionaryNode, 0x1000, 0);
   rtr.rtr = true;
   r = server.handle(rtr);
   EXPECT_FALSE(r.respond);
   EXPECT_EQ(r.status.error, Error::kRemoteFrame);
-  r = server.handle(sdo_abort_request(kNode, 0x1000, 0, kAbortTimeout));
+  r = server.handle(sdo_abort_request(kDictionaryNode, 0x1000, 0, kAbortTimeout));
   EXPECT_FALSE(r.respond);
   EXPECT_TRUE(r.status.ok());
   EXPECT_EQ(r.request.kind, SdoRequestKind::kAbort);
@@ -254,7 +254,7 @@ TEST_F(SdoServerTest, OtherNodesFramesAndClientAbortsGetNoAnswer) {
 }
 
 TEST_F(SdoServerTest, ClientAndServerRoundTrip) {
-  SdoClient client(kNode, 50);
+  SdoClient client(kDictionaryNode, 50);
   auto request = client.download(0x2001, 0, SdoData{to_raw(DataType::kI16, -123), 2}, 0);
   ASSERT_TRUE(request.ok());
   SdoServerResult answer = server.handle(request.value);
@@ -272,7 +272,7 @@ TEST_F(SdoServerTest, ClientAndServerRoundTrip) {
 
 class Cia402DictionaryTest : public ::testing::Test {
  protected:
-  Cia402DictionaryTest() : od(make_cia402_dictionary(kNode, config())), server(od, kNode) {}
+  Cia402DictionaryTest() : od(make_cia402_dictionary(kDictionaryNode, config())), server(od, kDictionaryNode) {}
 
   static Cia402DictionaryConfig config() {
     Cia402DictionaryConfig c;
@@ -283,7 +283,7 @@ class Cia402DictionaryTest : public ::testing::Test {
   }
 
   std::uint32_t write(std::uint16_t index, std::uint8_t sub, std::uint32_t data, std::uint8_t size) {
-    const SdoServerResult r = server.handle(sdo_download_request(kNode, index, sub, data, size).value);
+    const SdoServerResult r = server.handle(sdo_download_request(kDictionaryNode, index, sub, data, size).value);
     return r.response.data[0] == kSdoAbort ? get_u32_le(r.response.data, 4) : 0;
   }
 

@@ -9,7 +9,7 @@ namespace {
 
 using namespace pmlsm::canopen;
 
-const NodeId kNode(3);
+const NodeId kPdoNode(3);
 
 PdoMap map_of(std::initializer_list<PdoMapEntry> entries) {
   PdoMap map;
@@ -41,7 +41,7 @@ TEST(PdoMapTest, AtMostEightEntriesAnd64Bits) {
 }
 
 TEST(PdoMapTest, ValidationAgainstTheDictionary) {
-  const ObjectDictionary od = make_cia402_dictionary(kNode);
+  const ObjectDictionary od = make_cia402_dictionary(kPdoNode);
   EXPECT_TRUE(validate_pdo_map(map_of({{0x6040, 0, 16}, {0x6071, 0, 16}}), od, PdoDirection::kReceive).ok());
   EXPECT_TRUE(validate_pdo_map(map_of({{0x6041, 0, 16}, {0x6064, 0, 32}}), od, PdoDirection::kTransmit).ok());
   struct Row {
@@ -66,7 +66,7 @@ TEST(PdoMapTest, ValidationAgainstTheDictionary) {
 }
 
 TEST(PdoMapTest, ReadFromTheMappingObjects) {
-  const ObjectDictionary od = make_cia402_dictionary(kNode);
+  const ObjectDictionary od = make_cia402_dictionary(kPdoNode);
   const auto rpdo = read_pdo_map(od, 0x1600);
   ASSERT_TRUE(rpdo.ok()) << rpdo.detail;
   EXPECT_EQ(rpdo.value.size(), 2u);
@@ -90,12 +90,12 @@ TEST(PdoMapTest, ReadFromTheMappingObjects) {
 }
 
 TEST(PdoPackTest, PackLittleEndianInMappingOrder) {
-  ObjectDictionary od = make_cia402_dictionary(kNode);
+  ObjectDictionary od = make_cia402_dictionary(kPdoNode);
   ASSERT_TRUE(od.set(0x6041, 0, 0x0237).ok());
   ASSERT_TRUE(od.set(0x6077, 0, -2).ok());
   ASSERT_TRUE(od.set(0x6064, 0, 0x12345678).ok());
   const PdoMap map = read_pdo_map(od, 0x1A00).value;
-  const auto frame = pack_pdo(map, od, tpdo_cob_id(1, kNode));
+  const auto frame = pack_pdo(map, od, tpdo_cob_id(1, kPdoNode));
   ASSERT_TRUE(frame.ok()) << frame.detail;
   EXPECT_EQ(frame.value.id, 0x183u);
   EXPECT_EQ(frame.value.dlc, 8);
@@ -109,13 +109,13 @@ TEST(PdoPackTest, PackLittleEndianInMappingOrder) {
 
 TEST(PdoPackTest, RoundTripBetweenTwoDictionaries) {
   // The master's copy and the drive's: pack on one side, unpack on the other.
-  ObjectDictionary drive = make_cia402_dictionary(kNode);
-  ObjectDictionary master = make_cia402_dictionary(kNode);
+  ObjectDictionary drive = make_cia402_dictionary(kPdoNode);
+  ObjectDictionary master = make_cia402_dictionary(kPdoNode);
   const PdoMap rpdo = read_pdo_map(drive, 0x1600).value;
   for (std::int64_t torque : {-32768LL, -1LL, 0LL, 1LL, 999LL, 32767LL}) {
     ASSERT_TRUE(master.set(0x6040, 0, 0x000F).ok());
     ASSERT_TRUE(master.set(0x6071, 0, torque).ok());
-    const auto frame = pack_pdo(rpdo, master, rpdo_cob_id(1, kNode));
+    const auto frame = pack_pdo(rpdo, master, rpdo_cob_id(1, kPdoNode));
     ASSERT_TRUE(frame.ok());
     EXPECT_EQ(frame.value.dlc, 4);
     ASSERT_TRUE(unpack_pdo(rpdo, drive, frame.value).ok());
@@ -125,7 +125,7 @@ TEST(PdoPackTest, RoundTripBetweenTwoDictionaries) {
 }
 
 TEST(PdoPackTest, WrongLengthWritesNothing) {
-  ObjectDictionary od = make_cia402_dictionary(kNode);
+  ObjectDictionary od = make_cia402_dictionary(kPdoNode);
   const PdoMap rpdo = read_pdo_map(od, 0x1600).value;
   CanFrame frame = make_frame(0x203, 3);
   frame.data = {0x0F, 0x00, 0x64, 0x00, 0, 0, 0, 0};
@@ -178,7 +178,7 @@ TEST(PdoPackTest, OutOfRangeValueWritesNothing) {
 }
 
 TEST(PdoPackTest, UnpackRefusesAMapOfReadOnlyEntries) {
-  ObjectDictionary od = make_cia402_dictionary(kNode);
+  ObjectDictionary od = make_cia402_dictionary(kPdoNode);
   const PdoMap tpdo = read_pdo_map(od, 0x1A00).value;
   CanFrame frame = make_frame(0x183, 8);
   const Status s = unpack_pdo(tpdo, od, frame);

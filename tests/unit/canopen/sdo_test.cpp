@@ -12,7 +12,7 @@ namespace {
 
 using namespace pmlsm::canopen;
 
-const NodeId kNode(0x22);
+const NodeId kSdoNode(0x22);
 
 CanFrame raw_frame(std::uint32_t id, std::array<std::uint8_t, 8> data, std::uint8_t dlc = 8) {
   CanFrame f = make_frame(id, dlc);
@@ -21,7 +21,7 @@ CanFrame raw_frame(std::uint32_t id, std::array<std::uint8_t, 8> data, std::uint
 }
 
 TEST(SdoCodingTest, UploadRequestIs0x40) {
-  const CanFrame f = sdo_upload_request(kNode, 0x6041, 0);
+  const CanFrame f = sdo_upload_request(kSdoNode, 0x6041, 0);
   EXPECT_EQ(f.id, 0x622u);
   EXPECT_EQ(f.dlc, 8);
   const std::array<std::uint8_t, 8> expected{0x40, 0x41, 0x60, 0x00, 0, 0, 0, 0};
@@ -36,20 +36,20 @@ TEST(SdoCodingTest, DownloadRequestCommandBytesBySize) {
   EXPECT_EQ(sdo_download_command(0), 0);
   EXPECT_EQ(sdo_download_command(5), 0);
 
-  const CanFrame u8 = sdo_download(kNode, 0x6060, 0, std::int8_t{10});
+  const CanFrame u8 = sdo_download(kSdoNode, 0x6060, 0, std::int8_t{10});
   EXPECT_EQ(u8.data, (std::array<std::uint8_t, 8>{0x2F, 0x60, 0x60, 0x00, 0x0A, 0, 0, 0}));
-  const CanFrame i16 = sdo_download(kNode, 0x6071, 0, std::int16_t{-2});
+  const CanFrame i16 = sdo_download(kSdoNode, 0x6071, 0, std::int16_t{-2});
   EXPECT_EQ(i16.data, (std::array<std::uint8_t, 8>{0x2B, 0x71, 0x60, 0x00, 0xFE, 0xFF, 0, 0}));
-  const auto three = sdo_download_request(kNode, 0x2000, 1, 0x00ABCDEF, 3);
+  const auto three = sdo_download_request(kSdoNode, 0x2000, 1, 0x00ABCDEF, 3);
   ASSERT_TRUE(three.ok());
   EXPECT_EQ(three.value.data, (std::array<std::uint8_t, 8>{0x27, 0x00, 0x20, 0x01, 0xEF, 0xCD, 0xAB, 0}));
-  const CanFrame u32 = sdo_download(kNode, 0x1016, 1, std::uint32_t{0x12345678});
+  const CanFrame u32 = sdo_download(kSdoNode, 0x1016, 1, std::uint32_t{0x12345678});
   EXPECT_EQ(u32.data, (std::array<std::uint8_t, 8>{0x23, 0x16, 0x10, 0x01, 0x78, 0x56, 0x34, 0x12}));
   EXPECT_EQ(u32.id, 0x622u);
 
-  EXPECT_EQ(sdo_download_request(kNode, 0x2000, 0, 1, 0).error, Error::kInvalidValue);
-  EXPECT_EQ(sdo_download_request(kNode, 0x2000, 0, 1, 5).error, Error::kInvalidValue);
-  EXPECT_EQ(sdo_download_request(kNode, 0x2000, 0, 0x100, 1).error, Error::kInvalidValue);
+  EXPECT_EQ(sdo_download_request(kSdoNode, 0x2000, 0, 1, 0).error, Error::kInvalidValue);
+  EXPECT_EQ(sdo_download_request(kSdoNode, 0x2000, 0, 1, 5).error, Error::kInvalidValue);
+  EXPECT_EQ(sdo_download_request(kSdoNode, 0x2000, 0, 0x100, 1).error, Error::kInvalidValue);
 }
 
 TEST(SdoCodingTest, UploadResponseCommandBytesBySize) {
@@ -57,21 +57,21 @@ TEST(SdoCodingTest, UploadResponseCommandBytesBySize) {
   EXPECT_EQ(sdo_upload_response_command(2), 0x4B);
   EXPECT_EQ(sdo_upload_response_command(3), 0x47);
   EXPECT_EQ(sdo_upload_response_command(4), 0x43);
-  const auto r = sdo_upload_response(kNode, 0x1000, 0, 0x00020192, 4);
+  const auto r = sdo_upload_response(kSdoNode, 0x1000, 0, 0x00020192, 4);
   ASSERT_TRUE(r.ok());
   EXPECT_EQ(r.value.id, 0x5A2u);
   EXPECT_EQ(r.value.data, (std::array<std::uint8_t, 8>{0x43, 0x00, 0x10, 0x00, 0x92, 0x01, 0x02, 0x00}));
-  EXPECT_EQ(sdo_upload_response(kNode, 0x1000, 0, 0x1FF, 1).error, Error::kInvalidValue);
+  EXPECT_EQ(sdo_upload_response(kSdoNode, 0x1000, 0, 0x1FF, 1).error, Error::kInvalidValue);
 }
 
 TEST(SdoCodingTest, DownloadResponseIs0x60AndAbortIs0x80) {
-  const CanFrame ack = sdo_download_response(kNode, 0x6040, 0);
+  const CanFrame ack = sdo_download_response(kSdoNode, 0x6040, 0);
   EXPECT_EQ(ack.id, 0x5A2u);
   EXPECT_EQ(ack.data, (std::array<std::uint8_t, 8>{0x60, 0x40, 0x60, 0x00, 0, 0, 0, 0}));
-  const CanFrame server_abort = sdo_abort_response(kNode, 0x6060, 0, 0x06090030);
+  const CanFrame server_abort = sdo_abort_response(kSdoNode, 0x6060, 0, 0x06090030);
   EXPECT_EQ(server_abort.id, 0x5A2u);
   EXPECT_EQ(server_abort.data, (std::array<std::uint8_t, 8>{0x80, 0x60, 0x60, 0x00, 0x30, 0x00, 0x09, 0x06}));
-  const CanFrame client_abort = sdo_abort_request(kNode, 0x1018, 2, 0x05040000);
+  const CanFrame client_abort = sdo_abort_request(kSdoNode, 0x1018, 2, 0x05040000);
   EXPECT_EQ(client_abort.id, 0x622u);
   EXPECT_EQ(client_abort.data, (std::array<std::uint8_t, 8>{0x80, 0x18, 0x10, 0x02, 0x00, 0x00, 0x04, 0x05}));
 }
@@ -115,7 +115,7 @@ TEST(SdoAbortCodesTest, ValuesAndTextsOfCia301) {
 }
 
 TEST(SdoRequestParseTest, UploadDownloadAbort) {
-  const auto up = parse_sdo_request(sdo_upload_request(kNode, 0x6064, 0));
+  const auto up = parse_sdo_request(sdo_upload_request(kSdoNode, 0x6064, 0));
   ASSERT_TRUE(up.ok()) << up.detail;
   EXPECT_EQ(up.value.kind, SdoRequestKind::kUpload);
   EXPECT_EQ(up.value.node_id, 0x22);
@@ -124,7 +124,7 @@ TEST(SdoRequestParseTest, UploadDownloadAbort) {
 
   for (std::uint8_t size = 1; size <= 4; ++size) {
     const std::uint32_t value = 0xA1B2C3D4U & (size == 4 ? 0xFFFFFFFFU : ((1U << (8 * size)) - 1));
-    const auto down = parse_sdo_request(sdo_download_request(kNode, 0x2001, 3, value, size).value);
+    const auto down = parse_sdo_request(sdo_download_request(kSdoNode, 0x2001, 3, value, size).value);
     ASSERT_TRUE(down.ok()) << down.detail;
     EXPECT_EQ(down.value.kind, SdoRequestKind::kDownload);
     EXPECT_EQ(down.value.index, 0x2001);
@@ -141,7 +141,7 @@ TEST(SdoRequestParseTest, UploadDownloadAbort) {
   ASSERT_TRUE(masked.ok());
   EXPECT_EQ(masked.value.data.data, 0x0Au);
 
-  const auto abort = parse_sdo_request(sdo_abort_request(kNode, 0x6040, 0, kAbortTimeout));
+  const auto abort = parse_sdo_request(sdo_abort_request(kSdoNode, 0x6040, 0, kAbortTimeout));
   ASSERT_TRUE(abort.ok());
   EXPECT_EQ(abort.value.kind, SdoRequestKind::kAbort);
   EXPECT_EQ(abort.value.abort_code, kAbortTimeout);
@@ -167,26 +167,26 @@ TEST(SdoRequestParseTest, UnsupportedAndMalformedRequestsGiveErrorsWithAbort0x05
     EXPECT_EQ(r.abort_code, kAbortCommandSpecifier);
     EXPECT_EQ(r.value.index, 0x6040);  // multiplexer kept for the abort
   }
-  CanFrame short_frame = sdo_upload_request(kNode, 0x6041, 0);
+  CanFrame short_frame = sdo_upload_request(kSdoNode, 0x6041, 0);
   short_frame.dlc = 4;
   const auto r = parse_sdo_request(short_frame);
   EXPECT_EQ(r.error, Error::kWrongDlc);
   EXPECT_STREQ(r.detail, "SDO request: DLC must be 8");
   EXPECT_EQ(r.value.index, 0x6041);
-  EXPECT_EQ(parse_sdo_request(sdo_download_response(kNode, 0x6041, 0)).error, Error::kWrongCobId);
+  EXPECT_EQ(parse_sdo_request(sdo_download_response(kSdoNode, 0x6041, 0)).error, Error::kWrongCobId);
 }
 
 TEST(SdoResponseParseTest, UploadDownloadAbort) {
-  const auto up = parse_sdo_response(sdo_upload_response(kNode, 0x6041, 0, 0x0237, 2).value);
+  const auto up = parse_sdo_response(sdo_upload_response(kSdoNode, 0x6041, 0, 0x0237, 2).value);
   ASSERT_TRUE(up.ok());
   EXPECT_EQ(up.value.kind, SdoResponseKind::kUpload);
   EXPECT_EQ(up.value.node_id, 0x22);
   EXPECT_EQ(up.value.data.size, 2);
   EXPECT_EQ(up.value.data.data, 0x0237u);
-  const auto down = parse_sdo_response(sdo_download_response(kNode, 0x6040, 0));
+  const auto down = parse_sdo_response(sdo_download_response(kSdoNode, 0x6040, 0));
   ASSERT_TRUE(down.ok());
   EXPECT_EQ(down.value.kind, SdoResponseKind::kDownload);
-  const auto abort = parse_sdo_response(sdo_abort_response(kNode, 0x6060, 0, kAbortValueRange));
+  const auto abort = parse_sdo_response(sdo_abort_response(kSdoNode, 0x6060, 0, kAbortValueRange));
   ASSERT_TRUE(abort.ok());
   EXPECT_EQ(abort.value.kind, SdoResponseKind::kAbort);
   EXPECT_EQ(abort.value.abort_code, kAbortValueRange);
@@ -209,11 +209,11 @@ TEST(SdoResponseParseTest, SegmentedUploadIsReportedNotSupported) {
             Error::kBlockNotSupported);
   EXPECT_EQ(parse_sdo_response(raw_frame(0x5A2, {0xE0, 0, 0, 0, 0, 0, 0, 0})).error, Error::kUnknownCommand);
   EXPECT_EQ(parse_sdo_response(raw_frame(0x5A2, {0x60, 0, 0, 0}, 4)).error, Error::kWrongDlc);
-  EXPECT_EQ(parse_sdo_response(sdo_upload_request(kNode, 0, 0)).error, Error::kWrongCobId);
+  EXPECT_EQ(parse_sdo_response(sdo_upload_request(kSdoNode, 0, 0)).error, Error::kWrongCobId);
 }
 
 TEST(SdoClientTest, UploadDownloadAndBusy) {
-  SdoClient client(kNode, 100);
+  SdoClient client(kSdoNode, 100);
   const auto request = client.upload(0x6041, 0, 0);
   ASSERT_TRUE(request.ok());
   EXPECT_EQ(request.value.data[0], 0x40);
@@ -222,33 +222,33 @@ TEST(SdoClientTest, UploadDownloadAndBusy) {
   // Another node's response and unrelated frames are not ours.
   EXPECT_EQ(client.on_frame(sdo_upload_response(NodeId(3), 0x6041, 0, 1, 2).value).kind,
             SdoClientEventKind::kNone);
-  const SdoClientEvent e = client.on_frame(sdo_upload_response(kNode, 0x6041, 0, 0x0237, 2).value);
+  const SdoClientEvent e = client.on_frame(sdo_upload_response(kSdoNode, 0x6041, 0, 0x0237, 2).value);
   EXPECT_EQ(e.kind, SdoClientEventKind::kUploaded);
   EXPECT_EQ(e.data.data, 0x0237u);
   EXPECT_FALSE(client.busy());
 
   ASSERT_TRUE(client.download(0x6060, 0, SdoData{10, 1}, 5).ok());
-  EXPECT_EQ(client.on_frame(sdo_download_response(kNode, 0x6060, 0)).kind, SdoClientEventKind::kDownloaded);
+  EXPECT_EQ(client.on_frame(sdo_download_response(kSdoNode, 0x6060, 0)).kind, SdoClientEventKind::kDownloaded);
   EXPECT_EQ(client.download(0x6060, 0, SdoData{10, 0}, 5).error, Error::kInvalidValue);
   EXPECT_FALSE(client.busy());
-  EXPECT_THROW(SdoClient(kNode, 0), std::invalid_argument);
+  EXPECT_THROW(SdoClient(kSdoNode, 0), std::invalid_argument);
 }
 
 TEST(SdoClientTest, AbortMismatchSegmentedAndTimeout) {
-  SdoClient client(kNode, 100);
+  SdoClient client(kSdoNode, 100);
   client.download(0x6060, 0, SdoData{3, 1}, 0);
-  SdoClientEvent e = client.on_frame(sdo_abort_response(kNode, 0x6060, 0, kAbortValueRange));
+  SdoClientEvent e = client.on_frame(sdo_abort_response(kSdoNode, 0x6060, 0, kAbortValueRange));
   EXPECT_EQ(e.kind, SdoClientEventKind::kAborted);
   EXPECT_EQ(e.abort_code, kAbortValueRange);
   EXPECT_STREQ(e.detail, "invalid value for parameter (download only)");
 
   client.upload(0x6041, 0, 0);
-  e = client.on_frame(sdo_upload_response(kNode, 0x6064, 0, 1, 4).value);
+  e = client.on_frame(sdo_upload_response(kSdoNode, 0x6064, 0, 1, 4).value);
   EXPECT_EQ(e.kind, SdoClientEventKind::kFailed);
   EXPECT_EQ(e.error, Error::kUnexpectedResponse);
 
   client.upload(0x6041, 0, 0);
-  e = client.on_frame(sdo_download_response(kNode, 0x6041, 0));
+  e = client.on_frame(sdo_download_response(kSdoNode, 0x6041, 0));
   EXPECT_EQ(e.kind, SdoClientEventKind::kFailed);
   EXPECT_EQ(e.error, Error::kUnexpectedResponse);
 
