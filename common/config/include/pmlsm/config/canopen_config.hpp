@@ -82,4 +82,14 @@ CanopenRigConfig load_canopen_config(const std::string& path, const std::vector<
 CanopenRigConfig parse_canopen_config(const std::string& yaml_text, const std::string& origin,
                                       const std::vector<ConfigOverride>& overrides = {});
 
+/// The virtual drive's dictionary: CiA 301 / 402's objects (make_cia402_dictionary) for the rig's
+/// scaling, heartbeats and an interpolation period (0x60C2) of `control_period_s`, TPDO2's entries (as
+/// TPDO1's, invalid and empty), then the device's part from its description (identity,
+/// manufacturer objects, the PDOs' defaults written as a master would: CiA 301's order, every
+/// check). `device` must outlive the dictionary (the entries' names point into it).
+/// @throws ConfigError naming the object or PDO entry the dictionary refused, or a control period
+///         that is not a whole number of milliseconds in [1, 255].
+canopen::ObjectDictionary build_device_dictionary(const CanopenRigConfig& rig, const DeviceDictionary& device,
+                                                  double control_period_s);
+
 }  // namespace pmlsm
