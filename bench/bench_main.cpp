@@ -33,14 +33,12 @@ pmlsm::SystemParams params_with(benchmark::State& state) {
 }
 
 // Argument: 0 rk4, 1 heun, 2 ab2 (the label says which).
-void name_integrator(benchmark::internal::Benchmark* b) {
-  b->ArgName("integrator")->Arg(0)->Arg(1)->Arg(2);
-}
+void name_integrator(benchmark::internal::Benchmark* b) { b->ArgName("integrator")->Arg(0)->Arg(1)->Arg(2); }
 
 // Reports simulated seconds per wall second as "x_realtime".
 void report_realtime_factor(benchmark::State& state, double simulated_s_per_iteration) {
-  state.counters["x_realtime"] = benchmark::Counter(
-      simulated_s_per_iteration * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["x_realtime"] = benchmark::Counter(simulated_s_per_iteration * static_cast<double>(state.iterations()),
+                                                    benchmark::Counter::kIsRate);
 }
 
 // The plant alone as the drive's current loop uses it: one step() per
@@ -82,8 +80,8 @@ BENCHMARK(BM_PlantOneCallPerMillisecond)->Apply(name_integrator);
 // The closed loop on the pulse scenario: one control tick (1 ms) per iteration.
 void BM_ClosedLoopTick(benchmark::State& state) {
   const pmlsm::SystemParams p = params_with(state);
-  const pmlsm::Scenario scenario = pmlsm::load_scenario(
-      std::string(PMLSM_SOURCE_DIR) + "/configs/scenarios/pulse.yaml", p.timing.control_period_s);
+  const pmlsm::Scenario scenario =
+      pmlsm::load_scenario(std::string(PMLSM_SOURCE_DIR) + "/configs/scenarios/pulse.yaml", p.timing.control_period_s);
   auto loop = std::make_unique<pmlsm::ClosedLoop>(p, scenario);
   for (auto _ : state) {
     if (loop->done()) {

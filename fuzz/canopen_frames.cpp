@@ -39,9 +39,9 @@ int fuzz_one(const std::uint8_t* data, std::size_t size) {
     if (const Result<HeartbeatMessage> heartbeat = decode_heartbeat(frame)) to_string(heartbeat.value.state);
     decode_sync(frame);
     if (const Result<EmcyMessage> emcy = decode_emcy(frame)) describe_emcy(emcy.value.error_code);
-    decode_consumer_heartbeat_entry(static_cast<std::uint32_t>(frame.data[0] | (frame.data[1] << 8) |
-                                                               (frame.data[2] << 16)) |
-                                    (static_cast<std::uint32_t>(frame.data[3]) << 24));
+    decode_consumer_heartbeat_entry(
+        static_cast<std::uint32_t>(frame.data[0] | (frame.data[1] << 8) | (frame.data[2] << 16)) |
+        (static_cast<std::uint32_t>(frame.data[3]) << 24));
 
     slave.on_frame(frame);
     if (slave.state() == NmtState::kInitialising) slave.boot();

@@ -34,9 +34,9 @@ module fz {
 std::vector<introspect::MessageSchema> make_schemas() {
   std::vector<introspect::MessageSchema> schemas;
   const std::string stamp = source_file("idl/Stamp.idl");
-  for (const char* name : {"Stamp", "DriveState", "DriveControl", "MotorFeedback", "PlantTruth", "ForceCommand",
-                           "NetworkWeights", "TrainerProgress", "NodeStatus", "TrainingSetup", "EvaluationRequest",
-                           "EvaluationResult", "WorkerStatus"}) {
+  for (const char* name :
+       {"Stamp", "DriveState", "DriveControl", "MotorFeedback", "PlantTruth", "ForceCommand", "NetworkWeights",
+        "TrainerProgress", "NodeStatus", "TrainingSetup", "EvaluationRequest", "EvaluationResult", "WorkerStatus"}) {
     std::istringstream lines(source_file(std::string("idl/") + name + ".idl"));
     std::string idl = std::string(name) == "Stamp" ? "" : stamp;
     for (std::string line; std::getline(lines, line);) {

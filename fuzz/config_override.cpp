@@ -30,18 +30,10 @@ int fuzz_one(const std::uint8_t* data, std::size_t size) {
   }
   try {
     switch (data[0] % 4) {
-      case 0:
-        parse_system_params(system_yaml, "configs/system.yaml", overrides);
-        break;
-      case 1:
-        parse_scenario(scenario_yaml, "configs/scenarios/pulse.yaml", 1e-3, overrides);
-        break;
-      case 2:
-        parse_training_params(training_yaml, training_origin, 1e-3, overrides);
-        break;
-      default:
-        parse_canopen_config(canopen_yaml, "configs/canopen/drive.yaml", overrides);
-        break;
+      case 0: parse_system_params(system_yaml, "configs/system.yaml", overrides); break;
+      case 1: parse_scenario(scenario_yaml, "configs/scenarios/pulse.yaml", 1e-3, overrides); break;
+      case 2: parse_training_params(training_yaml, training_origin, 1e-3, overrides); break;
+      default: parse_canopen_config(canopen_yaml, "configs/canopen/drive.yaml", overrides); break;
     }
   } catch (const ConfigError&) {
   }

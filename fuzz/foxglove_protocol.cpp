@@ -27,8 +27,7 @@ int fuzz_one(const std::uint8_t* data, std::size_t size) {
     for (const ChannelId channel : reply.channels_subscribed) {
       const std::optional<SubscriptionId> subscription = session.subscription_for(channel);
       if (!subscription) std::abort();  // reported as subscribed, but no subscription
-      queue.push(message_data_frame(*subscription, 1, reinterpret_cast<const std::uint8_t*>(line.data()),
-                                    line.size()));
+      queue.push(message_data_frame(*subscription, 1, reinterpret_cast<const std::uint8_t*>(line.data()), line.size()));
     }
     for (const ChannelId channel : reply.channels_unsubscribed) {
       if (session.subscription_for(channel)) std::abort();  // reported as unsubscribed, but still there

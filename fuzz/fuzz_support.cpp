@@ -7,7 +7,9 @@
 
 namespace pmlsm::fuzz {
 
-std::string source_path(const std::string& relative_path) { return std::string(PMLSM_SOURCE_DIR) + "/" + relative_path; }
+std::string source_path(const std::string& relative_path) {
+  return std::string(PMLSM_SOURCE_DIR) + "/" + relative_path;
+}
 
 std::string source_file(const std::string& relative_path) {
   const std::string path = source_path(relative_path);

@@ -14,8 +14,8 @@
 #include <vector>
 
 namespace pmlsm::fuzz {
-#define PMLSM_FUZZ_TARGET(name) \
-  namespace name {              \
+#define PMLSM_FUZZ_TARGET(name)                             \
+  namespace name {                                          \
   int fuzz_one(const std::uint8_t* data, std::size_t size); \
   }
 #include "fuzz_targets.inc"

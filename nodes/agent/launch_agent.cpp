@@ -43,7 +43,6 @@ namespace msg = pmlsm_msgs::msg;
 namespace fs = std::filesystem;
 using SteadyClock = std::chrono::steady_clock;
 
-
 std::string host_name() {
   char host[128] = {};
   gethostname(host, sizeof(host) - 1);
@@ -444,9 +443,10 @@ MadeComponent make_launch_agent(const ComponentContext& /*context*/, int argc, c
   app.add_option("--bin-dir", opt.bin_dir, "Where the programs it may start are (default: its own folder)")
       ->check(CLI::ExistingDirectory)
       ->capture_default_str();
-  app.add_option("--work-dir", opt.work_dir, "Folder the nodes run in, where relative paths in their args start "
-                                             "(default: the current folder; without configs/ there, the installed "
-                                             "share/pmlsm beside its bin folder)")
+  app.add_option("--work-dir", opt.work_dir,
+                 "Folder the nodes run in, where relative paths in their args start "
+                 "(default: the current folder; without configs/ there, the installed "
+                 "share/pmlsm beside its bin folder)")
       ->check(CLI::ExistingDirectory);
   app.add_option("--lease-ms", opt.lease_ms, "Announce every lease/4; a launcher takes it as gone after a lease")
       ->check(CLI::Range(200, 60000))

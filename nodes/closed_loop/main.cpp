@@ -23,26 +23,25 @@
 #include "trace_csv.hpp"
 
 int main(int argc, char** argv) {
-  CLI::App app{"In-process closed loop of the PMLSM two-mass system: plant, current loop, "
-               "velocity PI, reference model and Kalman filter, without DDS."};
+  CLI::App app{
+      "In-process closed loop of the PMLSM two-mass system: plant, current loop, "
+      "velocity PI, reference model and Kalman filter, without DDS."};
   std::string config_path = pmlsm::data_file("configs/system.yaml");
   std::vector<std::string> scenario_paths;
   std::vector<std::string> overrides_text;
   std::string out_dir = "out";
   app.add_option("-c,--config", config_path, "System parameters (YAML)")->check(CLI::ExistingFile);
-  app.add_option("-s,--scenario", scenario_paths, "Scenario file(s) (YAML)")
-      ->required()
-      ->check(CLI::ExistingFile);
-  app.add_option("--set", overrides_text, "Override a system parameter: key.path=value")
-      ->take_all();
+  app.add_option("-s,--scenario", scenario_paths, "Scenario file(s) (YAML)")->required()->check(CLI::ExistingFile);
+  app.add_option("--set", overrides_text, "Override a system parameter: key.path=value")->take_all();
   app.add_option("-o,--out", out_dir, "Folder for the CSV traces");
   std::string compensator = "none";
   std::string weights_path;
   bool online_learning = false;
-  app.add_option("--compensator", compensator,
-                 "none (PI only), accel (load-acceleration feedback), rnn (the paper's network), state (state feedback with "
-                 "inverse-model feedforward): one of " +
-                     pmlsm::compensator_kind_names())
+  app.add_option(
+         "--compensator", compensator,
+         "none (PI only), accel (load-acceleration feedback), rnn (the paper's network), state (state feedback with "
+         "inverse-model feedforward): one of " +
+             pmlsm::compensator_kind_names())
       ->capture_default_str();
   app.add_option("-w,--weights", weights_path, "RNN weights file (with --compensator rnn)")->check(CLI::ExistingFile);
   app.add_flag("--online-learning", online_learning, "RNN online learning, eqs. (16)-(19)");
@@ -84,11 +83,13 @@ int main(int argc, char** argv) {
       const std::string fault = pmlsm::plant_fault_reason(trace);
       pmlsm::node::print_results_row(scenario.name + suffix, m, fault);
       // The vibration guard's verdict: the compensation ran the whole scenario, or from when it was out.
-      const auto trip = std::find_if(trace.begin(), trace.end(), [](const pmlsm::TickRecord& r) { return r.guard_tripped; });
+      const auto trip =
+          std::find_if(trace.begin(), trace.end(), [](const pmlsm::TickRecord& r) { return r.guard_tripped; });
       if (trip != trace.end()) {
-        std::printf("  vibration guard: compensation faded out from t = %.3f s (the oscillation grew or did not "
-                    "decay); the rest of the run is PI alone\n",
-                    trip->time_s);
+        std::printf(
+            "  vibration guard: compensation faded out from t = %.3f s (the oscillation grew or did not "
+            "decay); the rest of the run is PI alone\n",
+            trip->time_s);
       }
       if (!fault.empty()) {
         std::fprintf(stderr, "closed_loop: %s: %s: run not valid\n", scenario.name.c_str(), fault.c_str());

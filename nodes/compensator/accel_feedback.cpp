@@ -18,7 +18,8 @@ class AccelFeedbackComponent final : public node::Component {
         params_(rt_.cfg.params.accel_feedback_params()),
         law_(params_),
         inputs_(rt_.participant, rt_.wakeup),
-        writer_(rt_.participant.make_writer<pmlsm_msgs::msg::CompensatorOutputPubSubType>(pmlsm::dds::topics::kCompensatorOutput)) {}
+        writer_(rt_.participant.make_writer<pmlsm_msgs::msg::CompensatorOutputPubSubType>(
+            pmlsm::dds::topics::kCompensatorOutput)) {}
 
   int run() override {
     const node::CompensatorLoopResult result =
@@ -27,13 +28,14 @@ class AccelFeedbackComponent final : public node::Component {
     const std::uint64_t answered = result.answered;
     rt_.status.status().rejected(inputs_.rejected() + law_.counters().rejected_inputs);
     rt_.status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_STOPPING, answered, rt_.period_s, "done");
-    std::printf("accel_feedback: K_a %.1f kg (x %.3f on the model's load)%s, %llu ticks answered, %llu saturated, "
-                "%llu rejected, %llu skipped\n",
-                params_.gain_kg, rt_.cfg.params.compensator_gain_scale(),
-                params_.on_reference_error ? " on the error to the reference" : "", static_cast<unsigned long long>(answered),
-                static_cast<unsigned long long>(law_.counters().saturated),
-                static_cast<unsigned long long>(inputs_.rejected() + law_.counters().rejected_inputs),
-                static_cast<unsigned long long>(inputs_.skipped()));
+    std::printf(
+        "accel_feedback: K_a %.1f kg (x %.3f on the model's load)%s, %llu ticks answered, %llu saturated, "
+        "%llu rejected, %llu skipped\n",
+        params_.gain_kg, rt_.cfg.params.compensator_gain_scale(),
+        params_.on_reference_error ? " on the error to the reference" : "", static_cast<unsigned long long>(answered),
+        static_cast<unsigned long long>(law_.counters().saturated),
+        static_cast<unsigned long long>(inputs_.rejected() + law_.counters().rejected_inputs),
+        static_cast<unsigned long long>(inputs_.skipped()));
     return result.exit_code;
   }
 

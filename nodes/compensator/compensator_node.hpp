@@ -44,7 +44,10 @@ class CompensatorInputs {
         if (e == r) break;
         // One topic skipped a tick: drop the older sample.
         ++skipped_;
-        if (e < r) have_estimate_ = false; else have_reference_ = false;
+        if (e < r)
+          have_estimate_ = false;
+        else
+          have_reference_ = false;
       }
       tick = reference_.stamp().tick();
       view.load_accel_mps2 = estimate_.a_load_mps2();

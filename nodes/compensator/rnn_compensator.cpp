@@ -53,7 +53,8 @@ class RnnCompensatorComponent final : public node::Component {
         rnn_(params_.rnn_compensator_params(opt_.online_learning)),
         gate_(params_),
         inputs_(rt_.participant, rt_.wakeup),
-        weights_reader_(rt_.participant.make_reader<msg::NetworkWeightsPubSubType>(pdds::topics::kNetworkWeights, rt_.wakeup)),
+        weights_reader_(
+            rt_.participant.make_reader<msg::NetworkWeightsPubSubType>(pdds::topics::kNetworkWeights, rt_.wakeup)),
         writer_(rt_.participant.make_writer<msg::CompensatorOutputPubSubType>(pdds::topics::kCompensatorOutput)),
         ticks_(scenario_ticks(rt_.cfg.scenario, rt_.period_s)) {
     if (!opt_.weights_path.empty()) {
@@ -93,8 +94,8 @@ int RnnCompensatorComponent::run() {
   int exit_code = kExitOk;
   while (answered < ticks_ && !pdds::stop_requested()) {
     if (!inputs_.next(std::chrono::duration<double>(opt_.common.peer_timeout_s), tick, view)) {
-      exit_code = node::end_of_failed_wait("rnn_compensator", "EstimatedState and VelocityReference", "estimator or controller",
-                                           answered, opt_.common.peer_timeout_s);
+      exit_code = node::end_of_failed_wait("rnn_compensator", "EstimatedState and VelocityReference",
+                                           "estimator or controller", answered, opt_.common.peer_timeout_s);
       break;
     }
     // Weight swaps happen here, between ticks, never inside a step.
@@ -137,15 +138,16 @@ int RnnCompensatorComponent::run() {
   rt_.status.status().rejected(inputs_.rejected() + c.rejected_inputs + gate_.refused());
   rt_.status.publish(msg::NodeStatus_Constants::STATE_STOPPING, answered, rt_.period_s, "done");
   writer_.wait_for_acknowledgments(node::kFlushTimeout);
-  std::printf("rnn_compensator: %llu ticks answered, online learning %s: %llu updates, k_c clamped %llu, dead-band %llu, "
-              "reverted %llu; %llu input(s) rejected, %llu skipped; %llu weight set(s) taken, %llu refused\n",
-              static_cast<unsigned long long>(answered), online_learning ? "on" : "off",
-              static_cast<unsigned long long>(c.updates), static_cast<unsigned long long>(c.kc_clamped),
-              static_cast<unsigned long long>(c.kc_deadband), static_cast<unsigned long long>(c.reverted_updates),
-              static_cast<unsigned long long>(inputs_.rejected() + c.rejected_inputs),
-              static_cast<unsigned long long>(inputs_.skipped()),
-              static_cast<unsigned long long>(gate_.taken() - (opt_.weights_path.empty() ? 0 : 1)),
-              static_cast<unsigned long long>(gate_.refused()));
+  std::printf(
+      "rnn_compensator: %llu ticks answered, online learning %s: %llu updates, k_c clamped %llu, dead-band %llu, "
+      "reverted %llu; %llu input(s) rejected, %llu skipped; %llu weight set(s) taken, %llu refused\n",
+      static_cast<unsigned long long>(answered), online_learning ? "on" : "off",
+      static_cast<unsigned long long>(c.updates), static_cast<unsigned long long>(c.kc_clamped),
+      static_cast<unsigned long long>(c.kc_deadband), static_cast<unsigned long long>(c.reverted_updates),
+      static_cast<unsigned long long>(inputs_.rejected() + c.rejected_inputs),
+      static_cast<unsigned long long>(inputs_.skipped()),
+      static_cast<unsigned long long>(gate_.taken() - (opt_.weights_path.empty() ? 0 : 1)),
+      static_cast<unsigned long long>(gate_.refused()));
   return exit_code;
 }
 

@@ -87,8 +87,7 @@ ContainerResult run_container(const ContainerOptions& options, const std::vector
     });
     if (!made) {
       std::fprintf(stderr, "container %s: component %s (%s) was not made: exit %d (%s); nothing runs\n",
-                   options.name.c_str(), slot.spec.name.c_str(), slot.spec.type.c_str(), code,
-                   exit_code_meaning(code));
+                   options.name.c_str(), slot.spec.name.c_str(), slot.spec.type.c_str(), code, exit_code_meaning(code));
       // Destroyed in reverse, before the bus and the scheduler.
       for (auto it = slots.rbegin(); it != slots.rend(); ++it) it->component.reset();
       result.exit_code = code;
@@ -119,18 +118,21 @@ ContainerResult run_container(const ContainerOptions& options, const std::vector
   getrusage(RUSAGE_SELF, &before);
   const auto wall_start = std::chrono::steady_clock::now();
   for (auto& slot : slots) {
-    scheduler.spawn(slot.spec.name, [&slot, &result, &options] {
-      const int code = node::run_node(slot.spec.type, [&] { return slot.component->run(); });
-      // Gone as a process that exits: its participant leaves the domain now.
-      node::run_node(slot.spec.type, [&] {
-        slot.component.reset();
-        return 0;
-      });
-      result.exits.push_back({slot.spec.name, slot.spec.type, code});
-      if (code != kExitOk && result.exit_code == kExitOk) result.exit_code = code;
-      std::printf("container %s: component %s (%s) exited %d (%s)\n", options.name.c_str(), slot.spec.name.c_str(),
-                  slot.spec.type.c_str(), code, exit_code_meaning(code));
-    }, slot.type->priority);
+    scheduler.spawn(
+        slot.spec.name,
+        [&slot, &result, &options] {
+          const int code = node::run_node(slot.spec.type, [&] { return slot.component->run(); });
+          // Gone as a process that exits: its participant leaves the domain now.
+          node::run_node(slot.spec.type, [&] {
+            slot.component.reset();
+            return 0;
+          });
+          result.exits.push_back({slot.spec.name, slot.spec.type, code});
+          if (code != kExitOk && result.exit_code == kExitOk) result.exit_code = code;
+          std::printf("container %s: component %s (%s) exited %d (%s)\n", options.name.c_str(), slot.spec.name.c_str(),
+                      slot.spec.type.c_str(), code, exit_code_meaning(code));
+        },
+        slot.type->priority);
   }
   scheduler.run();
   rusage after{};
@@ -146,10 +148,11 @@ ContainerResult run_container(const ContainerOptions& options, const std::vector
   // Losses between components: a reader that fell a whole history behind its writer.
   for (const auto& [topic, lost] : bus.losses()) {
     result.local_losses += lost.overwritten + lost.refused;
-    std::printf("container %s: in-process path: %s lost %llu sample(s) (%llu overwritten, keep last; %llu refused, "
-                "keep all)\n",
-                options.name.c_str(), topic.c_str(), static_cast<unsigned long long>(lost.overwritten + lost.refused),
-                static_cast<unsigned long long>(lost.overwritten), static_cast<unsigned long long>(lost.refused));
+    std::printf(
+        "container %s: in-process path: %s lost %llu sample(s) (%llu overwritten, keep last; %llu refused, "
+        "keep all)\n",
+        options.name.c_str(), topic.c_str(), static_cast<unsigned long long>(lost.overwritten + lost.refused),
+        static_cast<unsigned long long>(lost.overwritten), static_cast<unsigned long long>(lost.refused));
   }
   if (result.local_losses == 0) std::printf("container %s: in-process path: no sample lost\n", options.name.c_str());
   for (const auto& e : result.exits) {

@@ -42,7 +42,7 @@ struct ComponentExit {
 };
 
 struct ContainerResult {
-  int exit_code = 0;                ///< the first non-zero exit, in the order they ended
+  int exit_code = 0;                 ///< the first non-zero exit, in the order they ended
   std::vector<ComponentExit> exits;  ///< in the order they ended
   double cpu_user_s = 0.0, cpu_system_s = 0.0, wall_s = 0.0;
   std::uint64_t switches = 0;

@@ -52,7 +52,8 @@ int main(int argc, char** argv) {
     std::vector<std::string> own = line.own_args;
     std::vector<char*> own_argv{argv[0]};
     for (auto& a : own) own_argv.push_back(a.data());
-    if (const auto code = node::parse_command_line(app, static_cast<int>(own_argv.size()), own_argv.data())) return *code;
+    if (const auto code = node::parse_command_line(app, static_cast<int>(own_argv.size()), own_argv.data()))
+      return *code;
     options.stack_bytes = stack_kib << 10;
     return container::run_container(options, line.components).exit_code;
   });

@@ -64,10 +64,13 @@ class ControllerNode {
         lockstep_(rt.cfg.clock == node::Clock::kLockstep),
         compensated_(options.compensation != "none"),
         peer_timeout_(common.peer_timeout_s),
-        feedback_reader_(rt.participant.make_reader<msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, rt.wakeup)),
+        feedback_reader_(
+            rt.participant.make_reader<msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, rt.wakeup)),
         command_writer_(rt.participant.make_writer<msg::ForceCommandPubSubType>(pdds::topics::kForceCommand)),
-        reference_writer_(rt.participant.make_writer<msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference)),
-        current_reader_(rt.participant.make_reader<msg::CurrentFeedbackPubSubType>(pdds::topics::kCurrentFeedback, rt.wakeup)),
+        reference_writer_(
+            rt.participant.make_writer<msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference)),
+        current_reader_(
+            rt.participant.make_reader<msg::CurrentFeedbackPubSubType>(pdds::topics::kCurrentFeedback, rt.wakeup)),
         voltage_writer_(rt.participant.make_writer<msg::VoltageCommandPubSubType>(pdds::topics::kVoltageCommand)),
         current_loop_(rt.cfg.params.current_controller_params()),
         current_steps_(rt.cfg.params.timing.current_steps_per_tick()),
@@ -143,7 +146,8 @@ class ControllerNode {
 double ControllerNode::external_command(std::uint64_t k) {
   const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
   while (setpoint_reader_->take(setpoint_)) {
-    const Setpoint sp{setpoint_.velocity_mps(), setpoint_.accel_limit_mps2(), setpoint_.session(), setpoint_.sequence_number()};
+    const Setpoint sp{setpoint_.velocity_mps(), setpoint_.accel_limit_mps2(), setpoint_.session(),
+                      setpoint_.sequence_number()};
     const SetpointVerdict verdict = external_->offer(sp, now_s);
     // Every rejection is counted; the first few are told (a flood would flood the log).
     if (verdict != SetpointVerdict::kAccepted && reported_rejections_ < 10) {
@@ -255,9 +259,11 @@ int ControllerNode::run() {
     });
     if (!matched) {
       if (pdds::stop_requested()) return finish(kExitOk);
-      std::fprintf(stderr, "controller: readers missing after %.1f s: %zu of %d ForceCommand readers, %zu of %d "
-                   "VelocityReference readers\n", common_.peer_timeout_s, command_writer_.matched_readers(),
-                   opt_.command_readers, reference_writer_.matched_readers(), opt_.reference_readers);
+      std::fprintf(stderr,
+                   "controller: readers missing after %.1f s: %zu of %d ForceCommand readers, %zu of %d "
+                   "VelocityReference readers\n",
+                   common_.peer_timeout_s, command_writer_.matched_readers(), opt_.command_readers,
+                   reference_writer_.matched_readers(), opt_.reference_readers);
       return finish(kExitPeerMissing);
     }
   }
@@ -280,13 +286,13 @@ int ControllerNode::run() {
     last_velocity_ = velocity;
     Compensation compensation;
     if (compensated_ && k > 0 && !compensation_for(k, compensation)) {
-      exit_code = node::end_of_failed_wait("controller", "CompensatorOutput", "compensator", k - 1,
-                                           common_.peer_timeout_s);
+      exit_code =
+          node::end_of_failed_wait("controller", "CompensatorOutput", "compensator", k - 1, common_.peer_timeout_s);
       break;
     }
-    const VelocityControllerOutput out =
-        external_ ? controller_->step_command(external_command(k), velocity, compensation)
-                  : controller_->step(k, velocity, compensation);
+    const VelocityControllerOutput out = external_
+                                             ? controller_->step_command(external_command(k), velocity, compensation)
+                                             : controller_->step(k, velocity, compensation);
     if (out.guard.tripped && !guard_reported_) {
       // Once: the compensation fades out and stays out; the controller goes on as PI alone.
       guard_reported_ = true;
@@ -311,7 +317,8 @@ int ControllerNode::finish(int exit_code) {
     std::snprintf(text, sizeof text,
                   "setpoints: %llu accepted, %llu rejected (%llu invalid), went stale %llu times (%llu mid-move)",
                   static_cast<unsigned long long>(c.accepted), static_cast<unsigned long long>(c.rejected),
-                  static_cast<unsigned long long>(c.rejected_invalid), static_cast<unsigned long long>(c.stale_episodes),
+                  static_cast<unsigned long long>(c.rejected_invalid),
+                  static_cast<unsigned long long>(c.stale_episodes),
                   static_cast<unsigned long long>(c.lost_while_moving));
     external_note = text;
     std::printf("controller: %s\n", text);
@@ -363,9 +370,10 @@ MadeComponent make_controller(const ComponentContext& context, int argc, char** 
   common.spin_us = 200.0;
   ControllerOptions opt;
   add_common_options(app, common);
-  app.add_option("--compensation", opt.compensation,
-                 "none (PI only) or topic (add CompensatorOutput to the PI output); accel, rnn and state are topic, named "
-                 "after the compensator that publishes it (launch files pass their compensator arg)")
+  app.add_option(
+         "--compensation", opt.compensation,
+         "none (PI only) or topic (add CompensatorOutput to the PI output); accel, rnn and state are topic, named "
+         "after the compensator that publishes it (launch files pass their compensator arg)")
       ->check(CLI::IsMember({"none", "topic", "accel", "rnn", "state"}))
       ->capture_default_str();
   app.add_option("--command-readers", opt.command_readers,

@@ -41,11 +41,11 @@ class BridgeHooks final : public node::DriveNodeHooks {
   void before_run(node::DriveNode& node) override {
     drive_.boot();
     drive_.start();
-    std::printf("%s: drive node %d booted on %s: cyclic synchronous torque, rated force %.1f N, %g increments/m, "
-                "periods stepped %u, %s\n",
-                node.name().c_str(), drive_.config().node_id, bus_.describe().c_str(),
-                drive_.config().scaling.rated_force_n, drive_.config().scaling.increments_per_metre,
-                drive_.periods_stepped(), drive::to_string(drive_.power_state()));
+    std::printf(
+        "%s: drive node %d booted on %s: cyclic synchronous torque, rated force %.1f N, %g increments/m, "
+        "periods stepped %u, %s\n",
+        node.name().c_str(), drive_.config().node_id, bus_.describe().c_str(), drive_.config().scaling.rated_force_n,
+        drive_.config().scaling.increments_per_metre, drive_.periods_stepped(), drive::to_string(drive_.power_state()));
   }
   void enable_at_start(node::DriveNode& node) override {
     drive_.enable_and_wait();
@@ -80,8 +80,10 @@ class BridgeHooks final : public node::DriveNodeHooks {
     }
     if (c.foreign_rpdos > 0 && !foreign_rpdo_reported_) {
       foreign_rpdo_reported_ = true;
-      std::fprintf(stderr, "%s: tick %llu: another master's RPDO to the drive on the bus (COB-ID of this bridge's "
-                   "drive, not sent by it); counted\n", node.name().c_str(), static_cast<unsigned long long>(k));
+      std::fprintf(stderr,
+                   "%s: tick %llu: another master's RPDO to the drive on the bus (COB-ID of this bridge's "
+                   "drive, not sent by it); counted\n",
+                   node.name().c_str(), static_cast<unsigned long long>(k));
       node.report("an RPDO from another master on the CAN bus");
     }
     if (drive_.stuck_in() && !stuck_reported_) {
@@ -104,14 +106,15 @@ class BridgeHooks final : public node::DriveNodeHooks {
   }
   void flush() override {
     const canopen::Cia402DriveCounters& c = drive_.counters();
-    std::printf("drive_bridge: CAN: %llu SYNCs (%llu resent), %llu RPDO1 resent, %llu ticks without TPDOs in time, "
-                "%llu EMCYs, %llu malformed frames of the drive, %llu SYNCs, %llu NMT commands and %llu RPDOs from "
-                "another master\n",
-                static_cast<unsigned long long>(c.syncs), static_cast<unsigned long long>(c.sync_resends),
-                static_cast<unsigned long long>(c.rpdo_resends), static_cast<unsigned long long>(c.tpdo_missing),
-                static_cast<unsigned long long>(c.emcys), static_cast<unsigned long long>(c.malformed),
-                static_cast<unsigned long long>(c.foreign_syncs), static_cast<unsigned long long>(c.foreign_nmt),
-                static_cast<unsigned long long>(c.foreign_rpdos));
+    std::printf(
+        "drive_bridge: CAN: %llu SYNCs (%llu resent), %llu RPDO1 resent, %llu ticks without TPDOs in time, "
+        "%llu EMCYs, %llu malformed frames of the drive, %llu SYNCs, %llu NMT commands and %llu RPDOs from "
+        "another master\n",
+        static_cast<unsigned long long>(c.syncs), static_cast<unsigned long long>(c.sync_resends),
+        static_cast<unsigned long long>(c.rpdo_resends), static_cast<unsigned long long>(c.tpdo_missing),
+        static_cast<unsigned long long>(c.emcys), static_cast<unsigned long long>(c.malformed),
+        static_cast<unsigned long long>(c.foreign_syncs), static_cast<unsigned long long>(c.foreign_nmt),
+        static_cast<unsigned long long>(c.foreign_rpdos));
   }
 
  private:
@@ -164,8 +167,9 @@ canopen::Cia402DriveConfig DriveBridgeComponent::checked_config() {
   drive_config.reset_communication = !opt_.no_reset;
   node::check_drive_node_options("drive_bridge", opt_.drive, opt_.common, rt_);
   if (rt_.cfg.command_level == node::CommandLevel::kVoltage) {
-    throw ConfigError("--command-level voltage: a CiA 402 drive runs its own current loop (cyclic synchronous "
-                      "torque); drive_bridge takes force commands only");
+    throw ConfigError(
+        "--command-level voltage: a CiA 402 drive runs its own current loop (cyclic synchronous "
+        "torque); drive_bridge takes force commands only");
   }
   if (std::abs(rt_.period_s - 1e-3) > 1e-9) {
     throw ConfigError("control period " + std::to_string(rt_.period_s * 1e3) +
@@ -175,17 +179,19 @@ canopen::Cia402DriveConfig DriveBridgeComponent::checked_config() {
   const canopen::BusLoad load = canopen::bus_load(
       canopen::bridge_cycle_frames(rt_.period_s, drive_config.drive_heartbeat_ms, drive_config.master_heartbeat_ms),
       rig_.bitrate_bps, rt_.period_s);
-  std::printf("drive_bridge: bus load per %.0f ms cycle at %.0f kbit/s: %.1f %% (%.0f bits; %.1f %% with worst-case bit "
-              "stuffing)\n",
-              rt_.period_s * 1e3, rig_.bitrate_bps * 1e-3, 100.0 * load.load, load.bits_per_cycle, 100.0 * load.load_worst);
+  std::printf(
+      "drive_bridge: bus load per %.0f ms cycle at %.0f kbit/s: %.1f %% (%.0f bits; %.1f %% with worst-case bit "
+      "stuffing)\n",
+      rt_.period_s * 1e3, rig_.bitrate_bps * 1e-3, 100.0 * load.load, load.bits_per_cycle, 100.0 * load.load_worst);
   if (load.load_worst > 1.0) {
     throw ConfigError("bus.bitrate_bps " + std::to_string(rig_.bitrate_bps) + ": one cycle's frames need up to " +
-                      std::to_string(static_cast<int>(load.bits_per_cycle_worst)) + " bits, more than the bus carries in " +
-                      std::to_string(rt_.period_s * 1e3) + " ms");
+                      std::to_string(static_cast<int>(load.bits_per_cycle_worst)) +
+                      " bits, more than the bus carries in " + std::to_string(rt_.period_s * 1e3) + " ms");
   }
   if (load.load_worst > 0.5) {
-    std::fprintf(stderr, "drive_bridge: warning: the bus is more than half busy at worst; frames of other nodes "
-                         "may delay the PDOs\n");
+    std::fprintf(stderr,
+                 "drive_bridge: warning: the bus is more than half busy at worst; frames of other nodes "
+                 "may delay the PDOs\n");
   }
   return drive_config;
 }

@@ -235,8 +235,9 @@ int EvaluatorNode::report_results() {
   if (!has_truth) {
     // Nothing true is known: nan, never a zero that reads as a value.
     for (TickRecord& r : trace_) clear_truth(r);
-    std::printf("evaluator: no PlantTruth on the domain (a real drive, or the virtual rig in realtime): the true "
-                "load's columns are n/a; cost_est is the Kalman estimate's\n");
+    std::printf(
+        "evaluator: no PlantTruth on the domain (a real drive, or the virtual rig in realtime): the true "
+        "load's columns are n/a; cost_est is the Kalman estimate's\n");
   }
   const ScenarioMetrics m = compute_metrics(trace_, scenario, period_s_);
   std::filesystem::create_directories(opt_.out_dir);
@@ -265,7 +266,7 @@ int EvaluatorNode::run() {
     return kExitPeerLost;
   }
   return complete_ == ticks_ || (without_truth() && complete_but_truth_ == ticks_) ? report_results()
-                                                                                  : report_incomplete();
+                                                                                   : report_incomplete();
 }
 
 class EvaluatorComponent final : public node::Component {

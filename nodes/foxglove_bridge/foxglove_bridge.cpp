@@ -93,7 +93,7 @@ struct BridgeOptions {
 struct BridgedTopic {
   const pdds::CatalogEntry* entry = nullptr;
   foxglove::ChannelId channel = 0;
-  std::string display_name;  // "/pmlsm/motor_feedback", the Foxglove topic
+  std::string display_name;                                 // "/pmlsm/motor_feedback", the Foxglove topic
   std::optional<pdds::Reader<pdds::RawPubSubType>> reader;  // while some client subscribes
   std::uint64_t samples_taken = 0;
 };
@@ -200,7 +200,8 @@ void match_readers_to_subscriptions(std::vector<BridgedTopic>& topics, const fox
     }
   }
   if (changed) {
-    const auto open = std::count_if(topics.begin(), topics.end(), [](const BridgedTopic& t) { return t.reader.has_value(); });
+    const auto open =
+        std::count_if(topics.begin(), topics.end(), [](const BridgedTopic& t) { return t.reader.has_value(); });
     std::printf("%s: reading %zu of %zu topics\n", kNodeName, static_cast<std::size_t>(open), topics.size());
   }
 }
@@ -243,9 +244,10 @@ class FoxgloveBridgeComponent final : public node::Component {
         topics_(std::move(topics)),
         participant_(named(opt_.dds)),
         status_(participant_),
-        server_(server_options(opt_), channels_of(topics_),
-                [](const std::string& line) { std::printf("%s: %s\n", kNodeName, line.c_str()); },
-                [this] { wakeup_.notify(); }) {
+        server_(
+            server_options(opt_), channels_of(topics_),
+            [](const std::string& line) { std::printf("%s: %s\n", kNodeName, line.c_str()); },
+            [this] { wakeup_.notify(); }) {
     if (opt_.reader_profile == kLiveReaderProfile &&
         eprosima::fastdds::dds::DomainParticipantFactory::get_instance()->load_XML_profiles_string(
             kLiveReaderProfileXml, sizeof kLiveReaderProfileXml - 1) != ReturnCode::RETCODE_OK) {
@@ -352,8 +354,8 @@ void FoxgloveBridgeComponent::publish_status(PassClock& clock, std::chrono::stea
   s.rejected(c.bad_requests);
   s.max_loop_time_us(clock.pass_time_max_us);
   s.mean_loop_time_us(clock.passes > 0 ? clock.pass_time_sum_us / static_cast<double>(clock.passes) : 0.0);
-  status_.publish(read > 0 ? node_state::STATE_RUNNING : node_state::STATE_WAITING, heartbeats_++,
-                  opt_.status_period_s, counters_text(c, read, topics_.size()));
+  status_.publish(read > 0 ? node_state::STATE_RUNNING : node_state::STATE_WAITING, heartbeats_++, opt_.status_period_s,
+                  counters_text(c, read, topics_.size()));
   clock.next_status += clock.status_period;
   if (clock.next_status < now) clock.next_status = now + clock.status_period;  // after a stall: no burst
 }
@@ -369,13 +371,13 @@ int FoxgloveBridgeComponent::finish(const PassClock& clock) {
                   opt_.status_period_s, network_failed ? "network thread failed" : "done");
   // A short flush: the heartbeat is for monitors, and a dead one must not hold up the exit.
   status_.flush(std::chrono::seconds(2));
-  std::printf("%s: %llu samples read, %llu frames sent, %llu dropped, %llu bad requests, %llu connections closed for "
-              "bad input, %llu handshakes refused, %llu connections\n",
-              kNodeName, static_cast<unsigned long long>(clock.samples_taken),
-              static_cast<unsigned long long>(c.frames_sent), static_cast<unsigned long long>(c.frames_dropped),
-              static_cast<unsigned long long>(c.bad_requests), static_cast<unsigned long long>(c.closed_for_bad_input),
-              static_cast<unsigned long long>(c.handshakes_failed),
-              static_cast<unsigned long long>(c.connections_total));
+  std::printf(
+      "%s: %llu samples read, %llu frames sent, %llu dropped, %llu bad requests, %llu connections closed for "
+      "bad input, %llu handshakes refused, %llu connections\n",
+      kNodeName, static_cast<unsigned long long>(clock.samples_taken), static_cast<unsigned long long>(c.frames_sent),
+      static_cast<unsigned long long>(c.frames_dropped), static_cast<unsigned long long>(c.bad_requests),
+      static_cast<unsigned long long>(c.closed_for_bad_input), static_cast<unsigned long long>(c.handshakes_failed),
+      static_cast<unsigned long long>(c.connections_total));
   return network_failed ? kExitError : kExitOk;
 }
 
@@ -393,8 +395,7 @@ void add_bridge_options(CLI::App& app, BridgeOptions& opt) {
   app.add_option("--queue-frames", opt.queue_frames, "Frames queued per client before the oldest are dropped")
       ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 20))
       ->capture_default_str();
-  app.add_option("--client-buffer-kib", opt.client_buffer_kib,
-                 "Unsent data per client before frames are dropped [KiB]")
+  app.add_option("--client-buffer-kib", opt.client_buffer_kib, "Unsent data per client before frames are dropped [KiB]")
       ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 20))
       ->capture_default_str();
   app.add_option("--max-clients", opt.max_clients, "Clients served at once")

@@ -31,10 +31,15 @@ void put_le(std::string& out, std::size_t at, std::uint64_t value, std::size_t b
 }
 
 // Ops of the spec that need a capability this server does not declare.
-constexpr const char* kUnsupportedOps[] = {
-    "advertise",           "unadvertise",         "getParameters",
-    "setParameters",       "subscribeParameterUpdates", "unsubscribeParameterUpdates",
-    "subscribeConnectionGraph", "unsubscribeConnectionGraph", "fetchAsset"};
+constexpr const char* kUnsupportedOps[] = {"advertise",
+                                           "unadvertise",
+                                           "getParameters",
+                                           "setParameters",
+                                           "subscribeParameterUpdates",
+                                           "unsubscribeParameterUpdates",
+                                           "subscribeConnectionGraph",
+                                           "unsubscribeConnectionGraph",
+                                           "fetchAsset"};
 
 }  // namespace
 
@@ -101,8 +106,8 @@ void ClientSession::reject(SessionReply& reply, StatusLevel level, const std::st
   ++bad_requests_;
   reply.texts.push_back(status_json(level, why));
   if (bad_requests_ >= kMaxBadRequests && !reply.close) {
-    reply.texts.push_back(status_json(StatusLevel::kError, "too many bad requests (" +
-                                                               std::to_string(bad_requests_) + "): closing"));
+    reply.texts.push_back(
+        status_json(StatusLevel::kError, "too many bad requests (" + std::to_string(bad_requests_) + "): closing"));
     reply.close = std::make_pair(kClosePolicyViolation, std::string("too many bad requests"));
   }
 }
@@ -117,14 +122,16 @@ SessionReply ClientSession::malformed(std::uint16_t close_code, const std::strin
 
 SessionReply ClientSession::on_binary(const std::uint8_t* data, std::size_t bytes) {
   const std::string opcode = bytes > 0 ? std::to_string(static_cast<unsigned>(data[0])) : std::string("none");
-  return malformed(kCloseUnsupportedData, "binary client message (opcode " + opcode +
-                                              ") not supported: the server declares neither clientPublish nor services");
+  return malformed(kCloseUnsupportedData,
+                   "binary client message (opcode " + opcode +
+                       ") not supported: the server declares neither clientPublish nor services");
 }
 
 SessionReply ClientSession::on_text(std::string_view text) {
   const json request = json::parse(text.begin(), text.end(), nullptr, /*allow_exceptions=*/false);
   if (request.is_discarded()) return malformed(kCloseInvalidPayload, "request is not JSON: '" + excerpt(text) + "'");
-  if (!request.is_object()) return malformed(kCloseInvalidPayload, "request is not a JSON object: '" + excerpt(text) + "'");
+  if (!request.is_object())
+    return malformed(kCloseInvalidPayload, "request is not a JSON object: '" + excerpt(text) + "'");
   const auto op = request.find("op");
   if (op == request.end() || !op->is_string()) {
     return malformed(kCloseInvalidPayload, "request has no string field 'op': '" + excerpt(text) + "'");
@@ -133,7 +140,8 @@ SessionReply ClientSession::on_text(std::string_view text) {
   if (name == "subscribe") return subscribe(request);
   if (name == "unsubscribe") return unsubscribe(request);
   SessionReply reply;
-  const bool in_spec = std::find(std::begin(kUnsupportedOps), std::end(kUnsupportedOps), name) != std::end(kUnsupportedOps);
+  const bool in_spec =
+      std::find(std::begin(kUnsupportedOps), std::end(kUnsupportedOps), name) != std::end(kUnsupportedOps);
   reject(reply, StatusLevel::kError,
          in_spec ? "op '" + excerpt(name) + "' not supported: the server declares no capability for it"
                  : "unknown op '" + excerpt(name) + "'");
@@ -149,8 +157,8 @@ SessionReply ClientSession::subscribe(const json& request) {
   for (const auto& item : *list) {
     if (!item.is_object() || !item.contains("id") || !item.contains("channelId") || !is_uint32(item["id"]) ||
         !is_uint32(item["channelId"])) {
-      return malformed(kCloseInvalidPayload, "subscribe: entry " + excerpt(to_text(item)) +
-                                                 " is not {id: uint32, channelId: uint32}");
+      return malformed(kCloseInvalidPayload,
+                       "subscribe: entry " + excerpt(to_text(item)) + " is not {id: uint32, channelId: uint32}");
     }
   }
   SessionReply reply;
@@ -163,8 +171,9 @@ SessionReply ClientSession::subscribe(const json& request) {
     } else if (channel_of_subscription_.count(id) != 0) {
       reject(reply, StatusLevel::kError, "subscribe: subscription id " + std::to_string(id) + " is in use");
     } else if (const auto existing = subscription_for(channel)) {
-      reject(reply, StatusLevel::kWarning, "subscribe: channel " + std::to_string(channel) +
-                                               " is already subscribed as subscription " + std::to_string(*existing));
+      reject(reply, StatusLevel::kWarning,
+             "subscribe: channel " + std::to_string(channel) + " is already subscribed as subscription " +
+                 std::to_string(*existing));
     } else {
       channel_of_subscription_[id] = channel;
       subscription_of_channel_[channel] = id;

@@ -47,9 +47,9 @@ class Server::Impl {
       index_of_channel_[channels_[i].id] = i;
       channel_ids_.push_back(channels_[i].id);
     }
-    session_id_ = std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(
-                                     std::chrono::system_clock::now().time_since_epoch())
-                                     .count());
+    session_id_ = std::to_string(
+        std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch())
+            .count());
     server_info_ = server_info_json(options_.name, session_id_, options_.metadata);
     advertise_ = advertise_json(channels_);
   }
@@ -181,7 +181,10 @@ class Server::Impl {
   struct Client {
     Client(std::uint64_t client_id, connection_hdl handle, std::string from, std::vector<ChannelId> channels,
            std::size_t queue_frames)
-        : id(client_id), hdl(std::move(handle)), remote(std::move(from)), session(std::move(channels)),
+        : id(client_id),
+          hdl(std::move(handle)),
+          remote(std::move(from)),
+          session(std::move(channels)),
           queue(queue_frames) {}
     const std::uint64_t id;
     const connection_hdl hdl;
@@ -289,10 +292,10 @@ class Server::Impl {
     }
     // websocketpp echoes a client's close with the client's code, so "who closed" is ours to know.
     const bool bridge_closed = client->closed_by_bridge || is_bad_input_close(local_code);
-    const std::string how = bridge_closed ? "closed by the bridge: " + std::to_string(local_code) + " " +
-                                                con->get_local_close_reason()
-                                          : "closed by the client: " + std::to_string(con->get_remote_close_code()) +
-                                                " " + con->get_remote_close_reason();
+    const std::string how =
+        bridge_closed ? "closed by the bridge: " + std::to_string(local_code) + " " + con->get_local_close_reason()
+                      : "closed by the client: " + std::to_string(con->get_remote_close_code()) + " " +
+                            con->get_remote_close_reason();
     log_("client " + std::to_string(client->id) + " disconnected (" + how + "), " + std::to_string(client->sent) +
          " frames sent, " + std::to_string(dropped_in_queue + client->dropped_at_socket) + " dropped");
   }

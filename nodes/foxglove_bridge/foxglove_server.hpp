@@ -35,10 +35,10 @@ struct ServerOptions {
 };
 
 struct ServerCounters {
-  std::uint64_t clients_connected = 0;     // now
-  std::uint64_t clients_peak = 0;          // most connected at once since start (<= max_clients)
-  std::uint64_t connections_total = 0;     // opened since start
-  std::uint64_t handshakes_failed = 0;     // not a WebSocket, wrong subprotocol, server full
+  std::uint64_t clients_connected = 0;  // now
+  std::uint64_t clients_peak = 0;       // most connected at once since start (<= max_clients)
+  std::uint64_t connections_total = 0;  // opened since start
+  std::uint64_t handshakes_failed = 0;  // not a WebSocket, wrong subprotocol, server full
   std::uint64_t frames_sent = 0;
   std::uint64_t frames_dropped = 0;        // slow clients: queue full or socket backlog over the cap
   std::uint64_t bad_requests = 0;          // client messages answered with an error or warning status

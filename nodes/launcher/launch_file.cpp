@@ -44,15 +44,11 @@ bool matches(const std::string& text, bool (*allowed)(char)) {
   return true;
 }
 
-bool is_alnum(char c) {
-  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9');
-}
+bool is_alnum(char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9'); }
 bool node_name_char(char c) { return is_alnum(c) || c == '_' || c == '-'; }
 bool host_name_char(char c) { return node_name_char(c) || c == '.'; }
 bool identifier_char(char c) { return is_alnum(c) || c == '_'; }
-bool is_identifier(const std::string& s) {
-  return matches(s, identifier_char) && !(s[0] >= '0' && s[0] <= '9');
-}
+bool is_identifier(const std::string& s) { return matches(s, identifier_char) && !(s[0] >= '0' && s[0] <= '9'); }
 
 // Describes a YAML value for messages, quoting scalars.
 std::string describe(const YAML::Node& node) {
@@ -79,8 +75,7 @@ class Location {
     return path.empty() ? out : out + ": " + path;
   }
 
-  [[noreturn]] void fail(const YAML::Node& node, const std::string& path,
-                         const std::string& what) const {
+  [[noreturn]] void fail(const YAML::Node& node, const std::string& path, const std::string& what) const {
     throw LaunchFileError(at(node, path) + ": " + what);
   }
 
@@ -89,15 +84,14 @@ class Location {
 };
 
 // The keys of a map in file order, each checked against `allowed` and for duplicates.
-std::vector<std::pair<std::string, YAML::Node>> checked_fields(
-    const Location& loc, const YAML::Node& map, const std::string& path,
-    const std::vector<std::string>& allowed) {
+std::vector<std::pair<std::string, YAML::Node>> checked_fields(const Location& loc, const YAML::Node& map,
+                                                               const std::string& path,
+                                                               const std::vector<std::string>& allowed) {
   std::vector<std::pair<std::string, YAML::Node>> fields;
   std::set<std::string> seen;
   const std::string prefix = path.empty() ? "" : path + ".";
   for (const auto& kv : map) {
-    if (!kv.first.IsScalar())
-      loc.fail(kv.first, path, "keys must be strings, got " + describe(kv.first));
+    if (!kv.first.IsScalar()) loc.fail(kv.first, path, "keys must be strings, got " + describe(kv.first));
     const std::string key = kv.first.Scalar();
     if (!allowed.empty()) {
       bool known = false;
@@ -110,8 +104,7 @@ std::vector<std::pair<std::string, YAML::Node>> checked_fields(
   return fields;
 }
 
-const YAML::Node* find(const std::vector<std::pair<std::string, YAML::Node>>& fields,
-                       const std::string& key) {
+const YAML::Node* find(const std::vector<std::pair<std::string, YAML::Node>>& fields, const std::string& key) {
   for (const auto& kv : fields) {
     if (kv.first == key) return &kv.second;
   }
@@ -119,8 +112,8 @@ const YAML::Node* find(const std::vector<std::pair<std::string, YAML::Node>>& fi
 }
 
 const YAML::Node& require(const Location& loc, const YAML::Node& map,
-                          const std::vector<std::pair<std::string, YAML::Node>>& fields,
-                          const std::string& path, const std::string& key) {
+                          const std::vector<std::pair<std::string, YAML::Node>>& fields, const std::string& path,
+                          const std::string& key) {
   const YAML::Node* node = find(fields, key);
   if (node == nullptr) {
     loc.fail(map, path, "missing required key '" + key + "'");
@@ -149,10 +142,8 @@ bool bool_value(const Location& loc, const YAML::Node& node, const std::string& 
 }
 
 std::vector<std::string> parse_hosts(const Location& loc, const YAML::Node& node) {
-  if (!node.IsSequence())
-    loc.fail(node, "hosts", "must be a list of host names, got " + describe(node));
-  if (node.size() == 0)
-    loc.fail(node, "hosts", "must not be empty (leave it out for one host 'local')");
+  if (!node.IsSequence()) loc.fail(node, "hosts", "must be a list of host names, got " + describe(node));
+  if (node.size() == 0) loc.fail(node, "hosts", "must not be empty (leave it out for one host 'local')");
   std::vector<std::string> hosts;
   for (std::size_t i = 0; i < node.size(); ++i) {
     const std::string path = "hosts[" + std::to_string(i) + "]";
@@ -169,13 +160,11 @@ std::vector<std::string> parse_hosts(const Location& loc, const YAML::Node& node
 }
 
 std::map<std::string, std::string> parse_args(const Location& loc, const YAML::Node& node) {
-  if (!node.IsMap())
-    loc.fail(node, "args", "must be a map of arg names to default values, got " + describe(node));
+  if (!node.IsMap()) loc.fail(node, "args", "must be a map of arg names to default values, got " + describe(node));
   std::map<std::string, std::string> args;
   for (const auto& [key, value] : checked_fields(loc, node, "args", {})) {
     const std::string path = "args." + key;
-    if (!is_identifier(key))
-      loc.fail(value, path, "'" + key + "' is not an arg name ([A-Za-z_][A-Za-z0-9_]*)");
+    if (!is_identifier(key)) loc.fail(value, path, "'" + key + "' is not an arg name ([A-Za-z_][A-Za-z0-9_]*)");
     args[key] = string_value(loc, value, path);
   }
   return args;
@@ -209,10 +198,8 @@ bool evaluate_condition(const std::string& text, const std::string& where) {
 namespace {
 
 NodeSpec parse_node(const Location& loc, const YAML::Node& node, const std::string& path,
-                    const std::vector<std::string>& hosts,
-                    const std::map<std::string, std::string>& args) {
-  if (!node.IsMap())
-    loc.fail(node, path, "must be a map with at least name and executable, got " + describe(node));
+                    const std::vector<std::string>& hosts, const std::map<std::string, std::string>& args) {
+  if (!node.IsMap()) loc.fail(node, path, "must be a map with at least name and executable, got " + describe(node));
   const auto fields = checked_fields(loc, node, path, kNodeKeys);
   NodeSpec spec;
 
@@ -227,8 +214,7 @@ NodeSpec parse_node(const Location& loc, const YAML::Node& node, const std::stri
 
   const YAML::Node& exe = require(loc, node, fields, path, "executable");
   const std::string exe_path = path + ".executable";
-  spec.executable =
-      substitute_args(non_empty_string(loc, exe, exe_path), args, loc.at(exe, exe_path));
+  spec.executable = substitute_args(non_empty_string(loc, exe, exe_path), args, loc.at(exe, exe_path));
   if (spec.executable.empty()) loc.fail(exe, exe_path, "is empty after substitution");
 
   spec.host = hosts.front();
@@ -237,8 +223,7 @@ NodeSpec parse_node(const Location& loc, const YAML::Node& node, const std::stri
     bool known = false;
     for (const auto& h : hosts) known = known || h == spec.host;
     if (!known) {
-      loc.fail(*host, path + ".host",
-               "'" + spec.host + "' is not among hosts [" + join(hosts) + "]");
+      loc.fail(*host, path + ".host", "'" + spec.host + "' is not among hosts [" + join(hosts) + "]");
     }
   }
 
@@ -249,24 +234,20 @@ NodeSpec parse_node(const Location& loc, const YAML::Node& node, const std::stri
     for (std::size_t i = 0; i < list->size(); ++i) {
       const std::string item_path = path + ".args[" + std::to_string(i) + "]";
       const YAML::Node item = (*list)[i];
-      spec.args.push_back(
-          substitute_args(string_value(loc, item, item_path), args, loc.at(item, item_path)));
+      spec.args.push_back(substitute_args(string_value(loc, item, item_path), args, loc.at(item, item_path)));
     }
   }
 
   if (const YAML::Node* env = find(fields, "env")) {
     if (!env->IsMap()) {
-      loc.fail(*env, path + ".env",
-               "must be a map of variable names to strings, got " + describe(*env));
+      loc.fail(*env, path + ".env", "must be a map of variable names to strings, got " + describe(*env));
     }
     for (const auto& [key, value] : checked_fields(loc, *env, path + ".env", {})) {
       const std::string var_path = path + ".env." + key;
       if (!is_identifier(key)) {
-        loc.fail(value, var_path,
-                 "'" + key + "' is not an environment variable name ([A-Za-z_][A-Za-z0-9_]*)");
+        loc.fail(value, var_path, "'" + key + "' is not an environment variable name ([A-Za-z_][A-Za-z0-9_]*)");
       }
-      spec.env.emplace_back(
-          key, substitute_args(string_value(loc, value, var_path), args, loc.at(value, var_path)));
+      spec.env.emplace_back(key, substitute_args(string_value(loc, value, var_path), args, loc.at(value, var_path)));
     }
   }
 
@@ -309,7 +290,8 @@ void apply_container(const Location& loc, const YAML::Node& node, const std::str
   bool enabled = true;
   if (const YAML::Node* condition = find(fields, "if")) {
     const std::string where = loc.at(*condition, path + ".if");
-    enabled = evaluate_condition(substitute_args(string_value(loc, *condition, path + ".if"), launch.args, where), where);
+    enabled =
+        evaluate_condition(substitute_args(string_value(loc, *condition, path + ".if"), launch.args, where), where);
   }
   const YAML::Node& list = require(loc, node, fields, path, "components");
   const std::vector<std::string> names = string_list(loc, list, path + ".components", launch.args);
@@ -317,9 +299,11 @@ void apply_container(const Location& loc, const YAML::Node& node, const std::str
   if (!enabled) {
     // Left out, but its names checked all the same: a typo shows whatever the args.
     for (std::size_t i = 0; i < names.size(); ++i) {
-      const bool known = std::any_of(all_nodes.begin(), all_nodes.end(), [&](const NodeSpec& n) { return n.name == names[i]; });
+      const bool known =
+          std::any_of(all_nodes.begin(), all_nodes.end(), [&](const NodeSpec& n) { return n.name == names[i]; });
       if (!known) {
-        loc.fail(list[i], path + ".components[" + std::to_string(i) + "]", "'" + names[i] + "' is not a node of this file");
+        loc.fail(list[i], path + ".components[" + std::to_string(i) + "]",
+                 "'" + names[i] + "' is not a node of this file");
       }
     }
     launch.left_out.push_back(name);
@@ -339,7 +323,8 @@ void apply_container(const Location& loc, const YAML::Node& node, const std::str
   std::size_t first_index = launch.nodes.size();
   for (std::size_t i = 0; i < names.size(); ++i) {
     const std::string item_path = path + ".components[" + std::to_string(i) + "]";
-    const auto in_file = std::find_if(all_nodes.begin(), all_nodes.end(), [&](const NodeSpec& n) { return n.name == names[i]; });
+    const auto in_file =
+        std::find_if(all_nodes.begin(), all_nodes.end(), [&](const NodeSpec& n) { return n.name == names[i]; });
     if (in_file == all_nodes.end()) {
       std::vector<std::string> known;
       for (const auto& n : all_nodes) known.push_back(n.name);
@@ -348,20 +333,25 @@ void apply_container(const Location& loc, const YAML::Node& node, const std::str
     if (!taken.insert(names[i]).second) loc.fail(list[i], item_path, "'" + names[i] + "' is already in a container");
     if (!in_file->enabled) continue;  // left out by its own `if`
     if (!in_file->env.empty()) {
-      loc.fail(list[i], item_path, "'" + names[i] + "' sets env: the components of a container share one process's "
-                                   "environment; run it alone or move the variables to the launch");
+      loc.fail(list[i], item_path,
+               "'" + names[i] +
+                   "' sets env: the components of a container share one process's "
+                   "environment; run it alone or move the variables to the launch");
     }
     if (in_file->executable.find('/') != std::string::npos) {
-      loc.fail(list[i], item_path, "'" + names[i] + "' runs '" + in_file->executable +
-                                   "': a container makes components by node name (plant_sim, controller, ...), not paths");
+      loc.fail(list[i], item_path,
+               "'" + names[i] + "' runs '" + in_file->executable +
+                   "': a container makes components by node name (plant_sim, controller, ...), not paths");
     }
     // With its own `host` the container takes its components there; without, they share one.
     if (!host) host = in_file->host;
     if (!find(fields, "host") && in_file->host != *host) {
-      loc.fail(list[i], item_path, "'" + names[i] + "' is on host " + in_file->host + ", the container on " + *host +
-                                   ": a container is one process on one host");
+      loc.fail(list[i], item_path,
+               "'" + names[i] + "' is on host " + in_file->host + ", the container on " + *host +
+                   ": a container is one process on one host");
     }
-    const auto at = std::find_if(launch.nodes.begin(), launch.nodes.end(), [&](const NodeSpec& n) { return n.name == names[i]; });
+    const auto at =
+        std::find_if(launch.nodes.begin(), launch.nodes.end(), [&](const NodeSpec& n) { return n.name == names[i]; });
     first_index = std::min(first_index, static_cast<std::size_t>(at - launch.nodes.begin()));
     spec.components.push_back(names[i]);
     spec.ends_launch = spec.ends_launch || in_file->ends_launch;
@@ -393,14 +383,13 @@ void apply_container(const Location& loc, const YAML::Node& node, const std::str
 
 }  // namespace
 
-LaunchDescription parse_launch(const std::string& text, const std::string& source,
-                               const ArgOverrides& overrides) {
+LaunchDescription parse_launch(const std::string& text, const std::string& source, const ArgOverrides& overrides) {
   YAML::Node root;
   try {
     root = YAML::Load(text);
   } catch (const YAML::ParserException& e) {
-    throw LaunchFileError(source + ":" + std::to_string(e.mark.line + 1) + ":" +
-                          std::to_string(e.mark.column + 1) + ": invalid YAML: " + e.msg);
+    throw LaunchFileError(source + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1) +
+                          ": invalid YAML: " + e.msg);
   } catch (const YAML::Exception& e) {
     throw LaunchFileError(source + ": invalid YAML: " + e.what());
   }
@@ -428,8 +417,7 @@ LaunchDescription parse_launch(const std::string& text, const std::string& sourc
   if (const YAML::Node* hosts = find(fields, "hosts")) launch.hosts = parse_hosts(loc, *hosts);
 
   const YAML::Node& nodes = require(loc, root, fields, "", "nodes");
-  if (!nodes.IsSequence())
-    loc.fail(nodes, "nodes", "must be a list of nodes, got " + describe(nodes));
+  if (!nodes.IsSequence()) loc.fail(nodes, "nodes", "must be a list of nodes, got " + describe(nodes));
   if (nodes.size() == 0) loc.fail(nodes, "nodes", "must list at least one node");
   std::map<std::string, std::size_t> index_of;
   std::vector<NodeSpec> all_nodes;
@@ -439,9 +427,8 @@ LaunchDescription parse_launch(const std::string& text, const std::string& sourc
     all_nodes.push_back(spec);
     const auto [it, inserted] = index_of.emplace(spec.name, i);
     if (!inserted) {
-      loc.fail(
-          nodes[i]["name"], path + ".name",
-          "'" + spec.name + "' is already the name of nodes[" + std::to_string(it->second) + "]");
+      loc.fail(nodes[i]["name"], path + ".name",
+               "'" + spec.name + "' is already the name of nodes[" + std::to_string(it->second) + "]");
     }
     if (spec.enabled) {
       launch.nodes.push_back(std::move(spec));
@@ -503,13 +490,12 @@ std::string substitute_args(const std::string& text, const std::map<std::string,
     std::string kind, name, extra;
     inner >> kind >> name >> extra;
     if (kind != "arg" || name.empty() || !extra.empty()) {
-      throw LaunchFileError(where + ": '" + text + "': unknown substitution '" +
-                            text.substr(open, close - open + 1) + "' (only $(arg NAME) exists)");
+      throw LaunchFileError(where + ": '" + text + "': unknown substitution '" + text.substr(open, close - open + 1) +
+                            "' (only $(arg NAME) exists)");
     }
     const auto it = args.find(name);
     if (it == args.end()) {
-      throw LaunchFileError(where + ": '" + text + "': unknown arg '" + name +
-                            "' (declared: " + join_keys(args) + ")");
+      throw LaunchFileError(where + ": '" + text + "': unknown arg '" + name + "' (declared: " + join_keys(args) + ")");
     }
     out += it->second;
     pos = close + 1;
@@ -518,14 +504,12 @@ std::string substitute_args(const std::string& text, const std::map<std::string,
   return out;
 }
 
-std::vector<NodeSpec> select_nodes(const LaunchDescription& launch,
-                                   const std::optional<std::string>& host) {
+std::vector<NodeSpec> select_nodes(const LaunchDescription& launch, const std::optional<std::string>& host) {
   if (!host) return launch.nodes;
   bool known = false;
   for (const auto& h : launch.hosts) known = known || h == *host;
   if (!known) {
-    throw LaunchFileError(launch.source + ": --host '" + *host +
-                          "': unknown host (known: " + join(launch.hosts) + ")");
+    throw LaunchFileError(launch.source + ": --host '" + *host + "': unknown host (known: " + join(launch.hosts) + ")");
   }
   std::vector<NodeSpec> selected;
   for (const auto& node : launch.nodes) {
@@ -534,12 +518,10 @@ std::vector<NodeSpec> select_nodes(const LaunchDescription& launch,
   return selected;
 }
 
-std::string resolve_executable(const std::string& executable, const std::string& bin_dir,
-                               const std::string& path_env) {
+std::string resolve_executable(const std::string& executable, const std::string& bin_dir, const std::string& path_env) {
   const auto usable = [](const std::string& path) {
     struct stat st {};
-    return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) &&
-           ::access(path.c_str(), X_OK) == 0;
+    return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) && ::access(path.c_str(), X_OK) == 0;
   };
   if (executable.find('/') != std::string::npos) {
     if (usable(executable)) return executable;
@@ -547,8 +529,7 @@ std::string resolve_executable(const std::string& executable, const std::string&
     const std::string cwd = std::filesystem::current_path(ec).string();
     struct stat st {};
     const bool exists = ::stat(executable.c_str(), &st) == 0;
-    throw ExecutableNotFound("executable '" + executable + "' " +
-                             (exists ? "is not an executable file" : "not found") +
+    throw ExecutableNotFound("executable '" + executable + "' " + (exists ? "is not an executable file" : "not found") +
                              (executable[0] == '/' ? std::string() : " (relative to " + cwd + ")"));
   }
   std::vector<std::string> dirs;
@@ -556,8 +537,7 @@ std::string resolve_executable(const std::string& executable, const std::string&
   std::size_t start = 0;
   while (!path_env.empty()) {
     const std::size_t colon = path_env.find(':', start);
-    const std::string dir =
-        path_env.substr(start, colon == std::string::npos ? colon : colon - start);
+    const std::string dir = path_env.substr(start, colon == std::string::npos ? colon : colon - start);
     // POSIX: an empty PATH entry means the current directory.
     const std::string entry = dir.empty() ? "." : dir;
     if (std::find(dirs.begin(), dirs.end(), entry) == dirs.end()) dirs.push_back(entry);
@@ -568,8 +548,7 @@ std::string resolve_executable(const std::string& executable, const std::string&
     const std::string candidate = dir + "/" + executable;
     if (usable(candidate)) return candidate;
   }
-  throw ExecutableNotFound("executable '" + executable + "' not found (looked in " + join(dirs) +
-                           ")");
+  throw ExecutableNotFound("executable '" + executable + "' not found (looked in " + join(dirs) + ")");
 }
 
 std::string slice_yaml(const std::string& name, const std::string& host, const std::vector<NodeSpec>& nodes) {
@@ -599,8 +578,7 @@ std::string slice_yaml(const std::string& name, const std::string& host, const s
 }
 
 std::string shell_quote(const std::string& word) {
-  static const std::string plain =
-      "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_@%+=:,./-";
+  static const std::string plain = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_@%+=:,./-";
   if (!word.empty() && word.find_first_not_of(plain) == std::string::npos) return word;
   std::string out = "'";
   for (char c : word) out += c == '\'' ? std::string("'\\''") : std::string(1, c);

@@ -54,8 +54,7 @@ using ArgOverrides = std::map<std::string, std::string>;
 // components in `nodes` by one node that runs the `container` executable with them, at the
 // place of its first component; its args are the container's own options.
 // @throws LaunchFileError
-LaunchDescription parse_launch(const std::string& text, const std::string& source,
-                               const ArgOverrides& overrides = {});
+LaunchDescription parse_launch(const std::string& text, const std::string& source, const ArgOverrides& overrides = {});
 
 // Reads `path` and parses it as above.
 // @throws LaunchFileError
@@ -73,15 +72,13 @@ std::string substitute_args(const std::string& text, const std::map<std::string,
 
 // The nodes that run on `host` (all of them without a host), in file order.
 // @throws LaunchFileError for a host not in the description, listing the known ones
-std::vector<NodeSpec> select_nodes(const LaunchDescription& launch,
-                                   const std::optional<std::string>& host);
+std::vector<NodeSpec> select_nodes(const LaunchDescription& launch, const std::optional<std::string>& host);
 
 // The program to exec for `executable`: a name is looked up in bin_dir, then in
 // each PATH entry (path_env is PATH's value); a name containing '/' is used as
 // given (relative to the current directory). Only executable regular files count.
 // @throws ExecutableNotFound saying where it looked
-std::string resolve_executable(const std::string& executable, const std::string& bin_dir,
-                               const std::string& path_env);
+std::string resolve_executable(const std::string& executable, const std::string& bin_dir, const std::string& path_env);
 
 // A node's `if` after substitution: "true", "false", "A == B" or "A != B" (texts compared
 // after trimming blanks). @throws LaunchFileError naming `where` for anything else.

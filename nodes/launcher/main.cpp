@@ -27,15 +27,12 @@ constexpr int kMaxMs = 24 * 3600 * 1000;
 
 std::string quoted_command(const ProcessSpec& p) {
   std::string out;
-  for (const auto& word : p.argv)
-    out += (out.empty() ? "" : " ") + pmlsm::launch::shell_quote(word);
+  for (const auto& word : p.argv) out += (out.empty() ? "" : " ") + pmlsm::launch::shell_quote(word);
   return out;
 }
 
-void print_dry_run(const pmlsm::launch::NodeSpec& node, const ProcessSpec& process,
-                   const std::string& not_found) {
-  std::cout << node.name << " (host " << node.host << (node.ends_launch ? ", ends the launch" : "")
-            << ")\n";
+void print_dry_run(const pmlsm::launch::NodeSpec& node, const ProcessSpec& process, const std::string& not_found) {
+  std::cout << node.name << " (host " << node.host << (node.ends_launch ? ", ends the launch" : "") << ")\n";
   if (!node.components.empty()) {
     std::cout << "  container of:";
     for (const auto& c : node.components) std::cout << " " << c;
@@ -66,17 +63,14 @@ int main(int argc, char** argv) {
   std::vector<std::string> arg_texts;
   app.add_option("file", file, "Launch description (YAML)")->required();
   auto* host_option = app.add_option("--host", host, "Start only the nodes of this host");
-  app.add_option("--bin-dir", bin_dir,
-                 "Where node executables are looked up first (default: the launcher's folder)")
+  app.add_option("--bin-dir", bin_dir, "Where node executables are looked up first (default: the launcher's folder)")
       ->check(CLI::ExistingDirectory);
-  app.add_flag("--dry-run", dry_run,
-               "Print each node's command line and environment, start nothing");
+  app.add_flag("--dry-run", dry_run, "Print each node's command line and environment, start nothing");
   app.add_option("--start-grace-ms", start_grace_ms,
                  "A node failing this soon after its start fails the launch (0: off)")
       ->check(CLI::Range(0, kMaxMs))
       ->capture_default_str();
-  app.add_option("--stop-timeout-ms", stop_timeout_ms,
-                 "Time from SIGINT to SIGKILL when stopping nodes")
+  app.add_option("--stop-timeout-ms", stop_timeout_ms, "Time from SIGINT to SIGKILL when stopping nodes")
       ->check(CLI::Range(0, kMaxMs))
       ->capture_default_str();
   app.add_option("--arg", arg_texts, "Set a launch arg: NAME=VALUE (repeatable)")
@@ -171,14 +165,12 @@ int main(int argc, char** argv) {
     p.ends_launch = node.ends_launch;
     processes.push_back(std::move(p));
   }
-  const bool any_missing =
-      std::any_of(not_found.begin(), not_found.end(), [](const auto& m) { return !m.empty(); });
+  const bool any_missing = std::any_of(not_found.begin(), not_found.end(), [](const auto& m) { return !m.empty(); });
 
   if (dry_run) {
-    std::cout << "# " << launch.name << " (" << launch.source << "), " << slice << ": "
-              << nodes.size() << (nodes.size() == 1 ? " node\n" : " nodes\n");
-    for (std::size_t i = 0; i < nodes.size(); ++i)
-      print_dry_run(nodes[i], processes[i], not_found[i]);
+    std::cout << "# " << launch.name << " (" << launch.source << "), " << slice << ": " << nodes.size()
+              << (nodes.size() == 1 ? " node\n" : " nodes\n");
+    for (std::size_t i = 0; i < nodes.size(); ++i) print_dry_run(nodes[i], processes[i], not_found[i]);
     return any_missing ? 1 : 0;
   }
   if (any_missing) {
@@ -186,8 +178,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (processes.empty()) {
-    std::cerr << "[launcher] " << launch.name << ": no nodes on " << slice
-              << "; nothing to start\n";
+    std::cerr << "[launcher] " << launch.name << ": no nodes on " << slice << "; nothing to start\n";
     return 0;
   }
   std::cerr << "[launcher] " << launch.name << ": starting " << processes.size()

@@ -40,8 +40,7 @@ std::string join(const std::vector<std::string>& items) {
 
 }  // namespace
 
-int run_over_agents(const LaunchDescription& launch, const std::vector<NodeSpec>& nodes,
-                    const RemoteOptions& options) {
+int run_over_agents(const LaunchDescription& launch, const std::vector<NodeSpec>& nodes, const RemoteOptions& options) {
   // Hosts with nodes, in file order, and each one's slice.
   std::vector<std::string> hosts;
   std::map<std::string, std::vector<NodeSpec>> slices;
@@ -78,8 +77,8 @@ int run_over_agents(const LaunchDescription& launch, const std::vector<NodeSpec>
   const std::uint64_t launch_id = node::new_run_id();
   const std::string me = requester();
   agent::LaunchCoordinator coordinator(host_slices, options.agent_wait, options.lease, t_start);
-  say(launch.name + ": " + std::to_string(nodes.size()) + " nodes on " + std::to_string(hosts.size()) +
-      " hosts (" + join(hosts) + ") through their agents, launch " + std::to_string(launch_id) + "; waiting up to " +
+  say(launch.name + ": " + std::to_string(nodes.size()) + " nodes on " + std::to_string(hosts.size()) + " hosts (" +
+      join(hosts) + ") through their agents, launch " + std::to_string(launch_id) + "; waiting up to " +
       std::to_string(options.agent_wait.count()) + " ms for every host's agent");
 
   std::map<std::string, std::string> agent_of;  // host -> agent id
@@ -176,13 +175,13 @@ int run_over_agents(const LaunchDescription& launch, const std::vector<NodeSpec>
       for (const auto& host : coordinator.unfinished_hosts()) {
         if (phase == agent::LaunchCoordinator::Phase::kRunning && confirmed.count(host) == 0)
           send(host, msg::LaunchRequest_Constants::COMMAND_START);
-        if (phase == agent::LaunchCoordinator::Phase::kStopping)
-          send(host, msg::LaunchRequest_Constants::COMMAND_STOP);
+        if (phase == agent::LaunchCoordinator::Phase::kStopping) send(host, msg::LaunchRequest_Constants::COMMAND_STOP);
       }
     }
     if (phase != agent::LaunchCoordinator::Phase::kWaitingForAgents && now >= next_keepalive) {
       next_keepalive = now + keepalive;
-      for (const auto& host : coordinator.unfinished_hosts()) send(host, msg::LaunchRequest_Constants::COMMAND_KEEPALIVE);
+      for (const auto& host : coordinator.unfinished_hosts())
+        send(host, msg::LaunchRequest_Constants::COMMAND_KEEPALIVE);
     }
     const std::uint64_t seen = wakeup.generation();
     wakeup.wait_for(seen, std::chrono::milliseconds(20));

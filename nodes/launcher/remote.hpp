@@ -22,7 +22,6 @@ struct RemoteOptions {
 
 // Runs `nodes` (the enabled nodes of `launch`, every host) through the hosts' agents until every
 // slice ended; the launch's exit code (see LaunchCoordinator::exit_code). Handles SIGINT/SIGTERM.
-int run_over_agents(const LaunchDescription& launch, const std::vector<NodeSpec>& nodes,
-                    const RemoteOptions& options);
+int run_over_agents(const LaunchDescription& launch, const std::vector<NodeSpec>& nodes, const RemoteOptions& options);
 
 }  // namespace pmlsm::launch

@@ -22,9 +22,7 @@ extern char** environ;
 namespace pmlsm::launch {
 
 LineRelay::LineRelay(std::string prefix, Sink sink, std::size_t max_line)
-    : prefix_(std::move(prefix)),
-      sink_(std::move(sink)),
-      max_line_(std::max<std::size_t>(max_line, 1)) {}
+    : prefix_(std::move(prefix)), sink_(std::move(sink)), max_line_(std::max<std::size_t>(max_line, 1)) {}
 
 void LineRelay::feed(const char* data, std::size_t size) {
   std::size_t start = 0;
@@ -128,9 +126,7 @@ const char* signal_name(int sig) {
   }
 }
 
-std::string plural(std::size_t n, const char* word) {
-  return std::to_string(n) + " " + word + (n == 1 ? "" : "s");
-}
+std::string plural(std::size_t n, const char* word) { return std::to_string(n) + " " + word + (n == 1 ? "" : "s"); }
 
 // Blocks the signals the supervisor handles and delivers them through a
 // signalfd, so one poll() waits for output, exits and stop requests alike.
@@ -174,8 +170,7 @@ class SignalChannel {
   // The next pending signal, if any.
   std::optional<int> next() {
     signalfd_siginfo info{};
-    if (::read(fd_.get(), &info, sizeof info) != static_cast<ssize_t>(sizeof info))
-      return std::nullopt;
+    if (::read(fd_.get(), &info, sizeof info) != static_cast<ssize_t>(sizeof info)) return std::nullopt;
     return static_cast<int>(info.ssi_signo);
   }
 
@@ -190,9 +185,7 @@ class SignalChannel {
 
 struct Child {
   Child(const ProcessSpec& spec, const LineRelay::Sink& out_sink, const LineRelay::Sink& err_sink)
-      : spec(&spec),
-        out_relay("[" + spec.name + "] ", out_sink),
-        err_relay("[" + spec.name + "] ", err_sink) {}
+      : spec(&spec), out_relay("[" + spec.name + "] ", out_sink), err_relay("[" + spec.name + "] ", err_sink) {}
   const ProcessSpec* spec;
   pid_t pid = -1;  // >0 from fork until reaped
   Clock::time_point started;
@@ -230,8 +223,8 @@ struct ExecImage {
     for (char** e = environ; e != nullptr && *e != nullptr; ++e) {
       const std::string entry = *e;
       const std::string key = entry.substr(0, entry.find('='));
-      const bool replaced = std::any_of(spec.env.begin(), spec.env.end(),
-                                        [&](const auto& kv) { return kv.first == key; });
+      const bool replaced =
+          std::any_of(spec.env.begin(), spec.env.end(), [&](const auto& kv) { return kv.first == key; });
       if (!replaced) env_store.push_back(entry);
     }
     for (const auto& [key, value] : spec.env) env_store.push_back(key + "=" + value);
@@ -249,12 +242,8 @@ class Supervisor {
  public:
   Supervisor(const std::vector<ProcessSpec>& processes, const SupervisorOptions& options)
       : options_(options), buffer_(64 * 1024) {
-    const LineRelay::Sink out_sink = [this](const std::string& line) {
-      write_all(options_.out_fd, line);
-    };
-    const LineRelay::Sink err_sink = [this](const std::string& line) {
-      write_all(options_.err_fd, line);
-    };
+    const LineRelay::Sink out_sink = [this](const std::string& line) { write_all(options_.out_fd, line); };
+    const LineRelay::Sink err_sink = [this](const std::string& line) { write_all(options_.err_fd, line); };
     children_.reserve(processes.size());
     for (const auto& spec : processes) children_.emplace_back(spec, out_sink, err_sink);
   }
@@ -276,13 +265,10 @@ class Supervisor {
   }
 
  private:
-  void report(const std::string& message) const {
-    write_all(options_.err_fd, "[launcher] " + message + "\n");
-  }
+  void report(const std::string& message) const { write_all(options_.err_fd, "[launcher] " + message + "\n"); }
 
   bool any_running() const {
-    return std::any_of(children_.begin(), children_.end(),
-                       [](const Child& c) { return c.running; });
+    return std::any_of(children_.begin(), children_.end(), [](const Child& c) { return c.running; });
   }
 
   bool start(Child& child, int dev_null) {
@@ -315,8 +301,8 @@ class Supervisor {
     int child_errno = 0;
     std::size_t got = 0;
     while (got < sizeof child_errno) {
-      const ssize_t n = ::read(status_read.get(), reinterpret_cast<char*>(&child_errno) + got,
-                               sizeof child_errno - got);
+      const ssize_t n =
+          ::read(status_read.get(), reinterpret_cast<char*>(&child_errno) + got, sizeof child_errno - got);
       if (n > 0) {
         got += static_cast<std::size_t>(n);
       } else if (n == 0 || errno != EINTR) {
@@ -342,15 +328,14 @@ class Supervisor {
   }
 
   bool start_error(Child& child, const char* call) {
-    report("node '" + child.spec->name + "' failed to start: " + call + ": " +
-           std::strerror(errno));
+    report("node '" + child.spec->name + "' failed to start: " + call + ": " + std::strerror(errno));
     child.outcome = std::string("not started (") + call + " failed)";
     note_failure(child, pmlsm::kExitError);
     return false;
   }
 
-  [[noreturn]] static void exec_child(const ExecImage& image, pid_t parent, int dev_null,
-                                      int out_fd, int err_fd, int status_fd) {
+  [[noreturn]] static void exec_child(const ExecImage& image, pid_t parent, int dev_null, int out_fd, int err_fd,
+                                      int status_fd) {
     ::setpgid(0, 0);  // away from the terminal's group: only the launcher forwards Ctrl-C
 #ifdef __linux__
     // Nodes stop too if the launcher is killed outright.
@@ -365,8 +350,7 @@ class Supervisor {
     // Ignored signals and the blocked mask survive exec: give the node a clean slate.
     struct sigaction dfl {};
     dfl.sa_handler = SIG_DFL;
-    for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGCHLD, SIGPIPE, SIGQUIT})
-      ::sigaction(sig, &dfl, nullptr);
+    for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGCHLD, SIGPIPE, SIGQUIT}) ::sigaction(sig, &dfl, nullptr);
     sigset_t none;
     sigemptyset(&none);
     ::sigprocmask(SIG_SETMASK, &none, nullptr);
@@ -391,8 +375,7 @@ class Supervisor {
     }
     int timeout_ms = -1;
     if (kill_deadline_) {
-      const auto left =
-          std::chrono::ceil<std::chrono::milliseconds>(*kill_deadline_ - Clock::now());
+      const auto left = std::chrono::ceil<std::chrono::milliseconds>(*kill_deadline_ - Clock::now());
       timeout_ms = static_cast<int>(std::clamp<long long>(left.count(), 0, INT_MAX));
     }
     const int ready = ::poll(fds.data(), fds.size(), timeout_ms);
@@ -419,8 +402,8 @@ class Supervisor {
       kill_deadline_.reset();
       for (Child& c : children_) {
         if (c.running && !c.kill_sent) {
-          report(c.spec->name + " did not stop within " +
-                 std::to_string(options_.stop_timeout.count()) + " ms of SIGINT; sending SIGKILL");
+          report(c.spec->name + " did not stop within " + std::to_string(options_.stop_timeout.count()) +
+                 " ms of SIGINT; sending SIGKILL");
           send(c, SIGKILL);
         }
       }
@@ -449,8 +432,8 @@ class Supervisor {
       int status = 0;
       const pid_t pid = ::waitpid(-1, &status, WNOHANG);
       if (pid <= 0) return;
-      const auto it = std::find_if(children_.begin(), children_.end(),
-                                   [pid](const Child& c) { return c.running && c.pid == pid; });
+      const auto it =
+          std::find_if(children_.begin(), children_.end(), [pid](const Child& c) { return c.running && c.pid == pid; });
       if (it != children_.end()) on_exit(*it, status);
     }
   }
@@ -473,16 +456,14 @@ class Supervisor {
     c.outcome = describe_exit(c, status);
     report(c.spec->name + " " + c.outcome);
     const bool exited_zero = WIFEXITED(status) && WEXITSTATUS(status) == 0;
-    const bool ended_by_our_sigint =
-        c.stop_sent && !c.kill_sent && WIFSIGNALED(status) && WTERMSIG(status) == SIGINT;
+    const bool ended_by_our_sigint = c.stop_sent && !c.kill_sent && WIFSIGNALED(status) && WTERMSIG(status) == SIGINT;
     c.clean = exited_zero || ended_by_our_sigint;
     if (!c.clean) {
       // A node's own code says why it failed; a signal (or a SIGKILL the stop
       // needed) carries no code, so it is a plain error.
       note_failure(c, WIFEXITED(status) ? WEXITSTATUS(status) : pmlsm::kExitError);
     }
-    if (!c.clean && !c.stop_sent && options_.start_grace.count() > 0 &&
-        lived < options_.start_grace) {
+    if (!c.clean && !c.stop_sent && options_.start_grace.count() > 0 && lived < options_.start_grace) {
       report("node '" + c.spec->name + "' died at start: " + c.outcome);
       request_stop();
     } else if (c.spec->ends_launch && !stopping_) {
@@ -547,8 +528,7 @@ class Supervisor {
   }
 
   int summarise() const {
-    const bool all_clean =
-        std::all_of(children_.begin(), children_.end(), [](const Child& c) { return c.clean; });
+    const bool all_clean = std::all_of(children_.begin(), children_.end(), [](const Child& c) { return c.clean; });
     if (all_clean && !failed_) {
       report("all " + plural(children_.size(), "node") + " ended cleanly");
       return pmlsm::kExitOk;
@@ -558,12 +538,10 @@ class Supervisor {
     // The rest: nodes left unstarted after an earlier one failed to start.
     for (const Child& c : children_) {
       const bool listed = std::find(failures_.begin(), failures_.end(), &c) != failures_.end();
-      if (!c.clean && !listed)
-        problems.push_back(c.spec->name + " " + (c.outcome.empty() ? "not started" : c.outcome));
+      if (!c.clean && !listed) problems.push_back(c.spec->name + " " + (c.outcome.empty() ? "not started" : c.outcome));
     }
     std::string text = "launch failed with exit code " + std::to_string(exit_code_);
-    if (failures_.size() > 1)
-      text += " (from " + failures_.front()->spec->name + ", the first to fail)";
+    if (failures_.size() > 1) text += " (from " + failures_.front()->spec->name + ", the first to fail)";
     std::string list;
     for (const auto& p : problems) list += (list.empty() ? "" : "; ") + p;
     report(text + (list.empty() ? "" : ": " + list));
@@ -575,7 +553,7 @@ class Supervisor {
   std::vector<Child> children_;
   std::vector<char> buffer_;
   bool stopping_ = false;
-  bool failed_ = false;  // the launcher's own failure (poll)
+  bool failed_ = false;                 // the launcher's own failure (poll)
   std::vector<const Child*> failures_;  // nodes that did not end cleanly, first seen first
   int exit_code_ = pmlsm::kExitError;
   std::optional<Clock::time_point> kill_deadline_;

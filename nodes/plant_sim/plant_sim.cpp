@@ -134,7 +134,8 @@ class PlantSimHooks final : public node::DriveNodeHooks {
 
 class PlantSimComponent final : public node::Component {
  public:
-  PlantSimComponent(const node::ComponentContext& context, node::CommonOptions common, const node::DriveNodeOptions& opt)
+  PlantSimComponent(const node::ComponentContext& context, node::CommonOptions common,
+                    const node::DriveNodeOptions& opt)
       : common_(std::move(common)),
         rt_("plant_sim", common_, context),
         hooks_(checked(rt_, opt, common_), common_),

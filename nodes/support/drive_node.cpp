@@ -30,8 +30,7 @@ double process_cpu_s() {
 }  // namespace
 
 void add_drive_node_options(CLI::App& app, DriveNodeOptions& opt) {
-  app.add_option("--peers", opt.peers, "MotorFeedback readers to wait for before tick 0")
-      ->check(CLI::Range(1, 64));
+  app.add_option("--peers", opt.peers, "MotorFeedback readers to wait for before tick 0")->check(CLI::Range(1, 64));
   app.add_option("--watchdog-ms", opt.watchdog_ms, "realtime: the oldest unanswered feedback this old -> fault")
       ->check(CLI::PositiveNumber);
   app.add_option("--watchdog-arm-ticks", opt.watchdog_arm_ticks,
@@ -68,8 +67,8 @@ void check_drive_node_options(const char* node_name, const DriveNodeOptions& opt
                       std::to_string(rt.period_s * 1e3) + " ms)");
   }
   if (common.wake_batch_us > 0.0) {
-    throw ConfigError("--wake-batch-us " + std::to_string(common.wake_batch_us) +
-                      ": " + std::string(node_name) + " is on the control chain; batching would pace the loop");
+    throw ConfigError("--wake-batch-us " + std::to_string(common.wake_batch_us) + ": " + std::string(node_name) +
+                      " is on the control chain; batching would pace the loop");
   }
 }
 
@@ -95,8 +94,9 @@ DriveNode::DriveNode(std::string name, const CommonOptions& common, const DriveN
       run_id_(new_run_id()) {
   loop_.set_run_id(run_id_);
   // Alone: clock_nanosleep; in a container: the other components run meanwhile.
-  clock_.set_sleeper([](void* wakeup, std::int64_t until_ns) { static_cast<dds::Wakeup*>(wakeup)->sleep_until_ns(until_ns); },
-                     &rt_.wakeup);
+  clock_.set_sleeper(
+      [](void* wakeup, std::int64_t until_ns) { static_cast<dds::Wakeup*>(wakeup)->sleep_until_ns(until_ns); },
+      &rt_.wakeup);
   drive_state_.drive_name(name_);
 }
 
@@ -139,7 +139,7 @@ void DriveNode::publish_drive_state(std::uint64_t tick) {
 
 void DriveNode::report(const std::string& message) {
   rt_.status.publish(backend_.power_state() == drive::PowerState::kOperationEnabled ? node_state::STATE_RUNNING
-                                                                                     : node_state::STATE_SAFE,
+                                                                                    : node_state::STATE_SAFE,
                      loop_.statistics().ticks(), period_s_, message);
 }
 
@@ -157,7 +157,8 @@ void DriveNode::serve_drive_control() {
       const drive::TransitionResult r = loop_.request(command, monotonic_ns());
       accepted = r.accepted;
       text = std::string(drive::to_string(command)) + (r.accepted ? "" : " refused") + " in " +
-             drive::to_string(before) + (r.accepted ? " -> " + std::string(drive::to_string(r.to)) : ": " + std::string(r.reason));
+             drive::to_string(before) +
+             (r.accepted ? " -> " + std::string(drive::to_string(r.to)) : ": " + std::string(r.reason));
     }
     if (!accepted) ++refused_requests_;
     std::printf("%s: drive control from %s (request %llu): %s\n", name_.c_str(), control_.requester().c_str(),
@@ -178,9 +179,8 @@ void DriveNode::take_commands(std::uint64_t k) {
     }
     std::uint64_t foreign = 0;
     if (loop_.take_new_foreign_writer(foreign)) {
-      std::fprintf(stderr,
-                   "%s: a second ForceCommand writer (%016llx) at tick %llu: refused; following %016llx\n", name_.c_str(),
-                   static_cast<unsigned long long>(foreign), static_cast<unsigned long long>(k),
+      std::fprintf(stderr, "%s: a second ForceCommand writer (%016llx) at tick %llu: refused; following %016llx\n",
+                   name_.c_str(), static_cast<unsigned long long>(foreign), static_cast<unsigned long long>(k),
                    static_cast<unsigned long long>(loop_.owner_writer_id()));
       rt_.status.publish(node_state::STATE_RUNNING, k, period_s_, "second ForceCommand writer refused");
     }
@@ -200,8 +200,8 @@ void DriveNode::take_commands(std::uint64_t k) {
 int DriveNode::run() {
   if (!wait_for_peers()) {
     if (pdds::stop_requested()) return kExitOk;
-    std::fprintf(stderr, "%s: peers missing after %.1f s: %zu of %d MotorFeedback readers, %zu ForceCommand writers\n", name_.c_str(),
-                 common_.peer_timeout_s, feedback_writer_.matched_readers(), opt_.peers,
+    std::fprintf(stderr, "%s: peers missing after %.1f s: %zu of %d MotorFeedback readers, %zu ForceCommand writers\n",
+                 name_.c_str(), common_.peer_timeout_s, feedback_writer_.matched_readers(), opt_.peers,
                  command_reader_.matched_writers());
     return kExitPeerMissing;
   }
@@ -236,8 +236,8 @@ int DriveNode::run() {
     take_commands(k);
     if (!realtime_ && !loop_.answered()) {
       if (pdds::stop_requested()) break;
-      std::fprintf(stderr, "%s: no ForceCommand for tick %llu within %.1f s: controller lost; safe state\n", name_.c_str(),
-                   static_cast<unsigned long long>(k), common_.peer_timeout_s);
+      std::fprintf(stderr, "%s: no ForceCommand for tick %llu within %.1f s: controller lost; safe state\n",
+                   name_.c_str(), static_cast<unsigned long long>(k), common_.peer_timeout_s);
       rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "controller lost");
       exit_code = kExitPeerLost;
       break;
@@ -264,9 +264,9 @@ int DriveNode::run() {
       std::fprintf(stderr,
                    "%s: watchdog: tick %llu unanswered for %.1f ms at tick %llu: fault 0x%04x, zero force "
                    "[wall %.6f s]\n",
-                   name_.c_str(),
-                   static_cast<unsigned long long>(events.unanswered_tick), opt_.watchdog_ms,
-                   static_cast<unsigned long long>(k), backend_.error_code(), static_cast<double>(tripped_wall_ns) * 1e-9);
+                   name_.c_str(), static_cast<unsigned long long>(events.unanswered_tick), opt_.watchdog_ms,
+                   static_cast<unsigned long long>(k), backend_.error_code(),
+                   static_cast<double>(tripped_wall_ns) * 1e-9);
       rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "watchdog: feedback unanswered, fault, zero force");
       char reason[128];
       std::snprintf(reason, sizeof reason, "watchdog: feedback of tick %llu unanswered for %.1f ms (tick %llu)",
@@ -285,11 +285,12 @@ int DriveNode::run() {
       }
     }
     if (events.controller_lost) {
-      std::fprintf(stderr, "%s: no acceptable ForceCommand for %.0f ms at tick %llu: controller lost [wall %.6f s]\n", name_.c_str(),
-                   loop_.any_command() ? opt_.controller_lost_ms : common_.peer_timeout_s * 1e3,
+      std::fprintf(stderr, "%s: no acceptable ForceCommand for %.0f ms at tick %llu: controller lost [wall %.6f s]\n",
+                   name_.c_str(), loop_.any_command() ? opt_.controller_lost_ms : common_.peer_timeout_s * 1e3,
                    static_cast<unsigned long long>(k), static_cast<double>(wall_time_ns()) * 1e-9);
       rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "controller lost");
-      if (backend_.power_state() == drive::PowerState::kOperationEnabled) loop_.request(drive::DriveCommand::kQuickStop, monotonic_ns());
+      if (backend_.power_state() == drive::PowerState::kOperationEnabled)
+        loop_.request(drive::DriveCommand::kQuickStop, monotonic_ns());
       if (opt_.on_controller_lost == "exit") {
         exit_code = kExitPeerLost;
         ++k;
@@ -305,7 +306,7 @@ int DriveNode::run() {
       s.rejected(loop_.counters().rejected + loop_.counters().foreign);
       s.deadline_misses(loop_.statistics().deadline_misses());
       rt_.status.publish(backend_.power_state() == drive::PowerState::kOperationEnabled ? node_state::STATE_RUNNING
-                                                                                         : node_state::STATE_SAFE,
+                                                                                        : node_state::STATE_SAFE,
                          k, period_s_);
       publish_drive_state(k);
     }
@@ -333,8 +334,8 @@ int DriveNode::finish(std::uint64_t k, int exit_code, double loop_s) {
   }
   const drive::LatencySummary latency = loop_.statistics().latency();
   if (latency.count > 0) {
-    std::printf("%s: chain latency feedback -> command over %zu ticks: p50 %.1f us, p99 %.1f us, max %.1f us\n", name_.c_str(),
-                latency.count, latency.p50_us, latency.p99_us, latency.max_us);
+    std::printf("%s: chain latency feedback -> command over %zu ticks: p50 %.1f us, p99 %.1f us, max %.1f us\n",
+                name_.c_str(), latency.count, latency.p50_us, latency.p99_us, latency.max_us);
   }
   if (k > 0 && loop_s > 0.0) {
     // The whole process: in a container, every component of it.
@@ -346,14 +347,15 @@ int DriveNode::finish(std::uint64_t k, int exit_code, double loop_s) {
     std::printf("%s: %llu of %llu ticks got no acceptable command\n", name_.c_str(),
                 static_cast<unsigned long long>(c.uncommanded_ticks), static_cast<unsigned long long>(k));
   }
-  std::printf("%s: %llu ticks in %.3f s (%.1fx real time), late %llu, rejected %llu, foreign %llu, "
-              "deadline misses %llu, safe ticks %llu, drive stalls %llu, drive %s\n", name_.c_str(),
-              static_cast<unsigned long long>(k), loop_s, static_cast<double>(k) * period_s_ / loop_s,
-              static_cast<unsigned long long>(c.late + hooks_.extra_late()),
-              static_cast<unsigned long long>(c.rejected + hooks_.extra_rejected()), static_cast<unsigned long long>(c.foreign),
-              static_cast<unsigned long long>(loop_.statistics().deadline_misses()),
-              static_cast<unsigned long long>(c.safe_ticks), static_cast<unsigned long long>(c.drive_stalls),
-              drive::to_string(backend_.power_state()));
+  std::printf(
+      "%s: %llu ticks in %.3f s (%.1fx real time), late %llu, rejected %llu, foreign %llu, "
+      "deadline misses %llu, safe ticks %llu, drive stalls %llu, drive %s\n",
+      name_.c_str(), static_cast<unsigned long long>(k), loop_s, static_cast<double>(k) * period_s_ / loop_s,
+      static_cast<unsigned long long>(c.late + hooks_.extra_late()),
+      static_cast<unsigned long long>(c.rejected + hooks_.extra_rejected()), static_cast<unsigned long long>(c.foreign),
+      static_cast<unsigned long long>(loop_.statistics().deadline_misses()),
+      static_cast<unsigned long long>(c.safe_ticks), static_cast<unsigned long long>(c.drive_stalls),
+      drive::to_string(backend_.power_state()));
   if (exit_code != kExitOk) return exit_code;
   // Stopped by a signal: the operator's stop is no failure, but force-off ticks before it still are.
   if (!loop_.ever_enabled() && !pdds::stop_requested()) {

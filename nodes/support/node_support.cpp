@@ -28,9 +28,9 @@ void add_security_options(CLI::App& app, dds::ParticipantOptions& o) {
   // environment variable, and "none" overrides it.
   o.keystore = dds::resolve_keystore("");
   app.add_option_function<std::string>(
-         "--keystore", [&o](const std::string& value) { o.keystore = dds::resolve_keystore(value); },
-         "DDS Security keystore (`pmlsm security create`): authenticate, obey the identity's permissions, "
-         "encrypt; 'none': open even when $PMLSM_KEYSTORE is set (default: $PMLSM_KEYSTORE, else open)");
+      "--keystore", [&o](const std::string& value) { o.keystore = dds::resolve_keystore(value); },
+      "DDS Security keystore (`pmlsm security create`): authenticate, obey the identity's permissions, "
+      "encrypt; 'none': open even when $PMLSM_KEYSTORE is set (default: $PMLSM_KEYSTORE, else open)");
   app.add_option("--identity", o.identity, "The identity in the keystore (default: the node's name)");
 }
 
@@ -81,7 +81,9 @@ LoadedConfig load_config(const CommonOptions& o) {
   c.clock = o.clock == "realtime" ? Clock::kRealtime : Clock::kLockstep;
   c.command_level = o.command_level == "voltage" ? CommandLevel::kVoltage : CommandLevel::kForce;
   if (c.command_level == CommandLevel::kVoltage && c.clock == Clock::kRealtime) {
-    throw ConfigError("--command-level voltage: runs in lockstep only (a 32 kHz exchange over DDS is a simulation device), got --clock realtime");
+    throw ConfigError(
+        "--command-level voltage: runs in lockstep only (a 32 kHz exchange over DDS is a simulation device), got "
+        "--clock realtime");
   }
   return c;
 }
@@ -189,8 +191,10 @@ NodeRuntime::NodeRuntime(const std::string& node_name, CommonOptions& options, c
       status(participant, node_name) {
   if (options.realtime.rt_priority > 0 || options.realtime.cpu_dma_latency_us >= 0) {
     if (context.local_bus != nullptr) {
-      std::printf("%s: in a container: --rt-priority and --cpu-dma-latency-us are the container's (its chain "
-                  "thread's)\n", node_name.c_str());
+      std::printf(
+          "%s: in a container: --rt-priority and --cpu-dma-latency-us are the container's (its chain "
+          "thread's)\n",
+          node_name.c_str());
     } else {
       std::printf("%s: real-time setup: %s\n", node_name.c_str(), realtime.summary().c_str());
     }
@@ -227,9 +231,9 @@ std::uint64_t splitmix64(std::uint64_t x) {
 }  // namespace
 
 std::uint64_t new_run_id() {
-  std::uint64_t id = splitmix64(static_cast<std::uint64_t>(wall_time_ns()) ^
-                                (static_cast<std::uint64_t>(getpid()) << 32) ^
-                                splitmix64(static_cast<std::uint64_t>(monotonic_ns())));
+  std::uint64_t id =
+      splitmix64(static_cast<std::uint64_t>(wall_time_ns()) ^ (static_cast<std::uint64_t>(getpid()) << 32) ^
+                 splitmix64(static_cast<std::uint64_t>(monotonic_ns())));
   return id == 0 ? 1 : id;
 }
 

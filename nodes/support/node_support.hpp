@@ -142,17 +142,17 @@ pmlsm_msgs::msg::Stamp make_stamp(std::uint64_t tick, double control_period_s, s
 /// must not allocate.
 template <typename Ready>
 bool wait_until(dds::Wakeup& wakeup, std::chrono::duration<double> timeout, Ready&& ready) {
-  const auto deadline = std::chrono::steady_clock::now() +
-                        std::chrono::duration_cast<std::chrono::steady_clock::duration>(timeout);
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(timeout);
   while (!dds::stop_requested()) {
     const std::uint64_t seen = wakeup.generation();
     if (ready()) return true;
     const auto now = std::chrono::steady_clock::now();
     if (now >= deadline) return false;
     // Bounded waits, so a stop request is seen within 50 ms.
-    wakeup.wait_for(seen, std::min<std::chrono::nanoseconds>(
-                              std::chrono::duration_cast<std::chrono::nanoseconds>(deadline - now),
-                              std::chrono::milliseconds(50)));
+    wakeup.wait_for(
+        seen, std::min<std::chrono::nanoseconds>(std::chrono::duration_cast<std::chrono::nanoseconds>(deadline - now),
+                                                 std::chrono::milliseconds(50)));
   }
   return false;
 }
@@ -169,8 +169,7 @@ class StatusPublisher {
  public:
   StatusPublisher(dds::Participant& participant, const std::string& node_name);
   pmlsm_msgs::msg::NodeStatus& status() { return status_; }
-  void publish(std::uint8_t state, std::uint64_t tick, double control_period_s,
-               const std::string& message = "");
+  void publish(std::uint8_t state, std::uint64_t tick, double control_period_s, const std::string& message = "");
 
  private:
   dds::Writer<pmlsm_msgs::msg::NodeStatusPubSubType> writer_;
@@ -218,7 +217,8 @@ class FeedbackFollower {
       return got;
     });
     if (!ok) {
-      exit_code_ = end_of_feedback_wait(node_name_, options_, clock_, any_feedback_, next_tick, control_period_s, status);
+      exit_code_ =
+          end_of_feedback_wait(node_name_, options_, clock_, any_feedback_, next_tick, control_period_s, status);
       return Next::kEnded;
     }
     any_feedback_ = true;

@@ -14,9 +14,7 @@
 namespace pmlsm::node {
 
 namespace {
-std::string refused(const std::string& what, int error) {
-  return what + " refused: " + std::strerror(error);
-}
+std::string refused(const std::string& what, int error) { return what + " refused: " + std::strerror(error); }
 }  // namespace
 
 RealtimeSetup::LatencyRequest::~LatencyRequest() {

@@ -59,8 +59,10 @@ void print_results_row(const std::string& scenario, const ScenarioMetrics& m, co
 }
 
 void print_results_footer(const std::string& out_dir) {
-  std::printf("cost = sum over the first second of |V_ref - v_L| (eq. 23), true and Kalman-estimated "
-              "v_L; traces in %s/\n", out_dir.c_str());
+  std::printf(
+      "cost = sum over the first second of |V_ref - v_L| (eq. 23), true and Kalman-estimated "
+      "v_L; traces in %s/\n",
+      out_dir.c_str());
 }
 
 }  // namespace pmlsm::node

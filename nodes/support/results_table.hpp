@@ -15,11 +15,11 @@ void print_results_header();
 /// has_truth false (a drive without PlantTruth): the columns that need the true load (cost_true,
 /// vibration, tracking, settling, the estimator's error) read n/a and the row is marked
 /// "(no PlantTruth)".
-std::string results_row(const std::string& scenario, const ScenarioMetrics& m,
-                        const std::string& invalid_reason = "", bool has_truth = true);
+std::string results_row(const std::string& scenario, const ScenarioMetrics& m, const std::string& invalid_reason = "",
+                        bool has_truth = true);
 /// Prints results_row() and a newline.
-void print_results_row(const std::string& scenario, const ScenarioMetrics& m,
-                       const std::string& invalid_reason = "", bool has_truth = true);
+void print_results_row(const std::string& scenario, const ScenarioMetrics& m, const std::string& invalid_reason = "",
+                       bool has_truth = true);
 void print_results_footer(const std::string& out_dir);
 
 }  // namespace pmlsm::node

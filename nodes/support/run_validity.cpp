@@ -17,8 +17,7 @@ const char* power_state_name(std::uint8_t power_state) noexcept {
 }
 
 bool force_applied(const DriveTickStatus& s) noexcept {
-  return (s.status & (kFeedbackStatusSafeState | kFeedbackStatusFault)) == 0 &&
-         s.power_state == kPowerOperationEnabled;
+  return (s.status & (kFeedbackStatusSafeState | kFeedbackStatusFault)) == 0 && s.power_state == kPowerOperationEnabled;
 }
 
 void RunValidity::add(std::uint64_t tick, const DriveTickStatus& s) noexcept {
@@ -51,8 +50,8 @@ std::string RunValidity::reason() const {
     std::snprintf(buf, sizeof buf, "drive force off for %" PRIu64 " tick%s from tick %" PRIu64, bad_ticks_,
                   bad_ticks_ == 1 ? "" : "s", first_bad_);
   } else {
-    std::snprintf(buf, sizeof buf, "drive force off for %" PRIu64 " ticks, ticks %" PRIu64 "..%" PRIu64,
-                  bad_ticks_, first_bad_, last_bad_);
+    std::snprintf(buf, sizeof buf, "drive force off for %" PRIu64 " ticks, ticks %" PRIu64 "..%" PRIu64, bad_ticks_,
+                  first_bad_, last_bad_);
   }
   std::string text = buf;
   std::string detail;

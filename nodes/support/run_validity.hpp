@@ -33,9 +33,9 @@ const char* power_state_name(std::uint8_t power_state) noexcept;
 /// What the drive reported about itself at one tick (MotorFeedback's status, power_state,
 /// error_code).
 struct DriveTickStatus {
-  std::uint32_t status = 0;       ///< MotorFeedback_Constants::STATUS_* bits
-  std::uint8_t power_state = 0;   ///< DriveState_Constants::POWER_*
-  std::uint16_t error_code = 0;   ///< last fault's error code (0x603F), 0: none
+  std::uint32_t status = 0;      ///< MotorFeedback_Constants::STATUS_* bits
+  std::uint8_t power_state = 0;  ///< DriveState_Constants::POWER_*
+  std::uint16_t error_code = 0;  ///< last fault's error code (0x603F), 0: none
 };
 
 /// True when the drive applied the command at this tick: no safe state, no fault, operation

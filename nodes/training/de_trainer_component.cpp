@@ -49,8 +49,8 @@ class ProgressBar {
     bar[30] = '\0';
     std::fprintf(stderr, "%s[%s] %3.0f%% gen %llu  evals %llu/%llu  best %.3f  mean %.3f  %.0f s, %.0f s left%s",
                  tty_ ? "\r" : "", bar, 100 * fraction, static_cast<unsigned long long>(r.generation),
-                 static_cast<unsigned long long>(r.evaluations), static_cast<unsigned long long>(budget),
-                 r.best_cost, r.mean_cost, elapsed_s, eta_s, tty_ ? "  " : "\n");
+                 static_cast<unsigned long long>(r.evaluations), static_cast<unsigned long long>(budget), r.best_cost,
+                 r.mean_cost, elapsed_s, eta_s, tty_ ? "  " : "\n");
     std::fflush(stderr);
   }
   void finish() {
@@ -153,8 +153,9 @@ class DeTrainerComponent final : public node::Component {
         setup_writer_(participant_.make_writer<msg::TrainingSetupPubSubType>(pdds::topics::kTrainingSetup)),
         progress_writer_(participant_.make_writer<msg::TrainerProgressPubSubType>(pdds::topics::kTrainerProgress)),
         weights_writer_(participant_.make_writer<msg::NetworkWeightsPubSubType>(pdds::topics::kNetworkWeights)),
-        evaluator_(participant_, wakeup_, [cost = cost_](const std::vector<double>& w) { return (*cost)(w); },
-                   opt_.threads, run_id_, to_ms(opt_.worker_timeout_s)) {}
+        evaluator_(
+            participant_, wakeup_, [cost = cost_](const std::vector<double>& w) { return (*cost)(w); }, opt_.threads,
+            run_id_, to_ms(opt_.worker_timeout_s)) {}
 
   int run() override;
 
@@ -225,12 +226,13 @@ std::unique_ptr<Optimiser> DeTrainerComponent::make_started_optimiser() {
                 static_cast<unsigned long long>(optimiser->report().generation),
                 static_cast<unsigned long long>(optimiser->report().evaluations));
   }
-  std::printf("de_trainer: %s, NP %llu, D %zu, F %.2f, CR %.2f, seed %llu, start %s, budget %llu evaluations, cost "
-              "on %s V_load, run %llu\n",
-              optimiser->name().c_str(), static_cast<unsigned long long>(de_.population_size), de_.dimension,
-              de_.mutation_factor, de_.crossover_rate, static_cast<unsigned long long>(de_.seed),
-              to_string(training_.start), static_cast<unsigned long long>(training_.max_evaluations),
-              to_string(training_.cost_velocity), static_cast<unsigned long long>(run_id_));
+  std::printf(
+      "de_trainer: %s, NP %llu, D %zu, F %.2f, CR %.2f, seed %llu, start %s, budget %llu evaluations, cost "
+      "on %s V_load, run %llu\n",
+      optimiser->name().c_str(), static_cast<unsigned long long>(de_.population_size), de_.dimension,
+      de_.mutation_factor, de_.crossover_rate, static_cast<unsigned long long>(de_.seed), to_string(training_.start),
+      static_cast<unsigned long long>(training_.max_evaluations), to_string(training_.cost_velocity),
+      static_cast<unsigned long long>(run_id_));
   progress_msg_.optimiser(optimiser->name().substr(0, 32));
   progress_msg_.population_size(static_cast<std::uint32_t>(de_.population_size));
   progress_msg_.max_generations(0);
@@ -314,13 +316,14 @@ void DeTrainerComponent::write_weights_file(const Optimiser& optimiser, const Op
 
 void DeTrainerComponent::print_summary(const Search& s, double elapsed_s) const {
   const auto& c = evaluator_.counters();
-  std::printf("de_trainer: %s after %llu generations, %llu evaluations (%llu remote, %llu local, %llu re-queued, "
-              "%llu worker(s) lost) in %.1f s: %.0f evaluations/s\n",
-              s.interrupted ? "interrupted" : "done", static_cast<unsigned long long>(s.report.generation),
-              static_cast<unsigned long long>(s.report.evaluations),
-              static_cast<unsigned long long>(c.remote_evaluations), static_cast<unsigned long long>(c.local_evaluations),
-              static_cast<unsigned long long>(c.requeued), static_cast<unsigned long long>(c.workers_lost), elapsed_s,
-              static_cast<double>(s.report.evaluations - s.start_evaluations) / std::max(elapsed_s, 1e-9));
+  std::printf(
+      "de_trainer: %s after %llu generations, %llu evaluations (%llu remote, %llu local, %llu re-queued, "
+      "%llu worker(s) lost) in %.1f s: %.0f evaluations/s\n",
+      s.interrupted ? "interrupted" : "done", static_cast<unsigned long long>(s.report.generation),
+      static_cast<unsigned long long>(s.report.evaluations), static_cast<unsigned long long>(c.remote_evaluations),
+      static_cast<unsigned long long>(c.local_evaluations), static_cast<unsigned long long>(c.requeued),
+      static_cast<unsigned long long>(c.workers_lost), elapsed_s,
+      static_cast<double>(s.report.evaluations - s.start_evaluations) / std::max(elapsed_s, 1e-9));
   std::printf("de_trainer: best cost %.4f -> %s (checkpoint %s, history %s)\n", s.report.best_cost,
               opt_.out_path.c_str(), opt_.checkpoint_path.c_str(), opt_.history_path.c_str());
 }
@@ -333,18 +336,30 @@ MadeComponent make_de_trainer(const ComponentContext& /*context*/, int argc, cha
   CLI::App app{"Offline weight search of the RNN compensator (DE/rand/1/bin, jDE or CMA-ES)"};
   TrainerOptions opt;
   add_dds_options(app, opt.dds);
-  app.add_option("-c,--config", opt.config_path, "System parameters (YAML)")->check(CLI::ExistingFile)->capture_default_str();
+  app.add_option("-c,--config", opt.config_path, "System parameters (YAML)")
+      ->check(CLI::ExistingFile)
+      ->capture_default_str();
   app.add_option("--set", opt.overrides, "Override a system parameter: key.path=value")->take_all();
-  app.add_option("-t,--training", opt.training_path, "Training parameters (YAML)")->check(CLI::ExistingFile)->capture_default_str();
-  app.add_option("--train-set", opt.training_overrides, "Override a training parameter: key=value (e.g. optimiser=jde)")->take_all();
+  app.add_option("-t,--training", opt.training_path, "Training parameters (YAML)")
+      ->check(CLI::ExistingFile)
+      ->capture_default_str();
+  app.add_option("--train-set", opt.training_overrides, "Override a training parameter: key=value (e.g. optimiser=jde)")
+      ->take_all();
   app.add_option("-o,--out", opt.out_path, "Weights file written at the end")->capture_default_str();
   app.add_option("--checkpoint", opt.checkpoint_path, "Checkpoint file (default: <out>.checkpoint)");
-  app.add_option("--history", opt.history_path, "CSV of best and mean cost per generation (default: <out>.history.csv)");
+  app.add_option("--history", opt.history_path,
+                 "CSV of best and mean cost per generation (default: <out>.history.csv)");
   app.add_flag("--resume", opt.resume, "Go on from the checkpoint");
-  app.add_option("--threads", opt.threads, "Local evaluation threads (used when no worker is there)")->check(CLI::Range(1u, 256u))->capture_default_str();
+  app.add_option("--threads", opt.threads, "Local evaluation threads (used when no worker is there)")
+      ->check(CLI::Range(1u, 256u))
+      ->capture_default_str();
   app.add_option("--wait-workers", opt.wait_workers, "Wait for this many de_workers before starting");
-  app.add_option("--wait-workers-s", opt.wait_workers_s, "How long to wait for them")->check(CLI::NonNegativeNumber)->capture_default_str();
-  app.add_option("--worker-timeout-s", opt.worker_timeout_s, "A worker silent this long is dead")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--wait-workers-s", opt.wait_workers_s, "How long to wait for them")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--worker-timeout-s", opt.worker_timeout_s, "A worker silent this long is dead")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_flag("--no-progress", opt.no_progress, "No progress bar on stderr");
   app.add_option("--first-version", opt.first_version,
                  "Version of the first NetworkWeights set (each better set: +1). A compensator takes only "
@@ -359,7 +374,8 @@ MadeComponent make_de_trainer(const ComponentContext& /*context*/, int argc, cha
   if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
   if (opt.checkpoint_path.empty()) opt.checkpoint_path = opt.out_path + ".checkpoint";
   if (opt.history_path.empty()) opt.history_path = opt.out_path + ".history.csv";
-  if (opt.resume && !file_exists(opt.checkpoint_path)) throw ConfigError("--resume: no checkpoint at " + opt.checkpoint_path);
+  if (opt.resume && !file_exists(opt.checkpoint_path))
+    throw ConfigError("--resume: no checkpoint at " + opt.checkpoint_path);
   return {std::make_unique<DeTrainerComponent>(std::move(opt))};
 }
 

@@ -168,7 +168,8 @@ int DeWorkerComponent::run() {
       status_writer_.write(status);
       next_heartbeat = now + std::chrono::milliseconds(200);
     }
-    if (opt_.idle_exit_s > 0 && have_setup && now - last_request > std::chrono::duration<double>(opt_.idle_exit_s)) break;
+    if (opt_.idle_exit_s > 0 && have_setup && now - last_request > std::chrono::duration<double>(opt_.idle_exit_s))
+      break;
     wakeup_.wait_for(seen, std::chrono::milliseconds(50));
   }
   {
@@ -178,8 +179,7 @@ int DeWorkerComponent::run() {
   work_ready.notify_all();
   for (auto& t : pool) t.join();
   result_writer_.wait_for_acknowledgments(std::chrono::seconds(2));
-  std::printf("de_worker %s: %llu evaluations\n", worker_id.c_str(),
-              static_cast<unsigned long long>(evaluated.load()));
+  std::printf("de_worker %s: %llu evaluations\n", worker_id.c_str(), static_cast<unsigned long long>(evaluated.load()));
   return kExitOk;
 }
 
@@ -191,7 +191,9 @@ MadeComponent make_de_worker(const ComponentContext& /*context*/, int argc, char
   CLI::App app{"Evaluation worker of the distributed weight search (joins any de_trainer on the domain)"};
   WorkerOptions opt;
   add_dds_options(app, opt.dds);
-  app.add_option("--threads", opt.threads, "Evaluations run at once")->check(CLI::Range(1u, 256u))->capture_default_str();
+  app.add_option("--threads", opt.threads, "Evaluations run at once")
+      ->check(CLI::Range(1u, 256u))
+      ->capture_default_str();
   app.add_option("--id", opt.worker_id, "Worker id (unique on the domain)")->capture_default_str();
   app.add_option("--idle-exit-s", opt.idle_exit_s,
                  "Exit after this long without a request, counted from the first setup (0: run until SIGINT)")

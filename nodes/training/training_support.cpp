@@ -61,8 +61,7 @@ Assignments take_assignments(const AssignmentTexts& items, const std::string& wh
 }  // namespace
 
 msg::TrainingSetup make_setup(std::uint64_t run_id, const std::string& system_path,
-                              const std::vector<std::string>& system_overrides,
-                              const TrainingParams& training) {
+                              const std::vector<std::string>& system_overrides, const TrainingParams& training) {
   msg::TrainingSetup setup;
   setup.run_id(run_id);
   const std::string system_text = read_text(system_path);
@@ -120,7 +119,8 @@ std::shared_ptr<const RnnCost> cost_from_setup(const msg::TrainingSetup& setup) 
     TrainingScenario ts;
     ts.file = s.origin().to_string();
     ts.weight = s.weight();
-    ts.scenario = parse_scenario(s.yaml().to_string(), "trainer:" + s.origin().to_string(), params.timing.control_period_s);
+    ts.scenario =
+        parse_scenario(s.yaml().to_string(), "trainer:" + s.origin().to_string(), params.timing.control_period_s);
     scenarios.push_back(ts);
   }
   std::vector<PlantVariant> plants;
@@ -150,8 +150,7 @@ std::shared_ptr<const RnnCost> cost_from_setup(const msg::TrainingSetup& setup) 
 }
 
 DdsEvaluator::DdsEvaluator(dds::Participant& participant, dds::Wakeup& wakeup, CostFunction local_cost,
-                           unsigned local_threads, std::uint64_t run_id,
-                           std::chrono::milliseconds worker_timeout)
+                           unsigned local_threads, std::uint64_t run_id, std::chrono::milliseconds worker_timeout)
     : wakeup_(wakeup),
       local_(std::move(local_cost), local_threads),
       run_id_(run_id),
@@ -159,7 +158,7 @@ DdsEvaluator::DdsEvaluator(dds::Participant& participant, dds::Wakeup& wakeup, C
       request_writer_(participant.make_writer<msg::EvaluationRequestPubSubType>(dds::topics::kEvaluationRequest)),
       result_reader_(participant.make_reader<msg::EvaluationResultPubSubType>(dds::topics::kEvaluationResult, wakeup)),
       status_reader_(participant.make_reader<msg::WorkerStatusPubSubType>(dds::topics::kWorkerStatus, wakeup,
-                                                                           dds::kObserverProfile)) {}
+                                                                          dds::kObserverProfile)) {}
 
 void DdsEvaluator::poll_workers() {
   msg::WorkerStatus status;
@@ -175,8 +174,10 @@ void DdsEvaluator::poll_workers() {
       w.id = id;
       for (const auto& [other_origin, other] : workers_) {
         if (other_origin != origin && other.id == id) {
-          std::fprintf(stderr, "de_trainer: two processes call themselves worker %s: neither gets jobs while both live "
-                       "(give each its own --id)\n", id.c_str());
+          std::fprintf(stderr,
+                       "de_trainer: two processes call themselves worker %s: neither gets jobs while both live "
+                       "(give each its own --id)\n",
+                       id.c_str());
           break;
         }
       }
@@ -206,7 +207,8 @@ void DdsEvaluator::poll_workers() {
 
 bool DdsEvaluator::usable(const Worker& w) const {
   if (w.run_id != run_id_ || !w.setup_error.empty()) return false;
-  const auto same_id = std::count_if(workers_.begin(), workers_.end(), [&](const auto& kv) { return kv.second.id == w.id; });
+  const auto same_id =
+      std::count_if(workers_.begin(), workers_.end(), [&](const auto& kv) { return kv.second.id == w.id; });
   return same_id == 1;
 }
 

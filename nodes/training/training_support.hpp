@@ -62,8 +62,8 @@ struct DispatchCounters {
 
 class DdsEvaluator final : public BatchEvaluator {
  public:
-  DdsEvaluator(dds::Participant& participant, dds::Wakeup& wakeup, CostFunction local_cost,
-               unsigned local_threads, std::uint64_t run_id, std::chrono::milliseconds worker_timeout);
+  DdsEvaluator(dds::Participant& participant, dds::Wakeup& wakeup, CostFunction local_cost, unsigned local_threads,
+               std::uint64_t run_id, std::chrono::milliseconds worker_timeout);
   void evaluate(const std::vector<std::vector<double>>& candidates, std::vector<double>& costs) override;
   /// Live workers holding this run's setup.
   std::size_t live_workers();

@@ -49,8 +49,9 @@ class VirtualDriveComponent final : public node::Component, co::Cia402SlaveEvent
         truth_(make_truth()),
         bus_(node::open_can_bus(opt_.can)),
         drive_(rt_.cfg.params, scenario_initial_condition(rt_.cfg.scenario)),
-        slave_(slave_params(), [this] { return build_device_dictionary(canopen_, device_, rt_.period_s); }, drive_,
-               *bus_, *this) {}
+        slave_(
+            slave_params(), [this] { return build_device_dictionary(canopen_, device_, rt_.period_s); }, drive_, *bus_,
+            *this) {}
 
   int run() override;
 
@@ -68,7 +69,8 @@ class VirtualDriveComponent final : public node::Component, co::Cia402SlaveEvent
   /// PlantTruth's publisher, after the checks against the runtime. @throws ConfigError
   std::optional<node::TruthPublisher> make_truth() {
     if (rt_.cfg.command_level == node::CommandLevel::kVoltage) {
-      throw ConfigError("--command-level voltage: the virtual drive runs its own current loop (cyclic synchronous torque)");
+      throw ConfigError(
+          "--command-level voltage: the virtual drive runs its own current loop (cyclic synchronous torque)");
     }
     if (opt_.publish_truth && realtime_) {
       std::printf("virtual_drive: --publish-truth: PlantTruth is published in lockstep only; realtime: none\n");
@@ -107,7 +109,8 @@ class VirtualDriveComponent final : public node::Component, co::Cia402SlaveEvent
 
 int VirtualDriveComponent::run() {
   start_ns_ = monotonic_ns();
-  std::printf("virtual_drive: node %u on %s, %s clock, %s%" PRIu64 " ticks of %.3g ms (scenario), rated force %.6g N, "
+  std::printf("virtual_drive: node %u on %s, %s clock, %s%" PRIu64
+              " ticks of %.3g ms (scenario), rated force %.6g N, "
               "%.6g increments/m\n",
               static_cast<unsigned>(canopen_.master.node_id), bus_->describe().c_str(),
               realtime_ ? "realtime" : "lockstep", realtime_ ? "until SIGINT/SIGTERM, " : "", ticks_,
@@ -157,15 +160,16 @@ int VirtualDriveComponent::finish() {
               pdds::stop_requested() ? ", stopped by signal" : "");
   const co::IntervalStatistics& sync = slave_.sync_intervals();
   if (sync.count() > 0) {
-    std::printf("virtual_drive: SYNC intervals at the drive over %llu SYNCs: mean %.1f us, std %.1f us, p99 %.0f us, "
-                "max %.1f us\n",
-                static_cast<unsigned long long>(sync.count()), sync.mean_us(), sync.std_us(), sync.p99_us(),
-                sync.max_us());
+    std::printf(
+        "virtual_drive: SYNC intervals at the drive over %llu SYNCs: mean %.1f us, std %.1f us, p99 %.0f us, "
+        "max %.1f us\n",
+        static_cast<unsigned long long>(sync.count()), sync.mean_us(), sync.std_us(), sync.p99_us(), sync.max_us());
   }
   if (truth_) {
     truth_->finish(std::chrono::duration<double>(opt_.common.peer_timeout_s));
     std::printf("virtual_drive: PlantTruth: %llu ticks published, %llu repeated answers not published\n",
-                static_cast<unsigned long long>(truth_->published()), static_cast<unsigned long long>(truth_->dropped()));
+                static_cast<unsigned long long>(truth_->published()),
+                static_cast<unsigned long long>(truth_->dropped()));
   }
   if (drive_.fault_count() > 0) {
     std::fprintf(stderr, "virtual_drive: the drive faulted %" PRIu64 " time(s) during the run: exit 5\n",
@@ -191,8 +195,9 @@ MadeComponent make_virtual_drive(const ComponentContext& context, int argc, char
       ->capture_default_str();
   app.add_option("--inject-fault-at-tick", opt.inject_fault_at_tick,
                  "fault 0x5000 (device hardware) at this period; cleared by fault reset and enable");
-  app.add_flag("--publish-truth", opt.publish_truth,
-               "lockstep: publish PlantTruth on DDS (for the evaluator), stamped with the bridge's run (realtime: none)");
+  app.add_flag(
+      "--publish-truth", opt.publish_truth,
+      "lockstep: publish PlantTruth on DDS (for the evaluator), stamped with the bridge's run (realtime: none)");
   if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
   return {std::make_unique<VirtualDriveComponent>(context, std::move(opt))};
 }

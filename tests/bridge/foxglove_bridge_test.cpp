@@ -32,8 +32,15 @@ constexpr std::chrono::seconds kStartTimeout{15};
 constexpr int kCatalogTopics = 22;
 
 std::vector<std::string> bridge_args(const std::string& domain, std::vector<std::string> extra = {}) {
-  std::vector<std::string> a{bin("foxglove_bridge"), "--domain", domain, "--profiles",
-                             source("configs/dds/profiles.xml"), "--address", "127.0.0.1", "--port", "0"};
+  std::vector<std::string> a{bin("foxglove_bridge"),
+                             "--domain",
+                             domain,
+                             "--profiles",
+                             source("configs/dds/profiles.xml"),
+                             "--address",
+                             "127.0.0.1",
+                             "--port",
+                             "0"};
   a.insert(a.end(), extra.begin(), extra.end());
   return a;
 }
@@ -91,9 +98,10 @@ struct Loop {
   Loop(const std::string& domain, const std::string& scenario, const fs::path& dir)
       : controller(node_args("controller", domain, scenario, {"--clock", "realtime", "--plant-lost-ms", "5000"}),
                    (dir / "controller.log").string()),
-        plant(node_args("plant_sim", domain, scenario, {"--clock", "realtime", "--peers", "2", "--watchdog-ms", "1000",
-                                                      "--controller-lost-ms", "5000"}),
-              (dir / "plant.log").string()) {}
+        plant(
+            node_args("plant_sim", domain, scenario,
+                      {"--clock", "realtime", "--peers", "2", "--watchdog-ms", "1000", "--controller-lost-ms", "5000"}),
+            (dir / "plant.log").string()) {}
   void expect_clean_exit() {
     for (auto* p : {&plant, &controller}) {
       const auto code = p->wait_for(std::chrono::seconds(30));
@@ -139,7 +147,8 @@ TEST(FoxgloveBridge, AFoxgloveClientDecodesTheLiveLoop) {
                                            "1000", "--timeout-s", "25"}),
                       (dir / "client.log").string());
   ASSERT_TRUE(client.wait_for_output("ws_client: subscribed", kStartTimeout)) << client.output();
-  ASSERT_TRUE(bridge.wait_for_output("reading 2 of " + std::to_string(kCatalogTopics) + " topics", kStartTimeout)) << bridge.output();
+  ASSERT_TRUE(bridge.wait_for_output("reading 2 of " + std::to_string(kCatalogTopics) + " topics", kStartTimeout))
+      << bridge.output();
   Loop loop(domain, scenario, dir);
 
   const auto code = client.wait_for(std::chrono::seconds(30));
@@ -175,15 +184,17 @@ TEST(FoxgloveBridge, GarbageClientsAreDisconnectedWhileAGoodClientKeepsReceiving
 
   // 3000 of the 5000 ticks: the good client must keep receiving after the garbage, which
   // starts with its first message and takes about a second.
-  ChildProcess good(ws_client_args(url, {"--topics", "/pmlsm/motor_feedback", "--min-messages", "3000", "--timeout-s",
-                                         "25"}),
-                    (dir / "good_client.log").string());
+  ChildProcess good(
+      ws_client_args(url, {"--topics", "/pmlsm/motor_feedback", "--min-messages", "3000", "--timeout-s", "25"}),
+      (dir / "good_client.log").string());
   ASSERT_TRUE(good.wait_for_output("ws_client: subscribed", kStartTimeout)) << good.output();
-  ASSERT_TRUE(bridge.wait_for_output("reading 1 of " + std::to_string(kCatalogTopics) + " topics", kStartTimeout)) << bridge.output();
+  ASSERT_TRUE(bridge.wait_for_output("reading 1 of " + std::to_string(kCatalogTopics) + " topics", kStartTimeout))
+      << bridge.output();
   Loop loop(domain, scenario, dir);
   ASSERT_TRUE(good.wait_for_output("ws_client: receiving", kStartTimeout)) << good.output() << loop.plant.output();
 
-  ChildProcess garbage(ws_client_args(url, {"--mode", "garbage", "--expect-data"}), (dir / "garbage_client.log").string());
+  ChildProcess garbage(ws_client_args(url, {"--mode", "garbage", "--expect-data"}),
+                       (dir / "garbage_client.log").string());
   const auto garbage_code = garbage.wait_for(std::chrono::seconds(30));
   ASSERT_TRUE(garbage_code.has_value()) << garbage.output();
   EXPECT_EQ(*garbage_code, 0) << garbage.output();
@@ -211,21 +222,23 @@ TEST(FoxgloveBridge, ASlowClientLosesFramesNotTheOthers) {
   const fs::path dir = test::fresh_dir("pmlsm_bridge", "slow");
   const std::string domain = test_domain(28);
   const std::string scenario = scenario_lasting(dir, 5.0);
-  ChildProcess bridge(bridge_args(domain, {"--client-buffer-kib", "32", "--queue-frames", "64", "--status-period-s",
-                                           "0.2"}),
-                      (dir / "bridge.log").string());
+  ChildProcess bridge(
+      bridge_args(domain, {"--client-buffer-kib", "32", "--queue-frames", "64", "--status-period-s", "0.2"}),
+      (dir / "bridge.log").string());
   const std::string url = wait_for_url(bridge);
   ASSERT_FALSE(url.empty()) << bridge.output();
 
-  ChildProcess stalled(ws_client_args(url, {"--mode", "stall", "--topics", "all", "--duration-s", "10", "--timeout-s",
-                                            "25"}),
-                       (dir / "stalled_client.log").string());
+  ChildProcess stalled(
+      ws_client_args(url, {"--mode", "stall", "--topics", "all", "--duration-s", "10", "--timeout-s", "25"}),
+      (dir / "stalled_client.log").string());
   ASSERT_TRUE(stalled.wait_for_output("ws_client: stalled", kStartTimeout)) << stalled.output();
-  ChildProcess good(ws_client_args(url, {"--topics", "/pmlsm/motor_feedback,/pmlsm/node_status", "--min-messages",
-                                         "3", "--duration-s", "9", "--timeout-s", "25"}),
+  ChildProcess good(ws_client_args(url, {"--topics", "/pmlsm/motor_feedback,/pmlsm/node_status", "--min-messages", "3",
+                                         "--duration-s", "9", "--timeout-s", "25"}),
                     (dir / "good_client.log").string());
   ASSERT_TRUE(good.wait_for_output("ws_client: subscribed", kStartTimeout)) << good.output();
-  ASSERT_TRUE(bridge.wait_for_output("reading " + std::to_string(kCatalogTopics) + " of " + std::to_string(kCatalogTopics) + " topics", kStartTimeout)) << bridge.output();
+  ASSERT_TRUE(bridge.wait_for_output(
+      "reading " + std::to_string(kCatalogTopics) + " of " + std::to_string(kCatalogTopics) + " topics", kStartTimeout))
+      << bridge.output();
   Loop loop(domain, scenario, dir);
 
   const auto good_code = good.wait_for(std::chrono::seconds(30));
@@ -236,7 +249,7 @@ TEST(FoxgloveBridge, ASlowClientLosesFramesNotTheOthers) {
   const json& bridge_status = summary["node_status"]["foxglove_bridge"];
   ASSERT_TRUE(bridge_status.is_object()) << summary.dump(2);
   EXPECT_GT(std::stoll(bridge_status["late"].get<std::string>()), 0) << "dropped frames in NodeStatus.late\n"
-                                                                       << summary.dump(2) << bridge.output();
+                                                                     << summary.dump(2) << bridge.output();
 
   const auto stalled_code = stalled.wait_for(std::chrono::seconds(30));
   ASSERT_TRUE(stalled_code.has_value()) << stalled.output();

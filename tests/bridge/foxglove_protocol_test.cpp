@@ -76,7 +76,8 @@ TEST(FoxgloveMessages, MessageDataIsOpcodeSubscriptionTimeAndPayloadLittleEndian
 
 TEST(ClientSession, SubscribesAndUnsubscribes) {
   ClientSession session({1, 2, 3});
-  SessionReply r = session.on_text(R"({"op":"subscribe","subscriptions":[{"id":10,"channelId":1},{"id":11,"channelId":3}]})");
+  SessionReply r =
+      session.on_text(R"({"op":"subscribe","subscriptions":[{"id":10,"channelId":1},{"id":11,"channelId":3}]})");
   EXPECT_TRUE(r.texts.empty());
   EXPECT_FALSE(r.close);
   EXPECT_EQ(r.channels_subscribed, (std::vector<ChannelId>{1, 3}));

@@ -36,7 +36,8 @@ ServerOptions loopback_any_port() {
 }
 
 TEST(FoxgloveServer, PortZeroBindsAFreePortAndStops) {
-  Server server(loopback_any_port(), one_channel(), [](const std::string&) {}, [] {});
+  Server server(
+      loopback_any_port(), one_channel(), [](const std::string&) {}, [] {});
   server.start();
   EXPECT_NE(server.port(), 0);
   EXPECT_EQ(server.subscriber_count(1), 0u);
@@ -51,11 +52,13 @@ TEST(FoxgloveServer, PortZeroBindsAFreePortAndStops) {
 }
 
 TEST(FoxgloveServer, ATakenPortIsAClearError) {
-  Server first(loopback_any_port(), one_channel(), [](const std::string&) {}, [] {});
+  Server first(
+      loopback_any_port(), one_channel(), [](const std::string&) {}, [] {});
   first.start();
   ServerOptions same = loopback_any_port();
   same.port = first.port();
-  Server second(same, one_channel(), [](const std::string&) {}, [] {});
+  Server second(
+      same, one_channel(), [](const std::string&) {}, [] {});
   try {
     second.start();
     FAIL() << "bound a port already in use";
@@ -69,7 +72,8 @@ TEST(FoxgloveServer, ATakenPortIsAClearError) {
 TEST(FoxgloveServer, AnAddressThatIsNotAnIpAddressIsABadOption) {
   ServerOptions o = loopback_any_port();
   o.address = "not-an-address";
-  Server server(o, one_channel(), [](const std::string&) {}, [] {});
+  Server server(
+      o, one_channel(), [](const std::string&) {}, [] {});
   try {
     server.start();
     FAIL() << "accepted a bad address";
@@ -163,7 +167,8 @@ int burst(std::uint16_t port, std::vector<std::unique_ptr<RawClient>>& clients, 
 TEST(FoxgloveServer, ClientLimitHoldsUnderABurstOfConnections) {
   ServerOptions options = loopback_any_port();
   options.max_clients = 8;
-  Server server(options, one_channel(), [](const std::string&) {}, [] {});
+  Server server(
+      options, one_channel(), [](const std::string&) {}, [] {});
   server.start();
   std::vector<std::unique_ptr<RawClient>> clients;
   EXPECT_EQ(burst(server.port(), clients, 200), 8);

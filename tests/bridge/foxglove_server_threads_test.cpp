@@ -45,7 +45,8 @@ TEST(FoxgloveServerThreads, EveryPublishedSampleIsSentOrDroppedAndArrivesInOrder
   options.address = "127.0.0.1";
   options.port = 0;
   options.queue_frames = 16;  // small: the publisher outruns the socket now and then
-  Server server(options, {channel}, [](const std::string&) {}, [] {});
+  Server server(
+      options, {channel}, [](const std::string&) {}, [] {});
   server.start();
 
   Client client;
@@ -70,8 +71,7 @@ TEST(FoxgloveServerThreads, EveryPublishedSampleIsSentOrDroppedAndArrivesInOrder
     received.push_back(k);
   });
   websocketpp::lib::error_code error;
-  Client::connection_ptr connection =
-      client.get_connection("ws://127.0.0.1:" + std::to_string(server.port()), error);
+  Client::connection_ptr connection = client.get_connection("ws://127.0.0.1:" + std::to_string(server.port()), error);
   ASSERT_FALSE(error) << error.message();
   connection->add_subprotocol(kSubprotocol);
   client.connect(connection);

@@ -136,8 +136,7 @@ int main(int argc, char** argv) {
       "own_echo_dropped=%llu unsupported_dropped=%llu\n",
       static_cast<unsigned long long>(c.sent), static_cast<unsigned long long>(c.received),
       static_cast<unsigned long long>(c.send_errors), static_cast<unsigned long long>(c.receive_errors),
-      static_cast<unsigned long long>(c.malformed_dropped),
-      static_cast<unsigned long long>(c.own_echo_dropped),
+      static_cast<unsigned long long>(c.malformed_dropped), static_cast<unsigned long long>(c.own_echo_dropped),
       static_cast<unsigned long long>(c.unsupported_dropped));
   std::fflush(stdout);
   if (echoed == 0) {

@@ -326,7 +326,9 @@ struct Filler {
   void set(msg::Stamp& x) { Fields<msg::Stamp>::each(*this, x); }
 
   template <class X>
-  void operator()(const char*, X& x) { set(x); }
+  void operator()(const char*, X& x) {
+    set(x);
+  }
   template <std::size_t N, class E>
   void operator()(const char*, Bound<N>, std::vector<E>& x) {
     x.resize(N);
@@ -345,7 +347,9 @@ struct Comparer {
     return a.size() == b.size() && a.to_string() == b.to_string();
   }
   template <class X>
-  static bool same(const X& a, const X& b) { return a == b; }
+  static bool same(const X& a, const X& b) {
+    return a == b;
+  }
 
   template <class X>
   void operator()(const char* name, const X& a, const X& b) {
@@ -372,11 +376,17 @@ struct Perturber {
   static void bump(double& x) { x += 1.0; }
   static void bump(bool& x) { x = !x; }
   template <class I>
-  static std::enable_if_t<std::is_integral_v<I>> bump(I& x) { x = static_cast<I>(x + 1); }
+  static std::enable_if_t<std::is_integral_v<I>> bump(I& x) {
+    x = static_cast<I>(x + 1);
+  }
   template <class E, std::size_t N>
-  static void bump(std::array<E, N>& x) { bump(x.back()); }
+  static void bump(std::array<E, N>& x) {
+    bump(x.back());
+  }
   template <class E>
-  static void bump(std::vector<E>& x) { bump(x.back()); }
+  static void bump(std::vector<E>& x) {
+    bump(x.back());
+  }
   template <std::size_t N>
   static void bump(fixed_string<N>& x) {
     std::string s = x.to_string();
@@ -392,7 +402,9 @@ struct Perturber {
     }
   }
   template <std::size_t N, class E>
-  void operator()(const char* name, Bound<N>, std::vector<E>& x) { (*this)(name, x); }
+  void operator()(const char* name, Bound<N>, std::vector<E>& x) {
+    (*this)(name, x);
+  }
   void operator()(const char* name, msg::Stamp& x) {
     const std::size_t before = index;
     Fields<msg::Stamp>::each(*this, x);
@@ -412,9 +424,13 @@ struct CdrMaxSize {
   }
 
   template <class X>
-  std::enable_if_t<std::is_arithmetic_v<X>> operator()(const char*, X&) { add<X>(1); }
+  std::enable_if_t<std::is_arithmetic_v<X>> operator()(const char*, X&) {
+    add<X>(1);
+  }
   template <class E, std::size_t N>
-  void operator()(const char*, std::array<E, N>&) { add<E>(N); }
+  void operator()(const char*, std::array<E, N>&) {
+    add<E>(N);
+  }
   template <std::size_t N, class E>
   void operator()(const char*, Bound<N>, std::vector<E>&) {
     add<std::uint32_t>(1);  // length
@@ -460,17 +476,18 @@ std::string join(const std::vector<std::string>& names) {
 template <class PubSub>
 class CdrRoundTrip : public ::testing::Test {};
 
-using PubSubTypes = ::testing::Types<
-    msg::StampPubSubType, msg::MotorFeedbackPubSubType, msg::PlantTruthPubSubType,
-    msg::ForceCommandPubSubType, msg::CurrentFeedbackPubSubType, msg::VoltageCommandPubSubType,
-    msg::VelocityReferencePubSubType, msg::EstimatedStatePubSubType,
-    msg::CompensatorOutputPubSubType, msg::NetworkWeightsPubSubType,
-    msg::TrainerProgressPubSubType, msg::NodeStatusPubSubType, msg::DriveStatePubSubType,
-    msg::DriveControlPubSubType>;
+using PubSubTypes =
+    ::testing::Types<msg::StampPubSubType, msg::MotorFeedbackPubSubType, msg::PlantTruthPubSubType,
+                     msg::ForceCommandPubSubType, msg::CurrentFeedbackPubSubType, msg::VoltageCommandPubSubType,
+                     msg::VelocityReferencePubSubType, msg::EstimatedStatePubSubType, msg::CompensatorOutputPubSubType,
+                     msg::NetworkWeightsPubSubType, msg::TrainerProgressPubSubType, msg::NodeStatusPubSubType,
+                     msg::DriveStatePubSubType, msg::DriveControlPubSubType>;
 
 struct TypeNames {
   template <class PubSub>
-  static std::string GetName(int) { return Fields<typename PubSub::type>::name; }
+  static std::string GetName(int) {
+    return Fields<typename PubSub::type>::name;
+  }
 };
 
 TYPED_TEST_SUITE(CdrRoundTrip, PubSubTypes, TypeNames);
@@ -490,8 +507,7 @@ TYPED_TEST(CdrRoundTrip, TypeNameAndBounds) {
   T m;
   CdrMaxSize size;
   Fields<T>::each(size, m);
-  EXPECT_EQ(size.pos, T::getMaxCdrSerializedSize())
-      << "Fields<" << Fields<T>::name << "> does not match the IDL";
+  EXPECT_EQ(size.pos, T::getMaxCdrSerializedSize()) << "Fields<" << Fields<T>::name << "> does not match the IDL";
 }
 
 TYPED_TEST(CdrRoundTrip, EveryFieldSurvives) {

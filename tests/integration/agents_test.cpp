@@ -56,8 +56,17 @@ class Hosts {
   bool ok() const { return ok_; }
   // `command` run in host `name`'s namespace with a private tmpfs on /dev/shm.
   std::vector<std::string> in(const std::string& name, const std::string& command) const {
-    return {"/usr/sbin/ip",  "netns", "exec", prefix_ + "_" + name, "/usr/bin/unshare", "--mount", "--propagation",
-            "private", "/bin/sh", "-c", "mount -t tmpfs tmpfs /dev/shm && exec " + command};
+    return {"/usr/sbin/ip",
+            "netns",
+            "exec",
+            prefix_ + "_" + name,
+            "/usr/bin/unshare",
+            "--mount",
+            "--propagation",
+            "private",
+            "/bin/sh",
+            "-c",
+            "mount -t tmpfs tmpfs /dev/shm && exec " + command};
   }
 
  private:
@@ -82,10 +91,11 @@ std::string launcher_command(const std::string& domain, const fs::path& out, con
          " --arg keystore=none " + extra;
 }
 
-#define REQUIRE_HOSTS(hosts)                                                                       \
-  if (geteuid() != 0) GTEST_SKIP() << "network namespaces need root; not run";                    \
-  if (!(hosts).ok()) GTEST_SKIP() << "this machine does not allow network namespaces, veth pairs " \
-                                     "and a bridge; not run"
+#define REQUIRE_HOSTS(hosts)                                                    \
+  if (geteuid() != 0) GTEST_SKIP() << "network namespaces need root; not run";  \
+  if (!(hosts).ok())                                                            \
+  GTEST_SKIP() << "this machine does not allow network namespaces, veth pairs " \
+                  "and a bridge; not run"
 
 TEST(AgentHosts, LockstepRunThroughTwoAgentsEqualsTheSingleHostTrace) {
   const Hosts hosts("pa" + std::to_string(getpid()), {"launch", "rig", "ctrl"});
@@ -171,7 +181,8 @@ TEST(AgentHosts, AnUnauthenticatedLauncherFindsNoSecuredAgentAndNothingStarts) {
   std::ofstream(slice) << "name: one\nhosts: [rig]\nnodes:\n  - name: loop\n    executable: closed_loop\n"
                           "    args: [-s, configs/scenarios/pulse.yaml]\n";
   const std::string base = bin("launcher") + " " + slice.string() + " --agents" + dds_args(domain) + " ";
-  test::ChildProcess open(hosts.in("launch", base + "--agent-wait-ms 6000 --keystore none"), (dir / "open.log").string());
+  test::ChildProcess open(hosts.in("launch", base + "--agent-wait-ms 6000 --keystore none"),
+                          (dir / "open.log").string());
   const auto open_code = open.wait_for(seconds(30));
   ASSERT_TRUE(open_code.has_value()) << open.output();
   EXPECT_EQ(*open_code, 3) << open.output();  // a peer never appeared

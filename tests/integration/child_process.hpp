@@ -49,8 +49,8 @@ class ChildProcess {
   /// Exit code, or nullopt if it is still running at the deadline
   /// (-signal when a signal ended it).
   std::optional<int> wait_for(std::chrono::duration<double> timeout) {
-    const auto deadline = std::chrono::steady_clock::now() +
-                          std::chrono::duration_cast<std::chrono::steady_clock::duration>(timeout);
+    const auto deadline =
+        std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(timeout);
     while (!exit_status_) {
       int status = 0;
       const pid_t r = waitpid(pid_, &status, WNOHANG);
@@ -76,8 +76,8 @@ class ChildProcess {
 
   /// Polls the output until it contains `text`.
   bool wait_for_output(const std::string& text, std::chrono::duration<double> timeout) const {
-    const auto deadline = std::chrono::steady_clock::now() +
-                          std::chrono::duration_cast<std::chrono::steady_clock::duration>(timeout);
+    const auto deadline =
+        std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(timeout);
     while (std::chrono::steady_clock::now() < deadline) {
       if (output().find(text) != std::string::npos) return true;
       std::this_thread::sleep_for(std::chrono::milliseconds(5));

@@ -42,7 +42,7 @@ const std::string kScenarioName = "pulse";
 std::string scenario_path() { return source("configs/scenarios/" + kScenarioName + ".yaml"); }
 
 std::vector<std::string> scenario_node_args(const std::string& exe, const std::string& domain,
-                                   std::vector<std::string> extra = {}) {
+                                            std::vector<std::string> extra = {}) {
   return test::node_args(exe, domain, scenario_path(), std::move(extra));
 }
 
@@ -95,8 +95,7 @@ CompensatedRun run_loop(const fs::path& dir, const std::string& domain, test::Ch
       EXPECT_EQ(*code, 0) << p->output();
     }
   }
-  EXPECT_NE(controller.output().find("compensation topic (0 ticks without)"), std::string::npos)
-      << controller.output();
+  EXPECT_NE(controller.output().find("compensation topic (0 ticks without)"), std::string::npos) << controller.output();
   EXPECT_NE(plant.output().find("late 0, rejected 0"), std::string::npos) << plant.output();
   result.trace = read_file(dir / (kScenarioName + "_comp.csv"));
   EXPECT_FALSE(result.trace.empty()) << evaluator.output();
@@ -171,7 +170,9 @@ void expect_rnn_trace_equals_in_process(bool online_learning, int domain_offset)
 
 TEST(CompensatorDistributed, RnnTraceEqualsInProcess) { expect_rnn_trace_equals_in_process(false, 11); }
 
-TEST(CompensatorDistributed, RnnWithOnlineLearningTraceEqualsInProcess) { expect_rnn_trace_equals_in_process(true, 12); }
+TEST(CompensatorDistributed, RnnWithOnlineLearningTraceEqualsInProcess) {
+  expect_rnn_trace_equals_in_process(true, 12);
+}
 
 TEST(CompensatorDistributed, RnnRefusesBadWeightsFile) {
   const fs::path dir = fresh_dir("badweights");
@@ -221,7 +222,7 @@ TEST(CompensatorDistributed, RnnRefusesBadWeightsFile) {
   }
   // The unchanged file is accepted (so the refusals above are about the changes).
   test::ChildProcess p(scenario_node_args("rnn_compensator", test_domain(13),
-                                 {"--weights", (dir / "good.yaml").string(), "--peer-timeout-s", "0.5"}),
+                                          {"--weights", (dir / "good.yaml").string(), "--peer-timeout-s", "0.5"}),
                        (dir / "good.log").string());
   const auto code = p.wait_for(seconds(30));
   ASSERT_TRUE(code.has_value()) << p.output();
@@ -249,10 +250,10 @@ TEST(CompensatorDistributed, RnnRefusesWrongSizeWeightsFromTopicAndKeepsItsOwn) 
       (dir / "rnn.log").string());
   ASSERT_TRUE(compensator.wait_for_output("weights from", seconds(30))) << compensator.output();
   {
-    test::ChildProcess trainer(trainer_args(domain, {"--set", "compensator.rnn.layer_sizes=[3,4,1]", "--train-set",
-                                                     "population_size=16", "max_evaluations=64", "--out",
-                                                     (dir / "w341.yaml").string()}),
-                               (dir / "trainer.log").string());
+    test::ChildProcess trainer(
+        trainer_args(domain, {"--set", "compensator.rnn.layer_sizes=[3,4,1]", "--train-set", "population_size=16",
+                              "max_evaluations=64", "--out", (dir / "w341.yaml").string()}),
+        (dir / "trainer.log").string());
     const auto code = trainer.wait_for(seconds(60));
     ASSERT_TRUE(code.has_value()) << trainer.output();
     ASSERT_EQ(*code, 0) << trainer.output();

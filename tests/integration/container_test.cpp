@@ -42,11 +42,15 @@ std::vector<std::string> container(const std::vector<std::vector<std::string>>& 
 
 std::vector<std::string> launch(const std::string& file, const std::string& domain, const fs::path& out,
                                 const std::string& compose) {
-  return {bin("launcher"), source(file), "--arg", "domain=" + domain, "--arg", "out=" + out.string(),
-          "--arg", "compose=" + compose, "--arg", "config=" + source("configs/system.yaml"),
-          "--arg", "scenario=" + source("configs/scenarios/pulse.yaml"),
-          "--arg", "profiles=" + source("configs/dds/profiles.xml"),
-          "--arg", "weights=" + source("configs/rnn_weights.yaml"), "--arg", "keystore=none"};
+  return {bin("launcher"), source(file),
+          "--arg",         "domain=" + domain,
+          "--arg",         "out=" + out.string(),
+          "--arg",         "compose=" + compose,
+          "--arg",         "config=" + source("configs/system.yaml"),
+          "--arg",         "scenario=" + source("configs/scenarios/pulse.yaml"),
+          "--arg",         "profiles=" + source("configs/dds/profiles.xml"),
+          "--arg",         "weights=" + source("configs/rnn_weights.yaml"),
+          "--arg",         "keystore=none"};
 }
 
 TEST(Container, ComposedLockstepTraceEqualsSeparateProcessesAndTheInProcessLoop) {
@@ -75,8 +79,10 @@ TEST(Container, ComposedLockstepTraceEqualsSeparateProcessesAndTheInProcessLoop)
 
   const std::string composed_csv = read_file(dir / "composed" / "pulse_pi_rnn.csv");
   ASSERT_FALSE(composed_csv.empty()) << log;
-  EXPECT_TRUE(composed_csv == read_file(dir / "separate" / "pulse_pi_rnn.csv")) << "composed != separate (" << dir << ")";
-  EXPECT_TRUE(composed_csv == read_file(dir / "in_process" / "pulse_rnn.csv")) << "composed != closed_loop (" << dir << ")";
+  EXPECT_TRUE(composed_csv == read_file(dir / "separate" / "pulse_pi_rnn.csv"))
+      << "composed != separate (" << dir << ")";
+  EXPECT_TRUE(composed_csv == read_file(dir / "in_process" / "pulse_rnn.csv"))
+      << "composed != closed_loop (" << dir << ")";
   fs::remove_all(dir);
 }
 
@@ -91,12 +97,12 @@ TEST(Container, AReaderOutsideTheContainerStillGetsEveryTickOfEveryTopic) {
   const std::string scenario = source("configs/scenarios/free_vibration.yaml");
   test::ChildProcess evaluator(node_args("evaluator", domain, scenario, {"--out", dir.string()}),
                                (dir / "evaluator.log").string());
-  test::ChildProcess chain(container({component("plant_sim", "plant_sim", domain, scenario, {"--peers", "3"}),
-                                      component("controller", "controller", domain, scenario,
-                                                {"--command-readers", "2", "--reference-readers", "1"}),
-                                      component("kalman_estimator", "kalman_estimator", domain, scenario,
-                                                {"--estimate-readers", "1"})}),
-                           (dir / "chain.log").string());
+  test::ChildProcess chain(
+      container({component("plant_sim", "plant_sim", domain, scenario, {"--peers", "3"}),
+                 component("controller", "controller", domain, scenario,
+                           {"--command-readers", "2", "--reference-readers", "1"}),
+                 component("kalman_estimator", "kalman_estimator", domain, scenario, {"--estimate-readers", "1"})}),
+      (dir / "chain.log").string());
   ASSERT_EQ(chain.wait_for(seconds(60)).value_or(-1), 0) << chain.output();
   ASSERT_EQ(evaluator.wait_for(seconds(60)).value_or(-1), 0) << evaluator.output();
   test::ChildProcess in_process({bin("closed_loop"), "--config", source("configs/system.yaml"), "--scenario", scenario,
@@ -118,11 +124,14 @@ TEST(Container, BadInputIsRefusedWithExit2NamingTheComponentBeforeAnythingRuns) 
     std::string says;
   };
   const std::vector<Case> cases = {
-      {{bin("container"), "--component", "turbine", "wind_turbine"}, "component 'turbine': unknown type 'wind_turbine'"},
-      {container({component("twice", "plant_sim", domain, scenario), component("twice", "controller", domain, scenario)}),
+      {{bin("container"), "--component", "turbine", "wind_turbine"},
+       "component 'turbine': unknown type 'wind_turbine'"},
+      {container(
+           {component("twice", "plant_sim", domain, scenario), component("twice", "controller", domain, scenario)}),
        "component name 'twice' is used twice"},
-      {container({component("plant_sim", "plant_sim", domain, scenario),
-                  component("controller", "controller", domain, scenario, {"--set", "plant.mechanics.load_mass_kg=-4"})}),
+      {container(
+           {component("plant_sim", "plant_sim", domain, scenario),
+            component("controller", "controller", domain, scenario, {"--set", "plant.mechanics.load_mass_kg=-4"})}),
        "component controller (controller) was not made: exit 2"},
       {container({component("plant_sim", "plant_sim", domain, scenario, {"--no-such-option"})}),
        "component plant_sim (plant_sim) was not made: exit 2"},
@@ -168,10 +177,10 @@ TEST(Container, AKilledContainerFaultsTheDriveWithinItsWatchdogAsAKilledControll
   const fs::path dir = scratch("killed");
   const std::string domain = test_domain(130);
   const std::string scenario = source("configs/scenarios/pulse.yaml");
-  test::ChildProcess chain(container({component("controller", "controller", domain, scenario, {"--clock", "realtime"}),
-                                      component("kalman_estimator", "kalman_estimator", domain, scenario,
-                                                {"--clock", "realtime"})}),
-                           (dir / "chain.log").string());
+  test::ChildProcess chain(
+      container({component("controller", "controller", domain, scenario, {"--clock", "realtime"}),
+                 component("kalman_estimator", "kalman_estimator", domain, scenario, {"--clock", "realtime"})}),
+      (dir / "chain.log").string());
   test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "2", "--clock", "realtime"}),
                            (dir / "plant.log").string());
   ASSERT_TRUE(plant.wait_for_output("watchdog armed", seconds(30))) << plant.output() << chain.output();
@@ -200,16 +209,21 @@ TEST(Container, TheVirtualRigComposedGivesTheSameTraceAsSeparateProcesses) {
   std::string csv[2];
   for (int composed = 0; composed < 2; ++composed) {
     const fs::path out = dir / (composed ? "composed" : "separate");
-    test::ChildProcess rig(
-        {bin("launcher"), source("launch/virtual_rig.yaml"), "--arg", "config=" + source("configs/system.yaml"),
-         "--arg", "scenario=" + source("configs/scenarios/pulse.yaml"), "--arg",
-         "profiles=" + source("configs/dds/profiles.xml"), "--arg", "domain=" + test_domain(127 + composed), "--arg",
-         "compensator=rnn", "--arg", "weights=" + source("configs/rnn_weights.yaml"), "--arg",
-         "canopen_config=" + source("configs/canopen/drive.yaml"), "--arg",
-         "dictionary=" + source("configs/canopen/virtual_drive_od.yaml"), "--arg", "can_group=239.74.163.2", "--arg",
-         "can_port=" + std::to_string(43291 + composed), "--arg", "keystore=none", "--arg",
-         std::string("compose=") + (composed ? "true" : "false"), "--arg", "out=" + out.string()},
-        (dir / (composed ? "composed.log" : "separate.log")).string());
+    test::ChildProcess rig({bin("launcher"), source("launch/virtual_rig.yaml"),
+                            "--arg",         "config=" + source("configs/system.yaml"),
+                            "--arg",         "scenario=" + source("configs/scenarios/pulse.yaml"),
+                            "--arg",         "profiles=" + source("configs/dds/profiles.xml"),
+                            "--arg",         "domain=" + test_domain(127 + composed),
+                            "--arg",         "compensator=rnn",
+                            "--arg",         "weights=" + source("configs/rnn_weights.yaml"),
+                            "--arg",         "canopen_config=" + source("configs/canopen/drive.yaml"),
+                            "--arg",         "dictionary=" + source("configs/canopen/virtual_drive_od.yaml"),
+                            "--arg",         "can_group=239.74.163.2",
+                            "--arg",         "can_port=" + std::to_string(43291 + composed),
+                            "--arg",         "keystore=none",
+                            "--arg",         std::string("compose=") + (composed ? "true" : "false"),
+                            "--arg",         "out=" + out.string()},
+                           (dir / (composed ? "composed.log" : "separate.log")).string());
     const auto code = rig.wait_for(seconds(150));
     ASSERT_TRUE(code.has_value()) << rig.output();
     ASSERT_EQ(*code, 0) << rig.output();
@@ -240,21 +254,28 @@ TEST(Container, TheVirtualRigRunsInRealtimeComposedWithTheTableFromWhatThereIs) 
     std::ofstream out(dir / "drive.yaml");
     std::string line;
     while (std::getline(in, line)) {
-      if (line.rfind("  sync_timeout_ms:", 0) == 0) line = "  sync_timeout_ms: {value: 1000, source: \"chosen: a loaded test host\"}";
+      if (line.rfind("  sync_timeout_ms:", 0) == 0)
+        line = "  sync_timeout_ms: {value: 1000, source: \"chosen: a loaded test host\"}";
       if (line.find("max_missed_answers:") != std::string::npos) {
         line = "    max_missed_answers: {value: 1000, source: \"chosen: a loaded test host\"}";
       }
       out << line << "\n";
     }
   }
-  test::ChildProcess rig(
-      {bin("launcher"), source("launch/virtual_rig.yaml"), "--arg", "config=" + source("configs/system.yaml"), "--arg",
-       "scenario=" + (dir / "short.yaml").string(), "--arg", "profiles=" + source("configs/dds/profiles.xml"), "--arg",
-       "domain=" + test_domain(129), "--arg", "canopen_config=" + (dir / "drive.yaml").string(), "--arg",
-       "dictionary=" + source("configs/canopen/virtual_drive_od.yaml"), "--arg", "can_group=239.74.163.2", "--arg",
-       "can_port=43293", "--arg", "keystore=none", "--arg", "clock=realtime", "--arg", "compose=true", "--arg",
-       "out=" + dir.string()},
-      (dir / "rig.log").string());
+  test::ChildProcess rig({bin("launcher"), source("launch/virtual_rig.yaml"),
+                          "--arg",         "config=" + source("configs/system.yaml"),
+                          "--arg",         "scenario=" + (dir / "short.yaml").string(),
+                          "--arg",         "profiles=" + source("configs/dds/profiles.xml"),
+                          "--arg",         "domain=" + test_domain(129),
+                          "--arg",         "canopen_config=" + (dir / "drive.yaml").string(),
+                          "--arg",         "dictionary=" + source("configs/canopen/virtual_drive_od.yaml"),
+                          "--arg",         "can_group=239.74.163.2",
+                          "--arg",         "can_port=43293",
+                          "--arg",         "keystore=none",
+                          "--arg",         "clock=realtime",
+                          "--arg",         "compose=true",
+                          "--arg",         "out=" + dir.string()},
+                         (dir / "rig.log").string());
   const auto code = rig.wait_for(seconds(120));
   ASSERT_TRUE(code.has_value()) << rig.output();
   const std::string out = rig.output();

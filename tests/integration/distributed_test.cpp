@@ -31,10 +31,10 @@ void expect_trace_equals_in_process(const std::string& name, const std::string& 
       fs::temp_directory_path() / ("pmlsm_dist_" + std::to_string(getpid()) + "_" + name + "_" + command_level);
   fs::remove_all(dir);
   fs::create_directories(dir);
-  const std::string domain =
-      test_domain((name == "pulse" ? 0 : 1) + (command_level == "force" ? 0 : 2));
+  const std::string domain = test_domain((name == "pulse" ? 0 : 1) + (command_level == "force" ? 0 : 2));
 
-  test::ChildProcess evaluator(node_args("evaluator", domain, scenario, {"--out", dir.string()}), (dir / "evaluator.log").string());
+  test::ChildProcess evaluator(node_args("evaluator", domain, scenario, {"--out", dir.string()}),
+                               (dir / "evaluator.log").string());
   test::ChildProcess estimator(node_args("kalman_estimator", domain, scenario), (dir / "estimator.log").string());
   test::ChildProcess controller(node_args("controller", domain, scenario, {"--command-level", command_level}),
                                 (dir / "controller.log").string());
@@ -123,9 +123,9 @@ TEST(DistributedFailures, RealtimeWatchdogFaultsTheDriveAndTheLostControllerEnds
 TEST(DistributedFailures, NodesRejectABadConfigWithExitCode2) {
   for (const char* exe : {"plant_sim", "controller", "kalman_estimator", "evaluator"}) {
     const fs::path log = fs::temp_directory_path() / ("pmlsm_badcfg_" + std::to_string(getpid()) + exe);
-    test::ChildProcess p(node_args(exe, "0", source("configs/scenarios/pulse.yaml"),
-                                   {"--set", "plant.mechanics.load_mass_kg=-4"}),
-                         log.string());
+    test::ChildProcess p(
+        node_args(exe, "0", source("configs/scenarios/pulse.yaml"), {"--set", "plant.mechanics.load_mass_kg=-4"}),
+        log.string());
     const auto code = p.wait_for(std::chrono::seconds(30));
     ASSERT_TRUE(code.has_value()) << exe;
     EXPECT_EQ(*code, 2) << exe << ": " << p.output();

@@ -79,13 +79,15 @@ TEST(DriveSafety, ARunThatNeverEnabledTheDriveEndsWith5AndTheEvaluatorMarksItInv
 TEST(DriveSafety, AControllerOrEstimatorWithoutItsReadersSaysWhichAndExits3) {
   const fs::path dir = test::fresh_dir("pmlsm_no_readers", "run");
   const std::string scenario = short_pulse(dir, 0.3);
-  test::ChildProcess controller(node_args("controller", test_domain(90), scenario,
-                                          {"--command-readers", "2", "--reference-readers", "1", "--peer-timeout-s", "1"}),
-                                (dir / "controller.log").string());
+  test::ChildProcess controller(
+      node_args("controller", test_domain(90), scenario,
+                {"--command-readers", "2", "--reference-readers", "1", "--peer-timeout-s", "1"}),
+      (dir / "controller.log").string());
   const auto code = controller.wait_for(std::chrono::seconds(30));
   ASSERT_TRUE(code.has_value()) << controller.output();
   EXPECT_EQ(*code, 3) << controller.output();
-  EXPECT_NE(controller.output().find("readers missing after 1.0 s: 0 of 2 ForceCommand readers, 0 of 1 VelocityReference readers"),
+  EXPECT_NE(controller.output().find(
+                "readers missing after 1.0 s: 0 of 2 ForceCommand readers, 0 of 1 VelocityReference readers"),
             std::string::npos)
       << controller.output();
   // The estimator told to wait for its readers alike.
@@ -171,7 +173,8 @@ TEST(DriveSafety, ARestartedPlantIsFollowedAsANewRunNotRejectedAsOldTicks) {
     ASSERT_TRUE(first.wait_for_output("lockstep clock", std::chrono::seconds(30))) << first.output();
     // Let it run some hundred ticks (lockstep runs at a few times real time), then kill it.
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(300);
-    while (std::chrono::steady_clock::now() < deadline && first.wait_for(std::chrono::milliseconds(100)) == std::nullopt) {
+    while (std::chrono::steady_clock::now() < deadline &&
+           first.wait_for(std::chrono::milliseconds(100)) == std::nullopt) {
     }
     first.signal(SIGKILL);
     ASSERT_TRUE(first.wait_for(std::chrono::seconds(10)).has_value());
@@ -235,12 +238,14 @@ TEST(DriveSafety, ASecondControllerIsRefusedAndReportedNeverFollowed) {
   // Both controllers' own words if the drive lost its owner (seen twice in clean-clone CI runs, the
   // second controller matching late: its replayed history pushed the owner's command out of the
   // drive's reader, then 64 deep; see ALateWritersHistoryCannotPushTheOwnersCommandOutOfTheDrivesReader).
-  EXPECT_EQ(*code, 0) << out << "\nfirst controller:\n" << first.output() << "\nsecond controller:\n"
+  EXPECT_EQ(*code, 0) << out << "\nfirst controller:\n"
+                      << first.output() << "\nsecond controller:\n"
                       << second.output();
 
   const auto in_process = [&](const std::vector<ConfigOverride>& overrides, const std::string& name) {
     const SystemParams params = load_system_params(source("configs/system.yaml"), overrides);
-    write_trace_csv((dir / name).string(), run_scenario(params, load_scenario(scenario, params.timing.control_period_s)));
+    write_trace_csv((dir / name).string(),
+                    run_scenario(params, load_scenario(scenario, params.timing.control_period_s)));
     return load_velocity_column(test::read_file(dir / name));
   };
   const auto distributed = load_velocity_column(test::read_file(dir / "free_vibration.csv"));

@@ -53,7 +53,7 @@ struct ExternalRun {
 /// once the controller runs, and `during` gets it (to kill it, say).
 template <typename During>
 ExternalRun run_with_setpoints(const fs::path& dir, const std::string& domain, double duration_s,
-                       const std::vector<std::string>& setpoint, During&& during) {
+                               const std::vector<std::string>& setpoint, During&& during) {
   const std::string scenario = external_scenario(dir, duration_s);
   ExternalRun run;
   ChildProcess evaluator(node_args("evaluator", domain, scenario, {"--out", dir.string(), "--label", "ext"}),
@@ -86,11 +86,11 @@ TEST(ExternalReferenceDistributed, ControllerFollowsPmlsmSetpointThenZero) {
   const fs::path dir = fresh_dir("pmlsm_external", "follow");
   const std::string domain = test_domain(74);
   ExternalRun run = run_with_setpoints(dir, domain, 40.0, {"0.2", "--hold-s", "1.0", "--source", "itest"},
-                               [](ChildProcess& source_process) {
-                                 const auto code = source_process.wait_for(seconds(60));
-                                 ASSERT_TRUE(code.has_value()) << source_process.output();
-                                 EXPECT_EQ(*code, 0) << source_process.output();
-                               });
+                                       [](ChildProcess& source_process) {
+                                         const auto code = source_process.wait_for(seconds(60));
+                                         ASSERT_TRUE(code.has_value()) << source_process.output();
+                                         EXPECT_EQ(*code, 0) << source_process.output();
+                                       });
   EXPECT_EQ(run.controller_exit, 0) << run.controller;
   EXPECT_NE(run.controller.find("following setpoints from 'itest'"), std::string::npos) << run.controller;
   EXPECT_NE(run.controller.find("0 rejected (0 invalid)"), std::string::npos) << run.controller;
@@ -107,14 +107,15 @@ TEST(ExternalReferenceDistributed, ControllerFollowsPmlsmSetpointThenZero) {
 TEST(ExternalReferenceDistributed, SourceKilledMidMoveRampsToZeroAndTheRunIsNotValid) {
   const fs::path dir = fresh_dir("pmlsm_external", "killed");
   const std::string domain = test_domain(75);
-  ExternalRun run = run_with_setpoints(dir, domain, 40.0, {"0.2", "--source", "itest"}, [](ChildProcess& source_process) {
-    // Holding until Ctrl-C; killed without its final zero, as a crashed source would be.
-    EXPECT_TRUE(source_process.wait_for_output("until Ctrl-C", seconds(30))) << source_process.output();
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(1500);
-    while (std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    source_process.signal(SIGKILL);
-    source_process.wait_for(seconds(10));
-  });
+  ExternalRun run =
+      run_with_setpoints(dir, domain, 40.0, {"0.2", "--source", "itest"}, [](ChildProcess& source_process) {
+        // Holding until Ctrl-C; killed without its final zero, as a crashed source would be.
+        EXPECT_TRUE(source_process.wait_for_output("until Ctrl-C", seconds(30))) << source_process.output();
+        const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(1500);
+        while (std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        source_process.signal(SIGKILL);
+        source_process.wait_for(seconds(10));
+      });
   EXPECT_EQ(run.controller_exit, 5) << run.controller;
   EXPECT_NE(run.controller.find("setpoint stale (none for 0.25 s): reference ramps to zero from 0.2 m/s"),
             std::string::npos)

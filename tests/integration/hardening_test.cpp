@@ -22,9 +22,8 @@ using std::chrono::seconds;
 std::string config_with(const fs::path& dir, const std::string& name, const std::string& key,
                         const std::string& value) {
   const std::string text = read_file(source("configs/system.yaml"));
-  const std::string changed =
-      std::regex_replace(text, std::regex(key + ": \\{value: [^,}]+"), key + ": {value: " + value,
-                         std::regex_constants::format_first_only);
+  const std::string changed = std::regex_replace(text, std::regex(key + ": \\{value: [^,}]+"),
+                                                 key + ": {value: " + value, std::regex_constants::format_first_only);
   EXPECT_NE(changed, text) << key;
   const fs::path path = dir / name;
   std::ofstream(path) << changed;

@@ -77,8 +77,15 @@ inline std::filesystem::path fresh_dir(const std::string& prefix, const std::str
 /// A control-loop node on the shipped config and profiles.
 inline std::vector<std::string> node_args(const std::string& exe, const std::string& domain,
                                           const std::string& scenario, std::vector<std::string> extra = {}) {
-  std::vector<std::string> a{bin(exe),     "--domain", domain,     "--config", source("configs/system.yaml"),
-                             "--scenario", scenario,   "--profiles", source("configs/dds/profiles.xml")};
+  std::vector<std::string> a{bin(exe),
+                             "--domain",
+                             domain,
+                             "--config",
+                             source("configs/system.yaml"),
+                             "--scenario",
+                             scenario,
+                             "--profiles",
+                             source("configs/dds/profiles.xml")};
   a.insert(a.end(), extra.begin(), extra.end());
   return a;
 }
@@ -103,9 +110,18 @@ inline std::vector<std::string> container_args(const std::string& name,
 
 /// de_trainer on the shipped configs, one local thread, no progress bar.
 inline std::vector<std::string> trainer_args(const std::string& domain, std::vector<std::string> extra = {}) {
-  std::vector<std::string> a{bin("de_trainer"), "--domain",   domain, "--config", source("configs/system.yaml"),
-                             "--training",      source("configs/training.yaml"), "--profiles",
-                             source("configs/dds/profiles.xml"), "--no-progress", "--threads", "1"};
+  std::vector<std::string> a{bin("de_trainer"),
+                             "--domain",
+                             domain,
+                             "--config",
+                             source("configs/system.yaml"),
+                             "--training",
+                             source("configs/training.yaml"),
+                             "--profiles",
+                             source("configs/dds/profiles.xml"),
+                             "--no-progress",
+                             "--threads",
+                             "1"};
   a.insert(a.end(), extra.begin(), extra.end());
   return a;
 }

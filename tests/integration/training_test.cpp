@@ -43,8 +43,15 @@ std::vector<std::string> trainer_args(const std::string& domain, const fs::path&
 /// Worker ids carry the test program's process id: two test runs that meet on one
 /// domain (PMLSM_TEST_DOMAIN_BASE not set apart) must not share worker names.
 std::vector<std::string> worker_args(const std::string& domain, const std::string& id) {
-  return {bin("de_worker"), "--domain", domain, "--profiles", source("configs/dds/profiles.xml"),
-          "--threads",      "1",        "--id",   id + "-" + std::to_string(getpid())};
+  return {bin("de_worker"),
+          "--domain",
+          domain,
+          "--profiles",
+          source("configs/dds/profiles.xml"),
+          "--threads",
+          "1",
+          "--id",
+          id + "-" + std::to_string(getpid())};
 }
 
 /// Runs whose TrainingSetup a worker's log says it took, other than `run`: another
@@ -55,7 +62,8 @@ std::vector<std::string> foreign_setups(const std::string& worker_log, const std
   const std::string run = m[1];
   std::vector<std::string> foreign;
   const std::regex taken(R"(setup of run (\d+) taken)");
-  for (auto it = std::sregex_iterator(worker_log.begin(), worker_log.end(), taken); it != std::sregex_iterator(); ++it) {
+  for (auto it = std::sregex_iterator(worker_log.begin(), worker_log.end(), taken); it != std::sregex_iterator();
+       ++it) {
     if ((*it)[1] != run) foreign.push_back((*it)[1]);
   }
   return foreign;
@@ -74,7 +82,8 @@ struct Dispatch {
 /// The trainer's summary line "(R remote, L local, Q re-queued, W worker(s) lost)".
 std::optional<Dispatch> dispatch_of(const std::string& out) {
   std::smatch m;
-  if (!std::regex_search(out, m, std::regex(R"(\((\d+) remote, (\d+) local, (\d+) re-queued, (\d+) worker\(s\) lost\))"))) {
+  if (!std::regex_search(out, m,
+                         std::regex(R"(\((\d+) remote, (\d+) local, (\d+) re-queued, (\d+) worker\(s\) lost\))"))) {
     return std::nullopt;
   }
   return Dispatch{std::stoull(m[1]), std::stoull(m[2]), std::stoull(m[3]), std::stoull(m[4])};
@@ -128,8 +137,8 @@ void expect_same_result(const RnnWeightsFile& got, const RnnWeightsFile& expecte
   ASSERT_EQ(got.weights.size(), expected.weights.size());
   std::size_t differing = 0;
   for (std::size_t i = 0; i < got.weights.size(); ++i) differing += got.weights[i] != expected.weights[i];
-  EXPECT_EQ(differing, 0u) << "weights differ from the local-threads run (cost " << got.cost << " vs "
-                           << expected.cost << ")";
+  EXPECT_EQ(differing, 0u) << "weights differ from the local-threads run (cost " << got.cost << " vs " << expected.cost
+                           << ")";
 }
 
 /// Stops a worker with SIGINT and expects a clean exit; returns its evaluation count.
@@ -159,8 +168,8 @@ std::size_t data_lines(const fs::path& p) {
 /// Polls until `ready` holds; false at the deadline.
 template <typename Ready>
 bool poll_until(std::chrono::duration<double> timeout, Ready&& ready) {
-  const auto deadline = std::chrono::steady_clock::now() +
-                        std::chrono::duration_cast<std::chrono::steady_clock::duration>(timeout);
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(timeout);
   while (std::chrono::steady_clock::now() < deadline) {
     if (ready()) return true;
     std::this_thread::sleep_for(std::chrono::milliseconds(2));  // polling interval, not a synchronisation
@@ -177,7 +186,8 @@ TEST(TrainingDistributed, WorkersGiveTheSameResultAsLocalThreads) {
   test::ChildProcess w1(worker_args(domain, "w1"), (dir / "w1.log").string());
   test::ChildProcess w2(worker_args(domain, "w2"), (dir / "w2.log").string());
   const std::string out = run_trainer(
-      trainer_args(domain, dir / "w.yaml", join(kTrainSet, std::vector<std::string>{"--wait-workers", "2", "--wait-workers-s", "30"})),
+      trainer_args(domain, dir / "w.yaml",
+                   join(kTrainSet, std::vector<std::string>{"--wait-workers", "2", "--wait-workers-s", "30"})),
       dir / "trainer.log");
   EXPECT_NE(out.find("2 of 2 worker(s) joined"), std::string::npos) << out;
   const auto d = dispatch_of(out);
@@ -211,10 +221,11 @@ TEST(TrainingDistributed, AJudgedSearchOverPlantsGivesTheSameResultOnAWorker) {
   if (local->remote > 0) GTEST_SKIP() << "domain " << local_domain << " is shared with another test run";
   const std::string domain = test_domain(87);
   test::ChildProcess worker(worker_args(domain, "judged"), (dir / "worker.log").string());
-  const std::string out = run_trainer(
-      with_robust_file(trainer_args(domain, dir / "remote.yaml",
-                                    join(robust, std::vector<std::string>{"--wait-workers", "1", "--wait-workers-s", "30"}))),
-      dir / "remote.log");
+  const std::string out =
+      run_trainer(with_robust_file(trainer_args(
+                      domain, dir / "remote.yaml",
+                      join(robust, std::vector<std::string>{"--wait-workers", "1", "--wait-workers-s", "30"}))),
+                  dir / "remote.log");
   const auto d = dispatch_of(out);
   ASSERT_TRUE(d.has_value()) << out;
   EXPECT_GT(d->remote, 0u) << out;
@@ -238,8 +249,7 @@ TEST(TrainingDistributed, KilledWorkerLosesNothing) {
                                                             "--worker-timeout-s", "1"})),
       (dir / "trainer.log").string());
   // A first generation done by the workers, then one of them dies without a word.
-  ASSERT_TRUE(poll_until(seconds(60), [&] { return data_lines(dir / "w.yaml.history.csv") >= 1; }))
-      << trainer.output();
+  ASSERT_TRUE(poll_until(seconds(60), [&] { return data_lines(dir / "w.yaml.history.csv") >= 1; })) << trainer.output();
   w1.signal(SIGKILL);
   ASSERT_TRUE(w1.wait_for(seconds(10)).has_value());
   const std::size_t generation_at_kill = data_lines(dir / "w.yaml.history.csv");
@@ -306,7 +316,8 @@ TEST(TrainingDistributed, KilledTrainerResumesFromCheckpoint) {
   EXPECT_NE(out.find("at generation " + std::to_string(killed_at)), std::string::npos) << out;
   const auto d = dispatch_of(out);
   ASSERT_TRUE(d.has_value()) << out;
-  EXPECT_EQ(d->local, kBudget - kPopulation * (killed_at + 1)) << "only the remaining generations are evaluated: " << out;
+  EXPECT_EQ(d->local, kBudget - kPopulation * (killed_at + 1))
+      << "only the remaining generations are evaluated: " << out;
   ASSERT_TRUE(fs::exists(dir / "w.yaml")) << out;
   expect_same_result(load_rnn_weights((dir / "w.yaml").string()), reference);
   if (!HasFailure()) fs::remove_all(dir);
@@ -331,7 +342,8 @@ TEST(TrainingDistributed, BadTrainingConfigExits2) {
     EXPECT_NE(trainer.output().find("training.yaml"), std::string::npos) << set << ": " << trainer.output();
   }
   // A worker with a bad option is refused the same way.
-  test::ChildProcess worker({bin("de_worker"), "--domain", test_domain(19), "--threads", "0"}, (dir / "worker.log").string());
+  test::ChildProcess worker({bin("de_worker"), "--domain", test_domain(19), "--threads", "0"},
+                            (dir / "worker.log").string());
   const auto code = worker.wait_for(seconds(30));
   ASSERT_TRUE(code.has_value()) << worker.output();
   EXPECT_EQ(*code, 2) << worker.output();

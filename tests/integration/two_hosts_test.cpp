@@ -37,8 +37,8 @@ class TwoHosts {
     ok_ = sh("ip netns add " + rig_) == 0 && sh("ip netns add " + ctrl_) == 0 &&
           sh("ip link add " + veth_rig + " type veth peer name " + veth_ctrl) == 0 &&
           sh("ip link set " + veth_rig + " netns " + rig_) == 0 &&
-          sh("ip link set " + veth_ctrl + " netns " + ctrl_) == 0 &&
-          setup(rig_, veth_rig, subnet + ".1") && setup(ctrl_, veth_ctrl, subnet + ".2");
+          sh("ip link set " + veth_ctrl + " netns " + ctrl_) == 0 && setup(rig_, veth_rig, subnet + ".1") &&
+          setup(ctrl_, veth_ctrl, subnet + ".2");
   }
   ~TwoHosts() {
     sh("ip netns del " + rig_);
@@ -63,13 +63,13 @@ class TwoHosts {
 // memory can be shared with the other host.
 std::vector<std::string> in_host(const std::string& ns, const std::string& exe, const std::string& domain,
                                  const std::string& scenario, const std::vector<std::string>& extra) {
-  std::string command = "mount -t tmpfs tmpfs /dev/shm && exec " + bin(exe) + " --domain " + domain +
-                        " --config " + source("configs/system.yaml") + " --scenario " + scenario +
-                        " --profiles " + source("configs/dds/profiles.xml") +
+  std::string command = "mount -t tmpfs tmpfs /dev/shm && exec " + bin(exe) + " --domain " + domain + " --config " +
+                        source("configs/system.yaml") + " --scenario " + scenario + " --profiles " +
+                        source("configs/dds/profiles.xml") +
                         " --participant-profile pmlsm_udp_only --peer-timeout-s 30";
   for (const auto& e : extra) command += " " + e;
-  return {"/usr/sbin/ip", "netns", "exec", ns, "/usr/bin/unshare", "--mount", "--propagation", "private",
-          "/bin/sh", "-c", command};
+  return {"/usr/sbin/ip", "netns",   "exec", ns,     "/usr/bin/unshare", "--mount", "--propagation",
+          "private",      "/bin/sh", "-c",   command};
 }
 
 TEST(TwoHosts, LockstepTraceOverUdpEqualsTheSingleHostOne) {

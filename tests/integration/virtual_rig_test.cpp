@@ -40,8 +40,8 @@ const char* const kMissedAnswers = "master.realtime.max_missed_answers=300";
 
 /// Both ends of a test's CAN bus: the shipped CANopen file, the test's group and port, then `extra`.
 std::vector<std::string> can_args(const std::string& port, std::vector<std::string> extra = {}) {
-  std::vector<std::string> a{"--canopen-config", source("configs/canopen/drive.yaml"), "--can-group", kCanGroup,
-                             "--can-port", port};
+  std::vector<std::string> a{
+      "--canopen-config", source("configs/canopen/drive.yaml"), "--can-group", kCanGroup, "--can-port", port};
   a.insert(a.end(), extra.begin(), extra.end());
   return a;
 }
@@ -206,29 +206,34 @@ double settling_or_segment_s(const std::map<std::string, std::vector<double>>& c
 TEST(VirtualRig, CostsAndSettlingMatchTheSimulatedDriveForEveryCompensatorAndScenario) {
   const fs::path dir = test::fresh_dir("pmlsm_virtual_rig", "costs");
   const std::string domain = test_domain(48);
-  std::string table = "scenario / compensator      simulated drive cost  virtual rig cost   diff %   settle sim / rig [s]\n";
+  std::string table =
+      "scenario / compensator      simulated drive cost  virtual rig cost   diff %   settle sim / rig [s]\n";
   for (const char* scenario_name : {"pulse", "free_vibration"}) {
     const std::string scenario = source(std::string("configs/scenarios/") + scenario_name + ".yaml");
     for (const char* compensator : {"none", "accel", "rnn"}) {
       SCOPED_TRACE(std::string(scenario_name) + " / " + compensator);
       const std::string tag = std::string(scenario_name) + "_" + compensator;
-      std::vector<std::string> sim_args{bin("closed_loop"),  "--config", source("configs/system.yaml"),
-                                        "--scenario",        scenario,   "--compensator",
-                                        compensator,         "--out",    (dir / ("sim_" + tag)).string()};
+      std::vector<std::string> sim_args{bin("closed_loop"), "--config", source("configs/system.yaml"),
+                                        "--scenario",       scenario,   "--compensator",
+                                        compensator,        "--out",    (dir / ("sim_" + tag)).string()};
       if (std::string(compensator) == "rnn") {
         sim_args.insert(sim_args.end(), {"--weights", source("configs/rnn_weights.yaml")});
       }
       test::ChildProcess sim(sim_args, (dir / ("sim_" + tag + ".log")).string());
       ASSERT_EQ(sim.wait_for(std::chrono::seconds(120)), std::optional<int>(0)) << sim.output();
-      test::ChildProcess rig(
-          {bin("launcher"), source("launch/virtual_rig.yaml"), "--arg", "config=" + source("configs/system.yaml"),
-           "--arg", "scenario=" + scenario, "--arg", "profiles=" + source("configs/dds/profiles.xml"), "--arg",
-           "domain=" + domain, "--arg", "compensator=" + std::string(compensator), "--arg",
-           "weights=" + source("configs/rnn_weights.yaml"), "--arg",
-           "canopen_config=" + source("configs/canopen/drive.yaml"), "--arg",
-           "dictionary=" + source("configs/canopen/virtual_drive_od.yaml"), "--arg", std::string("can_group=") + kCanGroup,
-           "--arg", "can_port=43248", "--arg", "out=" + (dir / ("rig_" + tag)).string()},
-          (dir / ("rig_" + tag + ".log")).string());
+      test::ChildProcess rig({bin("launcher"), source("launch/virtual_rig.yaml"),
+                              "--arg",         "config=" + source("configs/system.yaml"),
+                              "--arg",         "scenario=" + scenario,
+                              "--arg",         "profiles=" + source("configs/dds/profiles.xml"),
+                              "--arg",         "domain=" + domain,
+                              "--arg",         "compensator=" + std::string(compensator),
+                              "--arg",         "weights=" + source("configs/rnn_weights.yaml"),
+                              "--arg",         "canopen_config=" + source("configs/canopen/drive.yaml"),
+                              "--arg",         "dictionary=" + source("configs/canopen/virtual_drive_od.yaml"),
+                              "--arg",         std::string("can_group=") + kCanGroup,
+                              "--arg",         "can_port=43248",
+                              "--arg",         "out=" + (dir / ("rig_" + tag)).string()},
+                             (dir / ("rig_" + tag + ".log")).string());
       const auto code = rig.wait_for(std::chrono::seconds(150));
       ASSERT_EQ(code, std::optional<int>(0)) << rig.output();
       const auto sim_row = find_row(sim.output(), "", scenario_name);
@@ -243,7 +248,8 @@ TEST(VirtualRig, CostsAndSettlingMatchTheSimulatedDriveForEveryCompensatorAndSce
       // the friction's stick decide). The rig must then lie within 2 % of that spread of the
       // simulated drive's own costs, sampled at ten nudges.
       const bool free_vibration = std::string(scenario_name) == "free_vibration";
-      const std::string sim_csv = std::string(scenario_name) + (std::string(compensator) == "none" ? "" : std::string("_") + compensator) + ".csv";
+      const std::string sim_csv = std::string(scenario_name) +
+                                  (std::string(compensator) == "none" ? "" : std::string("_") + compensator) + ".csv";
       const double sim_settle_s = settling_or_segment_s(read_columns(dir / ("sim_" + tag) / sim_csv), free_vibration);
       double sim_low = sim_row->cost_true, sim_high = sim_row->cost_true;
       // The settling time is as sensitive as the cost (a segment whose last tick leaves the band
@@ -269,9 +275,10 @@ TEST(VirtualRig, CostsAndSettlingMatchTheSimulatedDriveForEveryCompensatorAndSce
           settle_high_s = std::max(settle_high_s, settle_s);
         }
       }
-      EXPECT_TRUE(std::fabs(diff) <= 0.02 || (rig_row->cost_true >= 0.98 * sim_low && rig_row->cost_true <= 1.02 * sim_high))
-          << "simulated: " << sim_row->text << " (" << sim_low << " to " << sim_high << " with the gain nudged)\nvirtual rig: "
-          << rig_row->text;
+      EXPECT_TRUE(std::fabs(diff) <= 0.02 ||
+                  (rig_row->cost_true >= 0.98 * sim_low && rig_row->cost_true <= 1.02 * sim_high))
+          << "simulated: " << sim_row->text << " (" << sim_low << " to " << sim_high
+          << " with the gain nudged)\nvirtual rig: " << rig_row->text;
       const double rig_settle_s = settling_or_segment_s(
           read_columns(dir / ("rig_" + tag) / (std::string(scenario_name) + "_virtual_rig.csv")), free_vibration);
       EXPECT_TRUE(rig_settle_s >= settle_low_s - 0.05 && rig_settle_s <= settle_high_s + 0.05)
@@ -281,13 +288,14 @@ TEST(VirtualRig, CostsAndSettlingMatchTheSimulatedDriveForEveryCompensatorAndSce
       char line[256];
       char spread[96] = "";
       if (sim_high > sim_low) {
-        std::snprintf(spread, sizeof spread, " (simulated %.3f-%.3f, settling %.3f-%.3f s, K_a nudged)", sim_low, sim_high,
-                      settle_low_s, settle_high_s);
+        std::snprintf(spread, sizeof spread, " (simulated %.3f-%.3f, settling %.3f-%.3f s, K_a nudged)", sim_low,
+                      sim_high, settle_low_s, settle_high_s);
       }
-      std::snprintf(line, sizeof line, "%-14s / %-6s  %20.3f  %16.3f  %+7.3f   %.3f / %.3f%s%s\n", scenario_name,
-                    compensator, sim_row->cost_true, rig_row->cost_true, 100.0 * diff, sim_settle_s, rig_settle_s,
-                    sim_row->settle_s && rig_row->settle_s ? "" : " (a segment outside the band at its end counts whole)",
-                    spread);
+      std::snprintf(
+          line, sizeof line, "%-14s / %-6s  %20.3f  %16.3f  %+7.3f   %.3f / %.3f%s%s\n", scenario_name, compensator,
+          sim_row->cost_true, rig_row->cost_true, 100.0 * diff, sim_settle_s, rig_settle_s,
+          sim_row->settle_s && rig_row->settle_s ? "" : " (a segment outside the band at its end counts whole)",
+          spread);
       table += line;
     }
   }
@@ -302,18 +310,21 @@ TEST(VirtualRig, AKilledBridgeLeavesTheDriveAtZeroForceWithinItsSyncTimeout) {
   const fs::path dir = test::fresh_dir("pmlsm_virtual_rig", "bridge_killed");
   const std::string scenario = source("configs/scenarios/free_vibration.yaml");
   const std::string domain = test_domain(49);
-  test::ChildProcess drive = start_virtual_drive(dir, domain, scenario, "43249", {"--clock", "realtime", "--canopen-set", kSyncTimeout});
+  test::ChildProcess drive =
+      start_virtual_drive(dir, domain, scenario, "43249", {"--clock", "realtime", "--canopen-set", kSyncTimeout});
   test::ChildProcess controller(node_args("controller", domain, scenario, {"--clock", "realtime"}),
                                 (dir / "controller.log").string());
   test::ChildProcess bridge(node_args("drive_bridge", domain, scenario,
-                                      can_args("43249", {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "50", "--canopen-set", kMissedAnswers})),
+                                      can_args("43249", {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "50",
+                                                         "--canopen-set", kMissedAnswers})),
                             (dir / "bridge.log").string());
   ASSERT_TRUE(drive.wait_for_output("-> operation enabled", std::chrono::seconds(30))) << bridge.output();
   ASSERT_TRUE(bridge.wait_for_output("operation enabled (auto-enable)", std::chrono::seconds(30))) << bridge.output();
   const double killed_s = wall_now_s();
   bridge.signal(SIGKILL);
   ASSERT_TRUE(drive.wait_for_output("FAULT 0x8700", std::chrono::seconds(10)))
-      << "the drive did not notice the master's end:\n" << drive.output();
+      << "the drive did not notice the master's end:\n"
+      << drive.output();
   const auto fault_s = wall_time_of(drive.output(), "FAULT 0x8700");
   ASSERT_TRUE(fault_s.has_value()) << drive.output();
   std::printf("bridge SIGKILL -> virtual drive fault 0x8700, zero force: %.1f ms (SYNC time-out 50 ms)\n",
@@ -333,21 +344,22 @@ TEST(VirtualRig, AKilledContainerOfBridgeAndControllerLeavesTheDriveAtZeroForceW
   const fs::path dir = test::fresh_dir("pmlsm_virtual_rig", "container_killed");
   const std::string scenario = source("configs/scenarios/free_vibration.yaml");
   const std::string domain = test_domain(131);
-  test::ChildProcess drive = start_virtual_drive(dir, domain, scenario, "43294", {"--clock", "realtime", "--canopen-set", kSyncTimeout});
+  test::ChildProcess drive =
+      start_virtual_drive(dir, domain, scenario, "43294", {"--clock", "realtime", "--canopen-set", kSyncTimeout});
   test::ChildProcess chain(
       test::container_args(
-          "rig_chain",
-          {test::component_args("drive_bridge", "drive_bridge", domain, scenario,
-                                can_args("43294", {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "50",
-                                                   "--canopen-set", kMissedAnswers})),
-           test::component_args("controller", "controller", domain, scenario, {"--clock", "realtime"})}),
+          "rig_chain", {test::component_args("drive_bridge", "drive_bridge", domain, scenario,
+                                             can_args("43294", {"--peers", "1", "--clock", "realtime", "--watchdog-ms",
+                                                                "50", "--canopen-set", kMissedAnswers})),
+                        test::component_args("controller", "controller", domain, scenario, {"--clock", "realtime"})}),
       (dir / "chain.log").string());
   ASSERT_TRUE(drive.wait_for_output("-> operation enabled", std::chrono::seconds(30))) << chain.output();
   ASSERT_TRUE(chain.wait_for_output("operation enabled (auto-enable)", std::chrono::seconds(30))) << chain.output();
   const double killed_s = wall_now_s();
   chain.signal(SIGKILL);
   ASSERT_TRUE(drive.wait_for_output("FAULT 0x8700", std::chrono::seconds(10)))
-      << "the drive did not notice the master's end:\n" << drive.output();
+      << "the drive did not notice the master's end:\n"
+      << drive.output();
   const auto fault_s = wall_time_of(drive.output(), "FAULT 0x8700");
   ASSERT_TRUE(fault_s.has_value()) << drive.output();
   std::printf("container SIGKILL -> virtual drive fault 0x8700, zero force: %.1f ms (SYNC time-out 50 ms)\n",
@@ -365,13 +377,15 @@ TEST(VirtualRig, AKilledControllerQuickStopsTheDriveWithinTheWatchdog) {
   const fs::path dir = test::fresh_dir("pmlsm_virtual_rig", "controller_killed");
   const std::string scenario = source("configs/scenarios/free_vibration.yaml");
   const std::string domain = test_domain(70);
-  test::ChildProcess drive = start_virtual_drive(dir, domain, scenario, "43270", {"--clock", "realtime", "--canopen-set", kSyncTimeout});
+  test::ChildProcess drive =
+      start_virtual_drive(dir, domain, scenario, "43270", {"--clock", "realtime", "--canopen-set", kSyncTimeout});
   test::ChildProcess controller(node_args("controller", domain, scenario, {"--clock", "realtime"}),
                                 (dir / "controller.log").string());
-  test::ChildProcess bridge(node_args("drive_bridge", domain, scenario,
-                                      can_args("43270", {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "50",
-                                                         "--on-controller-lost", "stay", "--canopen-set", kMissedAnswers})),
-                            (dir / "bridge.log").string());
+  test::ChildProcess bridge(
+      node_args("drive_bridge", domain, scenario,
+                can_args("43270", {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "50", "--on-controller-lost",
+                                   "stay", "--canopen-set", kMissedAnswers})),
+      (dir / "bridge.log").string());
   ASSERT_TRUE(bridge.wait_for_output("watchdog armed", std::chrono::seconds(30))) << bridge.output();
   if (bridge.output().find("watchdog: tick") != std::string::npos) {
     // Not the subject: the host held the controller up for 50 ms before the kill, so the trip the
@@ -409,13 +423,14 @@ TEST(VirtualRig, AKilledControllerQuickStopsTheDriveWithinTheWatchdog) {
   const std::string out = bridge.output();
   const auto at = out.find("watchdog: tick ");
   unsigned long long unanswered = 0, tripped = 0;
-  ASSERT_EQ(std::sscanf(out.c_str() + at, "watchdog: tick %llu unanswered for %*f ms at tick %llu", &unanswered, &tripped),
-            2)
+  ASSERT_EQ(
+      std::sscanf(out.c_str() + at, "watchdog: tick %llu unanswered for %*f ms at tick %llu", &unanswered, &tripped), 2)
       << out;
   EXPECT_LE(tripped - unanswered, 51u) << out;
-  std::printf("controller SIGKILL -> quick stop on the drive: %.1f ms (watchdog 50 ms; tick %llu unanswered, "
-              "tripped at tick %llu)\n",
-              (*stop_s - killed_s) * 1e3, unanswered, tripped);
+  std::printf(
+      "controller SIGKILL -> quick stop on the drive: %.1f ms (watchdog 50 ms; tick %llu unanswered, "
+      "tripped at tick %llu)\n",
+      (*stop_s - killed_s) * 1e3, unanswered, tripped);
   bridge.signal(SIGINT);
   EXPECT_EQ(bridge.wait_for(std::chrono::seconds(30)), std::optional<int>(5)) << bridge.output();
   drive.signal(SIGINT);
@@ -431,22 +446,24 @@ TEST(VirtualRig, AnInjectedDriveFaultIsReportedAndClearedByFaultResetAndEnable) 
   const std::string scenario = source("configs/scenarios/free_vibration.yaml");
   const std::string domain = test_domain(71);
   test::ChildProcess drive =
-      start_virtual_drive(dir, domain, scenario, "43271", {"--clock", "realtime", "--canopen-set", kSyncTimeout, "--inject-fault-at-tick", "2500"});
+      start_virtual_drive(dir, domain, scenario, "43271",
+                          {"--clock", "realtime", "--canopen-set", kSyncTimeout, "--inject-fault-at-tick", "2500"});
   // Peer loss is not this test's subject: generous time-outs, so a busy host's stall is not one.
   test::ChildProcess controller(
       node_args("controller", domain, scenario, {"--clock", "realtime", "--plant-lost-ms", "2000"}),
       (dir / "controller.log").string());
-  test::ChildProcess bridge(node_args("drive_bridge", domain, scenario,
-                                      can_args("43271", {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "50",
-                                                         "--controller-lost-ms", "2000", "--on-controller-lost", "stay", "--canopen-set", kMissedAnswers})),
-                            (dir / "bridge.log").string());
-  ASSERT_TRUE(bridge.wait_for_output("drive error code 0x5000", std::chrono::seconds(30)))
-      << bridge.output() << "\n" << drive.output();
+  test::ChildProcess bridge(
+      node_args("drive_bridge", domain, scenario,
+                can_args("43271", {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "50", "--controller-lost-ms",
+                                   "2000", "--on-controller-lost", "stay", "--canopen-set", kMissedAnswers})),
+      (dir / "bridge.log").string());
+  ASSERT_TRUE(bridge.wait_for_output("drive error code 0x5000", std::chrono::seconds(30))) << bridge.output() << "\n"
+                                                                                           << drive.output();
   ASSERT_TRUE(drive.wait_for_output("FAULT 0x5000", std::chrono::seconds(5))) << drive.output();
   const auto tool = [&](const char* command) {
-    test::ChildProcess p({bin("pmlsm"), "--domain", domain, "--profiles", source("configs/dds/profiles.xml"), "drive",
-                          command},
-                         (dir / (std::string("pmlsm_") + command + ".log")).string());
+    test::ChildProcess p(
+        {bin("pmlsm"), "--domain", domain, "--profiles", source("configs/dds/profiles.xml"), "drive", command},
+        (dir / (std::string("pmlsm_") + command + ".log")).string());
     const auto code = p.wait_for(std::chrono::seconds(30));
     return std::make_pair(code, p.output());
   };

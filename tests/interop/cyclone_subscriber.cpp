@@ -87,28 +87,55 @@ struct TopicKind {
   const char* short_name;  // as given to --topic
   const char* dds_name;    // as in common/dds/include/pmlsm/dds/topics.hpp
   const dds_topic_descriptor_t* descriptor;
-  const char* columns;     // after "topic,tick,sim_time_ns"
+  const char* columns;  // after "topic,tick,sim_time_ns"
   void (*write_row)(std::FILE* out, const char* topic, const void* sample);
 };
 
 void motor_feedback_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_MotorFeedback*>(sample);
-  CsvRow(out, topic).stamp(m.stamp).num(m.position_m).num(m.velocity_mps).num(m.i_d_a).num(m.i_q_a)
-      .num(m.thrust_force_n).num(m.applied_force_n).num(m.applied_command_tick).num(m.status);
+  CsvRow(out, topic)
+      .stamp(m.stamp)
+      .num(m.position_m)
+      .num(m.velocity_mps)
+      .num(m.i_d_a)
+      .num(m.i_q_a)
+      .num(m.thrust_force_n)
+      .num(m.applied_force_n)
+      .num(m.applied_command_tick)
+      .num(m.status);
 }
 
 void force_command_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_ForceCommand*>(sample);
-  CsvRow(out, topic).stamp(m.stamp).num(m.feedback_tick).num(m.force_n).num(m.pi_force_n)
-      .num(m.compensation_force_n).num(m.velocity_error_mps).num(m.saturated);
+  CsvRow(out, topic)
+      .stamp(m.stamp)
+      .num(m.feedback_tick)
+      .num(m.force_n)
+      .num(m.pi_force_n)
+      .num(m.compensation_force_n)
+      .num(m.velocity_error_mps)
+      .num(m.saturated);
 }
 
 void plant_truth_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_PlantTruth*>(sample);
-  CsvRow(out, topic).stamp(m.stamp).num(m.motor_position_m).num(m.motor_velocity_mps)
-      .num(m.motor_acceleration_mps2).num(m.load_position_m).num(m.load_velocity_mps)
-      .num(m.load_acceleration_mps2).num(m.spring_force_n).num(m.thrust_force_n).num(m.ripple_force_n)
-      .num(m.friction_force_n).num(m.command_force_n).num(m.i_d_a).num(m.i_q_a).num(m.u_d_v).num(m.u_q_v);
+  CsvRow(out, topic)
+      .stamp(m.stamp)
+      .num(m.motor_position_m)
+      .num(m.motor_velocity_mps)
+      .num(m.motor_acceleration_mps2)
+      .num(m.load_position_m)
+      .num(m.load_velocity_mps)
+      .num(m.load_acceleration_mps2)
+      .num(m.spring_force_n)
+      .num(m.thrust_force_n)
+      .num(m.ripple_force_n)
+      .num(m.friction_force_n)
+      .num(m.command_force_n)
+      .num(m.i_d_a)
+      .num(m.i_q_a)
+      .num(m.u_d_v)
+      .num(m.u_q_v);
 }
 
 void velocity_reference_row(std::FILE* out, const char* topic, const void* sample) {
@@ -118,14 +145,28 @@ void velocity_reference_row(std::FILE* out, const char* topic, const void* sampl
 
 void estimated_state_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_EstimatedState*>(sample);
-  CsvRow(out, topic).stamp(m.stamp).num(m.feedback_tick).num(m.v_motor_mps).num(m.v_load_mps)
-      .num(m.spring_force_n).num(m.a_load_mps2).num(m.input_force_n).num(m.innovation_mps);
+  CsvRow(out, topic)
+      .stamp(m.stamp)
+      .num(m.feedback_tick)
+      .num(m.v_motor_mps)
+      .num(m.v_load_mps)
+      .num(m.spring_force_n)
+      .num(m.a_load_mps2)
+      .num(m.input_force_n)
+      .num(m.innovation_mps);
 }
 
 void compensator_output_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_CompensatorOutput*>(sample);
-  CsvRow(out, topic).stamp(m.stamp).num(m.estimate_tick).num(m.weights_version).num(m.force_n).num(m.u_n)
-      .num(m.training_error_mps).num(m.k_c_mps).num(m.flags);
+  CsvRow(out, topic)
+      .stamp(m.stamp)
+      .num(m.estimate_tick)
+      .num(m.weights_version)
+      .num(m.force_n)
+      .num(m.u_n)
+      .num(m.training_error_mps)
+      .num(m.k_c_mps)
+      .num(m.flags);
 }
 
 void current_feedback_row(std::FILE* out, const char* topic, const void* sample) {
@@ -135,14 +176,27 @@ void current_feedback_row(std::FILE* out, const char* topic, const void* sample)
 
 void voltage_command_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_VoltageCommand*>(sample);
-  CsvRow(out, topic).stamp(m.stamp).num(m.substep).num(m.u_d_v).num(m.u_q_v).num(m.i_d_ref_a)
-      .num(m.i_q_ref_a).num(m.saturated);
+  CsvRow(out, topic)
+      .stamp(m.stamp)
+      .num(m.substep)
+      .num(m.u_d_v)
+      .num(m.u_q_v)
+      .num(m.i_d_ref_a)
+      .num(m.i_q_ref_a)
+      .num(m.saturated);
 }
 
 void node_status_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_NodeStatus*>(sample);
-  CsvRow(out, topic).stamp(m.stamp).text(m.node_name).num(m.pid).num(static_cast<std::uint32_t>(m.state))
-      .num(m.ticks).num(m.late).num(m.rejected).text(m.message);
+  CsvRow(out, topic)
+      .stamp(m.stamp)
+      .text(m.node_name)
+      .num(m.pid)
+      .num(static_cast<std::uint32_t>(m.state))
+      .num(m.ticks)
+      .num(m.late)
+      .num(m.rejected)
+      .text(m.message);
 }
 
 const TopicKind kTopicKinds[] = {
@@ -183,12 +237,12 @@ struct Options {
   std::vector<const TopicKind*> topics;
   std::uint64_t count = 0;
   double timeout_s = 30.0;
-  double linger_s = 0.0;       // after the last sample needed, wait this long for the writers to go
+  double linger_s = 0.0;  // after the last sample needed, wait this long for the writers to go
   std::string out_path;
   std::string cyclone_config;  // empty: Cyclone's defaults, or CYCLONEDDS_URI if set
   bool answer = false;         // answer MotorFeedback with ForceCommand
   double answer_force_n = 0.0;
-  bool bad_answers = false;    // malformed commands before some answers (see the top)
+  bool bad_answers = false;  // malformed commands before some answers (see the top)
 };
 
 void print_usage(std::FILE* to) {
@@ -258,7 +312,8 @@ std::string parse_options(int argc, char** argv, Options& opt, bool& help) {
     const char* value = argv[++i];
     if (arg == "--domain") {
       std::uint64_t domain = 0;
-      if (!parse_u64(value, domain) || domain > 232) return "--domain: '" + std::string(value) + "' is not a domain id 0..232";
+      if (!parse_u64(value, domain) || domain > 232)
+        return "--domain: '" + std::string(value) + "' is not a domain id 0..232";
       opt.domain = static_cast<dds_domainid_t>(domain);
     } else if (arg == "--topic") {
       const TopicKind* kind = find_topic_kind(value);
@@ -268,7 +323,8 @@ std::string parse_options(int argc, char** argv, Options& opt, bool& help) {
       }
       opt.topics.push_back(kind);
     } else if (arg == "--count") {
-      if (!parse_u64(value, opt.count) || opt.count == 0) return "--count: '" + std::string(value) + "' is not a positive integer";
+      if (!parse_u64(value, opt.count) || opt.count == 0)
+        return "--count: '" + std::string(value) + "' is not a positive integer";
       have_count = true;
     } else if (arg == "--timeout-s") {
       if (!parse_double(value, opt.timeout_s) || !(opt.timeout_s > 0.0) || opt.timeout_s > 86400.0) {
@@ -333,9 +389,7 @@ struct Subscription {
   std::uint32_t matched_writers = 0;
 };
 
-std::string dds_error(const char* what, dds_return_t rc) {
-  return std::string(what) + ": " + dds_strretcode(rc);
-}
+std::string dds_error(const char* what, dds_return_t rc) { return std::string(what) + ": " + dds_strretcode(rc); }
 
 class Program {
  public:
@@ -379,8 +433,7 @@ class Program {
       std::fprintf(stderr, "cyclone_subscriber: timeout after %.1f s, samples received of %" PRIu64 " per topic:",
                    opt_.timeout_s, opt_.count);
       for (const Subscription& s : subscriptions_) {
-        std::fprintf(stderr, " %s %" PRIu64 " (%u matched writers)", s.kind->short_name, s.received,
-                     s.matched_writers);
+        std::fprintf(stderr, " %s %" PRIu64 " (%u matched writers)", s.kind->short_name, s.received, s.matched_writers);
       }
       std::fputc('\n', stderr);
       return kFailed;
@@ -388,11 +441,13 @@ class Program {
     if (answer_writer_ > 0) {
       // The last answers must reach the plant before this participant goes away.
       const dds_return_t rc = dds_wait_for_acks(answer_writer_, DDS_SECS(5));
-      if (rc < 0) std::fprintf(stderr, "cyclone_subscriber: %s\n", dds_error("last ForceCommands not acknowledged", rc).c_str());
+      if (rc < 0)
+        std::fprintf(stderr, "cyclone_subscriber: %s\n", dds_error("last ForceCommands not acknowledged", rc).c_str());
     }
     if (opt_.linger_s > 0.0) {
       // Samples that still come are taken and written, but not waited for.
-      const std::string error = serve_until(dds_time() + seconds(opt_.linger_s), [&] { return matched_writers() == 0; });
+      const std::string error =
+          serve_until(dds_time() + seconds(opt_.linger_s), [&] { return matched_writers() == 0; });
       if (!error.empty()) {
         std::fprintf(stderr, "cyclone_subscriber: %s\n", error.c_str());
         return kFailed;
@@ -406,7 +461,8 @@ class Program {
     std::printf("cyclone_subscriber: done:");
     for (const Subscription& s : subscriptions_) std::printf(" %s %" PRIu64, s.kind->short_name, s.received);
     std::printf("%s", opt_.answer ? (", answered " + std::to_string(answered_) + " ticks").c_str() : "");
-    std::printf("%s\n", opt_.bad_answers ? (", " + std::to_string(bad_answers_) + " malformed commands sent").c_str() : "");
+    std::printf("%s\n",
+                opt_.bad_answers ? (", " + std::to_string(bad_answers_) + " malformed commands sent").c_str() : "");
     return kOk;
   }
 
@@ -446,8 +502,8 @@ class Program {
     }
     dds_delete_qos(reader_qos);
     if (opt_.answer) {
-      const dds_entity_t topic = dds_create_topic(participant_, &pmlsm_msgs_msg_ForceCommand_desc,
-                                                  "rt/pmlsm/force_command", nullptr, nullptr);
+      const dds_entity_t topic =
+          dds_create_topic(participant_, &pmlsm_msgs_msg_ForceCommand_desc, "rt/pmlsm/force_command", nullptr, nullptr);
       if (topic < 0) return dds_error("cannot create topic rt/pmlsm/force_command", topic);
       dds_qos_t* writer_qos = make_qos(true);
       answer_writer_ = dds_create_writer(participant_, topic, writer_qos, nullptr);

@@ -71,8 +71,18 @@ std::map<std::string, TopicRows> read_cyclone_csv(const fs::path& path) {
 // the subscriber fails, as configs/dds/profiles.xml does for our participants.
 std::vector<std::string> cyclone_args(const std::string& domain, const std::vector<std::string>& topics,
                                       std::uint64_t count, const fs::path& csv, std::vector<std::string> extra = {}) {
-  std::vector<std::string> a{bin("cyclone_subscriber"), "--domain", domain, "--count", std::to_string(count),
-                             "--timeout-s", "45", "--linger-s", "20", "--out", csv.string(), "--cyclone-config",
+  std::vector<std::string> a{bin("cyclone_subscriber"),
+                             "--domain",
+                             domain,
+                             "--count",
+                             std::to_string(count),
+                             "--timeout-s",
+                             "45",
+                             "--linger-s",
+                             "20",
+                             "--out",
+                             csv.string(),
+                             "--cyclone-config",
                              "<Discovery><LeaseDuration>3s</LeaseDuration></Discovery>"};
   for (const std::string& t : topics) {
     a.push_back("--topic");
@@ -232,9 +242,9 @@ TEST(CycloneController, FastDdsPlantRunsInLockstepOnCycloneCommands) {
     const double sent = ((k - 1) % 2 == 0 ? 1.0 : -1.0) * force_n;  // the answer to tick k-1
     mismatches.check(feedback.number(k, "applied_force_n") == sent,
                      describe("motor_feedback", k, "applied_force_n", feedback.number(k, "applied_force_n"), sent));
-    mismatches.check(feedback.integer(k, "applied_command_tick") == k - 1,
-                     "motor_feedback tick " + std::to_string(k) + " applied_command_tick " +
-                         feedback.at(k, "applied_command_tick"));
+    mismatches.check(
+        feedback.integer(k, "applied_command_tick") == k - 1,
+        "motor_feedback tick " + std::to_string(k) + " applied_command_tick " + feedback.at(k, "applied_command_tick"));
     mismatches.check(truth.number(k, "command_force_n") == sent,
                      describe("plant_truth", k, "command_force_n", truth.number(k, "command_force_n"), sent));
   }
@@ -289,8 +299,9 @@ TEST(CycloneController, RealtimePlantRejectsFutureTicksAndNanForces) {
     const std::string field = rows == &topics.at("motor_feedback") ? "applied_force_n" : "command_force_n";
     for (std::size_t r = 0; r < rows->rows.size(); ++r) {
       const double force_n = rows->number(r, field);
-      mismatches.check(force_n == 0.0 || force_n == 20.0 || force_n == -20.0,
-                       field + " row " + std::to_string(r) + " = " + rows->at(r, field) + " (only 0 or +-20 N were sent)");
+      mismatches.check(
+          force_n == 0.0 || force_n == 20.0 || force_n == -20.0,
+          field + " row " + std::to_string(r) + " = " + rows->at(r, field) + " (only 0 or +-20 N were sent)");
       pushed = pushed || force_n == 20.0;
       pulled = pulled || force_n == -20.0;
     }
@@ -303,10 +314,10 @@ TEST(CycloneController, RealtimePlantRejectsFutureTicksAndNanForces) {
 TEST(CycloneSubscriber, ReportsPerTopicCountsWhenItTimesOut) {
   const fs::path dir = test::fresh_dir("pmlsm_interop", "timeout");
   // A domain with no writers of these topics.
-  test::ChildProcess cyclone({bin("cyclone_subscriber"), "--domain", test_domain(22), "--topic", "motor_feedback",
-                              "--topic", "force_command", "--count", "1", "--timeout-s", "0.5", "--out",
-                              (dir / "cyclone.csv").string()},
-                             (dir / "cyclone.log").string());
+  test::ChildProcess cyclone(
+      {bin("cyclone_subscriber"), "--domain", test_domain(22), "--topic", "motor_feedback", "--topic", "force_command",
+       "--count", "1", "--timeout-s", "0.5", "--out", (dir / "cyclone.csv").string()},
+      (dir / "cyclone.log").string());
   const auto code = cyclone.wait_for(30s);
   ASSERT_TRUE(code.has_value()) << cyclone.output();
   EXPECT_EQ(*code, 1) << cyclone.output();
@@ -331,7 +342,8 @@ TEST(CycloneSubscriber, RefusesBadCommandLinesWithExitCode2) {
       {{exe, "--topic", "motor_feedback", "--count", "1", "--out", csv, "--timeout-s", "soon"}, "--timeout-s: 'soon'"},
       {{exe, "--topic", "force_command", "--count", "1", "--out", csv, "--answer-force-n", "1"},
        "add --topic motor_feedback"},
-      {{exe, "--topic", "motor_feedback", "--count", "1", "--out", csv, "--verbose", "1"}, "unknown option '--verbose'"},
+      {{exe, "--topic", "motor_feedback", "--count", "1", "--out", csv, "--verbose", "1"},
+       "unknown option '--verbose'"},
       {{exe, "--topic", "motor_feedback", "--count", "1", "--out"}, "--out needs a value"},
   };
   for (const auto& [args, message] : cases) {

@@ -62,9 +62,7 @@ class Sampler {
   std::uint64_t u64(const std::string& path) {
     return record(path, 0xF000000000000000ULL + 0x0101010101ULL * static_cast<std::uint64_t>(next()));
   }
-  std::int64_t i64(const std::string& path) {
-    return record(path, -1'000'000'000'000'000LL - 3 * next());
-  }
+  std::int64_t i64(const std::string& path) { return record(path, -1'000'000'000'000'000LL - 3 * next()); }
   std::int32_t i32(const std::string& path) {
     return static_cast<std::int32_t>(record(path, std::int64_t{-100000 - 3 * next()}));
   }
@@ -96,9 +94,7 @@ class Sampler {
     for (std::size_t i = 0; i < count; ++i) values.push_back(text<N>(indexed(path, i)));
     return values;
   }
-  static std::string indexed(const std::string& path, std::size_t i) {
-    return path + "[" + std::to_string(i) + "]";
-  }
+  static std::string indexed(const std::string& path, std::size_t i) { return path + "[" + std::to_string(i) + "]"; }
   const std::vector<Field>& expected() const { return expected_; }
 
  private:
@@ -462,8 +458,7 @@ Bytes make_sample(Sampler& sampler, ByteOrder order) {
   }
   std::vector<char> buffer(type.m_typeSize);
   eprosima::fastcdr::FastBuffer fast_buffer(buffer.data(), buffer.size());
-  eprosima::fastcdr::Cdr cdr(fast_buffer, eprosima::fastcdr::Cdr::BIG_ENDIANNESS,
-                             eprosima::fastcdr::Cdr::DDS_CDR);
+  eprosima::fastcdr::Cdr cdr(fast_buffer, eprosima::fastcdr::Cdr::BIG_ENDIANNESS, eprosima::fastcdr::Cdr::DDS_CDR);
   cdr.serialize_encapsulation();
   sample.serialize(cdr);
   const auto* first = reinterpret_cast<const std::uint8_t*>(buffer.data());
@@ -479,26 +474,20 @@ const CatalogCase kCases[] = {
     {"pmlsm_msgs::msg::MotorFeedback", make_sample<msg::MotorFeedbackPubSubType, motor_feedback>},
     {"pmlsm_msgs::msg::PlantTruth", make_sample<msg::PlantTruthPubSubType, plant_truth>},
     {"pmlsm_msgs::msg::ForceCommand", make_sample<msg::ForceCommandPubSubType, force_command>},
-    {"pmlsm_msgs::msg::CurrentFeedback",
-     make_sample<msg::CurrentFeedbackPubSubType, current_feedback>},
+    {"pmlsm_msgs::msg::CurrentFeedback", make_sample<msg::CurrentFeedbackPubSubType, current_feedback>},
     {"pmlsm_msgs::msg::VoltageCommand", make_sample<msg::VoltageCommandPubSubType, voltage_command>},
-    {"pmlsm_msgs::msg::VelocityReference",
-     make_sample<msg::VelocityReferencePubSubType, velocity_reference>},
+    {"pmlsm_msgs::msg::VelocityReference", make_sample<msg::VelocityReferencePubSubType, velocity_reference>},
     {"pmlsm_msgs::msg::VelocitySetpoint", make_sample<msg::VelocitySetpointPubSubType, velocity_setpoint>},
     {"pmlsm_msgs::msg::EstimatedState", make_sample<msg::EstimatedStatePubSubType, estimated_state>},
     {"pmlsm_msgs::msg::DriveControl", make_sample<msg::DriveControlPubSubType, drive_control>},
     {"pmlsm_msgs::msg::DriveState", make_sample<msg::DriveStatePubSubType, drive_state>},
-    {"pmlsm_msgs::msg::CompensatorOutput",
-     make_sample<msg::CompensatorOutputPubSubType, compensator_output>},
+    {"pmlsm_msgs::msg::CompensatorOutput", make_sample<msg::CompensatorOutputPubSubType, compensator_output>},
     {"pmlsm_msgs::msg::NetworkWeights", make_sample<msg::NetworkWeightsPubSubType, network_weights>},
-    {"pmlsm_msgs::msg::TrainerProgress",
-     make_sample<msg::TrainerProgressPubSubType, trainer_progress>},
+    {"pmlsm_msgs::msg::TrainerProgress", make_sample<msg::TrainerProgressPubSubType, trainer_progress>},
     {"pmlsm_msgs::msg::NodeStatus", make_sample<msg::NodeStatusPubSubType, node_status>},
     {"pmlsm_msgs::msg::TrainingSetup", make_sample<msg::TrainingSetupPubSubType, training_setup>},
-    {"pmlsm_msgs::msg::EvaluationRequest",
-     make_sample<msg::EvaluationRequestPubSubType, evaluation_request>},
-    {"pmlsm_msgs::msg::EvaluationResult",
-     make_sample<msg::EvaluationResultPubSubType, evaluation_result>},
+    {"pmlsm_msgs::msg::EvaluationRequest", make_sample<msg::EvaluationRequestPubSubType, evaluation_request>},
+    {"pmlsm_msgs::msg::EvaluationResult", make_sample<msg::EvaluationResultPubSubType, evaluation_result>},
     {"pmlsm_msgs::msg::WorkerStatus", make_sample<msg::WorkerStatusPubSubType, worker_status>},
     {"pmlsm_msgs::msg::AgentAnnounce", make_sample<msg::AgentAnnouncePubSubType, agent_announce>},
     {"pmlsm_msgs::msg::LaunchRequest", make_sample<msg::LaunchRequestPubSubType, launch_request>},
@@ -571,8 +560,7 @@ TEST_P(CatalogTypeTest, FieldPathsMatchTheDecodedFields) {
     std::string path = field.path;
     // Only covariance_diag is a fixed array in the catalog: its indices stay.
     if (path.rfind("covariance_diag", 0) != 0) {
-      for (std::size_t open = path.find('['); open != std::string::npos;
-           open = path.find('[', open + 2)) {
+      for (std::size_t open = path.find('['); open != std::string::npos; open = path.find('[', open + 2)) {
         path.erase(open + 1, path.find(']', open) - open - 1);
       }
     }
@@ -642,8 +630,7 @@ void check_every_truncation(const std::string& type_name, const Bytes& bytes) {
 
 TEST(CatalogDecode, EveryTruncationOfMotorFeedback) {
   Sampler sampler;
-  const Bytes bytes =
-      make_sample<msg::MotorFeedbackPubSubType, motor_feedback>(sampler, ByteOrder::Little);
+  const Bytes bytes = make_sample<msg::MotorFeedbackPubSubType, motor_feedback>(sampler, ByteOrder::Little);
   // header + 11 eight-byte members (4 in the stamp) + uint32 + uint8 + 1 padding + uint16
   ASSERT_EQ(bytes.size(), 100U);
   check_every_truncation("pmlsm_msgs::msg::MotorFeedback", bytes);
@@ -669,34 +656,35 @@ TEST(CatalogDecode, EveryTruncationOfDriveState) {
 
 TEST(CatalogDecode, EveryTruncationOfDriveControl) {
   Sampler sampler;
-  check_every_truncation(
-      "pmlsm_msgs::msg::DriveControl",
-      make_sample<msg::DriveControlPubSubType, drive_control>(sampler, ByteOrder::Little));
+  check_every_truncation("pmlsm_msgs::msg::DriveControl",
+                         make_sample<msg::DriveControlPubSubType, drive_control>(sampler, ByteOrder::Little));
 }
 
 TEST(CatalogDecode, EveryTruncationOfNetworkWeights) {
   Sampler sampler;
-  check_every_truncation(
-      "pmlsm_msgs::msg::NetworkWeights",
-      make_sample<msg::NetworkWeightsPubSubType, network_weights>(sampler, ByteOrder::Little));
+  check_every_truncation("pmlsm_msgs::msg::NetworkWeights",
+                         make_sample<msg::NetworkWeightsPubSubType, network_weights>(sampler, ByteOrder::Little));
 }
 
 TEST(CatalogDecode, RejectsOtherEncapsulations) {
   Sampler sampler;
-  const Bytes valid =
-      make_sample<msg::MotorFeedbackPubSubType, motor_feedback>(sampler, ByteOrder::Little);
+  const Bytes valid = make_sample<msg::MotorFeedbackPubSubType, motor_feedback>(sampler, ByteOrder::Little);
   const MessageSchema schema = schema_of("pmlsm_msgs::msg::MotorFeedback");
-  const std::pair<std::uint8_t, std::string> kinds[] = {
-      {0x02, "0x0002 (PL_CDR_BE)"}, {0x03, "0x0003 (PL_CDR_LE)"}, {0x06, "0x0006 (CDR2_BE)"},
-      {0x07, "0x0007 (CDR2_LE)"},   {0x08, "0x0008"},             {0x09, "0x0009"},
-      {0x0a, "0x000a"},             {0x0b, "0x000b (PL_CDR2_LE)"}, {0x42, "0x0042"}};
+  const std::pair<std::uint8_t, std::string> kinds[] = {{0x02, "0x0002 (PL_CDR_BE)"},
+                                                        {0x03, "0x0003 (PL_CDR_LE)"},
+                                                        {0x06, "0x0006 (CDR2_BE)"},
+                                                        {0x07, "0x0007 (CDR2_LE)"},
+                                                        {0x08, "0x0008"},
+                                                        {0x09, "0x0009"},
+                                                        {0x0a, "0x000a"},
+                                                        {0x0b, "0x000b (PL_CDR2_LE)"},
+                                                        {0x42, "0x0042"}};
   for (const auto& [kind, text] : kinds) {
     Bytes bytes = valid;
     bytes[1] = kind;
     const Decoded decoded = schema.decode(bytes.data(), bytes.size());
     EXPECT_TRUE(decoded.fields.empty());
-    EXPECT_NE(decoded.error.find("unsupported encapsulation " + text), std::string::npos)
-        << decoded.error;
+    EXPECT_NE(decoded.error.find("unsupported encapsulation " + text), std::string::npos) << decoded.error;
   }
   Bytes bytes = valid;
   bytes[0] = 0x01;
@@ -707,8 +695,7 @@ TEST(CatalogDecode, RejectsOtherEncapsulations) {
 
 TEST(CatalogDecode, SequenceCountBeyondItsBoundOrTheData) {
   Sampler sampler;
-  Bytes bytes =
-      make_sample<msg::NetworkWeightsPubSubType, network_weights>(sampler, ByteOrder::Little);
+  Bytes bytes = make_sample<msg::NetworkWeightsPubSubType, network_weights>(sampler, ByteOrder::Little);
   const MessageSchema schema = schema_of("pmlsm_msgs::msg::NetworkWeights");
   // layer_sizes' count follows stamp (32 bytes) and version (8): byte 4 + 40 = 44.
   ASSERT_EQ(bytes[44], 5U);
@@ -777,9 +764,7 @@ TEST(CatalogDecode, RosStyleTypeNames) {
   ASSERT_NE(entry, nullptr);
   for (const char* name : {"pmlsm_msgs/msg/MotorFeedback", "/pmlsm_msgs/msg/MotorFeedback",
                            "::pmlsm_msgs::msg::MotorFeedback", "pmlsm_msgs::msg::MotorFeedback"}) {
-    EXPECT_EQ(MessageSchema::parse(entry->schema_idl, name).type_name(),
-              "pmlsm_msgs::msg::MotorFeedback")
-        << name;
+    EXPECT_EQ(MessageSchema::parse(entry->schema_idl, name).type_name(), "pmlsm_msgs::msg::MotorFeedback") << name;
   }
 }
 

@@ -91,9 +91,9 @@ void expect_small_fields(const Decoded& decoded) {
 TEST(Decode, HandMadeBigEndianSample) {
   const Bytes bytes = {
       0x00, 0x00, 0x00, 0x00,                          // CDR_BE, options
-      0x01, 0x02, 0, 0, 0, 0, 0, 0,                    // a = 0x0102, padding to 8
-      0x3f, 0xf8, 0, 0, 0, 0, 0, 0,                    // b = 1.5
-      0x00, 0x00, 0x00, 0x04, 'a', 'b', 'c', 0x00,     // name: length with the NUL
+      0x01, 0x02, 0,    0,    0,    0,    0,    0,     // a = 0x0102, padding to 8
+      0x3f, 0xf8, 0,    0,    0,    0,    0,    0,     // b = 1.5
+      0x00, 0x00, 0x00, 0x04, 'a',  'b',  'c',  0x00,  // name: length with the NUL
       0x00, 0x00, 0x00, 0x02,                          // values: count
       0xff, 0xff, 0xff, 0xf9, 0x00, 0x00, 0x01, 0x2c,  // -7, 300
       0x01,                                            // flag
@@ -104,18 +104,17 @@ TEST(Decode, HandMadeBigEndianSample) {
 TEST(Decode, HandMadeLittleEndianSample) {
   const Bytes bytes = {
       0x00, 0x01, 0x00, 0x00,  // CDR_LE
-      0x02, 0x01, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xf8, 0x3f, 0x04, 0x00, 0x00, 0x00,
-      'a',  'b',  'c',  0x00, 0x02, 0x00, 0x00, 0x00, 0xf9, 0xff, 0xff, 0xff, 0x2c, 0x01,
-      0x00, 0x00, 0x01,
-      0xaa, 0xbb,  // trailing bytes (padding some writers add) are ignored
+      0x02, 0x01, 0,    0,    0,    0,    0,    0,    0,    0,    0,    0,    0,    0,
+      0xf8, 0x3f, 0x04, 0x00, 0x00, 0x00, 'a',  'b',  'c',  0x00, 0x02, 0x00, 0x00, 0x00,
+      0xf9, 0xff, 0xff, 0xff, 0x2c, 0x01, 0x00, 0x00, 0x01, 0xaa, 0xbb,  // trailing bytes (padding some writers add)
+                                                                         // are ignored
   };
   expect_small_fields(MessageSchema::parse(kSmallIdl, "t::Small").decode(bytes.data(), bytes.size()));
 }
 
 TEST(Decode, MalformedStringsSequencesAndBooleans) {
   const MessageSchema schema = MessageSchema::parse(kSmallIdl, "t::Small");
-  const auto decode = [&](const std::string& name_bytes, std::uint32_t length, std::uint32_t count,
-                          std::uint8_t flag) {
+  const auto decode = [&](const std::string& name_bytes, std::uint32_t length, std::uint32_t count, std::uint8_t flag) {
     CdrWriter writer(true);
     writer.put(std::uint16_t{1}).put(2.5).put(length);
     Bytes bytes = writer.bytes();
@@ -128,8 +127,7 @@ TEST(Decode, MalformedStringsSequencesAndBooleans) {
   };
   EXPECT_TRUE(decode(std::string("abc\0", 4), 4, 1, 1).ok());
   // String length 4 at byte 4 + 16 = 20; its bytes start at 24.
-  EXPECT_EQ(decode("abcd", 4, 1, 1).error,
-            "at byte 20, field 'name': string of 4 bytes does not end in NUL");
+  EXPECT_EQ(decode("abcd", 4, 1, 1).error, "at byte 20, field 'name': string of 4 bytes does not end in NUL");
   EXPECT_EQ(decode(std::string("abc\0", 4), 400, 1, 1).error,
             "at byte 20, field 'name': string length 400 exceeds the 13 bytes left");
   EXPECT_EQ(decode(std::string("abcdefghijk\0", 12), 12, 1, 1).error,
@@ -230,14 +228,12 @@ TEST(Schema, IdlFeaturesDecodeInBothByteOrders) {
     EXPECT_EQ(decoded.fields.size(), 31U);
   }
   const std::vector<std::string> paths = {
-      "id", "serial", "small", "letter", "s16", "u16", "s32", "ratio", "mode",
-      "position[0]", "position[1]", "position[2]",
-      "grid[0][0]", "grid[0][1]", "grid[0][2]", "grid[1][0]", "grid[1][1]", "grid[1][2]",
-      "path[][0]", "path[][1]", "path[][2]", "bases[0].id", "bases[1].id", "names[]",
-      "s64", "u32", "ok"};
+      "id",          "serial",      "small",       "letter",      "s16",         "u16",        "s32",
+      "ratio",       "mode",        "position[0]", "position[1]", "position[2]", "grid[0][0]", "grid[0][1]",
+      "grid[0][2]",  "grid[1][0]",  "grid[1][1]",  "grid[1][2]",  "path[][0]",   "path[][1]",  "path[][2]",
+      "bases[0].id", "bases[1].id", "names[]",     "s64",         "u32",         "ok"};
   EXPECT_EQ(schema.field_paths(), paths);
-  EXPECT_EQ(MessageSchema::parse(kFeaturesIdl, "geo/inner/Base").field_paths(),
-            std::vector<std::string>{"id"});
+  EXPECT_EQ(MessageSchema::parse(kFeaturesIdl, "geo/inner/Base").field_paths(), std::vector<std::string>{"id"});
 }
 
 TEST(Schema, BoundsFromConstantsAreEnforced) {
@@ -264,17 +260,14 @@ const BadIdl kBadIdl[] = {
     {"module m {\n  struct A {\n    double x;\n  struct B { double y; };\n};\n};", "m::A",
      "IDL line 4, at 'struct': missing '}' closing struct 'A' (opened at line 2)"},
     {"struct A { double x; };\n};", "A", "IDL line 2, at '}': unbalanced '}'"},
-    {"module m {\n  struct A {\n    Foo x;\n  };\n};", "m::A",
-     "IDL line 3, at 'Foo': unknown type 'Foo'"},
+    {"module m {\n  struct A {\n    Foo x;\n  };\n};", "m::A", "IDL line 3, at 'Foo': unknown type 'Foo'"},
     {"/* a\n b\n*/\n#include <x.idl>\nstruct A {\n  geo::Foo x;\n};", "A",
      "IDL line 6, at 'geo': unknown type 'geo::Foo'"},
     {"struct A { double x; }; /* oops", "A", "IDL line 1, at '/*': unterminated comment"},
     {"struct A { double $x; };", "A", "IDL line 1, at '$': unexpected character"},
     {"struct A { double x; }; \x01", "A", "IDL line 1, at '\\x01': unexpected character"},
-    {"const string S = \"abc;\nstruct A { double x; };", "A",
-     "IDL line 1, at '\"': unterminated literal"},
-    {"struct A { string<0> s; };", "A",
-     "IDL line 1, at '0': a bound must be a positive integer constant below 2^32"},
+    {"const string S = \"abc;\nstruct A { double x; };", "A", "IDL line 1, at '\"': unterminated literal"},
+    {"struct A { string<0> s; };", "A", "IDL line 1, at '0': a bound must be a positive integer constant below 2^32"},
     {"struct A { sequence<double, -1> s; };", "A",
      "IDL line 1, at '-': a bound must be a positive integer constant below 2^32"},
     {"const double D = 1.5;\nstruct A { sequence<double, D> s; };", "A",
@@ -283,28 +276,21 @@ const BadIdl kBadIdl[] = {
      "IDL line 2, at '4': a bound must be a positive integer constant below 2^32"},
     {"struct A { long double x; };", "A", "IDL line 1, at 'double': long double is not supported"},
     {"struct A { wstring x; };", "A", "IDL line 1, at 'wstring': unsupported type"},
-    {"union U switch (long) { case 1: long a; };", "U",
-     "IDL line 1, at 'union': unsupported IDL construct"},
+    {"union U switch (long) { case 1: long a; };", "U", "IDL line 1, at 'union': unsupported IDL construct"},
     {"struct A { double x; long x; };", "A", "IDL line 1, at 'x': duplicate member 'x'"},
-    {"struct A { double x; };\nstruct A { double y; };", "A",
-     "IDL line 2, at 'A': redefinition of 'A'"},
-    {"struct A {\n  @optional double x;\n};", "A",
-     "IDL line 2, at 'double': @optional members are not supported"},
-    {"struct A { double x[100000][100000]; };", "A",
-     "IDL line 1, at 'x': array of more than 1048576 elements"},
+    {"struct A { double x; };\nstruct A { double y; };", "A", "IDL line 2, at 'A': redefinition of 'A'"},
+    {"struct A {\n  @optional double x;\n};", "A", "IDL line 2, at 'double': @optional members are not supported"},
+    {"struct A { double x[100000][100000]; };", "A", "IDL line 1, at 'x': array of more than 1048576 elements"},
     {"struct A { double x }", "A", "IDL line 1, at '}': expected ';' after a member"},
-    {"const long N = 3;\nstruct A { N x; };", "A",
-     "IDL line 2, at 'N': 'N' is a constant, not a type"},
-    {"struct A { unsigned double x; };", "A",
-     "IDL line 1, at 'double': expected 'short' or 'long' after 'unsigned'"},
+    {"const long N = 3;\nstruct A { N x; };", "A", "IDL line 2, at 'N': 'N' is a constant, not a type"},
+    {"struct A { unsigned double x; };", "A", "IDL line 1, at 'double': expected 'short' or 'long' after 'unsigned'"},
     {"module { };", "A", "IDL line 1, at '{': expected a module name"},
     {"struct B : A { double x; };", "B", "IDL line 1, at 'A': unknown type 'A'"},
     {"@final", "A", "IDL line 1, at 'end of input': annotation without a definition"},
     {"struct A { double x; };\nfoo", "A",
      "IDL line 2, at 'foo': expected a definition (module, struct, enum, typedef or const)"},
     {"", "A", "unknown type 'A': the IDL defines the structs (none)"},
-    {"enum E { X, Y };\nmodule m { struct S { E e; }; };", "E",
-     "unknown type 'E': the IDL defines the structs m::S"},
+    {"enum E { X, Y };\nmodule m { struct S { E e; }; };", "E", "unknown type 'E': the IDL defines the structs m::S"},
 };
 
 TEST(Schema, BadIdlIsReportedWithLineAndToken) {
@@ -338,8 +324,7 @@ TEST(Schema, DeepNestingIsRefusedNotOverflowed) {
     MessageSchema::parse(typedefs, "A");
     ADD_FAILURE() << "no SchemaError";
   } catch (const SchemaError& error) {
-    EXPECT_NE(std::string(error.what()).find("types nested too deeply"), std::string::npos)
-        << error.what();
+    EXPECT_NE(std::string(error.what()).find("types nested too deeply"), std::string::npos) << error.what();
   }
 
   std::string parentheses = "const long N = ";
@@ -413,10 +398,9 @@ TEST(Schema, RandomlyMangledIdlOnlyThrowsSchemaError) {
 
 TEST(Schema, FieldPathsOfNestedAndSequenceMembers) {
   EXPECT_EQ(MessageSchema::parse(kFlattenedIdl, "pmlsm_msgs::msg::NetworkWeights").field_paths(),
-            (std::vector<std::string>{"stamp.tick", "stamp.sim_time_ns", "stamp.source_time_ns",
-                                      "version", "layer_sizes[]", "weights[]", "input_scale",
-                                      "source", "grid[0][0]", "grid[0][1]", "grid[1][0]",
-                                      "grid[1][1]"}));
+            (std::vector<std::string>{"stamp.tick", "stamp.sim_time_ns", "stamp.source_time_ns", "version",
+                                      "layer_sizes[]", "weights[]", "input_scale", "source", "grid[0][0]", "grid[0][1]",
+                                      "grid[1][0]", "grid[1][1]"}));
 }
 
 template <class T>
@@ -429,8 +413,7 @@ Field make_field(const std::string& path, T value) {
 
 TEST(Text, ValuesAsEchoPrintsThem) {
   EXPECT_EQ(make_field("x", std::int64_t{-5}).to_string(), "-5");
-  EXPECT_EQ(make_field("x", std::numeric_limits<std::uint64_t>::max()).to_string(),
-            "18446744073709551615");
+  EXPECT_EQ(make_field("x", std::numeric_limits<std::uint64_t>::max()).to_string(), "18446744073709551615");
   EXPECT_EQ(make_field("x", 0.1).to_string(), "0.1");
   EXPECT_EQ(make_field("x", 2.0).to_string(), "2.0");
   EXPECT_EQ(make_field("x", -1e-7).to_string(), "-1.0e-07");

@@ -56,14 +56,13 @@ TEST(ContainerLaunch, AContainerReplacesItsComponentsByOneNodeAtTheFirstOnesPlac
   EXPECT_EQ(d.nodes[1].name, "recorder");  // outside: its own process
   // The container's own options, then each component's command line in the order of `nodes`.
   const std::vector<std::string> expected = {
-      "--name", "chain", "--rt-priority", "0",
-      "--component", "evaluator", "evaluator", "--clock", "lockstep",
-      "--component", "controller", "controller", "--clock", "lockstep",
-      "--component", "plant_sim", "plant_sim", "--clock", "lockstep", "--peers", "2"};
+      "--name",      "chain",     "--rt-priority", "0",          "--component", "evaluator", "evaluator",
+      "--clock",     "lockstep",  "--component",   "controller", "controller",  "--clock",   "lockstep",
+      "--component", "plant_sim", "plant_sim",     "--clock",    "lockstep",    "--peers",   "2"};
   EXPECT_EQ(chain.args, expected);
   // What the container reads back from that command line.
-  const auto line = split_container_command_line(
-      std::vector<std::string>(chain.args.begin(), chain.args.end()), {"plant_sim", "controller", "evaluator"});
+  const auto line = split_container_command_line(std::vector<std::string>(chain.args.begin(), chain.args.end()),
+                                                 {"plant_sim", "controller", "evaluator"});
   EXPECT_EQ(line.own_args, (std::vector<std::string>{"--name", "chain", "--rt-priority", "0"}));
   ASSERT_EQ(line.components.size(), 3u);
   EXPECT_EQ(line.components[2].name, "plant_sim");
@@ -91,8 +90,9 @@ TEST(ContainerLaunch, MalformedContainersAreRefusedWithTheirPlace) {
     t.replace(t.find("[plant_sim, controller, evaluator]"), 34, list);
     return t;
   };
-  EXPECT_NE(error_of(with_components("[plant_sim, nowhere]")).find("containers[0].components[1]: 'nowhere' is not a node"),
-            std::string::npos);
+  EXPECT_NE(
+      error_of(with_components("[plant_sim, nowhere]")).find("containers[0].components[1]: 'nowhere' is not a node"),
+      std::string::npos);
   EXPECT_NE(error_of(with_components("[]")).find("must list at least one node"), std::string::npos);
   // Checked when the container is left out too.
   EXPECT_NE(error_of(with_components("[plant_sim, nowhere]"), {{"compose", "false"}}).find("'nowhere' is not a node"),
@@ -148,8 +148,9 @@ TEST(ContainerCommandLine, RefusesNoComponentUnknownTypesAndNamesUsedTwice) {
     return "";
   };
   EXPECT_NE(error({"--name", "x"}).find("no component"), std::string::npos);
-  EXPECT_NE(error({"--component", "a", "turbine"}).find("component 'a': unknown type 'turbine' (a container runs: "
-                                                        "plant_sim, controller)"),
+  EXPECT_NE(error({"--component", "a", "turbine"})
+                .find("component 'a': unknown type 'turbine' (a container runs: "
+                      "plant_sim, controller)"),
             std::string::npos);
   EXPECT_NE(error({"--component", "a", "plant_sim", "--component", "a", "controller"})
                 .find("component name 'a' is used twice (plant_sim and controller)"),
@@ -157,7 +158,8 @@ TEST(ContainerCommandLine, RefusesNoComponentUnknownTypesAndNamesUsedTwice) {
   EXPECT_NE(error({"--component", "a"}).find("needs a NAME and a TYPE"), std::string::npos);
   EXPECT_NE(error({"--component", "a b", "plant_sim"}).find("must be [A-Za-z0-9_-]+"), std::string::npos);
   const auto round_trip = pmlsm::container::container_command_line(
-      {"--name", "c"}, {ComponentSpec{"p", "plant_sim", {"--clock", "realtime"}}, ComponentSpec{"c", "controller", {}}});
+      {"--name", "c"},
+      {ComponentSpec{"p", "plant_sim", {"--clock", "realtime"}}, ComponentSpec{"c", "controller", {}}});
   const auto line = split_container_command_line(round_trip, known);
   ASSERT_EQ(line.components.size(), 2u);
   EXPECT_EQ(line.components[0].args, (std::vector<std::string>{"--clock", "realtime"}));

@@ -47,8 +47,8 @@ TEST(LaunchFile, ParsesEveryField) {
   EXPECT_EQ(plant.name, "plant");
   EXPECT_EQ(plant.executable, "plant_sim");
   EXPECT_EQ(plant.host, "rig");
-  EXPECT_EQ(plant.args, (std::vector<std::string>{"--clock", "lockstep", "--scenario",
-                                                  "configs/scenarios/pulse.yaml"}));
+  EXPECT_EQ(plant.args,
+            (std::vector<std::string>{"--clock", "lockstep", "--scenario", "configs/scenarios/pulse.yaml"}));
   ASSERT_EQ(plant.env.size(), 1u);
   EXPECT_EQ(plant.env[0].first, "FASTDDS_DEFAULT_PROFILES_FILE");
   EXPECT_EQ(plant.env[0].second, "configs/dds/profiles.xml");
@@ -76,9 +76,9 @@ TEST(LaunchFile, NodeHostDefaultsToTheFirstHost) {
 }
 
 TEST(LaunchFile, NumbersAndBooleansInArgsAreKeptAsWritten) {
-  const LaunchDescription d =
-      parse("name: n\nnodes:\n  - {name: a, executable: a, args: [--rate, 1000, 0.5e-3, true], "
-            "env: {N: 4}, ends_launch: false}\n");
+  const LaunchDescription d = parse(
+      "name: n\nnodes:\n  - {name: a, executable: a, args: [--rate, 1000, 0.5e-3, true], "
+      "env: {N: 4}, ends_launch: false}\n");
   EXPECT_EQ(d.nodes[0].args, (std::vector<std::string>{"--rate", "1000", "0.5e-3", "true"}));
   EXPECT_EQ(d.nodes[0].env[0].second, "4");
   EXPECT_FALSE(d.nodes[0].ends_launch);
@@ -106,8 +106,7 @@ TEST(LaunchFile, LoadsFromAFileAndNamesItInErrors) {
     load_launch_file(dir.file("absent.yaml"));
     FAIL() << "expected a LaunchFileError";
   } catch (const LaunchFileError& e) {
-    EXPECT_NE(std::string(e.what()).find(dir.file("absent.yaml") + ": cannot open launch file"),
-              std::string::npos)
+    EXPECT_NE(std::string(e.what()).find(dir.file("absent.yaml") + ": cannot open launch file"), std::string::npos)
         << e.what();
   }
 }
@@ -143,69 +142,98 @@ const std::vector<BadFile> kBadFiles = {
     {"MissingNodes", "name: n\n", {"missing required key 'nodes'"}},
     {"EmptyNodes", "name: n\nnodes: []\n", {"launch.yaml:2:", "nodes: must list at least one node"}},
     {"NodesNotList", "name: n\nnodes: {a: 1}\n", {"nodes: must be a list of nodes, got a map"}},
-    {"UnknownTopKey", "name: n\nnodez: []\nnodes:\n  - {name: a, executable: a}\n",
+    {"UnknownTopKey",
+     "name: n\nnodez: []\nnodes:\n  - {name: a, executable: a}\n",
      {"launch.yaml:2:1", "nodez: unknown key", "allowed: name, hosts, nodes, args"}},
-    {"DuplicateTopKey", "name: n\nname: m\nnodes:\n  - {name: a, executable: a}\n", {"launch.yaml:2:", "name: duplicate key"}},
+    {"DuplicateTopKey",
+     "name: n\nname: m\nnodes:\n  - {name: a, executable: a}\n",
+     {"launch.yaml:2:", "name: duplicate key"}},
     {"NodeNotMap", "name: n\nnodes:\n  - plant_sim\n", {"nodes[0]: must be a map", "'plant_sim'"}},
     {"NodeMissingName", "name: n\nnodes:\n  - {executable: a}\n", {"nodes[0]: missing required key 'name'"}},
     {"NodeMissingExecutable", "name: n\nnodes:\n  - {name: a}\n", {"nodes[0]: missing required key 'executable'"}},
-    {"UnknownNodeKey", "name: n\nnodes:\n  - {name: a, executable: a}\n  - {name: b, exectuable: b}\n",
+    {"UnknownNodeKey",
+     "name: n\nnodes:\n  - {name: a, executable: a}\n  - {name: b, exectuable: b}\n",
      {"launch.yaml:4:", "nodes[1].exectuable: unknown key", "executable"}},
-    {"DuplicateNodeKey", "name: n\nnodes:\n  - name: a\n    executable: a\n    name: b\n",
+    {"DuplicateNodeKey",
+     "name: n\nnodes:\n  - name: a\n    executable: a\n    name: b\n",
      {"launch.yaml:5:", "nodes[0].name: duplicate key"}},
-    {"DuplicateNodeNames", "name: n\nnodes:\n  - {name: a, executable: a}\n  - {name: a, executable: b}\n",
+    {"DuplicateNodeNames",
+     "name: n\nnodes:\n  - {name: a, executable: a}\n  - {name: a, executable: b}\n",
      {"launch.yaml:4:", "nodes[1].name: 'a' is already the name of nodes[0]"}},
-    {"BadNodeName", "name: n\nnodes:\n  - {name: plant sim, executable: a}\n",
+    {"BadNodeName",
+     "name: n\nnodes:\n  - {name: plant sim, executable: a}\n",
      {"nodes[0].name: 'plant sim' is not a node name"}},
-    {"ReservedNodeName", "name: n\nnodes:\n  - {name: launcher, executable: a}\n",
+    {"ReservedNodeName",
+     "name: n\nnodes:\n  - {name: launcher, executable: a}\n",
      {"nodes[0].name: 'launcher' is reserved"}},
     {"EmptyExecutable", "name: n\nnodes:\n  - {name: a, executable: ''}\n", {"nodes[0].executable: must not be empty"}},
-    {"NullExecutable", "name: n\nnodes:\n  - {name: a, executable: }\n",
+    {"NullExecutable",
+     "name: n\nnodes:\n  - {name: a, executable: }\n",
      {"nodes[0].executable: must be a string, got null"}},
-    {"HostNotListed", "name: n\nhosts: [rig, ctrl]\nnodes:\n  - {name: a, executable: a, host: lab}\n",
+    {"HostNotListed",
+     "name: n\nhosts: [rig, ctrl]\nnodes:\n  - {name: a, executable: a, host: lab}\n",
      {"launch.yaml:4:", "nodes[0].host: 'lab' is not among hosts [rig, ctrl]"}},
-    {"HostNotListedWithDefaultHosts", "name: n\nnodes:\n  - {name: a, executable: a, host: rig}\n",
+    {"HostNotListedWithDefaultHosts",
+     "name: n\nnodes:\n  - {name: a, executable: a, host: rig}\n",
      {"nodes[0].host: 'rig' is not among hosts [local]"}},
-    {"HostsNotList", "name: n\nhosts: rig\nnodes:\n  - {name: a, executable: a}\n",
+    {"HostsNotList",
+     "name: n\nhosts: rig\nnodes:\n  - {name: a, executable: a}\n",
      {"hosts: must be a list of host names, got 'rig'"}},
     {"HostsEmpty", "name: n\nhosts: []\nnodes:\n  - {name: a, executable: a}\n", {"hosts: must not be empty"}},
-    {"HostsDuplicate", "name: n\nhosts: [rig, rig]\nnodes:\n  - {name: a, executable: a}\n",
+    {"HostsDuplicate",
+     "name: n\nhosts: [rig, rig]\nnodes:\n  - {name: a, executable: a}\n",
      {"hosts[1]: 'rig' is listed twice"}},
-    {"BadHostName", "name: n\nhosts: ['rig 1']\nnodes:\n  - {name: a, executable: a}\n",
+    {"BadHostName",
+     "name: n\nhosts: ['rig 1']\nnodes:\n  - {name: a, executable: a}\n",
      {"hosts[0]: 'rig 1' is not a host name"}},
-    {"NodeArgsNotList", "name: n\nnodes:\n  - {name: a, executable: a, args: --fast}\n",
+    {"NodeArgsNotList",
+     "name: n\nnodes:\n  - {name: a, executable: a, args: --fast}\n",
      {"nodes[0].args: must be a list of strings, got '--fast'"}},
-    {"NodeArgNotString", "name: n\nnodes:\n  - {name: a, executable: a, args: [--x, [1, 2]]}\n",
+    {"NodeArgNotString",
+     "name: n\nnodes:\n  - {name: a, executable: a, args: [--x, [1, 2]]}\n",
      {"nodes[0].args[1]: must be a string, got a list"}},
-    {"EnvNotMap", "name: n\nnodes:\n  - {name: a, executable: a, env: [A=1]}\n",
+    {"EnvNotMap",
+     "name: n\nnodes:\n  - {name: a, executable: a, env: [A=1]}\n",
      {"nodes[0].env: must be a map", "got a list"}},
-    {"EnvValueNull", "name: n\nnodes:\n  - {name: a, executable: a, env: {A: }}\n",
+    {"EnvValueNull",
+     "name: n\nnodes:\n  - {name: a, executable: a, env: {A: }}\n",
      {"nodes[0].env.A: must be a string, got null"}},
-    {"EnvBadName", "name: n\nnodes:\n  - {name: a, executable: a, env: {1A: x}}\n",
+    {"EnvBadName",
+     "name: n\nnodes:\n  - {name: a, executable: a, env: {1A: x}}\n",
      {"nodes[0].env.1A: '1A' is not an environment variable name"}},
-    {"EnvDuplicate", "name: n\nnodes:\n  - {name: a, executable: a, env: {A: x, A: y}}\n",
+    {"EnvDuplicate",
+     "name: n\nnodes:\n  - {name: a, executable: a, env: {A: x, A: y}}\n",
      {"nodes[0].env.A: duplicate key"}},
-    {"EndsLaunchNotBool", "name: n\nnodes:\n  - {name: a, executable: a, ends_launch: yes}\n",
+    {"EndsLaunchNotBool",
+     "name: n\nnodes:\n  - {name: a, executable: a, ends_launch: yes}\n",
      {"nodes[0].ends_launch: must be true or false, got 'yes'"}},
-    {"EndsLaunchList", "name: n\nnodes:\n  - {name: a, executable: a, ends_launch: [true]}\n",
+    {"EndsLaunchList",
+     "name: n\nnodes:\n  - {name: a, executable: a, ends_launch: [true]}\n",
      {"nodes[0].ends_launch: must be true or false, got a list"}},
-    {"ArgsNotMap", "name: n\nargs: [a]\nnodes:\n  - {name: a, executable: a}\n",
-     {"args: must be a map", "got a list"}},
-    {"ArgValueNotString", "name: n\nargs: {a: {b: c}}\nnodes:\n  - {name: a, executable: a}\n",
+    {"ArgsNotMap", "name: n\nargs: [a]\nnodes:\n  - {name: a, executable: a}\n", {"args: must be a map", "got a list"}},
+    {"ArgValueNotString",
+     "name: n\nargs: {a: {b: c}}\nnodes:\n  - {name: a, executable: a}\n",
      {"args.a: must be a string, got a map"}},
-    {"BadArgName", "name: n\nargs: {a-b: c}\nnodes:\n  - {name: a, executable: a}\n",
+    {"BadArgName",
+     "name: n\nargs: {a-b: c}\nnodes:\n  - {name: a, executable: a}\n",
      {"args.a-b: 'a-b' is not an arg name"}},
-    {"UnknownArgInArgs", "name: n\nargs: {word: w}\nnodes:\n  - {name: a, executable: a, args: [x, \"$(arg wrd)\"]}\n",
+    {"UnknownArgInArgs",
+     "name: n\nargs: {word: w}\nnodes:\n  - {name: a, executable: a, args: [x, \"$(arg wrd)\"]}\n",
      {"launch.yaml:4:40", "nodes[0].args[1]", "'$(arg wrd)'", "unknown arg 'wrd'", "declared: word"}},
-    {"UnknownArgWithoutArgs", "name: n\nnodes:\n  - {name: a, executable: \"$(arg exe)\"}\n",
+    {"UnknownArgWithoutArgs",
+     "name: n\nnodes:\n  - {name: a, executable: \"$(arg exe)\"}\n",
      {"nodes[0].executable", "unknown arg 'exe'", "declared: none"}},
-    {"UnknownArgInEnv", "name: n\nnodes:\n  - {name: a, executable: a, env: {X: \"$(arg x)\"}}\n",
+    {"UnknownArgInEnv",
+     "name: n\nnodes:\n  - {name: a, executable: a, env: {X: \"$(arg x)\"}}\n",
      {"nodes[0].env.X", "unknown arg 'x'"}},
-    {"UnterminatedSubstitution", "name: n\nargs: {a: b}\nnodes:\n  - {name: a, executable: a, args: [\"$(arg a\"]}\n",
+    {"UnterminatedSubstitution",
+     "name: n\nargs: {a: b}\nnodes:\n  - {name: a, executable: a, args: [\"$(arg a\"]}\n",
      {"nodes[0].args[0]", "'$(' without a closing ')'"}},
-    {"UnknownSubstitution", "name: n\nnodes:\n  - {name: a, executable: a, args: [\"$(env HOME)\"]}\n",
+    {"UnknownSubstitution",
+     "name: n\nnodes:\n  - {name: a, executable: a, args: [\"$(env HOME)\"]}\n",
      {"nodes[0].args[0]", "unknown substitution '$(env HOME)'", "only $(arg NAME)"}},
-    {"ExecutableEmptyAfterSubstitution", "name: n\nargs: {exe: ''}\nnodes:\n  - {name: a, executable: \"$(arg exe)\"}\n",
+    {"ExecutableEmptyAfterSubstitution",
+     "name: n\nargs: {exe: ''}\nnodes:\n  - {name: a, executable: \"$(arg exe)\"}\n",
      {"nodes[0].executable: is empty after substitution"}},
 };
 
@@ -215,8 +243,9 @@ INSTANTIATE_TEST_SUITE_P(Rules, LaunchFileRejects, ::testing::ValuesIn(kBadFiles
 // ---- arg substitution
 
 TEST(ArgSubstitution, UsesDefaultsAndOverrides) {
-  const char* yaml = "name: n\nargs: {scenario: pulse, rate: '1000'}\n"
-                     "nodes:\n  - {name: a, executable: a, args: [\"--s=$(arg scenario)/$(arg rate)\"]}\n";
+  const char* yaml =
+      "name: n\nargs: {scenario: pulse, rate: '1000'}\n"
+      "nodes:\n  - {name: a, executable: a, args: [\"--s=$(arg scenario)/$(arg rate)\"]}\n";
   EXPECT_EQ(parse(yaml).nodes[0].args[0], "--s=pulse/1000");
   EXPECT_EQ(parse(yaml, {{"scenario", "free"}}).nodes[0].args[0], "--s=free/1000");
   EXPECT_EQ(parse(yaml, {{"scenario", "free"}}).args.at("scenario"), "free");
@@ -250,8 +279,7 @@ TEST(ArgSubstitution, ErrorsStartWithWhere) {
     substitute_args("$(arg nope)", {{"a", "1"}}, "f.yaml:3:4: nodes[0].args[0]");
     FAIL() << "expected a LaunchFileError";
   } catch (const LaunchFileError& e) {
-    EXPECT_EQ(std::string(e.what()),
-              "f.yaml:3:4: nodes[0].args[0]: '$(arg nope)': unknown arg 'nope' (declared: a)");
+    EXPECT_EQ(std::string(e.what()), "f.yaml:3:4: nodes[0].args[0]: '$(arg nope)': unknown arg 'nope' (declared: a)");
   }
 }
 
@@ -327,7 +355,7 @@ TEST_F(ExecutableLookup, BinDirComesBeforePath) {
 }
 
 TEST_F(ExecutableLookup, PathEntriesInOrderSkippingWhatCannotRun) {
-  dir_.write("path1/node", "#!/bin/sh\n", false);  // not executable
+  dir_.write("path1/node", "#!/bin/sh\n", false);                      // not executable
   std::filesystem::create_directory(dir_.path() / "path2" / "other");  // a folder
   dir_.write("path2/node", "#!/bin/sh\n", true);
   EXPECT_EQ(resolve_executable("node", dir("bin"), dir("path1") + ":" + dir("path2")), dir("path2") + "/node");
@@ -339,8 +367,8 @@ TEST_F(ExecutableLookup, NotFoundSaysWhereItLooked) {
     resolve_executable("plant_sim", dir("bin"), dir("path1") + ":" + dir("path1") + ":" + dir("path2"));
     FAIL() << "expected ExecutableNotFound";
   } catch (const ExecutableNotFound& e) {
-    EXPECT_EQ(std::string(e.what()), "executable 'plant_sim' not found (looked in " + dir("bin") + ", " +
-                                         dir("path1") + ", " + dir("path2") + ")");
+    EXPECT_EQ(std::string(e.what()), "executable 'plant_sim' not found (looked in " + dir("bin") + ", " + dir("path1") +
+                                         ", " + dir("path2") + ")");
   }
 }
 
@@ -351,8 +379,7 @@ TEST_F(ExecutableLookup, NameWithSlashIsUsedAsGiven) {
     resolve_executable("./no/such/node", dir("path1"), dir("path1"));
     FAIL() << "expected ExecutableNotFound";
   } catch (const ExecutableNotFound& e) {
-    EXPECT_NE(std::string(e.what()).find("executable './no/such/node' not found (relative to "),
-              std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("executable './no/such/node' not found (relative to "), std::string::npos)
         << e.what();
   }
   dir_.write("bin/plain", "text\n", false);

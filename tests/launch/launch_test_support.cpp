@@ -27,7 +27,6 @@ std::string error_of(const std::string& text, const pmlsm::launch::ArgOverrides&
   return "";
 }
 
-
 bool wait_until(const std::function<bool()>& condition, std::chrono::milliseconds timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   for (;;) {
@@ -37,9 +36,7 @@ bool wait_until(const std::function<bool()>& condition, std::chrono::millisecond
   }
 }
 
-bool process_exists(pid_t pid) {
-  return pid > 0 && std::filesystem::exists("/proc/" + std::to_string(pid));
-}
+bool process_exists(pid_t pid) { return pid > 0 && std::filesystem::exists("/proc/" + std::to_string(pid)); }
 
 std::string read_text(const std::string& path) {
   std::ifstream in(path);
@@ -50,8 +47,7 @@ std::string read_text(const std::string& path) {
 
 ScratchDir::ScratchDir() {
   const char* tmp = std::getenv("TMPDIR");
-  std::string templ =
-      std::string(tmp != nullptr && *tmp != '\0' ? tmp : "/tmp") + "/launch_test.XXXXXX";
+  std::string templ = std::string(tmp != nullptr && *tmp != '\0' ? tmp : "/tmp") + "/launch_test.XXXXXX";
   if (::mkdtemp(templ.data()) == nullptr) throw std::runtime_error("mkdtemp failed for " + templ);
   path_ = templ;
 }
@@ -63,24 +59,20 @@ ScratchDir::~ScratchDir() {
     const pid_t pid = static_cast<pid_t>(std::atol(read_text(entry.path().string()).c_str()));
     // Only a process that is still ours: a PID may have been reused since.
     const std::string cmdline = read_text("/proc/" + std::to_string(pid) + "/cmdline");
-    const bool ours =
-        cmdline.find(path_.string()) != std::string::npos || cmdline.rfind("sleep", 0) == 0;
+    const bool ours = cmdline.find(path_.string()) != std::string::npos || cmdline.rfind("sleep", 0) == 0;
     if (pid > 0 && ours) ::kill(pid, SIGKILL);
   }
   std::filesystem::remove_all(path_, ec);
 }
 
-std::string ScratchDir::write(const std::string& name, const std::string& text,
-                              bool executable) const {
+std::string ScratchDir::write(const std::string& name, const std::string& text, bool executable) const {
   const std::string path = file(name);
   std::ofstream(path) << text;
   if (executable) ::chmod(path.c_str(), 0755);
   return path;
 }
 
-bool ScratchDir::exists(const std::string& name) const {
-  return std::filesystem::exists(path_ / name);
-}
+bool ScratchDir::exists(const std::string& name) const { return std::filesystem::exists(path_ / name); }
 
 std::optional<pid_t> ScratchDir::pid_of(const std::string& name) const {
   const std::string text = read_text(file(name + ".pid"));
@@ -103,8 +95,8 @@ std::string waits_for_sigint(const ScratchDir& dir, const std::string& name, int
   // current sleep is over, and nothing outlives the script by more than 50 ms.
   return "#!/bin/sh\n"
          "trap 'echo \"" +
-         name + " stopping on SIGINT\"; exit " + std::to_string(code) + "' INT\n" +
-         publish_pid(dir, name) + "while :; do sleep 0.05; done\n";
+         name + " stopping on SIGINT\"; exit " + std::to_string(code) + "' INT\n" + publish_pid(dir, name) +
+         "while :; do sleep 0.05; done\n";
 }
 
 std::string ignores_sigint(const ScratchDir& dir, const std::string& name) {
@@ -115,8 +107,7 @@ std::string dies_on_sigint(const ScratchDir& dir, const std::string& name) {
   return "#!/bin/sh\n" + publish_pid(dir, name) + "exec sleep 30\n";
 }
 
-std::string exits_after(const ScratchDir& dir, const std::string& name, const std::string& other,
-                        int code) {
+std::string exits_after(const ScratchDir& dir, const std::string& name, const std::string& other, int code) {
   return "#!/bin/sh\n" + publish_pid(dir, name) +
          "i=0\n"
          "while [ ! -f '" +

@@ -40,8 +40,7 @@ class ScratchDir {
   const std::filesystem::path& path() const { return path_; }
   std::string file(const std::string& name) const { return (path_ / name).string(); }
   // Writes `text` to `name`; `executable` sets mode 0755.
-  std::string write(const std::string& name, const std::string& text,
-                    bool executable = false) const;
+  std::string write(const std::string& name, const std::string& text, bool executable = false) const;
   bool exists(const std::string& name) const;
   // The PID in `name`.pid, once a script has written it.
   std::optional<pid_t> pid_of(const std::string& name) const;
@@ -60,8 +59,7 @@ std::string ignores_sigint(const ScratchDir& dir, const std::string& name);
 // Exits on SIGINT through the default action (killed by signal 2).
 std::string dies_on_sigint(const ScratchDir& dir, const std::string& name);
 // Waits (up to 10 s) for OTHER.pid, then prints "NAME done" and exits `code`.
-std::string exits_after(const ScratchDir& dir, const std::string& name, const std::string& other,
-                        int code);
+std::string exits_after(const ScratchDir& dir, const std::string& name, const std::string& other, int code);
 }  // namespace script
 
 // The launcher under test, run in `dir` with stdout and stderr in files there.
@@ -70,8 +68,7 @@ std::string exits_after(const ScratchDir& dir, const std::string& name, const st
 // still running.
 class LauncherProcess {
  public:
-  LauncherProcess(const ScratchDir& dir, const std::vector<std::string>& args,
-                  const std::vector<int>& ignored = {});
+  LauncherProcess(const ScratchDir& dir, const std::vector<std::string>& args, const std::vector<int>& ignored = {});
   ~LauncherProcess();
   LauncherProcess(const LauncherProcess&) = delete;
   LauncherProcess& operator=(const LauncherProcess&) = delete;

@@ -59,7 +59,9 @@ TEST_F(LauncherRun, LinesOfConcurrentNodesNeverMix) {
   // Each line goes out in two writes, so the launcher sees partial lines.
   const auto writer = [](const std::string& name) {
     return "#!/bin/sh\ni=0\nwhile [ $i -lt 300 ]; do\n"
-           "  printf '%s-%04d-' " + name + " $i\n"
+           "  printf '%s-%04d-' " +
+           name +
+           " $i\n"
            "  printf '%0200d\\n' 0\n"
            "  i=$((i + 1))\ndone\n";
   };
@@ -92,8 +94,8 @@ TEST_F(LauncherRun, PassesArgsAndEnvironmentAfterSubstitution) {
       "    env: {LAUNCH_TEST_VAR: \"with space\"}\n",
       {});
   std::filesystem::create_directory(dir_.path() / "tools");
-  dir_.write("tools/echo.sh",
-             "#!/bin/sh\necho \"env=$LAUNCH_TEST_VAR\"\nfor a in \"$@\"; do echo \"arg=$a\"; done\n", true);
+  dir_.write("tools/echo.sh", "#!/bin/sh\necho \"env=$LAUNCH_TEST_VAR\"\nfor a in \"$@\"; do echo \"arg=$a\"; done\n",
+             true);
   const RunResult r = run_launcher(dir_, args({"--arg", "word=hello"}));
   ASSERT_TRUE(r.finished);
   EXPECT_EQ(r.code, 0) << r.err;
@@ -144,8 +146,8 @@ TEST_F(LauncherRun, FailingEndsLaunchNodeFailsTheLaunch) {
   EXPECT_EQ(r.code, 4) << r.err;
   EXPECT_TRUE(contains(r.err, "[launcher] main exited with code 4 (a peer was lost)\n"));
   EXPECT_TRUE(contains(r.err, "[launcher] worker exited with code 0 (ok)\n"));
-  EXPECT_TRUE(contains(
-      r.err, "[launcher] launch failed with exit code 4: main exited with code 4 (a peer was lost)\n"));
+  EXPECT_TRUE(
+      contains(r.err, "[launcher] launch failed with exit code 4: main exited with code 4 (a peer was lost)\n"));
   expect_gone({"worker", "main"});
 }
 
@@ -176,11 +178,9 @@ TEST_F(LauncherRun, NodeDyingAtStartStopsTheOthersAndFails) {
   const RunResult r = run_launcher(dir_, args({"--start-grace-ms", "20000"}));
   ASSERT_TRUE(r.finished);
   EXPECT_EQ(r.code, 3) << r.err;
-  EXPECT_TRUE(contains(
-      r.err, "[launcher] node 'bad' died at start: exited with code 3 (a peer never appeared)\n"));
+  EXPECT_TRUE(contains(r.err, "[launcher] node 'bad' died at start: exited with code 3 (a peer never appeared)\n"));
   EXPECT_TRUE(contains(r.err, "[launcher] worker exited with code 0"));
-  EXPECT_TRUE(contains(
-      r.err, "launch failed with exit code 3: bad exited with code 3 (a peer never appeared)\n"));
+  EXPECT_TRUE(contains(r.err, "launch failed with exit code 3: bad exited with code 3 (a peer never appeared)\n"));
   expect_gone({"worker", "bad"});
 }
 
@@ -192,8 +192,7 @@ TEST_F(LauncherRun, FailureAfterTheGraceIsReportedWithoutStoppingTheOthers) {
       {{"worker.sh", script::waits_for_sigint(dir_, "worker")},
        {"late.sh", script::exits_after(dir_, "late", "worker", 3)}});
   LauncherProcess launcher(dir_, args({"--start-grace-ms", "0"}));
-  ASSERT_TRUE(wait_until([&] { return contains(launcher.err(), "late exited with code 3"); }, 10s))
-      << launcher.err();
+  ASSERT_TRUE(wait_until([&] { return contains(launcher.err(), "late exited with code 3"); }, 10s)) << launcher.err();
   // Reaped before it was reported: no zombie.
   expect_gone({"late"});
   const auto worker = dir_.pid_of("worker");
@@ -206,8 +205,8 @@ TEST_F(LauncherRun, FailureAfterTheGraceIsReportedWithoutStoppingTheOthers) {
   EXPECT_EQ(launcher.code(), 3) << launcher.err();
   EXPECT_FALSE(contains(launcher.err(), "died at start"));
   EXPECT_TRUE(contains(launcher.err(), "[launcher] worker exited with code 0"));
-  EXPECT_TRUE(contains(launcher.err(),
-                       "launch failed with exit code 3: late exited with code 3 (a peer never appeared)\n"));
+  EXPECT_TRUE(
+      contains(launcher.err(), "launch failed with exit code 3: late exited with code 3 (a peer never appeared)\n"));
   expect_gone({"worker"});
 }
 
@@ -220,8 +219,8 @@ TEST_F(LauncherRun, MissingExecutableStartsNothing) {
   const RunResult r = run_launcher(dir_, args());
   ASSERT_TRUE(r.finished);
   EXPECT_EQ(r.code, 1) << r.err;
-  EXPECT_TRUE(contains(r.err, "[launcher] node 'ghost': executable 'no_such_node' not found (looked in " +
-                                  dir_.path().string() + ", "));
+  EXPECT_TRUE(contains(
+      r.err, "[launcher] node 'ghost': executable 'no_such_node' not found (looked in " + dir_.path().string() + ", "));
   EXPECT_TRUE(contains(r.err, "[launcher] missing: nothing started"));
   EXPECT_FALSE(contains(r.err, "worker started"));
   EXPECT_FALSE(dir_.exists("worker.pid"));
@@ -238,10 +237,9 @@ TEST_F(LauncherRun, ExecFailureInTheChildIsReportedAndStopsTheOthers) {
   const RunResult r = run_launcher(dir_, args());
   ASSERT_TRUE(r.finished);
   EXPECT_EQ(r.code, 1) << r.err;
-  EXPECT_TRUE(contains(r.err, "[launcher] node 'broken' failed to start: cannot execute '" +
-                                  dir_.file("broken") + "': Exec format error"));
-  EXPECT_TRUE(contains(
-      r.err, "launch failed with exit code 1: broken could not be executed; after not started\n"));
+  EXPECT_TRUE(contains(r.err, "[launcher] node 'broken' failed to start: cannot execute '" + dir_.file("broken") +
+                                  "': Exec format error"));
+  EXPECT_TRUE(contains(r.err, "launch failed with exit code 1: broken could not be executed; after not started\n"));
   EXPECT_FALSE(contains(r.err, "after started"));
   // The worker may have been stopped before its script got as far as its PID file.
   if (const auto pid = dir_.pid_of("worker")) {
@@ -281,11 +279,10 @@ TEST_F(LauncherRun, NodeConfigErrorMakesTheLaunchExit2) {
   const RunResult r = run_launcher(dir_, args({"--start-grace-ms", "20000"}));
   ASSERT_TRUE(r.finished);
   EXPECT_EQ(r.code, 2) << r.err;
-  EXPECT_TRUE(contains(
-      r.err, "[launcher] node 'controller' died at start: exited with code 2 (bad config or input)\n"));
+  EXPECT_TRUE(
+      contains(r.err, "[launcher] node 'controller' died at start: exited with code 2 (bad config or input)\n"));
   EXPECT_TRUE(contains(r.err, "[launcher] worker exited with code 0 (ok)\n"));
-  EXPECT_TRUE(contains(
-      r.err, "launch failed with exit code 2: controller exited with code 2 (bad config or input)\n"));
+  EXPECT_TRUE(contains(r.err, "launch failed with exit code 2: controller exited with code 2 (bad config or input)\n"));
   EXPECT_FALSE(contains(r.err, "ended cleanly"));
   expect_gone({"worker", "controller"});
 }
@@ -294,8 +291,7 @@ TEST_F(LauncherRun, NodeConfigErrorMakesTheLaunchExit2) {
 // when the launcher stops it because `first` ended the launch. `second` comes
 // first in the file, so neither file order nor the larger or smaller code can
 // pass for "first in time".
-class LauncherTwoFailures : public LauncherRun,
-                            public ::testing::WithParamInterface<std::pair<int, int>> {};
+class LauncherTwoFailures : public LauncherRun, public ::testing::WithParamInterface<std::pair<int, int>> {};
 
 TEST_P(LauncherTwoFailures, ExitCodeIsTheFirstFailuresAndBothAreListed) {
   const auto [first_code, second_code] = GetParam();
@@ -309,20 +305,18 @@ TEST_P(LauncherTwoFailures, ExitCodeIsTheFirstFailuresAndBothAreListed) {
   ASSERT_TRUE(r.finished);
   EXPECT_EQ(r.code, first_code) << r.err;
   const auto exit_text = [](const char* name, int code) {
-    return std::string(name) + " exited with code " + std::to_string(code) + " (" +
-           pmlsm::exit_code_meaning(code) + ")";
+    return std::string(name) + " exited with code " + std::to_string(code) + " (" + pmlsm::exit_code_meaning(code) +
+           ")";
   };
   EXPECT_TRUE(contains(r.out, "[second] second stopping on SIGINT"));
-  EXPECT_TRUE(contains(r.err, "[launcher] launch failed with exit code " +
-                                  std::to_string(first_code) + " (from first, the first to fail): " +
-                                  exit_text("first", first_code) + "; " +
+  EXPECT_TRUE(contains(r.err, "[launcher] launch failed with exit code " + std::to_string(first_code) +
+                                  " (from first, the first to fail): " + exit_text("first", first_code) + "; " +
                                   exit_text("second", second_code) + "\n"));
   EXPECT_FALSE(contains(r.err, "ended cleanly"));
   expect_gone({"first", "second"});
 }
 
-INSTANTIATE_TEST_SUITE_P(Codes, LauncherTwoFailures,
-                         ::testing::Values(std::pair{4, 5}, std::pair{5, 4}),
+INSTANTIATE_TEST_SUITE_P(Codes, LauncherTwoFailures, ::testing::Values(std::pair{4, 5}, std::pair{5, 4}),
                          [](const auto& info) {
                            return "First" + std::to_string(info.param.first) + "Then" +
                                   std::to_string(info.param.second);
@@ -363,11 +357,9 @@ TEST_P(LauncherStopSignal, IsForwardedAsSigintAndEndsCleanly) {
       "name: forward\nnodes:\n"
       "  - {name: one, executable: one.sh}\n"
       "  - {name: two, executable: two.sh}\n",
-      {{"one.sh", script::waits_for_sigint(dir_, "one")},
-       {"two.sh", script::waits_for_sigint(dir_, "two")}});
+      {{"one.sh", script::waits_for_sigint(dir_, "one")}, {"two.sh", script::waits_for_sigint(dir_, "two")}});
   LauncherProcess launcher(dir_, args());
-  ASSERT_TRUE(wait_until([&] { return dir_.exists("one.pid") && dir_.exists("two.pid"); }, 10s))
-      << launcher.err();
+  ASSERT_TRUE(wait_until([&] { return dir_.exists("one.pid") && dir_.exists("two.pid"); }, 10s)) << launcher.err();
   launcher.signal(GetParam());
   ASSERT_TRUE(launcher.wait_exit());
   EXPECT_EQ(launcher.code(), 0) << launcher.err();
@@ -378,12 +370,9 @@ TEST_P(LauncherStopSignal, IsForwardedAsSigintAndEndsCleanly) {
   expect_gone({"one", "two"});
 }
 
-INSTANTIATE_TEST_SUITE_P(Signals, LauncherStopSignal, ::testing::Values(SIGINT, SIGTERM, SIGHUP),
-                         [](const auto& info) {
-                           return std::string(info.param == SIGINT    ? "SIGINT"
-                                              : info.param == SIGTERM ? "SIGTERM"
-                                                                      : "SIGHUP");
-                         });
+INSTANTIATE_TEST_SUITE_P(Signals, LauncherStopSignal, ::testing::Values(SIGINT, SIGTERM, SIGHUP), [](const auto& info) {
+  return std::string(info.param == SIGINT ? "SIGINT" : info.param == SIGTERM ? "SIGTERM" : "SIGHUP");
+});
 
 TEST_F(LauncherRun, SigintStopsALauncherStartedWithSigintIgnored) {
   write_launch("name: background\nnodes:\n  - {name: worker, executable: worker.sh}\n",
@@ -459,10 +448,12 @@ TEST_F(LauncherRun, DryRunPrintsTheResolvedCommandsAndStartsNothing) {
   const RunResult r = run_launcher(dir_, args({"--dry-run", "--host", "rig", "--arg", "word=hi"}));
   ASSERT_TRUE(r.finished);
   EXPECT_EQ(r.code, 0) << r.err;
-  EXPECT_EQ(r.out, "# dry (" + dir_.file("launch.yaml") + "), host rig: 1 node\n"
-                   "worker (host rig, ends the launch)\n"
-                   "  env: A_VAR='x y'\n"
-                   "  cmd: " + dir_.file("worker.sh") + " hi 'two words'\n");
+  EXPECT_EQ(r.out, "# dry (" + dir_.file("launch.yaml") +
+                       "), host rig: 1 node\n"
+                       "worker (host rig, ends the launch)\n"
+                       "  env: A_VAR='x y'\n"
+                       "  cmd: " +
+                       dir_.file("worker.sh") + " hi 'two words'\n");
   EXPECT_FALSE(dir_.exists("worker.pid"));
 }
 
@@ -500,13 +491,12 @@ TEST_F(LauncherRun, UnknownHostExitsWith2ListingTheKnownOnes) {
 
 TEST_F(LauncherRun, BadOptionsExitWith2) {
   write_launch("name: o\nargs: {word: w}\nnodes:\n  - {name: a, executable: a.sh}\n", {});
-  for (const auto& extra : std::vector<std::vector<std::string>>{
-           {"--stop-timeout-ms", "soon"},
-           {"--start-grace-ms", "-5"},
-           {"--arg", "word"},
-           {"--arg", "nosuch=1"},
-           {"--bin-dir", dir_.file("no_such_dir")},
-           {"--no-such-option"}}) {
+  for (const auto& extra : std::vector<std::vector<std::string>>{{"--stop-timeout-ms", "soon"},
+                                                                 {"--start-grace-ms", "-5"},
+                                                                 {"--arg", "word"},
+                                                                 {"--arg", "nosuch=1"},
+                                                                 {"--bin-dir", dir_.file("no_such_dir")},
+                                                                 {"--no-such-option"}}) {
     const RunResult r = run_launcher(dir_, args(extra));
     ASSERT_TRUE(r.finished);
     EXPECT_EQ(r.code, 2) << extra[0] << "\n" << r.err;

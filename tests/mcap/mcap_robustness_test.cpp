@@ -53,8 +53,8 @@ TEST_P(McapDamagedFile, TruncationAtEveryByteKeepsTheWholeChunks) {
     write_bytes(cut_path, bytes.data(), cut);
     ReadResult result;
     ASSERT_NO_THROW(result = read_all(cut_path)) << "cut at " << cut;
-    const std::string context = "cut at " + std::to_string(cut) + " of " + std::to_string(bytes.size()) + "\n" +
-                                result.problems();
+    const std::string context =
+        "cut at " + std::to_string(cut) + " of " + std::to_string(bytes.size()) + "\n" + result.problems();
 
     std::size_t whole_chunks = 0;
     while (whole_chunks < sample.chunk_end_bytes.size() && sample.chunk_end_bytes[whole_chunks] <= cut) ++whole_chunks;
@@ -64,7 +64,8 @@ TEST_P(McapDamagedFile, TruncationAtEveryByteKeepsTheWholeChunks) {
     ASSERT_GE(result.messages.size(), at_least) << context;
     ASSERT_LE(result.messages.size(), at_most) << context;
     ASSERT_EQ(result.report.messages, result.messages.size()) << context;
-    for (std::size_t i = 0; i < result.messages.size(); ++i) ASSERT_EQ(result.messages[i], sample.messages[i]) << context;
+    for (std::size_t i = 0; i < result.messages.size(); ++i)
+      ASSERT_EQ(result.messages[i], sample.messages[i]) << context;
     ASSERT_FALSE(result.message_before_its_channel) << context;
 
     if (cut == bytes.size()) {
@@ -293,7 +294,8 @@ TEST(McapCrash, ChunksFlushedBeforeSigkillAreReadable) {
   std::uint32_t last_report = 0;
   bool ready = false;
   while (!ready) {
-    const auto left_ms = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()).count();
+    const auto left_ms =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()).count();
     if (left_ms <= 0) break;
     pollfd waiting{channel_fds[0], POLLIN, 0};
     if (::poll(&waiting, 1, static_cast<int>(left_ms)) <= 0) continue;

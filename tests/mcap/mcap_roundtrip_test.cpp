@@ -59,7 +59,8 @@ TEST_P(McapRoundTrip, SchemasChannelsAndMessagesComeBackExactly) {
     Writer writer(path, options);
     schema_ids[0] = writer.add_schema("pmlsm_msgs::msg::A", "omgidl", "module pmlsm_msgs { struct A { double x; }; };");
     schema_ids[1] = writer.add_schema("pmlsm_msgs::msg::B", "omgidl", std::string("binary\0schema", 13));
-    channel_ids[0] = writer.add_channel(schema_ids[0], "/pmlsm/a", "cdr", {{"offered_qos_profiles", "- reliable"}, {"k", ""}});
+    channel_ids[0] =
+        writer.add_channel(schema_ids[0], "/pmlsm/a", "cdr", {{"offered_qos_profiles", "- reliable"}, {"k", ""}});
     channel_ids[1] = writer.add_channel(schema_ids[1], "/pmlsm/b", "cdr");
     channel_ids[2] = writer.add_channel(schema_ids[0], "/pmlsm/a2", "cdr", {{"note", "second channel, same schema"}});
     for (std::uint32_t i = 0; i < 2000; ++i) {
@@ -247,15 +248,15 @@ TEST_P(McapRoundTrip, SummaryPointsAtTheRecordsItIndexes) {
         }
         EXPECT_EQ(first_index, chunk_start + chunk_length) << "MessageIndex records follow their chunk";
         EXPECT_EQ(le64(bytes, c + 36 + map_bytes), index_bytes) << "message_index_length";
-      } else if (opcode == 0x0B) {  // Statistics
-        EXPECT_EQ(le64(bytes, c), 100U);           // message_count
-        EXPECT_EQ(le16(bytes, c + 8), 1U);         // schema_count
-        EXPECT_EQ(le32(bytes, c + 10), 3U);        // channel_count
+      } else if (opcode == 0x0B) {           // Statistics
+        EXPECT_EQ(le64(bytes, c), 100U);     // message_count
+        EXPECT_EQ(le16(bytes, c + 8), 1U);   // schema_count
+        EXPECT_EQ(le32(bytes, c + 10), 3U);  // channel_count
         EXPECT_EQ(le32(bytes, c + 22), sample.statistics.chunk_count);
-        EXPECT_EQ(le64(bytes, c + 26), 17U);                       // message_start_time
-        EXPECT_EQ(le64(bytes, c + 34), 1'000'000ULL * 99 + 17);    // message_end_time
-        EXPECT_EQ(le32(bytes, c + 42), 3U * 10);                   // channel_message_counts bytes
-        EXPECT_EQ(le64(bytes, c + 46 + 2), 34U);                   // channel 0: messages 0, 3, ..., 99
+        EXPECT_EQ(le64(bytes, c + 26), 17U);                     // message_start_time
+        EXPECT_EQ(le64(bytes, c + 34), 1'000'000ULL * 99 + 17);  // message_end_time
+        EXPECT_EQ(le32(bytes, c + 42), 3U * 10);                 // channel_message_counts bytes
+        EXPECT_EQ(le64(bytes, c + 46 + 2), 34U);                 // channel 0: messages 0, 3, ..., 99
       }
       at += 9 + length;
     }
@@ -286,8 +287,12 @@ std::uint64_t telemetry_file_bytes(const std::string& path, Compression compress
     const std::uint64_t stamp[3] = {tick, 1'000'000ULL * tick, 1'700'000'000'000'000'000ULL + 1'000'037ULL * tick};
     put(stamp, sizeof stamp);
     const double t_s = (moving ? tick : tick / 100 * 100) * 1e-3;
-    const double values[6] = {std::round(0.05 * std::sin(t_s) * 1e6) * 1e-6, 0.05 * std::cos(t_s), 0.0,
-                              1.5 * std::sin(2 * t_s), 20.0 * std::sin(2 * t_s), 20.0};
+    const double values[6] = {std::round(0.05 * std::sin(t_s) * 1e6) * 1e-6,
+                              0.05 * std::cos(t_s),
+                              0.0,
+                              1.5 * std::sin(2 * t_s),
+                              20.0 * std::sin(2 * t_s),
+                              20.0};
     put(values, sizeof values);
     const std::uint64_t applied = tick == 0 ? 0 : tick - 1;
     put(&applied, sizeof applied);
@@ -311,8 +316,8 @@ TEST(McapCompression, ZstdAndLz4ReallyCompressTelemetry) {
     const double none_bytes = bytes(Compression::none);
     const double zstd_ratio = none_bytes / bytes(Compression::zstd);
     const double lz4_ratio = none_bytes / bytes(Compression::lz4);
-    std::cout << kind << " telemetry, uncompressed file / compressed file: zstd " << zstd_ratio << ", lz4 "
-              << lz4_ratio << "\n";
+    std::cout << kind << " telemetry, uncompressed file / compressed file: zstd " << zstd_ratio << ", lz4 " << lz4_ratio
+              << "\n";
     ::testing::Test::RecordProperty("ratio_zstd_" + kind, std::to_string(zstd_ratio));
     ::testing::Test::RecordProperty("ratio_lz4_" + kind, std::to_string(lz4_ratio));
     EXPECT_GT(zstd_ratio, moving ? 1.6 : 3.0) << kind;
@@ -350,8 +355,7 @@ TEST(McapWriter, ValidatesItsArguments) {
   EXPECT_EQ(read_all(dir.file("w.mcap")).report.messages, 1U);
 }
 
-INSTANTIATE_TEST_SUITE_P(AllCompressions, McapRoundTrip, ::testing::ValuesIn(kAllCompressions),
-                         compression_test_name);
+INSTANTIATE_TEST_SUITE_P(AllCompressions, McapRoundTrip, ::testing::ValuesIn(kAllCompressions), compression_test_name);
 
 }  // namespace
 }  // namespace pmlsm::mcap::test

@@ -121,7 +121,7 @@ inline std::vector<std::uint8_t> sample_payload(std::uint32_t index) {
 /// every `messages_per_chunk` messages; the expected content and where each chunk ended.
 struct SampleFile {
   std::vector<StoredMessage> messages;
-  std::vector<std::uint64_t> chunk_end_bytes;     // file size after each flush_chunk()
+  std::vector<std::uint64_t> chunk_end_bytes;        // file size after each flush_chunk()
   std::vector<std::uint64_t> messages_at_chunk_end;  // messages written by then
   WriterStatistics statistics;
   std::uint64_t file_bytes = 0;
@@ -161,7 +161,8 @@ inline SampleFile write_sample(const std::string& path, Compression compression,
 class RawFile {
  public:
   RawFile& magic() {
-    for (const int byte : std::initializer_list<int>{0x89, 'M', 'C', 'A', 'P', '0', '\r', '\n'}) bytes_.push_back(static_cast<std::uint8_t>(byte));
+    for (const int byte : std::initializer_list<int>{0x89, 'M', 'C', 'A', 'P', '0', '\r', '\n'})
+      bytes_.push_back(static_cast<std::uint8_t>(byte));
     return *this;
   }
   RawFile& record(std::uint8_t opcode, const std::vector<std::uint8_t>& content) {

@@ -61,7 +61,8 @@ template <class PubSubType, class T>
 std::vector<std::uint8_t> to_cdr(T& sample) {
   PubSubType type;
   SerializedPayload_t payload(type.getSerializedSizeProvider(&sample)());
-  if (!type.serialize(&sample, &payload)) throw std::runtime_error(std::string("CDR serialisation failed for ") + type.getName());
+  if (!type.serialize(&sample, &payload))
+    throw std::runtime_error(std::string("CDR serialisation failed for ") + type.getName());
   return std::vector<std::uint8_t>(payload.data, payload.data + payload.length);
 }
 
@@ -91,9 +92,9 @@ std::vector<std::uint8_t> motor_feedback(std::uint32_t tick) {
   sample.thrust_force_n(30.0);
   sample.applied_force_n(29.5);
   sample.applied_command_tick(tick);
-  sample.status(64 | 128);      // STATUS_SIMULATED | STATUS_FAULT
-  sample.power_state(6);         // POWER_FAULT_REACTION_ACTIVE
-  sample.error_code(0x8611);     // CiA 402 "following error"
+  sample.status(64 | 128);    // STATUS_SIMULATED | STATUS_FAULT
+  sample.power_state(6);      // POWER_FAULT_REACTION_ACTIVE
+  sample.error_code(0x8611);  // CiA 402 "following error"
   return to_cdr<msg::MotorFeedbackPubSubType>(sample);
 }
 
@@ -229,8 +230,8 @@ int run(const std::string& compression_name, const std::string& output, const st
     const std::uint16_t schema_id = writer.add_schema(entry.type_name, "omgidl", entry.schema_idl);
     const std::string topic = pmlsm::dds::display_name(entry.spec.name);
     const std::uint16_t channel_id = writer.add_channel(schema_id, topic, "cdr");
-    topics.push_back({channel_id, &generator->second,
-                      topic == "/pmlsm/motor_feedback" || topic == "/pmlsm/force_command"});
+    topics.push_back(
+        {channel_id, &generator->second, topic == "/pmlsm/motor_feedback" || topic == "/pmlsm/force_command"});
   }
 
   std::uint64_t truncate_at_bytes = 0;
@@ -257,8 +258,8 @@ int run(const std::string& compression_name, const std::string& output, const st
   out.write(bytes.data(), static_cast<std::streamsize>(truncate_at_bytes));
   if (!out) throw std::runtime_error("cannot write " + truncated_output);
 
-  std::printf("%s: %u messages on %zu topics, %llu chunks, %llu bytes (message bytes %llu)\n", output.c_str(),
-              sequence, topics.size(), static_cast<unsigned long long>(writer.statistics().chunk_count),
+  std::printf("%s: %u messages on %zu topics, %llu chunks, %llu bytes (message bytes %llu)\n", output.c_str(), sequence,
+              topics.size(), static_cast<unsigned long long>(writer.statistics().chunk_count),
               static_cast<unsigned long long>(writer.statistics().file_bytes),
               static_cast<unsigned long long>(writer.statistics().uncompressed_message_bytes));
   return 0;

@@ -95,9 +95,9 @@ std::vector<std::string> with(std::vector<std::string> a, const std::vector<std:
 void expect_controller_refused(const fs::path& dir, const std::string& domain, const fs::path& good,
                                const fs::path& controller_keystore) {
   const std::string scenario = short_scenario(dir);
-  test::ChildProcess plant(node_args("plant_sim", domain, scenario,
-                                     {"--keystore", good.string(), "--peers", "1", "--peer-timeout-s", "6"}),
-                           (dir / "plant.log").string());
+  test::ChildProcess plant(
+      node_args("plant_sim", domain, scenario, {"--keystore", good.string(), "--peers", "1", "--peer-timeout-s", "6"}),
+      (dir / "plant.log").string());
   test::ChildProcess controller(
       node_args("controller", domain, scenario, {"--keystore", controller_keystore.string(), "--peer-timeout-s", "6"}),
       (dir / "controller.log").string());
@@ -119,7 +119,8 @@ struct ProbeCounts {
 ProbeCounts probe_counts(const std::string& output) {
   std::smatch m;
   ProbeCounts c;
-  if (std::regex_search(output, m, std::regex("probe: feedback (\\d+), force matched (\\d+), sent (\\d+), heard (\\d+)"))) {
+  if (std::regex_search(output, m,
+                        std::regex("probe: feedback (\\d+), force matched (\\d+), sent (\\d+), heard (\\d+)"))) {
     c = ProbeCounts{std::stol(m[1]), std::stol(m[2]), std::stol(m[3]), std::stol(m[4])};
   }
   return c;
@@ -202,8 +203,8 @@ TEST(SecureNodes, AnExpiredCertificateIsRefused) {
   const fs::path bad = copy_keystore(good, "expired");
   const security::KeystoreLayout ks(bad.string());
   // Issued by the right CA, expired an hour ago; its permissions signed again for it.
-  const auto expired = security::make_identity(
-      "controller", pair(ks.identity_ca_cert(), ks.identity_ca_key()), {-48 * 3600, -3600});
+  const auto expired =
+      security::make_identity("controller", pair(ks.identity_ca_cert(), ks.identity_ca_key()), {-48 * 3600, -3600});
   write(ks.identity_cert("controller"), expired.cert_pem);
   write(ks.identity_key("controller"), expired.key_pem);
   std::string why;
@@ -265,8 +266,8 @@ TEST(SecureNodes, PlayRefusesTopicsWithLiveWritersUnlessForced) {
   const auto play = [&](const std::vector<std::string>& extra, const std::string& log) {
     return std::make_unique<test::ChildProcess>(
         with({test::bin("pmlsm"), "--domain", domain, "--profiles", source("configs/dds/profiles.xml"), "play",
-              recording, "--topics", "/pmlsm/node_status", "/pmlsm/estimated_state", "--rate", "1000",
-              "--no-progress", "--wait-matched-s", "0"},
+              recording, "--topics", "/pmlsm/node_status", "/pmlsm/estimated_state", "--rate", "1000", "--no-progress",
+              "--wait-matched-s", "0"},
              extra),
         (dir / log).string());
   };
@@ -306,8 +307,8 @@ TEST(SecureNodes, BadSecurityInputIsNamedAndNeverFallsBackToAnOpenParticipant) {
   refused({"--keystore", ks.string(), "--data-sharing"}, "--data-sharing cannot be combined with security");
   const fs::path holed = copy_keystore(ks, "holed");
   fs::remove(security::KeystoreLayout(holed.string()).permissions_p7s("controller"));
-  refused({"--keystore", holed.string()},
-          "cannot read the signed permissions of 'controller' '" + holed.string() + "/identities/controller/permissions.p7s'");
+  refused({"--keystore", holed.string()}, "cannot read the signed permissions of 'controller' '" + holed.string() +
+                                              "/identities/controller/permissions.p7s'");
 
   // A policy naming an unknown topic: the tool names file, line, key and value, and makes nothing.
   std::ifstream in(source("configs/security/policy.yaml"));
@@ -323,7 +324,8 @@ TEST(SecureNodes, BadSecurityInputIsNamedAndNeverFallsBackToAnOpenParticipant) {
                           (dir / "tool.log").string());
   ASSERT_EQ(tool.wait_for(std::chrono::seconds(30)), std::optional<int>(2)) << tool.output();
   EXPECT_NE(tool.output().find("bad_policy.yaml:"), std::string::npos) << tool.output();
-  EXPECT_NE(tool.output().find(".subscribe[0]: unknown topic '/pmlsm/forse_command'"), std::string::npos) << tool.output();
+  EXPECT_NE(tool.output().find(".subscribe[0]: unknown topic '/pmlsm/forse_command'"), std::string::npos)
+      << tool.output();
   EXPECT_FALSE(fs::exists(dir / "never"));
   fs::remove_all(dir);
 }
@@ -350,8 +352,8 @@ TEST(SecureNodes, WithOneCaForBothRolesDebiansFastDds291AcceptsPermissionsSigned
         security::sign_smime(security::read_file(ks.permissions_xml("controller"), "xml"),
                              pair(ks.identity_cert("controller"), ks.identity_key("controller"))));
   std::string why;
-  EXPECT_TRUE(security::verify_smime(security::read_file(ks.permissions_p7s("controller"), "p7s"), ca.cert_pem, why)
-                  .empty())
+  EXPECT_TRUE(
+      security::verify_smime(security::read_file(ks.permissions_p7s("controller"), "p7s"), ca.cert_pem, why).empty())
       << "the strict check (the fixed verification) refuses it";
   const std::string domain = test_domain(58);
   const std::string scenario = short_scenario(dir);
@@ -425,7 +427,7 @@ std::pair<std::string, long> say_and_capture(const fs::path& dir, const std::str
   LoopbackCapture capture;
   if (!capture.ok()) return {"", -1};
   const auto probe = [&](const std::vector<std::string>& extra, const std::string& identity, const std::string& log) {
-    std::vector<std::string> a{test::bin("security_probe"), "--domain", domain, "--profiles",
+    std::vector<std::string> a{test::bin("security_probe"),        "--domain",  domain, "--profiles",
                                source("configs/dds/profiles.xml"), "--seconds", "4"};
     if (!keystore.empty()) a = with(a, {"--keystore", keystore.string(), "--identity", identity});
     return std::make_unique<test::ChildProcess>(with(a, extra), (dir / log).string());
@@ -444,9 +446,9 @@ std::pair<std::string, long> say_and_capture(const fs::path& dir, const std::str
 std::pair<bool, long> say_over_shared_memory(const fs::path& dir, const std::string& domain, const fs::path& keystore,
                                              const std::string& pattern) {
   const auto probe = [&](const std::vector<std::string>& extra, const std::string& identity, const std::string& log) {
-    std::vector<std::string> a{test::bin("security_probe"), "--domain", domain, "--profiles",
-                               source("configs/dds/profiles.xml"), "--participant-profile", "pmlsm_shm",
-                               "--seconds", "4"};
+    std::vector<std::string> a{
+        test::bin("security_probe"), "--domain",  domain,      "--profiles", source("configs/dds/profiles.xml"),
+        "--participant-profile",     "pmlsm_shm", "--seconds", "4"};
     if (!keystore.empty()) a = with(a, {"--keystore", keystore.string(), "--identity", identity});
     return std::make_unique<test::ChildProcess>(with(a, extra), (dir / log).string());
   };
@@ -524,11 +526,12 @@ TEST(SecureContainer, AComponentMayNotWriteWhatItsIdentityMayNot) {
   const fs::path ks = make_keystore(dir, "keystore");
   const std::string scenario = short_scenario(dir);
   std::vector<std::string> argv{test::bin("container"), "--name", "chain"};
-  for (const auto& c : {in_container("plant_sim", "plant_sim",
-                                     node_args("plant_sim", domain, scenario, {"--keystore", ks.string(), "--peers", "1"})),
-                        in_container("controller", "controller",
-                                     node_args("controller", domain, scenario,
-                                               {"--keystore", ks.string(), "--identity", "kalman_estimator"}))}) {
+  for (const auto& c :
+       {in_container("plant_sim", "plant_sim",
+                     node_args("plant_sim", domain, scenario, {"--keystore", ks.string(), "--peers", "1"})),
+        in_container("controller", "controller",
+                     node_args("controller", domain, scenario,
+                               {"--keystore", ks.string(), "--identity", "kalman_estimator"}))}) {
     argv.insert(argv.end(), c.begin(), c.end());
   }
   test::ChildProcess chain(argv, (dir / "chain.log").string());
@@ -551,10 +554,11 @@ TEST(SecureContainer, AnOpenIntruderNeitherSeesNorCommandsTheComposedSecureChain
                             source("configs/dds/profiles.xml"), "--intrude", "--seconds", "10"},
                            (dir / "probe.log").string());
   std::vector<std::string> argv{test::bin("container"), "--name", "chain"};
-  for (const auto& c : {in_container("plant_sim", "plant_sim",
-                                     node_args("plant_sim", domain, scenario, {"--keystore", ks.string(), "--peers", "1"})),
-                        in_container("controller", "controller",
-                                     node_args("controller", domain, scenario, {"--keystore", ks.string()}))}) {
+  for (const auto& c :
+       {in_container("plant_sim", "plant_sim",
+                     node_args("plant_sim", domain, scenario, {"--keystore", ks.string(), "--peers", "1"})),
+        in_container("controller", "controller",
+                     node_args("controller", domain, scenario, {"--keystore", ks.string()}))}) {
     argv.insert(argv.end(), c.begin(), c.end());
   }
   test::ChildProcess chain(argv, (dir / "chain.log").string());

@@ -60,23 +60,25 @@ TEST(SecurityPolicy, ParsesGrantsProtectionAndDomains) {
 }
 
 TEST(SecurityPolicy, RefusesUnknownOrDuplicatedItemsNamingThem) {
-  EXPECT_NE(refusal("identities:\n  controller:\n    publish: [/pmlsm/forse_command]\n").find(
-                "p.yaml:3:15: identities.controller.publish[0]: unknown topic '/pmlsm/forse_command'"),
+  EXPECT_NE(refusal("identities:\n  controller:\n    publish: [/pmlsm/forse_command]\n")
+                .find("p.yaml:3:15: identities.controller.publish[0]: unknown topic '/pmlsm/forse_command'"),
             std::string::npos);
-  EXPECT_NE(refusal("identities:\n  intruder:\n    publish: [/pmlsm/force_command]\n").find(
-                "identities.intruder: unknown node identity"),
+  EXPECT_NE(refusal("identities:\n  intruder:\n    publish: [/pmlsm/force_command]\n")
+                .find("identities.intruder: unknown node identity"),
             std::string::npos);
-  EXPECT_NE(refusal("identities:\n  controller:\n    publish: [/pmlsm/force_command]\n  controller:\n    subscribe: []\n")
-                .find("identities.controller: duplicate key"),
-            std::string::npos);
-  EXPECT_NE(refusal("identities:\n  controller:\n    pubish: [/pmlsm/force_command]\n").find(
-                "identities.controller.pubish: unknown key"),
+  EXPECT_NE(
+      refusal("identities:\n  controller:\n    publish: [/pmlsm/force_command]\n  controller:\n    subscribe: []\n")
+          .find("identities.controller: duplicate key"),
+      std::string::npos);
+  EXPECT_NE(refusal("identities:\n  controller:\n    pubish: [/pmlsm/force_command]\n")
+                .find("identities.controller.pubish: unknown key"),
             std::string::npos);
   EXPECT_NE(refusal("governance:\n  data_protection: rot13\nidentities:\n  controller: {}\n")
                 .find("governance.data_protection: 'rot13' is not one of encrypt, sign"),
             std::string::npos);
-  EXPECT_NE(refusal("governance:\n  domains: {min: 9, max: 3}\nidentities:\n  controller: {}\n").find("0 <= min <= max"),
-            std::string::npos);
+  EXPECT_NE(
+      refusal("governance:\n  domains: {min: 9, max: 3}\nidentities:\n  controller: {}\n").find("0 <= min <= max"),
+      std::string::npos);
   EXPECT_NE(refusal("identities:\n  controller:\n    publish: [/pmlsm/force_command, rt/pmlsm/force_command]\n")
                 .find("listed twice"),
             std::string::npos);
@@ -93,9 +95,10 @@ TEST(SecurityPolicy, RefusesUnknownOrDuplicatedItemsNamingThem) {
 }
 
 TEST(SecurityPolicy, PayloadsUnprotectedOnlyInsideEncryptedRtpsMessages) {
-  const auto p = parse_policy("governance:\n  data_protection: none\n  metadata_protection: none\n"
-                              "  rtps_protection: encrypt\nidentities:\n  controller: {}\n",
-                              "p.yaml", vocabulary());
+  const auto p = parse_policy(
+      "governance:\n  data_protection: none\n  metadata_protection: none\n"
+      "  rtps_protection: encrypt\nidentities:\n  controller: {}\n",
+      "p.yaml", vocabulary());
   const std::string gov = governance_xml(p);
   EXPECT_NE(gov.find("<rtps_protection_kind>ENCRYPT</rtps_protection_kind>"), std::string::npos);
   EXPECT_NE(gov.find("<data_protection_kind>NONE</data_protection_kind>"), std::string::npos);
@@ -104,14 +107,17 @@ TEST(SecurityPolicy, PayloadsUnprotectedOnlyInsideEncryptedRtpsMessages) {
 TEST(SecurityPolicy, DocumentsCarryTheGrantAndDenyTheRest) {
   const auto p = parse_policy(kPolicy, "p.yaml", vocabulary());
   const std::string gov = governance_xml(p);
-  EXPECT_NE(gov.find("<allow_unauthenticated_participants>false</allow_unauthenticated_participants>"), std::string::npos);
+  EXPECT_NE(gov.find("<allow_unauthenticated_participants>false</allow_unauthenticated_participants>"),
+            std::string::npos);
   EXPECT_NE(gov.find("<discovery_protection_kind>SIGN</discovery_protection_kind>"), std::string::npos);
   EXPECT_NE(gov.find("<data_protection_kind>ENCRYPT</data_protection_kind>"), std::string::npos);
   EXPECT_NE(gov.find("<metadata_protection_kind>ENCRYPT</metadata_protection_kind>"), std::string::npos);
   EXPECT_NE(gov.find("<min>3</min><max>9</max>"), std::string::npos);
-  const std::string perm = permissions_xml(p, *p.find("controller"), "CN=controller", {"2026-01-01T00:00:00", "2027-01-01T00:00:00"});
+  const std::string perm =
+      permissions_xml(p, *p.find("controller"), "CN=controller", {"2026-01-01T00:00:00", "2027-01-01T00:00:00"});
   EXPECT_NE(perm.find("<subject_name>CN=controller</subject_name>"), std::string::npos);
-  EXPECT_NE(perm.find("<publish>\n          <topics>\n            <topic>rt/pmlsm/force_command</topic>"), std::string::npos);
+  EXPECT_NE(perm.find("<publish>\n          <topics>\n            <topic>rt/pmlsm/force_command</topic>"),
+            std::string::npos);
   EXPECT_EQ(perm.find("motor_feedback</topic>\n          </topics>\n        </publish>"), std::string::npos);
   EXPECT_NE(perm.find("<default>DENY</default>"), std::string::npos);
   // Nothing granted: no allow rule at all, only the default.
@@ -175,7 +181,7 @@ TEST_F(KeystoreTest, MakesPrivateKeysVerifiableDocumentsAndRefusesTampering) {
     EXPECT_EQ(st.st_mode & 0777, 0600u) << key;
   }
   EXPECT_TRUE(check_identity(ks, "controller").empty());
-  EXPECT_THROW(create_keystore(ks, p, {}), SecurityError);  // never over an existing one
+  EXPECT_THROW(create_keystore(ks, p, {}), SecurityError);               // never over an existing one
   EXPECT_THROW(create_identity(ks, p, "evaluator", {}), SecurityError);  // no grant
 
   // The permissions file with a topic changed in the signed text.

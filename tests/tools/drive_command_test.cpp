@@ -68,10 +68,11 @@ class DriveNodes {
       : scenario_(long_scenario(dir).string()),
         controller_(node_args("controller", domain, scenario_, {"--clock", "realtime", "--plant-lost-ms", "30000"}),
                     (dir / "controller.log").string()),
-        plant_(node_args("plant_sim", domain, scenario_,
-                         {"--peers", "1", "--clock", "realtime", "--auto-enable", "false", "--watchdog-ms",
-                          std::to_string(watchdog_ms), "--controller-lost-ms", "30000", "--on-controller-lost", "stay"}),
-               (dir / "plant.log").string()) {}
+        plant_(
+            node_args("plant_sim", domain, scenario_,
+                      {"--peers", "1", "--clock", "realtime", "--auto-enable", "false", "--watchdog-ms",
+                       std::to_string(watchdog_ms), "--controller-lost-ms", "30000", "--on-controller-lost", "stay"}),
+            (dir / "plant.log").string()) {}
 
   ~DriveNodes() {
     // SIGINT, as an operator would; the plant's exit code is not checked (after a quick stop
@@ -116,8 +117,9 @@ TEST(Drive, OperatorWalksThePowerStateMachine) {
   // Switch on from switch on disabled is not a CiA 402 transition: refused, with the reason.
   ToolRun refused = pmlsm(domain, dir, "switch_on_refused", {"drive", "switch-on", "--drive", "plant_sim"});
   EXPECT_EQ(refused.code, 1) << refused.output;
-  EXPECT_TRUE(contains(refused.output, "switch on: refused by plant_sim: switch on refused in switch on disabled: "
-                                       "not allowed in this state"))
+  EXPECT_TRUE(contains(refused.output,
+                       "switch on: refused by plant_sim: switch on refused in switch on disabled: "
+                       "not allowed in this state"))
       << refused.output;
   // Quick stop where the drive already is switched off is accepted with no change (repeating a
   // cyclic command is not an error), and is not counted as refused.
@@ -148,7 +150,8 @@ TEST(Drive, OperatorWalksThePowerStateMachine) {
   // Quick stop from operation enabled: accepted; the simulated stop ends in switch on disabled.
   ToolRun stop = pmlsm(domain, dir, "quick_stop", {"drive", "quick-stop", "--drive", "plant_sim"});
   EXPECT_EQ(stop.code, 0) << stop.output;
-  EXPECT_TRUE(contains(stop.output, "quick stop: quick stop in operation enabled -> quick stop active\n")) << stop.output;
+  EXPECT_TRUE(contains(stop.output, "quick stop: quick stop in operation enabled -> quick stop active\n"))
+      << stop.output;
   status = pmlsm(domain, dir, "status3", {"drive", "status"});
   EXPECT_EQ(status.code, 0) << status.output;
   EXPECT_TRUE(contains(status.output, "power state:      switch on disabled\n")) << status.output;
@@ -186,7 +189,7 @@ TEST(Drive, OperatorWalksThePowerStateMachine) {
     EXPECT_NE((*it)[1].str(), "0") << plant_log;
     ids.insert((*it)[1].str());
   }
-  EXPECT_EQ(ids.size(), 12u) << plant_log;  // 2 + 3 + 1 + 3 + 1 + 1 + 1
+  EXPECT_EQ(ids.size(), 12u) << plant_log;                  // 2 + 3 + 1 + 3 + 1 + 1 + 1
   if (!::testing::Test::HasFailure()) fs::remove_all(dir);  // the logs stay for a failure
 }
 
@@ -201,7 +204,8 @@ TEST(Drive, EnableNeverResetsAFault) {
   // The controller freezes: its feedback goes unanswered, the watchdog faults the drive.
   ASSERT_TRUE(nodes.plant().wait_for_output("watchdog armed", std::chrono::seconds(10))) << nodes.plant().output();
   nodes.controller().signal(SIGSTOP);
-  ASSERT_TRUE(nodes.plant().wait_for_output("plant_sim: watchdog:", std::chrono::seconds(10))) << nodes.plant().output();
+  ASSERT_TRUE(nodes.plant().wait_for_output("plant_sim: watchdog:", std::chrono::seconds(10)))
+      << nodes.plant().output();
 
   ToolRun status = pmlsm(domain, dir, "status_fault", {"drive", "status"});
   EXPECT_EQ(status.code, 0) << status.output;

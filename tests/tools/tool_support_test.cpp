@@ -16,7 +16,7 @@ TEST(SequenceTracker, CountsGapsPerWriterAndJoinLateApart) {
   EXPECT_EQ(t.observe("a", 5), 2u);   // 3 and 4 lost
   EXPECT_EQ(t.observe("b", 40), 0u);  // b was publishing before we joined
   EXPECT_EQ(t.observe("b", 41), 0u);
-  EXPECT_EQ(t.observe("a", 4), 0u);   // late repeat: not a loss, and no new gap after it
+  EXPECT_EQ(t.observe("a", 4), 0u);  // late repeat: not a loss, and no new gap after it
   EXPECT_EQ(t.observe("a", 6), 0u);
   EXPECT_EQ(t.lost(), 2u);
   EXPECT_EQ(t.missed_before_join(), 39u);

@@ -80,7 +80,8 @@ std::string record_lockstep_run(const std::string& domain, const fs::path& dir,
                                 std::vector<std::string> extra_plant_args = {}, int plant_exit = 0,
                                 const std::string& scenario_name = "pulse") {
   const std::string scenario = source("configs/scenarios/" + scenario_name + ".yaml");
-  std::vector<std::string> record{"record", "-o", (dir / "run.mcap").string(), "--stop-after-idle-s", "2", "--no-progress"};
+  std::vector<std::string> record{"record", "-o",           (dir / "run.mcap").string(), "--stop-after-idle-s",
+                                  "2",      "--no-progress"};
   record.insert(record.end(), extra_record_args.begin(), extra_record_args.end());
   test::ChildProcess recorder(pmlsm_args(domain, record), (dir / "record.log").string());
   EXPECT_TRUE(recorder.wait_for_output("topics on domain", std::chrono::seconds(20))) << recorder.output();
@@ -122,8 +123,9 @@ TEST(Record, LockstepRunWholeAndDecodedByThirdPartyReaders) {
                             (dir / "node.log").string());
   EXPECT_EQ(run_to_end(reader), 0) << reader.output();
 
-  test::ChildProcess plot(pmlsm_args(test_domain(30), {"plot", (dir / "run.mcap").string(), "-o", (dir / "plots").string()}),
-                          (dir / "plot.log").string());
+  test::ChildProcess plot(
+      pmlsm_args(test_domain(30), {"plot", (dir / "run.mcap").string(), "-o", (dir / "plots").string()}),
+      (dir / "plot.log").string());
   EXPECT_EQ(run_to_end(plot), 0) << plot.output();
   for (const char* png : {"velocities.png", "forces.png", "phase_plane.png"}) {
     EXPECT_GT(fs::exists(dir / "plots" / png) ? fs::file_size(dir / "plots" / png) : 0u, 10000u) << png;
@@ -137,10 +139,12 @@ TEST(Record, LockstepRunWholeAndDecodedByThirdPartyReaders) {
 TEST(Plot, ARunAtZeroForceIsMarked) {
   const fs::path dir = test::fresh_dir("pmlsm_tool", "zero_force");
   record_lockstep_run(test_domain(61), dir, {}, {"--auto-enable", "false"}, 5);
-  test::ChildProcess plot(pmlsm_args(test_domain(61), {"plot", (dir / "run.mcap").string(), "-o", (dir / "plots").string()}),
-                          (dir / "plot.log").string());
+  test::ChildProcess plot(
+      pmlsm_args(test_domain(61), {"plot", (dir / "run.mcap").string(), "-o", (dir / "plots").string()}),
+      (dir / "plot.log").string());
   EXPECT_EQ(run_to_end(plot), 0) << plot.output();
-  EXPECT_NE(plot.output().find("drive force off for 2000 of 2000 ticks from tick 0"), std::string::npos) << plot.output();
+  EXPECT_NE(plot.output().find("drive force off for 2000 of 2000 ticks from tick 0"), std::string::npos)
+      << plot.output();
   const std::string script = test::read_file(dir / "plots" / "plots.gp");
   EXPECT_NE(script.find("DRIVE FORCE OFF for 2000 of 2000 ticks"), std::string::npos) << script;
   EXPECT_NE(script.find("filledcurves"), std::string::npos) << script;
@@ -168,13 +172,14 @@ TEST(Play, RecordingStandsInForThePlant) {
   // A fresh estimator on another domain, fed only the recorded MotorFeedback.
   const std::string domain = test_domain(32);
   const std::string scenario = source("configs/scenarios/pulse.yaml");
-  test::ChildProcess recorder(pmlsm_args(domain, {"record", "/pmlsm/estimated_state", "-o", (dir / "replayed.mcap").string(),
-                                                  "--stop-after-idle-s", "2", "--no-progress"}),
-                              (dir / "record2.log").string());
+  test::ChildProcess recorder(
+      pmlsm_args(domain, {"record", "/pmlsm/estimated_state", "-o", (dir / "replayed.mcap").string(),
+                          "--stop-after-idle-s", "2", "--no-progress"}),
+      (dir / "record2.log").string());
   ASSERT_TRUE(recorder.wait_for_output("topics on domain", std::chrono::seconds(20))) << recorder.output();
   test::ChildProcess estimator(node_args("kalman_estimator", domain, scenario), (dir / "estimator2.log").string());
-  test::ChildProcess player(pmlsm_args(domain, {"play", (dir / "run.mcap").string(), "--topics", "/pmlsm/motor_feedback",
-                                                "--rate", "4", "--no-progress"}),
+  test::ChildProcess player(pmlsm_args(domain, {"play", (dir / "run.mcap").string(), "--topics",
+                                                "/pmlsm/motor_feedback", "--rate", "4", "--no-progress"}),
                             (dir / "play.log").string());
   EXPECT_EQ(run_to_end(player), 0) << player.output();
   EXPECT_EQ(run_to_end(estimator), 0) << estimator.output();
@@ -227,18 +232,20 @@ TEST(Record, KilledRecorderLeavesReadableFile) {
   ASSERT_GE(contents.by_topic["/pmlsm/motor_feedback"].size(), feedback_on_disk);
   for (const auto& d : contents.by_topic["/pmlsm/motor_feedback"]) EXPECT_TRUE(d.ok()) << d.error;
 
-  test::ChildProcess plot(pmlsm_args(domain, {"plot", file.string(), "-o", (dir / "plots").string()}), (dir / "plot.log").string());
+  test::ChildProcess plot(pmlsm_args(domain, {"plot", file.string(), "-o", (dir / "plots").string()}),
+                          (dir / "plot.log").string());
   EXPECT_EQ(run_to_end(plot), 0) << plot.output();
   EXPECT_NE(plot.output().find("not whole"), std::string::npos) << plot.output();
   EXPECT_TRUE(fs::exists(dir / "plots" / "velocities.png"));
 
-  test::ChildProcess player(pmlsm_args(test_domain(34), {"play", file.string(), "--rate", "50", "--wait-matched-s", "0",
-                                                         "--no-progress"}),
-                            (dir / "play.log").string());
+  test::ChildProcess player(
+      pmlsm_args(test_domain(34), {"play", file.string(), "--rate", "50", "--wait-matched-s", "0", "--no-progress"}),
+      (dir / "play.log").string());
   EXPECT_EQ(run_to_end(player), 0) << player.output();
   EXPECT_NE(player.output().find("not whole"), std::string::npos) << player.output();
 
-  test::ChildProcess reader(node_js({file.string(), "--allow-truncated", "--min-messages", "100"}), (dir / "node.log").string());
+  test::ChildProcess reader(node_js({file.string(), "--allow-truncated", "--min-messages", "100"}),
+                            (dir / "node.log").string());
   EXPECT_EQ(run_to_end(reader), 0) << reader.output();
   fs::remove_all(dir);
 }
@@ -255,7 +262,8 @@ TEST(Tool, BadInputIsAClearErrorWithExitCode2) {
   test::ChildProcess echo(pmlsm_args(domain, {"topic", "echo", "/pmlsm/nope"}), (dir / "echo.log").string());
   EXPECT_EQ(run_to_end(echo), 2);
 
-  test::ChildProcess missing(pmlsm_args(domain, {"play", (dir / "missing.mcap").string()}), (dir / "missing.log").string());
+  test::ChildProcess missing(pmlsm_args(domain, {"play", (dir / "missing.mcap").string()}),
+                             (dir / "missing.log").string());
   EXPECT_EQ(run_to_end(missing), 2) << missing.output();
 
   {
@@ -270,8 +278,9 @@ TEST(Tool, BadInputIsAClearErrorWithExitCode2) {
   test::ChildProcess play(pmlsm_args(domain, {"play", (dir / "garbage.mcap").string()}), (dir / "play.log").string());
   EXPECT_EQ(run_to_end(play), 2) << play.output();
 
-  test::ChildProcess compression(pmlsm_args(domain, {"record", "--compression", "gzip", "-o", (dir / "y.mcap").string()}),
-                                 (dir / "compression.log").string());
+  test::ChildProcess compression(
+      pmlsm_args(domain, {"record", "--compression", "gzip", "-o", (dir / "y.mcap").string()}),
+      (dir / "compression.log").string());
   EXPECT_EQ(run_to_end(compression), 2) << compression.output();
   fs::remove_all(dir);
 }
@@ -280,17 +289,19 @@ TEST(Topic, ListEchoHzDelayOnARealtimeLoop) {
   const fs::path dir = test::fresh_dir("pmlsm_tool", "topic");
   const std::string domain = test_domain(36);
   const std::string scenario = source("configs/scenarios/free_vibration.yaml");  // 8 s at 1 kHz
-  test::ChildProcess controller(node_args("controller", domain, scenario, {"--clock", "realtime", "--plant-lost-ms", "5000"}),
-                                (dir / "controller.log").string());
+  test::ChildProcess controller(
+      node_args("controller", domain, scenario, {"--clock", "realtime", "--plant-lost-ms", "5000"}),
+      (dir / "controller.log").string());
   // The tools are under test, not the drive's timing: a generous watchdog, so a host that holds
   // the loop for a few milliseconds (six processes on two cores) does not fault the run.
-  test::ChildProcess plant(node_args("plant_sim", domain, scenario,
-                                     {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "1000",
-                                      "--controller-lost-ms", "5000"}),
-                           (dir / "plant.log").string());
+  test::ChildProcess plant(
+      node_args("plant_sim", domain, scenario,
+                {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "1000", "--controller-lost-ms", "5000"}),
+      (dir / "plant.log").string());
   test::ChildProcess echo(pmlsm_args(domain, {"topic", "echo", "/pmlsm/motor_feedback", "-n", "3", "--timeout-s", "6"}),
                           (dir / "echo.log").string());
-  test::ChildProcess hz(pmlsm_args(domain, {"topic", "hz", "/pmlsm/motor_feedback", "--duration-s", "3"}), (dir / "hz.log").string());
+  test::ChildProcess hz(pmlsm_args(domain, {"topic", "hz", "/pmlsm/motor_feedback", "--duration-s", "3"}),
+                        (dir / "hz.log").string());
   test::ChildProcess delay(pmlsm_args(domain, {"topic", "delay", "/pmlsm/force_command", "--duration-s", "3"}),
                            (dir / "delay.log").string());
   test::ChildProcess list(pmlsm_args(domain, {"topic", "list", "--wait-s", "2", "-v"}), (dir / "list.log").string());
@@ -332,10 +343,12 @@ TEST(Topic, ListEchoHzDelayOnARealtimeLoop) {
 // plant (the lockstep trace is the in-process one), written into a system file that loads.
 TEST(Identify, ARecordedCommissioningRunGivesTheInProcessFit) {
   const fs::path dir = test::fresh_dir("pmlsm_tool", "identify");
-  const std::vector<std::string> plant{"--set", "plant.mechanics.load_mass_kg=2", "plant.mechanics.spring_n_per_m=27400"};
+  const std::vector<std::string> plant{"--set", "plant.mechanics.load_mass_kg=2",
+                                       "plant.mechanics.spring_n_per_m=27400"};
   record_lockstep_run(test_domain(88), dir, {"/pmlsm/motor_feedback"}, plant, 0, "identification");
   const std::string recorded = (dir / "recorded.yaml").string(), simulated = (dir / "simulated.yaml").string();
-  const std::vector<std::string> files{"-c", source("configs/system.yaml"), "-s", source("configs/scenarios/identification.yaml")};
+  const std::vector<std::string> files{"-c", source("configs/system.yaml"), "-s",
+                                       source("configs/scenarios/identification.yaml")};
   test::ChildProcess from_file(pmlsm_args(test_domain(88), {"identify", (dir / "run.mcap").string(), "-o", recorded,
                                                             "-c", source("configs/system.yaml")}),
                                (dir / "identify.log").string());
@@ -352,7 +365,8 @@ TEST(Identify, ARecordedCommissioningRunGivesTheInProcessFit) {
   EXPECT_NEAR(a.kalman.model.load_mass_kg, 2.0, 0.3);
   EXPECT_NEAR(std::sqrt(a.kalman.model.spring_n_per_m / a.kalman.model.load_mass_kg), std::sqrt(27400.0 / 2.0), 1.5);
   EXPECT_EQ(a.compensator.state_model_load_mass_kg, a.kalman.model.load_mass_kg);
-  EXPECT_EQ(a.plant.mechanics.load_mass_kg, load_system_params(source("configs/system.yaml")).plant.mechanics.load_mass_kg);
+  EXPECT_EQ(a.plant.mechanics.load_mass_kg,
+            load_system_params(source("configs/system.yaml")).plant.mechanics.load_mass_kg);
   fs::remove_all(dir);
 }
 

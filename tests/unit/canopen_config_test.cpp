@@ -51,14 +51,15 @@ TEST(CanopenConfig, TheShippedFileLoadsWithItsValues) {
 
 TEST(CanopenConfig, OverridesAndBadValuesNameTheKeyAndValue) {
   const std::string text = shipped("configs/canopen/drive.yaml");
-  const CanopenRigConfig c =
-      parse_canopen_config(text, "drive.yaml", {ConfigOverride::parse("drive.node_id=5")});
+  const CanopenRigConfig c = parse_canopen_config(text, "drive.yaml", {ConfigOverride::parse("drive.node_id=5")});
   EXPECT_EQ(c.master.node_id, 5);
-  EXPECT_NE(error_of([&] { parse_canopen_config(text, "drive.yaml", {ConfigOverride::parse("drive.node_id=128")}); })
-                .find("drive.yaml: drive.node_id: must be in [1, 127], got 128"),
+  EXPECT_NE(error_of([&] {
+              parse_canopen_config(text, "drive.yaml", {ConfigOverride::parse("drive.node_id=128")});
+            }).find("drive.yaml: drive.node_id: must be in [1, 127], got 128"),
             std::string::npos);
-  EXPECT_NE(error_of([&] { parse_canopen_config(text, "drive.yaml", {ConfigOverride::parse("master.node_id=1")}); })
-                .find("master.node_id: must differ from node_id 1"),
+  EXPECT_NE(error_of([&] {
+              parse_canopen_config(text, "drive.yaml", {ConfigOverride::parse("master.node_id=1")});
+            }).find("master.node_id: must differ from node_id 1"),
             std::string::npos);
   EXPECT_NE(error_of([&] {
               parse_canopen_config(text, "drive.yaml", {ConfigOverride::parse("master.heartbeat_timeout_ms=50")});
@@ -93,7 +94,8 @@ TEST(DeviceDictionary, BadDescriptionsAreRefusedNamingTheItem) {
     const std::string e = error_of([&] { parse_device_dictionary(replaced(text, from, to), "od.yaml"); });
     EXPECT_NE(e.find(expected), std::string::npos) << from << " -> " << to << ": " << e;
   };
-  refused("index: \"0x2001\"", "index: \"0x6040\"", "objects[0].index: a manufacturer-specific object lies in 0x2000-0x5FFF");
+  refused("index: \"0x2001\"", "index: \"0x6040\"",
+          "objects[0].index: a manufacturer-specific object lies in 0x2000-0x5FFF");
   refused("type: u32, access: ro", "type: u64, access: ro", "objects[0].type: one of u8");
   refused("access: ro", "access: rx", "objects[0].access: one of ro, rw, wo, const, got 'rx'");
   refused("index: \"0x2002\"", "index: \"0x2001\"", "objects[1]: object 0x2001 sub 0 is listed twice");

@@ -35,8 +35,7 @@ TEST(ClosedLoop, PiOnlyLeavesTheLoadRingingForAbout5Point8Seconds) {
   const Scenario scenario = test::shipped_scenario("free_vibration");
   const auto trace = run_scenario(params, scenario);
   const ScenarioMetrics m = compute_metrics(trace, scenario, params.timing.control_period_s);
-  std::printf("[ closed loop] PI only, free vibration (linear plant): settles in %.2f s\n",
-              m.load_settling_time_s);
+  std::printf("[ closed loop] PI only, free vibration (linear plant): settles in %.2f s\n", m.load_settling_time_s);
   EXPECT_GT(m.load_settling_time_s, 5.0);
   EXPECT_LT(m.load_settling_time_s, 6.5);
   // The velocity loop holds the motor: the force it needs to do so is bounded by the limit.
@@ -53,12 +52,13 @@ TEST(ClosedLoop, PulseExcitesTheLoadModeAndTheMotorTracks) {
   double motor_err = 0;
   for (const TickRecord& r : trace) motor_err += std::pow(r.v_ref_mps - r.motor_velocity_mps, 2);
   motor_err = std::sqrt(motor_err / static_cast<double>(trace.size()));
-  std::printf("[ closed loop] PI only, pulse: cost %.2f (true), %.2f (estimated), motor rms error %.2f mm/s, "
-              "load vibration rms %.1f mm/s\n",
-              m.cost_true, m.cost_estimated, 1e3 * motor_err, 1e3 * m.load_vibration_rms_mps);
-  EXPECT_LT(motor_err, 0.01);                // the motor tracks within 10 mm/s rms
-  EXPECT_GT(m.load_vibration_rms_mps, 0.03);  // the load does not: it rings
-  EXPECT_GT(m.cost_true, 5.6 * 5);            // far above the paper's compensated 5.6
+  std::printf(
+      "[ closed loop] PI only, pulse: cost %.2f (true), %.2f (estimated), motor rms error %.2f mm/s, "
+      "load vibration rms %.1f mm/s\n",
+      m.cost_true, m.cost_estimated, 1e3 * motor_err, 1e3 * m.load_vibration_rms_mps);
+  EXPECT_LT(motor_err, 0.01);                       // the motor tracks within 10 mm/s rms
+  EXPECT_GT(m.load_vibration_rms_mps, 0.03);        // the load does not: it rings
+  EXPECT_GT(m.cost_true, 5.6 * 5);                  // far above the paper's compensated 5.6
   EXPECT_TRUE(std::isinf(m.load_settling_time_s));  // never within 2 % in a half period
   // Count oscillation periods of v_L - v_M in the second after the first edge: ~9-10 Hz.
   int crossings = 0;
@@ -141,9 +141,9 @@ TEST(ClosedLoop, ADivergingPlantIsAFaultWithZeroForceAndNoNaN) {
   EXPECT_NE(reason.find("plant state "), std::string::npos) << reason;
   EXPECT_NE(reason.find("at tick 0: zero force from tick 1"), std::string::npos) << reason;
   for (const TickRecord& r : trace) {
-    for (double x : {r.motor_position_m, r.motor_velocity_mps, r.load_position_m, r.load_velocity_mps,
-                     r.load_accel_mps2, r.spring_force_n, r.est_load_velocity_mps, r.est_load_accel_mps2,
-                     r.force_command_n, r.thrust_n, r.i_q_a}) {
+    for (double x :
+         {r.motor_position_m, r.motor_velocity_mps, r.load_position_m, r.load_velocity_mps, r.load_accel_mps2,
+          r.spring_force_n, r.est_load_velocity_mps, r.est_load_accel_mps2, r.force_command_n, r.thrust_n, r.i_q_a}) {
       ASSERT_TRUE(std::isfinite(x)) << "tick " << r.tick;
     }
   }

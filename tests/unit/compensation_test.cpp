@@ -57,7 +57,7 @@ TEST(AccelFeedback, OpposesTheLoadAccelerationWithinTheLimit) {
 
 TEST(AccelFeedback, OnTheReferenceErrorOpposesOnlyTheUncommandedAcceleration) {
   AccelFeedback f({160.0, 675.0, true});
-  EXPECT_DOUBLE_EQ(f.step({2.0, 2.0}), 0.0);    // the load accelerates as commanded
+  EXPECT_DOUBLE_EQ(f.step({2.0, 2.0}), 0.0);     // the load accelerates as commanded
   EXPECT_DOUBLE_EQ(f.step({2.0, 0.5}), -240.0);  // 1.5 m/s^2 more than commanded
   EXPECT_DOUBLE_EQ(f.step({0.0, 1.0}), 160.0);   // lagging: pushed along
   EXPECT_DOUBLE_EQ(f.step({0.0, -10.0}), -675.0);
@@ -88,8 +88,8 @@ TEST(AccelFeedback, OnTheReferenceErrorTracksASineBetterThanPiAlone) {
   const double paper_pulse = cost("pulse", false, true), error_pulse = cost("pulse", true, true);
   std::printf("[ accel fb   ] 2 Hz sine: PI %.2f, a_L %.2f, a_L - a_ref %.2f; pulse: a_L %.2f, a_L - a_ref %.2f\n",
               pi_sine, paper_sine, error_sine, paper_pulse, error_pulse);
-  EXPECT_GT(paper_sine, pi_sine);  // measured 38.10 against 19.21
-  EXPECT_LT(error_sine, pi_sine);  // measured 8.13
+  EXPECT_GT(paper_sine, pi_sine);       // measured 38.10 against 19.21
+  EXPECT_LT(error_sine, pi_sine);       // measured 8.13
   EXPECT_LT(error_pulse, paper_pulse);  // measured 5.82 against 8.56
 }
 
@@ -104,8 +104,7 @@ TEST(AccelFeedback, DampsThePulseTestInTheLoop) {
   ASSERT_GT(trace.size(), 100u);
   EXPECT_EQ(trace[0].compensation_force_n, 0.0);
   AccelFeedback replay(p.accel_feedback_params());
-  EXPECT_DOUBLE_EQ(trace[50].compensation_force_n,
-                   replay.step({trace[49].est_load_accel_mps2, trace[49].a_ref_mps2}));
+  EXPECT_DOUBLE_EQ(trace[50].compensation_force_n, replay.step({trace[49].est_load_accel_mps2, trace[49].a_ref_mps2}));
 }
 
 // The free-vibration target (Fig. 10): the load within 2 % of the 0.02 m start in
@@ -156,7 +155,8 @@ TEST(TrainingConfig, TheCommissionedSearchFitsEveryPlantAndJudgesByTheIdentified
   EXPECT_TRUE(t.plants[0].values.empty()) << "the configured plant first";
   EXPECT_FALSE(t.plants[0].commission) << "the configured plant judged on the models the main job runs";
   for (std::size_t i = 1; i < t.plants.size(); ++i) EXPECT_TRUE(t.plants[i].commission) << t.plants[i].name;
-  for (const PlantVariant& plant : t.plants) EXPECT_TRUE(plant.models.empty()) << plant.name << ": fitted by the trainer, not the file";
+  for (const PlantVariant& plant : t.plants)
+    EXPECT_TRUE(plant.models.empty()) << plant.name << ": fitted by the trainer, not the file";
 }
 
 // An optional verdict_from_sweep: each run judged whole by that sweep file's verdict; only with
@@ -174,8 +174,7 @@ TEST(TrainingConfig, ASweepsVerdictJudgesRunsWithTheWorstRatioObjectiveOnly) {
   EXPECT_EQ(judged.verdict.min_decay_rate_per_s, sweep.min_decay_rate_per_s);
   EXPECT_EQ(judged.verdict.max_saturated_tail_share, sweep.max_saturated_tail_share);
   EXPECT_EQ(judged.verdict.max_free_vibration_settling_s, sweep.max_free_vibration_settling_s);
-  const std::string from_sweep =
-      "verdict_from_sweep: {value: sweeps/plant_family.yaml, source: \"chosen: test\"}\n";
+  const std::string from_sweep = "verdict_from_sweep: {value: sweeps/plant_family.yaml, source: \"chosen: test\"}\n";
   try {
     parse_training_params(test::read_text("configs/training.yaml") + from_sweep, paper, 1e-3);
     ADD_FAILURE() << "a verdict with the weighted-sum objective was accepted";
@@ -267,7 +266,8 @@ TEST(TrainingStart, TheNetworkEquivalentOfAccelerationFeedback) {
 TEST(RnnCost, CommissionedPlantsCarryTheirIdentifiedModels) {
   const SystemParams& p = shipped_params();
   const Scenario identification = shipped_scenario("identification");
-  const PlantVariant light{"light_stiff", {{"plant.mechanics.load_mass_kg", 2.0}, {"plant.mechanics.spring_n_per_m", 27400.0}}, 1.0};
+  const PlantVariant light{
+      "light_stiff", {{"plant.mechanics.load_mass_kg", 2.0}, {"plant.mechanics.spring_n_per_m", 27400.0}}, 1.0};
   const std::vector<PlantVariant> plants = commissioned_plants(p, {light}, identification);
   ASSERT_EQ(plants.size(), 1u);
   const SystemParams on_plant = apply_plant_variant(p, light);
@@ -295,12 +295,14 @@ TEST(RnnCost, CommissionedPlantsCarryTheirIdentifiedModels) {
   const std::string text = test::read_text("configs/training_robust.yaml");
   EXPECT_FALSE(parse_training_params(text, path, 1e-3).identify_models);
   const TrainingParams t = parse_training_params(
-      text + "models:\n  identified: {value: true, source: \"chosen: test\"}\n"
-             "  identification_scenario: {value: scenarios/identification.yaml, source: \"chosen: test\"}\n",
+      text +
+          "models:\n  identified: {value: true, source: \"chosen: test\"}\n"
+          "  identification_scenario: {value: scenarios/identification.yaml, source: \"chosen: test\"}\n",
       path, 1e-3);
   EXPECT_TRUE(t.identify_models);
   EXPECT_EQ(t.identification_scenario.name, "identification");
-  for (const PlantVariant& plant : t.plants) EXPECT_TRUE(plant.commission) << plant.name << ": commissioned unless told";
+  for (const PlantVariant& plant : t.plants)
+    EXPECT_TRUE(plant.commission) << plant.name << ": commissioned unless told";
   const std::string commissioned_path = source("configs/training_commissioned.yaml");
   const std::string commissioned_file = test::read_text("configs/training_commissioned.yaml");
   std::string commissioned_text = commissioned_file;
@@ -359,8 +361,8 @@ TEST(RnnCost, PlantVariantsAndTheWorstRatioToPi) {
   EXPECT_DOUBLE_EQ(sum(zero), nominal(zero) + light_only(zero));
   EXPECT_NE(nominal(zero), light_only(zero));
   // Only the plant moves; a model key or an unknown one is refused, naming the variant.
-  EXPECT_THROW(RnnCost(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth, {{"m", {{"kalman.model.load_mass_kg", 2.0}}, 1.0}},
-                       PlantObjective::kWeightedSum),
+  EXPECT_THROW(RnnCost(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth,
+                       {{"m", {{"kalman.model.load_mass_kg", 2.0}}, 1.0}}, PlantObjective::kWeightedSum),
                std::invalid_argument);
   EXPECT_THROW(RnnCost(p, {{pulse, "pulse", 1.0}}, CostVelocity::truth, {{"x", {{"plant.nothing", 2.0}}, 1.0}},
                        PlantObjective::kWeightedSum),
@@ -430,7 +432,8 @@ TEST(ShippedWeights, RnnBeatsPiOnlyAndThePapersAccelerationFeedbackOnThePulseTes
   const auto accel_cost = [&](bool on_reference_error) {
     SystemParams q = p;
     q.compensator.accel_feedback_on_reference_error = on_reference_error;
-    return compute_metrics(run_with_compensator(q, pulse, {CompensatorKind::kAccel, {}, false}), pulse, period).cost_true;
+    return compute_metrics(run_with_compensator(q, pulse, {CompensatorKind::kAccel, {}, false}), pulse, period)
+        .cost_true;
   };
   const double papers_accel = accel_cost(false), shipped_accel = accel_cost(true);
   const ScenarioMetrics rnn = compute_metrics(run_with_rnn(p, pulse, file.weights, false), pulse, period);
@@ -467,7 +470,8 @@ TEST(ShippedWeights, RnnSettlesTheFreeVibrationInUnderHalfASecond) {
   const SystemParams& p = shipped_params();
   const Scenario free = shipped_scenario("free_vibration");
   const RnnWeightsFile file = load_rnn_weights(source("configs/rnn_weights.yaml"));
-  const ScenarioMetrics m = compute_metrics(run_with_rnn(p, free, file.weights, false), free, p.timing.control_period_s);
+  const ScenarioMetrics m =
+      compute_metrics(run_with_rnn(p, free, file.weights, false), free, p.timing.control_period_s);
   std::printf("[ rnn        ] free vibration settles in %.3f s\n", m.load_settling_time_s);
   EXPECT_LT(m.load_settling_time_s, 0.5);  // measured 0.441 s
 }

@@ -12,9 +12,7 @@
 
 namespace pmlsm::test {
 
-inline std::string source_path(const std::string& relative) {
-  return std::string(PMLSM_SOURCE_DIR) + "/" + relative;
-}
+inline std::string source_path(const std::string& relative) { return std::string(PMLSM_SOURCE_DIR) + "/" + relative; }
 
 inline std::string read_text(const std::string& relative) {
   std::ifstream in(source_path(relative));

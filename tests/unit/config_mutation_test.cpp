@@ -73,7 +73,8 @@ std::string load_error(const std::string& text) {
 bool names_value(const std::string& message, const std::string& value) {
   if (message.find(value) != std::string::npos) return true;
   // A nested list is named by the element that is wrong: [[1]] by its [1].
-  if (value.size() > 2 && value.front() == '[' && message.find(value.substr(1, value.size() - 2)) != std::string::npos) {
+  if (value.size() > 2 && value.front() == '[' &&
+      message.find(value.substr(1, value.size() - 2)) != std::string::npos) {
     return true;
   }
   char* end = nullptr;
@@ -88,17 +89,23 @@ struct Mutation {
 
 // Wrong for every kind of leaf.
 const std::vector<Mutation> kAnyLeaf = {
-    {"nan", ".nan"},         {"inf", ".inf"},         {"-inf", "-.inf"},
-    {"huge", "1e308"},       {"-huge", "-1e308"},     {"subnormal", "1e-320"},
+    {"nan", ".nan"},
+    {"inf", ".inf"},
+    {"-inf", "-.inf"},
+    {"huge", "1e308"},
+    {"-huge", "-1e308"},
+    {"subnormal", "1e-320"},
     {"-subnormal", "-4.9e-324"},
-    {"string", "abc"},       {"nested list", "[[1]]"}, {"map", "{a: 1}"},
+    {"string", "abc"},
+    {"nested list", "[[1]]"},
+    {"map", "{a: 1}"},
     {"null", "~"},
 };
 // Wrong for every leaf but a flag.
 const Mutation kBoolean{"boolean", "true"};
 // Wrong where the quantity is a whole number.
-const std::vector<Mutation> kWholeNumber = {{"fraction", "1.5"}, {"negative", "-1"}, {"hexadecimal", "0x10"},
-                                            {"exponent", "1e2"}};
+const std::vector<Mutation> kWholeNumber = {
+    {"fraction", "1.5"}, {"negative", "-1"}, {"hexadecimal", "0x10"}, {"exponent", "1e2"}};
 
 // The file with the leaf's line written twice (the emitter cannot write a duplicate).
 std::string with_duplicated_line(const std::string& text, const std::string& path) {

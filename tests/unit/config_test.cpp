@@ -21,8 +21,8 @@ namespace {
 constexpr const char* kOrigin = "test.yaml";
 constexpr double kControlPeriod = 1e-3;
 
-using test::edited;
 using test::Edit;
+using test::edited;
 using test::read_text;
 using test::source_path;
 
@@ -48,21 +48,18 @@ std::string error_of(F&& load) {
   return "";
 }
 
-std::string system_error(const std::vector<Edit>& edits,
-                         const std::vector<ConfigOverride>& overrides = {}) {
+std::string system_error(const std::vector<Edit>& edits, const std::vector<ConfigOverride>& overrides = {}) {
   const std::string text = edited(system_text(), edits);
   return error_of([&] { parse_system_params(text, kOrigin, overrides); });
 }
 
-std::string scenario_error(const std::vector<Edit>& edits,
-                           const std::vector<ConfigOverride>& overrides = {}) {
+std::string scenario_error(const std::vector<Edit>& edits, const std::vector<ConfigOverride>& overrides = {}) {
   const std::string text = edited(pulse_text(), edits);
   return error_of([&] { parse_scenario(text, kOrigin, kControlPeriod, overrides); });
 }
 
 /// Checks that the message starts with the origin and contains every part.
-void expect_names(const std::string& message, const std::string& origin,
-                  const std::vector<std::string>& parts) {
+void expect_names(const std::string& message, const std::string& origin, const std::vector<std::string>& parts) {
   if (message.empty()) return;  // error_of has reported the missing error
   EXPECT_EQ(message.rfind(origin + ": ", 0), 0u) << "origin not first in: " << message;
   for (const std::string& part : parts) {
@@ -93,8 +90,7 @@ void expect_scenario_rejects(const std::vector<Case>& cases) {
 /// "paper ..." or "chosen:" followed by a reason that is not blank.
 bool is_valid_source(const std::string& source) {
   if (source.rfind("paper", 0) == 0) return true;
-  return source.rfind("chosen:", 0) == 0 &&
-         source.find_first_not_of(" \t", 7) != std::string::npos;
+  return source.rfind("chosen:", 0) == 0 && source.find_first_not_of(" \t", 7) != std::string::npos;
 }
 
 // ---------------------------------------------------------------- shipped files
@@ -102,12 +98,10 @@ bool is_valid_source(const std::string& source) {
 TEST(ConfigShipped, SystemAndScenariosLoad) {
   const SystemParams p = load_system_params(source_path("configs/system.yaml"));
   EXPECT_EQ(p.timing.current_steps_per_tick(), 32);
-  const Scenario pulse = load_scenario(source_path("configs/scenarios/pulse.yaml"),
-                                       p.timing.control_period_s);
+  const Scenario pulse = load_scenario(source_path("configs/scenarios/pulse.yaml"), p.timing.control_period_s);
   EXPECT_EQ(pulse.name, "pulse");
   EXPECT_EQ(pulse.shape, CommandShape::kPulse);
-  const Scenario free = load_scenario(source_path("configs/scenarios/free_vibration.yaml"),
-                                      p.timing.control_period_s);
+  const Scenario free = load_scenario(source_path("configs/scenarios/free_vibration.yaml"), p.timing.control_period_s);
   EXPECT_EQ(free.name, "free_vibration");
   EXPECT_EQ(free.shape, CommandShape::kZero);
 }
@@ -124,8 +118,8 @@ TEST(ConfigShipped, EveryLeafHasAPaperOrChosenSource) {
     const char* name;
     const std::string& text;
   };
-  for (const File& f : {File{"system", system_text()}, File{"pulse", pulse_text()},
-                        File{"free_vibration", free_vibration_text()}}) {
+  for (const File& f :
+       {File{"system", system_text()}, File{"pulse", pulse_text()}, File{"free_vibration", free_vibration_text()}}) {
     SCOPED_TRACE(f.name);
     const auto leaves = list_leaf_sources(f.text, f.name);
     EXPECT_GE(leaves.size(), 8u);
@@ -138,7 +132,7 @@ TEST(ConfigShipped, EveryLeafHasAPaperOrChosenSource) {
 
 TEST(ConfigShipped, ValuesMatchThePaper) {
   const SystemParams p = parse_system_params(system_text(), kOrigin);
-  EXPECT_DOUBLE_EQ(p.plant.mechanics.motor_mass_kg, 20.0);     // Table 2
+  EXPECT_DOUBLE_EQ(p.plant.mechanics.motor_mass_kg, 20.0);  // Table 2
   EXPECT_DOUBLE_EQ(p.plant.mechanics.load_mass_kg, 4.0);
   EXPECT_DOUBLE_EQ(p.plant.mechanics.spring_n_per_m, 13700.0);
   EXPECT_DOUBLE_EQ(p.plant.electrical.motor_constant_n_per_a, 94.0);  // Table 3
@@ -169,7 +163,8 @@ TEST(ConfigShipped, ValuesMatchThePaper) {
 TEST(ConfigRejects, UnknownKey) {
   expect_system_rejects({
       {"top level", {{"gearbox", "1"}}, {"gearbox: unknown key"}},
-      {"nested", {{"plant.mechanics.extra_mass_kg", "{value: 1, source: paper}"}},
+      {"nested",
+       {{"plant.mechanics.extra_mass_kg", "{value: 1, source: paper}"}},
        {"plant.mechanics.extra_mass_kg: unknown key"}},
       {"nested section", {{"plant.gearbox", "{ratio: 1}"}}, {"plant.gearbox: unknown key"}},
       {"inside a sourced leaf",
@@ -183,8 +178,7 @@ TEST(ConfigRejects, UnknownKey) {
 
 TEST(ConfigRejects, MissingKey) {
   expect_system_rejects({
-      {"leaf", {{"plant.mechanics.load_mass_kg", std::nullopt}},
-       {"plant.mechanics.load_mass_kg: missing key"}},
+      {"leaf", {{"plant.mechanics.load_mass_kg", std::nullopt}}, {"plant.mechanics.load_mass_kg: missing key"}},
       {"section", {{"kalman", std::nullopt}}, {"kalman: missing key"}},
       {"nested section", {{"plant.mechanics", std::nullopt}}, {"plant.mechanics: missing key"}},
   });
@@ -202,21 +196,28 @@ TEST(ConfigRejects, WrongType) {
       {"map as a sourced value", {{mass + ".value", "{a: 1}"}}, {mass + ": expected a number", "a: 1"}},
       {"map for a value", {{mass, "{a: 1}"}}, {mass + ": expected a value, got a section", "a: 1"}},
       {"value for a section", {{"plant.mechanics", "5"}}, {"plant.mechanics: must be a mapping", "5"}},
-      {"list of 2", {{"kalman.process_noise_diag.value", "[100, 10]"}},
+      {"list of 2",
+       {{"kalman.process_noise_diag.value", "[100, 10]"}},
        {"kalman.process_noise_diag: expected a list of 3 numbers", "[100, 10]"}},
-      {"list of 4", {{"kalman.process_noise_diag.value", "[100, 10, 1, 1]"}},
+      {"list of 4",
+       {{"kalman.process_noise_diag.value", "[100, 10, 1, 1]"}},
        {"kalman.process_noise_diag: expected a list of 3 numbers", "[100, 10, 1, 1]"}},
-      {"scalar for a list", {{"kalman.process_noise_diag.value", "100"}},
+      {"scalar for a list",
+       {{"kalman.process_noise_diag.value", "100"}},
        {"kalman.process_noise_diag: expected a list of 3 numbers", "100"}},
-      {"string in a list", {{"kalman.process_noise_diag.value", "[100, x, 1]"}},
+      {"string in a list",
+       {{"kalman.process_noise_diag.value", "[100, x, 1]"}},
        {"kalman.process_noise_diag[1]: expected a number", "'x'"}},
-      {"negative seed", {{"plant.encoder.noise_seed.value", "-1"}},
+      {"negative seed",
+       {{"plant.encoder.noise_seed.value", "-1"}},
        {"plant.encoder.noise_seed: expected a non-negative integer", "'-1'"}},
-      {"fractional seed", {{"plant.encoder.noise_seed.value", "1.5"}},
+      {"fractional seed",
+       {{"plant.encoder.noise_seed.value", "1.5"}},
        {"plant.encoder.noise_seed: expected a non-negative integer", "'1.5'"}},
   });
   expect_scenario_rejects({
-      {"scenario string for a number", {{"command.amplitude_mps.value", "fast"}},
+      {"scenario string for a number",
+       {{"command.amplitude_mps.value", "fast"}},
        {"command.amplitude_mps: expected a number", "'fast'"}},
   });
 }
@@ -239,34 +240,42 @@ TEST(ConfigRejects, NonFinite) {
 
 TEST(ConfigRejects, OutOfRange) {
   expect_system_rejects({
-      {"negative load mass", {{"plant.mechanics.load_mass_kg.value", "-4"}},
+      {"negative load mass",
+       {{"plant.mechanics.load_mass_kg.value", "-4"}},
        {"plant.mechanics.load_mass_kg: must be in [", "got -4"}},
-      {"negative motor mass", {{"plant.mechanics.motor_mass_kg.value", "-20"}},
+      {"negative motor mass",
+       {{"plant.mechanics.motor_mass_kg.value", "-20"}},
        {"plant.mechanics.motor_mass_kg: must be in [", "got -20"}},
-      {"zero resistance", {{"plant.electrical.resistance_ohm.value", "0"}},
+      {"zero resistance",
+       {{"plant.electrical.resistance_ohm.value", "0"}},
        {"plant.electrical.resistance_ohm: must be in [", "got 0"}},
-      {"zero damping ratio", {{"reference_model.damping_ratio.value", "0"}},
+      {"zero damping ratio",
+       {{"reference_model.damping_ratio.value", "0"}},
        {"reference_model.damping_ratio: must be in [", "got 0"}},
-      {"negative damping ratio", {{"reference_model.damping_ratio.value", "-1.5"}},
+      {"negative damping ratio",
+       {{"reference_model.damping_ratio.value", "-1.5"}},
        {"reference_model.damping_ratio: must be in [", "got -1.5"}},
       // L_md^2 = L_ad L_D exactly (0.02^2 both sides): the boundary is excluded.
       {"L_md^2 = L_ad L_D",
        {{"plant.electrical.mutual_d_inductance_h.value", "0.02"},
         {"plant.electrical.damper_d_inductance_h.value", "0.02"}},
        {"plant.electrical.mutual_d_inductance_h: must satisfy L_md^2 < L_ad L_D", "got 0.02"}},
-      {"L_md^2 > L_ad L_D", {{"plant.electrical.mutual_d_inductance_h.value", "0.5"}},
+      {"L_md^2 > L_ad L_D",
+       {{"plant.electrical.mutual_d_inductance_h.value", "0.5"}},
        {"plant.electrical.mutual_d_inductance_h: must satisfy L_md^2 < L_ad L_D", "got 0.5"}},
       // 1 ms / 0.25 ms would divide; 1 ms / 0.4 ms = 2.5 does not.
-      {"current period not dividing", {{"timing.current_loop_period_s.value", "0.0004"}},
+      {"current period not dividing",
+       {{"timing.current_loop_period_s.value", "0.0004"}},
        {"timing.current_loop_period_s: must divide control_period_s", "got 0.0004"}},
-      {"current period above control period", {{"timing.current_loop_period_s.value", "0.002"}},
+      {"current period above control period",
+       {{"timing.current_loop_period_s.value", "0.002"}},
        {"timing.current_loop_period_s: must be in", "got 0.002"}},
   });
   expect_scenario_rejects({
-      {"duty cycle above 1", {{"command.duty_cycle.value", "1.5"}},
+      {"duty cycle above 1",
+       {{"command.duty_cycle.value", "1.5"}},
        {"command.duty_cycle: must be in [0, 1]", "got 1.5"}},
-      {"unknown shape", {{"command.shape.value", "square"}},
-       {"command.shape", "'square'", "zero, step, pulse, sine"}},
+      {"unknown shape", {{"command.shape.value", "square"}}, {"command.shape", "'square'", "zero, step, pulse, sine"}},
   });
 }
 
@@ -275,18 +284,18 @@ TEST(ConfigRejects, SourcedLeafWithoutValidSource) {
   expect_system_rejects({
       {"no source", {{mass, "{value: 4}"}}, {mass + ".source: missing"}},
       {"source is a list", {{mass, "{value: 4, source: [paper]}"}}, {mass + ".source: missing"}},
-      {"neither paper nor chosen", {{mass + ".source", "Table 2"}},
+      {"neither paper nor chosen",
+       {{mass + ".source", "Table 2"}},
        {mass + ".source: must start with 'paper' or 'chosen: <reason>'", "'Table 2'"}},
       {"empty source", {{mass + ".source", "''"}}, {mass + ".source: must start with", "''"}},
-      {"chosen without reason", {{mass + ".source", "'chosen:'"}},
-       {mass + ".source: must start with", "'chosen:'"}},
-      {"chosen with a blank reason", {{mass + ".source", "'chosen:     '"}},
+      {"chosen without reason", {{mass + ".source", "'chosen:'"}}, {mass + ".source: must start with", "'chosen:'"}},
+      {"chosen with a blank reason",
+       {{mass + ".source", "'chosen:     '"}},
        {mass + ".source: must start with", "'chosen:     '"}},
   });
   // list_leaf_sources applies the same check.
   const std::string text = edited(system_text(), {{mass + ".source", "Table 2"}});
-  expect_names(error_of([&] { list_leaf_sources(text, kOrigin); }), kOrigin,
-               {mass + ".source", "'Table 2'"});
+  expect_names(error_of([&] { list_leaf_sources(text, kOrigin); }), kOrigin, {mass + ".source", "'Table 2'"});
 }
 
 TEST(ConfigRejects, MalformedYamlAndNonMappingTopLevel) {
@@ -299,16 +308,13 @@ TEST(ConfigRejects, MalformedYamlAndNonMappingTopLevel) {
   };
   for (const auto& [what, text] : texts) {
     SCOPED_TRACE(what);
-    const std::string expected = what.rfind("parse error", 0) == 0 ? "YAML parse error"
-                                                                    : "top level must be a mapping";
+    const std::string expected = what.rfind("parse error", 0) == 0 ? "YAML parse error" : "top level must be a mapping";
     expect_names(error_of([&] { parse_system_params(text, kOrigin); }), kOrigin, {expected});
-    expect_names(error_of([&] { parse_scenario(text, kOrigin, kControlPeriod); }), kOrigin,
-                 {expected});
+    expect_names(error_of([&] { parse_scenario(text, kOrigin, kControlPeriod); }), kOrigin, {expected});
     expect_names(error_of([&] { list_leaf_sources(text, kOrigin); }), kOrigin, {expected});
   }
   // The parse error says where.
-  expect_names(error_of([&] { parse_system_params(texts[1].second, kOrigin); }), kOrigin,
-               {"line 3"});
+  expect_names(error_of([&] { parse_system_params(texts[1].second, kOrigin); }), kOrigin, {"line 3"});
 }
 
 // ---------------------------------------------------------------- overrides and files
@@ -334,30 +340,29 @@ TEST(ConfigOverrides, ChangesTheValue) {
                                       ConfigOverride::parse("kalman.process_noise_diag=[1, 2, 3]")});
   EXPECT_DOUBLE_EQ(p.plant.mechanics.load_mass_kg, 5.0);
   EXPECT_DOUBLE_EQ(p.kalman.process_noise_diag(2), 3.0);
-  const auto s = parse_scenario(pulse_text(), kOrigin, kControlPeriod,
-                                {ConfigOverride::parse("command.amplitude_mps=0.5")});
+  const auto s =
+      parse_scenario(pulse_text(), kOrigin, kControlPeriod, {ConfigOverride::parse("command.amplitude_mps=0.5")});
   EXPECT_DOUBLE_EQ(s.amplitude_mps, 0.5);
 }
 
 TEST(ConfigOverrides, RejectsUnknownPathOrSection) {
-  expect_names(system_error({}, {ConfigOverride::parse("plant.mechanics.nonexistent_key=1")}),
-               kOrigin, {"plant.mechanics.nonexistent_key"});
+  expect_names(system_error({}, {ConfigOverride::parse("plant.mechanics.nonexistent_key=1")}), kOrigin,
+               {"plant.mechanics.nonexistent_key"});
   expect_names(system_error({}, {ConfigOverride::parse("nonexistent.load_mass_kg=1")}), kOrigin,
                {"nonexistent.load_mass_kg"});
-  expect_names(system_error({}, {ConfigOverride::parse("plant.mechanics=1")}), kOrigin,
-               {"plant.mechanics", "section"});
+  expect_names(system_error({}, {ConfigOverride::parse("plant.mechanics=1")}), kOrigin, {"plant.mechanics", "section"});
 }
 
 TEST(ConfigOverrides, RejectsBadValueWithKeyPath) {
-  expect_names(system_error({}, {ConfigOverride::parse("plant.mechanics.load_mass_kg=-4")}),
-               kOrigin, {"plant.mechanics.load_mass_kg: must be in [", "got -4"});
-  expect_names(system_error({}, {ConfigOverride::parse("plant.mechanics.load_mass_kg=abc")}),
-               kOrigin, {"plant.mechanics.load_mass_kg: expected a number", "'abc'"});
+  expect_names(system_error({}, {ConfigOverride::parse("plant.mechanics.load_mass_kg=-4")}), kOrigin,
+               {"plant.mechanics.load_mass_kg: must be in [", "got -4"});
+  expect_names(system_error({}, {ConfigOverride::parse("plant.mechanics.load_mass_kg=abc")}), kOrigin,
+               {"plant.mechanics.load_mass_kg: expected a number", "'abc'"});
   expect_names(scenario_error({}, {ConfigOverride::parse("command.duty_cycle=1.5")}), kOrigin,
                {"command.duty_cycle", "got 1.5"});
   // A value that is not YAML at all (an unclosed list) must still be a ConfigError.
-  expect_names(system_error({}, {ConfigOverride::parse("plant.mechanics.load_mass_kg=[1")}),
-               kOrigin, {"plant.mechanics.load_mass_kg", "[1"});
+  expect_names(system_error({}, {ConfigOverride::parse("plant.mechanics.load_mass_kg=[1")}), kOrigin,
+               {"plant.mechanics.load_mass_kg", "[1"});
 }
 
 TEST(ConfigFiles, ErrorsNameTheFilePath) {
@@ -366,12 +371,10 @@ TEST(ConfigFiles, ErrorsNameTheFilePath) {
   expect_names(error_of([&] { load_scenario(missing, kControlPeriod); }), missing, {"cannot open"});
   // A rule broken in a real file is reported against its path.
   const std::string shipped = source_path("configs/system.yaml");
-  expect_names(error_of([&] {
-                 load_system_params(shipped, {ConfigOverride::parse("plant.mechanics.load_mass_kg=-4")});
-               }),
-               shipped, {"plant.mechanics.load_mass_kg", "-4"});
+  expect_names(
+      error_of([&] { load_system_params(shipped, {ConfigOverride::parse("plant.mechanics.load_mass_kg=-4")}); }),
+      shipped, {"plant.mechanics.load_mass_kg", "-4"});
 }
-
 
 // `pmlsm identify` writes its values into a copy of the system file: that copy loads with every
 // check, holds the values to the last bit with the given source, and nothing else changed.
@@ -391,7 +394,9 @@ TEST(ConfigFiles, AWrittenCopyHoldsTheValuesAndTheirSource) {
   EXPECT_EQ(written["kalman"]["model"]["spring_n_per_m"]["source"].as<std::string>().rfind("paper", 0), 0u);
   // Refused, naming the problem, with nothing written.
   const std::string refused = ::testing::TempDir() + "/system_refused.yaml";
-  expect_names(error_of([&] { write_system_file_with(shipped, {{"kalman.model.mass", 2.0}}, "chosen: x", refused); }),
+  expect_names(error_of([&] {
+                 write_system_file_with(shipped, {{"kalman.model.mass", 2.0}}, "chosen: x", refused);
+               }),
                shipped, {"kalman.model.mass"});
   expect_names(error_of([&] {
                  write_system_file_with(shipped, {{"kalman.model.load_mass_kg", -2.0}}, "chosen: x", refused);
@@ -430,8 +435,9 @@ TEST(ConfigKalmanModel, IsTheFiltersOwnSoAPlantOverrideLeavesItNominal) {
   EXPECT_DOUBLE_EQ(nominal.kalman.model.motor_mass_kg, nominal.plant.mechanics.motor_mass_kg);
   EXPECT_DOUBLE_EQ(nominal.kalman.model.spring_n_per_m, nominal.plant.mechanics.spring_n_per_m);
   // A heavier load and a stiffer coupling in the plant: the filter keeps the nominal model.
-  const SystemParams mismatched = load_system_params(
-      path, {ConfigOverride::parse("plant.mechanics.load_mass_kg=2"), ConfigOverride::parse("plant.mechanics.spring_n_per_m=27400")});
+  const SystemParams mismatched =
+      load_system_params(path, {ConfigOverride::parse("plant.mechanics.load_mass_kg=2"),
+                                ConfigOverride::parse("plant.mechanics.spring_n_per_m=27400")});
   EXPECT_DOUBLE_EQ(mismatched.plant.mechanics.load_mass_kg, 2.0);
   EXPECT_DOUBLE_EQ(mismatched.kalman_params().load_mass_kg, 4.0);
   EXPECT_DOUBLE_EQ(mismatched.kalman_params().spring_n_per_m, 13700.0);
@@ -445,11 +451,11 @@ TEST(ConfigKalmanInputs, OverridesSwitchThemOnAndOff) {
   for (const char* value : {"true", "false"}) {
     SCOPED_TRACE(value);
     const bool on = std::string(value) == "true";
-    const auto p = parse_system_params(
-        system_text(), kOrigin,
-        {ConfigOverride::parse(std::string("kalman.friction_input.enabled=") + value),
-         ConfigOverride::parse(std::string("kalman.ripple_input.enabled=") + value),
-         ConfigOverride::parse("kalman.friction_input.regularisation_velocity_mps=0.005")});
+    const auto p =
+        parse_system_params(system_text(), kOrigin,
+                            {ConfigOverride::parse(std::string("kalman.friction_input.enabled=") + value),
+                             ConfigOverride::parse(std::string("kalman.ripple_input.enabled=") + value),
+                             ConfigOverride::parse("kalman.friction_input.regularisation_velocity_mps=0.005")});
     EXPECT_EQ(p.kalman.friction_input.enabled, on);
     EXPECT_EQ(p.kalman.ripple_input.enabled, on);
     EXPECT_DOUBLE_EQ(p.kalman.friction_input.model.regularisation_velocity_mps, 0.005);
@@ -461,15 +467,19 @@ TEST(ConfigKalmanInputs, BadValuesAreRejectedWithKeyPathAndValue) {
   const std::string r = "kalman.ripple_input";
   expect_system_rejects({
       {"negative coulomb", {{f + ".coulomb_n.value", "-20"}}, {f + ".coulomb_n: must be in [", "got -20"}},
-      {"negative viscous", {{f + ".viscous_n_s_per_m.value", "-30"}},
+      {"negative viscous",
+       {{f + ".viscous_n_s_per_m.value", "-30"}},
        {f + ".viscous_n_s_per_m: must be in [", "got -30"}},
-      {"zero smoothing", {{f + ".regularisation_velocity_mps.value", "0"}},
+      {"zero smoothing",
+       {{f + ".regularisation_velocity_mps.value", "0"}},
        {f + ".regularisation_velocity_mps: must be in [", "got 0"}},
       {"nan coulomb", {{f + ".coulomb_n.value", ".nan"}}, {f + ".coulomb_n: must be finite", ".nan"}},
-      {"inf smoothing", {{f + ".regularisation_velocity_mps.value", ".inf"}},
+      {"inf smoothing",
+       {{f + ".regularisation_velocity_mps.value", ".inf"}},
        {f + ".regularisation_velocity_mps: must be finite", ".inf"}},
       {"negative ripple scale", {{r + ".scale_n.value", "-10"}}, {r + ".scale_n: must be in [", "got -10"}},
-      {"negative ripple frequency", {{r + ".spatial_freq_2_rad_per_m.value", "-1"}},
+      {"negative ripple frequency",
+       {{r + ".spatial_freq_2_rad_per_m.value", "-1"}},
        {r + ".spatial_freq_2_rad_per_m: must be in [", "got -1"}},
       {"number for a flag", {{f + ".enabled.value", "2"}}, {f + ".enabled: expected true or false", "'2'"}},
       {"word for a flag", {{r + ".enabled.value", "maybe"}}, {r + ".enabled: expected true or false", "'maybe'"}},

@@ -47,8 +47,8 @@ TEST(FiberScheduler, TwoFibersHandTheThreadToEachOtherInLockstep) {
     }
   });
   scheduler.run();
-  const std::vector<std::string> expected = {"feedback 0", "command 0", "feedback 1", "command 1",
-                                             "feedback 2", "command 2"};
+  const std::vector<std::string> expected = {"feedback 0", "command 0",  "feedback 1",
+                                             "command 1",  "feedback 2", "command 2"};
   EXPECT_EQ(trace, expected);
   EXPECT_GE(scheduler.switches(), 6u);
 }
@@ -117,13 +117,18 @@ TEST(FiberScheduler, TheChainGoesBeforeAnObserverThatCouldAlsoGo) {
   // The evaluator's report (long work) must not run while the drive could take its command.
   FiberScheduler scheduler;
   std::vector<std::string> order;
-  scheduler.spawn("observer", [&] { order.push_back("observer"); }, 2);
-  scheduler.spawn("estimator", [&] { order.push_back("estimator"); }, 1);
-  scheduler.spawn("drive", [&] {
-    order.push_back("drive");
-    scheduler.sleep_until(0);  // overdue: can go again at once, and goes before the others
-    order.push_back("drive again");
-  }, 0);
+  scheduler.spawn(
+      "observer", [&] { order.push_back("observer"); }, 2);
+  scheduler.spawn(
+      "estimator", [&] { order.push_back("estimator"); }, 1);
+  scheduler.spawn(
+      "drive",
+      [&] {
+        order.push_back("drive");
+        scheduler.sleep_until(0);  // overdue: can go again at once, and goes before the others
+        order.push_back("drive again");
+      },
+      0);
   scheduler.run();
   EXPECT_EQ(order, (std::vector<std::string>{"drive", "drive again", "estimator", "observer"}));
 }

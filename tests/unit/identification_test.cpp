@@ -46,11 +46,13 @@ TEST(Identification, FindsTheLoadOfPlantsTheModelDoesNotMatch) {
     const SystemParams p = plant_of(c.m, c.k, c.fc, c.fv);
     const IdentifiedLoad id = identify_load(p, commissioning_run(p));
     const double true_hz = std::sqrt(c.k / c.m) / (2 * M_PI);
-    std::printf("[ identify   ] %.1f kg %.0f N/m %.0f N %.0f N s/m -> %.2f kg %.0f N/m %.1f N %.1f N s/m, mode %.2f Hz (true %.2f), "
-                "innovation %.3f mm/s (configured model %.3f), %u runs%s%s\n",
-                c.m, c.k, c.fc, c.fv, id.load_mass_kg, id.spring_n_per_m, id.coulomb_n, id.viscous_n_s_per_m,
-                id.load_mode_hz(), true_hz, 1e3 * id.innovation_rms_mps, 1e3 * id.configured_innovation_rms_mps,
-                id.evaluations, id.at_bound.empty() ? "" : ", at bound: ", id.at_bound.c_str());
+    std::printf(
+        "[ identify   ] %.1f kg %.0f N/m %.0f N %.0f N s/m -> %.2f kg %.0f N/m %.1f N %.1f N s/m, mode %.2f Hz (true "
+        "%.2f), "
+        "innovation %.3f mm/s (configured model %.3f), %u runs%s%s\n",
+        c.m, c.k, c.fc, c.fv, id.load_mass_kg, id.spring_n_per_m, id.coulomb_n, id.viscous_n_s_per_m, id.load_mode_hz(),
+        true_hz, 1e3 * id.innovation_rms_mps, 1e3 * id.configured_innovation_rms_mps, id.evaluations,
+        id.at_bound.empty() ? "" : ", at bound: ", id.at_bound.c_str());
     EXPECT_NEAR(id.load_mode_hz() / true_hz, 1.0, 0.01);
     EXPECT_NEAR(id.load_mass_kg / c.m, 1.0, 0.15);
     EXPECT_NEAR(id.coulomb_n / c.fc, 1.0, 0.10);
@@ -146,8 +148,8 @@ TEST(Identification, CommissioningMakesTheWorstPlantOfTheFamilyCheaperThanPiAlon
   const double pi = cost(plant, CompensatorKind::kNone);
   for (const CompensatorKind kind : {CompensatorKind::kAccel, CompensatorKind::kRnn, CompensatorKind::kState}) {
     const double shipped_models = cost(plant, kind), identified_models = cost(identified, kind);
-    std::printf("[ identify   ] 2 kg, 27400 N/m, pulse: PI %.2f, %s %.2f with the shipped models, %.2f identified\n", pi,
-                to_string(kind), shipped_models, identified_models);
+    std::printf("[ identify   ] 2 kg, 27400 N/m, pulse: PI %.2f, %s %.2f with the shipped models, %.2f identified\n",
+                pi, to_string(kind), shipped_models, identified_models);
     EXPECT_GT(shipped_models, pi) << to_string(kind);
     EXPECT_LT(identified_models, 0.5 * pi) << to_string(kind);
   }

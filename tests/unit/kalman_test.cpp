@@ -30,7 +30,8 @@ TEST(Kalman, ModelMatrices34) {
   EXPECT_DOUBLE_EQ(KalmanFilter::continuous_b(p)(0), 1.0 / 20.0);
 }
 
-/// The shipped filter with the paper's input u = F_{k-1} (no modelled friction or ripple), and the paper's Q (35) or the shipped one.
+/// The shipped filter with the paper's input u = F_{k-1} (no modelled friction or ripple), and the paper's Q (35) or
+/// the shipped one.
 KalmanParams force_input_only(KalmanParams p, bool paper_q) {
   p.friction_input.enabled = false;
   p.ripple_input.enabled = false;
@@ -87,7 +88,7 @@ TEST(Kalman, TracksLoadVelocityAndSpringForceOnTheNoisyPlant) {
     bool paper;
     double max_rel_v, max_rel_f;
   };
-  for (const Case& c : {Case{"paper", true, 0.15, 0.25},      // measured 8.7 %, 14.8 %
+  for (const Case& c : {Case{"paper", true, 0.15, 0.25},        // measured 8.7 %, 14.8 %
                         Case{"shipped", false, 0.25, 0.40}}) {  // measured 16.8 %, 28.8 %
     SystemParams params = test::shipped_params();
     if (c.paper) {
@@ -108,8 +109,8 @@ TEST(Kalman, TracksLoadVelocityAndSpringForceOnTheNoisyPlant) {
       sig_f += r.spring_force_n * r.spring_force_n;
     }
     const double rel_v = std::sqrt(err_v / sig_v), rel_f = std::sqrt(err_f / sig_f);
-    std::printf("[ kalman     ] pulse, noisy plant, %s filter: v_L rms error %.1f %% of rms v_L, F_s %.1f %%\n",
-                c.name, 100 * rel_v, 100 * rel_f);
+    std::printf("[ kalman     ] pulse, noisy plant, %s filter: v_L rms error %.1f %% of rms v_L, F_s %.1f %%\n", c.name,
+                100 * rel_v, 100 * rel_f);
     EXPECT_LT(rel_v, c.max_rel_v) << c.name;
     EXPECT_LT(rel_f, c.max_rel_f) << c.name;
   }
@@ -132,7 +133,6 @@ TEST(Kalman, RejectsNonFiniteMeasurementAndInput) {
   reference.step({0.1, 10.0});
   EXPECT_LT((kf.state() - reference.state()).norm(), 1e-12);
 }
-
 
 // ------------------------------------------- the modelled disturbance in the input
 
@@ -287,12 +287,13 @@ TEST(KalmanDisturbanceInput, ShrinksTheFreeVibrationEstimateError) {
   const double without = error_mps(shipped_q, false, false);
   const double with_friction = error_mps(shipped_q, true, false);
   const double with_both = error_mps(shipped_q, true, true);
-  std::printf("[ kalman     ] free vibration, v_L rms error over 1 s: paper Q %.1f mm/s; shipped Q: "
-              "force only %.1f, + friction %.1f, + friction and ripple %.1f mm/s\n",
-              1e3 * paper, 1e3 * without, 1e3 * with_friction, 1e3 * with_both);
+  std::printf(
+      "[ kalman     ] free vibration, v_L rms error over 1 s: paper Q %.1f mm/s; shipped Q: "
+      "force only %.1f, + friction %.1f, + friction and ripple %.1f mm/s\n",
+      1e3 * paper, 1e3 * without, 1e3 * with_friction, 1e3 * with_both);
   EXPECT_LT(with_friction, 0.7 * without);  // measured 67.5 / 108.5 = 0.62
   EXPECT_LT(with_both, 0.7 * without);
-  EXPECT_LT(with_both, 0.2 * paper);        // measured 68.2 / 588.6 = 0.12
+  EXPECT_LT(with_both, 0.2 * paper);  // measured 68.2 / 588.6 = 0.12
 }
 
 // ------------------------------------------- the thrust lag
@@ -306,7 +307,8 @@ TEST(KalmanThrustLag, InputIsTheMeanThrustOfAFirstOrderCurrentLoop) {
   KalmanFilter lagged(p);
   for (int k = 1; k <= 6; ++k) {  // step k: F_{k-1} = F has acted for k periods
     // The mean of F (1 - e^{-t / tau}) over [(k - 1) T, k T].
-    const double mean_n = force_n * (1.0 - (tau_s / t_s) * (std::exp(-(k - 1) * t_s / tau_s) - std::exp(-k * t_s / tau_s)));
+    const double mean_n =
+        force_n * (1.0 - (tau_s / t_s) * (std::exp(-(k - 1) * t_s / tau_s) - std::exp(-k * t_s / tau_s)));
     EXPECT_NEAR(lagged.step({0.0, force_n, 0.0}).input_force_n, mean_n, 1e-9) << "period " << k;
   }
   p.thrust_lag_s = 0.0;
@@ -345,8 +347,10 @@ TEST(KalmanThrustLag, KeepsACompensatorsChatterOutOfTheSpringForceEstimate) {
   };
   const double command = error_n(0.0);
   const double lagged = error_n(test::shipped_params().kalman.thrust_lag_s);
-  std::printf("[ kalman     ] 167 Hz, +-300 N chatter: F_s rms error %.2f N (input = command), "
-              "%.2f N (the current loop's lag modelled)\n", command, lagged);
+  std::printf(
+      "[ kalman     ] 167 Hz, +-300 N chatter: F_s rms error %.2f N (input = command), "
+      "%.2f N (the current loop's lag modelled)\n",
+      command, lagged);
   // Measured 32.2 against 52.3 N. The simulated drive's thrust lags a little more than its design
   // 1 / w_c (sampled at 31.25 us): a lag of 0.5 ms in the filter leaves 24.7 N; a rig would take
   // tau_i from a step of its current loop.
@@ -386,13 +390,14 @@ TEST(KalmanStandstillHold, KeepsTheSwingOfALoadOnAStuckMotor) {
   KalmanParams normal = held;
   normal.standstill_hold.enabled = false;
   const HeldSwing with = swing_at_rest(held, 12.0, 200), without = swing_at_rest(normal, 12.0, 200);
-  std::printf("[ kalman     ] load swinging at 12 N on a motor at rest, 200 ms: |F_s-hat| over the last 100 ms "
-              "up to %.2f N with the hold (%d sign changes), %.2f N without (%d)\n",
-              with.largest_late_n, with.sign_changes, without.largest_late_n, without.sign_changes);
+  std::printf(
+      "[ kalman     ] load swinging at 12 N on a motor at rest, 200 ms: |F_s-hat| over the last 100 ms "
+      "up to %.2f N with the hold (%d sign changes), %.2f N without (%d)\n",
+      with.largest_late_n, with.sign_changes, without.largest_late_n, without.sign_changes);
   EXPECT_EQ(with.holds, 200u);
   EXPECT_EQ(without.holds, 0u);
-  EXPECT_GT(with.largest_late_n, 0.5 * 12.0);  // the swing is kept ...
-  EXPECT_GE(with.sign_changes, 3);             // ... and swings: nearly four half periods in 200 ms
+  EXPECT_GT(with.largest_late_n, 0.5 * 12.0);     // the swing is kept ...
+  EXPECT_GE(with.sign_changes, 3);                // ... and swings: nearly four half periods in 200 ms
   EXPECT_LT(without.largest_late_n, 0.2 * 12.0);  // the normal update explains it away
 }
 
@@ -431,11 +436,15 @@ TEST(KalmanStandstillHold, DampsTheSwingLeftOnAHeavySoftLoad) {
       load_sweep_verdict(std::string(PMLSM_SOURCE_DIR) + "/configs/sweeps/plant_family_identified.yaml");
   const auto run = [&](bool hold) {
     SystemParams p = test::shipped_params();
-    for (const auto& [key, value] : std::vector<std::pair<std::string, double>>{
-             {"plant.mechanics.load_mass_kg", 8.0}, {"plant.mechanics.spring_n_per_m", 6850.0},
-             {"plant.friction.coulomb_n", 30.0}, {"plant.friction.viscous_n_s_per_m", 15.0},
-             {"kalman.model.load_mass_kg", 8.0}, {"kalman.model.spring_n_per_m", 6850.0},
-             {"kalman.friction_input.coulomb_n", 30.0}, {"kalman.friction_input.viscous_n_s_per_m", 15.0}}) {
+    for (const auto& [key, value] :
+         std::vector<std::pair<std::string, double>>{{"plant.mechanics.load_mass_kg", 8.0},
+                                                     {"plant.mechanics.spring_n_per_m", 6850.0},
+                                                     {"plant.friction.coulomb_n", 30.0},
+                                                     {"plant.friction.viscous_n_s_per_m", 15.0},
+                                                     {"kalman.model.load_mass_kg", 8.0},
+                                                     {"kalman.model.spring_n_per_m", 6850.0},
+                                                     {"kalman.friction_input.coulomb_n", 30.0},
+                                                     {"kalman.friction_input.viscous_n_s_per_m", 15.0}}) {
       real_parameter(p, key) = value;
     }
     p.kalman.standstill_hold.enabled = hold;
@@ -451,9 +460,10 @@ TEST(KalmanStandstillHold, DampsTheSwingLeftOnAHeavySoftLoad) {
     return judge_run(trace, pulse, p.timing.control_period_s, p.velocity_loop.force_limit_n, verdict);
   };
   const RunVerdict with = run(true), without = run(false);
-  std::printf("[ kalman     ] 8 kg, 6850 N/m, 30 N, acceleration feedback, pulse: tail swing %.2f mm with the hold, "
-              "%.2f mm without; cost %.2f and %.2f\n",
-              with.tail_stretch_amplitude_m * 1e3, without.tail_stretch_amplitude_m * 1e3, with.cost, without.cost);
+  std::printf(
+      "[ kalman     ] 8 kg, 6850 N/m, 30 N, acceleration feedback, pulse: tail swing %.2f mm with the hold, "
+      "%.2f mm without; cost %.2f and %.2f\n",
+      with.tail_stretch_amplitude_m * 1e3, without.tail_stretch_amplitude_m * 1e3, with.cost, without.cost);
   EXPECT_LT(with.tail_stretch_amplitude_m, 0.7 * without.tail_stretch_amplitude_m);  // measured 1.08 / 1.97 mm
   EXPECT_LT(with.cost, without.cost);
 }

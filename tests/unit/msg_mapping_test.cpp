@@ -58,12 +58,30 @@ TickRecord sentinel_record() {
   TickRecord r;
   r.tick = 999;
   double v = -1000;
-  for (double* f : {&r.time_s, &r.command_mps, &r.v_ref_mps, &r.a_ref_mps2, &r.encoder_position_m,
-                    &r.motor_velocity_measured_mps, &r.motor_position_m, &r.motor_velocity_mps,
-                    &r.load_position_m, &r.load_velocity_mps, &r.load_accel_mps2, &r.spring_force_n,
-                    &r.est_motor_velocity_mps, &r.est_load_velocity_mps, &r.est_spring_force_n,
-                    &r.est_load_accel_mps2, &r.force_command_n, &r.compensation_force_n, &r.thrust_n,
-                    &r.ripple_n, &r.friction_n, &r.i_q_a, &r.u_q_v, &r.applied_force_n}) {
+  for (double* f : {&r.time_s,
+                    &r.command_mps,
+                    &r.v_ref_mps,
+                    &r.a_ref_mps2,
+                    &r.encoder_position_m,
+                    &r.motor_velocity_measured_mps,
+                    &r.motor_position_m,
+                    &r.motor_velocity_mps,
+                    &r.load_position_m,
+                    &r.load_velocity_mps,
+                    &r.load_accel_mps2,
+                    &r.spring_force_n,
+                    &r.est_motor_velocity_mps,
+                    &r.est_load_velocity_mps,
+                    &r.est_spring_force_n,
+                    &r.est_load_accel_mps2,
+                    &r.force_command_n,
+                    &r.compensation_force_n,
+                    &r.thrust_n,
+                    &r.ripple_n,
+                    &r.friction_n,
+                    &r.i_q_a,
+                    &r.u_q_v,
+                    &r.applied_force_n}) {
     *f = v;
     v -= 1;
   }

@@ -111,9 +111,7 @@ OptimiserReport run_generations(Optimiser& optimiser, std::uint64_t generations)
   return r;
 }
 
-std::string temp_path(const std::string& name) {
-  return ::testing::TempDir() + "pmlsm_optimiser_test_" + name;
-}
+std::string temp_path(const std::string& name) { return ::testing::TempDir() + "pmlsm_optimiser_test_" + name; }
 
 std::string read_text(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -137,10 +135,10 @@ std::string error_of(F&& f) {
   return "<no exception>";
 }
 
-#define EXPECT_THROW_WITH(statement, exception_type, fragment)                              \
-  do {                                                                                      \
-    EXPECT_THROW(statement, exception_type);                                                \
-    EXPECT_NE(error_of([&] { statement; }).find(fragment), std::string::npos)               \
+#define EXPECT_THROW_WITH(statement, exception_type, fragment)                                   \
+  do {                                                                                           \
+    EXPECT_THROW(statement, exception_type);                                                     \
+    EXPECT_NE(error_of([&] { statement; }).find(fragment), std::string::npos)                    \
         << "message: " << error_of([&] { statement; }) << "\nexpected to contain: " << fragment; \
   } while (0)
 
@@ -194,8 +192,7 @@ TEST(DeParams, BadValuesThrowNamingTheField) {
 
 TEST(DeParams, ConstructorsValidate) {
   ThreadPoolEvaluator evaluator(sphere, 1);
-  EXPECT_THROW_WITH(DifferentialEvolution(small_params(3, 2), evaluator), std::invalid_argument,
-                    "population_size");
+  EXPECT_THROW_WITH(DifferentialEvolution(small_params(3, 2), evaluator), std::invalid_argument, "population_size");
   EXPECT_THROW_WITH(PagmoOptimiser(PagmoAlgorithm::jde, small_params(6, 2), evaluator), std::invalid_argument,
                     "population_size: must be >= 7 for jDE, got 6");
   EXPECT_THROW_WITH(PagmoOptimiser(PagmoAlgorithm::cmaes, small_params(4, 2), evaluator), std::invalid_argument,
@@ -232,7 +229,7 @@ TEST(ThreadPoolEvaluator, ResultsByIndexForAnyThreadCountAndPartition) {
     for (auto partition : {ThreadPoolEvaluator::Partition::static_blocks, ThreadPoolEvaluator::Partition::dynamic}) {
       ThreadPoolEvaluator evaluator(rastrigin, threads, partition);
       EXPECT_EQ(evaluator.threads(), threads);
-      std::vector<double> costs{1, 2, 3};  // stale contents are replaced
+      std::vector<double> costs{1, 2, 3};           // stale contents are replaced
       for (int repeat = 0; repeat < 3; ++repeat) {  // the pool is reused between batches
         evaluator.evaluate(candidates, costs);
         EXPECT_EQ(costs, expected) << threads << " threads";
@@ -245,7 +242,9 @@ TEST(ThreadPoolEvaluator, ResultsByIndexForAnyThreadCountAndPartition) {
 
 TEST(ThreadPoolEvaluator, NonFiniteCostsBecomeInfinity) {
   ThreadPoolEvaluator evaluator(
-      [](const std::vector<double>& x) { return x[0] == 0 ? kNan : x[0] == 1 ? -kInf : x[0]; }, 3);
+      [](const std::vector<double>& x) { return x[0] == 0   ? kNan
+                                                : x[0] == 1 ? -kInf
+                                                            : x[0]; }, 3);
   std::vector<double> costs;
   evaluator.evaluate({{0}, {1}, {2}, {3}}, costs);
   EXPECT_EQ(costs, (std::vector<double>{kInf, kInf, 2, 3}));
@@ -302,7 +301,8 @@ TEST(DifferentialEvolution, SolvesRastrigin5) {
   p.crossover_rate = 0.1;  // separable: few components at a time
   DifferentialEvolution de(p, evaluator);
   const auto r = run_until(de, 1e-2, 2000);
-  EXPECT_LT(r.best_cost, 1e-2) << "after " << r.generation << " generations";  // the global minimum 0, not a local one (>= ~1)
+  EXPECT_LT(r.best_cost, 1e-2) << "after " << r.generation
+                               << " generations";  // the global minimum 0, not a local one (>= ~1)
 }
 
 TEST(DifferentialEvolution, CountsEvaluationsAsNpTimesGenerationsPlusOne) {
@@ -680,8 +680,7 @@ TEST_P(PagmoOptimiserTest, BadCheckpointsThrowNamingTheFile) {
 
   PagmoOptimiser wider(GetParam().algorithm, small_params(10, 5), evaluator);
   EXPECT_THROW_WITH(wider.load_checkpoint(good), std::runtime_error, "dimension 3 does not match");
-  const auto other_kind =
-      GetParam().algorithm == PagmoAlgorithm::jde ? PagmoAlgorithm::cmaes : PagmoAlgorithm::jde;
+  const auto other_kind = GetParam().algorithm == PagmoAlgorithm::jde ? PagmoAlgorithm::cmaes : PagmoAlgorithm::jde;
   PagmoOptimiser other(other_kind, small_params(10, 3), evaluator);
   EXPECT_THROW_WITH(other.load_checkpoint(good), std::runtime_error, "written by");
   DifferentialEvolution de(small_params(10, 3), evaluator);

@@ -27,8 +27,8 @@ struct Drive {
   }
 
   PlantMeasurement step(double force_request_n) {
-    const CurrentControllerOutput u = current.step(
-        {force_request_n, last.i_d_a, last.i_q_a, plant.state().motor_velocity_mps});
+    const CurrentControllerOutput u =
+        current.step({force_request_n, last.i_d_a, last.i_q_a, plant.state().motor_velocity_mps});
     last = plant.step({u.u_d_v, u.u_q_v, 0.0}, params.timing.current_loop_period_s);
     return last;
   }
@@ -42,8 +42,7 @@ struct Drive {
 double mechanical_energy_j(const PlantState& s, const MechanicsParams& m) {
   const double stretch = s.load_position_m - s.motor_position_m;
   return 0.5 * m.motor_mass_kg * s.motor_velocity_mps * s.motor_velocity_mps +
-         0.5 * m.load_mass_kg * s.load_velocity_mps * s.load_velocity_mps +
-         0.5 * m.spring_n_per_m * stretch * stretch;
+         0.5 * m.load_mass_kg * s.load_velocity_mps * s.load_velocity_mps + 0.5 * m.spring_n_per_m * stretch * stretch;
 }
 
 TEST(Plant, FreeTwoMassOscillationIs10Point2Hz) {
@@ -52,8 +51,7 @@ TEST(Plant, FreeTwoMassOscillationIs10Point2Hz) {
   Drive drive(test::ideal_params());
   drive.plant.reset({0.0, 0.0, 0.02, 0.0});
   const auto& m = drive.params.plant.mechanics;
-  const double expected_hz =
-      std::sqrt(m.spring_n_per_m * (1.0 / m.motor_mass_kg + 1.0 / m.load_mass_kg)) / (2 * kPi);
+  const double expected_hz = std::sqrt(m.spring_n_per_m * (1.0 / m.motor_mass_kg + 1.0 / m.load_mass_kg)) / (2 * kPi);
   EXPECT_NEAR(expected_hz, 10.2, 0.01);
 
   // Time the upward zero crossings of the spring stretch over 2 s, interpolated.
@@ -145,7 +143,7 @@ TEST(Plant, NonFiniteInputIsRejectedAndCounted) {
   plant.step({0.0, 20.0, 0.0}, 1e-3);
   const PlantState before = plant.state();
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  plant.step({nan, 20.0, 0.0}, 1e-3);  // the last good input is held instead
+  plant.step({nan, 20.0, 0.0}, 1e-3);                                     // the last good input is held instead
   plant.step({0.0, 20.0, 0.0}, std::numeric_limits<double>::infinity());  // nothing moves
   EXPECT_EQ(plant.counters().rejected_inputs, 2u);
   const PlantState& after = plant.state();

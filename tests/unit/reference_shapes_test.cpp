@@ -95,8 +95,8 @@ TEST(ReferenceShapes, SCurveRespectsAccelerationAndJerkLimits) {
   EXPECT_NEAR(s.command_mps(0.1 + 0.05), 0.5 * 60.0 * 0.05 * 0.05, 1e-12);  // end of the jerk phase
   EXPECT_NEAR(s.command_mps(0.1 + 0.075), 0.15, 1e-12);                     // half way, by symmetry
   EXPECT_EQ(s.command_mps(0.25), 0.3);
-  EXPECT_EQ(s.command_mps(0.74), 0.3);                   // hold ends at 0.1 + 0.15 + 0.5
-  EXPECT_NEAR(s.command_mps(0.75 + 0.075), 0.15, 1e-12); // fall, half way
+  EXPECT_EQ(s.command_mps(0.74), 0.3);                    // hold ends at 0.1 + 0.15 + 0.5
+  EXPECT_NEAR(s.command_mps(0.75 + 0.075), 0.15, 1e-12);  // fall, half way
   EXPECT_EQ(s.command_mps(0.9), 0.0);
   const Extremes e = extremes(s, 1e-4);
   EXPECT_LE(e.max_accel, 3.0 * (1 + 1e-6));
@@ -197,7 +197,7 @@ TEST(ReferenceCsv, ReadsAndInterpolates) {
   s.profile = parse_velocity_profile("time_s,velocity_mps\r\n0.5,0.1\r\n1.0, 0.3\r\n1.5,-0.1\r\n", "p.csv", 1.0, 10.0);
   ASSERT_EQ(s.profile.size(), 3u);
   s.validate(kPeriod);
-  EXPECT_EQ(s.command_mps(0.0), 0.1);   // before the first row: its velocity
+  EXPECT_EQ(s.command_mps(0.0), 0.1);  // before the first row: its velocity
   EXPECT_NEAR(s.command_mps(0.75), 0.2, 1e-12);
   EXPECT_NEAR(s.command_mps(1.25), 0.1, 1e-12);
   EXPECT_EQ(s.command_mps(1.0), 0.3);
@@ -242,8 +242,8 @@ TEST(ReferenceCsv, BadRowsAreRejectedWithFileLineAndValue) {
 
 // ------------------------------------------------------------------ YAML
 
-using test::edited;
 using test::Edit;
+using test::edited;
 using test::read_text;
 using test::source_path;
 
@@ -264,8 +264,8 @@ void expect_parts(const std::string& message, const std::vector<std::string>& pa
 }
 
 TEST(ReferenceYaml, ShippedScenariosLoadWithSourcedValues) {
-  for (const char* name : {"ramp", "trapezoid", "s_curve", "chirp", "multi_sine", "csv_profile", "sine_1hz",
-                           "sine_2hz", "sine_5hz"}) {
+  for (const char* name :
+       {"ramp", "trapezoid", "s_curve", "chirp", "multi_sine", "csv_profile", "sine_1hz", "sine_2hz", "sine_5hz"}) {
     SCOPED_TRACE(name);
     const Scenario s = test::shipped_scenario(name);
     EXPECT_EQ(s.name, name);
@@ -297,8 +297,9 @@ TEST(ReferenceYaml, KeysOfEachShapeAreRequiredAndOthersUnknown) {
                {o, "command.end_frequency_hz: must be in", "got 900"});
   expect_parts(scenario_error("multi_sine.yaml", {{"command.components", "[]"}}, o),
                {o, "command.components: expected a non-empty list"});
-  expect_parts(scenario_error("multi_sine.yaml", {{"command.components", "[{amplitude_mps: 0.1, frequency_hz: 1}]"}}, o),
-               {o, "command.components[0].phase_rad: missing key"});
+  expect_parts(
+      scenario_error("multi_sine.yaml", {{"command.components", "[{amplitude_mps: 0.1, frequency_hz: 1}]"}}, o),
+      {o, "command.components[0].phase_rad: missing key"});
   expect_parts(scenario_error("sine_2hz.yaml", {{"reference_model.value", "maybe"}}, o),
                {o, "reference_model: expected true or false", "'maybe'"});
   expect_parts(scenario_error("sine_2hz.yaml", {{"command.shape.value", "square"}}, o),
@@ -313,10 +314,9 @@ TEST(ReferenceYaml, BadProfileFileIsRejectedWithScenarioFileLineAndValue) {
     out << "time_s,velocity_mps\n0.0,0.0\n0.1,0.1\n0.1,0.2\n";
   }
   const std::string origin = (dir / "s.yaml").string();
-  const std::string message =
-      scenario_error("csv_profile.yaml", {{"command.file.value", "profiles/bad.csv"}}, origin);
-  expect_parts(message, {origin, "command.file", (dir / "profiles" / "bad.csv").string() + ":4:",
-                         "time_s: must increase", "'0.1'"});
+  const std::string message = scenario_error("csv_profile.yaml", {{"command.file.value", "profiles/bad.csv"}}, origin);
+  expect_parts(message, {origin, "command.file",
+                         (dir / "profiles" / "bad.csv").string() + ":4:", "time_s: must increase", "'0.1'"});
   expect_parts(scenario_error("csv_profile.yaml", {{"command.file.value", "profiles/none.csv"}}, origin),
                {origin, "command.file", "none.csv: cannot open file"});
   expect_parts(scenario_error("csv_profile.yaml", {{"command.max_gap_s.value", "0"}}, origin),
@@ -378,7 +378,6 @@ TEST(ReferenceLoop, JerkLimitExcitesTheLoadLessThanTheTrapezoid) {
   EXPECT_EQ(s_curve.force_off_ticks, 0u);
 }
 
-
 // ------------------------------------------------------------------ external setpoints
 
 ExternalReferenceParams external_params() {
@@ -412,7 +411,7 @@ TEST(ExternalReference, FollowsAFreshSetpointAtTheRateLimit) {
   ASSERT_EQ(ref.offer({0.3, 0.0, 7, 1}, 0.010), SetpointVerdict::kAccepted);
   const double max_step = run_ticks(ref, 10, 100, out);
   EXPECT_FALSE(out.stale);
-  EXPECT_LE(max_step, 2.0 * kPeriod + 1e-15);      // never a jump
+  EXPECT_LE(max_step, 2.0 * kPeriod + 1e-15);               // never a jump
   EXPECT_NEAR(out.command_mps, 2.0 * 90 * kPeriod, 1e-12);  // 90 ticks at 2 m/s^2
   run_ticks(ref, 100, 200, out);
   EXPECT_DOUBLE_EQ(out.command_mps, 0.3);
@@ -461,8 +460,8 @@ TEST(ExternalReference, RejectsInvalidOutOfOrderAndForeignSetpoints) {
   EXPECT_EQ(out.command_mps, 0.0);  // none of them moved anything
   EXPECT_TRUE(out.stale);
   EXPECT_EQ(ref.offer({0.1, 0.0, 1, 5}, 0.001), SetpointVerdict::kAccepted);
-  EXPECT_EQ(ref.offer({0.4, 0.0, 1, 5}, 0.002), SetpointVerdict::kOutOfOrder);  // repeated
-  EXPECT_EQ(ref.offer({0.4, 0.0, 1, 4}, 0.002), SetpointVerdict::kOutOfOrder);  // older
+  EXPECT_EQ(ref.offer({0.4, 0.0, 1, 5}, 0.002), SetpointVerdict::kOutOfOrder);    // repeated
+  EXPECT_EQ(ref.offer({0.4, 0.0, 1, 4}, 0.002), SetpointVerdict::kOutOfOrder);    // older
   EXPECT_EQ(ref.offer({-0.4, 0.0, 2, 1}, 0.003), SetpointVerdict::kOtherSource);  // while 1 is fresh
   EXPECT_EQ(ref.counters().rejected, 9u);
   EXPECT_EQ(ref.counters().rejected_invalid, 6u);

@@ -247,7 +247,8 @@ TEST(RnnCompensator, ParamsValidationNamesTheField) {
   expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.gain_n = -300; })); }, {"gain_n", "-300"});
   expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.period_s = kNan; })); }, {"period_s", "nan"});
   expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.learning_rate = -1; })); }, {"learning_rate", "-1"});
-  expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.momentum = 1.0; })); }, {"momentum: must be in [0, 1), got 1"});
+  expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.momentum = 1.0; })); },
+                 {"momentum: must be in [0, 1), got 1"});
   expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.tolerance_mps = -1e-3; })); }, {"tolerance_mps"});
   expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.kc_limit_mps = 0; })); }, {"kc_limit_mps: must be > 0"});
   expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.kc_limit_mps = 2.0; })); },
@@ -500,9 +501,8 @@ TEST(RnnCompensator, StepDoesNotAllocate) {
 class WeightsFile : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("pmlsm_rnn_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = fs::temp_directory_path() / ("pmlsm_rnn_test_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(dir_);
     fs::create_directories(dir_);
   }
@@ -584,8 +584,14 @@ TEST_F(WeightsFile, RoundTripIsBitExact) {
   f.input_scale_s2_per_m = 1.0 / 3.0;
   f.cost = -1;
   // Within the +-100 a set may hold (JordanRnn::kMaxAbsWeight), every digit counts.
-  const double specials[] = {0.1, 1.0 / 3.0, -0.0, 1e-300, 4.9406564584124654e-324,
-                             99.999999999999986, -2.2250738585072014e-308, -98.765432109876543};
+  const double specials[] = {0.1,
+                             1.0 / 3.0,
+                             -0.0,
+                             1e-300,
+                             4.9406564584124654e-324,
+                             99.999999999999986,
+                             -2.2250738585072014e-308,
+                             -98.765432109876543};
   for (std::size_t i = 0; i < std::size(specials); ++i) f.weights[i * 11] = specials[i];
   save_rnn_weights(path("w.yaml"), f);
   EXPECT_FALSE(fs::exists(path("w.yaml.tmp")));
@@ -627,7 +633,8 @@ TEST_F(WeightsFile, ReadsTheDocumentedFormat) {
                                      "gain_n: 300.0\n"
                                      "cost: 5.3            # cost (23)\n"
                                      "source: \"de_trainer seed 1 gen 433\"\n"
-                                     "weights: [" << list_of(w) << "]\n";
+                                     "weights: ["
+                                  << list_of(w) << "]\n";
   const RnnWeightsFile f = load_rnn_weights(path("doc.yaml"));
   EXPECT_EQ(f.layer_sizes, (std::vector<int>{2, 2, 1}));
   EXPECT_EQ(f.gain_n, 300.0);
@@ -800,8 +807,9 @@ TEST_F(WeightGate, RefusesImplausibleSetsKeepingTheCurrentOne) {
   // A set trained on the other input would read every acceleration as something else.
   RnnWeightsFile other_input = fitting(1.0, 3, 0.1);
   other_input.on_reference_error = !params_.compensator.rnn_on_reference_error;
-  EXPECT_NE(gate.offer(other_input, 3, "the NetworkWeights topic").find("differs from compensator.rnn.on_reference_error"),
-            std::string::npos);
+  EXPECT_NE(
+      gate.offer(other_input, 3, "the NetworkWeights topic").find("differs from compensator.rnn.on_reference_error"),
+      std::string::npos);
   EXPECT_EQ(gate.version(), 1u);
   // The optimisers' candidates beyond the bound cost +inf (never become the best set).
   const Scenario pulse =

@@ -14,9 +14,9 @@ namespace {
 
 constexpr std::uint32_t kSafe = kFeedbackStatusSafeState;
 constexpr std::uint32_t kFault = kFeedbackStatusFault;
-constexpr std::uint32_t kSimulated = 64;       // STATUS_SIMULATED
-constexpr std::uint32_t kForceSaturated = 2;   // STATUS_FORCE_SATURATED
-constexpr std::uint32_t kCommandLate = 8;      // STATUS_COMMAND_LATE
+constexpr std::uint32_t kSimulated = 64;      // STATUS_SIMULATED
+constexpr std::uint32_t kForceSaturated = 2;  // STATUS_FORCE_SATURATED
+constexpr std::uint32_t kCommandLate = 8;     // STATUS_COMMAND_LATE
 constexpr std::uint8_t kEnabled = kPowerOperationEnabled;
 
 DriveTickStatus good() { return {kSimulated, kEnabled, 0}; }
@@ -204,9 +204,11 @@ TEST(ResultsRow, WithoutPlantTruthTheTrueLoadsColumnsReadNaAndTheRowSaysSo) {
   EXPECT_EQ(results_row("pulse virtual_rig", m, "", false),
             "pulse virtual_rig               n/a     48.515            n/a            n/a          n/a        "
             "145.9            n/a        120.5           0  (no PlantTruth)");
-  EXPECT_EQ(results_row("pulse virtual_rig", m, "drive force off", false).find("  (no PlantTruth)  INVALID: drive force off"),
-            std::string("pulse virtual_rig               n/a     48.515            n/a            n/a          n/a        "
-                        "145.9            n/a        120.5           0").size());
+  EXPECT_EQ(
+      results_row("pulse virtual_rig", m, "drive force off", false).find("  (no PlantTruth)  INVALID: drive force off"),
+      std::string("pulse virtual_rig               n/a     48.515            n/a            n/a          n/a        "
+                  "145.9            n/a        120.5           0")
+          .size());
 }
 
 TEST(ResultsRow, ALongScenarioNameIsNotCut) {

@@ -64,7 +64,8 @@ TEST(StateFeedback, AtRestGivesNothingAndPullsOnTheSpringForceDifference) {
   // The model is at rest: 10 N of estimated spring force is 10 N off the model.
   // F = (2 zeta_c Kp / sqrt(k m_L) - 1) (0 - 10 N), about -332 N with the shipped values.
   const double gain = 2 * params.correction_damping_ratio * params.velocity_gain_n_s_per_m /
-                          std::sqrt(params.spring_n_per_m * params.load_mass_kg) - 1;
+                          std::sqrt(params.spring_n_per_m * params.load_mass_kg) -
+                      1;
   StateFeedbackInput in;
   in.spring_force_n = 10;
   EXPECT_NEAR(f.step(in), -gain * 10, 1e-9);
@@ -151,8 +152,8 @@ TEST(StateFeedback, MeetsTheNominalTargetsInTheLoop) {
   const ScenarioMetrics pulse_state = compute_metrics(pulse_trace, pulse, period_s);
   const ScenarioMetrics pulse_accel = compute_metrics(run_with_compensator(p, pulse, accel), pulse, period_s);
   const ScenarioMetrics free_state = compute_metrics(run_with_compensator(p, free, state), free, period_s);
-  std::printf("[ state fb   ] pulse cost %.3f (accel %.3f), free vibration settles in %.3f s\n",
-              pulse_state.cost_true, pulse_accel.cost_true, free_state.load_settling_time_s);
+  std::printf("[ state fb   ] pulse cost %.3f (accel %.3f), free vibration settles in %.3f s\n", pulse_state.cost_true,
+              pulse_accel.cost_true, free_state.load_settling_time_s);
   EXPECT_LE(pulse_state.cost_true, 5.6);  // measured 5.06
   EXPECT_LT(pulse_state.cost_true, pulse_accel.cost_true);
   EXPECT_LT(free_state.load_settling_time_s, 0.5);  // measured 0.431

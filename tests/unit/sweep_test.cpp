@@ -111,7 +111,7 @@ TEST(SweepVerdict, SustainedOscillationIsALimitCycleADecayingOneIsNot) {
   EXPECT_TRUE(cycle.limit_cycle);
   EXPECT_NEAR(cycle.tail_stretch_amplitude_m, 2e-3, 1e-4);
   EXPECT_NEAR(cycle.tail_decay_rate_per_s, 0.0, 0.1);  // 4.2 periods a window: the RMS ripples a little
-  EXPECT_EQ(cycle.faults(), "limit cycle, slow");  // 2 mm never inside the 0.4 mm band
+  EXPECT_EQ(cycle.faults(), "limit cycle, slow");      // 2 mm never inside the 0.4 mm band
 
   const RunVerdict growing = judge_run(oscillation(2e-3, -0.5, 21.0, 2.0), s, kT, 675, verdict());
   EXPECT_TRUE(growing.limit_cycle);
@@ -279,8 +279,10 @@ TEST(SweepFile, BadInputNamesTheLineAndTheValue) {
   rejected(sweep_text("random: {value: 0,", "random: {value: -1,"), {"plants.random", "'-1'", "(line 4)"});
   rejected(sweep_text("centre: {value: true,", "centre: {value: 3,"), {"plants.centre", "true or false", "(line 3)"});
   const std::string scenario = std::string(PMLSM_SOURCE_DIR) + "/configs/scenarios/identification.yaml";
-  EXPECT_NO_THROW(parse_sweep_file(sweep_text() + "models:\n  identified: {value: true, source: \"chosen: x\"}\n"
-                                   "  identification_scenario: {value: " + scenario + ", source: \"chosen: x\"}\n",
+  EXPECT_NO_THROW(parse_sweep_file(sweep_text() +
+                                       "models:\n  identified: {value: true, source: \"chosen: x\"}\n"
+                                       "  identification_scenario: {value: " +
+                                       scenario + ", source: \"chosen: x\"}\n",
                                    "sweep.yaml", nominal));
   rejected(sweep_text() + "models:\n  identified: {value: true, source: \"chosen: x\"}\n",
            {"models.identification_scenario: missing key"});
@@ -342,9 +344,9 @@ TEST(SweepRun, EveryShippedCompensatorHoldsOnTheIdentifiedFamily) {
     if (run.compensator == 0) continue;  // PI alone: the baseline, not judged
     ++judged;
     EXPECT_TRUE(run.passed) << to_string(result.compensators[run.compensator]) << " on "
-                            << result.plants[run.plant].label << ", " << file.spec.scenarios[run.scenario].name
-                            << ": " << run.verdict.faults() << " (cost ratio to PI " << run.cost_ratio_to_pi
-                            << ", settling " << run.verdict.settling_s << " s)";
+                            << result.plants[run.plant].label << ", " << file.spec.scenarios[run.scenario].name << ": "
+                            << run.verdict.faults() << " (cost ratio to PI " << run.cost_ratio_to_pi << ", settling "
+                            << run.verdict.settling_s << " s)";
   }
   EXPECT_EQ(judged, 3u * 67u * 2u);
 }
@@ -371,7 +373,7 @@ TEST(SweepRun, IdentifiedModelsWinTheLightStiffCorner) {
   EXPECT_NEAR(result.identified[1].load_mode_hz() / (std::sqrt(27400.0 / 2.0) / (2 * M_PI)), 1.0, 0.01);
   for (std::size_t p = 0; p < result.plants.size(); ++p) {
     EXPECT_TRUE(result.run(p, 1, 0).passed) << result.plants[p].label << ": " << result.run(p, 1, 0).verdict.faults()
-                                           << ", ratio " << result.run(p, 1, 0).cost_ratio_to_pi;
+                                            << ", ratio " << result.run(p, 1, 0).cost_ratio_to_pi;
   }
 }
 

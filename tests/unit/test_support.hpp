@@ -9,8 +9,7 @@
 namespace pmlsm::test {
 
 inline const SystemParams& shipped_params() {
-  static const SystemParams params =
-      load_system_params(std::string(PMLSM_SOURCE_DIR) + "/configs/system.yaml");
+  static const SystemParams params = load_system_params(std::string(PMLSM_SOURCE_DIR) + "/configs/system.yaml");
   return params;
 }
 

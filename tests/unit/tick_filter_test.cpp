@@ -45,8 +45,8 @@ TEST(TickFilter, AFarJumpFollowedByItsSuccessorIsTaken) {
 TEST(TickFilter, TheBoundItselfIsNear) {
   TickFilter f(10);
   EXPECT_TRUE(f.accept(0));
-  EXPECT_TRUE(f.accept(11));  // expected 1, 1 + 10
-  EXPECT_FALSE(f.accept(23)); // expected 12, 12 + 11
+  EXPECT_TRUE(f.accept(11));   // expected 1, 1 + 10
+  EXPECT_FALSE(f.accept(23));  // expected 12, 12 + 11
 }
 
 }  // namespace

@@ -72,7 +72,8 @@ TEST(VibrationGuard, ASustainedLimitCycleTripsItFadesAndLatches) {
   EXPECT_GT(out.scale, 0.0);                // fading over 50 periods
   out = run(g, 50, 21.0, amplitude, pumping);
   EXPECT_DOUBLE_EQ(out.scale, 0.0);
-  out = run(g, 1000, 21.0, [](double) { return 0.0; }, pumping);
+  out = run(
+      g, 1000, 21.0, [](double) { return 0.0; }, pumping);
   EXPECT_TRUE(out.tripped) << "latched while the plant is quiet";
   EXPECT_DOUBLE_EQ(out.scale, 0.0);
   g.reset();
@@ -88,16 +89,19 @@ TEST(VibrationGuard, ASaturatedCompensationIsNotJudgedSustainedButGrowthStillTri
   p.max_saturated_share = 0.5;
   const auto bang_bang = [](double v, double) { return v >= 0 ? -kRangeN : kRangeN; };
   VibrationGuard held(p);
-  const auto steady = run(held, 1000, 10.0, [](double) { return 0.05; }, bang_bang);
+  const auto steady = run(
+      held, 1000, 10.0, [](double) { return 0.05; }, bang_bang);
   EXPECT_FALSE(held.output().tripped) << to_string(steady.reason);
   EXPECT_EQ(held.counters().windows, 10u);
   VibrationGuard growing(p);
-  const auto out = run(growing, 1000, 10.0, [](double t) { return 0.01 * std::exp(4.05 * t); }, bang_bang);
+  const auto out = run(
+      growing, 1000, 10.0, [](double t) { return 0.01 * std::exp(4.05 * t); }, bang_bang);
   EXPECT_TRUE(out.tripped);
   EXPECT_EQ(out.reason, VibrationGuardTrip::kGrowing);
   // The same steady oscillation with the force below its limit is a limit cycle.
   VibrationGuard unsaturated(p);
-  run(unsaturated, 1000, 10.0, [](double) { return 0.05; }, [](double v, double) { return 500.0 * v; });
+  run(
+      unsaturated, 1000, 10.0, [](double) { return 0.05; }, [](double v, double) { return 500.0 * v; });
   EXPECT_TRUE(unsaturated.output().tripped);
   EXPECT_EQ(unsaturated.output().reason, VibrationGuardTrip::kSustained);
 }
@@ -113,11 +117,13 @@ TEST(VibrationGuard, ACompensatorNearItsOwnRangeIsSaturatedWhateverThatRangeIs) 
   constexpr double kRnnRangeN = 363.0;
   const auto near_range = [](double v, double) { return v >= 0 ? -342.0 : 342.0; };
   VibrationGuard held(p);
-  run(held, 1000, 10.0, [](double) { return 0.05; }, near_range, 0.0, kRnnRangeN);
+  run(
+      held, 1000, 10.0, [](double) { return 0.05; }, near_range, 0.0, kRnnRangeN);
   EXPECT_FALSE(held.output().tripped) << to_string(held.output().reason);
   // The same force from a compensator whose range is the loop's 675 N is not at its limit.
   VibrationGuard wide(p);
-  run(wide, 1000, 10.0, [](double) { return 0.05; }, near_range, 0.0, kRangeN);
+  run(
+      wide, 1000, 10.0, [](double) { return 0.05; }, near_range, 0.0, kRangeN);
   EXPECT_TRUE(wide.output().tripped);
   EXPECT_EQ(wide.output().reason, VibrationGuardTrip::kSustained);
   // A non-finite share is counted as a rejected input and excuses nothing.
@@ -147,11 +153,13 @@ TEST(VibrationGuard, AGrowingOscillationTripsItButOnlyWithCompensationActing) {
 TEST(VibrationGuard, OscillationsBelowTheFloorAndSlowMotionAreLeftAlone) {
   VibrationGuard g(params());
   // 1 mm/s of sustained ripple: below the floor.
-  auto out = run(g, 3000, 21.0, [](double) { return 0.001; }, [](double v, double) { return 500.0 * v; });
+  auto out = run(
+      g, 3000, 21.0, [](double) { return 0.001; }, [](double v, double) { return 500.0 * v; });
   EXPECT_FALSE(out.tripped);
   // A 0.5 Hz velocity swing (tracking, not vibration): high-passed away.
   VibrationGuard slow(params());
-  out = run(slow, 4000, 0.5, [](double) { return 0.2; }, [](double v, double) { return 100.0 * v; });
+  out = run(
+      slow, 4000, 0.5, [](double) { return 0.2; }, [](double v, double) { return 100.0 * v; });
   EXPECT_FALSE(out.tripped) << "amplitude " << slow.counters().last_amplitude_mps;
 }
 
@@ -165,8 +173,8 @@ TEST(VibrationGuard, AReferenceMovingAtTheModeIsTrackingNotALimitCycle) {
     const double v = sine(0.3, 5.0, -M_PI / 6, k);
     tracking.step({v, ref, 80.0 * (v - ref)});
   }
-  EXPECT_FALSE(tracking.output().tripped) << "A " << tracking.counters().last_amplitude_mps << ", A_ref "
-                                          << tracking.counters().last_reference_mps;
+  EXPECT_FALSE(tracking.output().tripped)
+      << "A " << tracking.counters().last_amplitude_mps << ", A_ref " << tracking.counters().last_reference_mps;
   EXPECT_GT(tracking.counters().last_amplitude_mps, 0.02) << "the error oscillation is well above the floor";
   // The same motor motion judged against a still reference (or with no reference at all): a
   // sustained oscillation the reference does not explain.
@@ -249,8 +257,8 @@ std::vector<TickRecord> accel_trace(const std::string& scenario, const std::vect
 /// Acceleration feedback on `scenario` with these overrides: its cost and whether the guard tripped.
 std::pair<double, bool> accel_run(const std::string& scenario, std::vector<ConfigOverride> overrides) {
   const auto trace = accel_trace(scenario, overrides);
-  const double period_s = load_system_params(std::string(PMLSM_SOURCE_DIR) + "/configs/system.yaml", overrides)
-                              .timing.control_period_s;
+  const double period_s =
+      load_system_params(std::string(PMLSM_SOURCE_DIR) + "/configs/system.yaml", overrides).timing.control_period_s;
   return {compute_metrics(trace, test::shipped_scenario(scenario), period_s).cost_true, trace.back().guard_tripped};
 }
 

@@ -31,7 +31,6 @@ inline std::string prefix_text(const rtps::GuidPrefix_t& prefix) {
   return s.str();
 }
 
-
 struct Endpoint {
   std::string participant_prefix;
   bool reliable = false;
@@ -54,12 +53,10 @@ class DiscoveryCollector : public eprosima::fastdds::dds::DomainParticipantListe
       participant_names_[prefix] = info.info.m_participantName.to_string();
     }
   }
-  void on_publisher_discovery(eprosima::fastdds::dds::DomainParticipant*,
-                              rtps::WriterDiscoveryInfo&& info) override {
+  void on_publisher_discovery(eprosima::fastdds::dds::DomainParticipant*, rtps::WriterDiscoveryInfo&& info) override {
     note(info.info, info.status == rtps::WriterDiscoveryInfo::REMOVED_WRITER, &TopicInfo::writers);
   }
-  void on_subscriber_discovery(eprosima::fastdds::dds::DomainParticipant*,
-                               rtps::ReaderDiscoveryInfo&& info) override {
+  void on_subscriber_discovery(eprosima::fastdds::dds::DomainParticipant*, rtps::ReaderDiscoveryInfo&& info) override {
     note(info.info, info.status == rtps::ReaderDiscoveryInfo::REMOVED_READER, &TopicInfo::readers);
   }
 

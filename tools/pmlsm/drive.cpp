@@ -50,8 +50,10 @@ static_assert(msg::DriveControl_Constants::COMMAND_SHUTDOWN == static_cast<int>(
                       static_cast<int>(drive::DriveCommand::kDisableOperation) &&
                   msg::DriveControl_Constants::COMMAND_DISABLE_VOLTAGE ==
                       static_cast<int>(drive::DriveCommand::kDisableVoltage) &&
-                  msg::DriveControl_Constants::COMMAND_QUICK_STOP == static_cast<int>(drive::DriveCommand::kQuickStop) &&
-                  msg::DriveControl_Constants::COMMAND_FAULT_RESET == static_cast<int>(drive::DriveCommand::kFaultReset),
+                  msg::DriveControl_Constants::COMMAND_QUICK_STOP ==
+                      static_cast<int>(drive::DriveCommand::kQuickStop) &&
+                  msg::DriveControl_Constants::COMMAND_FAULT_RESET ==
+                      static_cast<int>(drive::DriveCommand::kFaultReset),
               "DriveControl_Constants::COMMAND_* must follow pmlsm::drive::DriveCommand");
 static_assert(msg::DriveState_Constants::POWER_OPERATION_ENABLED ==
                       static_cast<int>(drive::PowerState::kOperationEnabled) &&
@@ -166,9 +168,9 @@ class DriveLink {
         requester_(o.requester.empty() ? user_at_host() : o.requester) {
     // Unique per process and per request, never 0: the pid in the top 16 bits, the wall clock
     // in microseconds below (48 bits: 8.9 years before it repeats).
-    const auto wall_us = std::chrono::duration_cast<std::chrono::microseconds>(
-                             std::chrono::system_clock::now().time_since_epoch())
-                             .count();
+    const auto wall_us =
+        std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+            .count();
     next_request_id_ = (static_cast<std::uint64_t>(getpid() & 0xFFFF) << 48) |
                        (static_cast<std::uint64_t>(wall_us) & 0xFFFFFFFFFFFFULL);
     if (next_request_id_ == 0) next_request_id_ = 1;
@@ -182,7 +184,8 @@ class DriveLink {
   /// "no drive answered on domain N within S s" (naming the drive when one was asked for).
   std::string nobody_answered() const {
     const std::string who = every_drive(options_.drive) ? "no drive" : "drive '" + options_.drive + "' has not";
-    return who + " answered on domain " + std::to_string(domain_) + " within " + seconds_text(options_.timeout_s) + " s";
+    return who + " answered on domain " + std::to_string(domain_) + " within " + seconds_text(options_.timeout_s) +
+           " s";
   }
 
   /// Why wait_for_drives() came back empty: nobody answered, or the drive did but our request
@@ -207,8 +210,8 @@ class DriveLink {
       if (!names.empty() && !first_seen) first_seen = Clock::now();
       const bool all_seen = !every_drive(options_.drive) || names.size() >= state_reader_.matched_writers() ||
                             (first_seen && Clock::now() - *first_seen >= kMoreDrivesGrace);
-      const bool reachable = !for_requests ||
-                             std::all_of(names.begin(), names.end(), [&](const std::string& n) { return matched(n); });
+      const bool reachable =
+          !for_requests || std::all_of(names.begin(), names.end(), [&](const std::string& n) { return matched(n); });
       if (!names.empty() && all_seen && reachable) return names;
       const auto now = Clock::now();
       if (now >= deadline) {
@@ -230,9 +233,9 @@ class DriveLink {
   /// Sends `command` to the drive `name`. @return the request id.
   std::uint64_t send(const std::string& name, drive::DriveCommand command) {
     msg::DriveControl request;
-    request.stamp().source_time_ns(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                       std::chrono::system_clock::now().time_since_epoch())
-                                       .count());
+    request.stamp().source_time_ns(
+        std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+            .count());
     request.drive_name(name.substr(0, 64));
     request.command(static_cast<std::uint8_t>(command));
     const std::uint64_t id = next_request_id_++;
@@ -310,8 +313,8 @@ class DriveLink {
 
   DriveOptions options_;
   int domain_;
-  dds::Wakeup wakeup_;               // outlives the participant, whose listeners signal it
-  MatchedReaders matched_readers_;   // likewise
+  dds::Wakeup wakeup_;              // outlives the participant, whose listeners signal it
+  MatchedReaders matched_readers_;  // likewise
   dds::Participant participant_;
   dds::Reader<msg::DriveStatePubSubType> state_reader_;
   dds::Writer<msg::DriveControlPubSubType> control_writer_;
@@ -373,7 +376,8 @@ int run_command(const dds::ParticipantOptions& dds_options, const DriveOptions& 
     if (answer->request_accepted()) {
       std::printf("%s: %s\n", drive::to_string(command), answer->request_message().c_str());
     } else {
-      std::printf("%s: refused by %s: %s\n", drive::to_string(command), name.c_str(), answer->request_message().c_str());
+      std::printf("%s: refused by %s: %s\n", drive::to_string(command), name.c_str(),
+                  answer->request_message().c_str());
       exit_code = kExitError;
     }
     print_state_line(*answer);
@@ -393,10 +397,10 @@ int enable_one(DriveLink& link, const std::string& name) {
     }
     if (now == drive::PowerState::kFault) {
       const std::string reason = state.fault_reason().to_string();
-      std::printf("enable: drive %s is in fault (error code %s%s%s); `pmlsm drive fault-reset` clears it, then "
-                  "`pmlsm drive enable`\n",
-                  name.c_str(), error_code_text(state.error_code()).c_str(), reason.empty() ? "" : ": ",
-                  reason.c_str());
+      std::printf(
+          "enable: drive %s is in fault (error code %s%s%s); `pmlsm drive fault-reset` clears it, then "
+          "`pmlsm drive enable`\n",
+          name.c_str(), error_code_text(state.error_code()).c_str(), reason.empty() ? "" : ": ", reason.c_str());
       print_state_line(state);
       return kExitError;
     }
@@ -405,7 +409,8 @@ int enable_one(DriveLink& link, const std::string& name) {
       // Not ready to switch on, fault reaction active: the drive moves on by itself.
       std::printf("enable: %s is in %s; waiting\n", name.c_str(), drive::to_string(now));
       std::fflush(stdout);
-      const auto moved = link.wait_for_state(name, [now](const msg::DriveState& s) { return power_state_of(s) != now; });
+      const auto moved =
+          link.wait_for_state(name, [now](const msg::DriveState& s) { return power_state_of(s) != now; });
       if (!moved) {
         if (dds::stop_requested()) return interrupted();
         std::cerr << "pmlsm drive enable: drive '" << name << "' stayed in " << drive::to_string(now) << " on domain "
@@ -428,7 +433,8 @@ int enable_one(DriveLink& link, const std::string& name) {
     if (power_state_of(state) == now) {
       // A drive on a fieldbus takes the controlword over its next cycles: wait for it to move
       // before the next request, instead of sending this one again.
-      const auto moved = link.wait_for_state(name, [now](const msg::DriveState& s) { return power_state_of(s) != now; });
+      const auto moved =
+          link.wait_for_state(name, [now](const msg::DriveState& s) { return power_state_of(s) != now; });
       if (!moved) {
         if (dds::stop_requested()) return interrupted();
         std::cerr << "pmlsm drive enable: drive '" << name << "' stayed in " << drive::to_string(now) << " after "
@@ -465,8 +471,9 @@ int run_enable(const dds::ParticipantOptions& dds_options, const DriveOptions& o
 }  // namespace
 
 void add_drive_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code) {
-  auto* drive_app = app.add_subcommand("drive", "The drive's CiA 402 power state: status, enable, disable, quick-stop, "
-                                                "fault-reset, shutdown, switch-on");
+  auto* drive_app = app.add_subcommand("drive",
+                                       "The drive's CiA 402 power state: status, enable, disable, quick-stop, "
+                                       "fault-reset, shutdown, switch-on");
   drive_app->require_subcommand(1);
   auto o = std::make_shared<DriveOptions>();
 

@@ -38,7 +38,7 @@ struct IdentifyOptions {
   std::string config = data_file("configs/system.yaml");
   std::vector<std::string> set;
   std::string scenario = data_file("configs/scenarios/identification.yaml");
-  std::string out;        ///< the system file to write ("": print only)
+  std::string out;  ///< the system file to write ("": print only)
   double range_ratio = IdentificationParams{}.range_ratio;
   std::uint32_t evaluations = IdentificationParams{}.max_evaluations;
 };
@@ -78,8 +78,10 @@ std::vector<IdentificationSample> recorded_samples(const std::string& path) {
     const auto tick = number("stamp.tick"), position = number("position_m"), velocity = number("velocity_mps"),
                applied = number("applied_force_n"), status = number("status"), power = number("power_state");
     if (!decoded.ok() || !tick || !position || !velocity || !applied || !status || !power) {
-      problem = std::string(kFeedbackTopic) + ": a sample without stamp.tick, position_m, velocity_mps, "
-                "applied_force_n, status or power_state" + (decoded.ok() ? "" : ": " + decoded.error);
+      problem = std::string(kFeedbackTopic) +
+                ": a sample without stamp.tick, position_m, velocity_mps, "
+                "applied_force_n, status or power_state" +
+                (decoded.ok() ? "" : ": " + decoded.error);
       return;
     }
     const auto k = static_cast<std::uint64_t>(*tick);
@@ -89,7 +91,8 @@ std::vector<IdentificationSample> recorded_samples(const std::string& path) {
       return;
     }
     if (!by_tick.emplace(k, IdentificationSample{*velocity, *position, *applied}).second) {
-      problem = std::string(kFeedbackTopic) + ": tick " + std::to_string(k) + " twice (two drives, or two runs in one file)";
+      problem =
+          std::string(kFeedbackTopic) + ": tick " + std::to_string(k) + " twice (two drives, or two runs in one file)";
     }
   };
   try {
@@ -141,7 +144,8 @@ int run_identify(const IdentifyOptions& o) {
     throw UsageError(from + ": " + e.what());
   }
   std::printf("identified from %s (%zu samples, %u filter runs):\n", from.c_str(), samples.size(), id.evaluations);
-  std::printf("  %-46s %14s %14s%s\n", "parameter", "configured", "identified", o.simulate ? "     simulated plant" : "");
+  std::printf("  %-46s %14s %14s%s\n", "parameter", "configured", "identified",
+              o.simulate ? "     simulated plant" : "");
   const auto row = [&](const char* key, double was, double now, double truth) {
     std::printf("  %-46s %14.6g %14.6g", key, was, now);
     if (o.simulate) std::printf(" %14.6g (%+.1f %%)", truth, 100.0 * (now / truth - 1.0));
@@ -158,19 +162,22 @@ int run_identify(const IdentifyOptions& o) {
   const double configured_mode_hz =
       std::sqrt(configured.kalman.model.spring_n_per_m / configured.kalman.model.load_mass_kg) / (2 * M_PI);
   std::printf("  load mode %.2f Hz (configured model %.2f Hz); innovation rms %.3f mm/s (configured model %.3f mm/s)\n",
-              id.load_mode_hz(), configured_mode_hz, 1e3 * id.innovation_rms_mps, 1e3 * id.configured_innovation_rms_mps);
+              id.load_mode_hz(), configured_mode_hz, 1e3 * id.innovation_rms_mps,
+              1e3 * id.configured_innovation_rms_mps);
   const SystemParams identified = with_identified_load(configured, id);
-  std::printf("  gain scale %.3f: acceleration feedback K_a %.1f kg, RNN force x %.3f (compensator.design_load_mass_kg %.6g)\n",
-              identified.compensator_gain_scale(), identified.accel_feedback_params().gain_kg,
-              identified.rnn_compensator_params(false).output_scale, identified.compensator.design_load_mass_kg);
+  std::printf(
+      "  gain scale %.3f: acceleration feedback K_a %.1f kg, RNN force x %.3f (compensator.design_load_mass_kg %.6g)\n",
+      identified.compensator_gain_scale(), identified.accel_feedback_params().gain_kg,
+      identified.rnn_compensator_params(false).output_scale, identified.compensator.design_load_mass_kg);
   const bool load_unpinned = id.at_bound.find("kalman.model.") != std::string::npos;
   if (!id.at_bound.empty()) {
     std::printf("  at the edge of the search box (x/%.3g of the configured values): %s\n", o.range_ratio,
                 id.at_bound.c_str());
   }
   if (load_unpinned) {
-    std::printf("identify: the load is not pinned by this run (a longer or richer run, or a wider --range-ratio); "
-                "nothing written\n");
+    std::printf(
+        "identify: the load is not pinned by this run (a longer or richer run, or a wider --range-ratio); "
+        "nothing written\n");
     return kExitVerdictFailed;
   }
   if (o.out.empty()) return kExitOk;
@@ -190,11 +197,14 @@ int run_identify(const IdentifyOptions& o) {
 void add_identify_command(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<IdentifyOptions>();
   CLI::App* cmd = app.add_subcommand(
-      "identify", "Commissioning: the load's mass and spring and the bearing friction fitted to a PI-alone run (a "
-                  "recording's /pmlsm/motor_feedback, or --simulate), written into a copy of the system file");
+      "identify",
+      "Commissioning: the load's mass and spring and the bearing friction fitted to a PI-alone run (a "
+      "recording's /pmlsm/motor_feedback, or --simulate), written into a copy of the system file");
   cmd->add_option("recording", o->recording, "MCAP recording of the commissioning run");
   cmd->add_flag("--simulate", o->simulate, "Run the commissioning in process on the configured (simulated) plant");
-  cmd->add_option("-c,--config", o->config, "The system file whose models are replaced")->capture_default_str()->check(CLI::ExistingFile);
+  cmd->add_option("-c,--config", o->config, "The system file whose models are replaced")
+      ->capture_default_str()
+      ->check(CLI::ExistingFile);
   cmd->add_option("--set", o->set, "Override a system parameter: key.path=value")->take_all();
   cmd->add_option("-s,--scenario", o->scenario, "With --simulate: the commissioning scenario")
       ->capture_default_str()

@@ -53,7 +53,8 @@ int main(int argc, char** argv) {
   pmlsm::dds::ParticipantOptions dds_options;
   dds_options.profiles_file = pmlsm::data_file("configs/dds/profiles.xml");
   app.add_option("--profiles", dds_options.profiles_file, "Fast DDS XML profiles")->capture_default_str();
-  app.add_option("--participant-profile", dds_options.participant_profile, "Participant profile in them")->capture_default_str();
+  app.add_option("--participant-profile", dds_options.participant_profile, "Participant profile in them")
+      ->capture_default_str();
   app.add_option("--domain", dds_options.domain_id, "DDS domain id")->capture_default_str()->check(CLI::Range(0, 232));
   app.add_option("--node-name", dds_options.node_name, "Participant name others see (default: pmlsm_<command>)");
   // As the nodes' --keystore (nodes/support): an empty value falls back to the environment.
@@ -61,10 +62,14 @@ int main(int argc, char** argv) {
   app.add_option_function<std::string>(
       "--keystore", [&dds_options](const std::string& v) { dds_options.keystore = pmlsm::dds::resolve_keystore(v); },
       "DDS Security keystore (default: $PMLSM_KEYSTORE, else open; 'none': open)");
-  app.add_option("--identity", dds_options.identity,
-                 "Identity in the keystore (default: pmlsm_topic, pmlsm_record, pmlsm_play, pmlsm_drive or pmlsm_setpoint)");
-  app.add_subcommand("launch", "Starts a launch description: `pmlsm launch FILE [--host H | --agents] ...` (see `launcher --help`)");
-  app.add_subcommand("agent", "The launch agent of this host: `pmlsm agent [--host H] [--keystore K | --insecure]` (see `launch_agent --help`)");
+  app.add_option(
+      "--identity", dds_options.identity,
+      "Identity in the keystore (default: pmlsm_topic, pmlsm_record, pmlsm_play, pmlsm_drive or pmlsm_setpoint)");
+  app.add_subcommand(
+      "launch", "Starts a launch description: `pmlsm launch FILE [--host H | --agents] ...` (see `launcher --help`)");
+  app.add_subcommand("agent",
+                     "The launch agent of this host: `pmlsm agent [--host H] [--keystore K | --insecure]` (see "
+                     "`launch_agent --help`)");
 
   int exit_code = pmlsm::kExitOk;
   pmlsm::tools::add_topic_commands(app, dds_options, exit_code);

@@ -75,7 +75,8 @@ void refuse_live_writers(dds::Participant& participant, DiscoveryCollector& disc
   // A secure participant learns of a peer's endpoints only after their handshake, which took
   // 1-4 s here on a loaded 2-core host.
   const double wait_s = o.discovery_s >= 0 ? o.discovery_s : (participant.identity().empty() ? 1.5 : 5.0);
-  const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(wait_s));
+  const auto deadline =
+      Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(wait_s));
   while (Clock::now() < deadline && !dds::stop_requested()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   const std::string own = prefix_text(participant.entity()->guid().guidPrefix);
   std::string live;
@@ -92,9 +93,9 @@ void refuse_live_writers(dds::Participant& participant, DiscoveryCollector& disc
     std::cerr << "pmlsm play: --force: publishing next to live writers:\n" << live;
     return;
   }
-  throw UsageError("these topics already have live writers on domain " + std::to_string(participant.entity()->get_domain_id()) +
-                   " (playing would take over from them):\n" + live +
-                   "play on another --domain, choose other --topics, or add --force");
+  throw UsageError("these topics already have live writers on domain " +
+                   std::to_string(participant.entity()->get_domain_id()) + " (playing would take over from them):\n" +
+                   live + "play on another --domain, choose other --topics, or add --force");
 }
 
 int run_play(const dds::ParticipantOptions& dds_options, const PlayOptions& o) {
@@ -128,7 +129,8 @@ int run_play(const dds::ParticipantOptions& dds_options, const PlayOptions& o) {
       if (found == playable.end()) {
         std::string known;
         for (const auto& [topic, id] : playable) known += "  " + topic + "\n";
-        throw UsageError("topic '" + dds::display_name(entry->spec.name) + "' is not in " + o.file + "; it holds:\n" + known);
+        throw UsageError("topic '" + dds::display_name(entry->spec.name) + "' is not in " + o.file + "; it holds:\n" +
+                         known);
       }
       selected.insert(found->second);
     }
@@ -143,11 +145,13 @@ int run_play(const dds::ParticipantOptions& dds_options, const PlayOptions& o) {
   std::map<std::uint16_t, PlayedChannel> played;
   for (const auto id : selected) {
     const auto* entry = dds::find_topic(file.channels[id].topic);
-    played[id] = PlayedChannel{entry, std::make_unique<dds::Writer<dds::RawPubSubType>>(participant.make_raw_writer(*entry)), 0, 0};
+    played[id] = PlayedChannel{
+        entry, std::make_unique<dds::Writer<dds::RawPubSubType>>(participant.make_raw_writer(*entry)), 0, 0};
   }
   // Give subscribers a moment to match, so the first samples are not sent into the void (the
   // writers are transient-local besides, so a reader matching a little later still gets them).
-  const auto match_deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.wait_matched_s));
+  const auto match_deadline =
+      Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.wait_matched_s));
   for (auto& [id, p] : played) {
     while (p.writer->matched_readers() == 0 && Clock::now() < match_deadline && !dds::stop_requested()) {
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
@@ -174,8 +178,10 @@ int run_play(const dds::ParticipantOptions& dds_options, const PlayOptions& o) {
         wall_origin = Clock::now();
       }
       // Original timing: the message's offset from the first one, divided by the rate.
-      const double offset_s = static_cast<double>(m.log_time_ns - std::min(m.log_time_ns, first_log_ns)) * 1e-9 / o.rate;
-      std::this_thread::sleep_until(wall_origin + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(offset_s)));
+      const double offset_s =
+          static_cast<double>(m.log_time_ns - std::min(m.log_time_ns, first_log_ns)) * 1e-9 / o.rate;
+      std::this_thread::sleep_until(
+          wall_origin + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(offset_s)));
       sample.bytes.assign(m.data, m.data + m.size);
       auto& p = found->second;
       if (p.writer->write(sample)) {
@@ -217,10 +223,13 @@ void add_play_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& 
   auto* play = app.add_subcommand("play", "Publishes a recording back with its original timing");
   play->add_option("file", o->file, "MCAP file")->required();
   play->add_option("--topics", o->topics, "Only these topics (default: every project topic in the file)");
-  play->add_option("-r,--rate", o->rate, "Speed factor (2 = twice as fast)")->capture_default_str()->check(CLI::Range(1e-3, 1e6));
+  play->add_option("-r,--rate", o->rate, "Speed factor (2 = twice as fast)")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-3, 1e6));
   play->add_flag("-l,--loop", o->loop, "Start again at the end, until Ctrl-C");
   play->add_option("--wait-matched-s", o->wait_matched_s, "Wait at most this long for subscribers before playing [s]")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   play->add_flag("--no-progress", o->no_progress, "No progress line on stderr");
   play->add_option("--discovery-s", o->discovery_s,
                    "Listen this long for live writers on the played topics first [s] (default 1.5, with a keystore 5)")

@@ -2,9 +2,9 @@
 // plane. The force the drive applied (MotorFeedback) is drawn with the commands, and the ticks
 // at which the drive had its force off (STATUS_SAFE_STATE or STATUS_FAULT, or a power state
 // other than operation enabled) are a red band on both time plots, so a run spent at zero
-// force is seen at a glance; the titles and the tool's output give their count. Samples are decoded from the file's own omgidl schemas, so a recording made by an
-// older build still plots as long as the field names are there. A truncated or corrupt file
-// gives plots of what is whole and a list of what is not.
+// force is seen at a glance; the titles and the tool's output give their count. Samples are decoded from the file's own
+// omgidl schemas, so a recording made by an older build still plots as long as the field names are there. A truncated
+// or corrupt file gives plots of what is whole and a list of what is not.
 
 #include <cstdio>
 #include <filesystem>
@@ -21,7 +21,6 @@
 #include "pmlsm/introspect/cdr_schema.hpp"
 #include "pmlsm/mcap/mcap.hpp"
 #include "run_validity.hpp"
-
 
 namespace pmlsm::tools {
 namespace {
@@ -157,8 +156,8 @@ int run_plot(const PlotOptions& o) {
      << "set terminal pngcairo size 1200,800 noenhanced font ',10'\nset grid\nset key top right\n"
      << "set datafile missing 'NaN'\n"
      // The same verdict in gnuplot, on motor_feedback.dat's status ($4) and power state ($5).
-     << "force_off(s, p) = ((int(s) & " << kForceOffStatus << ") != 0 || int(p) != "
-     << static_cast<int>(ds::POWER_OPERATION_ENABLED) << ") ? 1 : 0\n"
+     << "force_off(s, p) = ((int(s) & " << kForceOffStatus
+     << ") != 0 || int(p) != " << static_cast<int>(ds::POWER_OPERATION_ENABLED) << ") ? 1 : 0\n"
      << "set y2range [0:1]\nunset y2tics\nset style fill transparent solid 0.2 noborder\n";
   std::vector<std::string> made;
   const bool have_drive = have("/pmlsm/motor_feedback");
@@ -174,18 +173,27 @@ int run_plot(const PlotOptions& o) {
                                "title 'drive force off (safe state, fault, not enabled)'";
   std::vector<std::string> velocity_lines;
   if (have_drive) velocity_lines.push_back(off_band);
-  if (have("/pmlsm/velocity_reference")) velocity_lines.push_back(file_of("/pmlsm/velocity_reference") + " using 1:2 with lines lw 2 lc rgb 'black' title 'V_ref'");
-  if (have("/pmlsm/motor_feedback")) velocity_lines.push_back(file_of("/pmlsm/motor_feedback") + " using 1:2 with lines lc rgb '#ff7f0e' title 'v_M measured'");
-  if (have("/pmlsm/plant_truth")) velocity_lines.push_back(file_of("/pmlsm/plant_truth") + " using 1:2 with lines lc rgb '#2ca02c' title 'v_L true'");
-  if (have("/pmlsm/estimated_state")) velocity_lines.push_back(file_of("/pmlsm/estimated_state") + " using 1:2 with lines dt 2 lc rgb '#1f77b4' title 'v_L estimated'");
+  if (have("/pmlsm/velocity_reference"))
+    velocity_lines.push_back(file_of("/pmlsm/velocity_reference") +
+                             " using 1:2 with lines lw 2 lc rgb 'black' title 'V_ref'");
+  if (have("/pmlsm/motor_feedback"))
+    velocity_lines.push_back(file_of("/pmlsm/motor_feedback") +
+                             " using 1:2 with lines lc rgb '#ff7f0e' title 'v_M measured'");
+  if (have("/pmlsm/plant_truth"))
+    velocity_lines.push_back(file_of("/pmlsm/plant_truth") + " using 1:2 with lines lc rgb '#2ca02c' title 'v_L true'");
+  if (have("/pmlsm/estimated_state"))
+    velocity_lines.push_back(file_of("/pmlsm/estimated_state") +
+                             " using 1:2 with lines dt 2 lc rgb '#1f77b4' title 'v_L estimated'");
   const auto join = [](const std::vector<std::string>& lines) {
     std::string out;
     for (const auto& l : lines) out += (out.empty() ? "plot " : ", \\\n     ") + l;
     return out + "\n";
   };
   if (!velocity_lines.empty()) {
-    gp << "set output '" << (dir / "velocities.png").string() << "'\nset xlabel 'time [s]'\nset ylabel 'velocity [m/s]'\n"
-       << "set title 'velocities" << off_text << "'\n" << join(velocity_lines);
+    gp << "set output '" << (dir / "velocities.png").string()
+       << "'\nset xlabel 'time [s]'\nset ylabel 'velocity [m/s]'\n"
+       << "set title 'velocities" << off_text << "'\n"
+       << join(velocity_lines);
     made.push_back("velocities.png");
   }
   std::vector<std::string> force_lines;
@@ -197,13 +205,18 @@ int run_plot(const PlotOptions& o) {
   if (have("/pmlsm/force_command")) {
     force_lines.push_back(file_of("/pmlsm/force_command") + " using 1:2 with lines lc rgb 'black' title 'F command'");
     force_lines.push_back(file_of("/pmlsm/force_command") + " using 1:3 with lines lc rgb '#ff7f0e' title 'PI part'");
-    force_lines.push_back(file_of("/pmlsm/force_command") + " using 1:4 with lines lc rgb '#2ca02c' title 'compensation part'");
+    force_lines.push_back(file_of("/pmlsm/force_command") +
+                          " using 1:4 with lines lc rgb '#2ca02c' title 'compensation part'");
   }
-  if (have("/pmlsm/plant_truth")) force_lines.push_back(file_of("/pmlsm/plant_truth") + " using 1:5 with lines lc rgb '#d62728' title 'F_s true'");
-  if (have("/pmlsm/estimated_state")) force_lines.push_back(file_of("/pmlsm/estimated_state") + " using 1:3 with lines dt 2 lc rgb '#1f77b4' title 'F_s estimated'");
+  if (have("/pmlsm/plant_truth"))
+    force_lines.push_back(file_of("/pmlsm/plant_truth") + " using 1:5 with lines lc rgb '#d62728' title 'F_s true'");
+  if (have("/pmlsm/estimated_state"))
+    force_lines.push_back(file_of("/pmlsm/estimated_state") +
+                          " using 1:3 with lines dt 2 lc rgb '#1f77b4' title 'F_s estimated'");
   if (!force_lines.empty()) {
     gp << "set output '" << (dir / "forces.png").string() << "'\nset xlabel 'time [s]'\nset ylabel 'force [N]'\n"
-       << "set title 'forces" << off_text << "'\n" << join(force_lines);
+       << "set title 'forces" << off_text << "'\n"
+       << join(force_lines);
     made.push_back("forces.png");
   }
   if (have("/pmlsm/plant_truth")) {
@@ -221,7 +234,8 @@ int run_plot(const PlotOptions& o) {
 
   for (const auto& [topic, s] : by_topic) {
     if (s.undecodable > 0) {
-      std::cerr << "pmlsm plot: " << topic << ": " << s.undecodable << " samples not decodable (" << s.first_error << ")\n";
+      std::cerr << "pmlsm plot: " << topic << ": " << s.undecodable << " samples not decodable (" << s.first_error
+                << ")\n";
     }
   }
   if (!report.complete()) {

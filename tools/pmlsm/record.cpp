@@ -85,8 +85,8 @@ int run_record(const dds::ParticipantOptions& dds_options, RecordOptions o) {
     if (added) schema->second = writer.add_schema(entry->type_name, "omgidl", entry->schema_idl);
     // The observer profile: deep, reliable, transient-local, so a recorder started just after
     // the nodes still gets the run from its first tick (up to the writers' history depth).
-    auto t = std::make_unique<RecordedTopic>(RecordedTopic{
-        entry, participant.make_raw_reader(*entry, wakeup, dds::kObserverProfile), 0, 0, 0, {}});
+    auto t = std::make_unique<RecordedTopic>(
+        RecordedTopic{entry, participant.make_raw_reader(*entry, wakeup, dds::kObserverProfile), 0, 0, 0, {}});
     t->channel_id = writer.add_channel(schema->second, dds::display_name(entry->spec.name), "cdr",
                                        {{"dds_topic", entry->spec.name}, {"qos_profile", entry->spec.qos_profile}});
     recorded.push_back(std::move(t));
@@ -127,7 +127,8 @@ int run_record(const dds::ParticipantOptions& dds_options, RecordOptions o) {
           const auto run = stamp_run_id(sample.bytes);
           if (run && run != drive_run) {
             if (drive_run) {
-              std::fprintf(stderr, "%spmlsm record: the drive restarted (run %016llx -> %016llx): a new run from here\n",
+              std::fprintf(stderr,
+                           "%spmlsm record: the drive restarted (run %016llx -> %016llx): a new run from here\n",
                            show_progress ? "\n" : "", static_cast<unsigned long long>(*drive_run),
                            static_cast<unsigned long long>(*run));
             }
@@ -152,10 +153,12 @@ int run_record(const dds::ParticipantOptions& dds_options, RecordOptions o) {
       next_progress = now + std::chrono::milliseconds(250);
       const double elapsed_s = std::chrono::duration<double>(now - start).count();
       std::fprintf(stderr, "\rrecording %7.1f s  %10llu messages  %10s  ", elapsed_s,
-                   static_cast<unsigned long long>(total), human_bytes(static_cast<double>(writer.statistics().file_bytes)).c_str());
+                   static_cast<unsigned long long>(total),
+                   human_bytes(static_cast<double>(writer.statistics().file_bytes)).c_str());
     }
     if (o.duration_s > 0 && now - start >= std::chrono::duration<double>(o.duration_s)) break;
-    if (o.stop_after_idle_s > 0 && any && now - last_sample >= std::chrono::duration<double>(o.stop_after_idle_s)) break;
+    if (o.stop_after_idle_s > 0 && any && now - last_sample >= std::chrono::duration<double>(o.stop_after_idle_s))
+      break;
     if (!took) wakeup.wait_for(seen, std::chrono::milliseconds(50));
   }
   writer.close();
@@ -197,13 +200,18 @@ void add_record_command(CLI::App& app, dds::ParticipantOptions& dds_options, int
   record->add_option("-o,--output", o->output, "MCAP file (default: pmlsm_<date>-<time>.mcap)");
   record->add_option("--compression", o->compression, "Chunk compression: zstd, lz4 or none")->capture_default_str();
   record->add_option("--chunk-size-kib", o->chunk_size_kib, "Uncompressed bytes per chunk [KiB]")
-      ->capture_default_str()->check(CLI::Range(1, 1 << 20));
-  record->add_option("--flush-interval-s", o->flush_interval_s,
-                     "Write the open chunk at least this often: the most a SIGKILL can lose [s]")
-      ->capture_default_str()->check(CLI::Range(0.01, 3600.0));
-  record->add_option("--duration-s", o->duration_s, "Stop after this long (0 = until Ctrl-C)")->check(CLI::NonNegativeNumber);
-  record->add_option("--stop-after-idle-s", o->stop_after_idle_s,
-                     "Stop once nothing arrived for this long after the first sample (0 = never)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1 << 20));
+  record
+      ->add_option("--flush-interval-s", o->flush_interval_s,
+                   "Write the open chunk at least this often: the most a SIGKILL can lose [s]")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 3600.0));
+  record->add_option("--duration-s", o->duration_s, "Stop after this long (0 = until Ctrl-C)")
+      ->check(CLI::NonNegativeNumber);
+  record
+      ->add_option("--stop-after-idle-s", o->stop_after_idle_s,
+                   "Stop once nothing arrived for this long after the first sample (0 = never)")
       ->check(CLI::NonNegativeNumber);
   record->add_flag("--no-progress", o->no_progress, "No progress line on stderr");
   record->callback([&dds_options, o, &exit_code] { exit_code = run_record(dds_options, *o); });

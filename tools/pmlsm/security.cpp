@@ -20,9 +20,10 @@ namespace {
 /// command groups): the names a policy may grant to.
 const std::vector<std::string>& node_identities() {
   static const std::vector<std::string> names{
-      "plant_sim",   "drive_bridge", "virtual_drive", "controller",  "kalman_estimator", "accel_feedback",
-      "state_feedback", "rnn_compensator", "evaluator", "foxglove_bridge", "de_trainer", "de_worker",
-      "pmlsm_topic", "pmlsm_record", "pmlsm_play",  "pmlsm_drive", "pmlsm_setpoint", "launcher", "launch_agent"};
+      "plant_sim",      "drive_bridge",   "virtual_drive",   "controller",   "kalman_estimator",
+      "accel_feedback", "state_feedback", "rnn_compensator", "evaluator",    "foxglove_bridge",
+      "de_trainer",     "de_worker",      "pmlsm_topic",     "pmlsm_record", "pmlsm_play",
+      "pmlsm_drive",    "pmlsm_setpoint", "launcher",        "launch_agent"};
   return names;
 }
 
@@ -96,7 +97,8 @@ int run_list(const SecurityOptions& o) {
 }  // namespace
 
 void add_security_command(CLI::App& app, int& exit_code) {
-  auto* sec = app.add_subcommand("security", "DDS Security keystore: CAs, identities, signed governance and permissions");
+  auto* sec =
+      app.add_subcommand("security", "DDS Security keystore: CAs, identities, signed governance and permissions");
   sec->require_subcommand(1);
   auto o = std::make_shared<SecurityOptions>();
   const auto add_policy = [&o](CLI::App* cmd) {
@@ -105,10 +107,12 @@ void add_security_command(CLI::App& app, int& exit_code) {
   const auto add_days = [&o](CLI::App* cmd, bool ca) {
     if (ca) {
       cmd->add_option("--ca-days", o->validity.ca_valid_days, "Validity of the two CAs [days]")
-          ->capture_default_str()->check(CLI::Range(1, 36500));
+          ->capture_default_str()
+          ->check(CLI::Range(1, 36500));
     }
     cmd->add_option("--identity-days", o->validity.identity_valid_days, "Validity of identity certificates [days]")
-        ->capture_default_str()->check(CLI::Range(1, 36500));
+        ->capture_default_str()
+        ->check(CLI::Range(1, 36500));
   };
 
   auto* create = sec->add_subcommand("create", "A new keystore: CAs, governance, every identity the policy names");
@@ -117,8 +121,9 @@ void add_security_command(CLI::App& app, int& exit_code) {
   add_days(create, true);
   create->callback([o, &exit_code] { exit_code = run_create(*o); });
 
-  auto* identity = sec->add_subcommand("create-identity", "New key, certificate and permissions for identities "
-                                                          "(replaces existing ones: rotation)");
+  auto* identity = sec->add_subcommand("create-identity",
+                                       "New key, certificate and permissions for identities "
+                                       "(replaces existing ones: rotation)");
   identity->add_option("keystore", o->keystore, "Keystore folder")->required()->check(CLI::ExistingDirectory);
   identity->add_option("names", o->names, "Identity names (as in the policy)")->required();
   add_policy(identity);
@@ -131,8 +136,9 @@ void add_security_command(CLI::App& app, int& exit_code) {
   add_policy(update);
   update->callback([o, &exit_code] { exit_code = run_update_permissions(*o); });
 
-  auto* check = sec->add_subcommand("check", "Verifies identities (default: all): files, certificates, keys, "
-                                             "signatures; exit 2 when any is refused");
+  auto* check = sec->add_subcommand("check",
+                                    "Verifies identities (default: all): files, certificates, keys, "
+                                    "signatures; exit 2 when any is refused");
   check->add_option("keystore", o->keystore, "Keystore folder")->required()->check(CLI::ExistingDirectory);
   check->add_option("names", o->names, "Identities to check");
   check->callback([o, &exit_code] { exit_code = run_check(*o); });

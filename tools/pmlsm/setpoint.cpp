@@ -28,23 +28,25 @@ namespace msg = pmlsm_msgs::msg;
 
 struct SetpointOptions {
   double velocity_mps = 0;
-  double ramp_mps2 = 0;     // 0: the controller's limit
-  double hold_s = 0;        // 0: until Ctrl-C
+  double ramp_mps2 = 0;  // 0: the controller's limit
+  double hold_s = 0;     // 0: until Ctrl-C
   double rate_hz = 20;
   double wait_s = 10;
-  double zero_s = 0.2;      // how long the final zero is repeated
-  std::string source;       // default user@host
+  double zero_s = 0.2;  // how long the final zero is repeated
+  std::string source;   // default user@host
 };
 
 int run_setpoint(const dds::ParticipantOptions& dds_options, const SetpointOptions& o) {
-  if (!std::isfinite(o.velocity_mps)) throw UsageError("setpoint: VALUE must be finite, got " + std::to_string(o.velocity_mps));
+  if (!std::isfinite(o.velocity_mps))
+    throw UsageError("setpoint: VALUE must be finite, got " + std::to_string(o.velocity_mps));
   if (!std::isfinite(o.ramp_mps2) || o.ramp_mps2 < 0) {
     throw UsageError("setpoint: --ramp-mps2 must be finite and >= 0, got " + std::to_string(o.ramp_mps2));
   }
   dds::Participant participant(with_node_name(dds_options, "pmlsm_setpoint", "pmlsm_setpoint"));
   auto writer = participant.make_writer<msg::VelocitySetpointPubSubType>(dds::topics::kVelocitySetpoint);
 
-  const auto wait_deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.wait_s));
+  const auto wait_deadline =
+      Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.wait_s));
   while (writer.matched_readers() == 0) {
     if (dds::stop_requested()) return kExitError;
     if (Clock::now() >= wait_deadline) {
@@ -63,9 +65,9 @@ int run_setpoint(const dds::ParticipantOptions& dds_options, const SetpointOptio
     ++sequence;
     msg::Stamp stamp;
     stamp.tick(sequence);
-    stamp.source_time_ns(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                             std::chrono::system_clock::now().time_since_epoch())
-                             .count());
+    stamp.source_time_ns(
+        std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+            .count());
     sample.stamp(stamp);
     sample.velocity_mps(velocity_mps);
     sample.accel_limit_mps2(o.ramp_mps2);
@@ -90,7 +92,8 @@ int run_setpoint(const dds::ParticipantOptions& dds_options, const SetpointOptio
   std::fflush(stdout);
   repeat(o.velocity_mps, o.hold_s);
   // Then zero, repeated for a while even after Ctrl-C: the controller ramps down on purpose.
-  const auto zero_end = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.zero_s));
+  const auto zero_end =
+      Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.zero_s));
   while (Clock::now() < zero_end) {
     send(0.0);
     std::this_thread::sleep_for(period);

@@ -117,9 +117,9 @@ std::size_t print_table(const SystemParams& nominal, const SweepFile& file, cons
       where += ")";
       std::printf("%-6s %-16s %6zu %6s %6zu %6zu %6zu %6zu %6zu %7s %8s %8s %9s  %s\n",
                   to_string(result.compensators[c]), file.spec.scenarios[s].name.c_str(), result.plants.size(),
-                  c == 0 ? "-" : std::to_string(passed).c_str(), cycles, saturated, guard, slow, non_finite, c == 0 ? "-" : std::to_string(worse).c_str(),
-                  num(ratios[ratios.size() / 2], "%.3f").c_str(), num(worst_ratio, "%.3f").c_str(),
-                  num(worst_settling, "%.3f").c_str(), c == 0 ? "" : where.c_str());
+                  c == 0 ? "-" : std::to_string(passed).c_str(), cycles, saturated, guard, slow, non_finite,
+                  c == 0 ? "-" : std::to_string(worse).c_str(), num(ratios[ratios.size() / 2], "%.3f").c_str(),
+                  num(worst_ratio, "%.3f").c_str(), num(worst_settling, "%.3f").c_str(), c == 0 ? "" : where.c_str());
     }
   }
   if (!result.identified.empty()) {
@@ -127,17 +127,19 @@ std::size_t print_table(const SystemParams& nominal, const SweepFile& file, cons
     double worst_mode_error = 0, worst_mass_error = 0;
     for (std::size_t p = 0; p < result.plants.size(); ++p) {
       const SystemParams plant = plant_variant(nominal, file.spec, result.plants[p]);
-      const double true_mode = std::sqrt(plant.plant.mechanics.spring_n_per_m / plant.plant.mechanics.load_mass_kg) / (2 * M_PI);
+      const double true_mode =
+          std::sqrt(plant.plant.mechanics.spring_n_per_m / plant.plant.mechanics.load_mass_kg) / (2 * M_PI);
       worst_mode_error = std::max(worst_mode_error, std::fabs(result.identified[p].load_mode_hz() / true_mode - 1));
-      worst_mass_error = std::max(worst_mass_error,
-                                  std::fabs(result.identified[p].load_mass_kg / plant.plant.mechanics.load_mass_kg - 1));
+      worst_mass_error = std::max(
+          worst_mass_error, std::fabs(result.identified[p].load_mass_kg / plant.plant.mechanics.load_mass_kg - 1));
     }
     std::printf("models identified on every plant (%s, PI alone): load mode within %.1f %%, load mass within %.1f %%\n",
                 file.identification_scenario_file.c_str(), 100 * worst_mode_error, 100 * worst_mass_error);
   }
-  std::printf("passed: clean (no limit cycle, no saturated tail, the guard never tripped, a free vibration settled\n"
-              "in time, finite) and a cost (eq. 23) below PI alone's on the same plant; ratio: cost / PI's cost on\n"
-              "that plant. PI alone (none) is the baseline: its faults are shown, not judged.\n");
+  std::printf(
+      "passed: clean (no limit cycle, no saturated tail, the guard never tripped, a free vibration settled\n"
+      "in time, finite) and a cost (eq. 23) below PI alone's on the same plant; ratio: cost / PI's cost on\n"
+      "that plant. PI alone (none) is the baseline: its faults are shown, not judged.\n");
   return failed;
 }
 
@@ -243,10 +245,13 @@ int run_sweep_command(const SweepOptions& o) {
 void add_sweep_command(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<SweepOptions>();
   CLI::App* cmd = app.add_subcommand(
-      "sweep", "Robustness sweep in process (no DDS): a plant family x compensators x scenarios, a verdict per run, "
-               "a table, a CSV and heat maps (configs/sweeps/*.yaml)");
+      "sweep",
+      "Robustness sweep in process (no DDS): a plant family x compensators x scenarios, a verdict per run, "
+      "a table, a CSV and heat maps (configs/sweeps/*.yaml)");
   cmd->add_option("file", o->file, "Sweep file (YAML)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("-c,--config", o->config, "The nominal system (YAML)")->capture_default_str()->check(CLI::ExistingFile);
+  cmd->add_option("-c,--config", o->config, "The nominal system (YAML)")
+      ->capture_default_str()
+      ->check(CLI::ExistingFile);
   cmd->add_option("--set", o->set, "Override a system parameter of the nominal system: key.path=value")->take_all();
   cmd->add_option("--sweep-set", o->sweep_set, "Override a value of the sweep file: key.path=value")->take_all();
   cmd->add_option("-o,--out", o->out_dir, "Folder for sweep.csv and the heat maps")->capture_default_str();

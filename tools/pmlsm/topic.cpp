@@ -31,11 +31,13 @@ int run_list(dds::ParticipantOptions options, double wait_s, bool verbose) {
   options.listener = &collector;
   dds::Participant participant(with_node_name(options, "pmlsm_topic_list", "pmlsm_topic"));
   // Discovery has no "done": listen for a while, as `ros2 topic list` does with its daemon.
-  const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(wait_s));
+  const auto deadline =
+      Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(wait_s));
   while (Clock::now() < deadline && !dds::stop_requested()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   const std::string text = collector.report(verbose);
-  std::cout << (text.empty() ? "no topics seen (is anything running on domain " + std::to_string(options.domain_id) + "?)\n"
-                             : text);
+  std::cout << (text.empty()
+                    ? "no topics seen (is anything running on domain " + std::to_string(options.domain_id) + "?)\n"
+                    : text);
   return kExitOk;
 }
 
@@ -72,8 +74,7 @@ void pump(TopicReader& r, double duration_s, OnSample&& on_sample, OnTick&& on_t
   }
 }
 
-int run_echo(const dds::ParticipantOptions& options, const std::string& topic, std::uint64_t count,
-             double timeout_s) {
+int run_echo(const dds::ParticipantOptions& options, const std::string& topic, std::uint64_t count, double timeout_s) {
   TopicReader r(options, topic, "pmlsm_topic_echo");
   std::uint64_t printed = 0;
   std::uint64_t undecodable = 0;
@@ -98,8 +99,7 @@ int run_echo(const dds::ParticipantOptions& options, const std::string& topic, s
   return undecodable == 0 ? kExitOk : kExitError;
 }
 
-int run_hz(const dds::ParticipantOptions& options, const std::string& topic, std::size_t window,
-           double duration_s) {
+int run_hz(const dds::ParticipantOptions& options, const std::string& topic, std::size_t window, double duration_s) {
   TopicReader r(options, topic, "pmlsm_topic_hz");
   RollingWindow periods_s(window);  // the last `window` reception intervals
   std::int64_t last_ns = -1;
@@ -110,8 +110,8 @@ int run_hz(const dds::ParticipantOptions& options, const std::string& topic, std
     if (s.count == 0) {
       std::printf("%s: no samples yet\n", dds::display_name(r.entry.spec.name).c_str());
     } else {
-      std::printf("average rate: %.3f Hz\n\tmin: %.6fs max: %.6fs std dev: %.6fs window: %zu\n", 1.0 / s.mean,
-                  s.min, s.max, s.stddev, s.count);
+      std::printf("average rate: %.3f Hz\n\tmin: %.6fs max: %.6fs std dev: %.6fs window: %zu\n", 1.0 / s.mean, s.min,
+                  s.max, s.stddev, s.count);
     }
     std::fflush(stdout);
   };
@@ -135,8 +135,7 @@ int run_hz(const dds::ParticipantOptions& options, const std::string& topic, std
   return samples > 0 ? kExitOk : kExitError;
 }
 
-int run_delay(const dds::ParticipantOptions& options, const std::string& topic, std::size_t window,
-              double duration_s) {
+int run_delay(const dds::ParticipantOptions& options, const std::string& topic, std::size_t window, double duration_s) {
   TopicReader r(options, topic, "pmlsm_topic_delay");
   RollingWindow delays_s(window);
   std::uint64_t samples = 0;
@@ -174,7 +173,8 @@ int run_delay(const dds::ParticipantOptions& options, const std::string& topic, 
         report();
       });
   report();
-  if (without_stamp > 0) std::printf("%llu samples without a source time\n", static_cast<unsigned long long>(without_stamp));
+  if (without_stamp > 0)
+    std::printf("%llu samples without a source time\n", static_cast<unsigned long long>(without_stamp));
   return samples > without_stamp ? kExitOk : kExitError;
 }
 
@@ -208,19 +208,27 @@ void add_topic_commands(CLI::App& app, dds::ParticipantOptions& dds_options, int
   echo->add_option("topic", o->topic, "Topic, e.g. /pmlsm/motor_feedback")->required();
   echo->add_option("-n,--count", o->count, "Stop after this many samples (0 = until Ctrl-C)");
   echo->add_option("--timeout-s", o->timeout_s, "Give up after this long (0 = never)")->check(CLI::NonNegativeNumber);
-  echo->callback([&dds_options, o, &exit_code] { exit_code = run_echo(dds_options, o->topic, o->count, o->timeout_s); });
+  echo->callback(
+      [&dds_options, o, &exit_code] { exit_code = run_echo(dds_options, o->topic, o->count, o->timeout_s); });
 
   auto* hz = topic->add_subcommand("hz", "Rate and jitter of a topic, from reception times");
   hz->add_option("topic", o->topic, "Topic")->required();
-  hz->add_option("-w,--window", o->window, "Intervals in the statistics")->capture_default_str()->check(CLI::Range(2, 10000000));
-  hz->add_option("--duration-s", o->duration_s, "Stop after this long (0 = until Ctrl-C)")->check(CLI::NonNegativeNumber);
+  hz->add_option("-w,--window", o->window, "Intervals in the statistics")
+      ->capture_default_str()
+      ->check(CLI::Range(2, 10000000));
+  hz->add_option("--duration-s", o->duration_s, "Stop after this long (0 = until Ctrl-C)")
+      ->check(CLI::NonNegativeNumber);
   hz->callback([&dds_options, o, &exit_code] { exit_code = run_hz(dds_options, o->topic, o->window, o->duration_s); });
 
   auto* delay = topic->add_subcommand("delay", "Latency of a topic: reception time minus the sample's source time");
   delay->add_option("topic", o->topic, "Topic")->required();
-  delay->add_option("-w,--window", o->window, "Samples in the statistics")->capture_default_str()->check(CLI::Range(1, 10000000));
-  delay->add_option("--duration-s", o->duration_s, "Stop after this long (0 = until Ctrl-C)")->check(CLI::NonNegativeNumber);
-  delay->callback([&dds_options, o, &exit_code] { exit_code = run_delay(dds_options, o->topic, o->window, o->duration_s); });
+  delay->add_option("-w,--window", o->window, "Samples in the statistics")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 10000000));
+  delay->add_option("--duration-s", o->duration_s, "Stop after this long (0 = until Ctrl-C)")
+      ->check(CLI::NonNegativeNumber);
+  delay->callback(
+      [&dds_options, o, &exit_code] { exit_code = run_delay(dds_options, o->topic, o->window, o->duration_s); });
 }
 
 }  // namespace pmlsm::tools

@@ -10,9 +10,9 @@ namespace pmlsm::agent {
 
 const std::vector<std::string>& node_programs() {
   static const std::vector<std::string> names{
-      "plant_sim",       "controller",     "kalman_estimator", "evaluator",     "accel_feedback",
-      "rnn_compensator", "state_feedback", "de_trainer",       "de_worker",     "virtual_drive",
-      "drive_bridge",    "foxglove_bridge", "closed_loop",     "container"};
+      "plant_sim",       "controller",      "kalman_estimator", "evaluator", "accel_feedback",
+      "rnn_compensator", "state_feedback",  "de_trainer",       "de_worker", "virtual_drive",
+      "drive_bridge",    "foxglove_bridge", "closed_loop",      "container"};
   return names;
 }
 
@@ -69,8 +69,7 @@ AgentAction AgentMachine::on_start(std::uint64_t launch_id, const std::string& r
                                    const std::string& refusal, TimePoint now) {
   if (state_ != State::kIdle) {
     if (launch_id == launch_id_) return {};  // the same request again
-    return {AgentAction::Kind::kRefuse,
-            "busy: running launch " + std::to_string(launch_id_) + " for " + requester_};
+    return {AgentAction::Kind::kRefuse, "busy: running launch " + std::to_string(launch_id_) + " for " + requester_};
   }
   if (launch_id == 0) return {AgentAction::Kind::kRefuse, "launch id 0 is not valid"};
   if (!refusal.empty()) return {AgentAction::Kind::kRefuse, refusal};
@@ -96,8 +95,8 @@ AgentAction AgentMachine::step(TimePoint now) {
   // Without a lease (0) the launcher is trusted to stop the slice itself.
   if (state_ != State::kRunning || launcher_lease_.count() <= 0 || now - last_request_ < launcher_lease_) return {};
   state_ = State::kStopping;
-  return {AgentAction::Kind::kStop, "launcher " + requester_ + " silent for " +
-                                        std::to_string(launcher_lease_.count()) + " ms: it is gone"};
+  return {AgentAction::Kind::kStop,
+          "launcher " + requester_ + " silent for " + std::to_string(launcher_lease_.count()) + " ms: it is gone"};
 }
 
 void AgentMachine::on_slice_ended() {
@@ -107,8 +106,7 @@ void AgentMachine::on_slice_ended() {
 }
 
 // ---------------------------------------------------------------------------------------------
-LaunchCoordinator::LaunchCoordinator(std::vector<HostSlice> hosts, Millis agent_deadline, Millis lease,
-                                     TimePoint now)
+LaunchCoordinator::LaunchCoordinator(std::vector<HostSlice> hosts, Millis agent_deadline, Millis lease, TimePoint now)
     : hosts_(std::move(hosts)), deadline_(agent_deadline), leases_(lease), started_(now) {
   if (hosts_.empty()) throw std::invalid_argument("LaunchCoordinator: no host");
   if (agent_deadline.count() <= 0)
@@ -192,8 +190,8 @@ LaunchCoordinator::Action LaunchCoordinator::step(TimePoint now) {
     }
     if (now - started_ >= deadline_) {
       for (const auto& host : missing_hosts(now))
-        fail(host, kExitPeerMissing, "no agent announced this host within " + std::to_string(deadline_.count()) +
-                                         " ms; nothing started");
+        fail(host, kExitPeerMissing,
+             "no agent announced this host within " + std::to_string(deadline_.count()) + " ms; nothing started");
       phase_ = Phase::kDone;
     }
     return {};
@@ -205,7 +203,8 @@ LaunchCoordinator::Action LaunchCoordinator::step(TimePoint now) {
     state.ended = true;
     state.lost = true;
     fail(host, kExitPeerLost,
-         "agent lost (no announcement for " + std::to_string(leases_.lease().count()) + " ms): its nodes' fate is unknown");
+         "agent lost (no announcement for " + std::to_string(leases_.lease().count()) +
+             " ms): its nodes' fate is unknown");
     if (a.kind == Action::Kind::kNone) a = stop_all("the agent of host " + host + " was lost");
   }
   finish_if_all_ended();

@@ -95,7 +95,11 @@ class Reader {
     std::uint64_t n = 0;
     switch (tag) {
       case 0xC0: v.kind = Kind::nil; return true;
-      case 0xC2: case 0xC3: v.kind = Kind::boolean; v.boolean = tag == 0xC3; return true;
+      case 0xC2:
+      case 0xC3:
+        v.kind = Kind::boolean;
+        v.boolean = tag == 0xC3;
+        return true;
       case 0xC4: return be(1, n) && set_bytes(v, Kind::bin, n);
       case 0xC5: return be(2, n) && set_bytes(v, Kind::bin, n);
       case 0xC6: return be(4, n) && set_bytes(v, Kind::bin, n);
@@ -211,8 +215,7 @@ const char* bool_field(Reader& r, bool& out, const char* not_bool) noexcept {
 }
 
 // Reads a non-negative integer field's value: nullptr when fine, else why not.
-const char* uint_field(Reader& r, std::uint64_t& out, const char* negative,
-                       const char* not_integer) noexcept {
+const char* uint_field(Reader& r, std::uint64_t& out, const char* negative, const char* not_integer) noexcept {
   Value v;
   if (!r.header(v)) return "truncated value";
   if (v.kind == Kind::nint) return negative;
@@ -223,8 +226,7 @@ const char* uint_field(Reader& r, std::uint64_t& out, const char* negative,
 
 }  // namespace
 
-std::size_t encode(const CanFrame& frame, double timestamp_s, std::uint8_t* out,
-                   std::size_t capacity) noexcept {
+std::size_t encode(const CanFrame& frame, double timestamp_s, std::uint8_t* out, std::size_t capacity) noexcept {
   if (!is_valid_frame(frame) || out == nullptr) return 0;
   FixedStream stream(out, capacity);
   msgpack::packer<FixedStream> pk(stream);
@@ -310,8 +312,8 @@ DecodeResult decode(const std::uint8_t* data, std::size_t size, CanFrame& frame)
         data_length = v.length;
         for (std::uint32_t k = 0; k < v.length; ++k) {
           std::uint64_t byte = 0;
-          if (const char* why = uint_field(r, byte, "data array element is not a byte",
-                                           "data array element is not a byte")) {
+          if (const char* why =
+                  uint_field(r, byte, "data array element is not a byte", "data array element is not a byte")) {
             return malformed(why);
           }
           if (byte > 0xFF) return malformed("data array element is not a byte");

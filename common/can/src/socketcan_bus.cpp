@@ -17,9 +17,8 @@ namespace pmlsm::can {
 
 SocketCanBus::SocketCanBus(const std::string& interface_name) {
   if (interface_name.empty() || interface_name.size() >= IFNAMSIZ) {
-    throw std::invalid_argument("interface: must be a network interface name of 1 to " +
-                                std::to_string(IFNAMSIZ - 1) + " characters, got \"" +
-                                interface_name + "\"");
+    throw std::invalid_argument("interface: must be a network interface name of 1 to " + std::to_string(IFNAMSIZ - 1) +
+                                " characters, got \"" + interface_name + "\"");
   }
   const std::string where = "SocketCanBus(\"" + interface_name + "\"): ";
   const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW);
@@ -107,8 +106,7 @@ SocketCanBus::Poll SocketCanBus::receive_one(CanFrame& frame) noexcept {
 }
 
 bool SocketCanBus::receive(CanFrame& frame, std::chrono::nanoseconds timeout) noexcept {
-  return detail::receive_until<Poll>(fd_, timeout, [&] { return receive_one(frame); }) ==
-         Poll::frame;
+  return detail::receive_until<Poll>(fd_, timeout, [&] { return receive_one(frame); }) == Poll::frame;
 }
 
 }  // namespace pmlsm::can

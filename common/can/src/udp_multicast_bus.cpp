@@ -110,9 +110,8 @@ UdpMulticastBus::UdpMulticastBus(const UdpMulticastParams& params) : params_(par
   const Resolved r = resolve(params_);
   family_ = r.family;
   const auto port = htons(static_cast<std::uint16_t>(params_.port));
-  const std::string where = "UdpMulticastBus(group " + params_.group + ", port " +
-                            std::to_string(params_.port) + ", interface " +
-                            params_.interface_address + "): ";
+  const std::string where = "UdpMulticastBus(group " + params_.group + ", port " + std::to_string(params_.port) +
+                            ", interface " + params_.interface_address + "): ";
   auto fail = [&where](const char* call) -> void {
     const int error = errno;
     throw std::system_error(error, std::generic_category(), where + call);
@@ -149,8 +148,7 @@ UdpMulticastBus::UdpMulticastBus(const UdpMulticastParams& params) : params_(par
     set(tx.get(), IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof ttl, "setsockopt(IP_MULTICAST_TTL)");
     set(tx.get(), IPPROTO_IP, IP_MULTICAST_LOOP, &loop, sizeof loop, "setsockopt(IP_MULTICAST_LOOP)");
     if (r.interface4.s_addr != htonl(INADDR_ANY)) {
-      set(tx.get(), IPPROTO_IP, IP_MULTICAST_IF, &r.interface4, sizeof r.interface4,
-          "setsockopt(IP_MULTICAST_IF)");
+      set(tx.get(), IPPROTO_IP, IP_MULTICAST_IF, &r.interface4, sizeof r.interface4, "setsockopt(IP_MULTICAST_IF)");
     }
     sockaddr_in local{};
     local.sin_family = AF_INET;
@@ -196,12 +194,11 @@ UdpMulticastBus::UdpMulticastBus(const UdpMulticastParams& params) : params_(par
     fail("getsockname");
   }
 
-  description_ = "udp_multicast " +
-                 (family_ == AF_INET ? params_.group : "[" + params_.group + "]") + ":" +
+  description_ = "udp_multicast " + (family_ == AF_INET ? params_.group : "[" + params_.group + "]") + ":" +
                  std::to_string(params_.port) + " on " +
-                 (params_.interface_address.empty() ? std::string("::") : params_.interface_address) +
-                 " (ttl " + std::to_string(params_.ttl) + ", loopback " +
-                 (params_.loopback ? "on" : "off") + ", sending from " + to_string(own_source_) + ")";
+                 (params_.interface_address.empty() ? std::string("::") : params_.interface_address) + " (ttl " +
+                 std::to_string(params_.ttl) + ", loopback " + (params_.loopback ? "on" : "off") + ", sending from " +
+                 to_string(own_source_) + ")";
   rx_fd_ = rx.release();
   tx_fd_ = tx.release();
 }
@@ -213,8 +210,7 @@ UdpMulticastBus::~UdpMulticastBus() {
 
 bool UdpMulticastBus::send(const CanFrame& frame) noexcept {
   std::array<std::uint8_t, pycan_wire::kMaxEncodedSize> datagram;
-  const std::size_t size =
-      pycan_wire::encode(frame, wall_clock_seconds(), datagram.data(), datagram.size());
+  const std::size_t size = pycan_wire::encode(frame, wall_clock_seconds(), datagram.data(), datagram.size());
   if (size == 0) {
     count_send_error();
     return false;
@@ -240,8 +236,7 @@ bool UdpMulticastBus::is_own(const sockaddr_storage& source) const noexcept {
   }
   const auto& a = reinterpret_cast<const sockaddr_in6&>(source);
   const auto& b = reinterpret_cast<const sockaddr_in6&>(own_source_);
-  return a.sin6_port == b.sin6_port &&
-         std::memcmp(&a.sin6_addr, &b.sin6_addr, sizeof(in6_addr)) == 0;
+  return a.sin6_port == b.sin6_port && std::memcmp(&a.sin6_addr, &b.sin6_addr, sizeof(in6_addr)) == 0;
 }
 
 UdpMulticastBus::Poll UdpMulticastBus::receive_one(CanFrame& frame) noexcept {
@@ -270,22 +265,16 @@ UdpMulticastBus::Poll UdpMulticastBus::receive_one(CanFrame& frame) noexcept {
     return Poll::dropped;
   }
   switch (pycan_wire::decode(rx_buffer_.data(), static_cast<std::size_t>(n), frame).status) {
-    case pycan_wire::DecodeStatus::ok:
-      count_received();
-      return Poll::frame;
-    case pycan_wire::DecodeStatus::unsupported:
-      count_unsupported();
-      return Poll::dropped;
-    case pycan_wire::DecodeStatus::malformed:
-      break;
+    case pycan_wire::DecodeStatus::ok: count_received(); return Poll::frame;
+    case pycan_wire::DecodeStatus::unsupported: count_unsupported(); return Poll::dropped;
+    case pycan_wire::DecodeStatus::malformed: break;
   }
   count_malformed();
   return Poll::dropped;
 }
 
 bool UdpMulticastBus::receive(CanFrame& frame, std::chrono::nanoseconds timeout) noexcept {
-  return detail::receive_until<Poll>(rx_fd_, timeout, [&] { return receive_one(frame); }) ==
-         Poll::frame;
+  return detail::receive_until<Poll>(rx_fd_, timeout, [&] { return receive_one(frame); }) == Poll::frame;
 }
 
 }  // namespace pmlsm::can

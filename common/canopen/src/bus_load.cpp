@@ -16,7 +16,8 @@ BusLoad bus_load(const std::vector<CycleFrame>& frames, double bitrate_bps, doub
   if (!(cycle_s > 0)) throw std::invalid_argument("cycle_s: must be > 0, got " + std::to_string(cycle_s));
   BusLoad load;
   for (const CycleFrame& f : frames) {
-    if (f.dlc > 8) throw std::invalid_argument(std::string(f.name) + ": DLC must be <= 8, got " + std::to_string(f.dlc));
+    if (f.dlc > 8)
+      throw std::invalid_argument(std::string(f.name) + ": DLC must be <= 8, got " + std::to_string(f.dlc));
     if (!(f.per_cycle >= 0)) {
       throw std::invalid_argument(std::string(f.name) + ": frames per cycle must be >= 0, got " +
                                   std::to_string(f.per_cycle));

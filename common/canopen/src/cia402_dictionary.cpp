@@ -21,8 +21,8 @@ std::uint32_t check_mode_of_operation(const ObjectDictionary&, const Entry&, std
 
 // CiA 301's restricted CAN-IDs: no PDO may use them.
 bool restricted_can_id(std::uint32_t id) noexcept {
-  return id <= 0x07F || (id >= 0x101 && id <= 0x180) || (id >= 0x581 && id <= 0x5FF) ||
-         (id >= 0x601 && id <= 0x67F) || (id >= 0x6E0 && id <= 0x6FF) || id >= 0x701;
+  return id <= 0x07F || (id >= 0x101 && id <= 0x180) || (id >= 0x581 && id <= 0x5FF) || (id >= 0x601 && id <= 0x67F) ||
+         (id >= 0x6E0 && id <= 0x6FF) || id >= 0x701;
 }
 
 std::uint32_t check_pdo_cob_id(const ObjectDictionary&, const Entry& entry, std::int64_t value) noexcept {
@@ -38,15 +38,12 @@ std::uint32_t check_pdo_cob_id(const ObjectDictionary&, const Entry& entry, std:
   return kAbortNone;
 }
 
-std::uint32_t check_rpdo_transmission_type(const ObjectDictionary&, const Entry&,
-                                           std::int64_t value) noexcept {
+std::uint32_t check_rpdo_transmission_type(const ObjectDictionary&, const Entry&, std::int64_t value) noexcept {
   return value <= kPdoTransmissionSyncMax ? kAbortNone : kAbortValueRange;
 }
 
-std::uint32_t check_tpdo_transmission_type(const ObjectDictionary&, const Entry&,
-                                           std::int64_t value) noexcept {
-  return (value >= kPdoTransmissionSyncEvery && value <= kPdoTransmissionSyncMax) ? kAbortNone
-                                                                                  : kAbortValueRange;
+std::uint32_t check_tpdo_transmission_type(const ObjectDictionary&, const Entry&, std::int64_t value) noexcept {
+  return (value >= kPdoTransmissionSyncEvery && value <= kPdoTransmissionSyncMax) ? kAbortNone : kAbortValueRange;
 }
 
 // The PDO whose mapping `mapping_index` is, is valid (COB-ID bit 31 clear).
@@ -55,8 +52,7 @@ bool pdo_valid(const ObjectDictionary& dictionary, std::uint16_t mapping_index) 
   return cob && (static_cast<std::uint32_t>(*cob) & kPdoCobIdInvalid) == 0;
 }
 
-std::uint32_t check_mapping_count(const ObjectDictionary& dictionary, const Entry& entry,
-                                  std::int64_t value) noexcept {
+std::uint32_t check_mapping_count(const ObjectDictionary& dictionary, const Entry& entry, std::int64_t value) noexcept {
   if (pdo_valid(dictionary, entry.index)) return kAbortDeviceState;
   if (value == 0) return kAbortNone;
   PdoMap map;
@@ -72,16 +68,14 @@ std::uint32_t check_mapping_count(const ObjectDictionary& dictionary, const Entr
   return valid ? kAbortNone : valid.abort_code;
 }
 
-std::uint32_t check_mapping_entry(const ObjectDictionary& dictionary, const Entry& entry,
-                                  std::int64_t) noexcept {
+std::uint32_t check_mapping_entry(const ObjectDictionary& dictionary, const Entry& entry, std::int64_t) noexcept {
   if (pdo_valid(dictionary, entry.index)) return kAbortDeviceState;
   if (dictionary.get_or(entry.index, 0, 0) != 0) return kAbortDeviceState;
   return kAbortNone;
 }
 
 std::uint32_t check_consumer_heartbeat(const ObjectDictionary&, const Entry&, std::int64_t value) noexcept {
-  return decode_consumer_heartbeat_entry(static_cast<std::uint32_t>(value)).ok() ? kAbortNone
-                                                                                 : kAbortValueRange;
+  return decode_consumer_heartbeat_entry(static_cast<std::uint32_t>(value)).ok() ? kAbortNone : kAbortValueRange;
 }
 
 // ---- building ------------------------------------------------------------------------------------
@@ -119,19 +113,17 @@ ObjectDictionary make_cia402_dictionary(NodeId node, const Cia402DictionaryConfi
   }
   using T = DataType;
   using A = Access;
-  constexpr const char* kMappingNames[8] = {"mapping entry 1", "mapping entry 2", "mapping entry 3",
-                                            "mapping entry 4", "mapping entry 5", "mapping entry 6",
-                                            "mapping entry 7", "mapping entry 8"};
+  constexpr const char* kMappingNames[8] = {"mapping entry 1", "mapping entry 2", "mapping entry 3", "mapping entry 4",
+                                            "mapping entry 5", "mapping entry 6", "mapping entry 7", "mapping entry 8"};
 
   ObjectDictionary od(kCia402DictionaryCapacity);
   od.add(make(kObjectDeviceType, 0, "device type", T::kU32, A::kConst, kDeviceTypeCia402Servo));
   od.add(make(kObjectErrorRegister, 0, "error register", T::kU8, A::kRo, 0));
-  od.add(make(kObjectConsumerHeartbeatTime, 0, "consumer heartbeat time: highest sub-index", T::kU8,
-              A::kConst, 1));
+  od.add(make(kObjectConsumerHeartbeatTime, 0, "consumer heartbeat time: highest sub-index", T::kU8, A::kConst, 1));
   od.add(with_check(make(kObjectConsumerHeartbeatTime, 1, "consumer heartbeat time 1", T::kU32, A::kRw, 0),
                     check_consumer_heartbeat));
-  od.add(make(kObjectProducerHeartbeatTime, 0, "producer heartbeat time", T::kU16, A::kRw,
-              config.producer_heartbeat_ms));
+  od.add(
+      make(kObjectProducerHeartbeatTime, 0, "producer heartbeat time", T::kU16, A::kRw, config.producer_heartbeat_ms));
   od.add(make(kObjectIdentity, 0, "identity: highest sub-index", T::kU8, A::kConst, 4));
   od.add(make(kObjectIdentity, 1, "vendor id", T::kU32, A::kRo, config.vendor_id));
   od.add(make(kObjectIdentity, 2, "product code", T::kU32, A::kRo, config.product_code));
@@ -144,10 +136,9 @@ ObjectDictionary make_cia402_dictionary(NodeId node, const Cia402DictionaryConfi
                     check_pdo_cob_id));
   od.add(with_check(make(kObjectRpdo1Communication, 2, "RPDO1 transmission type", T::kU8, A::kRw, 1),
                     check_rpdo_transmission_type));
-  od.add(with_check(
-      with_range(make(kObjectRpdo1Mapping, 0, "RPDO1 mapping: number of entries", T::kU8, A::kRw, 2), 0,
-                 kPdoMaxEntries),
-      check_mapping_count));
+  od.add(with_check(with_range(make(kObjectRpdo1Mapping, 0, "RPDO1 mapping: number of entries", T::kU8, A::kRw, 2), 0,
+                               kPdoMaxEntries),
+                    check_mapping_count));
   const std::uint32_t rpdo1[8] = {encode_pdo_mapping({kObjectControlword, 0, 16}),
                                   encode_pdo_mapping({kObjectTargetTorque, 0, 16})};
   for (std::uint8_t sub = 1; sub <= 8; ++sub) {
@@ -163,10 +154,9 @@ ObjectDictionary make_cia402_dictionary(NodeId node, const Cia402DictionaryConfi
                     check_tpdo_transmission_type));
   od.add(make(kObjectTpdo1Communication, 3, "TPDO1 inhibit time", T::kU16, A::kRw, 0));
   od.add(make(kObjectTpdo1Communication, 5, "TPDO1 event timer", T::kU16, A::kRw, 0));
-  od.add(with_check(
-      with_range(make(kObjectTpdo1Mapping, 0, "TPDO1 mapping: number of entries", T::kU8, A::kRw, 3), 0,
-                 kPdoMaxEntries),
-      check_mapping_count));
+  od.add(with_check(with_range(make(kObjectTpdo1Mapping, 0, "TPDO1 mapping: number of entries", T::kU8, A::kRw, 3), 0,
+                               kPdoMaxEntries),
+                    check_mapping_count));
   const std::uint32_t tpdo1[8] = {encode_pdo_mapping({kObjectStatusword, 0, 16}),
                                   encode_pdo_mapping({kObjectTorqueActual, 0, 16}),
                                   encode_pdo_mapping({kObjectPositionActual, 0, 32})};
@@ -187,13 +177,11 @@ ObjectDictionary make_cia402_dictionary(NodeId node, const Cia402DictionaryConfi
   od.add(make(kObjectTargetTorque, 0, "target torque", T::kI16, A::kRw, 0, true));
   od.add(make(kObjectRatedTorque, 0, "rated torque", T::kU32, A::kRo, config.rated_torque));
   od.add(make(kObjectTorqueActual, 0, "torque actual value", T::kI16, A::kRo, 0, true));
-  od.add(make(kObjectInterpolationTimePeriod, 0, "interpolation time period: highest sub-index", T::kU8,
-              A::kConst, 2));
+  od.add(make(kObjectInterpolationTimePeriod, 0, "interpolation time period: highest sub-index", T::kU8, A::kConst, 2));
   od.add(with_range(make(kObjectInterpolationTimePeriod, 1, "interpolation time period value", T::kU8, A::kRw,
                          config.interpolation_period_ms),
                     1, 255));
-  od.add(with_range(make(kObjectInterpolationTimePeriod, 2, "interpolation time index", T::kI8, A::kRw, -3),
-                    -6, 0));
+  od.add(with_range(make(kObjectInterpolationTimePeriod, 2, "interpolation time index", T::kI8, A::kRw, -3), -6, 0));
   return od;
 }
 

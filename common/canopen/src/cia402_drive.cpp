@@ -142,8 +142,7 @@ void Cia402Drive::handle(const can::CanFrame& frame) {
       tpdo1_generation_ = generation_;
       {
         const std::optional<drive::PowerState> state = drive::decode_statusword(statusword_);
-        const bool faulted =
-            state == drive::PowerState::kFaultReactionActive || state == drive::PowerState::kFault;
+        const bool faulted = state == drive::PowerState::kFaultReactionActive || state == drive::PowerState::kFault;
         if (faulted && !drive_faulted_ && !local_fault_) ++fault_count_;
         drive_faulted_ = faulted;
       }
@@ -165,7 +164,8 @@ void Cia402Drive::handle(const can::CanFrame& frame) {
       if (emcy.value.error_code != kEmcyNoError) {
         error_code_ = emcy.value.error_code;
         char text[96];
-        std::snprintf(text, sizeof text, "EMCY 0x%04X (%s)", emcy.value.error_code, describe_emcy(emcy.value.error_code));
+        std::snprintf(text, sizeof text, "EMCY 0x%04X (%s)", emcy.value.error_code,
+                      describe_emcy(emcy.value.error_code));
         set_problem(text);
       }
       break;
@@ -191,8 +191,7 @@ void Cia402Drive::handle(const can::CanFrame& frame) {
       if (event.kind != SdoClientEventKind::kNone) sdo_event_ = event;
       break;
     }
-    default:
-      break;
+    default: break;
   }
 }
 
@@ -263,10 +262,8 @@ std::uint32_t Cia402Drive::sdo(bool write, std::uint16_t index, std::uint8_t sub
     case SdoClientEventKind::kFailed:
       if (event.send_abort) send(event.abort_frame);
       throw Cia402DriveError(what + ": " + to_string(event.error) + ": " + event.detail);
-    case SdoClientEventKind::kUploaded:
-      return event.data.data;
-    default:
-      return 0;
+    case SdoClientEventKind::kUploaded: return event.data.data;
+    default: return 0;
   }
 }
 
@@ -284,12 +281,11 @@ void Cia402Drive::boot() {
   while (config_.reset_communication ? !boot_up_ : !seen_) {
     const std::int64_t left = deadline - now_ns();
     if (left <= 0) {
-      throw Cia402DriveError("drive node " + std::to_string(node_.value()) + ": no " +
-                             (config_.reset_communication ? "boot-up after NMT reset communication"
-                                                          : "boot-up or heartbeat") +
-                             " (COB-ID " +
-                             hex(heartbeat_cob_id(node_), 3) + ") within " + std::to_string(config_.boot_timeout_ms) +
-                             " ms on " + bus_.describe());
+      throw Cia402DriveError(
+          "drive node " + std::to_string(node_.value()) + ": no " +
+          (config_.reset_communication ? "boot-up after NMT reset communication" : "boot-up or heartbeat") +
+          " (COB-ID " + hex(heartbeat_cob_id(node_), 3) + ") within " + std::to_string(config_.boot_timeout_ms) +
+          " ms on " + bus_.describe());
     }
     service(left);
   }
@@ -365,7 +361,8 @@ void Cia402Drive::enable_and_wait() {
                              ") for " + std::to_string(config_.enable_timeout_cycles) + " cycles");
     }
     if (!idle_exchange(out.controlword)) {
-      throw Cia402DriveError("drive node " + std::to_string(node_.value()) + " stopped answering during the enable walk" +
+      throw Cia402DriveError("drive node " + std::to_string(node_.value()) +
+                             " stopped answering during the enable walk" +
                              (lost_ ? std::string(": ") + problem_ : std::string()));
     }
   }
@@ -444,11 +441,13 @@ void Cia402Drive::apply(double force_n) {
   if (partial_target_ && !local_fault_ && !lost_ && !master_.quick_stop_active()) {
     const std::optional<drive::PowerState> state = drive::decode_statusword(statusword_);
     if (state && *state != drive::PowerState::kFault && *state != drive::PowerState::kFaultReactionActive) {
-      const bool to_switched_on =
-          *partial_target_ == drive::DriveCommand::kSwitchOn && *state != drive::PowerState::kSwitchOnDisabled &&
-          *state != drive::PowerState::kQuickStopActive;
-      controlword = drive::controlword_of(to_switched_on ? drive::DriveCommand::kSwitchOn : drive::DriveCommand::kShutdown);
-      if (*state == drive::PowerState::kQuickStopActive) controlword = drive::controlword_of(drive::DriveCommand::kDisableVoltage);
+      const bool to_switched_on = *partial_target_ == drive::DriveCommand::kSwitchOn &&
+                                  *state != drive::PowerState::kSwitchOnDisabled &&
+                                  *state != drive::PowerState::kQuickStopActive;
+      controlword =
+          drive::controlword_of(to_switched_on ? drive::DriveCommand::kSwitchOn : drive::DriveCommand::kShutdown);
+      if (*state == drive::PowerState::kQuickStopActive)
+        controlword = drive::controlword_of(drive::DriveCommand::kDisableVoltage);
     }
   }
   const std::int16_t torque = enabled ? scaling_.force_to_per_mille(force_n).value : std::int16_t{0};

@@ -20,9 +20,9 @@ constexpr std::uint64_t kLogLimit = 20;
 std::string describe(const Cia402SlaveCounters& c) {
   char text[320];
   std::snprintf(text, sizeof text,
-                "SYNCs %" PRIu64 " (not stepped %" PRIu64 "), RPDOs %" PRIu64 " (refused %" PRIu64 "), SDO requests %" PRIu64
-                ", frames in %" PRIu64 " out %" PRIu64 " (send failures %" PRIu64 "), malformed %" PRIu64
-                ", ignored %" PRIu64 ", EMCYs %" PRIu64,
+                "SYNCs %" PRIu64 " (not stepped %" PRIu64 "), RPDOs %" PRIu64 " (refused %" PRIu64
+                "), SDO requests %" PRIu64 ", frames in %" PRIu64 " out %" PRIu64 " (send failures %" PRIu64
+                "), malformed %" PRIu64 ", ignored %" PRIu64 ", EMCYs %" PRIu64,
                 c.syncs, c.unstepped_syncs, c.rpdos, c.rejected_rpdos, c.sdo_requests, c.frames_in, c.frames_out,
                 c.send_failures, c.malformed, c.ignored, c.emcys);
   return text;
@@ -102,7 +102,8 @@ void Cia402Slave::malformed(const CanFrame& f, const char* why, std::int64_t now
   if (counters_.malformed > kLogLimit) return;
   char line[256];
   std::snprintf(line, sizeof line, "ignored malformed frame id 0x%03X dlc %u: %s%s", static_cast<unsigned>(f.id),
-                static_cast<unsigned>(f.dlc), why, counters_.malformed == kLogLimit ? " (further ones only counted)" : "");
+                static_cast<unsigned>(f.dlc), why,
+                counters_.malformed == kLogLimit ? " (further ones only counted)" : "");
   events_.log(true, line, now_ns);
 }
 
@@ -297,9 +298,10 @@ void Cia402Slave::reset(NmtReset kind, std::int64_t now_ns) {
   }
   reload_pdos();
   update_objects();  // the live values (statusword, actuals, periods stepped) stay what they are
-  events_.log(false, std::string(kind == NmtReset::kNode ? "reset node" : "reset communication") +
-                         ": dictionary reset, boot-up",
-              now_ns);
+  events_.log(
+      false,
+      std::string(kind == NmtReset::kNode ? "reset node" : "reset communication") + ": dictionary reset, boot-up",
+      now_ns);
   if (const auto boot = nmt_.boot()) send(*boot);
 }
 

@@ -58,8 +58,7 @@ Result<EmcyMessage> decode_emcy(const CanFrame& frame) noexcept {
   result.value.node_id = info.node_id;
   result.value.error_code = get_u16_le(frame.data, 0);
   result.value.error_register = frame.data[2];
-  for (std::size_t i = 0; i < result.value.manufacturer.size(); ++i)
-    result.value.manufacturer[i] = frame.data[3 + i];
+  for (std::size_t i = 0; i < result.value.manufacturer.size(); ++i) result.value.manufacturer[i] = frame.data[3 + i];
   return result;
 }
 

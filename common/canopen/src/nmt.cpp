@@ -80,10 +80,8 @@ CanFrame encode_nmt_all(NmtCommand command) noexcept { return nmt_frame(command,
 
 Result<NmtCommandMessage> decode_nmt(const CanFrame& frame) noexcept {
   using R = Result<NmtCommandMessage>;
-  if (const Status s = detail::check_standard_data_frame(frame); !s)
-    return detail::as_result<NmtCommandMessage>(s);
-  if (frame.id != kCobIdNmt)
-    return fail_with<NmtCommandMessage>(Error::kWrongCobId, "NMT: COB-ID must be 0x000");
+  if (const Status s = detail::check_standard_data_frame(frame); !s) return detail::as_result<NmtCommandMessage>(s);
+  if (frame.id != kCobIdNmt) return fail_with<NmtCommandMessage>(Error::kWrongCobId, "NMT: COB-ID must be 0x000");
   if (frame.dlc != 2) return fail_with<NmtCommandMessage>(Error::kWrongDlc, "NMT: DLC must be 2");
   if (!is_nmt_command(frame.data[0])) {
     return fail_with<NmtCommandMessage>(Error::kUnknownCommand,
@@ -107,8 +105,7 @@ CanFrame encode_heartbeat(NodeId node, NmtState state) noexcept {
 CanFrame encode_boot_up(NodeId node) noexcept { return encode_heartbeat(node, NmtState::kInitialising); }
 
 Result<HeartbeatMessage> decode_heartbeat(const CanFrame& frame) noexcept {
-  if (const Status s = detail::check_standard_data_frame(frame); !s)
-    return detail::as_result<HeartbeatMessage>(s);
+  if (const Status s = detail::check_standard_data_frame(frame); !s) return detail::as_result<HeartbeatMessage>(s);
   const CobIdInfo info = classify(frame.id);
   if (info.function != FunctionCode::kHeartbeat) {
     return fail_with<HeartbeatMessage>(Error::kWrongCobId, "heartbeat: COB-ID must be 0x701..0x77F");
@@ -116,8 +113,7 @@ Result<HeartbeatMessage> decode_heartbeat(const CanFrame& frame) noexcept {
   if (frame.dlc != 1) return fail_with<HeartbeatMessage>(Error::kWrongDlc, "heartbeat: DLC must be 1");
   const auto state = static_cast<std::uint8_t>(frame.data[0] & 0x7FU);
   if (!is_nmt_state(state)) {
-    return fail_with<HeartbeatMessage>(Error::kInvalidValue,
-                                       "heartbeat: state byte must be 0x00, 0x04, 0x05 or 0x7F");
+    return fail_with<HeartbeatMessage>(Error::kInvalidValue, "heartbeat: state byte must be 0x00, 0x04, 0x05 or 0x7F");
   }
   Result<HeartbeatMessage> result;
   result.value.node_id = info.node_id;
@@ -196,8 +192,7 @@ std::optional<CanFrame> NmtSlave::poll_heartbeat(std::uint16_t period_ms, std::u
 
 Result<ConsumerHeartbeat> decode_consumer_heartbeat_entry(std::uint32_t entry) noexcept {
   if ((entry >> 24) != 0) {
-    return fail_with<ConsumerHeartbeat>(Error::kInvalidValue,
-                                        "consumer heartbeat: bits 24-31 are reserved (0)");
+    return fail_with<ConsumerHeartbeat>(Error::kInvalidValue, "consumer heartbeat: bits 24-31 are reserved (0)");
   }
   const auto node = static_cast<std::uint8_t>((entry >> 16) & 0xFFU);
   if (node > kMaxNodeId) {

@@ -80,17 +80,16 @@ void ObjectDictionary::add(Entry entry) {
   if (entry.min == kNoMin) entry.min = type_min(entry.type);
   if (entry.max == kNoMax) entry.max = type_max(entry.type);
   if (entry.min < type_min(entry.type) || entry.max > type_max(entry.type)) {
-    throw std::invalid_argument(entry_label(entry) + ": min/max outside the range of " +
-                                to_string(entry.type) + ", got [" + std::to_string(entry.min) + ", " +
-                                std::to_string(entry.max) + "]");
+    throw std::invalid_argument(entry_label(entry) + ": min/max outside the range of " + to_string(entry.type) +
+                                ", got [" + std::to_string(entry.min) + ", " + std::to_string(entry.max) + "]");
   }
   if (entry.min > entry.max) {
-    throw std::invalid_argument(entry_label(entry) + ": min must be <= max, got [" +
-                                std::to_string(entry.min) + ", " + std::to_string(entry.max) + "]");
+    throw std::invalid_argument(entry_label(entry) + ": min must be <= max, got [" + std::to_string(entry.min) + ", " +
+                                std::to_string(entry.max) + "]");
   }
   if (entry.value < entry.min || entry.value > entry.max) {
-    throw std::invalid_argument(entry_label(entry) + ": value must be in [" + std::to_string(entry.min) +
-                                ", " + std::to_string(entry.max) + "], got " + std::to_string(entry.value));
+    throw std::invalid_argument(entry_label(entry) + ": value must be in [" + std::to_string(entry.min) + ", " +
+                                std::to_string(entry.max) + "], got " + std::to_string(entry.value));
   }
   const auto at = std::lower_bound(entries_.begin(), entries_.end(), key_of(entry),
                                    [](const Entry& e, std::uint32_t key) { return key_of(e) < key; });
@@ -132,8 +131,7 @@ Result<SdoData> ObjectDictionary::read(std::uint16_t index, std::uint8_t subinde
     return r;
   }
   if (!readable(entry->access)) {
-    return fail_with<SdoData>(Error::kAccessRefused, "object dictionary: the entry is write-only",
-                              kAbortReadWriteOnly);
+    return fail_with<SdoData>(Error::kAccessRefused, "object dictionary: the entry is write-only", kAbortReadWriteOnly);
   }
   return success(SdoData{to_raw(entry->type, entry->value), size_of(entry->type)});
 }

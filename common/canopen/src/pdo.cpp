@@ -23,15 +23,13 @@ std::uint32_t PdoMap::add(PdoMapEntry entry) noexcept {
   return kAbortNone;
 }
 
-Status validate_pdo_map(const PdoMap& map, const ObjectDictionary& dictionary,
-                        PdoDirection direction) noexcept {
+Status validate_pdo_map(const PdoMap& map, const ObjectDictionary& dictionary, PdoDirection direction) noexcept {
   for (const PdoMapEntry& mapped : map) {
     const Entry* entry = dictionary.find(mapped.index, mapped.subindex);
     if (entry == nullptr) {
       const std::uint32_t code = dictionary.locate(mapped.index, mapped.subindex);
-      return mapping_error(code, code == kAbortSubindexMissing
-                                     ? "PDO mapping: a mapped sub-index does not exist"
-                                     : "PDO mapping: a mapped object does not exist");
+      return mapping_error(code, code == kAbortSubindexMissing ? "PDO mapping: a mapped sub-index does not exist"
+                                                               : "PDO mapping: a mapped object does not exist");
     }
     if (!entry->pdo_mappable)
       return mapping_error(kAbortNotMappable, "PDO mapping: a mapped entry is not PDO-mappable");
@@ -54,13 +52,12 @@ Status validate_pdo_map(const PdoMap& map, const ObjectDictionary& dictionary,
 Result<PdoDirection> pdo_direction_of(std::uint16_t index) noexcept {
   if (index >= 0x1400 && index <= 0x17FF) return success(PdoDirection::kReceive);
   if (index >= 0x1800 && index <= 0x1BFF) return success(PdoDirection::kTransmit);
-  return fail_with<PdoDirection>(Error::kInvalidValue,
-                                 "PDO: index is not a PDO communication or mapping object");
+  return fail_with<PdoDirection>(Error::kInvalidValue, "PDO: index is not a PDO communication or mapping object");
 }
 
 Result<PdoMap> read_pdo_map(const ObjectDictionary& dictionary, std::uint16_t mapping_index) noexcept {
-  const bool is_mapping = (mapping_index >= 0x1600 && mapping_index <= 0x17FF) ||
-                          (mapping_index >= 0x1A00 && mapping_index <= 0x1BFF);
+  const bool is_mapping =
+      (mapping_index >= 0x1600 && mapping_index <= 0x17FF) || (mapping_index >= 0x1A00 && mapping_index <= 0x1BFF);
   if (!is_mapping) return fail_with<PdoMap>(Error::kInvalidValue, "PDO: index is not a PDO mapping object");
   const PdoDirection direction = pdo_direction_of(mapping_index).value;
   const Entry* count = dictionary.find(mapping_index, 0);
@@ -78,13 +75,12 @@ Result<PdoMap> read_pdo_map(const ObjectDictionary& dictionary, std::uint16_t ma
       return fail_with<PdoMap>(Error::kAccessRefused, "PDO mapping: a mapping entry does not exist",
                                kAbortSubindexMissing);
     }
-    const std::uint32_t code =
-        result.value.add(decode_pdo_mapping(static_cast<std::uint32_t>(mapping->value)));
+    const std::uint32_t code = result.value.add(decode_pdo_mapping(static_cast<std::uint32_t>(mapping->value)));
     if (code != kAbortNone) {
-      return fail_with<PdoMap>(Error::kPdoMapping,
-                               code == kAbortPdoLength ? "PDO mapping: more than 64 bits"
-                                                       : "PDO mapping: bit length must be 8, 16 or 32",
-                               code);
+      return fail_with<PdoMap>(
+          Error::kPdoMapping,
+          code == kAbortPdoLength ? "PDO mapping: more than 64 bits" : "PDO mapping: bit length must be 8, 16 or 32",
+          code);
     }
   }
   const Status valid = validate_pdo_map(result.value, dictionary, direction);
@@ -111,8 +107,7 @@ Result<PdoCommunication> read_pdo_communication(const ObjectDictionary& dictiona
   }
   const auto raw = static_cast<std::uint32_t>(cob->value);
   if ((raw & kPdoCobIdExtended) != 0) {
-    return fail_with<PdoCommunication>(Error::kExtendedFrame,
-                                       "PDO communication: 29-bit COB-IDs are not supported");
+    return fail_with<PdoCommunication>(Error::kExtendedFrame, "PDO communication: 29-bit COB-IDs are not supported");
   }
   PdoCommunication comm;
   comm.cob_id = raw & kCanMaxStandardId;
@@ -121,8 +116,7 @@ Result<PdoCommunication> read_pdo_communication(const ObjectDictionary& dictiona
   return success(comm);
 }
 
-Result<CanFrame> pack_pdo(const PdoMap& map, const ObjectDictionary& dictionary,
-                          std::uint32_t cob_id) noexcept {
+Result<CanFrame> pack_pdo(const PdoMap& map, const ObjectDictionary& dictionary, std::uint32_t cob_id) noexcept {
   if (cob_id == 0 || cob_id > kCanMaxStandardId) {
     return fail_with<CanFrame>(Error::kWrongCobId, "PDO: COB-ID must be an 11-bit id other than 0");
   }
@@ -140,8 +134,7 @@ Result<CanFrame> pack_pdo(const PdoMap& map, const ObjectDictionary& dictionary,
                                  kAbortNotMappable);
     }
     const std::uint32_t raw = to_raw(entry->type, entry->value);
-    for (std::uint8_t i = 0; i < bytes; ++i)
-      frame.data[at + i] = static_cast<std::uint8_t>((raw >> (8U * i)) & 0xFFU);
+    for (std::uint8_t i = 0; i < bytes; ++i) frame.data[at + i] = static_cast<std::uint8_t>((raw >> (8U * i)) & 0xFFU);
     at += bytes;
   }
   return success(frame);
@@ -165,17 +158,14 @@ Status unpack_pdo(const PdoMap& map, ObjectDictionary& dictionary, const CanFram
                   dictionary.locate(mapped.index, mapped.subindex));
     }
     if (!entry->pdo_mappable || !writable(entry->access)) {
-      return fail(Error::kPdoMapping, "PDO unpack: a mapped entry is not a writable, mappable one",
-                  kAbortNotMappable);
+      return fail(Error::kPdoMapping, "PDO unpack: a mapped entry is not a writable, mappable one", kAbortNotMappable);
     }
     const std::uint8_t bytes = size_of(entry->type);
     if (mapped.bit_length != 8U * bytes || at + bytes > 8) {
-      return fail(Error::kPdoMapping, "PDO unpack: the bit length is not the mapped object's",
-                  kAbortNotMappable);
+      return fail(Error::kPdoMapping, "PDO unpack: the bit length is not the mapped object's", kAbortNotMappable);
     }
     std::uint32_t raw = 0;
-    for (std::uint8_t i = 0; i < bytes; ++i)
-      raw |= static_cast<std::uint32_t>(frame.data[at + i]) << (8U * i);
+    for (std::uint8_t i = 0; i < bytes; ++i) raw |= static_cast<std::uint32_t>(frame.data[at + i]) << (8U * i);
     at += bytes;
     const std::int64_t value = from_raw(entry->type, raw);
     const std::uint32_t code = dictionary.check_value(*entry, value);

@@ -34,8 +34,7 @@ UnitScaling::UnitScaling(ScalingConfig config) : config_(config) {
   rated_torque_mn_ = static_cast<std::uint32_t>(mn);
 }
 
-UnitScaling UnitScaling::from_rated_torque_object(std::uint32_t rated_torque_mn,
-                                                  double increments_per_metre) {
+UnitScaling UnitScaling::from_rated_torque_object(std::uint32_t rated_torque_mn, double increments_per_metre) {
   if (rated_torque_mn == 0) throw std::invalid_argument("rated torque (0x6076): must be >= 1 mN, got 0");
   return UnitScaling(ScalingConfig{static_cast<double>(rated_torque_mn) / 1000.0, increments_per_metre});
 }

@@ -26,8 +26,7 @@ constexpr std::uint32_t size_mask(std::uint8_t size) noexcept {
 
 bool fits(std::uint32_t data, std::uint8_t size) noexcept { return (data & ~size_mask(size)) == 0; }
 
-CanFrame sdo_frame(std::uint32_t id, std::uint8_t command, std::uint16_t index,
-                   std::uint8_t subindex) noexcept {
+CanFrame sdo_frame(std::uint32_t id, std::uint8_t command, std::uint16_t index, std::uint8_t subindex) noexcept {
   CanFrame frame = make_frame(id, 8);
   frame.data[0] = command;
   put_u16_le(frame.data, 1, index);
@@ -39,8 +38,7 @@ CanFrame sdo_frame(std::uint32_t id, std::uint8_t command, std::uint16_t index,
 SdoData expedited_data(const CanFrame& frame) noexcept {
   SdoData data;
   const std::uint8_t command = frame.data[0];
-  data.size =
-      (command & kBitSizeIndicated) != 0 ? static_cast<std::uint8_t>(4U - ((command >> 2) & 0x3U)) : 0;
+  data.size = (command & kBitSizeIndicated) != 0 ? static_cast<std::uint8_t>(4U - ((command >> 2) & 0x3U)) : 0;
   data.data = get_u32_le(frame.data, 4) & size_mask(data.size == 0 ? 4 : data.size);
   return data;
 }
@@ -55,8 +53,8 @@ void fill_multiplexer(T& value, const CanFrame& frame) noexcept {
 /// with DLC 8; the node id and (from 4 bytes on) the multiplexer are filled either way. False,
 /// with the error in `r`, when the frame is not one.
 template <typename T>
-bool parse_sdo_envelope(const CanFrame& frame, FunctionCode function, const char* wrong_cob_id,
-                        const char* wrong_dlc, Result<T>& r) noexcept {
+bool parse_sdo_envelope(const CanFrame& frame, FunctionCode function, const char* wrong_cob_id, const char* wrong_dlc,
+                        Result<T>& r) noexcept {
   if (const Status s = detail::check_standard_data_frame(frame); !s) {
     r = detail::as_result<T>(s);
     return false;
@@ -114,12 +112,10 @@ const char* describe(std::uint32_t abort_code) noexcept {
     case kAbortNoSdoConnection: return "resource not available: SDO connection";
     case kAbortGeneral: return "general error";
     case kAbortDataNotStored: return "data cannot be transferred or stored to the application";
-    case kAbortLocalControl:
-      return "data cannot be transferred or stored to the application because of local control";
+    case kAbortLocalControl: return "data cannot be transferred or stored to the application because of local control";
     case kAbortDeviceState:
       return "data cannot be transferred or stored to the application because of the present device state";
-    case kAbortNoDictionary:
-      return "object dictionary dynamic generation fails or no object dictionary is present";
+    case kAbortNoDictionary: return "object dictionary dynamic generation fails or no object dictionary is present";
     case kAbortNoData: return "no data available";
     default: break;
   }
@@ -132,10 +128,9 @@ CanFrame sdo_upload_request(NodeId server, std::uint16_t index, std::uint8_t sub
   return sdo_frame(sdo_rx_cob_id(server), kSdoUploadRequest, index, subindex);
 }
 
-Result<CanFrame> sdo_download_request(NodeId server, std::uint16_t index, std::uint8_t subindex,
-                                      std::uint32_t data, std::uint8_t size) noexcept {
-  if (size < 1 || size > 4)
-    return fail_with<CanFrame>(Error::kInvalidValue, "SDO download: size must be 1..4 bytes");
+Result<CanFrame> sdo_download_request(NodeId server, std::uint16_t index, std::uint8_t subindex, std::uint32_t data,
+                                      std::uint8_t size) noexcept {
+  if (size < 1 || size > 4) return fail_with<CanFrame>(Error::kInvalidValue, "SDO download: size must be 1..4 bytes");
   if (!fits(data, size))
     return fail_with<CanFrame>(Error::kInvalidValue, "SDO download: data does not fit in size bytes");
   CanFrame frame = sdo_frame(sdo_rx_cob_id(server), sdo_download_command(size), index, subindex);
@@ -161,9 +156,8 @@ Result<SdoResponse> parse_sdo_response(const CanFrame& frame) noexcept {
   switch (command >> 5) {
     case kCsInitiateUpload:
       if ((command & kBitExpedited) == 0) {
-        return refuse(
-            Error::kSegmentedNotSupported,
-            "segmented transfer not supported: the server started a segmented upload (value over 4 bytes)");
+        return refuse(Error::kSegmentedNotSupported,
+                      "segmented transfer not supported: the server started a segmented upload (value over 4 bytes)");
       }
       r.value.kind = SdoResponseKind::kUpload;
       r.value.data = expedited_data(frame);
@@ -176,11 +170,9 @@ Result<SdoResponse> parse_sdo_response(const CanFrame& frame) noexcept {
       r.value.abort_code = get_u32_le(frame.data, 4);
       return r;
     case kCsDownloadSegment:  // scs 0: upload segment response
-      return refuse(Error::kSegmentedNotSupported,
-                    "segmented transfer not supported: upload segment response");
+      return refuse(Error::kSegmentedNotSupported, "segmented transfer not supported: upload segment response");
     case kCsInitiateDownload:  // scs 1: download segment response
-      return refuse(Error::kSegmentedNotSupported,
-                    "segmented transfer not supported: download segment response");
+      return refuse(Error::kSegmentedNotSupported, "segmented transfer not supported: download segment response");
     case kCsBlock5:
     case kCsBlock6: return refuse(Error::kBlockNotSupported, "block transfer not supported: block response");
     default: break;
@@ -213,11 +205,9 @@ Result<SdoRequest> parse_sdo_request(const CanFrame& frame) noexcept {
       r.value.abort_code = get_u32_le(frame.data, 4);
       return r;
     case kCsDownloadSegment:
-      return refuse(Error::kSegmentedNotSupported,
-                    "segmented transfer not supported: download segment request");
+      return refuse(Error::kSegmentedNotSupported, "segmented transfer not supported: download segment request");
     case kCsUploadSegment:
-      return refuse(Error::kSegmentedNotSupported,
-                    "segmented transfer not supported: upload segment request");
+      return refuse(Error::kSegmentedNotSupported, "segmented transfer not supported: upload segment request");
     case kCsBlock5:
     case kCsBlock6: return refuse(Error::kBlockNotSupported, "block transfer not supported: block request");
     default: break;
@@ -225,8 +215,8 @@ Result<SdoRequest> parse_sdo_request(const CanFrame& frame) noexcept {
   return refuse(Error::kUnknownCommand, "SDO request: client command specifier 7 is not defined");
 }
 
-Result<CanFrame> sdo_upload_response(NodeId server, std::uint16_t index, std::uint8_t subindex,
-                                     std::uint32_t data, std::uint8_t size) noexcept {
+Result<CanFrame> sdo_upload_response(NodeId server, std::uint16_t index, std::uint8_t subindex, std::uint32_t data,
+                                     std::uint8_t size) noexcept {
   if (size < 1 || size > 4)
     return fail_with<CanFrame>(Error::kInvalidValue, "SDO upload response: size must be 1..4 bytes");
   if (!fits(data, size)) {
@@ -254,8 +244,7 @@ SdoClient::SdoClient(NodeId server, std::uint32_t timeout_ms) : server_(server),
   if (timeout_ms == 0) throw std::invalid_argument("SDO client timeout_ms: must be >= 1, got 0");
 }
 
-Result<CanFrame> SdoClient::upload(std::uint16_t index, std::uint8_t subindex,
-                                   std::uint64_t now_ms) noexcept {
+Result<CanFrame> SdoClient::upload(std::uint16_t index, std::uint8_t subindex, std::uint64_t now_ms) noexcept {
   if (busy_) return fail_with<CanFrame>(Error::kBusy, "SDO client: a transfer is outstanding");
   busy_ = true;
   uploading_ = true;

@@ -38,8 +38,7 @@ SdoServerResult SdoServer::handle(const CanFrame& frame) noexcept {
         return out;
       }
       out.response =
-          sdo_upload_response(node_, request.index, request.subindex, value.value.data, value.value.size)
-              .value;
+          sdo_upload_response(node_, request.index, request.subindex, value.value.data, value.value.size).value;
       return out;
     }
     case SdoRequestKind::kDownload: {

@@ -12,9 +12,7 @@ void AccelFeedbackParams::validate() const {
   require_positive("force_limit_n", force_limit_n);
 }
 
-AccelFeedback::AccelFeedback(const AccelFeedbackParams& params) : params_(params) {
-  params_.validate();
-}
+AccelFeedback::AccelFeedback(const AccelFeedbackParams& params) : params_(params) { params_.validate(); }
 
 double AccelFeedback::step(const AccelFeedbackInput& in) {
   ++counters_.steps;

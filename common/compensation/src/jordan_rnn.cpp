@@ -12,8 +12,7 @@ namespace pmlsm {
 namespace {
 
 [[noreturn]] void bad_size(std::size_t index, const std::string& what, int value) {
-  throw std::invalid_argument("layer_sizes[" + std::to_string(index) + "]: " + what + ", got " +
-                              std::to_string(value));
+  throw std::invalid_argument("layer_sizes[" + std::to_string(index) + "]: " + what + ", got " + std::to_string(value));
 }
 
 void check_layer_sizes(const std::vector<int>& sizes) {
@@ -85,8 +84,8 @@ JordanRnn::JordanRnn(std::vector<int> layer_sizes) : sizes_(std::move(layer_size
 
 void JordanRnn::set_weights(const std::vector<double>& weights) {
   if (weights.size() != weights_.size()) {
-    throw std::invalid_argument("weights: expected " + std::to_string(weights_.size()) +
-                                " values, got " + std::to_string(weights.size()));
+    throw std::invalid_argument("weights: expected " + std::to_string(weights_.size()) + " values, got " +
+                                std::to_string(weights.size()));
   }
   for (std::size_t i = 0; i < weights.size(); ++i) {
     if (!std::isfinite(weights[i])) {
@@ -185,8 +184,8 @@ void RnnCompensatorParams::validate() const {
   if (!(momentum * kc_limit_mps < 1.0)) {
     throw std::invalid_argument(
         "kc_limit_mps: momentum * kc_limit_mps must be < 1 so that the momentum term of (19) "
-        "contracts, got " + format_value(momentum) + " * " + format_value(kc_limit_mps) + " = " +
-        format_value(momentum * kc_limit_mps));
+        "contracts, got " +
+        format_value(momentum) + " * " + format_value(kc_limit_mps) + " = " + format_value(momentum * kc_limit_mps));
   }
   require_positive("du_deadband_per_s", du_deadband_per_s);
 }

@@ -20,8 +20,10 @@ void StateFeedbackParams::validate() const {
   // load's velocity error forward, along the error).
   require_finite("model_frequency_ratio", model_frequency_ratio);
   if (!(model_frequency_ratio >= 1.0)) {
-    throw std::invalid_argument("model_frequency_ratio: must be >= 1 (the model's load mode no slower than the open "
-                                "one), got " + format_value(model_frequency_ratio));
+    throw std::invalid_argument(
+        "model_frequency_ratio: must be >= 1 (the model's load mode no slower than the open "
+        "one), got " +
+        format_value(model_frequency_ratio));
   }
   require_non_negative("model_damping_ratio", model_damping_ratio);
   require_non_negative("correction_damping_ratio", correction_damping_ratio);
@@ -41,9 +43,9 @@ StateFeedback::StateFeedback(const StateFeedbackParams& params) : params_(params
   const double w = r * std::sqrt(k / m_l);
   c0_ = r * r - 1.0;
   c1_s_ = 2.0 * params_.model_damping_ratio * w * m_l / k;
-  correction_gain_ = std::min(
-      2.0 * params_.correction_damping_ratio * params_.velocity_gain_n_s_per_m / std::sqrt(k * m_l) - 1.0,
-      params_.max_correction_gain);
+  correction_gain_ =
+      std::min(2.0 * params_.correction_damping_ratio * params_.velocity_gain_n_s_per_m / std::sqrt(k * m_l) - 1.0,
+               params_.max_correction_gain);
 
   // The controller's reference model (25), for its one-tick look ahead.
   const ReferenceModel reference(
@@ -53,9 +55,9 @@ StateFeedback::StateFeedback(const StateFeedbackParams& params) : params_(params
 
   // x_m = [x_M, v_M, x_L, v_L]: m_M dv_M/dt = F - k (x_M - x_L), m_L dv_L/dt = k (x_M - x_L).
   Eigen::MatrixXd a_m(4, 4);
-  a_m << 0.0, 1.0, 0.0, 0.0,  //
+  a_m << 0.0, 1.0, 0.0, 0.0,        //
       -k / m_m, 0.0, k / m_m, 0.0,  //
-      0.0, 0.0, 0.0, 1.0,  //
+      0.0, 0.0, 0.0, 1.0,           //
       k / m_l, 0.0, -k / m_l, 0.0;
   Eigen::MatrixXd b_m(4, 1);
   b_m << 0.0, 1.0 / m_m, 0.0, 0.0;

@@ -34,7 +34,8 @@ void VibrationGuardParams::validate() const {
   require_positive("max_reference_share", max_reference_share);
   require_finite("saturated_output_share", saturated_output_share);
   if (!(saturated_output_share > 0.0 && saturated_output_share <= 1.0)) {
-    throw std::invalid_argument("saturated_output_share: must be in (0, 1], got " + format_value(saturated_output_share));
+    throw std::invalid_argument("saturated_output_share: must be in (0, 1], got " +
+                                format_value(saturated_output_share));
   }
   require_finite("max_saturated_share", max_saturated_share);
   if (!(max_saturated_share > 0.0 && max_saturated_share <= 1.0)) {
@@ -139,7 +140,8 @@ VibrationGuardOutput VibrationGuard::step(const VibrationGuardInput& in) noexcep
     saturated_in_window_ = 0;
     if (!out_.tripped && (sustained_run_ >= params_.windows_to_trip || growing_run_ >= params_.windows_to_trip)) {
       out_.tripped = true;
-      out_.reason = growing_run_ >= params_.windows_to_trip ? VibrationGuardTrip::kGrowing : VibrationGuardTrip::kSustained;
+      out_.reason =
+          growing_run_ >= params_.windows_to_trip ? VibrationGuardTrip::kGrowing : VibrationGuardTrip::kSustained;
       counters_.trip_tick = counters_.steps;
     }
   }

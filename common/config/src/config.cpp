@@ -19,7 +19,6 @@ namespace pmlsm {
 
 using namespace config_reading;
 
-
 ConfigOverride ConfigOverride::parse(const std::string& text) {
   const auto eq = text.find('=');
   if (eq == std::string::npos || eq == 0) {
@@ -99,13 +98,11 @@ class TableReader {
   void finish() const { check_known(root_, ""); }
 
  private:
-  [[noreturn]] void fail(const std::string& path, const std::string& what) const {
-    fail_at(origin_, path, what);
-  }
+  [[noreturn]] void fail(const std::string& path, const std::string& what) const { fail_at(origin_, path, what); }
 
   [[noreturn]] void out_of_range(const std::string& path, double value, const Plausible& range) const {
-    fail(path, "must be in [" + format_value(range.min) + ", " + format_value(range.max) + "] (" +
-                   range.reason + "), got " + format_value(value));
+    fail(path, "must be in [" + format_value(range.min) + ", " + format_value(range.max) + "] (" + range.reason +
+                   "), got " + format_value(value));
   }
 
   double number(const YAML::Node& v, const std::string& path) const { return to_number(v, origin_, path); }
@@ -166,8 +163,8 @@ SystemParams load_system_params(const std::string& path, const std::vector<Confi
 }
 
 std::string write_system_file_with(const std::string& in_path,
-                                   const std::vector<std::pair<std::string, double>>& values,
-                                   const std::string& source, const std::string& out_path) {
+                                   const std::vector<std::pair<std::string, double>>& values, const std::string& source,
+                                   const std::string& out_path) {
   if (source.rfind("chosen:", 0) != 0 || source.find_first_not_of(" \t", 7) == std::string::npos) {
     throw ConfigError(out_path + ": the source of the written values must be 'chosen: <reason>', got '" + source + "'");
   }
@@ -191,15 +188,17 @@ std::string write_system_file_with(const std::string& in_path,
   return text;
 }
 
-Scenario parse_scenario(const std::string& yaml_text, const std::string& origin,
-                        double control_period_s, const std::vector<ConfigOverride>& overrides) {
+Scenario parse_scenario(const std::string& yaml_text, const std::string& origin, double control_period_s,
+                        const std::vector<ConfigOverride>& overrides) {
   YAML::Node root = parse_yaml(yaml_text, origin);
   apply_overrides(root, overrides, origin);
   Section top(root, origin, "");
   Scenario s;
   s.name = top.text("name");
-  if (s.name.empty() || s.name.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-") != std::string::npos) {
-    throw ConfigError(origin + ": name: must be letters, digits, '_' or '-' (it names output files), got '" + s.name + "'");
+  if (s.name.empty() || s.name.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-") !=
+                            std::string::npos) {
+    throw ConfigError(origin + ": name: must be letters, digits, '_' or '-' (it names output files), got '" + s.name +
+                      "'");
   }
   s.duration_s = top.number("duration_s");
   Section cmd = top.child("command");
@@ -221,12 +220,8 @@ Scenario parse_scenario(const std::string& yaml_text, const std::string& origin,
       s.frequency_hz = cmd.number("frequency_hz");
       s.duty_cycle = cmd.number("duty_cycle");
       break;
-    case CommandShape::kSCurve:
-      s.jerk_mps3 = cmd.number("jerk_mps3");
-      [[fallthrough]];
-    case CommandShape::kTrapezoid:
-      s.hold_s = cmd.number("hold_s");
-      [[fallthrough]];
+    case CommandShape::kSCurve: s.jerk_mps3 = cmd.number("jerk_mps3"); [[fallthrough]];
+    case CommandShape::kTrapezoid: s.hold_s = cmd.number("hold_s"); [[fallthrough]];
     case CommandShape::kRamp:
       s.amplitude_mps = cmd.number("amplitude_mps");
       s.accel_mps2 = cmd.number("accel_mps2");
@@ -253,9 +248,7 @@ Scenario parse_scenario(const std::string& yaml_text, const std::string& origin,
       s.max_gap_s = cmd.number("max_gap_s");
       const std::string file = cmd.text("file");
       s.profile_file = relative_to(origin, file);
-      validate_in(origin, [&] {
-        require_in_range("command.max_gap_s", s.max_gap_s, control_period_s, 3600.0);
-      });
+      validate_in(origin, [&] { require_in_range("command.max_gap_s", s.max_gap_s, control_period_s, 3600.0); });
       std::string text;
       try {
         text = read_file(s.profile_file);
@@ -286,13 +279,11 @@ Scenario parse_scenario(const std::string& yaml_text, const std::string& origin,
   return s;
 }
 
-Scenario load_scenario(const std::string& path, double control_period_s,
-                       const std::vector<ConfigOverride>& overrides) {
+Scenario load_scenario(const std::string& path, double control_period_s, const std::vector<ConfigOverride>& overrides) {
   return parse_scenario(read_file(path), path, control_period_s, overrides);
 }
 
-TrainingParams parse_training_params(const std::string& yaml_text, const std::string& origin,
-                                     double control_period_s,
+TrainingParams parse_training_params(const std::string& yaml_text, const std::string& origin, double control_period_s,
                                      const std::vector<ConfigOverride>& overrides) {
   YAML::Node root = parse_yaml(yaml_text, origin);
   apply_overrides(root, overrides, origin);
@@ -545,13 +536,14 @@ DeviceDictionary parse_device_dictionary(const std::string& yaml_text, const std
   Section top(root, origin, "");
   DeviceDictionary d;
   Section identity = top.child("identity");
-  d.vendor_id = static_cast<std::uint32_t>(c_number(identity.text("vendor_id"), origin, "identity.vendor_id", 0xFFFFFFFFULL));
-  d.product_code =
-      static_cast<std::uint32_t>(c_number(identity.text("product_code"), origin, "identity.product_code", 0xFFFFFFFFULL));
+  d.vendor_id =
+      static_cast<std::uint32_t>(c_number(identity.text("vendor_id"), origin, "identity.vendor_id", 0xFFFFFFFFULL));
+  d.product_code = static_cast<std::uint32_t>(
+      c_number(identity.text("product_code"), origin, "identity.product_code", 0xFFFFFFFFULL));
   d.revision_number = static_cast<std::uint32_t>(
       c_number(identity.text("revision_number"), origin, "identity.revision_number", 0xFFFFFFFFULL));
-  d.serial_number =
-      static_cast<std::uint32_t>(c_number(identity.text("serial_number"), origin, "identity.serial_number", 0xFFFFFFFFULL));
+  d.serial_number = static_cast<std::uint32_t>(
+      c_number(identity.text("serial_number"), origin, "identity.serial_number", 0xFFFFFFFFULL));
   identity.finish();
 
   std::size_t i = 0;
@@ -568,8 +560,8 @@ DeviceDictionary parse_device_dictionary(const std::string& yaml_text, const std
     if (obj.name.empty()) throw ConfigError(origin + ": " + path + ".name: must not be empty");
     const std::string type = o.text("type");
     static const std::pair<const char*, canopen::DataType> kTypes[] = {
-        {"u8", canopen::DataType::kU8},   {"u16", canopen::DataType::kU16}, {"u32", canopen::DataType::kU32},
-        {"i8", canopen::DataType::kI8},   {"i16", canopen::DataType::kI16}, {"i32", canopen::DataType::kI32}};
+        {"u8", canopen::DataType::kU8}, {"u16", canopen::DataType::kU16}, {"u32", canopen::DataType::kU32},
+        {"i8", canopen::DataType::kI8}, {"i16", canopen::DataType::kI16}, {"i32", canopen::DataType::kI32}};
     bool known = false;
     for (const auto& [name, t] : kTypes) {
       if (type == name) {
@@ -577,7 +569,8 @@ DeviceDictionary parse_device_dictionary(const std::string& yaml_text, const std
         known = true;
       }
     }
-    if (!known) throw ConfigError(origin + ": " + path + ".type: one of u8, u16, u32, i8, i16, i32, got '" + type + "'");
+    if (!known)
+      throw ConfigError(origin + ": " + path + ".type: one of u8, u16, u32, i8, i16, i32, got '" + type + "'");
     const std::string access = o.text("access");
     if (access == "ro") {
       obj.access = canopen::Access::kRo;
@@ -599,8 +592,8 @@ DeviceDictionary parse_device_dictionary(const std::string& yaml_text, const std
     o.finish();
     for (const DictionaryObject& other : d.objects) {
       if (other.index == obj.index && other.subindex == obj.subindex) {
-        throw ConfigError(origin + ": " + path + ": object " + o.text("index") + " sub " + std::to_string(obj.subindex) +
-                          " is listed twice");
+        throw ConfigError(origin + ": " + path + ": object " + o.text("index") + " sub " +
+                          std::to_string(obj.subindex) + " is listed twice");
       }
     }
     d.objects.push_back(std::move(obj));
@@ -615,7 +608,8 @@ DeviceDictionary parse_device_dictionary(const std::string& yaml_text, const std
       throw ConfigError(origin + ": " + path + ".channel: one of rpdo1, tpdo1, tpdo2, got '" + pdo.channel + "'");
     }
     for (const PdoDefault& other : d.pdos) {
-      if (other.channel == pdo.channel) throw ConfigError(origin + ": " + path + ".channel: " + pdo.channel + " is listed twice");
+      if (other.channel == pdo.channel)
+        throw ConfigError(origin + ": " + path + ".channel: " + pdo.channel + " is listed twice");
     }
     std::string cob = p.text("cob_id");
     const std::string node_prefix = "$NODEID+";
@@ -638,7 +632,8 @@ DeviceDictionary parse_device_dictionary(const std::string& yaml_text, const std
       }
       canopen::PdoMapEntry e;
       e.index = static_cast<std::uint16_t>(c_number(text.substr(0, first), origin, item_path, 0xFFFF));
-      e.subindex = static_cast<std::uint8_t>(c_number(text.substr(first + 1, second - first - 1), origin, item_path, 0xFF));
+      e.subindex =
+          static_cast<std::uint8_t>(c_number(text.substr(first + 1, second - first - 1), origin, item_path, 0xFF));
       e.bit_length = static_cast<std::uint8_t>(c_number(text.substr(second + 1), origin, item_path, 0xFF));
       if (e.bit_length != 8 && e.bit_length != 16 && e.bit_length != 32) {
         throw ConfigError(origin + ": " + item_path + ": the bit length must be 8, 16 or 32, got '" + text + "'");

@@ -20,7 +20,6 @@
 
 namespace pmlsm::config_reading {
 
-
 inline bool is_sourced_leaf(const YAML::Node& node) { return node.IsMap() && node["value"]; }
 
 inline std::string join(const std::string& path, const std::string& key) {
@@ -54,7 +53,8 @@ inline void check_sourced_leaf(const YAML::Node& node, const std::string& origin
   for (const auto& kv : node) {
     const auto key = kv.first.as<std::string>();
     if (key != "value" && key != "source") {
-      throw ConfigError(origin + ": " + path + "." + key + ": unknown key (a sourced value has only 'value' and 'source')");
+      throw ConfigError(origin + ": " + path + "." + key +
+                        ": unknown key (a sourced value has only 'value' and 'source')");
     }
   }
   if (!node["source"] || !node["source"].IsScalar()) {
@@ -62,16 +62,16 @@ inline void check_sourced_leaf(const YAML::Node& node, const std::string& origin
   }
   const auto source = node["source"].as<std::string>();
   const bool from_paper = source.rfind("paper", 0) == 0;
-  const bool chosen = source.rfind("chosen:", 0) == 0 &&
-                      source.find_first_not_of(" \t", 7) != std::string::npos;
+  const bool chosen = source.rfind("chosen:", 0) == 0 && source.find_first_not_of(" \t", 7) != std::string::npos;
   if (!from_paper && !chosen) {
-    throw ConfigError(origin + ": " + path + ".source: must start with 'paper' or 'chosen: <reason>', got '" + source + "'");
+    throw ConfigError(origin + ": " + path + ".source: must start with 'paper' or 'chosen: <reason>', got '" + source +
+                      "'");
   }
 }
 
 // A sourced leaf's source becomes `source`: by default what --set says of its values.
-inline void apply_overrides(YAML::Node& root, const std::vector<ConfigOverride>& overrides,
-                     const std::string& origin, const std::string& source = "chosen: set on the command line") {
+inline void apply_overrides(YAML::Node& root, const std::vector<ConfigOverride>& overrides, const std::string& origin,
+                            const std::string& source = "chosen: set on the command line") {
   for (const ConfigOverride& o : overrides) {
     YAML::Node node = root;
     std::string walked;
@@ -93,8 +93,7 @@ inline void apply_overrides(YAML::Node& root, const std::vector<ConfigOverride>&
     try {
       value = load_yaml_document(o.value, "override " + o.key_path);
     } catch (const ConfigError& e) {
-      throw ConfigError(origin + ": override " + o.key_path + ": value '" + o.value +
-                        "' is not accepted: " + e.what());
+      throw ConfigError(origin + ": override " + o.key_path + ": value '" + o.value + "' is not accepted: " + e.what());
     }
     if (is_sourced_leaf(node)) {
       node["value"] = value;
@@ -187,9 +186,7 @@ class Section {
   /// The line of the section in its file (" (line N)"), for errors found after reading.
   std::string line() const { return line_of(node_); }
 
-  Section child(const std::string& key) {
-    return Section(required(key), origin_, join(path_, key));
-  }
+  Section child(const std::string& key) { return Section(required(key), origin_, join(path_, key)); }
 
   double number(const std::string& key) {
     const YAML::Node at = required(key);

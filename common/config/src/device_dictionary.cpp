@@ -35,8 +35,11 @@ void must(co::Status s, const std::string& what) {
 /// TPDO2's communication and mapping entries, copied from TPDO1's (the same checks); invalid
 /// and empty until the description configures them.
 void add_tpdo2(co::ObjectDictionary& od, co::NodeId node) {
-  static const char* const kTpdo2CommNames[6] = {"TPDO2 communication: highest sub-index", "TPDO2 COB-ID",
-                                                 "TPDO2 transmission type", "TPDO2 inhibit time", "",
+  static const char* const kTpdo2CommNames[6] = {"TPDO2 communication: highest sub-index",
+                                                 "TPDO2 COB-ID",
+                                                 "TPDO2 transmission type",
+                                                 "TPDO2 inhibit time",
+                                                 "",
                                                  "TPDO2 event timer"};
   for (std::uint8_t sub : {0, 1, 2, 3, 5}) {
     const co::Entry* from = od.find(co::kObjectTpdo1Communication, sub);

@@ -3,7 +3,6 @@
 #include <stdexcept>
 #include <utility>
 
-
 #include "config_reading.hpp"
 
 namespace pmlsm {

@@ -24,8 +24,7 @@ namespace pmlsm {
 
 namespace {
 
-const char* const kKeys[] = {"format", "layer_sizes", "input_scale_s2_per_m", "gain_n",
-                             "cost",   "source",      "weights"};
+const char* const kKeys[] = {"format", "layer_sizes", "input_scale_s2_per_m", "gain_n", "cost", "source", "weights"};
 // Optional: absent in sets trained before the key existed (all on the paper's a_L).
 const char* const kInputKey = "input";
 const char* const kInputLoadAccel = "load_accel";
@@ -96,8 +95,9 @@ class Reader {
       for (const char* k : kKeys) known = known || key == k;
       known = known || key == kInputKey;
       if (!known) {
-        fail(key, "unknown key (expected format, layer_sizes, input_scale_s2_per_m, input, gain_n, cost, "
-                  "source, weights)");
+        fail(key,
+             "unknown key (expected format, layer_sizes, input_scale_s2_per_m, input, gain_n, cost, "
+             "source, weights)");
       }
       if (!seen.insert(key).second) fail(key, "duplicate key");
     }
@@ -128,9 +128,7 @@ class Reader {
   std::string origin_;
 };
 
-std::string index_key(const char* key, std::size_t i) {
-  return std::string(key) + "[" + std::to_string(i) + "]";
-}
+std::string index_key(const char* key, std::size_t i) { return std::string(key) + "[" + std::to_string(i) + "]"; }
 
 // 17 significant digits: reads back to the identical double.
 std::string format_exact(double v) {
@@ -267,7 +265,8 @@ RnnWeightsFile parse_rnn_weights(const std::string& text, const std::string& pat
   if (root[kInputKey]) {
     const std::string input = r.text(kInputKey);
     if (input != kInputLoadAccel && input != kInputAccelError) {
-      r.fail(kInputKey, std::string("expected ") + kInputLoadAccel + " or " + kInputAccelError + ", got '" + input + "'");
+      r.fail(kInputKey,
+             std::string("expected ") + kInputLoadAccel + " or " + kInputAccelError + ", got '" + input + "'");
     }
     f.on_reference_error = input == kInputAccelError;
   }
@@ -278,8 +277,8 @@ RnnWeightsFile parse_rnn_weights(const std::string& text, const std::string& pat
   const YAML::Node w = r.get("weights");
   if (!w.IsSequence()) r.fail("weights", "expected a list of numbers, got '" + describe(w) + "'");
   if (w.size() != count) {
-    r.fail("weights", "expected " + std::to_string(count) + " values for layer_sizes " +
-                          sizes_text(f.layer_sizes) + ", got " + std::to_string(w.size()));
+    r.fail("weights", "expected " + std::to_string(count) + " values for layer_sizes " + sizes_text(f.layer_sizes) +
+                          ", got " + std::to_string(w.size()));
   }
   f.weights.reserve(count);
   for (std::size_t i = 0; i < w.size(); ++i) f.weights.push_back(r.number(index_key("weights", i), w[i]));
@@ -321,15 +320,17 @@ std::string rnn_weights_misfit(const RnnWeightsFile& w, const SystemParams& p) {
   }
   if (w.layer_sizes != p.compensator.rnn_layer_sizes) return "layer sizes differ from compensator.rnn.layer_sizes";
   if (w.input_scale_s2_per_m != p.compensator.rnn_input_scale_s2_per_m) {
-    return "input scale " + format_value(w.input_scale_s2_per_m) + " differs from compensator.rnn.input_scale_s2_per_m " +
-           format_value(p.compensator.rnn_input_scale_s2_per_m);
+    return "input scale " + format_value(w.input_scale_s2_per_m) +
+           " differs from compensator.rnn.input_scale_s2_per_m " + format_value(p.compensator.rnn_input_scale_s2_per_m);
   }
   if (w.on_reference_error != p.compensator.rnn_on_reference_error) {
     return std::string("input ") + (w.on_reference_error ? kInputAccelError : kInputLoadAccel) +
-           " differs from compensator.rnn.on_reference_error " + (p.compensator.rnn_on_reference_error ? "true" : "false");
+           " differs from compensator.rnn.on_reference_error " +
+           (p.compensator.rnn_on_reference_error ? "true" : "false");
   }
   if (w.gain_n != p.compensator.rnn_gain_n) {
-    return "gain " + format_value(w.gain_n) + " N differs from compensator.rnn.gain_n " + format_value(p.compensator.rnn_gain_n);
+    return "gain " + format_value(w.gain_n) + " N differs from compensator.rnn.gain_n " +
+           format_value(p.compensator.rnn_gain_n);
   }
   return {};
 }

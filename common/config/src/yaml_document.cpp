@@ -21,7 +21,8 @@ class DocumentChecker : public YAML::EventHandler {
   void OnDocumentEnd() override {}
   void OnNull(const YAML::Mark& mark, YAML::anchor_t) override {
     // An empty key ("? " alone, or ": value") has no name to read or report.
-    if (!levels_.empty() && levels_.back().map && levels_.back().at_key) fail(mark, "a key must be a plain name, got an empty key");
+    if (!levels_.empty() && levels_.back().map && levels_.back().at_key)
+      fail(mark, "a key must be a plain name, got an empty key");
     node(mark, "~", false);
     value_done();
   }
@@ -31,19 +32,16 @@ class DocumentChecker : public YAML::EventHandler {
   void OnAnchor(const YAML::Mark& mark, const std::string& name) override {
     fail(mark, "anchors and aliases (&" + name + ") are not accepted: each value is written out");
   }
-  void OnScalar(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
-                const std::string& value) override {
+  void OnScalar(const YAML::Mark& mark, const std::string&, YAML::anchor_t, const std::string& value) override {
     node(mark, value, false);
     value_done();
   }
-  void OnSequenceStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
-                       YAML::EmitterStyle::value) override {
+  void OnSequenceStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
     node(mark, "", true);
     open(mark, false);
   }
   void OnSequenceEnd() override { close(); }
-  void OnMapStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
-                  YAML::EmitterStyle::value) override {
+  void OnMapStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
     node(mark, "", true);
     open(mark, true);
   }

@@ -26,9 +26,7 @@ const char* to_string(SetpointVerdict verdict) {
   return "?";
 }
 
-ExternalReference::ExternalReference(const ExternalReferenceParams& params) : params_(params) {
-  params_.validate();
-}
+ExternalReference::ExternalReference(const ExternalReferenceParams& params) : params_(params) { params_.validate(); }
 
 SetpointVerdict ExternalReference::offer(const Setpoint& sp, double now_s) {
   SetpointVerdict verdict = SetpointVerdict::kAccepted;

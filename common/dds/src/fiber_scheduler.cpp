@@ -19,8 +19,8 @@ struct FiberScheduler::Fiber {
   std::string name;
   std::function<void()> body;
   int priority = 0;
-  bctx::fiber context;         ///< the fiber's continuation while it is suspended
-  bctx::fiber back;            ///< the scheduler's continuation while the fiber runs
+  bctx::fiber context;  ///< the fiber's continuation while it is suspended
+  bctx::fiber back;     ///< the scheduler's continuation while the fiber runs
   bool started = false;
   bool done = false;
   // What the fiber waits for: a generation to move past `seen` (when `generation` is set) or

@@ -61,8 +61,7 @@ bool Wakeup::wait_for(std::uint64_t seen, std::chrono::nanoseconds timeout) {
     std::this_thread::yield();
   }
   std::unique_lock<std::mutex> lock(mutex_);
-  return cv_.wait_until(lock, now + timeout,
-                        [&] { return generation_.load(std::memory_order_acquire) != seen; });
+  return cv_.wait_until(lock, now + timeout, [&] { return generation_.load(std::memory_order_acquire) != seen; });
 }
 
 void Wakeup::notify() {
@@ -174,16 +173,17 @@ Participant::Participant(const ParticipantOptions& options)
   }
   if (!options.node_name.empty()) qos.name(options.node_name);
   if (!keystore_.empty()) make_secure(qos, keystore_, identity_);
-  participant_ = factory->create_participant(static_cast<eprosima::fastdds::dds::DomainId_t>(options.domain_id),
-                                             qos, options.listener);
+  participant_ = factory->create_participant(static_cast<eprosima::fastdds::dds::DomainId_t>(options.domain_id), qos,
+                                             options.listener);
   if (participant_ == nullptr && !keystore_.empty()) {
     throw SecurityConfigError("identity '" + identity_ + "' of keystore '" + keystore_ +
                               "' was refused: its certificate, key, governance or permissions did not verify "
-                              "(`pmlsm security check " + keystore_ + " " + identity_ + "` says which)");
+                              "(`pmlsm security check " +
+                              keystore_ + " " + identity_ + "` says which)");
   }
   if (participant_ == nullptr) {
-    throw std::runtime_error("cannot create participant with profile '" + options.participant_profile +
-                             "' on domain " + std::to_string(options.domain_id));
+    throw std::runtime_error("cannot create participant with profile '" + options.participant_profile + "' on domain " +
+                             std::to_string(options.domain_id));
   }
   publisher_ = participant_->create_publisher(eprosima::fastdds::dds::PUBLISHER_QOS_DEFAULT);
   subscriber_ = participant_->create_subscriber(eprosima::fastdds::dds::SUBSCRIBER_QOS_DEFAULT);
@@ -238,20 +238,18 @@ eprosima::fastdds::dds::Topic* Participant::create_topic(const std::string& name
   if (type.register_type(participant_) != ReturnCode::RETCODE_OK) {
     throw std::runtime_error("cannot register type '" + type.get_type_name() + "'");
   }
-  auto* topic = participant_->create_topic(name, type.get_type_name(),
-                                           eprosima::fastdds::dds::TOPIC_QOS_DEFAULT);
+  auto* topic = participant_->create_topic(name, type.get_type_name(), eprosima::fastdds::dds::TOPIC_QOS_DEFAULT);
   if (topic == nullptr) throw std::runtime_error("cannot create topic '" + name + "'");
   topics_[name] = topic;
   return topic;
 }
 
-Reader<RawPubSubType> Participant::make_raw_reader(const CatalogEntry& entry, Wakeup& wakeup,
-                                                   const char* qos_profile) {
+Reader<RawPubSubType> Participant::make_raw_reader(const CatalogEntry& entry, Wakeup& wakeup, const char* qos_profile) {
   auto found = topics_.find(entry.spec.name);
   auto* topic = found != topics_.end()
                     ? found->second
-                    : create_topic(entry.spec.name, eprosima::fastdds::dds::TypeSupport(new RawPubSubType(
-                                                        entry.type_name, entry.max_serialized_size)));
+                    : create_topic(entry.spec.name, eprosima::fastdds::dds::TypeSupport(
+                                                        new RawPubSubType(entry.type_name, entry.max_serialized_size)));
   return Reader<RawPubSubType>(
       create_reader(topic, qos_profile != nullptr ? qos_profile : entry.spec.qos_profile, wakeup));
 }
@@ -260,10 +258,9 @@ Writer<RawPubSubType> Participant::make_raw_writer(const CatalogEntry& entry, co
   auto found = topics_.find(entry.spec.name);
   auto* topic = found != topics_.end()
                     ? found->second
-                    : create_topic(entry.spec.name, eprosima::fastdds::dds::TypeSupport(new RawPubSubType(
-                                                        entry.type_name, entry.max_serialized_size)));
-  return Writer<RawPubSubType>(
-      create_writer(topic, qos_profile != nullptr ? qos_profile : entry.spec.qos_profile));
+                    : create_topic(entry.spec.name, eprosima::fastdds::dds::TypeSupport(
+                                                        new RawPubSubType(entry.type_name, entry.max_serialized_size)));
+  return Writer<RawPubSubType>(create_writer(topic, qos_profile != nullptr ? qos_profile : entry.spec.qos_profile));
 }
 
 eprosima::fastdds::dds::DataWriter* Participant::create_writer(eprosima::fastdds::dds::Topic* topic,
@@ -277,15 +274,13 @@ eprosima::fastdds::dds::DataWriter* Participant::create_writer(eprosima::fastdds
   auto* writer = publisher_->create_datawriter(topic, qos, listener);
   if (writer == nullptr && !keystore_.empty()) throw SecurityConfigError(refusal_hint("publish", topic->get_name()));
   if (writer == nullptr) {
-    throw std::runtime_error("cannot create writer on '" + topic->get_name() + "' with profile '" +
-                             profile + "'");
+    throw std::runtime_error("cannot create writer on '" + topic->get_name() + "' with profile '" + profile + "'");
   }
   return writer;
 }
 
 eprosima::fastdds::dds::DataReader* Participant::create_reader(eprosima::fastdds::dds::Topic* topic,
-                                                               const std::string& profile,
-                                                               Wakeup& wakeup) {
+                                                               const std::string& profile, Wakeup& wakeup) {
   listeners_.push_back(std::make_unique<NotifyingListener>(wakeup));
   eprosima::fastdds::dds::DataReaderQos qos;
   if (subscriber_->get_datareader_qos_from_profile(profile, qos) != ReturnCode::RETCODE_OK) {
@@ -295,8 +290,7 @@ eprosima::fastdds::dds::DataReader* Participant::create_reader(eprosima::fastdds
   auto* reader = subscriber_->create_datareader(topic, qos, listeners_.back().get());
   if (reader == nullptr && !keystore_.empty()) throw SecurityConfigError(refusal_hint("subscribe", topic->get_name()));
   if (reader == nullptr) {
-    throw std::runtime_error("cannot create reader on '" + topic->get_name() + "' with profile '" +
-                             profile + "'");
+    throw std::runtime_error("cannot create reader on '" + topic->get_name() + "' with profile '" + profile + "'");
   }
   return reader;
 }
@@ -315,9 +309,9 @@ void Participant::delete_reader_entity(eprosima::fastdds::dds::DataReader* reade
   if (subscriber_->delete_datareader(reader) != ReturnCode::RETCODE_OK) {
     throw std::runtime_error("cannot delete the reader of '" + topic + "'");
   }
-  listeners_.erase(std::remove_if(listeners_.begin(), listeners_.end(),
-                                  [&](const auto& l) { return l.get() == listener; }),
-                   listeners_.end());
+  listeners_.erase(
+      std::remove_if(listeners_.begin(), listeners_.end(), [&](const auto& l) { return l.get() == listener; }),
+      listeners_.end());
 }
 
 }  // namespace pmlsm::dds

@@ -85,9 +85,8 @@ void DriveLoop::check_watchdog(std::int64_t now_mono_ns, bool at_tick_start) {
   // before tick n + watchdog / period starts: publish times and wake-ups jitter alike, and a
   // comparison of the two against exactly 3 ms would miss every other time); after the command
   // deadline, in time since the feedback was published.
-  const bool overdue = at_tick_start
-                           ? tick_ - oldest >= watchdog_ticks_
-                           : now_mono_ns - published_mono_ns_[oldest % kRing] >= to_ns(params_.watchdog_s);
+  const bool overdue = at_tick_start ? tick_ - oldest >= watchdog_ticks_
+                                     : now_mono_ns - published_mono_ns_[oldest % kRing] >= to_ns(params_.watchdog_s);
   if (!overdue) return;
   drive_.fault(kErrorCommandTimeout);
   watchdog_latched_ = true;

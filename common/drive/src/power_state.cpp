@@ -13,8 +13,7 @@ constexpr const char* kReasonNotAllowed = "not allowed in this state";
 constexpr const char* kReasonInitialising = "drive is initialising (not ready to switch on)";
 constexpr const char* kReasonFaultReaction = "fault reaction in progress";
 constexpr const char* kReasonFault = "only fault reset leaves fault";
-constexpr const char* kReasonQuickStopEnds =
-    "quick stop ends in switch on disabled (transition 16 not enabled)";
+constexpr const char* kReasonQuickStopEnds = "quick stop ends in switch on disabled (transition 16 not enabled)";
 
 struct StatusPattern {
   PowerState state;
@@ -24,14 +23,10 @@ struct StatusPattern {
 
 // The standard's statusword masks (bits 0-3, 6; bit 5 where it tells quick stop apart).
 constexpr StatusPattern kStatusPatterns[] = {
-    {PowerState::kNotReadyToSwitchOn, 0x004F, 0x0000},
-    {PowerState::kSwitchOnDisabled, 0x004F, 0x0040},
-    {PowerState::kReadyToSwitchOn, 0x006F, 0x0021},
-    {PowerState::kSwitchedOn, 0x006F, 0x0023},
-    {PowerState::kOperationEnabled, 0x006F, 0x0027},
-    {PowerState::kQuickStopActive, 0x006F, 0x0007},
-    {PowerState::kFaultReactionActive, 0x004F, 0x000F},
-    {PowerState::kFault, 0x004F, 0x0008},
+    {PowerState::kNotReadyToSwitchOn, 0x004F, 0x0000},  {PowerState::kSwitchOnDisabled, 0x004F, 0x0040},
+    {PowerState::kReadyToSwitchOn, 0x006F, 0x0021},     {PowerState::kSwitchedOn, 0x006F, 0x0023},
+    {PowerState::kOperationEnabled, 0x006F, 0x0027},    {PowerState::kQuickStopActive, 0x006F, 0x0007},
+    {PowerState::kFaultReactionActive, 0x004F, 0x000F}, {PowerState::kFault, 0x004F, 0x0008},
 };
 
 char ascii_lower(char c) noexcept { return (c >= 'A' && c <= 'Z') ? static_cast<char>(c - 'A' + 'a') : c; }
@@ -124,8 +119,7 @@ std::uint16_t controlword_of(DriveCommand command) noexcept {
   return 0x0000;  // out-of-range value: the safe word (disable voltage)
 }
 
-std::optional<DriveCommand> decode_controlword(std::uint16_t controlword,
-                                               std::uint16_t previous_controlword) noexcept {
+std::optional<DriveCommand> decode_controlword(std::uint16_t controlword, std::uint16_t previous_controlword) noexcept {
   // Fault reset acts on the edge, so that a master leaving bit 7 set does not reset a fault
   // that comes back.
   if ((controlword & kControlFaultReset) != 0 && (previous_controlword & kControlFaultReset) == 0) {

@@ -45,8 +45,7 @@ Eigen::Vector3d KalmanFilter::continuous_b(const KalmanParams& p) {
 
 KalmanFilter::KalmanFilter(const KalmanParams& params) : params_(params) {
   params_.validate();
-  const DiscreteModel d =
-      discretize_zoh(continuous_a(params_), continuous_b(params_), params_.period_s);
+  const DiscreteModel d = discretize_zoh(continuous_a(params_), continuous_b(params_), params_.period_s);
   phi_ = d.phi;
   gamma_ = d.gamma;
   q_ = params_.process_noise_diag.asDiagonal();
@@ -108,10 +107,9 @@ KalmanEstimate KalmanFilter::step(const KalmanInput& in) {
     thrust_n_ = last_input_n_ + lag_n * lag_decay_;
   }
   const bool disturbance_modelled = params_.friction_input.enabled || params_.ripple_input.enabled;
-  const double input_n =
-      disturbance_modelled
-          ? force_n + modelled_disturbance_n(in.motor_velocity_measured_mps, in.motor_position_m)
-          : force_n;
+  const double input_n = disturbance_modelled
+                             ? force_n + modelled_disturbance_n(in.motor_velocity_measured_mps, in.motor_position_m)
+                             : force_n;
   // The standstill hold's test, on the estimate before this step (see the header).
   const double y = in.motor_velocity_measured_mps;
   bool hold = false;

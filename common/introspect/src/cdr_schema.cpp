@@ -27,25 +27,49 @@ namespace schema_detail {
 // ------------------------------------------------------------------------------ type tree
 
 enum class Kind : std::uint8_t {
-  Boolean, Char, Int8, UInt8, Int16, UInt16, Int32, UInt32, Int64, UInt64, Float, Double,
-  Enum, String, Sequence, Array, Struct,
+  Boolean,
+  Char,
+  Int8,
+  UInt8,
+  Int16,
+  UInt16,
+  Int32,
+  UInt32,
+  Int64,
+  UInt64,
+  Float,
+  Double,
+  Enum,
+  String,
+  Sequence,
+  Array,
+  Struct,
 };
 constexpr std::size_t kKindCount = static_cast<std::size_t>(Kind::Struct) + 1;
 
 /// CDR size (= alignment) of the fixed-size kinds; 0 for the others.
 std::size_t primitive_size(Kind kind) {
   switch (kind) {
-    case Kind::Boolean: case Kind::Char: case Kind::Int8: case Kind::UInt8: return 1;
-    case Kind::Int16: case Kind::UInt16: return 2;
-    case Kind::Int32: case Kind::UInt32: case Kind::Float: case Kind::Enum: return 4;
-    case Kind::Int64: case Kind::UInt64: case Kind::Double: return 8;
+    case Kind::Boolean:
+    case Kind::Char:
+    case Kind::Int8:
+    case Kind::UInt8: return 1;
+    case Kind::Int16:
+    case Kind::UInt16: return 2;
+    case Kind::Int32:
+    case Kind::UInt32:
+    case Kind::Float:
+    case Kind::Enum: return 4;
+    case Kind::Int64:
+    case Kind::UInt64:
+    case Kind::Double: return 8;
     default: return 0;
   }
 }
 
 bool is_integer_kind(Kind kind) {
-  return primitive_size(kind) != 0 && kind != Kind::Boolean && kind != Kind::Char &&
-         kind != Kind::Float && kind != Kind::Double;
+  return primitive_size(kind) != 0 && kind != Kind::Boolean && kind != Kind::Char && kind != Kind::Float &&
+         kind != Kind::Double;
 }
 
 struct TypeNode;
@@ -57,8 +81,8 @@ struct Member {
 
 struct TypeNode {
   Kind kind = Kind::Struct;
-  std::string name;            // scoped name of structs and enums
-  std::uint32_t length = 0;    // string/sequence: bound (0 = unbounded); array: element count
+  std::string name;                   // scoped name of structs and enums
+  std::uint32_t length = 0;           // string/sequence: bound (0 = unbounded); array: element count
   const TypeNode* element = nullptr;  // sequence and array element
   std::vector<Member> members;        // struct members, base struct's first
   // Derived when the node is added:
@@ -96,9 +120,7 @@ std::string printable(char c) {
   return std::string("\\x") + kHex[byte >> 4] + kHex[byte & 0xf];
 }
 
-bool is_identifier_start(char c) {
-  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_';
-}
+bool is_identifier_start(char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_'; }
 bool is_identifier_char(char c) { return is_identifier_start(c) || (c >= '0' && c <= '9'); }
 bool is_digit(char c) { return c >= '0' && c <= '9'; }
 
@@ -158,8 +180,7 @@ std::vector<Token> tokenize(const std::string& idl) {
       const bool hex = c == '0' && i + 1 < size && (idl[i + 1] == 'x' || idl[i + 1] == 'X');
       while (i < size) {
         const char d = idl[i];
-        const bool exponent_sign = !hex && (d == '+' || d == '-') &&
-                                   (idl[i - 1] == 'e' || idl[i - 1] == 'E');
+        const bool exponent_sign = !hex && (d == '+' || d == '-') && (idl[i - 1] == 'e' || idl[i - 1] == 'E');
         if (!is_identifier_char(d) && d != '.' && !exponent_sign) break;
         ++i;
       }
@@ -211,23 +232,20 @@ struct PrimitiveWord {
   Kind kind;
 };
 constexpr PrimitiveWord kPrimitiveWords[] = {
-    {"boolean", Kind::Boolean}, {"char", Kind::Char},     {"octet", Kind::UInt8},
-    {"int8", Kind::Int8},       {"uint8", Kind::UInt8},   {"short", Kind::Int16},
-    {"int16", Kind::Int16},     {"uint16", Kind::UInt16}, {"int32", Kind::Int32},
-    {"uint32", Kind::UInt32},   {"int64", Kind::Int64},   {"uint64", Kind::UInt64},
+    {"boolean", Kind::Boolean}, {"char", Kind::Char},     {"octet", Kind::UInt8}, {"int8", Kind::Int8},
+    {"uint8", Kind::UInt8},     {"short", Kind::Int16},   {"int16", Kind::Int16}, {"uint16", Kind::UInt16},
+    {"int32", Kind::Int32},     {"uint32", Kind::UInt32}, {"int64", Kind::Int64}, {"uint64", Kind::UInt64},
     {"float", Kind::Float},     {"double", Kind::Double},
 };
 
-constexpr const char* kUnsupportedTypes[] = {"wchar", "wstring", "fixed", "any", "Object",
-                                             "ValueBase", "map"};
+constexpr const char* kUnsupportedTypes[] = {"wchar", "wstring", "fixed", "any", "Object", "ValueBase", "map"};
 constexpr const char* kUnsupportedConstructs[] = {
     "union", "interface", "exception", "valuetype", "bitset", "bitmask", "native", "abstract",
-    "local", "custom", "eventtype", "component", "home", "import", "typeid", "typeprefix"};
+    "local", "custom",    "eventtype", "component", "home",   "import",  "typeid", "typeprefix"};
 
 class Parser {
  public:
-  Parser(const std::string& idl, std::deque<TypeNode>& nodes)
-      : tokens_(tokenize(idl)), nodes_(nodes) {}
+  Parser(const std::string& idl, std::deque<TypeNode>& nodes) : tokens_(tokenize(idl)), nodes_(nodes) {}
 
   void parse_specification() {
     while (peek().kind != TokenKind::End) parse_definition();
@@ -254,8 +272,7 @@ class Parser {
     return token;
   }
   static bool is(const Token& token, std::string_view text) {
-    return (token.kind == TokenKind::Identifier || token.kind == TokenKind::Punct) &&
-           token.text == text;
+    return (token.kind == TokenKind::Identifier || token.kind == TokenKind::Punct) && token.text == text;
   }
   bool peek_is(std::string_view text) const { return is(peek(), text); }
   bool accept(std::string_view text) {
@@ -319,8 +336,7 @@ class Parser {
   void define(const std::string& name, const Token& at, Symbol symbol) {
     const std::string full = scoped(name);
     if (symbols_.count(full) != 0) fail(at, "redefinition of '" + full + "'");
-    if (symbol.what == Symbol::What::Type && symbol.type->kind == Kind::Struct &&
-        symbol.type->name == full) {
+    if (symbol.what == Symbol::What::Type && symbol.type->kind == Kind::Struct && symbol.type->name == full) {
       struct_names_.push_back(full);
     }
     symbols_.emplace(full, std::move(symbol));
@@ -427,8 +443,7 @@ class Parser {
   void skip_balanced(std::string_view opener, std::string_view closer, const Token& start) {
     for (int depth = 1; depth > 0;) {
       if (peek().kind == TokenKind::End) {
-        fail(start, "missing '" + std::string(closer) + "' (opened at line " +
-                        std::to_string(start.line) + ")");
+        fail(start, "missing '" + std::string(closer) + "' (opened at line " + std::to_string(start.line) + ")");
       }
       const Token& token = next();
       if (is(token, opener)) ++depth;
@@ -444,8 +459,7 @@ class Parser {
     scope_.push_back(name);
     while (!peek_is("}")) {
       if (peek().kind == TokenKind::End) {
-        fail(peek(), "missing '}' closing module '" + name + "' (opened at line " +
-                         std::to_string(keyword.line) + ")");
+        fail(peek(), "missing '}' closing module '" + name + "' (opened at line " + std::to_string(keyword.line) + ")");
       }
       parse_definition();
     }
@@ -473,10 +487,9 @@ class Parser {
     expect("{", "after struct '" + name + "'");
     while (!peek_is("}")) {
       const Token& token = peek();
-      if (token.kind == TokenKind::End || is(token, "struct") || is(token, "module") ||
-          is(token, "typedef") || is(token, "enum") || is(token, "const")) {
-        fail(token, "missing '}' closing struct '" + name + "' (opened at line " +
-                        std::to_string(keyword.line) + ")");
+      if (token.kind == TokenKind::End || is(token, "struct") || is(token, "module") || is(token, "typedef") ||
+          is(token, "enum") || is(token, "const")) {
+        fail(token, "missing '}' closing struct '" + name + "' (opened at line " + std::to_string(keyword.line) + ")");
       }
       parse_member(node);
     }
@@ -507,8 +520,7 @@ class Parser {
 
   bool annotation_is_false(const Annotation& annotation) const {
     return annotation.args_end == annotation.args_begin + 1 &&
-           (is(tokens_[annotation.args_begin], "FALSE") ||
-            is(tokens_[annotation.args_begin], "false"));
+           (is(tokens_[annotation.args_begin], "FALSE") || is(tokens_[annotation.args_begin], "false"));
   }
 
   /// name[N][M]: an array of N arrays of M elements.
@@ -598,8 +610,7 @@ class Parser {
       }
       const Token& enumerator = peek();
       // Enumerators live in the enclosing scope, as in C; consts and bounds may use them.
-      define(expect_identifier("an enumerator"), enumerator,
-             Symbol{Symbol::What::Constant, nullptr, value});
+      define(expect_identifier("an enumerator"), enumerator, Symbol{Symbol::What::Constant, nullptr, value});
       if (value < std::numeric_limits<std::int64_t>::max()) ++value;
       if (!accept(",")) break;
     }
@@ -614,8 +625,7 @@ class Parser {
     do {
       const Token& name_token = peek();
       const std::string name = expect_identifier("a typedef name");
-      define(name, name_token,
-             Symbol{Symbol::What::Type, parse_array_dimensions(type, name_token), {}});
+      define(name, name_token, Symbol{Symbol::What::Type, parse_array_dimensions(type, name_token), {}});
     } while (accept(","));
     expect(";", "after a typedef");
   }
@@ -674,8 +684,8 @@ class Parser {
       const bool plus = is(tokens_[at++], "+");
       const auto right = evaluate_product(at, end, depth);
       std::int64_t result = 0;
-      if (!right || (plus ? __builtin_add_overflow(*left, *right, &result)
-                          : __builtin_sub_overflow(*left, *right, &result))) {
+      if (!right ||
+          (plus ? __builtin_add_overflow(*left, *right, &result) : __builtin_sub_overflow(*left, *right, &result))) {
         return std::nullopt;
       }
       left = result;
@@ -685,8 +695,7 @@ class Parser {
 
   std::optional<std::int64_t> evaluate_product(std::size_t& at, std::size_t end, int depth) const {
     auto left = evaluate_unary(at, end, depth);
-    while (left && at < end &&
-           (is(tokens_[at], "*") || is(tokens_[at], "/") || is(tokens_[at], "%"))) {
+    while (left && at < end && (is(tokens_[at], "*") || is(tokens_[at], "/") || is(tokens_[at], "%"))) {
       const std::string& op = tokens_[at++].text;
       const auto right = evaluate_unary(at, end, depth);
       if (!right) return std::nullopt;
@@ -772,7 +781,7 @@ class Parser {
   std::vector<Token> tokens_;
   std::size_t pos_ = 0;
   std::deque<TypeNode>& nodes_;
-  std::vector<std::string> scope_;  // enclosing modules
+  std::vector<std::string> scope_;         // enclosing modules
   std::map<std::string, Symbol> symbols_;  // by scoped name without leading "::"
   std::vector<std::string> struct_names_;  // in definition order, for "unknown type" errors
   std::array<const TypeNode*, kKindCount> primitives_{};
@@ -799,15 +808,13 @@ std::string normalized_type_name(const std::string& requested) {
 /// One pass over one sample. Invariant: pos_ <= size_; every read checks the bytes left first.
 class SampleDecoder {
  public:
-  SampleDecoder(const std::uint8_t* data, std::size_t size, Decoded& out)
-      : data_(data), size_(size), out_(out) {
+  SampleDecoder(const std::uint8_t* data, std::size_t size, Decoded& out) : data_(data), size_(size), out_(out) {
     path_.reserve(96);
   }
 
   void run(const TypeNode& root) {
     if (size_ < kHeaderSize) {
-      out_.error = "sample of " + std::to_string(size_) +
-                   " bytes is shorter than the 4-byte encapsulation header";
+      out_.error = "sample of " + std::to_string(size_) + " bytes is shorter than the 4-byte encapsulation header";
       return;
     }
     // Byte 0 is 0 and byte 1 the representation for CDR_BE (0) and CDR_LE (1); the others
@@ -829,9 +836,9 @@ class SampleDecoder {
     std::string text = "0x";
     for (int i = 0; i < 2; ++i) text += {kHex[data_[i] >> 4], kHex[data_[i] & 0xf]};
     static constexpr std::pair<std::uint16_t, const char*> kNames[] = {
-        {0x0002, "PL_CDR_BE"},   {0x0003, "PL_CDR_LE"},   {0x0006, "CDR2_BE"},
-        {0x0007, "CDR2_LE"},     {0x0008, "D_CDR2_BE"},   {0x0009, "D_CDR2_LE"},
-        {0x000a, "PL_CDR2_BE"},  {0x000b, "PL_CDR2_LE"},  {0x0004, "XML"},
+        {0x0002, "PL_CDR_BE"},  {0x0003, "PL_CDR_LE"},  {0x0006, "CDR2_BE"},
+        {0x0007, "CDR2_LE"},    {0x0008, "D_CDR2_BE"},  {0x0009, "D_CDR2_LE"},
+        {0x000a, "PL_CDR2_BE"}, {0x000b, "PL_CDR2_LE"}, {0x0004, "XML"},
     };
     const auto kind = static_cast<std::uint16_t>((data_[0] << 8) | data_[1]);
     for (const auto& [value, name] : kNames) {
@@ -859,8 +866,7 @@ class SampleDecoder {
   bool read_unsigned(std::size_t bytes, std::uint64_t& value) {
     if (!align(bytes)) return false;
     if (size_ - pos_ < bytes) {
-      return fail("sample ends: " + std::to_string(bytes) + " bytes needed, " +
-                      std::to_string(size_ - pos_) + " left",
+      return fail("sample ends: " + std::to_string(bytes) + " bytes needed, " + std::to_string(size_ - pos_) + " left",
                   pos_);
     }
     value = 0;
@@ -924,7 +930,11 @@ class SampleDecoder {
         if (!read_unsigned(8, raw)) return false;
         add(static_cast<std::int64_t>(raw));
         return true;
-      case Kind::UInt8: case Kind::UInt16: case Kind::UInt32: case Kind::UInt64: case Kind::Enum:
+      case Kind::UInt8:
+      case Kind::UInt16:
+      case Kind::UInt32:
+      case Kind::UInt64:
+      case Kind::Enum:
         if (!read_unsigned(primitive_size(type.kind), raw)) return false;
         add(std::uint64_t{raw});
         return true;
@@ -976,17 +986,17 @@ class SampleDecoder {
       return true;
     }
     if (length > size_ - pos_) {
-      return fail("string length " + std::to_string(length) + " exceeds the " +
-                      std::to_string(size_ - pos_) + " bytes left",
-                  at);
+      return fail(
+          "string length " + std::to_string(length) + " exceeds the " + std::to_string(size_ - pos_) + " bytes left",
+          at);
     }
     if (data_[pos_ + length - 1] != 0) {
       return fail("string of " + std::to_string(length) + " bytes does not end in NUL", at);
     }
     if (type.length != 0 && length - 1 > type.length) {
-      return fail("string of " + std::to_string(length - 1) + " characters exceeds its bound " +
-                      std::to_string(type.length),
-                  at);
+      return fail(
+          "string of " + std::to_string(length - 1) + " characters exceeds its bound " + std::to_string(type.length),
+          at);
     }
     const auto* first = reinterpret_cast<const char*>(data_ + pos_);
     add(std::string(first, static_cast<std::size_t>(length - 1)));
@@ -1000,17 +1010,14 @@ class SampleDecoder {
     if (!read_unsigned(4, count)) return false;
     const std::size_t at = pos_ - 4;
     if (type.length != 0 && count > type.length) {
-      return fail("sequence count " + std::to_string(count) + " exceeds its bound " +
-                      std::to_string(type.length),
-                  at);
+      return fail("sequence count " + std::to_string(count) + " exceeds its bound " + std::to_string(type.length), at);
     }
     // Every element takes at least min_size bytes: a count the data cannot hold is corrupt,
     // and checking it here bounds the loop (and the reserve) by the sample size.
     const std::size_t element_min_size = std::max<std::size_t>(type.element->min_size, 1);
     if (count > (size_ - pos_) / element_min_size) {
       return fail("sequence count " + std::to_string(count) + " needs at least " +
-                      std::to_string(count * element_min_size) + " bytes, " +
-                      std::to_string(size_ - pos_) + " left",
+                      std::to_string(count * element_min_size) + " bytes, " + std::to_string(size_ - pos_) + " left",
                   at);
     }
     reserve_fields(static_cast<std::size_t>(count) * type.element->fixed_leaves);
@@ -1054,9 +1061,7 @@ void collect_paths(const TypeNode& type, std::string& path, std::vector<std::str
       collect_paths(*type.element, path, paths);
       path.resize(path_size);
       return;
-    default:
-      paths.push_back(path);
-      return;
+    default: paths.push_back(path); return;
   }
 }
 
@@ -1079,8 +1084,7 @@ MessageSchema MessageSchema::parse(const std::string& idl, const std::string& ty
   impl->type_name = normalized_type_name(type_name);
   impl->root = parser.find_struct(impl->type_name);
   if (impl->root == nullptr) {
-    throw SchemaError("unknown type '" + type_name + "': the IDL defines the structs " +
-                      parser.struct_list());
+    throw SchemaError("unknown type '" + type_name + "': the IDL defines the structs " + parser.struct_list());
   }
   return MessageSchema(std::move(impl));
 }

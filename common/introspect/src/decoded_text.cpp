@@ -74,9 +74,7 @@ std::string quoted(const std::string& text) {
 struct PathStep {
   std::string_view text;  // name, or the digits of the index
   bool is_index = false;
-  bool operator==(const PathStep& other) const {
-    return is_index == other.is_index && text == other.text;
-  }
+  bool operator==(const PathStep& other) const { return is_index == other.is_index && text == other.text; }
 };
 
 void split_path(std::string_view path, std::vector<PathStep>& steps) {
@@ -153,8 +151,7 @@ std::string MessageSchema::to_yaml(const Decoded& decoded) {
     split_path(field.path, steps);
     if (steps.empty()) continue;
     std::size_t common = 0;
-    while (common + 1 < steps.size() && common < previous.size() &&
-           steps[common] == previous[common]) {
+    while (common + 1 < steps.size() && common < previous.size() && steps[common] == previous[common]) {
       ++common;
     }
     indents.assign(steps.size(), 0);

@@ -130,7 +130,7 @@ class Walk {
   ReadReport report_;
   std::size_t unlisted_problems_ = 0;
 
-  bool in_data_section_ = true;  // until DataEnd: what the data CRC covers
+  bool in_data_section_ = true;            // until DataEnd: what the data CRC covers
   std::uint64_t data_end_end_offset_ = 0;  // where the summary starts; 0 until DataEnd is seen
   std::uint32_t data_crc_ = 0;
   bool footer_seen_ = false;
@@ -306,15 +306,9 @@ void Walk::walk_records() {
 
 void Walk::handle(std::uint8_t opcode, const std::uint8_t* content, std::size_t size, const Where& where) {
   switch (static_cast<Opcode>(opcode)) {
-    case Opcode::schema:
-      handle_schema(content, size, where);
-      break;
-    case Opcode::channel:
-      handle_channel(content, size, where);
-      break;
-    case Opcode::message:
-      handle_message(content, size, where);
-      break;
+    case Opcode::schema: handle_schema(content, size, where); break;
+    case Opcode::channel: handle_channel(content, size, where); break;
+    case Opcode::message: handle_message(content, size, where); break;
     case Opcode::chunk:
       if (where.in_chunk) {
         problem(describe(opcode, where) + ": a chunk inside a chunk is not allowed; skipped");
@@ -332,8 +326,7 @@ void Walk::handle(std::uint8_t opcode, const std::uint8_t* content, std::size_t 
       }
       break;
     }
-    default:
-      break;  // Header (nothing needed from it), and inside chunks whatever else: skipped
+    default: break;  // Header (nothing needed from it), and inside chunks whatever else: skipped
   }
 }
 

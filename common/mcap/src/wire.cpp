@@ -23,12 +23,9 @@ Compression parse_compression(const std::string& name) {
 
 std::string to_string(Compression compression) {
   switch (compression) {
-    case Compression::none:
-      return "none";
-    case Compression::zstd:
-      return "zstd";
-    case Compression::lz4:
-      return "lz4";
+    case Compression::none: return "none";
+    case Compression::zstd: return "zstd";
+    case Compression::lz4: return "lz4";
   }
   return "none";
 }
@@ -37,36 +34,21 @@ namespace detail {
 
 std::string opcode_name(std::uint8_t opcode) {
   switch (static_cast<Opcode>(opcode)) {
-    case Opcode::header:
-      return "Header";
-    case Opcode::footer:
-      return "Footer";
-    case Opcode::schema:
-      return "Schema";
-    case Opcode::channel:
-      return "Channel";
-    case Opcode::message:
-      return "Message";
-    case Opcode::chunk:
-      return "Chunk";
-    case Opcode::message_index:
-      return "MessageIndex";
-    case Opcode::chunk_index:
-      return "ChunkIndex";
-    case Opcode::attachment:
-      return "Attachment";
-    case Opcode::attachment_index:
-      return "AttachmentIndex";
-    case Opcode::statistics:
-      return "Statistics";
-    case Opcode::metadata:
-      return "Metadata";
-    case Opcode::metadata_index:
-      return "MetadataIndex";
-    case Opcode::summary_offset:
-      return "SummaryOffset";
-    case Opcode::data_end:
-      return "DataEnd";
+    case Opcode::header: return "Header";
+    case Opcode::footer: return "Footer";
+    case Opcode::schema: return "Schema";
+    case Opcode::channel: return "Channel";
+    case Opcode::message: return "Message";
+    case Opcode::chunk: return "Chunk";
+    case Opcode::message_index: return "MessageIndex";
+    case Opcode::chunk_index: return "ChunkIndex";
+    case Opcode::attachment: return "Attachment";
+    case Opcode::attachment_index: return "AttachmentIndex";
+    case Opcode::statistics: return "Statistics";
+    case Opcode::metadata: return "Metadata";
+    case Opcode::metadata_index: return "MetadataIndex";
+    case Opcode::summary_offset: return "SummaryOffset";
+    case Opcode::data_end: return "DataEnd";
   }
   char text[32];
   std::snprintf(text, sizeof text, "unknown (0x%02x)", static_cast<unsigned>(opcode));
@@ -224,13 +206,10 @@ Compressor::~Compressor() {
   if (lz4_ != nullptr) LZ4F_freeCompressionContext(lz4_);
 }
 
-void Compressor::compress_append(const std::uint8_t* data, std::size_t size,
-                                 std::vector<std::uint8_t>& out) {
+void Compressor::compress_append(const std::uint8_t* data, std::size_t size, std::vector<std::uint8_t>& out) {
   const std::size_t start = out.size();
   switch (compression_) {
-    case Compression::none:
-      put_bytes(out, data, size);
-      return;
+    case Compression::none: put_bytes(out, data, size); return;
     case Compression::zstd: {
       const std::size_t bound = ZSTD_compressBound(size);
       out.resize(start + bound);
@@ -274,9 +253,8 @@ namespace {
 // First output size for a chunk of unknown ratio: enough for typical telemetry ratios (<8x)
 // in one go, and small enough that a lying size field costs little before the data runs out.
 std::size_t initial_output_bytes(std::size_t compressed_bytes, std::size_t expected_bytes) {
-  const std::size_t guess = compressed_bytes > (SIZE_MAX - (1U << 16)) / 8
-                                ? SIZE_MAX
-                                : compressed_bytes * 8 + (1U << 16);
+  const std::size_t guess =
+      compressed_bytes > (SIZE_MAX - (1U << 16)) / 8 ? SIZE_MAX : compressed_bytes * 8 + (1U << 16);
   return std::min(guess, expected_bytes);
 }
 
@@ -319,9 +297,8 @@ Decompressor::~Decompressor() {
   if (lz4_ != nullptr) LZ4F_freeDecompressionContext(lz4_);
 }
 
-std::string Decompressor::decompress(const std::string& compression, const std::uint8_t* data,
-                                     std::size_t size, std::uint64_t expected_size,
-                                     std::vector<std::uint8_t>& out) {
+std::string Decompressor::decompress(const std::string& compression, const std::uint8_t* data, std::size_t size,
+                                     std::uint64_t expected_size, std::vector<std::uint8_t>& out) {
   if (expected_size > SIZE_MAX) return "declared uncompressed size " + std::to_string(expected_size) + " is too large";
   const auto expected = static_cast<std::size_t>(expected_size);
   if (compression == "zstd") return zstd(data, size, expected, out);

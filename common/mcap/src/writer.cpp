@@ -39,7 +39,9 @@ struct IndexEntry {
 
 struct Writer::Impl {
   Impl(const std::string& path_in, WriterOptions options_in)
-      : path(path_in), options(std::move(options_in)), compressor(options.compression),
+      : path(path_in),
+        options(std::move(options_in)),
+        compressor(options.compression),
         compression_name(options.compression == Compression::none ? "" : to_string(options.compression)) {}
 
   ~Impl() {
@@ -61,9 +63,9 @@ struct Writer::Impl {
   const WriterOptions options;
   int fd = -1;
   bool closed = false;
-  bool failed = false;              // a write failed: the file's tail is undefined, write no more
-  std::uint64_t file_bytes = 0;     // written so far = offset of the next record
-  std::uint32_t data_crc = 0;       // CRC-32 of every byte written before the summary
+  bool failed = false;           // a write failed: the file's tail is undefined, write no more
+  std::uint64_t file_bytes = 0;  // written so far = offset of the next record
+  std::uint32_t data_crc = 0;    // CRC-32 of every byte written before the summary
 
   detail::Compressor compressor;
   const std::string compression_name;  // MCAP's name: "" for uncompressed chunks
@@ -80,7 +82,7 @@ struct Writer::Impl {
   std::vector<std::uint8_t> chunk_records;
   std::uint64_t chunk_start_time_ns = 0;
   std::uint64_t chunk_end_time_ns = 0;
-  std::vector<std::vector<IndexEntry>> chunk_index_entries;  // index = channel id
+  std::vector<std::vector<IndexEntry>> chunk_index_entries;                    // index = channel id
   std::vector<std::pair<std::uint16_t, std::uint64_t>> message_index_offsets;  // of the chunk being written
   std::vector<std::uint8_t> output;  // a chunk record and its MessageIndex records, or the summary
 
@@ -111,8 +113,8 @@ void Writer::Impl::write_all(const std::vector<std::uint8_t>& bytes) {
     if (written < 0) {
       if (errno == EINTR) continue;
       failed = true;
-      throw std::runtime_error("mcap: writing '" + path + "' at byte " + std::to_string(file_bytes + done) +
-                               ": " + std::strerror(errno));
+      throw std::runtime_error("mcap: writing '" + path + "' at byte " + std::to_string(file_bytes + done) + ": " +
+                               std::strerror(errno));
     }
     done += static_cast<std::size_t>(written);
   }
@@ -283,8 +285,8 @@ void Writer::Impl::write_summary_and_footer() {
   put_u64(output, summary_start);
   put_u64(output, summary_offset_start);
   // The summary CRC runs from the summary start through the footer's fields before the CRC.
-  put_u32(output, detail::crc32_update(0, output.data() + summary_start_in_output,
-                                       output.size() - summary_start_in_output));
+  put_u32(output,
+          detail::crc32_update(0, output.data() + summary_start_in_output, output.size() - summary_start_in_output));
   put_bytes(output, detail::kMagic.data(), detail::kMagic.size());
   write_all(output);
 }
@@ -334,8 +336,8 @@ std::uint16_t Writer::add_channel(std::uint16_t schema_id, const std::string& to
   impl_->check_writable("add_channel");
   if (schema_id == 0 || schema_id > impl_->schema_count) {
     throw std::invalid_argument("mcap: schema id " + std::to_string(schema_id) + " for topic '" + topic +
-                                "' was not returned by add_schema (there are " +
-                                std::to_string(impl_->schema_count) + " schemas)");
+                                "' was not returned by add_schema (there are " + std::to_string(impl_->schema_count) +
+                                " schemas)");
   }
   if (impl_->channel_message_counts.size() > std::numeric_limits<std::uint16_t>::max()) {
     throw std::length_error("mcap: '" + impl_->path + "' already has the maximum of 65536 channels");
@@ -369,8 +371,8 @@ void Writer::write(std::uint16_t channel_id, std::uint32_t sequence, std::uint64
   impl_->check_writable("write");
   if (channel_id >= impl_->channel_message_counts.size()) {
     throw std::invalid_argument("mcap: unknown channel id " + std::to_string(channel_id) + " (there are " +
-                                std::to_string(impl_->channel_message_counts.size()) + " channels in '" +
-                                impl_->path + "')");
+                                std::to_string(impl_->channel_message_counts.size()) + " channels in '" + impl_->path +
+                                "')");
   }
   if (data == nullptr && size > 0) {
     throw std::invalid_argument("mcap: null data with size " + std::to_string(size) + " on channel " +

@@ -198,8 +198,7 @@ void DifferentialEvolution::load_checkpoint(const std::string& path) {
   const std::uint64_t evaluations = in.count("evaluations");
   const std::uint64_t initialised = in.count("initialised");
   if (initialised > 1) in.fail("initialised must be 0 or 1");
-  const std::uint64_t expected_evaluations =
-      initialised == 1 ? loaded.population_size * (generation + 1) : 0;
+  const std::uint64_t expected_evaluations = initialised == 1 ? loaded.population_size * (generation + 1) : 0;
   if (evaluations != expected_evaluations || (initialised == 0 && generation != 0)) {
     in.fail("generation " + std::to_string(generation) + " and evaluations " + std::to_string(evaluations) +
             " are inconsistent");

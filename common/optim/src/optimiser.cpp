@@ -35,8 +35,8 @@ void DeParams::validate() const {
                                 format_value(init_upper));
   }
   if (!std::isfinite(init_upper - init_lower)) {
-    throw std::invalid_argument("init_upper: init_upper - init_lower must be finite, got " +
-                                format_value(init_upper) + " - " + format_value(init_lower));
+    throw std::invalid_argument("init_upper: init_upper - init_lower must be finite, got " + format_value(init_upper) +
+                                " - " + format_value(init_lower));
   }
   if (!first_member.empty()) {
     if (first_member.size() != dimension) {
@@ -61,12 +61,9 @@ OptimiserKind parse_optimiser_kind(const std::string& text) {
 
 std::unique_ptr<Optimiser> make_optimiser(OptimiserKind kind, const DeParams& common, BatchEvaluator& evaluator) {
   switch (kind) {
-    case OptimiserKind::de:
-      return std::make_unique<DifferentialEvolution>(common, evaluator);
-    case OptimiserKind::jde:
-      return std::make_unique<PagmoOptimiser>(PagmoAlgorithm::jde, common, evaluator);
-    case OptimiserKind::cmaes:
-      return std::make_unique<PagmoOptimiser>(PagmoAlgorithm::cmaes, common, evaluator);
+    case OptimiserKind::de: return std::make_unique<DifferentialEvolution>(common, evaluator);
+    case OptimiserKind::jde: return std::make_unique<PagmoOptimiser>(PagmoAlgorithm::jde, common, evaluator);
+    case OptimiserKind::cmaes: return std::make_unique<PagmoOptimiser>(PagmoAlgorithm::cmaes, common, evaluator);
   }
   throw std::invalid_argument("optimiser: unknown kind " + std::to_string(static_cast<int>(kind)));
 }

@@ -121,9 +121,7 @@ class EvaluatorProblem {
   std::vector<double> lower_, upper_;
 };
 
-std::string algorithm_name(PagmoAlgorithm algorithm) {
-  return algorithm == PagmoAlgorithm::jde ? "jDE" : "CMA-ES";
-}
+std::string algorithm_name(PagmoAlgorithm algorithm) { return algorithm == PagmoAlgorithm::jde ? "jDE" : "CMA-ES"; }
 
 void validate_for(PagmoAlgorithm algorithm, const DeParams& params) {
   params.validate();
@@ -158,8 +156,8 @@ pagmo::algorithm make_algorithm(PagmoAlgorithm algorithm, unsigned seed) {
   }
   constexpr double kAuto = -1;  // cc, cs, c1, cmu from Hansen's defaults for N and mu
   constexpr bool kForceBounds = false;
-  return pagmo::algorithm{pagmo::cmaes{kGenerationsPerEvolve, kAuto, kAuto, kAuto, kAuto, kCmaesSigma0,
-                                       kNoTolerance, kNoTolerance, kMemory, kForceBounds, seed}};
+  return pagmo::algorithm{pagmo::cmaes{kGenerationsPerEvolve, kAuto, kAuto, kAuto, kAuto, kCmaesSigma0, kNoTolerance,
+                                       kNoTolerance, kMemory, kForceBounds, seed}};
 }
 
 bool holds(const pagmo::algorithm& algo, PagmoAlgorithm algorithm) {
@@ -171,8 +169,7 @@ bool holds(const pagmo::algorithm& algo, PagmoAlgorithm algorithm) {
 // ---------------------------------------------------------------------------
 // BatchEvaluatorBfe
 
-std::vector<double> BatchEvaluatorBfe::operator()(const pagmo::problem& problem,
-                                                  const std::vector<double>& dvs) const {
+std::vector<double> BatchEvaluatorBfe::operator()(const pagmo::problem& problem, const std::vector<double>& dvs) const {
   if (evaluator_ == nullptr) throw std::logic_error("BatchEvaluatorBfe: default-constructed, no evaluator");
   if (problem.get_nf() != 1) throw std::invalid_argument("BatchEvaluatorBfe: the problem must have one objective");
   const std::size_t dim = problem.get_nx();
@@ -231,8 +228,8 @@ OptimiserReport PagmoOptimiser::step() {
     const std::vector<double> costs = batch_evaluator(next->population.get_problem(), dvs);
     for (std::size_t i = 0; i < params_.population_size; ++i) {
       const auto first = dvs.begin() + static_cast<std::ptrdiff_t>(i * params_.dimension);
-      next->population.push_back(
-          pagmo::vector_double(first, first + static_cast<std::ptrdiff_t>(params_.dimension)), {costs[i]});
+      next->population.push_back(pagmo::vector_double(first, first + static_cast<std::ptrdiff_t>(params_.dimension)),
+                                 {costs[i]});
     }
     next->initialised = true;
   }

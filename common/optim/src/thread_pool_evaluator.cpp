@@ -27,8 +27,8 @@ struct ThreadPoolEvaluator::Pool {
   std::mutex mutex;
   std::condition_variable work_ready;
   std::condition_variable work_done;
-  std::uint64_t batch_id = 0;     // incremented for each batch handed over
-  unsigned workers_running = 0;   // pool threads still working on the current batch
+  std::uint64_t batch_id = 0;    // incremented for each batch handed over
+  unsigned workers_running = 0;  // pool threads still working on the current batch
   bool stopping = false;
   const std::vector<std::vector<double>>* candidates = nullptr;
   double* costs = nullptr;
@@ -91,8 +91,7 @@ void ThreadPoolEvaluator::evaluate_one(std::size_t index, const std::vector<std:
   }
 }
 
-void ThreadPoolEvaluator::run_share(unsigned slot, const std::vector<std::vector<double>>& candidates,
-                                    double* costs) {
+void ThreadPoolEvaluator::run_share(unsigned slot, const std::vector<std::vector<double>>& candidates, double* costs) {
   const std::size_t count = candidates.size();
   if (partition_ == Partition::static_blocks) {
     const std::size_t begin = count * slot / threads_;
@@ -105,8 +104,7 @@ void ThreadPoolEvaluator::run_share(unsigned slot, const std::vector<std::vector
   }
 }
 
-void ThreadPoolEvaluator::evaluate(const std::vector<std::vector<double>>& candidates,
-                                   std::vector<double>& costs) {
+void ThreadPoolEvaluator::evaluate(const std::vector<std::vector<double>>& candidates, std::vector<double>& costs) {
   std::lock_guard<std::mutex> serialise(pool_->evaluate_mutex);
   Pool& pool = *pool_;
   costs.assign(candidates.size(), kInfinity);

@@ -6,9 +6,7 @@
 
 namespace pmlsm {
 
-EncoderVelocity::EncoderVelocity(double period_s) : period_s_(period_s) {
-  require_positive("period_s", period_s);
-}
+EncoderVelocity::EncoderVelocity(double period_s) : period_s_(period_s) { require_positive("period_s", period_s); }
 
 void EncoderVelocity::reset(double position_m) {
   last_position_m_ = position_m;

@@ -76,21 +76,17 @@ void MotorElectricalParams::validate() const {
   require_positive("pole_pitch_m", pole_pitch_m);
   require_in_range("pole_pairs", pole_pairs, 1.0, 1000.0);
   // The flux-current maps (5)-(8) must be invertible and passive (positive definite).
-  if (!(mutual_d_inductance_h * mutual_d_inductance_h <
-        armature_d_inductance_h * damper_d_inductance_h)) {
+  if (!(mutual_d_inductance_h * mutual_d_inductance_h < armature_d_inductance_h * damper_d_inductance_h)) {
     throw std::invalid_argument("mutual_d_inductance_h: must satisfy L_md^2 < L_ad L_D, got " +
                                 format_value(mutual_d_inductance_h));
   }
-  if (!(mutual_q_inductance_h * mutual_q_inductance_h <
-        armature_q_inductance_h * damper_q_inductance_h)) {
+  if (!(mutual_q_inductance_h * mutual_q_inductance_h < armature_q_inductance_h * damper_q_inductance_h)) {
     throw std::invalid_argument("mutual_q_inductance_h: must satisfy L_mq^2 < L_aq L_Q, got " +
                                 format_value(mutual_q_inductance_h));
   }
 }
 
-double MotorElectricalParams::thrust_factor_per_m() const {
-  return 1.5 * pole_pairs * kPi / pole_pitch_m;
-}
+double MotorElectricalParams::thrust_factor_per_m() const { return 1.5 * pole_pairs * kPi / pole_pitch_m; }
 
 double MotorElectricalParams::permanent_magnet_flux_wb() const {
   return motor_constant_n_per_a / thrust_factor_per_m();
@@ -157,13 +153,11 @@ double fastest_pole_per_s(double l_a, double l_m, double l_d, double r_a, double
   return 0.5 * trace + std::sqrt(std::max(0.0, 0.25 * trace * trace - det));
 }
 
-void require_rate(const char* name, double value, const char* what, double rate_per_s, double step_s,
-                  double limit) {
+void require_rate(const char* name, double value, const char* what, double rate_per_s, double step_s, double limit) {
   if (!(rate_per_s * step_s <= limit)) {
     throw std::invalid_argument(std::string(name) + ": " + what + " = " + format_value(rate_per_s) +
-                                " 1/s times max_step_s " + format_value(step_s) + " must be <= " +
-                                format_value(limit) + " for the explicit integrator, got " +
-                                format_value(value));
+                                " 1/s times max_step_s " + format_value(step_s) + " must be <= " + format_value(limit) +
+                                " for the explicit integrator, got " + format_value(value));
   }
 }
 
@@ -179,11 +173,11 @@ void PlantParams::check_step() const {
   require_rate("mechanics.damping_n_s_per_m", m.damping_n_s_per_m, "the damping rate b (1/m_M + 1/m_L)",
                m.damping_n_s_per_m * inverse_masses, max_step_s, 0.5);
   // Friction (11): its slope at v = 0 is 1.5 F_c / v_eps + F_v, acting on m_M.
-  require_rate("friction.regularisation_velocity_mps", friction.regularisation_velocity_mps,
-               "the friction slope (1.5 F_c / v_eps + F_v) / m_M",
-               (1.5 * friction.coulomb_n / friction.regularisation_velocity_mps + friction.viscous_n_s_per_m) /
-                   m.motor_mass_kg,
-               max_step_s, 0.5);
+  require_rate(
+      "friction.regularisation_velocity_mps", friction.regularisation_velocity_mps,
+      "the friction slope (1.5 F_c / v_eps + F_v) / m_M",
+      (1.5 * friction.coulomb_n / friction.regularisation_velocity_mps + friction.viscous_n_s_per_m) / m.motor_mass_kg,
+      max_step_s, 0.5);
   const auto& e = electrical;
   require_rate("electrical.resistance_ohm", e.resistance_ohm, "the fastest d-axis pole of L^-1 R",
                fastest_pole_per_s(e.armature_d_inductance_h, e.mutual_d_inductance_h, e.damper_d_inductance_h,
@@ -195,8 +189,7 @@ void PlantParams::check_step() const {
                max_step_s, 0.5);
 }
 
-Plant::Plant(const PlantParams& params)
-    : params_(params), noise_rng_(params.encoder.noise_seed), noise_(0.0, 1.0) {
+Plant::Plant(const PlantParams& params) : params_(params), noise_rng_(params.encoder.noise_seed), noise_(0.0, 1.0) {
   params_.validate();
   params_.check_step();
   const auto& e = params_.electrical;
@@ -204,10 +197,10 @@ Plant::Plant(const PlantParams& params)
   c.psi_pm = e.permanent_magnet_flux_wb();
   c.thrust_factor = e.thrust_factor_per_m();
   c.electrical_rad_per_m = kPi / e.pole_pitch_m;
-  invert_2x2(e.armature_d_inductance_h, e.mutual_d_inductance_h, e.mutual_d_inductance_h,
-             e.damper_d_inductance_h, c.inv_ld);
-  invert_2x2(e.armature_q_inductance_h, e.mutual_q_inductance_h, e.mutual_q_inductance_h,
-             e.damper_q_inductance_h, c.inv_lq);
+  invert_2x2(e.armature_d_inductance_h, e.mutual_d_inductance_h, e.mutual_d_inductance_h, e.damper_d_inductance_h,
+             c.inv_ld);
+  invert_2x2(e.armature_q_inductance_h, e.mutual_q_inductance_h, e.mutual_q_inductance_h, e.damper_q_inductance_h,
+             c.inv_lq);
   c.r = e.resistance_ohm;
   c.r_dd = e.damper_d_resistance_ohm;
   c.r_qq = e.damper_q_resistance_ohm;
@@ -281,7 +274,6 @@ void Plant::reset(const PlantInitialCondition& initial) {
   }
 }
 
-
 PMLSM_ALWAYS_INLINE Plant::StateVector Plant::to_vector(const PlantState& s) {
   return {s.psi_d_wb,         s.psi_q_wb,           s.psi_dd_wb,       s.psi_qq_wb,
           s.motor_position_m, s.motor_velocity_mps, s.load_position_m, s.load_velocity_mps};
@@ -315,8 +307,7 @@ PMLSM_ALWAYS_INLINE void Plant::advance_ripple_phase() {
   const double x = state_.motor_position_m;
   const double a1 = coeff_.phi1 * (x - ripple_phase_.x0);
   const double a2 = coeff_.phi2 * (x - ripple_phase_.x0);
-  if (++steps_since_resync_ >= kResyncSteps || std::abs(a1) > kMaxExpansionRad ||
-      std::abs(a2) > kMaxExpansionRad) {
+  if (++steps_since_resync_ >= kResyncSteps || std::abs(a1) > kMaxExpansionRad || std::abs(a2) > kMaxExpansionRad) {
     ripple_phase_ = anchor_at(x);
     steps_since_resync_ = 0;
     return;
@@ -330,9 +321,8 @@ PMLSM_ALWAYS_INLINE void Plant::advance_ripple_phase() {
   ripple_phase_ = next;
 }
 
-PMLSM_ALWAYS_INLINE void Plant::rhs(const Coefficients& c, const StateVector& s, double u_d,
-                                    double u_q, double load_force, const RippleAnchor& anchor,
-                                    Rhs& out) {
+PMLSM_ALWAYS_INLINE void Plant::rhs(const Coefficients& c, const StateVector& s, double u_d, double u_q,
+                                    double load_force, const RippleAnchor& anchor, Rhs& out) {
   // Currents from fluxes, inverting (5)-(8).
   const double fd = s[kPsiD] - c.psi_pm;
   const double fdd = s[kPsiDD] - c.psi_pm;
@@ -342,11 +332,11 @@ PMLSM_ALWAYS_INLINE void Plant::rhs(const Coefficients& c, const StateVector& s,
   out.i_qq = c.inv_lq[1][0] * s[kPsiQ] + c.inv_lq[1][1] * s[kPsiQQ];
 
   const double v_m = s[kVm];
-  const double w_s = c.electrical_rad_per_m * v_m;  // (2)
-  out.derivative[kPsiD] = u_d - c.r * out.i_d + w_s * s[kPsiQ];   // (1)
-  out.derivative[kPsiQ] = u_q - c.r * out.i_q - w_s * s[kPsiD];   // (2)
-  out.derivative[kPsiDD] = -c.r_dd * out.i_dd;                    // (3)
-  out.derivative[kPsiQQ] = -c.r_qq * out.i_qq;                    // (4)
+  const double w_s = c.electrical_rad_per_m * v_m;               // (2)
+  out.derivative[kPsiD] = u_d - c.r * out.i_d + w_s * s[kPsiQ];  // (1)
+  out.derivative[kPsiQ] = u_q - c.r * out.i_q - w_s * s[kPsiD];  // (2)
+  out.derivative[kPsiDD] = -c.r_dd * out.i_dd;                   // (3)
+  out.derivative[kPsiQQ] = -c.r_qq * out.i_qq;                   // (4)
 
   out.thrust = c.thrust_factor * (s[kPsiD] * out.i_q - s[kPsiQ] * out.i_d);  // (9)
 
@@ -418,9 +408,7 @@ void Plant::integrate(double u_d, double u_q, double load_force, double h, int s
       for (int i = 0; i < 8; ++i) stage[i] = y[i] + h * k3.derivative[i];
       rhs(c, stage, u_d, u_q, load_force, anchor, k4);
       for (int i = 0; i < 8; ++i) {
-        y[i] += h / 6.0 *
-                (k1.derivative[i] + 2.0 * k2.derivative[i] + 2.0 * k3.derivative[i] +
-                 k4.derivative[i]);
+        y[i] += h / 6.0 * (k1.derivative[i] + 2.0 * k2.derivative[i] + 2.0 * k3.derivative[i] + k4.derivative[i]);
       }
     }
     state_.motor_position_m = y[kXm];
@@ -491,8 +479,7 @@ PlantMeasurement Plant::measure() {
 
 PlantTruth Plant::truth() const {
   Rhs r;
-  rhs(coeff_, to_vector(state_), last_input_.u_d_v, last_input_.u_q_v, last_input_.load_force_n,
-      ripple_phase_, r);
+  rhs(coeff_, to_vector(state_), last_input_.u_d_v, last_input_.u_q_v, last_input_.load_force_n, ripple_phase_, r);
   PlantTruth t;
   t.state = state_;
   t.i_d_a = r.i_d;

@@ -78,8 +78,8 @@ void create_keystore(const KeystoreLayout& ks, const Policy& policy, const Keyst
     throw SecurityError("'" + ks.root() + "' already holds a keystore (" + ks.identity_ca_cert() +
                         "); nothing was overwritten");
   }
-  make_dir(ks.root(), fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec |
-                          fs::perms::others_read | fs::perms::others_exec);
+  make_dir(ks.root(), fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec | fs::perms::others_read |
+                          fs::perms::others_exec);
   make_dir(ks.public_dir(), fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec |
                                 fs::perms::others_read | fs::perms::others_exec);
   make_dir(ks.private_dir(), fs::perms::owner_all);
@@ -152,9 +152,8 @@ std::vector<std::string> check_identity(const KeystoreLayout& ks, const std::str
   if (!key_matches(cert, key)) problems.push_back(ks.identity_key(name) + ": not the key of " + ks.identity_cert(name));
   struct stat st {};
   if (::stat(ks.identity_key(name).c_str(), &st) == 0 && (st.st_mode & 077) != 0) {
-    problems.push_back(ks.identity_key(name) + ": readable by others (mode " +
-                       std::to_string((st.st_mode >> 6) & 7) + std::to_string((st.st_mode >> 3) & 7) +
-                       std::to_string(st.st_mode & 7) + "; chmod 600)");
+    problems.push_back(ks.identity_key(name) + ": readable by others (mode " + std::to_string((st.st_mode >> 6) & 7) +
+                       std::to_string((st.st_mode >> 3) & 7) + std::to_string(st.st_mode & 7) + "; chmod 600)");
   }
   if (verify_smime(contents[4], permissions_ca, why).empty()) {
     problems.push_back(ks.governance_p7s() + ": " + why);

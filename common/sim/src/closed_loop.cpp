@@ -40,7 +40,8 @@ ClosedLoop::ClosedLoop(const SystemParams& params, const Scenario& scenario, con
       kalman_(params.kalman_params()) {
   params_.validate();
   if (scenario_.shape == CommandShape::kExternal) {
-    throw std::invalid_argument("command.shape: external: its setpoints come over DDS; run it with the controller node");
+    throw std::invalid_argument(
+        "command.shape: external: its setpoints come over DDS; run it with the controller node");
   }
   total_ticks_ = scenario_ticks(scenario_, params_.timing.control_period_s);
 }
@@ -55,15 +56,13 @@ TickRecord ClosedLoop::step(const Compensation& compensation) {
   rec.encoder_position_m = feedback.encoder_position_m;
   rec.motor_velocity_measured_mps = feedback.velocity_mps;
 
-  const KalmanEstimate est =
-      kalman_.step({feedback.velocity_mps, last_force_n_, feedback.encoder_position_m});
+  const KalmanEstimate est = kalman_.step({feedback.velocity_mps, last_force_n_, feedback.encoder_position_m});
   rec.est_motor_velocity_mps = est.motor_velocity_mps;
   rec.est_load_velocity_mps = est.load_velocity_mps;
   rec.est_spring_force_n = est.spring_force_n;
   rec.est_load_accel_mps2 = est.load_accel_mps2;
 
-  const VelocityControllerOutput control =
-      controller_.step(tick_, feedback.velocity_mps, compensation);
+  const VelocityControllerOutput control = controller_.step(tick_, feedback.velocity_mps, compensation);
   rec.command_mps = control.command_mps;
   rec.v_ref_mps = control.v_ref_mps;
   rec.a_ref_mps2 = control.a_ref_mps2;

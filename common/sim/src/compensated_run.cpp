@@ -40,7 +40,8 @@ std::vector<TickRecord> run_with_compensator(const SystemParams& params, const S
                                              const CompensatorSetup& setup, std::uint64_t max_ticks) {
   switch (setup.kind) {
     case CompensatorKind::kNone:
-      return run_compensated(params, scenario, [](const CompensatorView&) { return Compensation{}; }, max_ticks);
+      return run_compensated(
+          params, scenario, [](const CompensatorView&) { return Compensation{}; }, max_ticks);
     case CompensatorKind::kAccel: {
       AccelFeedback feedback(params.accel_feedback_params());
       return run_compensated(

@@ -29,8 +29,7 @@ struct Coordinate {
 
 class PredictionError {
  public:
-  PredictionError(const SystemParams& configured, const std::vector<IdentificationSample>& samples,
-                  std::uint32_t skip)
+  PredictionError(const SystemParams& configured, const std::vector<IdentificationSample>& samples, std::uint32_t skip)
       : configured_(configured), samples_(samples), skip_(skip) {}
 
   /// J / n for a parameter set with the given coordinate values (ln); +inf when the filter
@@ -315,7 +314,8 @@ SystemParams with_identified_load(const SystemParams& configured, const Identifi
 std::vector<IdentificationSample> identification_samples(const std::vector<TickRecord>& trace) {
   std::vector<IdentificationSample> samples;
   samples.reserve(trace.size());
-  for (const TickRecord& r : trace) samples.push_back({r.motor_velocity_measured_mps, r.encoder_position_m, r.applied_force_n});
+  for (const TickRecord& r : trace)
+    samples.push_back({r.motor_velocity_measured_mps, r.encoder_position_m, r.applied_force_n});
   return samples;
 }
 

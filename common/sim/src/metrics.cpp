@@ -6,8 +6,8 @@
 
 namespace pmlsm {
 
-double settling_time(const std::vector<double>& values, std::size_t begin, std::size_t end,
-                     double band, double period_s) {
+double settling_time(const std::vector<double>& values, std::size_t begin, std::size_t end, double band,
+                     double period_s) {
   std::size_t last_outside = begin;  // index after the last sample outside the band
   bool any_outside = false;
   for (std::size_t i = begin; i < end; ++i) {
@@ -58,9 +58,8 @@ ScenarioMetrics compute_metrics(const std::vector<TickRecord>& trace, const Scen
     for (std::size_t i = 0; i < n; ++i) {
       signal[i] = trace[i].load_position_m - trace[i].motor_position_m;
     }
-    m.load_settling_time_s =
-        settling_time(signal, 0, n, scenario.settling_band * std::abs(scenario.initial_load_displacement_m),
-                      control_period_s);
+    m.load_settling_time_s = settling_time(
+        signal, 0, n, scenario.settling_band * std::abs(scenario.initial_load_displacement_m), control_period_s);
   } else if (scenario.has_constant_segments() && scenario.command_scale_mps() != 0.0) {
     for (std::size_t i = 0; i < n; ++i) signal[i] = trace[i].v_ref_mps - trace[i].load_velocity_mps;
     const double band = scenario.settling_band * scenario.command_scale_mps();

@@ -15,9 +15,7 @@ CostVelocity cost_velocity_from_string(const std::string& text) {
   throw std::invalid_argument("expected 'estimated' or 'truth', got '" + text + "'");
 }
 
-const char* to_string(CostVelocity which) {
-  return which == CostVelocity::estimated ? "estimated" : "truth";
-}
+const char* to_string(CostVelocity which) { return which == CostVelocity::estimated ? "estimated" : "truth"; }
 
 PlantObjective plant_objective_from_string(const std::string& text) {
   if (text == "weighted_sum") return PlantObjective::kWeightedSum;
@@ -42,11 +40,12 @@ const char* to_string(TrainingStart start) {
 std::vector<double> rnn_weights_from_acceleration_feedback(const SystemParams& params) {
   const CompensatorTuning& c = params.compensator;
   if (c.rnn_on_reference_error != c.accel_feedback_on_reference_error) {
-    throw std::invalid_argument(
-        std::string("start acceleration_feedback: the network reads ") +
-        (c.rnn_on_reference_error ? "a_L - dV_ref/dt" : "a_L") + " (compensator.rnn.on_reference_error) but "
-        "acceleration feedback acts on " + (c.accel_feedback_on_reference_error ? "a_L - dV_ref/dt" : "a_L") +
-        " (compensator.acceleration_feedback.on_reference_error): set them alike");
+    throw std::invalid_argument(std::string("start acceleration_feedback: the network reads ") +
+                                (c.rnn_on_reference_error ? "a_L - dV_ref/dt" : "a_L") +
+                                " (compensator.rnn.on_reference_error) but "
+                                "acceleration feedback acts on " +
+                                (c.accel_feedback_on_reference_error ? "a_L - dV_ref/dt" : "a_L") +
+                                " (compensator.acceleration_feedback.on_reference_error): set them alike");
   }
   // F = G_n u_n = -K_a a and x_0 = s a: u_n = -(K_a / (G_n s)) x_0.
   const double gain = -c.accel_feedback_gain_kg / (c.rnn_gain_n * c.rnn_input_scale_s2_per_m);
@@ -128,12 +127,11 @@ void TrainingParams::validate(double control_period_s) const {
   require_in_range("init_lower", init_lower, -JordanRnn::kMaxAbsWeight, JordanRnn::kMaxAbsWeight);
   require_in_range("init_upper", init_upper, -JordanRnn::kMaxAbsWeight, JordanRnn::kMaxAbsWeight);
   if (!(init_lower < init_upper)) {
-    throw std::invalid_argument("init_upper: must be > init_lower (" + format_value(init_lower) +
-                                "), got " + format_value(init_upper));
+    throw std::invalid_argument("init_upper: must be > init_lower (" + format_value(init_lower) + "), got " +
+                                format_value(init_upper));
   }
   if (max_evaluations < population_size) {
-    throw std::invalid_argument("max_evaluations: must be >= population_size, got " +
-                                std::to_string(max_evaluations));
+    throw std::invalid_argument("max_evaluations: must be >= population_size, got " + std::to_string(max_evaluations));
   }
   // 1e9 closed-loop runs: over a month at the ~290 runs/s of the README's 52,000 in 3 minutes.
   if (max_evaluations > 1000000000) {
@@ -154,8 +152,10 @@ void TrainingParams::validate(double control_period_s) const {
   }
   if (judge_runs) {
     if (plant_objective != PlantObjective::kWorstRatioToPi) {
-      throw std::invalid_argument("verdict: judged runs need plant_objective worst_ratio_to_pi (a penalty is a ratio "
-                                  "to PI alone's cost), got " + std::string(to_string(plant_objective)));
+      throw std::invalid_argument(
+          "verdict: judged runs need plant_objective worst_ratio_to_pi (a penalty is a ratio "
+          "to PI alone's cost), got " +
+          std::string(to_string(plant_objective)));
     }
     verdict.validate();
   }
@@ -181,12 +181,12 @@ RnnCost::RnnCost(const SystemParams& params, std::vector<TrainingScenario> scena
     Plant plant{variant.name, apply_plant_variant(params, variant), variant.weight, {}};
     if (objective_ == PlantObjective::kWorstRatioToPi) {
       for (const TrainingScenario& s : scenarios_) {
-        const auto trace = run_compensated(plant.params, s.scenario, [](const CompensatorView&) { return Compensation{}; },
-                                           cost_ticks(s.scenario));
+        const auto trace = run_compensated(
+            plant.params, s.scenario, [](const CompensatorView&) { return Compensation{}; }, cost_ticks(s.scenario));
         const double pi_cost = scenario_cost(trace, s.scenario);
         if (!(pi_cost > 0) || !std::isfinite(pi_cost)) {
-          throw std::invalid_argument("plants '" + variant.name + "': PI alone's cost on " + s.scenario.name +
-                                      " is " + format_value(pi_cost) + ": no ratio to it");
+          throw std::invalid_argument("plants '" + variant.name + "': PI alone's cost on " + s.scenario.name + " is " +
+                                      format_value(pi_cost) + ": no ratio to it");
         }
         plant.pi_costs.push_back(pi_cost);
       }
@@ -218,8 +218,7 @@ double RnnCost::scenario_cost(const std::vector<TickRecord>& trace, const Scenar
   const std::uint64_t window = cost_ticks(scenario) - 1;
   double cost = 0;
   for (std::uint64_t k = 1; k <= window && k < trace.size(); ++k) {
-    const double v_load = which_ == CostVelocity::truth ? trace[k].load_velocity_mps
-                                                        : trace[k].est_load_velocity_mps;
+    const double v_load = which_ == CostVelocity::truth ? trace[k].load_velocity_mps : trace[k].est_load_velocity_mps;
     cost += std::abs(trace[k].v_ref_mps - v_load);
   }
   return cost;
@@ -246,8 +245,8 @@ double RnnCost::operator()(const std::vector<double>& weights) const {
       }
       double ratio = cost / plant.pi_costs[i];
       if (judge_runs_) {
-        const RunVerdict verdict = judge_run(trace, s.scenario, control_period_s_,
-                                             plant.params.velocity_loop.force_limit_n, verdict_);
+        const RunVerdict verdict =
+            judge_run(trace, s.scenario, control_period_s_, plant.params.velocity_loop.force_limit_n, verdict_);
         if (!verdict.faults().empty()) ratio += kFaultPenalty;
       }
       plant_cost += s.weight * ratio;

@@ -13,10 +13,10 @@ namespace pmlsm {
 namespace {
 
 constexpr double kTwoPi = 6.28318530717958647692;
-constexpr CommandShape kShapes[] = {CommandShape::kZero,      CommandShape::kStep,   CommandShape::kPulse,
-                                    CommandShape::kSine,      CommandShape::kRamp,   CommandShape::kTrapezoid,
-                                    CommandShape::kSCurve,    CommandShape::kChirp,  CommandShape::kMultiSine,
-                                    CommandShape::kCsv,       CommandShape::kExternal};
+constexpr CommandShape kShapes[] = {CommandShape::kZero,   CommandShape::kStep,    CommandShape::kPulse,
+                                    CommandShape::kSine,   CommandShape::kRamp,    CommandShape::kTrapezoid,
+                                    CommandShape::kSCurve, CommandShape::kChirp,   CommandShape::kMultiSine,
+                                    CommandShape::kCsv,    CommandShape::kExternal};
 constexpr double kMaxSpeedMps = kMaxCommandSpeedMps;
 // Far above this motor (force limit / moving mass: some 100 m/s^2), so a typo is caught
 // without second-guessing a rig.
@@ -121,19 +121,11 @@ void Scenario::validate(double control_period_s) const {
   const double nyquist_hz = 0.5 / control_period_s;
   switch (shape) {
     case CommandShape::kZero:
-    case CommandShape::kStep:
-      require_non_negative("command.frequency_hz", frequency_hz);
-      break;
+    case CommandShape::kStep: require_non_negative("command.frequency_hz", frequency_hz); break;
     case CommandShape::kPulse:
-    case CommandShape::kSine:
-      require_in_range("command.frequency_hz", frequency_hz, 1e-3, nyquist_hz);
-      break;
-    case CommandShape::kSCurve:
-      require_in_range("command.jerk_mps3", jerk_mps3, 1e-6, kMaxJerkMps3);
-      [[fallthrough]];
-    case CommandShape::kTrapezoid:
-      require_in_range("command.hold_s", hold_s, 0.0, 3600.0);
-      [[fallthrough]];
+    case CommandShape::kSine: require_in_range("command.frequency_hz", frequency_hz, 1e-3, nyquist_hz); break;
+    case CommandShape::kSCurve: require_in_range("command.jerk_mps3", jerk_mps3, 1e-6, kMaxJerkMps3); [[fallthrough]];
+    case CommandShape::kTrapezoid: require_in_range("command.hold_s", hold_s, 0.0, 3600.0); [[fallthrough]];
     case CommandShape::kRamp:
       require_in_range("command.start_s", start_s, 0.0, duration_s);
       require_in_range("command.accel_mps2", accel_mps2, 1e-6, kMaxAccelMps2);
@@ -257,8 +249,8 @@ double cell_number(const std::string& cell, const std::string& origin, std::size
 
 }  // namespace
 
-std::vector<ProfilePoint> parse_velocity_profile(const std::string& text, const std::string& origin,
-                                                 double max_gap_s, double max_speed_mps) {
+std::vector<ProfilePoint> parse_velocity_profile(const std::string& text, const std::string& origin, double max_gap_s,
+                                                 double max_speed_mps) {
   std::vector<ProfilePoint> rows;
   std::size_t line = 0;
   std::size_t pos = 0;
@@ -286,8 +278,8 @@ std::vector<ProfilePoint> parse_velocity_profile(const std::string& text, const 
     p.velocity_mps = cell_number(row.substr(comma + 1), origin, line, "velocity_mps");
     if (p.time_s < 0.0) reject_row(origin, line, "time_s: must be >= 0", format_value(p.time_s));
     if (std::abs(p.velocity_mps) > max_speed_mps) {
-      reject_row(origin, line, "velocity_mps: must be in [-" + format_value(max_speed_mps) + ", " +
-                                   format_value(max_speed_mps) + "]",
+      reject_row(origin, line,
+                 "velocity_mps: must be in [-" + format_value(max_speed_mps) + ", " + format_value(max_speed_mps) + "]",
                  format_value(p.velocity_mps));
     }
     if (!rows.empty()) {

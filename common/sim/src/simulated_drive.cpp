@@ -18,14 +18,14 @@ SimulatedDrive::SimulatedDrive(const SystemParams& params, const PlantInitialCon
 
 DriveFeedback SimulatedDrive::sample() {
   last_velocity_mps_ = encoder_velocity_.step(last_measurement_.encoder_position_m);
-  return DriveFeedback{last_measurement_.encoder_position_m, last_velocity_mps_,
-                       last_measurement_.i_d_a, last_measurement_.i_q_a};
+  return DriveFeedback{last_measurement_.encoder_position_m, last_velocity_mps_, last_measurement_.i_d_a,
+                       last_measurement_.i_q_a};
 }
 
 void SimulatedDrive::apply_force(double force_request_n) {
   for (int i = 0; i < current_steps_per_tick_; ++i) {
-    const CurrentControllerOutput u = current_.step(
-        {force_request_n, last_measurement_.i_d_a, last_measurement_.i_q_a, last_velocity_mps_});
+    const CurrentControllerOutput u =
+        current_.step({force_request_n, last_measurement_.i_d_a, last_measurement_.i_q_a, last_velocity_mps_});
     apply_voltage(u.u_d_v, u.u_q_v);
   }
 }

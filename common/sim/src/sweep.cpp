@@ -32,8 +32,10 @@ constexpr double kMaxPlants = 100000;
 
 void SweepRange::validate(const SystemParams& nominal) const {
   if (key_path.rfind("plant.", 0) != 0) {
-    throw std::invalid_argument("key: the sweep moves the plant only (plant.*): the estimator's and the "
-                                "compensators' models stay as configured, got '" + key_path + "'");
+    throw std::invalid_argument(
+        "key: the sweep moves the plant only (plant.*): the estimator's and the "
+        "compensators' models stay as configured, got '" +
+        key_path + "'");
   }
   SystemParams probe = nominal;
   Plausible range{0, 0, ""};
@@ -137,7 +139,8 @@ std::vector<PlantSample> sample_plants(const SweepSpec& spec) {
 
 SystemParams plant_variant(const SystemParams& nominal, const SweepSpec& spec, const PlantSample& plant) {
   SystemParams params = nominal;
-  for (std::size_t d = 0; d < spec.ranges.size(); ++d) real_parameter(params, spec.ranges[d].key_path) = plant.values[d];
+  for (std::size_t d = 0; d < spec.ranges.size(); ++d)
+    real_parameter(params, spec.ranges[d].key_path) = plant.values[d];
   try {
     params.validate();
   } catch (const std::invalid_argument& e) {
@@ -197,7 +200,8 @@ RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scena
   std::vector<double> window_costs;
   for (std::size_t begin = 1; window > 0 && begin + window <= trace.size(); begin += window) {
     double cost = 0;
-    for (std::size_t k = begin; k < begin + window; ++k) cost += std::fabs(trace[k].v_ref_mps - trace[k].load_velocity_mps);
+    for (std::size_t k = begin; k < begin + window; ++k)
+      cost += std::fabs(trace[k].v_ref_mps - trace[k].load_velocity_mps);
     window_costs.push_back(cost);
   }
   if (window_costs.size() >= 2 && window_costs.front() > 0) {
@@ -206,7 +210,8 @@ RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scena
 
   // The tail: spring stretch x_L - x_M about its mean; its amplitude and how fast it decays.
   const std::size_t n = trace.size();
-  const std::size_t tail = std::min<std::size_t>(n, static_cast<std::size_t>(std::llround(verdict.tail_s / control_period_s)));
+  const std::size_t tail =
+      std::min<std::size_t>(n, static_cast<std::size_t>(std::llround(verdict.tail_s / control_period_s)));
   const std::size_t begin = n - tail;
   std::vector<double> stretch(n);
   for (std::size_t k = 0; k < n; ++k) stretch[k] = trace[k].load_position_m - trace[k].motor_position_m;
@@ -236,8 +241,8 @@ RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scena
   }
   const double count = static_cast<double>(windows);
   const double spread = count * sum_tt - sum_t * sum_t;
-  out.tail_decay_rate_per_s = silent || !(spread > 0) ? std::numeric_limits<double>::infinity()
-                                                      : -(count * sum_ty - sum_t * sum_y) / spread;
+  out.tail_decay_rate_per_s =
+      silent || !(spread > 0) ? std::numeric_limits<double>::infinity() : -(count * sum_ty - sum_t * sum_y) / spread;
   out.limit_cycle = std::isfinite(out.tail_stretch_amplitude_m) &&
                     out.tail_stretch_amplitude_m >= verdict.limit_cycle_amplitude_m &&
                     !(out.tail_decay_rate_per_s >= verdict.min_decay_rate_per_s);
@@ -306,8 +311,8 @@ SweepResult run_sweep(const SystemParams& nominal, const SweepSpec& spec, const 
         } catch (const std::exception& e) {
           const std::lock_guard<std::mutex> lock(progress_mutex);
           if (!failure) {
-            failure = std::make_exception_ptr(std::invalid_argument("plant '" + result.plants[job].label +
-                                                                    "': identification: " + e.what()));
+            failure = std::make_exception_ptr(
+                std::invalid_argument("plant '" + result.plants[job].label + "': identification: " + e.what()));
           }
           next = jobs;
         }
@@ -330,8 +335,8 @@ SweepResult run_sweep(const SystemParams& nominal, const SweepSpec& spec, const 
         setup.kind = result.compensators[run.compensator];
         if (setup.kind == CompensatorKind::kRnn) setup.rnn_weights = rnn_weights;
         const auto trace = run_with_compensator(params, scenario, setup);
-        run.verdict = judge_run(trace, scenario, params.timing.control_period_s,
-                                params.velocity_loop.force_limit_n, spec.verdict);
+        run.verdict = judge_run(trace, scenario, params.timing.control_period_s, params.velocity_loop.force_limit_n,
+                                spec.verdict);
       } catch (...) {
         const std::lock_guard<std::mutex> lock(progress_mutex);
         if (!failure) failure = std::current_exception();
@@ -353,8 +358,8 @@ SweepResult run_sweep(const SystemParams& nominal, const SweepSpec& spec, const 
 
   for (SweepRun& run : result.runs) {
     const SweepRun& pi = result.run(run.plant, 0, run.scenario);
-    run.cost_ratio_to_pi = pi.verdict.cost > 0 ? run.verdict.cost / pi.verdict.cost
-                                               : std::numeric_limits<double>::quiet_NaN();
+    run.cost_ratio_to_pi =
+        pi.verdict.cost > 0 ? run.verdict.cost / pi.verdict.cost : std::numeric_limits<double>::quiet_NaN();
     const bool clean = run.verdict.faults().empty();
     run.passed = run.compensator == 0 || (clean && run.verdict.cost < pi.verdict.cost);
   }

@@ -48,13 +48,13 @@ CurrentControllerParams SystemParams::current_controller_params() const {
 }
 
 VelocityPiParams SystemParams::velocity_pi_params() const {
-  return VelocityPiParams{velocity_loop.kp_n_s_per_m, velocity_loop.ki_n_per_m,
-                          timing.control_period_s, velocity_loop.force_limit_n};
+  return VelocityPiParams{velocity_loop.kp_n_s_per_m, velocity_loop.ki_n_per_m, timing.control_period_s,
+                          velocity_loop.force_limit_n};
 }
 
 ReferenceModelParams SystemParams::reference_model_params() const {
-  return ReferenceModelParams{reference_model.natural_frequency_rad_s,
-                              reference_model.damping_ratio, timing.control_period_s};
+  return ReferenceModelParams{reference_model.natural_frequency_rad_s, reference_model.damping_ratio,
+                              timing.control_period_s};
 }
 
 KalmanParams SystemParams::kalman_params() const {
@@ -137,15 +137,12 @@ namespace {
 // Checks each value of the parameter table against its plausible range.
 class RangeCheck {
  public:
-  void real(const std::string& path, double value, const Plausible& range) const {
-    check(path, value, range);
-  }
+  void real(const std::string& path, double value, const Plausible& range) const { check(path, value, range); }
   template <typename T>
   void integer(const std::string& path, T value, const Plausible& range) const {
     const double x = static_cast<double>(value);
     if (std::isfinite(x) && x != std::trunc(x)) {
-      throw std::invalid_argument(path + ": must be a whole number (" + range.reason + "), got " +
-                                  format_value(x));
+      throw std::invalid_argument(path + ": must be a whole number (" + range.reason + "), got " + format_value(x));
     }
     check(path, x, range);
   }
@@ -171,9 +168,8 @@ class RangeCheck {
                                   format_value(value));
     }
     if (!(value >= range.min && value <= range.max)) {
-      throw std::invalid_argument(path + ": must be in [" + format_value(range.min) + ", " +
-                                  format_value(range.max) + "] (" + range.reason + "), got " +
-                                  format_value(value));
+      throw std::invalid_argument(path + ": must be in [" + format_value(range.min) + ", " + format_value(range.max) +
+                                  "] (" + range.reason + "), got " + format_value(value));
     }
   }
 };
@@ -193,10 +189,14 @@ class RealFinder {
     }
   }
   template <typename T>
-  void integer(const std::string& path, T&, const Plausible&) { other(path); }
+  void integer(const std::string& path, T&, const Plausible&) {
+    other(path);
+  }
   void flag(const std::string& path, bool&) { other(path); }
   template <typename E, typename F>
-  void choice(const std::string& path, E&, F) { other(path); }
+  void choice(const std::string& path, E&, F) {
+    other(path);
+  }
   void vector3(const std::string& path, Eigen::Vector3d&, const Plausible&) { other(path); }
   void integer_list(const std::string& path, std::vector<int>&, const Plausible&) { other(path); }
 

@@ -22,8 +22,7 @@ ExternalReferenceParams external_reference_params(const Scenario& scenario, doub
 
 VelocityControllerOutput VelocityController::step(std::uint64_t tick, double motor_velocity_mps,
                                                   const Compensation& compensation) {
-  return step_command(scenario_.command_mps(static_cast<double>(tick) * period_s_), motor_velocity_mps,
-                      compensation);
+  return step_command(scenario_.command_mps(static_cast<double>(tick) * period_s_), motor_velocity_mps, compensation);
 }
 
 VelocityControllerOutput VelocityController::step_command(double command_mps, double motor_velocity_mps,

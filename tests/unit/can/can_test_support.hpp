@@ -30,8 +30,8 @@ namespace pmlsm::can {
 // For gtest messages (found by ADL, so in CanFrame's namespace; tests only).
 inline std::ostream& operator<<(std::ostream& out, const CanFrame& f) {
   static const char* hex = "0123456789abcdef";
-  out << (f.extended ? "ext " : "std ") << "id 0x" << std::hex << f.id << std::dec
-      << " dlc " << int{f.dlc} << (f.rtr ? " rtr" : "") << " data";
+  out << (f.extended ? "ext " : "std ") << "id 0x" << std::hex << f.id << std::dec << " dlc " << int{f.dlc}
+      << (f.rtr ? " rtr" : "") << " data";
   for (std::uint8_t b : f.data) out << ' ' << hex[b >> 4] << hex[b & 0xF];
   return out;
 }
@@ -63,8 +63,8 @@ inline int free_udp_port() {
 inline UdpMulticastParams unique_params() {
   const auto pid = static_cast<unsigned>(::getpid());
   UdpMulticastParams p;
-  p.group = "239." + std::to_string(192 + ((pid >> 16) & 0x3F)) + "." +
-            std::to_string((pid >> 8) & 0xFF) + "." + std::to_string(pid & 0xFF);
+  p.group = "239." + std::to_string(192 + ((pid >> 16) & 0x3F)) + "." + std::to_string((pid >> 8) & 0xFF) + "." +
+            std::to_string(pid & 0xFF);
   p.port = free_udp_port();
   p.interface_address = "127.0.0.1";
   return p;
@@ -100,8 +100,7 @@ inline std::function<void(Packer&)> bool_value(bool v) {
 inline std::function<void(Packer&)> bin_value(std::vector<std::uint8_t> bytes) {
   return [bytes](Packer& pk) {
     pk.pack_bin(static_cast<std::uint32_t>(bytes.size()));
-    pk.pack_bin_body(reinterpret_cast<const char*>(bytes.data()),
-                     static_cast<std::uint32_t>(bytes.size()));
+    pk.pack_bin_body(reinterpret_cast<const char*>(bytes.data()), static_cast<std::uint32_t>(bytes.size()));
   };
 }
 inline std::function<void(Packer&)> str_value(std::string s) {
@@ -137,8 +136,7 @@ inline std::vector<Field> without(std::vector<Field> fields, const std::string& 
   return out;
 }
 
-inline std::vector<Field> with(std::vector<Field> fields, const std::string& key,
-                               std::function<void(Packer&)> value) {
+inline std::vector<Field> with(std::vector<Field> fields, const std::string& key, std::function<void(Packer&)> value) {
   for (auto& f : fields) {
     if (f.first == key) f.second = std::move(value);
   }
@@ -166,8 +164,7 @@ inline std::vector<std::uint8_t> from_hex(const std::string& hex) {
   return out;
 }
 
-inline CanFrame make_frame(std::uint32_t id, bool extended, bool rtr, std::uint8_t dlc,
-                           std::uint8_t seed) {
+inline CanFrame make_frame(std::uint32_t id, bool extended, bool rtr, std::uint8_t dlc, std::uint8_t seed) {
   CanFrame f{id, dlc, {}, rtr, extended};
   for (std::size_t i = 0; i < f.data.size(); ++i) {
     f.data[i] = i < dlc && !rtr ? static_cast<std::uint8_t>(seed + 37 * i) : 0;
@@ -193,8 +190,8 @@ class RawSender {
   RawSender& operator=(const RawSender&) = delete;
 
   bool send(const std::vector<std::uint8_t>& datagram) const {
-    return ::sendto(fd_, datagram.data(), datagram.size(), 0, reinterpret_cast<const sockaddr*>(&to_),
-                    sizeof to_) == static_cast<ssize_t>(datagram.size());
+    return ::sendto(fd_, datagram.data(), datagram.size(), 0, reinterpret_cast<const sockaddr*>(&to_), sizeof to_) ==
+           static_cast<ssize_t>(datagram.size());
   }
 
  private:

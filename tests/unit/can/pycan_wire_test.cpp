@@ -60,11 +60,9 @@ void expect_frame(const CanFrame& got, std::uint32_t id, bool extended, bool rtr
 }
 
 TEST(PycanWire, EncodesByteForByteAsPythonCan) {
-  EXPECT_EQ(encode(CanFrame{0x123, 3, {1, 2, 3, 0xEE, 0xEE, 0xEE, 0xEE, 0xEE}, false, false}),
-            from_hex(kPythonStd))
+  EXPECT_EQ(encode(CanFrame{0x123, 3, {1, 2, 3, 0xEE, 0xEE, 0xEE, 0xEE, 0xEE}, false, false}), from_hex(kPythonStd))
       << "bytes past dlc must not be sent";
-  EXPECT_EQ(encode(CanFrame{0x1ABCDEF, 5, {9, 9, 9, 9, 9, 9, 9, 9}, true, true}),
-            from_hex(kPythonExtRtr))
+  EXPECT_EQ(encode(CanFrame{0x1ABCDEF, 5, {9, 9, 9, 9, 9, 9, 9, 9}, true, true}), from_hex(kPythonExtRtr))
       << "a remote frame carries no data";
   EXPECT_EQ(encode(CanFrame{0x1FFFFFFF, 8, {0, 0x7F, 0x80, 0xFF, 1, 2, 3, 4}, false, true}, 1.5),
             from_hex(kPythonExtFull));
@@ -86,9 +84,9 @@ TEST(PycanWire, DecodesPythonCanDatagrams) {
 }
 
 TEST(PycanWire, EveryFrameShapeRoundTrips) {
-  const std::vector<std::pair<std::uint32_t, bool>> ids = {
-      {0, false}, {1, false}, {0x123, false}, {0x7FF, false},
-      {0, true},  {0x7FF, true}, {0x800, true}, {0x1ABCDEF, true}, {0x1FFFFFFF, true}};
+  const std::vector<std::pair<std::uint32_t, bool>> ids = {{0, false},     {1, false},        {0x123, false},
+                                                           {0x7FF, false}, {0, true},         {0x7FF, true},
+                                                           {0x800, true},  {0x1ABCDEF, true}, {0x1FFFFFFF, true}};
   int cases = 0;
   for (const auto& [id, extended] : ids) {
     for (std::uint8_t dlc = 0; dlc <= 8; ++dlc) {
@@ -139,7 +137,10 @@ TEST(PycanWire, AcceptsOtherEncodersChoices) {
     pk.pack_str_body("vcan", 3);
   });
   fields.push_back({"is_rx", bool_value(true)});
-  fields.push_back({"something_new", [](Packer& pk) { pk.pack_ext(2, 7); pk.pack_ext_body("ab", 2); }});
+  fields.push_back({"something_new", [](Packer& pk) {
+                      pk.pack_ext(2, 7);
+                      pk.pack_ext_body("ab", 2);
+                    }});
   auto d = pack(fields);
   auto r = pycan_wire::decode(d.data(), d.size(), f);
   ASSERT_EQ(r.status, DecodeStatus::ok) << r.reason;
@@ -195,30 +196,63 @@ std::vector<BadCase> bad_cases() {
       {"huge bin length", from_hex("81a464617461c6ffffffff00"), DecodeStatus::malformed, "truncated data"},
       {"huge nested array", from_hex("81a178ddffffffff"), DecodeStatus::malformed, "truncated value"},
       {"integer key", from_hex("8101c0"), DecodeStatus::malformed, "map key is not a string"},
-      {"missing arbitration_id", pack(without(ok, "arbitration_id")), DecodeStatus::malformed, "missing arbitration_id"},
-      {"missing is_extended_id", pack(without(ok, "is_extended_id")), DecodeStatus::malformed, "missing is_extended_id"},
-      {"missing is_remote_frame", pack(without(ok, "is_remote_frame")), DecodeStatus::malformed, "missing is_remote_frame"},
+      {"missing arbitration_id", pack(without(ok, "arbitration_id")), DecodeStatus::malformed,
+       "missing arbitration_id"},
+      {"missing is_extended_id", pack(without(ok, "is_extended_id")), DecodeStatus::malformed,
+       "missing is_extended_id"},
+      {"missing is_remote_frame", pack(without(ok, "is_remote_frame")), DecodeStatus::malformed,
+       "missing is_remote_frame"},
       {"missing dlc", pack(without(ok, "dlc")), DecodeStatus::malformed, "missing dlc"},
       {"missing data", pack(without(ok, "data")), DecodeStatus::malformed, "missing data"},
-      {"dlc 9", pack(python_fields(0x123, false, false, 9, {1, 2, 3, 4, 5, 6, 7, 8, 9})), DecodeStatus::malformed, "dlc > 8"},
-      {"data 9 bytes", pack(python_fields(0x123, false, false, 8, {1, 2, 3, 4, 5, 6, 7, 8, 9})), DecodeStatus::malformed, "data longer than 8 bytes"},
-      {"data 9-element array", pack(with(ok, "data", [](Packer& pk) { pk.pack_array(9); for (int i = 0; i < 9; ++i) pk.pack_uint8(1); })), DecodeStatus::malformed, "data longer than 8 bytes"},
-      {"data array element 256", pack(with(ok, "data", [](Packer& pk) { pk.pack_array(2); pk.pack_uint8(1); pk.pack_uint16(256); })), DecodeStatus::malformed, "data array element is not a byte"},
-      {"data shorter than dlc", pack(python_fields(0x123, false, false, 3, {1, 2})), DecodeStatus::malformed, "data length differs from dlc"},
-      {"data longer than dlc", pack(python_fields(0x123, false, false, 1, {1, 2})), DecodeStatus::malformed, "data length differs from dlc"},
-      {"standard id 0x800", pack(python_fields(0x800, false, false, 0, {})), DecodeStatus::malformed, "standard arbitration_id exceeds 11 bits"},
-      {"extended id 2^29", pack(python_fields(0x20000000, true, false, 0, {})), DecodeStatus::malformed, "extended arbitration_id exceeds 29 bits"},
-      {"id 2^64-1", pack(with(ok, "arbitration_id", uint_value(~0ull))), DecodeStatus::malformed, "standard arbitration_id exceeds 11 bits"},
-      {"negative id", pack(with(ok, "arbitration_id", int_value(-1))), DecodeStatus::malformed, "arbitration_id is negative"},
+      {"dlc 9", pack(python_fields(0x123, false, false, 9, {1, 2, 3, 4, 5, 6, 7, 8, 9})), DecodeStatus::malformed,
+       "dlc > 8"},
+      {"data 9 bytes", pack(python_fields(0x123, false, false, 8, {1, 2, 3, 4, 5, 6, 7, 8, 9})),
+       DecodeStatus::malformed, "data longer than 8 bytes"},
+      {"data 9-element array",
+       pack(with(ok, "data",
+                 [](Packer& pk) {
+                   pk.pack_array(9);
+                   for (int i = 0; i < 9; ++i) pk.pack_uint8(1);
+                 })),
+       DecodeStatus::malformed, "data longer than 8 bytes"},
+      {"data array element 256",
+       pack(with(ok, "data",
+                 [](Packer& pk) {
+                   pk.pack_array(2);
+                   pk.pack_uint8(1);
+                   pk.pack_uint16(256);
+                 })),
+       DecodeStatus::malformed, "data array element is not a byte"},
+      {"data shorter than dlc", pack(python_fields(0x123, false, false, 3, {1, 2})), DecodeStatus::malformed,
+       "data length differs from dlc"},
+      {"data longer than dlc", pack(python_fields(0x123, false, false, 1, {1, 2})), DecodeStatus::malformed,
+       "data length differs from dlc"},
+      {"standard id 0x800", pack(python_fields(0x800, false, false, 0, {})), DecodeStatus::malformed,
+       "standard arbitration_id exceeds 11 bits"},
+      {"extended id 2^29", pack(python_fields(0x20000000, true, false, 0, {})), DecodeStatus::malformed,
+       "extended arbitration_id exceeds 29 bits"},
+      {"id 2^64-1", pack(with(ok, "arbitration_id", uint_value(~0ull))), DecodeStatus::malformed,
+       "standard arbitration_id exceeds 11 bits"},
+      {"negative id", pack(with(ok, "arbitration_id", int_value(-1))), DecodeStatus::malformed,
+       "arbitration_id is negative"},
       {"negative dlc", pack(with(ok, "dlc", int_value(-2))), DecodeStatus::malformed, "dlc is negative"},
-      {"id as string", pack(with(ok, "arbitration_id", str_value("291"))), DecodeStatus::malformed, "arbitration_id is not an integer"},
-      {"id as float", pack(with(ok, "arbitration_id", float64_value(291.0))), DecodeStatus::malformed, "arbitration_id is not an integer"},
-      {"is_extended_id as int", pack(with(ok, "is_extended_id", uint_value(1))), DecodeStatus::malformed, "is_extended_id is not a bool"},
-      {"is_remote_frame nil", pack(with(ok, "is_remote_frame", [](Packer& pk) { pk.pack_nil(); })), DecodeStatus::malformed, "is_remote_frame is not a bool"},
-      {"data as string", pack(with(ok, "data", str_value("ab"))), DecodeStatus::malformed, "data is not bin, nil or an array"},
-      {"bitrate_switch on classic", pack(with(ok, "bitrate_switch", bool_value(true))), DecodeStatus::malformed, "bitrate_switch/error_state_indicator set on a classic frame"},
-      {"remote frame with 9 data bytes", pack(python_fields(0x123, false, true, 2, {1, 2, 3, 4, 5, 6, 7, 8, 9})), DecodeStatus::malformed, "data longer than 8 bytes"},
-      {"CAN FD frame", pack(with(python_fields(0x123, false, false, 12, std::vector<std::uint8_t>(12, 1)), "is_fd", bool_value(true))), DecodeStatus::unsupported, "CAN FD frame"},
+      {"id as string", pack(with(ok, "arbitration_id", str_value("291"))), DecodeStatus::malformed,
+       "arbitration_id is not an integer"},
+      {"id as float", pack(with(ok, "arbitration_id", float64_value(291.0))), DecodeStatus::malformed,
+       "arbitration_id is not an integer"},
+      {"is_extended_id as int", pack(with(ok, "is_extended_id", uint_value(1))), DecodeStatus::malformed,
+       "is_extended_id is not a bool"},
+      {"is_remote_frame nil", pack(with(ok, "is_remote_frame", [](Packer& pk) { pk.pack_nil(); })),
+       DecodeStatus::malformed, "is_remote_frame is not a bool"},
+      {"data as string", pack(with(ok, "data", str_value("ab"))), DecodeStatus::malformed,
+       "data is not bin, nil or an array"},
+      {"bitrate_switch on classic", pack(with(ok, "bitrate_switch", bool_value(true))), DecodeStatus::malformed,
+       "bitrate_switch/error_state_indicator set on a classic frame"},
+      {"remote frame with 9 data bytes", pack(python_fields(0x123, false, true, 2, {1, 2, 3, 4, 5, 6, 7, 8, 9})),
+       DecodeStatus::malformed, "data longer than 8 bytes"},
+      {"CAN FD frame",
+       pack(with(python_fields(0x123, false, false, 12, std::vector<std::uint8_t>(12, 1)), "is_fd", bool_value(true))),
+       DecodeStatus::unsupported, "CAN FD frame"},
       {"error frame", pack(with(ok, "is_error_frame", bool_value(true))), DecodeStatus::unsupported, "error frame"},
   };
 }

@@ -37,8 +37,11 @@ TEST(UdpMulticastBusAllocations, SteadyStateSendAndReceiveAllocateNothing) {
   const std::size_t before = pmlsm::test::allocations();
   int received = 0;
   for (int i = 0; i < kRounds; ++i) {
-    const CanFrame f = CanFrame{static_cast<std::uint32_t>(i), static_cast<std::uint8_t>(i % 9),
-                                {1, 2, 3, 4, 5, 6, 7, 8}, i % 5 == 0, i % 2 == 0};
+    const CanFrame f = CanFrame{static_cast<std::uint32_t>(i),
+                                static_cast<std::uint8_t>(i % 9),
+                                {1, 2, 3, 4, 5, 6, 7, 8},
+                                i % 5 == 0,
+                                i % 2 == 0};
     if (!a.send(f)) break;
     if (b.receive(got, 2s)) ++received;
   }

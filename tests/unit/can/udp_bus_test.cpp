@@ -46,9 +46,9 @@ void expect_same(const CanFrame& got, const CanFrame& sent) {
 // frames, and bytes past dlc that must not travel.
 std::vector<CanFrame> assorted_frames() {
   std::vector<CanFrame> frames;
-  const std::vector<std::pair<std::uint32_t, bool>> ids = {
-      {0x000, false}, {0x001, false}, {0x123, false}, {0x7FF, false},
-      {0x00000000, true}, {0x00000800, true}, {0x01ABCDEF, true}, {0x1FFFFFFF, true}};
+  const std::vector<std::pair<std::uint32_t, bool>> ids = {{0x000, false},     {0x001, false},     {0x123, false},
+                                                           {0x7FF, false},     {0x00000000, true}, {0x00000800, true},
+                                                           {0x01ABCDEF, true}, {0x1FFFFFFF, true}};
   std::uint8_t seed = 1;
   for (const auto& [id, extended] : ids) {
     for (std::uint8_t dlc = 0; dlc <= 8; ++dlc) {
@@ -258,8 +258,7 @@ TEST_F(UdpBusPair, MalformedDatagramsAreCountedAndDropped) {
       std::vector<std::uint8_t>(5000, 0x8B),  // longer than the receive buffer
   };
   const std::vector<std::vector<std::uint8_t>> unsupported = {
-      pack(with(python_fields(0x123, false, false, 12, std::vector<std::uint8_t>(12, 3)), "is_fd",
-                bool_value(true))),
+      pack(with(python_fields(0x123, false, false, 12, std::vector<std::uint8_t>(12, 3)), "is_fd", bool_value(true))),
       pack(with(ok, "is_error_frame", bool_value(true))),
   };
   for (const auto& d : malformed) ASSERT_TRUE(raw.send(d));
@@ -443,8 +442,7 @@ TEST(SocketCanBus, MissingInterfaceOrAfCanNamesInterfaceAndErrno) {
     ASSERT_NE(sys, nullptr) << what;
     EXPECT_NE(what.find(std::strerror(sys->code().value())), std::string::npos) << what;
     // Either the kernel has no AF_CAN, or it has and there is no such interface.
-    EXPECT_TRUE(sys->code() == std::errc::address_family_not_supported ||
-                sys->code() == std::errc::no_such_device)
+    EXPECT_TRUE(sys->code() == std::errc::address_family_not_supported || sys->code() == std::errc::no_such_device)
         << what;
   }
   EXPECT_THROW(SocketCanBus(""), std::invalid_argument);

@@ -56,8 +56,7 @@ TEST(CanopenAllocationTest, ACycleAllocatesNothing) {
     ok += od.set(0x6064, 0, scaling.metres_to_increments(0.001 * static_cast<double>(t)).value).ok();
     const auto tx = pack_pdo(tpdo, od, tpdo_cob_id(1, node));
     ok += tx.ok();
-    const auto out =
-        master.update(static_cast<std::uint16_t>(tx.value.data[0] | (tx.value.data[1] << 8)), true);
+    const auto out = master.update(static_cast<std::uint16_t>(tx.value.data[0] | (tx.value.data[1] << 8)), true);
     ok += master_od.set(0x6040, 0, out.controlword).ok();
     ok += master_od.set(0x6071, 0, scaling.force_to_per_mille(-30.0).value).ok();
     const auto rx = pack_pdo(rpdo, master_od, rpdo_cob_id(1, node));

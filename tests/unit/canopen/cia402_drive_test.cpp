@@ -237,8 +237,8 @@ TEST(Cia402Drive, BootSequenceFramesAndOrder) {
   EXPECT_EQ(rig.slave.nmt_state(), NmtState::kOperational);
   EXPECT_EQ(rig.slave.interpolation_index, -3);
   // The master's heartbeat: 0x77F, operational, from the start.
-  const auto heartbeat = std::find_if(rig.bus.sent.begin(), rig.bus.sent.end(),
-                                      [](const CanFrame& f) { return f.id == 0x77F; });
+  const auto heartbeat =
+      std::find_if(rig.bus.sent.begin(), rig.bus.sent.end(), [](const CanFrame& f) { return f.id == 0x77F; });
   ASSERT_NE(heartbeat, rig.bus.sent.end());
   EXPECT_EQ(heartbeat->dlc, 1);
   EXPECT_EQ(heartbeat->data[0], 0x05);
@@ -376,7 +376,7 @@ TEST(Cia402Drive, SilentDriveIsLostNotAHang) {
   EXPECT_EQ(d.power_state(), drive::PowerState::kFault);
   EXPECT_EQ(d.counters().sync_resends, 3U);
   EXPECT_EQ(d.counters().rpdo_resends, 0U);  // nothing answered: no sign the RPDO1 was lost
-  d.apply(10.0);  // force off: zero torque, quick stop
+  d.apply(10.0);                             // force off: zero torque, quick stop
   EXPECT_EQ(rig.slave.controlwords.back(), 0x0002);
 }
 
@@ -497,7 +497,7 @@ TEST(Cia402Drive, LoopFaultQuickStopsUntilFaultReset) {
   EXPECT_EQ(rig.slave.stepped_torques.back(), 148);  // tick 0's, before the fault
   d.sample();
   d.apply(100.0);
-  EXPECT_EQ(rig.slave.stepped_torques.back(), 0);    // force off
+  EXPECT_EQ(rig.slave.stepped_torques.back(), 0);  // force off
   EXPECT_FALSE(d.request(drive::DriveCommand::kEnableOperation).accepted);
   EXPECT_TRUE(d.request(drive::DriveCommand::kFaultReset).accepted);
   EXPECT_TRUE(d.request(drive::DriveCommand::kEnableOperation).accepted);

@@ -92,8 +92,9 @@ struct Rig {
   explicit Rig(bool lockstep = true, std::optional<std::uint64_t> fault_at = std::nullopt)
       : rig(load_canopen_config(source("configs/canopen/drive.yaml"))),
         device(load_device_dictionary(source("configs/canopen/virtual_drive_od.yaml"))),
-        slave(params(lockstep, fault_at), [this] { return build_device_dictionary(rig, device, 1e-3); }, mass, to_master,
-              events) {
+        slave(
+            params(lockstep, fault_at), [this] { return build_device_dictionary(rig, device, 1e-3); }, mass, to_master,
+            events) {
     bus.on_send = [this](const CanFrame& f) { slave.on_frame(f, clock.ns); };
     bus.on_idle = [this] { slave.poll(clock.ns); };
     slave.start(clock.ns);
@@ -205,7 +206,8 @@ TEST(Cia402Slave, RealtimeWithoutSyncFaultsWith0x8700AfterTheTimeout) {
 TEST(Cia402Slave, AResetNodeRestoresTheDictionaryAndBootsAgain) {
   Rig r;
   r.enabled();
-  const std::uint16_t heartbeat_ms = static_cast<std::uint16_t>(r.slave.dictionary().get_or(kObjectProducerHeartbeatTime, 0, 0));
+  const std::uint16_t heartbeat_ms =
+      static_cast<std::uint16_t>(r.slave.dictionary().get_or(kObjectProducerHeartbeatTime, 0, 0));
   r.bus.inbox.clear();
   r.slave.on_frame(encode_nmt(NmtCommand::kResetNode, NodeId(r.rig.master.node_id)), r.clock.ns);
   EXPECT_EQ(r.slave.nmt_state(), NmtState::kPreOperational);

@@ -74,8 +74,8 @@ TEST(CobIdTest, ClassifyBroadcastAndUnknownIds) {
   EXPECT_EQ(classify(0x100).function, FunctionCode::kTime);
   EXPECT_EQ(classify(0x081).function, FunctionCode::kEmcy);
   // Per-node codes with node part 0, unused codes, LSS ids and ids over 11 bits.
-  for (std::uint32_t id : {0x001u, 0x07Fu, 0x101u, 0x180u, 0x200u, 0x580u, 0x600u, 0x680u, 0x700u, 0x7E4u,
-                           0x7E5u, 0x800u, 0x12345u}) {
+  for (std::uint32_t id :
+       {0x001u, 0x07Fu, 0x101u, 0x180u, 0x200u, 0x580u, 0x600u, 0x680u, 0x700u, 0x7E4u, 0x7E5u, 0x800u, 0x12345u}) {
     EXPECT_EQ(classify(id).function, FunctionCode::kUnknown) << std::hex << id;
     EXPECT_EQ(classify(id).node_id, 0) << std::hex << id;
   }

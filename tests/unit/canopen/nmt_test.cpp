@@ -33,8 +33,8 @@ TEST(NmtCommandTest, EncodeToOneNodeAndToAll) {
 }
 
 TEST(NmtCommandTest, DecodeRoundTripForEveryCommand) {
-  for (NmtCommand c : {NmtCommand::kStart, NmtCommand::kStop, NmtCommand::kEnterPreOperational,
-                       NmtCommand::kResetNode, NmtCommand::kResetCommunication}) {
+  for (NmtCommand c : {NmtCommand::kStart, NmtCommand::kStop, NmtCommand::kEnterPreOperational, NmtCommand::kResetNode,
+                       NmtCommand::kResetCommunication}) {
     const auto r = decode_nmt(encode_nmt(c, NodeId(42)));
     ASSERT_TRUE(r.ok()) << r.detail;
     EXPECT_EQ(r.value.command, c);
@@ -88,8 +88,7 @@ TEST(HeartbeatTest, StateBytesAreTheStandards) {
 }
 
 TEST(HeartbeatTest, DecodeRoundTripAndErrors) {
-  for (NmtState s :
-       {NmtState::kInitialising, NmtState::kStopped, NmtState::kOperational, NmtState::kPreOperational}) {
+  for (NmtState s : {NmtState::kInitialising, NmtState::kStopped, NmtState::kOperational, NmtState::kPreOperational}) {
     const auto r = decode_heartbeat(encode_heartbeat(NodeId(99), s));
     ASSERT_TRUE(r.ok()) << r.detail;
     EXPECT_EQ(r.value.node_id, 99);
@@ -245,18 +244,15 @@ TEST(HeartbeatConsumerTest, TimesOutOnceAndRecovers) {
   HeartbeatConsumer consumer(NodeId(9), 150);
   EXPECT_EQ(consumer.poll(10000), HeartbeatEvent::kNone);  // never heard: not timed out
   EXPECT_EQ(consumer.on_frame(encode_boot_up(NodeId(9)), 0), HeartbeatEvent::kBootUp);
-  EXPECT_EQ(consumer.on_frame(encode_heartbeat(NodeId(8), NmtState::kOperational), 10),
-            HeartbeatEvent::kNone);
+  EXPECT_EQ(consumer.on_frame(encode_heartbeat(NodeId(8), NmtState::kOperational), 10), HeartbeatEvent::kNone);
   EXPECT_EQ(consumer.on_frame(encode_heartbeat(NodeId(9), NmtState::kPreOperational), 100),
             HeartbeatEvent::kStateChanged);
-  EXPECT_EQ(consumer.on_frame(encode_heartbeat(NodeId(9), NmtState::kPreOperational), 200),
-            HeartbeatEvent::kReceived);
+  EXPECT_EQ(consumer.on_frame(encode_heartbeat(NodeId(9), NmtState::kPreOperational), 200), HeartbeatEvent::kReceived);
   EXPECT_EQ(consumer.poll(350), HeartbeatEvent::kNone);
   EXPECT_EQ(consumer.poll(351), HeartbeatEvent::kTimedOut);
   EXPECT_TRUE(consumer.timed_out());
   EXPECT_EQ(consumer.poll(400), HeartbeatEvent::kNone);  // once
-  EXPECT_EQ(consumer.on_frame(encode_heartbeat(NodeId(9), NmtState::kOperational), 500),
-            HeartbeatEvent::kRecovered);
+  EXPECT_EQ(consumer.on_frame(encode_heartbeat(NodeId(9), NmtState::kOperational), 500), HeartbeatEvent::kRecovered);
   EXPECT_FALSE(consumer.timed_out());
   ASSERT_TRUE(consumer.state().has_value());
   EXPECT_EQ(*consumer.state(), NmtState::kOperational);

@@ -91,10 +91,8 @@ TEST(SdoAbortCodesTest, ValuesAndTextsOfCia301) {
       {kAbortWriteReadOnly, 0x06010002, "attempt to write a read only object"},
       {kAbortObjectMissing, 0x06020000, "object does not exist in the object dictionary"},
       {kAbortNotMappable, 0x06040041, "object cannot be mapped to the PDO"},
-      {kAbortPdoLength, 0x06040042,
-       "the number and length of the objects to be mapped would exceed PDO length"},
-      {kAbortLengthMismatch, 0x06070010,
-       "data type does not match, length of service parameter does not match"},
+      {kAbortPdoLength, 0x06040042, "the number and length of the objects to be mapped would exceed PDO length"},
+      {kAbortLengthMismatch, 0x06070010, "data type does not match, length of service parameter does not match"},
       {kAbortSubindexMissing, 0x06090011, "sub-index does not exist"},
       {kAbortValueRange, 0x06090030, "invalid value for parameter (download only)"},
       {kAbortValueTooHigh, 0x06090031, "value of parameter written too high (download only)"},
@@ -203,10 +201,8 @@ TEST(SdoResponseParseTest, SegmentedUploadIsReportedNotSupported) {
     EXPECT_EQ(parse_sdo_response(raw_frame(0x5A2, {command, 0, 0, 0, 0, 0, 0, 0})).error,
               Error::kSegmentedNotSupported);
   }
-  EXPECT_EQ(parse_sdo_response(raw_frame(0x5A2, {0xA4, 0, 0, 0, 0, 0, 0, 0})).error,
-            Error::kBlockNotSupported);
-  EXPECT_EQ(parse_sdo_response(raw_frame(0x5A2, {0xC0, 0, 0, 0, 0, 0, 0, 0})).error,
-            Error::kBlockNotSupported);
+  EXPECT_EQ(parse_sdo_response(raw_frame(0x5A2, {0xA4, 0, 0, 0, 0, 0, 0, 0})).error, Error::kBlockNotSupported);
+  EXPECT_EQ(parse_sdo_response(raw_frame(0x5A2, {0xC0, 0, 0, 0, 0, 0, 0, 0})).error, Error::kBlockNotSupported);
   EXPECT_EQ(parse_sdo_response(raw_frame(0x5A2, {0xE0, 0, 0, 0, 0, 0, 0, 0})).error, Error::kUnknownCommand);
   EXPECT_EQ(parse_sdo_response(raw_frame(0x5A2, {0x60, 0, 0, 0}, 4)).error, Error::kWrongDlc);
   EXPECT_EQ(parse_sdo_response(sdo_upload_request(kSdoNode, 0, 0)).error, Error::kWrongCobId);
@@ -220,8 +216,7 @@ TEST(SdoClientTest, UploadDownloadAndBusy) {
   EXPECT_TRUE(client.busy());
   EXPECT_EQ(client.upload(0x6041, 0, 1).error, Error::kBusy);
   // Another node's response and unrelated frames are not ours.
-  EXPECT_EQ(client.on_frame(sdo_upload_response(NodeId(3), 0x6041, 0, 1, 2).value).kind,
-            SdoClientEventKind::kNone);
+  EXPECT_EQ(client.on_frame(sdo_upload_response(NodeId(3), 0x6041, 0, 1, 2).value).kind, SdoClientEventKind::kNone);
   const SdoClientEvent e = client.on_frame(sdo_upload_response(kSdoNode, 0x6041, 0, 0x0237, 2).value);
   EXPECT_EQ(e.kind, SdoClientEventKind::kUploaded);
   EXPECT_EQ(e.data.data, 0x0237u);
@@ -258,8 +253,7 @@ TEST(SdoClientTest, AbortMismatchSegmentedAndTimeout) {
   EXPECT_EQ(e.error, Error::kSegmentedNotSupported);
   ASSERT_TRUE(e.send_abort);
   EXPECT_EQ(e.abort_frame.id, 0x622u);
-  EXPECT_EQ(e.abort_frame.data,
-            (std::array<std::uint8_t, 8>{0x80, 0x08, 0x10, 0x00, 0x01, 0x00, 0x04, 0x05}));
+  EXPECT_EQ(e.abort_frame.data, (std::array<std::uint8_t, 8>{0x80, 0x08, 0x10, 0x00, 0x01, 0x00, 0x04, 0x05}));
 
   client.upload(0x6041, 0, 1000);
   EXPECT_EQ(client.poll(1100).kind, SdoClientEventKind::kNone);

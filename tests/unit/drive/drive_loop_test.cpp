@@ -354,8 +354,8 @@ TEST(LoopStatistics, PeriodFitAndPercentiles) {
 
 TEST(DriveLoop, WithTheSimulatedDriveTheTraceEqualsTheDriveDrivenDirectly) {
   const SystemParams p = load_system_params(std::string(PMLSM_SOURCE_DIR) + "/configs/system.yaml", {});
-  const Scenario scenario = load_scenario(std::string(PMLSM_SOURCE_DIR) + "/configs/scenarios/pulse.yaml",
-                                          p.timing.control_period_s);
+  const Scenario scenario =
+      load_scenario(std::string(PMLSM_SOURCE_DIR) + "/configs/scenarios/pulse.yaml", p.timing.control_period_s);
   SimulatedDrive direct(p, scenario_initial_condition(scenario));
   SimulatedDriveBackend backend(p, scenario_initial_condition(scenario));
   DriveLoop loop(params(false), backend);
@@ -390,8 +390,8 @@ TEST(DriveLoop, ADivergingSimulatedPlantFaultsTheDrive) {
   EXPECT_STREQ(backend.fault_detail(), "");
   for (std::uint64_t k = 0; k < 5; ++k) {
     const TickReport& r = loop.begin_tick(k, 0);
-    for (double x : {r.measurement.position_m, r.measurement.velocity_mps, r.measurement.i_q_a,
-                     r.measurement.thrust_force_n}) {
+    for (double x :
+         {r.measurement.position_m, r.measurement.velocity_mps, r.measurement.i_q_a, r.measurement.thrust_force_n}) {
       ASSERT_TRUE(std::isfinite(x)) << k;
     }
     if (k > 1) {

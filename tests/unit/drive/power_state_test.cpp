@@ -16,12 +16,10 @@ using namespace pmlsm::drive;
 using C = DriveCommand;
 using S = PowerState;
 
-constexpr S kAllStates[] = {S::kNotReadyToSwitchOn, S::kSwitchOnDisabled, S::kReadyToSwitchOn,
-                            S::kSwitchedOn,         S::kOperationEnabled, S::kQuickStopActive,
-                            S::kFaultReactionActive, S::kFault};
-constexpr C kAllCommands[] = {C::kShutdown,       C::kSwitchOn,  C::kEnableOperation,
-                              C::kDisableOperation, C::kDisableVoltage, C::kQuickStop,
-                              C::kFaultReset};
+constexpr S kAllStates[] = {S::kNotReadyToSwitchOn, S::kSwitchOnDisabled, S::kReadyToSwitchOn,     S::kSwitchedOn,
+                            S::kOperationEnabled,   S::kQuickStopActive,  S::kFaultReactionActive, S::kFault};
+constexpr C kAllCommands[] = {C::kShutdown,       C::kSwitchOn,  C::kEnableOperation, C::kDisableOperation,
+                              C::kDisableVoltage, C::kQuickStop, C::kFaultReset};
 
 // A machine brought into `target` through the standard's transitions. Fault reaction and quick
 // stop last long enough not to end on their own during a test.
@@ -31,15 +29,32 @@ PowerStateMachine machine_in(S target, PowerStateParams params = {100, 100, true
   switch (target) {
     case S::kNotReadyToSwitchOn: break;
     case S::kSwitchOnDisabled: m.step(); break;
-    case S::kReadyToSwitchOn: m.step(); go(C::kShutdown); break;
-    case S::kSwitchedOn: m.step(); go(C::kShutdown); go(C::kSwitchOn); break;
+    case S::kReadyToSwitchOn:
+      m.step();
+      go(C::kShutdown);
+      break;
+    case S::kSwitchedOn:
+      m.step();
+      go(C::kShutdown);
+      go(C::kSwitchOn);
+      break;
     case S::kOperationEnabled:
-      m.step(); go(C::kShutdown); go(C::kSwitchOn); go(C::kEnableOperation);
+      m.step();
+      go(C::kShutdown);
+      go(C::kSwitchOn);
+      go(C::kEnableOperation);
       break;
     case S::kQuickStopActive:
-      m.step(); go(C::kShutdown); go(C::kSwitchOn); go(C::kEnableOperation); go(C::kQuickStop);
+      m.step();
+      go(C::kShutdown);
+      go(C::kSwitchOn);
+      go(C::kEnableOperation);
+      go(C::kQuickStop);
       break;
-    case S::kFaultReactionActive: m.step(); m.fault(0x2310); break;
+    case S::kFaultReactionActive:
+      m.step();
+      m.fault(0x2310);
+      break;
     case S::kFault:
       m.step();
       m.fault(0x2310);
@@ -85,8 +100,8 @@ TEST(DriveCommandNames, ParseWithAnySeparatorAndCase) {
 }
 
 TEST(DriveCommandNames, RejectAnythingElse) {
-  for (const char* text : {"", "enable", "enableoperation", "enable  operation", "enable.operation",
-                           " shutdown", "shutdown ", "shut-down", "reset", "quick stop active"}) {
+  for (const char* text : {"", "enable", "enableoperation", "enable  operation", "enable.operation", " shutdown",
+                           "shutdown ", "shut-down", "reset", "quick stop active"}) {
     EXPECT_EQ(parse_drive_command(text), std::nullopt) << '"' << text << '"';
   }
 }
@@ -140,9 +155,15 @@ TEST(Statusword, EncodesTheTypicalValues) {
 TEST(Statusword, EveryStateRoundTripsWhateverTheOtherBits) {
   // Bits outside the masks: voltage enabled, warning, remote, target reached, internal limit,
   // manufacturer and mode-specific bits.
-  const std::uint16_t extras[] = {0x0000, kStatusVoltageEnabled, kStatusRemote, kStatusWarning,
-                                  kStatusTargetReached, kStatusInternalLimitActive, 0x0100,
-                                  0xF000, 0xFF90};
+  const std::uint16_t extras[] = {0x0000,
+                                  kStatusVoltageEnabled,
+                                  kStatusRemote,
+                                  kStatusWarning,
+                                  kStatusTargetReached,
+                                  kStatusInternalLimitActive,
+                                  0x0100,
+                                  0xF000,
+                                  0xFF90};
   for (S s : kAllStates) {
     for (bool voltage : {false, true}) {
       for (bool remote : {false, true}) {
@@ -165,8 +186,10 @@ TEST(Statusword, MasksAreDisjointAndReadOnlyBits0To3And5And6) {
     const auto word = static_cast<std::uint16_t>(w);
     const auto state = decode_statusword(word);
     EXPECT_EQ(state, decode_statusword(word & 0x006F));
-    if (state) ++count[static_cast<int>(*state)];
-    else ++undecoded;
+    if (state)
+      ++count[static_cast<int>(*state)];
+    else
+      ++undecoded;
   }
   // A 5-bit mask (0x004F) leaves 11 free bits, a 6-bit one (0x006F) 10.
   EXPECT_EQ(count[static_cast<int>(S::kNotReadyToSwitchOn)], 2048);
@@ -461,8 +484,7 @@ TEST(NextCommand, WalksOutOfAQuickStopThatDoesNotEndByItself) {
   PowerStateMachine m = machine_in(S::kQuickStopActive, {1, 1, false});
   const auto sent = walk_to_operation_enabled(m);
   EXPECT_EQ(m.state(), S::kOperationEnabled);
-  EXPECT_EQ(sent, (std::vector<C>{C::kDisableVoltage, C::kShutdown, C::kSwitchOn,
-                                  C::kEnableOperation}));
+  EXPECT_EQ(sent, (std::vector<C>{C::kDisableVoltage, C::kShutdown, C::kSwitchOn, C::kEnableOperation}));
 }
 
 TEST(NextCommand, OverTheControlwordAndStatusword) {
@@ -611,11 +633,10 @@ TEST(PowerStateMachine, ForceOnlyInOperationEnabled) {
     SCOPED_TRACE(to_string(s));
     const PowerStateMachine m = machine_in(s);
     EXPECT_EQ(m.force_allowed(), s == S::kOperationEnabled);
-    EXPECT_EQ(m.power_stage_enabled(), s == S::kOperationEnabled || s == S::kQuickStopActive ||
-                                           s == S::kFaultReactionActive);
-    EXPECT_EQ(m.high_voltage_allowed(),
-              s == S::kReadyToSwitchOn || s == S::kSwitchedOn || s == S::kOperationEnabled ||
-                  s == S::kQuickStopActive || s == S::kFaultReactionActive);
+    EXPECT_EQ(m.power_stage_enabled(),
+              s == S::kOperationEnabled || s == S::kQuickStopActive || s == S::kFaultReactionActive);
+    EXPECT_EQ(m.high_voltage_allowed(), s == S::kReadyToSwitchOn || s == S::kSwitchedOn || s == S::kOperationEnabled ||
+                                            s == S::kQuickStopActive || s == S::kFaultReactionActive);
   }
 }
 

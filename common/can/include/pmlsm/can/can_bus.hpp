@@ -19,8 +19,7 @@ inline constexpr std::uint8_t kMaxClassicDlc = 8;
 /// True when `frame` is a classic CAN frame a bus can carry: dlc <= 8 and the id fits
 /// 11 bits (extended == false) or 29 bits (extended == true).
 constexpr bool is_valid_frame(const CanFrame& frame) noexcept {
-  return frame.dlc <= kMaxClassicDlc &&
-         frame.id <= (frame.extended ? kMaxExtendedId : kMaxStandardId);
+  return frame.dlc <= kMaxClassicDlc && frame.id <= (frame.extended ? kMaxExtendedId : kMaxStandardId);
 }
 
 /// A snapshot of a bus's counters (each counts since construction).

@@ -32,8 +32,7 @@ inline constexpr std::size_t kMaxEncodedSize = 256;
 /// Encodes `frame` (which must satisfy is_valid_frame) with `timestamp_s` into `out`.
 /// Returns the datagram's length, or 0 when the frame is invalid or `capacity` too small.
 /// Does not allocate or throw.
-std::size_t encode(const CanFrame& frame, double timestamp_s, std::uint8_t* out,
-                   std::size_t capacity) noexcept;
+std::size_t encode(const CanFrame& frame, double timestamp_s, std::uint8_t* out, std::size_t capacity) noexcept;
 
 enum class DecodeStatus {
   ok,           ///< a classic data or remote frame

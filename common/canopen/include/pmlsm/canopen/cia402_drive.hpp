@@ -50,7 +50,6 @@
 
 namespace pmlsm::canopen {
 
-
 struct Cia402DriveConfig {
   int node_id = 1;
   int master_node_id = 127;
@@ -88,16 +87,16 @@ class Cia402DriveError : public std::runtime_error {
 };
 
 struct Cia402DriveCounters {
-  std::uint64_t syncs = 0;           ///< SYNCs sent (resends included)
+  std::uint64_t syncs = 0;  ///< SYNCs sent (resends included)
   std::uint64_t sync_resends = 0;
   std::uint64_t rpdo_resends = 0;
-  std::uint64_t tpdo_missing = 0;    ///< realtime: ticks without a full answer in time
+  std::uint64_t tpdo_missing = 0;  ///< realtime: ticks without a full answer in time
   std::uint64_t emcys = 0;
-  std::uint64_t stale_tpdos = 0;     ///< answers to an older period, ignored
-  std::uint64_t malformed = 0;       ///< the drive's frames with a wrong length, ignored
-  std::uint64_t foreign_syncs = 0;   ///< SYNCs another producer sent (CiA 301 allows one)
-  std::uint64_t foreign_nmt = 0;     ///< NMT commands another master sent
-  std::uint64_t foreign_rpdos = 0;   ///< RPDOs to this drive another master sent (this one sends RPDO1 only)
+  std::uint64_t stale_tpdos = 0;    ///< answers to an older period, ignored
+  std::uint64_t malformed = 0;      ///< the drive's frames with a wrong length, ignored
+  std::uint64_t foreign_syncs = 0;  ///< SYNCs another producer sent (CiA 301 allows one)
+  std::uint64_t foreign_nmt = 0;    ///< NMT commands another master sent
+  std::uint64_t foreign_rpdos = 0;  ///< RPDOs to this drive another master sent (this one sends RPDO1 only)
 };
 
 class Cia402Drive final : public drive::Drive {
@@ -178,7 +177,7 @@ class Cia402Drive final : public drive::Drive {
   std::int64_t next_master_heartbeat_ns_ = 0;
 
   // the drive as last heard
-  bool seen_ = false;          // boot-up or heartbeat
+  bool seen_ = false;  // boot-up or heartbeat
   bool boot_up_ = false;
   std::uint16_t statusword_ = 0;
   bool statusword_valid_ = false;
@@ -208,7 +207,7 @@ class Cia402Drive final : public drive::Drive {
   std::uint32_t base_ = 0;
   bool started_ = false;
   std::uint32_t missed_in_row_ = 0;  // realtime: ticks in a row without the TPDOs
-  std::uint64_t tick_ = 0;  // the tick the next sample() is
+  std::uint64_t tick_ = 0;           // the tick the next sample() is
   drive::Measurement last_measurement_;
   Cia402DriveCounters counters_;
 };

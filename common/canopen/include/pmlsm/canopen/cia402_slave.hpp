@@ -117,8 +117,8 @@ class Cia402Slave {
 
   /// `drive`, `bus` and `events` must outlive the slave; `bus` is used to send only.
   /// @throws std::invalid_argument for a scaling UnitScaling refuses; what the factory throws.
-  Cia402Slave(const Cia402SlaveParams& params, DictionaryFactory make_dictionary, drive::Drive& drive,
-              can::CanBus& bus, Cia402SlaveEvents& events);
+  Cia402Slave(const Cia402SlaveParams& params, DictionaryFactory make_dictionary, drive::Drive& drive, can::CanBus& bus,
+              Cia402SlaveEvents& events);
 
   /// Sends the boot-up (pre-operational) and takes `now_ns` as the start of every time-out.
   void start(std::int64_t now_ns);

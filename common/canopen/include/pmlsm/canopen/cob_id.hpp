@@ -18,9 +18,7 @@ namespace pmlsm::canopen {
 inline constexpr std::uint8_t kMinNodeId = 1;
 inline constexpr std::uint8_t kMaxNodeId = 127;
 
-constexpr bool is_valid_node_id(int node_id) noexcept {
-  return node_id >= kMinNodeId && node_id <= kMaxNodeId;
-}
+constexpr bool is_valid_node_id(int node_id) noexcept { return node_id >= kMinNodeId && node_id <= kMaxNodeId; }
 
 /// A node id known to be in 1..127. Validated once (from the config) so that the encoders need
 /// not check it again.
@@ -65,13 +63,11 @@ constexpr std::uint32_t emcy_cob_id(NodeId node) noexcept { return kCobIdEmcyBas
 /// TPDO n (1..4) of a node: 0x180 + 0x100 * (n - 1) + node. n outside 1..4 gives 0 (NMT's id,
 /// never a PDO's), which the PDO encoders refuse.
 constexpr std::uint32_t tpdo_cob_id(int n, NodeId node) noexcept {
-  return (n >= 1 && n <= 4) ? kCobIdTpdo1Base + 0x100U * static_cast<std::uint32_t>(n - 1) + node.value()
-                            : 0U;
+  return (n >= 1 && n <= 4) ? kCobIdTpdo1Base + 0x100U * static_cast<std::uint32_t>(n - 1) + node.value() : 0U;
 }
 /// RPDO n (1..4) of a node: 0x200 + 0x100 * (n - 1) + node; 0 for n outside 1..4.
 constexpr std::uint32_t rpdo_cob_id(int n, NodeId node) noexcept {
-  return (n >= 1 && n <= 4) ? kCobIdRpdo1Base + 0x100U * static_cast<std::uint32_t>(n - 1) + node.value()
-                            : 0U;
+  return (n >= 1 && n <= 4) ? kCobIdRpdo1Base + 0x100U * static_cast<std::uint32_t>(n - 1) + node.value() : 0U;
 }
 /// The node's SDO responses (server -> client).
 constexpr std::uint32_t sdo_tx_cob_id(NodeId node) noexcept { return kCobIdSdoTxBase + node.value(); }

@@ -53,9 +53,7 @@ struct NmtCommandMessage {
   /// 0 = all nodes, else 1..127.
   std::uint8_t node_id = kNmtAllNodes;
 
-  constexpr bool addresses(NodeId node) const noexcept {
-    return node_id == kNmtAllNodes || node_id == node.value();
-  }
+  constexpr bool addresses(NodeId node) const noexcept { return node_id == kNmtAllNodes || node_id == node.value(); }
 };
 
 /// The command to one node.

@@ -39,9 +39,7 @@ constexpr std::uint8_t size_of(DataType type) noexcept {
   }
   return 0;
 }
-constexpr std::uint8_t bit_length(DataType type) noexcept {
-  return static_cast<std::uint8_t>(8 * size_of(type));
-}
+constexpr std::uint8_t bit_length(DataType type) noexcept { return static_cast<std::uint8_t>(8 * size_of(type)); }
 constexpr bool is_signed(DataType type) noexcept {
   return type == DataType::kI8 || type == DataType::kI16 || type == DataType::kI32;
 }
@@ -49,8 +47,7 @@ constexpr std::int64_t type_min(DataType type) noexcept {
   return is_signed(type) ? -(std::int64_t{1} << (bit_length(type) - 1)) : 0;
 }
 constexpr std::int64_t type_max(DataType type) noexcept {
-  return is_signed(type) ? (std::int64_t{1} << (bit_length(type) - 1)) - 1
-                         : (std::int64_t{1} << bit_length(type)) - 1;
+  return is_signed(type) ? (std::int64_t{1} << (bit_length(type) - 1)) - 1 : (std::int64_t{1} << bit_length(type)) - 1;
 }
 
 /// The value's bus coding (LE bytes as an integer, two's complement truncated to the size).

@@ -94,8 +94,7 @@ class PdoMap {
 /// (0x06090011) exist; pdo_mappable and, for an RPDO, writable / for a TPDO, readable
 /// (0x06040041); the bit length is the object's (0x06040041: no partial objects).
 /// Failure: kPdoMapping with the abort code and a detail naming the check.
-Status validate_pdo_map(const PdoMap& map, const ObjectDictionary& dictionary,
-                        PdoDirection direction) noexcept;
+Status validate_pdo_map(const PdoMap& map, const ObjectDictionary& dictionary, PdoDirection direction) noexcept;
 
 /// The direction of a communication (0x1400-0x15FF, 0x1800-0x19FF) or mapping (0x1600-0x17FF,
 /// 0x1A00-0x1BFF) index; error kInvalidValue for another index.
@@ -120,8 +119,7 @@ Result<PdoCommunication> read_pdo_communication(const ObjectDictionary& dictiona
 /// The frame (id cob_id, DLC map.byte_length()) with the mapped values, read from the
 /// dictionary. Errors: cob_id not an 11-bit id or 0 (kWrongCobId), an entry missing or of
 /// another size than mapped (kPdoMapping with the abort code): validate the map first.
-Result<CanFrame> pack_pdo(const PdoMap& map, const ObjectDictionary& dictionary,
-                          std::uint32_t cob_id) noexcept;
+Result<CanFrame> pack_pdo(const PdoMap& map, const ObjectDictionary& dictionary, std::uint32_t cob_id) noexcept;
 
 /// Writes the frame's values into the dictionary. The DLC must be map.byte_length()
 /// (kWrongDlc: CiA 301 answers a short PDO with EMCY 0x8210, a long one with 0x8220); RTR /

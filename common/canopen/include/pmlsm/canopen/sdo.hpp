@@ -96,16 +96,16 @@ struct SdoData {
 CanFrame sdo_upload_request(NodeId server, std::uint16_t index, std::uint8_t subindex) noexcept;
 /// Expedited download (write) of `size` (1..4) bytes of `data` (LE; bits above size * 8 must
 /// be 0). Error kInvalidValue for a size outside 1..4 or data that does not fit.
-Result<CanFrame> sdo_download_request(NodeId server, std::uint16_t index, std::uint8_t subindex,
-                                      std::uint32_t data, std::uint8_t size) noexcept;
+Result<CanFrame> sdo_download_request(NodeId server, std::uint16_t index, std::uint8_t subindex, std::uint32_t data,
+                                      std::uint8_t size) noexcept;
 
 /// Typed download: the value's own size (int8/uint8 1 byte, int16/uint16 2, int32/uint32 4),
 /// two's complement for the signed types.
 template <typename T>
 CanFrame sdo_download(NodeId server, std::uint16_t index, std::uint8_t subindex, T value) noexcept {
-  static_assert(std::is_integral_v<T> && !std::is_same_v<T, bool> &&
-                    (sizeof(T) == 1 || sizeof(T) == 2 || sizeof(T) == 4),
-                "sdo_download: an 8, 16 or 32-bit integer");
+  static_assert(
+      std::is_integral_v<T> && !std::is_same_v<T, bool> && (sizeof(T) == 1 || sizeof(T) == 2 || sizeof(T) == 4),
+      "sdo_download: an 8, 16 or 32-bit integer");
   using U = std::make_unsigned_t<T>;
   return sdo_download_request(server, index, subindex, static_cast<std::uint32_t>(static_cast<U>(value)),
                               static_cast<std::uint8_t>(sizeof(T)))
@@ -161,8 +161,8 @@ Result<SdoRequest> parse_sdo_request(const CanFrame& frame) noexcept;
 
 /// Expedited upload response with `size` (1..4) bytes. Error kInvalidValue for another size or
 /// data that does not fit.
-Result<CanFrame> sdo_upload_response(NodeId server, std::uint16_t index, std::uint8_t subindex,
-                                     std::uint32_t data, std::uint8_t size) noexcept;
+Result<CanFrame> sdo_upload_response(NodeId server, std::uint16_t index, std::uint8_t subindex, std::uint32_t data,
+                                     std::uint8_t size) noexcept;
 /// Download response: 0x60, multiplexer, zero data.
 CanFrame sdo_download_response(NodeId server, std::uint16_t index, std::uint8_t subindex) noexcept;
 /// Abort by the server (to 0x580 + node).
@@ -202,8 +202,7 @@ class SdoClient {
 
   /// The request to send; error kBusy while a transfer is outstanding.
   Result<CanFrame> upload(std::uint16_t index, std::uint8_t subindex, std::uint64_t now_ms) noexcept;
-  Result<CanFrame> download(std::uint16_t index, std::uint8_t subindex, SdoData data,
-                            std::uint64_t now_ms) noexcept;
+  Result<CanFrame> download(std::uint16_t index, std::uint8_t subindex, SdoData data, std::uint64_t now_ms) noexcept;
 
   /// A received frame. Frames not from this server's 0x580 + node are kNone. A response while
   /// nothing is outstanding is kNone. A response to another multiplexer or of the wrong kind

@@ -96,8 +96,8 @@ class JordanRnn {
   std::vector<std::size_t> activation_offset_;  ///< per layer, into activations_
   std::vector<std::size_t> weight_offset_;      ///< per layer (index 0 unused), into weights_
   std::vector<double> weights_;
-  std::vector<double> activations_;             ///< all layers, inputs first, output last
-  mutable std::vector<double> delta_;           ///< dU/dz per neuron (same layout as activations_)
+  std::vector<double> activations_;    ///< all layers, inputs first, output last
+  mutable std::vector<double> delta_;  ///< dU/dz per neuron (same layout as activations_)
   double state_unit_ = 0.0;
 };
 
@@ -107,25 +107,25 @@ struct RnnCompensatorParams {
   /// The network's signal: false, the paper's a_L; true, the error a_L - dV_ref/dt, so that a
   /// commanded acceleration is no vibration to the network (AccelFeedbackParams says why).
   bool on_reference_error = false;
-  double gain_n = 0;                ///< G_n: force = G_n u_n, > 0
+  double gain_n = 0;  ///< G_n: force = G_n u_n, > 0
   /// The force is G_n s_o u_n: s_o rescales a set trained on one load for another (the gain
   /// schedule on the model's load mass, SystemParams::compensator_gain_scale), > 0.
   double output_scale = 1.0;
-  double period_s = 0;              ///< T_s of (18), > 0
+  double period_s = 0;  ///< T_s of (18), > 0
   bool online_learning = false;
-  double learning_rate = 0;         ///< eta (16), >= 0
-  double momentum = 0;              ///< alpha (16), in [0, 1)
-  double tolerance_mps = 0;         ///< update only while |V_ref - V_load| > tolerance, >= 0
-  double kc_limit_mps = 0;          ///< |k_c| clamp, > 0, and momentum * kc_limit_mps < 1
-  double du_deadband_per_s = 0;     ///< |dU_n| below this: k_c undefined -> no update this tick, > 0
+  double learning_rate = 0;      ///< eta (16), >= 0
+  double momentum = 0;           ///< alpha (16), in [0, 1)
+  double tolerance_mps = 0;      ///< update only while |V_ref - V_load| > tolerance, >= 0
+  double kc_limit_mps = 0;       ///< |k_c| clamp, > 0, and momentum * kc_limit_mps < 1
+  double du_deadband_per_s = 0;  ///< |dU_n| below this: k_c undefined -> no update this tick, > 0
   /// @throws std::invalid_argument naming the first invalid parameter.
   void validate() const;
 };
 
 struct CompensatorInput {
-  double load_accel_mps2 = 0;  ///< a_L(k), e.g. the Kalman filter's (36)
-  double v_ref_mps = 0;        ///< V_ref(k)
-  double v_load_mps = 0;       ///< V_load(k) (estimated)
+  double load_accel_mps2 = 0;       ///< a_L(k), e.g. the Kalman filter's (36)
+  double v_ref_mps = 0;             ///< V_ref(k)
+  double v_load_mps = 0;            ///< V_load(k) (estimated)
   double reference_accel_mps2 = 0;  ///< dV_ref/dt(k) (used when on_reference_error)
 };
 
@@ -136,7 +136,7 @@ struct CompensatorStep {
   double k_c_mps = 0;             ///< k_c (17) after the clamp; 0 when not computed this tick
   bool input_rejected = false;    ///< non-finite input: output 0 force, state/weights untouched
   bool weights_updated = false;
-  bool kc_guarded = false;        ///< k_c clamped or dead-banded
+  bool kc_guarded = false;  ///< k_c clamped or dead-banded
 };
 
 struct CompensatorCounters {
@@ -181,11 +181,11 @@ class RnnCompensator {
  private:
   RnnCompensatorParams params_;
   JordanRnn net_;
-  std::vector<double> inputs_;  ///< s a_L(k), s a_L(k-1), ...: the external inputs
-  std::vector<double> grad_;    ///< d u_n / d w of this tick
-  std::vector<double> dw_;      ///< Delta w(n): the last applied update (momentum)
-  std::vector<double> next_dw_; ///< Delta w(n+1) being formed
-  double u_prev2_ = 0.0;        ///< u_n(k-2), for dU_n of (18)
+  std::vector<double> inputs_;   ///< s a_L(k), s a_L(k-1), ...: the external inputs
+  std::vector<double> grad_;     ///< d u_n / d w of this tick
+  std::vector<double> dw_;       ///< Delta w(n): the last applied update (momentum)
+  std::vector<double> next_dw_;  ///< Delta w(n+1) being formed
+  double u_prev2_ = 0.0;         ///< u_n(k-2), for dU_n of (18)
   CompensatorCounters counters_;
 };
 

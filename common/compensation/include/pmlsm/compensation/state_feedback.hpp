@@ -51,9 +51,9 @@ struct StateFeedbackParams {
   double spring_n_per_m = 0;
   double velocity_gain_n_s_per_m = 0;  ///< the velocity PI's Kp the force passes through, > 0
   // Design.
-  double model_frequency_ratio = 0;    ///< r = w_d / sqrt(k / m_L), >= 1 (c0 >= 0)
-  double model_damping_ratio = 0;      ///< zeta_d, >= 0
-  double correction_damping_ratio = 0; ///< zeta_c, >= 0
+  double model_frequency_ratio = 0;     ///< r = w_d / sqrt(k / m_L), >= 1 (c0 >= 0)
+  double model_damping_ratio = 0;       ///< zeta_d, >= 0
+  double correction_damping_ratio = 0;  ///< zeta_c, >= 0
   /// The correction's gain per newton of spring-force difference, 2 zeta_c Kp / sqrt(k m_L) - 1,
   /// stops here: on a light, soft load the design asks for twice the nominal's, and the estimate
   /// then oscillates as with a larger zeta_c (it reads the motor's own jumps as spring force), > 0.
@@ -79,7 +79,7 @@ struct StateFeedbackCounters {
   std::uint64_t steps = 0;
   std::uint64_t rejected_inputs = 0;  ///< a non-finite input: output 0, the model holds
   std::uint64_t saturated = 0;
-  std::uint64_t model_resets = 0;     ///< the internal model left the finite numbers: restarted at rest
+  std::uint64_t model_resets = 0;  ///< the internal model left the finite numbers: restarted at rest
 };
 
 class StateFeedback {
@@ -108,10 +108,10 @@ class StateFeedback {
   Eigen::Vector2d reference_gamma_;
   Eigen::Matrix4d model_phi_;
   Eigen::Vector4d model_gamma_;
-  Eigen::Vector4d model_next_ = Eigen::Vector4d::Zero();     ///< model state one tick ahead
-  Eigen::Vector4d model_at_tick_ = Eigen::Vector4d::Zero();  ///< model state at the next input's tick
-  Eigen::Vector4d model_reported_ = Eigen::Vector4d::Zero(); ///< model state at the last input's tick
-  double model_motor_position_before_m_ = 0;                 ///< x_M one tick before model_next_
+  Eigen::Vector4d model_next_ = Eigen::Vector4d::Zero();      ///< model state one tick ahead
+  Eigen::Vector4d model_at_tick_ = Eigen::Vector4d::Zero();   ///< model state at the next input's tick
+  Eigen::Vector4d model_reported_ = Eigen::Vector4d::Zero();  ///< model state at the last input's tick
+  double model_motor_position_before_m_ = 0;                  ///< x_M one tick before model_next_
   StateFeedbackCounters counters_;
 };
 

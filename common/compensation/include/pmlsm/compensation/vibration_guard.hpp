@@ -6,10 +6,10 @@
 // the load's modes lie above it, tracking motion below), so what remains is the oscillatory part
 // e~. The error, not v_M itself: a reference that moves at or above f_c (a 5 Hz sine) would
 // otherwise look like a sustained oscillation. Over windows of window_s it takes the
-// oscillation's size A = rms(e~) [m/s], and the reference's own high-passed size A_ref. A compensator that damps makes A fall window after
-// window once an edge or a disturbance has excited the load; one that sustains a limit cycle
-// keeps A up, one that destabilises makes it grow. The guard trips when, with A above the floor
-// min_oscillation_mps, windows_to_trip windows in a row
+// oscillation's size A = rms(e~) [m/s], and the reference's own high-passed size A_ref. A compensator that damps makes
+// A fall window after window once an edge or a disturbance has excited the load; one that sustains a limit cycle keeps
+// A up, one that destabilises makes it grow. The guard trips when, with A above the floor min_oscillation_mps,
+// windows_to_trip windows in a row
 //   - grew by more than growth_ratio each (kGrowing), or
 //   - did not fall by at least min_decay each, A_k > (1 - min_decay) A_{k-1} (kSustained).
 // A window counts only when some compensation acted in it (its high-passed force not all zero):
@@ -35,16 +35,16 @@ namespace pmlsm {
 
 struct VibrationGuardParams {
   double control_period_s = 1e-3;
-  double highpass_hz = 5.0;            ///< f_c of the high-pass, > 0, below the Nyquist frequency
-  double window_s = 0.1;               ///< the evaluation window, at least 2 periods
-  double min_oscillation_mps = 4e-3;   ///< A below this is no oscillation to guard against
-  double growth_ratio = 1.25;          ///< A(window) / A(previous) above this is growth, > 1
-  double min_decay = 0.2;              ///< a damped oscillation loses at least this share a window, (0, 1)
-  std::uint32_t windows_to_trip = 3;   ///< >= 1
-  double max_reference_share = 1.0;    ///< a window with A <= this x A_ref is the reference's, > 0
-  double saturated_output_share = 1.0; ///< |F_c| / F_c,max at or above this: at the limit, (0, 1]
-  double max_saturated_share = 1.0;    ///< above this share of a window at the limit: not judged sustained, (0, 1]
-  double fade_s = 0.05;                ///< >= 0 (0: off at once)
+  double highpass_hz = 5.0;             ///< f_c of the high-pass, > 0, below the Nyquist frequency
+  double window_s = 0.1;                ///< the evaluation window, at least 2 periods
+  double min_oscillation_mps = 4e-3;    ///< A below this is no oscillation to guard against
+  double growth_ratio = 1.25;           ///< A(window) / A(previous) above this is growth, > 1
+  double min_decay = 0.2;               ///< a damped oscillation loses at least this share a window, (0, 1)
+  std::uint32_t windows_to_trip = 3;    ///< >= 1
+  double max_reference_share = 1.0;     ///< a window with A <= this x A_ref is the reference's, > 0
+  double saturated_output_share = 1.0;  ///< |F_c| / F_c,max at or above this: at the limit, (0, 1]
+  double max_saturated_share = 1.0;     ///< above this share of a window at the limit: not judged sustained, (0, 1]
+  double fade_s = 0.05;                 ///< >= 0 (0: off at once)
   void validate() const;
 };
 
@@ -52,15 +52,15 @@ enum class VibrationGuardTrip : std::uint8_t { kNone, kSustained, kGrowing };
 const char* to_string(VibrationGuardTrip trip) noexcept;
 
 struct VibrationGuardInput {
-  double motor_velocity_mps = 0;     ///< measured v_M(k)
-  double reference_velocity_mps = 0; ///< V_ref(k), what the velocity loop follows
-  double compensation_force_n = 0;   ///< the compensation applied (after the previous scale)
-  double compensation_output_share = 0; ///< the compensator's |F_c| / F_c,max, [0, 1] (|u_n| for the RNN)
+  double motor_velocity_mps = 0;         ///< measured v_M(k)
+  double reference_velocity_mps = 0;     ///< V_ref(k), what the velocity loop follows
+  double compensation_force_n = 0;       ///< the compensation applied (after the previous scale)
+  double compensation_output_share = 0;  ///< the compensator's |F_c| / F_c,max, [0, 1] (|u_n| for the RNN)
 };
 
 struct VibrationGuardOutput {
-  double scale = 1.0;          ///< multiply the compensation force by this (1 -> 0 after a trip)
-  bool tripped = false;        ///< latched
+  double scale = 1.0;    ///< multiply the compensation force by this (1 -> 0 after a trip)
+  bool tripped = false;  ///< latched
   VibrationGuardTrip reason = VibrationGuardTrip::kNone;
 };
 
@@ -68,10 +68,10 @@ struct VibrationGuardCounters {
   std::uint64_t steps = 0;
   std::uint64_t rejected_inputs = 0;
   std::uint64_t windows = 0;
-  std::uint64_t trip_tick = 0;        ///< the step at which it tripped (when tripped)
-  double last_amplitude_mps = 0;      ///< A of the last window
-  double last_reference_mps = 0;      ///< A_ref of the last window
-  double last_force_rms_n = 0;        ///< rms of the high-passed compensation force of the last window
+  std::uint64_t trip_tick = 0;    ///< the step at which it tripped (when tripped)
+  double last_amplitude_mps = 0;  ///< A of the last window
+  double last_reference_mps = 0;  ///< A_ref of the last window
+  double last_force_rms_n = 0;    ///< rms of the high-passed compensation force of the last window
 };
 
 class VibrationGuard {
@@ -90,7 +90,7 @@ class VibrationGuard {
 
  private:
   VibrationGuardParams params_;
-  double alpha_;                 // high-pass coefficient
+  double alpha_;  // high-pass coefficient
   std::uint32_t window_steps_;
   std::uint32_t fade_steps_;
   /// Two first-order high-pass sections in series (one signal).

@@ -38,8 +38,7 @@ struct ConfigOverride {
 std::vector<ConfigOverride> parse_overrides(const std::vector<std::string>& texts);
 
 /// @throws ConfigError naming the file, key path and value of the first problem.
-SystemParams load_system_params(const std::string& path,
-                                const std::vector<ConfigOverride>& overrides = {});
+SystemParams load_system_params(const std::string& path, const std::vector<ConfigOverride>& overrides = {});
 
 /// Writes out_path: the system file in_path with every (key path, value) of `values` set and its
 /// source replaced by `source` ("chosen: <reason>"), the rest as it was (comments are not kept:
@@ -47,23 +46,22 @@ SystemParams load_system_params(const std::string& path,
 /// load_system_params before it is written, atomically. Returns what it wrote.
 /// @throws ConfigError naming the file and the key of the first problem.
 std::string write_system_file_with(const std::string& in_path,
-                                   const std::vector<std::pair<std::string, double>>& values,
-                                   const std::string& source, const std::string& out_path);
+                                   const std::vector<std::pair<std::string, double>>& values, const std::string& source,
+                                   const std::string& out_path);
 SystemParams parse_system_params(const std::string& yaml_text, const std::string& origin,
                                  const std::vector<ConfigOverride>& overrides = {});
 
 /// @throws ConfigError naming the file, key path and value of the first problem.
 Scenario load_scenario(const std::string& path, double control_period_s,
                        const std::vector<ConfigOverride>& overrides = {});
-Scenario parse_scenario(const std::string& yaml_text, const std::string& origin,
-                        double control_period_s, const std::vector<ConfigOverride>& overrides = {});
+Scenario parse_scenario(const std::string& yaml_text, const std::string& origin, double control_period_s,
+                        const std::vector<ConfigOverride>& overrides = {});
 
 /// configs/training.yaml (the weight search); scenario files are relative to it.
 /// @throws ConfigError naming the file, key path and value of the first problem.
 TrainingParams load_training_params(const std::string& path, double control_period_s,
                                     const std::vector<ConfigOverride>& overrides = {});
-TrainingParams parse_training_params(const std::string& yaml_text, const std::string& origin,
-                                     double control_period_s,
+TrainingParams parse_training_params(const std::string& yaml_text, const std::string& origin, double control_period_s,
                                      const std::vector<ConfigOverride>& overrides = {});
 
 /// Every leaf of a YAML document with its key path and its source ("" when the

@@ -13,9 +13,9 @@ namespace pmlsm {
 
 struct SweepFile {
   SweepSpec spec;
-  std::string weights_path;                 ///< the RNN's weights (relative paths resolved against the file)
-  std::vector<std::string> scenario_files;  ///< as resolved
-  std::string identification_scenario_file; ///< models.identification_scenario, resolved ("" without)
+  std::string weights_path;                  ///< the RNN's weights (relative paths resolved against the file)
+  std::vector<std::string> scenario_files;   ///< as resolved
+  std::string identification_scenario_file;  ///< models.identification_scenario, resolved ("" without)
 };
 
 /// nominal: the system the plants vary (its timing validates the scenarios, its table the keys).

@@ -21,9 +21,9 @@ namespace pmlsm {
 struct CurrentControllerParams {
   double kp_v_per_a = 0;
   double ki_v_per_a_s = 0;
-  double period_s = 0;              ///< T_c
-  double current_limit_a = 0;       ///< |i_q*| limit (peak amperes)
-  double voltage_limit_v = 0;       ///< |u_dq| limit, V_dc/sqrt(3)
+  double period_s = 0;         ///< T_c
+  double current_limit_a = 0;  ///< |i_q*| limit (peak amperes)
+  double voltage_limit_v = 0;  ///< |u_dq| limit, V_dc/sqrt(3)
   // Motor model for the force-to-current map and the decoupling terms.
   double motor_constant_n_per_a = 0;
   double pole_pitch_m = 0;
@@ -34,10 +34,10 @@ struct CurrentControllerParams {
 };
 
 struct CurrentControllerInput {
-  double force_request_n = 0;   ///< F*
-  double i_d_a = 0;             ///< measured
-  double i_q_a = 0;             ///< measured
-  double velocity_mps = 0;      ///< mover velocity for w_s
+  double force_request_n = 0;  ///< F*
+  double i_d_a = 0;            ///< measured
+  double i_q_a = 0;            ///< measured
+  double velocity_mps = 0;     ///< mover velocity for w_s
 };
 
 struct CurrentControllerOutput {
@@ -50,7 +50,7 @@ struct CurrentControllerOutput {
 
 struct CurrentControllerCounters {
   std::uint64_t steps = 0;
-  std::uint64_t rejected_inputs = 0;   ///< non-finite input: last output held
+  std::uint64_t rejected_inputs = 0;  ///< non-finite input: last output held
   std::uint64_t voltage_limited = 0;
   std::uint64_t current_limited = 0;
 };

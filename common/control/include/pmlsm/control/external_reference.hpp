@@ -47,10 +47,10 @@ struct ExternalReferenceOutput {
 
 struct ExternalReferenceCounters {
   std::uint64_t accepted = 0;
-  std::uint64_t rejected = 0;            ///< all reasons
-  std::uint64_t rejected_invalid = 0;    ///< non-finite, beyond the limit, bad accel limit
-  std::uint64_t stale_episodes = 0;      ///< fresh -> stale transitions
-  std::uint64_t lost_while_moving = 0;   ///< ... of them with a non-zero target
+  std::uint64_t rejected = 0;           ///< all reasons
+  std::uint64_t rejected_invalid = 0;   ///< non-finite, beyond the limit, bad accel limit
+  std::uint64_t stale_episodes = 0;     ///< fresh -> stale transitions
+  std::uint64_t lost_while_moving = 0;  ///< ... of them with a non-zero target
 };
 
 class ExternalReference {

@@ -258,8 +258,8 @@ class LocalBus {
 
   /// A local reader of `topic` (its DDS reader's GUID) with a queue of `capacity` samples.
   template <typename Message>
-  LocalQueue<Message>& add_reader(const void* owner, LocalTopic<Message>& topic, const Guid& guid,
-                                  std::size_t capacity, bool keep_all, Wakeup& wakeup) {
+  LocalQueue<Message>& add_reader(const void* owner, LocalTopic<Message>& topic, const Guid& guid, std::size_t capacity,
+                                  bool keep_all, Wakeup& wakeup) {
     auto queue = std::make_unique<LocalQueue<Message>>(capacity, keep_all, wakeup, &topic.losses_);
     LocalQueue<Message>& ref = *queue;
     topic.queues_.push_back(&ref);
@@ -267,9 +267,10 @@ class LocalBus {
       std::lock_guard<std::mutex> lock(topic.mutex_);
       topic.reader_handles_.push_back(eprosima::fastrtps::rtps::InstanceHandle_t(guid));
     }
-    readers_.push_back({owner, &topic, guid, std::shared_ptr<void>(std::move(queue)),
-                        [&topic, &ref] { topic.queues_.erase(std::remove(topic.queues_.begin(), topic.queues_.end(), &ref),
-                                                             topic.queues_.end()); }});
+    readers_.push_back({owner, &topic, guid, std::shared_ptr<void>(std::move(queue)), [&topic, &ref] {
+                          topic.queues_.erase(std::remove(topic.queues_.begin(), topic.queues_.end(), &ref),
+                                              topic.queues_.end());
+                        }});
     recount(topic);
     return ref;
   }

@@ -53,8 +53,8 @@ class Wakeup {
                   std::chrono::nanoseconds batch = std::chrono::nanoseconds(0), FiberScheduler* scheduler = nullptr)
       : spin_(spin), batch_(batch), scheduler_(scheduler) {
     if (spin.count() < 0 || batch.count() < 0) {
-      throw std::invalid_argument("Wakeup: spin and batch must not be negative, got " +
-                                  std::to_string(spin.count()) + " ns and " + std::to_string(batch.count()) + " ns");
+      throw std::invalid_argument("Wakeup: spin and batch must not be negative, got " + std::to_string(spin.count()) +
+                                  " ns and " + std::to_string(batch.count()) + " ns");
     }
   }
   /// A counter read before draining the readers; wait_for() returns at once if
@@ -271,12 +271,13 @@ class Participant {
   template <typename PubSubType>
   Reader<PubSubType> make_reader(const TopicSpec& spec, Wakeup& wakeup, const char* qos_profile = nullptr) {
     using Message = typename PubSubType::type;
-    Reader<PubSubType> reader(create_reader(topic_for<PubSubType>(spec),
-                                            qos_profile != nullptr ? qos_profile : spec.qos_profile, wakeup));
+    Reader<PubSubType> reader(
+        create_reader(topic_for<PubSubType>(spec), qos_profile != nullptr ? qos_profile : spec.qos_profile, wakeup));
     if (local_bus_ != nullptr) {
       LocalTopic<Message>& local = local_bus_->topic<Message>(spec.name);
       const QueueShape shape = queue_shape(reader.entity());
-      reader.local_ = &local_bus_->add_reader(this, local, reader.entity()->guid(), shape.capacity, shape.keep_all, wakeup);
+      reader.local_ =
+          &local_bus_->add_reader(this, local, reader.entity()->guid(), shape.capacity, shape.keep_all, wakeup);
       reader.topic_ = &local;
       reader.dds_pending_ = &last_arrival_flag();
     }
@@ -285,8 +286,7 @@ class Participant {
 
   /// Endpoints that carry serialized samples of a catalog topic (recorder, player, bridge).
   /// `qos_profile` as for make_reader(); nullptr = the topic's own.
-  Reader<RawPubSubType> make_raw_reader(const CatalogEntry& entry, Wakeup& wakeup,
-                                        const char* qos_profile = nullptr);
+  Reader<RawPubSubType> make_raw_reader(const CatalogEntry& entry, Wakeup& wakeup, const char* qos_profile = nullptr);
   Writer<RawPubSubType> make_raw_writer(const CatalogEntry& entry, const char* qos_profile = nullptr);
 
   /// Deletes a reader made by this participant, and its listener (a bridge opens and closes
@@ -311,10 +311,8 @@ class Participant {
     eprosima::fastdds::dds::TypeSupport type(new PubSubType());  // TypeSupport owns it
     return create_topic(spec.name, type);
   }
-  eprosima::fastdds::dds::Topic* create_topic(const std::string& name,
-                                              eprosima::fastdds::dds::TypeSupport type);
-  eprosima::fastdds::dds::DataWriter* create_writer(eprosima::fastdds::dds::Topic* topic,
-                                                    const std::string& profile,
+  eprosima::fastdds::dds::Topic* create_topic(const std::string& name, eprosima::fastdds::dds::TypeSupport type);
+  eprosima::fastdds::dds::DataWriter* create_writer(eprosima::fastdds::dds::Topic* topic, const std::string& profile,
                                                     eprosima::fastdds::dds::DataWriterListener* listener = nullptr);
   /// TRANSIENT_LOCAL with a history of one: the newest sample is state a late joiner must get.
   static bool keeps_state(eprosima::fastdds::dds::DataWriter* writer);
@@ -326,8 +324,8 @@ class Participant {
   std::atomic<bool>& last_arrival_flag();
   /// A local queue as deep as the reader's history QoS.
   static QueueShape queue_shape(eprosima::fastdds::dds::DataReader* reader);
-  eprosima::fastdds::dds::DataReader* create_reader(eprosima::fastdds::dds::Topic* topic,
-                                                    const std::string& profile, Wakeup& wakeup);
+  eprosima::fastdds::dds::DataReader* create_reader(eprosima::fastdds::dds::Topic* topic, const std::string& profile,
+                                                    Wakeup& wakeup);
   void delete_reader_entity(eprosima::fastdds::dds::DataReader* reader);
 
   /// Why Fast DDS may have refused an entity: with security, the identity's permissions.

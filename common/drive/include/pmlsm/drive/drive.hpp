@@ -13,11 +13,11 @@ namespace pmlsm::drive {
 
 /// What a drive measures at the start of a control tick.
 struct Measurement {
-  double position_m = 0;       ///< motor position from the encoder (quantised) [m]
-  double velocity_mps = 0;     ///< encoder difference over the last tick [m/s]
-  double i_d_a = 0;            ///< measured d-axis current [A]
-  double i_q_a = 0;            ///< measured q-axis current [A]
-  double thrust_force_n = 0;   ///< thrust from the currents, K_m i_q (eq. 14) [N]
+  double position_m = 0;      ///< motor position from the encoder (quantised) [m]
+  double velocity_mps = 0;    ///< encoder difference over the last tick [m/s]
+  double i_d_a = 0;           ///< measured d-axis current [A]
+  double i_q_a = 0;           ///< measured q-axis current [A]
+  double thrust_force_n = 0;  ///< thrust from the currents, K_m i_q (eq. 14) [N]
 };
 
 /// A drive backend. Called from the loop thread only; no call may block past its tick, throw

@@ -76,14 +76,14 @@ struct ForceCommandIn {
   std::uint64_t run_id = 0;
   std::uint64_t feedback_tick = 0;
   double force_n = 0;
-  std::uint64_t writer_id = 0;       ///< identifies the writer (a hash of its GUID)
-  std::int64_t received_wall_ns = 0; ///< reception time (CLOCK_REALTIME), for latency
+  std::uint64_t writer_id = 0;        ///< identifies the writer (a hash of its GUID)
+  std::int64_t received_wall_ns = 0;  ///< reception time (CLOCK_REALTIME), for latency
 };
 
 enum class Verdict : std::uint8_t {
   kAccepted,
-  kStale,         ///< answers an older (or, in lockstep, another) tick
-  kFutureTick,    ///< answers a tick not yet published
+  kStale,       ///< answers an older (or, in lockstep, another) tick
+  kFutureTick,  ///< answers a tick not yet published
   kNonFinite,
   kOtherRun,
   kForeignWriter,
@@ -94,26 +94,26 @@ const char* to_string(Verdict verdict) noexcept;
 struct TickReport {
   std::uint64_t tick = 0;
   Measurement measurement;
-  double applied_force_n = 0;           ///< force in effect during the last tick
+  double applied_force_n = 0;  ///< force in effect during the last tick
   std::uint64_t applied_command_tick = 0;
-  std::uint32_t status = 0;             ///< status::k* bits
+  std::uint32_t status = 0;  ///< status::k* bits
   PowerState power_state = PowerState::kNotReadyToSwitchOn;
   std::uint16_t error_code = 0;
 };
 
 struct TickEvents {
-  bool watchdog_tripped = false;        ///< this tick
-  std::uint64_t unanswered_tick = 0;    ///< the feedback tick that tripped it
-  std::int64_t tripped_mono_ns = 0;     ///< when it tripped (force off from then on)
-  bool controller_lost = false;         ///< this tick (reported once until the next enable)
+  bool watchdog_tripped = false;      ///< this tick
+  std::uint64_t unanswered_tick = 0;  ///< the feedback tick that tripped it
+  std::int64_t tripped_mono_ns = 0;   ///< when it tripped (force off from then on)
+  bool controller_lost = false;       ///< this tick (reported once until the next enable)
 };
 
 struct DriveCounters {
-  std::uint64_t late = 0;          ///< ticks without their command (realtime), stale answers (lockstep)
-  std::uint64_t rejected = 0;      ///< non-finite, future, out of order, other run
-  std::uint64_t foreign = 0;       ///< commands of a writer that does not own the drive
-  std::uint64_t other_run = 0;     ///< of which from another run
-  std::uint64_t safe_ticks = 0;    ///< ticks with force off after the drive was first enabled
+  std::uint64_t late = 0;        ///< ticks without their command (realtime), stale answers (lockstep)
+  std::uint64_t rejected = 0;    ///< non-finite, future, out of order, other run
+  std::uint64_t foreign = 0;     ///< commands of a writer that does not own the drive
+  std::uint64_t other_run = 0;   ///< of which from another run
+  std::uint64_t safe_ticks = 0;  ///< ticks with force off after the drive was first enabled
   std::uint64_t watchdog_trips = 0;
   std::uint64_t uncommanded_ticks = 0;  ///< ticks that got no acceptable command
   std::uint64_t drive_stalls = 0;       ///< ticks that started more than a period late
@@ -173,7 +173,7 @@ class DriveLoop {
   TickReport report_;
   std::uint64_t run_id_ = 0;
   std::uint64_t tick_ = 0;
-  double force_n_ = 0;          // zero-order hold of the last accepted command
+  double force_n_ = 0;  // zero-order hold of the last accepted command
   std::uint64_t applied_tick_ = 0;
   bool any_command_ = false;
   bool answered_ = false;

@@ -143,8 +143,7 @@ std::uint16_t controlword_of(DriveCommand command) noexcept;
 /// (transition 5), which is what 0x0007 means there.
 /// The masks cover every combination of bits 0-3, so with the bit 7 rule every word decodes
 /// to a command; bits 4-6 and 8-15 (operation-mode bits, halt, manufacturer bits) are ignored.
-std::optional<DriveCommand> decode_controlword(std::uint16_t controlword,
-                                               std::uint16_t previous_controlword) noexcept;
+std::optional<DriveCommand> decode_controlword(std::uint16_t controlword, std::uint16_t previous_controlword) noexcept;
 
 // ---- the state machine --------------------------------------------------------------------
 

@@ -103,12 +103,12 @@ struct KalmanParams {
   double load_mass_kg = 0;
   double spring_n_per_m = 0;
   double period_s = 0;
-  Eigen::Vector3d process_noise_diag = Eigen::Vector3d::Zero();   ///< Q diagonal (35)
-  double measurement_noise = 0;                                   ///< R
+  Eigen::Vector3d process_noise_diag = Eigen::Vector3d::Zero();       ///< Q diagonal (35)
+  double measurement_noise = 0;                                       ///< R
   Eigen::Vector3d initial_covariance_diag = Eigen::Vector3d::Zero();  ///< P_0 diagonal
-  KalmanFrictionInput friction_input;  ///< off: the paper's filter
-  KalmanRippleInput ripple_input;      ///< off: the paper's filter
-  KalmanStandstillHold standstill_hold;  ///< off: the paper's filter
+  KalmanFrictionInput friction_input;                                 ///< off: the paper's filter
+  KalmanRippleInput ripple_input;                                     ///< off: the paper's filter
+  KalmanStandstillHold standstill_hold;                               ///< off: the paper's filter
   double thrust_lag_s = 0;  ///< tau_i, the current loop's first-order lag; 0: thrust = command (the paper), >= 0
   void validate() const;
 };
@@ -134,8 +134,9 @@ struct KalmanEstimate {
 struct KalmanCounters {
   std::uint64_t steps = 0;
   std::uint64_t rejected_measurements = 0;  ///< non-finite y: time update only
-  std::uint64_t rejected_inputs = 0;        ///< non-finite u (or position, with the ripple input): the last finite one is used
-  std::uint64_t standstill_holds = 0;       ///< steps the standstill hold kept v_L and F_s on the model
+  std::uint64_t rejected_inputs =
+      0;  ///< non-finite u (or position, with the ripple input): the last finite one is used
+  std::uint64_t standstill_holds = 0;  ///< steps the standstill hold kept v_L and F_s on the model
 };
 
 class KalmanFilter {
@@ -167,11 +168,11 @@ class KalmanFilter {
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d p_;
   double last_input_n_ = 0;
-  double lag_decay_ = 0;           ///< e^{-T / tau_i}
-  double lag_over_period_ = 0;     ///< tau_i / T
-  double lag_rise_ = 0;            ///< 1 - e^{-T / tau_i}
-  double thrust_n_ = 0;            ///< the lag model's thrust at t_{k-1}
-  double last_position_m_ = 0;     ///< x_{k-1}, for the ripple input's midpoint
+  double lag_decay_ = 0;        ///< e^{-T / tau_i}
+  double lag_over_period_ = 0;  ///< tau_i / T
+  double lag_rise_ = 0;         ///< 1 - e^{-T / tau_i}
+  double thrust_n_ = 0;         ///< the lag model's thrust at t_{k-1}
+  double last_position_m_ = 0;  ///< x_{k-1}, for the ripple input's midpoint
   bool have_last_position_ = false;
   KalmanCounters counters_;
 };

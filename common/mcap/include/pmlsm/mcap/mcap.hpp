@@ -55,13 +55,12 @@ class Writer {
   /// @return the schema id (1, 2, ...). encoding e.g. "omgidl".
   std::uint16_t add_schema(const std::string& name, const std::string& encoding, const std::string& data);
   /// @return the channel id (0, 1, ...). schema_id must come from add_schema (else invalid_argument).
-  std::uint16_t add_channel(std::uint16_t schema_id, const std::string& topic,
-                            const std::string& message_encoding,
+  std::uint16_t add_channel(std::uint16_t schema_id, const std::string& topic, const std::string& message_encoding,
                             const std::map<std::string, std::string>& metadata = {});
   /// Appends a message to the open chunk (closing it first when it is full).
   /// @throws std::invalid_argument for an unknown channel; std::runtime_error on a write error.
-  void write(std::uint16_t channel_id, std::uint32_t sequence, std::uint64_t log_time_ns,
-             std::uint64_t publish_time_ns, const std::uint8_t* data, std::size_t size);
+  void write(std::uint16_t channel_id, std::uint32_t sequence, std::uint64_t log_time_ns, std::uint64_t publish_time_ns,
+             const std::uint8_t* data, std::size_t size);
   /// Writes the open chunk now (e.g. on a timer, to bound what a crash can lose).
   void flush_chunk();
   /// Open chunk, summary, footer, closing magic; idempotent.
@@ -101,13 +100,13 @@ struct Message {
 struct ReadReport {
   std::uint64_t messages = 0;
   std::uint64_t chunks = 0;
-  bool has_footer = false;          // the file was closed properly
+  bool has_footer = false;            // the file was closed properly
   std::vector<std::string> problems;  // what was not whole or not valid, with byte offsets
   bool complete() const { return has_footer && problems.empty(); }
 };
 
 struct ReadCallbacks {
-  std::function<void(const Schema&)> on_schema;    // each may be empty
+  std::function<void(const Schema&)> on_schema;  // each may be empty
   std::function<void(const Channel&)> on_channel;
   std::function<void(const Message&)> on_message;  // in file order (log-time order for our writer)
 };

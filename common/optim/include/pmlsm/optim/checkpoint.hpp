@@ -39,7 +39,7 @@ class CheckpointReader {
   std::uint64_t count(const std::string& key);  // one unsigned decimal integer
   /// count(key), which must equal the optimiser's own value (population size, dimension).
   std::uint64_t matching_count(const std::string& key, std::uint64_t expected);
-  double number(const std::string& key);        // one double
+  double number(const std::string& key);  // one double
   /// Next line "member <index> <cost> <dimension components>", index checked; the cost is
   /// returned for the caller to check, the components go to `member`.
   double member(std::size_t index, std::size_t dimension, std::vector<double>& member);

@@ -61,18 +61,18 @@
 namespace pmlsm {
 
 struct MotorElectricalParams {
-  double resistance_ohm = 0;             ///< R, armature resistance per phase
-  double armature_d_inductance_h = 0;    ///< L_ad
-  double armature_q_inductance_h = 0;    ///< L_aq
-  double mutual_d_inductance_h = 0;      ///< L_md, armature-damper magnetising inductance
-  double mutual_q_inductance_h = 0;      ///< L_mq
-  double damper_d_inductance_h = 0;      ///< L_D
-  double damper_q_inductance_h = 0;      ///< L_Q
-  double damper_d_resistance_ohm = 0;    ///< R_D
-  double damper_q_resistance_ohm = 0;    ///< R_Q
-  double motor_constant_n_per_a = 0;     ///< K_m, thrust per q-axis (peak) ampere
-  double pole_pitch_m = 0;               ///< tau
-  double pole_pairs = 0;                 ///< p in (9)
+  double resistance_ohm = 0;           ///< R, armature resistance per phase
+  double armature_d_inductance_h = 0;  ///< L_ad
+  double armature_q_inductance_h = 0;  ///< L_aq
+  double mutual_d_inductance_h = 0;    ///< L_md, armature-damper magnetising inductance
+  double mutual_q_inductance_h = 0;    ///< L_mq
+  double damper_d_inductance_h = 0;    ///< L_D
+  double damper_q_inductance_h = 0;    ///< L_Q
+  double damper_d_resistance_ohm = 0;  ///< R_D
+  double damper_q_resistance_ohm = 0;  ///< R_Q
+  double motor_constant_n_per_a = 0;   ///< K_m, thrust per q-axis (peak) ampere
+  double pole_pitch_m = 0;             ///< tau
+  double pole_pairs = 0;               ///< p in (9)
   void validate() const;
   /// psi_pm = K_m / ((3p/2)(pi/tau)).
   double permanent_magnet_flux_wb() const;
@@ -81,18 +81,18 @@ struct MotorElectricalParams {
 };
 
 struct RippleParams {
-  double scale_n = 0;            ///< K_s
-  double amplitude_1 = 0;        ///< A_r1
-  double amplitude_2 = 0;        ///< A_r2
+  double scale_n = 0;                   ///< K_s
+  double amplitude_1 = 0;               ///< A_r1
+  double amplitude_2 = 0;               ///< A_r2
   double spatial_freq_1_rad_per_m = 0;  ///< phi_1
   double spatial_freq_2_rad_per_m = 0;  ///< phi_2
   void validate() const;
 };
 
 struct FrictionParams {
-  double coulomb_n = 0;                       ///< F_coulomb
-  double viscous_n_s_per_m = 0;               ///< F_viscous
-  double regularisation_velocity_mps = 0;     ///< v_eps: half-width of the smoothed band of s(v)
+  double coulomb_n = 0;                    ///< F_coulomb
+  double viscous_n_s_per_m = 0;            ///< F_viscous
+  double regularisation_velocity_mps = 0;  ///< v_eps: half-width of the smoothed band of s(v)
   void validate() const;
 };
 
@@ -106,10 +106,10 @@ double ripple_force_n(const RippleParams& ripple, double motor_position_m);
 double friction_force_n(const FrictionParams& friction, double motor_velocity_mps);
 
 struct MechanicsParams {
-  double motor_mass_kg = 0;        ///< m_M
-  double load_mass_kg = 0;         ///< m_L
-  double spring_n_per_m = 0;       ///< k
-  double damping_n_s_per_m = 0;    ///< b
+  double motor_mass_kg = 0;      ///< m_M
+  double load_mass_kg = 0;       ///< m_L
+  double spring_n_per_m = 0;     ///< k
+  double damping_n_s_per_m = 0;  ///< b
   void validate() const;
 };
 
@@ -165,9 +165,9 @@ struct PlantInitialCondition {
 
 /// Inputs held over one step() call.
 struct PlantInput {
-  double u_d_v = 0;              ///< requested d-axis voltage (limited by the inverter)
-  double u_q_v = 0;              ///< requested q-axis voltage
-  double load_force_n = 0;       ///< external force on the load (a disturbance test input)
+  double u_d_v = 0;         ///< requested d-axis voltage (limited by the inverter)
+  double u_q_v = 0;         ///< requested q-axis voltage
+  double load_force_n = 0;  ///< external force on the load (a disturbance test input)
 };
 
 /// What a drive measures after a step: phase currents (as d-q) and the encoder.
@@ -181,10 +181,10 @@ struct PlantMeasurement {
 struct PlantTruth {
   PlantState state;
   double i_d_a = 0, i_q_a = 0, i_dd_a = 0, i_qq_a = 0;  ///< armature and damper currents
-  double thrust_n = 0;            ///< F_dx (9)
-  double ripple_n = 0;            ///< F_ripple (10)
-  double friction_n = 0;          ///< F_friction (11), opposing motion
-  double spring_force_n = 0;      ///< F_s = k (x_m - x_l) + b (v_m - v_l), the Kalman state
+  double thrust_n = 0;                                  ///< F_dx (9)
+  double ripple_n = 0;                                  ///< F_ripple (10)
+  double friction_n = 0;                                ///< F_friction (11), opposing motion
+  double spring_force_n = 0;                            ///< F_s = k (x_m - x_l) + b (v_m - v_l), the Kalman state
   double motor_accel_mps2 = 0;
   double load_accel_mps2 = 0;
 };
@@ -195,15 +195,15 @@ struct PlantTruth {
 /// keeps the last good state and integrates no more (reset() clears it).
 struct PlantDivergence {
   bool diverged = false;
-  const char* state = "";   ///< name of the first bad PlantState entry, e.g. "load_position_m"
-  double value = 0;         ///< its value after the step that diverged
-  std::uint64_t step = 0;   ///< the step() call (counted from 1 since reset) that diverged
+  const char* state = "";  ///< name of the first bad PlantState entry, e.g. "load_position_m"
+  double value = 0;        ///< its value after the step that diverged
+  std::uint64_t step = 0;  ///< the step() call (counted from 1 since reset) that diverged
 };
 
 struct PlantCounters {
-  std::uint64_t steps = 0;              ///< step() calls accepted
-  std::uint64_t rejected_inputs = 0;    ///< step() calls with a non-finite input or dt
-  std::uint64_t voltage_limited = 0;    ///< step() calls whose voltage the inverter limited
+  std::uint64_t steps = 0;            ///< step() calls accepted
+  std::uint64_t rejected_inputs = 0;  ///< step() calls with a non-finite input or dt
+  std::uint64_t voltage_limited = 0;  ///< step() calls whose voltage the inverter limited
 };
 
 class Plant {
@@ -263,8 +263,8 @@ class Plant {
   /// so the rounding of the recurrence cannot accumulate.
   void advance_ripple_phase();
   static constexpr int kResyncSteps = 256;
-  static void rhs(const Coefficients& c, const StateVector& s, double u_d, double u_q,
-                  double load_force, const RippleAnchor& anchor, Rhs& out);
+  static void rhs(const Coefficients& c, const StateVector& s, double u_d, double u_q, double load_force,
+                  const RippleAnchor& anchor, Rhs& out);
   void integrate(double u_d, double u_q, double load_force, double h, int substeps);
 
   PlantParams params_;

@@ -30,31 +30,31 @@ namespace pmlsm {
 struct TickRecord {
   std::uint64_t tick = 0;
   double time_s = 0;
-  double command_mps = 0;          ///< raw command c(t_k)
-  double v_ref_mps = 0;            ///< reference model output
-  double a_ref_mps2 = 0;           ///< its derivative dV_ref/dt
+  double command_mps = 0;  ///< raw command c(t_k)
+  double v_ref_mps = 0;    ///< reference model output
+  double a_ref_mps2 = 0;   ///< its derivative dV_ref/dt
   double encoder_position_m = 0;
   double motor_velocity_measured_mps = 0;
-  double motor_position_m = 0;     ///< true
-  double motor_velocity_mps = 0;   ///< true
-  double load_position_m = 0;      ///< true
-  double load_velocity_mps = 0;    ///< true
-  double load_accel_mps2 = 0;      ///< true
-  double spring_force_n = 0;       ///< true F_s
+  double motor_position_m = 0;    ///< true
+  double motor_velocity_mps = 0;  ///< true
+  double load_position_m = 0;     ///< true
+  double load_velocity_mps = 0;   ///< true
+  double load_accel_mps2 = 0;     ///< true
+  double spring_force_n = 0;      ///< true F_s
   double est_motor_velocity_mps = 0;
   double est_load_velocity_mps = 0;
   double est_spring_force_n = 0;
   double est_load_accel_mps2 = 0;
-  double force_command_n = 0;      ///< velocity loop output F_k (PI + compensation, limited)
-  double compensation_force_n = 0; ///< compensator force added to the PI output at t_k (after the guard)
-  bool guard_tripped = false;      ///< the vibration guard has taken the compensation out (latched)
-  double thrust_n = 0;             ///< true F_dx at t_k
+  double force_command_n = 0;       ///< velocity loop output F_k (PI + compensation, limited)
+  double compensation_force_n = 0;  ///< compensator force added to the PI output at t_k (after the guard)
+  bool guard_tripped = false;       ///< the vibration guard has taken the compensation out (latched)
+  double thrust_n = 0;              ///< true F_dx at t_k
   double ripple_n = 0;
   double friction_n = 0;
   double i_q_a = 0;
-  double u_q_v = 0;                ///< last q-axis voltage of the previous tick
-  double applied_force_n = 0;      ///< force the drive applied during the previous tick (MotorFeedback's)
-  bool force_off = false;          ///< the drive had its force off at t_k (fault, safe state, not enabled)
+  double u_q_v = 0;            ///< last q-axis voltage of the previous tick
+  double applied_force_n = 0;  ///< force the drive applied during the previous tick (MotorFeedback's)
+  bool force_off = false;      ///< the drive had its force off at t_k (fault, safe state, not enabled)
   /// Set from the tick whose integration diverged on (PlantDivergence): the plant
   /// entry that left the numbers and its value. The loop applies zero force from the
   /// next tick and the plant stays at its last good state: the run is not valid.
@@ -114,13 +114,13 @@ std::vector<TickRecord> run_scenario(const SystemParams& params, const Scenario&
 struct CompensatorView {
   double load_accel_mps2 = 0;  ///< a_L estimate, eq. (36)
   double v_ref_mps = 0;
-  double v_load_mps = 0;       ///< estimated load velocity (the paper's V_load)
-  double spring_force_n = 0;   ///< estimated spring force F_s
-  double command_mps = 0;      ///< raw command c(t_k) before the reference model
-  double a_ref_mps2 = 0;       ///< dV_ref/dt
+  double v_load_mps = 0;      ///< estimated load velocity (the paper's V_load)
+  double spring_force_n = 0;  ///< estimated spring force F_s
+  double command_mps = 0;     ///< raw command c(t_k) before the reference model
+  double a_ref_mps2 = 0;      ///< dV_ref/dt
 };
 inline CompensatorView compensator_view(const TickRecord& rec) {
-  return {rec.est_load_accel_mps2, rec.v_ref_mps, rec.est_load_velocity_mps,
+  return {rec.est_load_accel_mps2, rec.v_ref_mps,   rec.est_load_velocity_mps,
           rec.est_spring_force_n,  rec.command_mps, rec.a_ref_mps2};
 }
 /// The part of the view acceleration feedback takes (the in-process loop and the node alike).
@@ -143,8 +143,7 @@ inline StateFeedbackInput state_feedback_input(const CompensatorView& view) {
 /// 10.2 Hz load mode), so they never lengthen the plant-controller chain.
 /// compensate: Compensation(const CompensatorView&): the force [N] and its share of the compensator's range.
 template <typename Compensate>
-std::vector<TickRecord> run_compensated(const SystemParams& params, const Scenario& scenario,
-                                        Compensate&& compensate,
+std::vector<TickRecord> run_compensated(const SystemParams& params, const Scenario& scenario, Compensate&& compensate,
                                         std::uint64_t max_ticks = UINT64_MAX) {
   ClosedLoop loop(params, scenario);
   std::vector<TickRecord> trace;

@@ -36,7 +36,6 @@ struct CompensatorSetup {
 /// its force applied one tick late (run_compensated). Thread-safe: each call builds its own loop.
 /// @throws std::invalid_argument from the parameters, the scenario or a wrong-size weight set.
 std::vector<TickRecord> run_with_compensator(const SystemParams& params, const Scenario& scenario,
-                                             const CompensatorSetup& setup,
-                                             std::uint64_t max_ticks = UINT64_MAX);
+                                             const CompensatorSetup& setup, std::uint64_t max_ticks = UINT64_MAX);
 
 }  // namespace pmlsm

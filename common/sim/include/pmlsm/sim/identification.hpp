@@ -41,9 +41,9 @@ struct IdentificationSample {
 };
 
 struct IdentificationParams {
-  double range_ratio = 4.0;             ///< the search box around the configured model, > 1
-  std::uint32_t max_evaluations = 1500; ///< filter runs in all, >= 100
-  std::uint32_t skip_samples = 50;      ///< the filter's start, not judged
+  double range_ratio = 4.0;              ///< the search box around the configured model, > 1
+  std::uint32_t max_evaluations = 1500;  ///< filter runs in all, >= 100
+  std::uint32_t skip_samples = 50;       ///< the filter's start, not judged
   /// @throws std::invalid_argument naming the field.
   void validate() const;
 };

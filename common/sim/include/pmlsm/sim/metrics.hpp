@@ -43,8 +43,8 @@ struct ScenarioMetrics {
 
 /// Time from the start of samples[begin, end) after which |value| <= band holds
 /// to the end; +infinity when the last sample is outside the band.
-double settling_time(const std::vector<double>& values, std::size_t begin, std::size_t end,
-                     double band, double period_s);
+double settling_time(const std::vector<double>& values, std::size_t begin, std::size_t end, double band,
+                     double period_s);
 
 ScenarioMetrics compute_metrics(const std::vector<TickRecord>& trace, const Scenario& scenario,
                                 double control_period_s);

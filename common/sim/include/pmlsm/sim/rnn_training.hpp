@@ -51,8 +51,8 @@ struct PlantVariant {
 
 /// How the costs over the plants make one number.
 enum class PlantObjective {
-  kWeightedSum,      ///< sum over plants of weight x (the scenarios' weighted cost sum)
-  kWorstRatioToPi,   ///< max over plants of weight x sum over scenarios of weight x cost / PI alone's cost
+  kWeightedSum,     ///< sum over plants of weight x (the scenarios' weighted cost sum)
+  kWorstRatioToPi,  ///< max over plants of weight x sum over scenarios of weight x cost / PI alone's cost
 };
 PlantObjective plant_objective_from_string(const std::string& text);
 const char* to_string(PlantObjective objective);
@@ -86,11 +86,11 @@ std::vector<double> rnn_weights_from_acceleration_feedback(const SystemParams& p
 
 /// configs/training.yaml: the optimiser and what it is scored on.
 struct TrainingParams {
-  std::string optimiser;             ///< "de" (the paper), "jde", "cmaes"
-  std::uint64_t population_size = 0; ///< NP
-  double mutation_factor = 0;        ///< F_s (21)
-  double crossover_rate = 0;         ///< CR (22)
-  double init_lower = 0;             ///< initial weights uniform in [lower, upper]
+  std::string optimiser;              ///< "de" (the paper), "jde", "cmaes"
+  std::uint64_t population_size = 0;  ///< NP
+  double mutation_factor = 0;         ///< F_s (21)
+  double crossover_rate = 0;          ///< CR (22)
+  double init_lower = 0;              ///< initial weights uniform in [lower, upper]
   double init_upper = 0;
   std::uint64_t seed = 0;
   TrainingStart start = TrainingStart::kRandom;

@@ -13,7 +13,19 @@ namespace pmlsm {
 /// The largest |command| any scenario may ask for (a typo guard, far above this motor).
 inline constexpr double kMaxCommandSpeedMps = 10.0;
 
-enum class CommandShape { kZero, kStep, kPulse, kSine, kRamp, kTrapezoid, kSCurve, kChirp, kMultiSine, kCsv, kExternal };
+enum class CommandShape {
+  kZero,
+  kStep,
+  kPulse,
+  kSine,
+  kRamp,
+  kTrapezoid,
+  kSCurve,
+  kChirp,
+  kMultiSine,
+  kCsv,
+  kExternal
+};
 
 /// One term of a multi-sine: amplitude * sin(2 pi frequency t + phase).
 struct SineComponent {
@@ -32,9 +44,9 @@ struct Scenario {
   std::string name;
   double duration_s = 0;
   CommandShape shape = CommandShape::kZero;
-  double amplitude_mps = 0;   ///< step height, pulse height, sine/chirp amplitude, move velocity
-  double frequency_hz = 0;    ///< pulse and sine frequency; the chirp's start frequency
-  double duty_cycle = 0.5;    ///< pulse: fraction of each period at amplitude_mps
+  double amplitude_mps = 0;  ///< step height, pulse height, sine/chirp amplitude, move velocity
+  double frequency_hz = 0;   ///< pulse and sine frequency; the chirp's start frequency
+  double duty_cycle = 0.5;   ///< pulse: fraction of each period at amplitude_mps
   /// ramp, trapezoid, s_curve: time at zero before the move starts.
   double start_s = 0;
   /// ramp: its slope; trapezoid, s_curve: the acceleration limit of the move.
@@ -52,8 +64,8 @@ struct Scenario {
   /// csv: the profile (validated when loaded: see parse_velocity_profile), linearly
   /// interpolated; before the first row the first velocity, after the last row the last.
   std::vector<ProfilePoint> profile;
-  std::string profile_file;   ///< where it came from (for messages)
-  double max_gap_s = 0;       ///< csv: the largest time step allowed between rows
+  std::string profile_file;  ///< where it came from (for messages)
+  double max_gap_s = 0;      ///< csv: the largest time step allowed between rows
   /// external: the command comes from VelocitySetpoint samples (the controller node only;
   /// pmlsm/control/external_reference.hpp): a setpoint holds for timeout_s after it arrived,
   /// |setpoint| up to max_speed_mps, the command's rate limit is accel_mps2.
@@ -63,8 +75,8 @@ struct Scenario {
   /// true: the reference model (25) shapes it.
   bool use_reference_model = true;
   double initial_load_displacement_m = 0;  ///< x_L - x_M at t = 0 (spring stretched, Fig. 10)
-  double cost_window_s = 0;   ///< window of the cost (23): the first second in the paper
-  double settling_band = 0;   ///< settling tolerance as a fraction (0.02: 2 %)
+  double cost_window_s = 0;                ///< window of the cost (23): the first second in the paper
+  double settling_band = 0;                ///< settling tolerance as a fraction (0.02: 2 %)
 
   /// @throws std::invalid_argument naming the first invalid field.
   void validate(double control_period_s) const;
@@ -101,7 +113,7 @@ struct VelocityTransition {
 /// infinities, a time that does not increase, a step in time above max_gap_s, negative times,
 /// speeds beyond max_speed_mps, and fewer than two rows.
 /// @throws std::invalid_argument "origin:LINE: what, got 'VALUE'".
-std::vector<ProfilePoint> parse_velocity_profile(const std::string& text, const std::string& origin,
-                                                 double max_gap_s, double max_speed_mps);
+std::vector<ProfilePoint> parse_velocity_profile(const std::string& text, const std::string& origin, double max_gap_s,
+                                                 double max_speed_mps);
 
 }  // namespace pmlsm

@@ -98,11 +98,11 @@ struct RunVerdict {
   double tail_decay_rate_per_s = 0;     ///< -d ln(RMS of a window) / dt over the tail's windows; < 0: growing
   double saturated_share = 0;           ///< of all ticks, force command at its limit
   double saturated_tail_share = 0;
-  double guard_trip_s = -1;             ///< time the vibration guard tripped, -1: never
-  bool non_finite = false;              ///< the plant diverged or a non-finite number in the trace
+  double guard_trip_s = -1;  ///< time the vibration guard tripped, -1: never
+  bool non_finite = false;   ///< the plant diverged or a non-finite number in the trace
   bool limit_cycle = false;
   bool saturated = false;
-  bool slow = false;                    ///< a free vibration settled later than the verdict allows
+  bool slow = false;  ///< a free vibration settled later than the verdict allows
   /// "" when the run is clean; else its faults: "non-finite", "limit cycle", "saturated", "guard", "slow".
   std::string faults() const;
 };
@@ -112,9 +112,9 @@ RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scena
                      double force_limit_n, const VerdictParams& verdict);
 
 struct SweepRun {
-  std::size_t plant = 0;       ///< index into the samples
-  std::size_t compensator = 0; ///< index into SweepResult::compensators
-  std::size_t scenario = 0;    ///< index into spec.scenarios
+  std::size_t plant = 0;        ///< index into the samples
+  std::size_t compensator = 0;  ///< index into SweepResult::compensators
+  std::size_t scenario = 0;     ///< index into spec.scenarios
   RunVerdict verdict;
   /// cost / PI alone's cost on the same plant and scenario (1 for PI itself).
   double cost_ratio_to_pi = std::numeric_limits<double>::quiet_NaN();

@@ -84,7 +84,7 @@ struct CompensatorTuning {
   /// The load mass K_a and the RNN's weights were tuned for: both scale with the Kalman model's
   /// load mass over this one (compensator_gain_scale).
   double design_load_mass_kg = 0;
-  double max_gain_scale = 0;  ///< the schedule's upper limit (the stiff PI's, not the load's)
+  double max_gain_scale = 0;                       ///< the schedule's upper limit (the stiff PI's, not the load's)
   bool accel_feedback_on_reference_error = false;  ///< F_c = -K_a (a_L - dV_ref/dt)
   /// State feedback with inverse-model feedforward (pmlsm/compensation/state_feedback.hpp):
   /// its own two-mass model (defaults: the nominal plant) and the design of the load's error.
@@ -173,12 +173,9 @@ namespace detail {
 // The plant's and the Kalman filter's ripple (10) and friction (11) models share their keys.
 template <typename Ripple, typename Visitor>
 void visit_ripple(const std::string& at, Ripple& r, Visitor& v) {
-  v.real(at + ".scale_n", r.scale_n,
-         {0.0, 1e4, "K_s up to 10 kN, the thrust of the largest linear motors"});
-  v.real(at + ".amplitude_1", r.amplitude_1,
-         {-10.0, 10.0, "normalised harmonic amplitude: K_s carries the newtons"});
-  v.real(at + ".amplitude_2", r.amplitude_2,
-         {-10.0, 10.0, "normalised harmonic amplitude: K_s carries the newtons"});
+  v.real(at + ".scale_n", r.scale_n, {0.0, 1e4, "K_s up to 10 kN, the thrust of the largest linear motors"});
+  v.real(at + ".amplitude_1", r.amplitude_1, {-10.0, 10.0, "normalised harmonic amplitude: K_s carries the newtons"});
+  v.real(at + ".amplitude_2", r.amplitude_2, {-10.0, 10.0, "normalised harmonic amplitude: K_s carries the newtons"});
   v.real(at + ".spatial_freq_1_rad_per_m", r.spatial_freq_1_rad_per_m,
          {0.0, 1e5, "wavelengths down to 63 um, finer than any pole pitch or detent"});
   v.real(at + ".spatial_freq_2_rad_per_m", r.spatial_freq_2_rad_per_m,
@@ -201,15 +198,15 @@ void visit_two_mass(const std::string& at, Real& motor_mass_kg, Real& load_mass_
   v.real(at + ".motor_mass_kg", motor_mass_kg, {0.01, 1e4, "from a 10 g slider to a 10 t gantry"});
   v.real(at + ".load_mass_kg", load_mass_kg, {0.01, 1e4, "from a 10 g load to a 10 t one"});
   v.real(at + ".spring_n_per_m", spring_n_per_m,
-         {1.0, 1e9, "from a rubber band to a short steel coupling (for the plant, its integrator step bounds it further)"});
+         {1.0, 1e9,
+          "from a rubber band to a short steel coupling (for the plant, its integrator step bounds it further)"});
 }
 
 }  // namespace detail
 
 template <typename Params, typename Visitor>
 void visit_parameters(Params& p, Visitor& v) {
-  v.real("timing.control_period_s", p.timing.control_period_s,
-         {1e-5, 1.0, "a velocity loop between 100 kHz and 1 Hz"});
+  v.real("timing.control_period_s", p.timing.control_period_s, {1e-5, 1.0, "a velocity loop between 100 kHz and 1 Hz"});
   v.real("timing.current_loop_period_s", p.timing.current_loop_period_s,
          {1e-7, 1e-3, "a current loop between 10 MHz and 1 kHz"});
 
@@ -252,15 +249,12 @@ void visit_parameters(Params& p, Visitor& v) {
 
   v.real("current_loop.kp_v_per_a", p.current_loop.kp_v_per_a,
          {1e-3, 1e5, "1 mV/A to 100 kV/A: L w_c for any motor and a bandwidth up to the sampling"});
-  v.real("current_loop.ki_v_per_a_s", p.current_loop.ki_v_per_a_s,
-         {0.0, 1e9, "0 to R w_c of the stiffest loop"});
-  v.real("current_loop.current_limit_a", p.current_loop.current_limit_a,
-         {1e-3, 1e4, "1 mA to 10 kA"});
+  v.real("current_loop.ki_v_per_a_s", p.current_loop.ki_v_per_a_s, {0.0, 1e9, "0 to R w_c of the stiffest loop"});
+  v.real("current_loop.current_limit_a", p.current_loop.current_limit_a, {1e-3, 1e4, "1 mA to 10 kA"});
 
   v.real("velocity_loop.kp_n_s_per_m", p.velocity_loop.kp_n_s_per_m,
          {0.0, 1e6, "above 1e6 N s/m one encoder count per tick (1 mm/s at 1 um, 1 ms) alone would command 1 kN"});
-  v.real("velocity_loop.ki_n_per_m", p.velocity_loop.ki_n_per_m,
-         {0.0, 1e9, "0 to 1 kN per um of accumulated error"});
+  v.real("velocity_loop.ki_n_per_m", p.velocity_loop.ki_n_per_m, {0.0, 1e9, "0 to 1 kN per um of accumulated error"});
   v.real("velocity_loop.force_limit_n", p.velocity_loop.force_limit_n,
          {1e-3, 1e5, "1 mN to 100 kN, beyond the largest linear motors"});
 
@@ -293,8 +287,7 @@ void visit_parameters(Params& p, Visitor& v) {
                  {1.0, 1000.0, "neurons of a layer: a whole number, 1 to 1000"});
   v.real("compensator.rnn.input_scale_s2_per_m", c.rnn_input_scale_s2_per_m,
          {1e-6, 1e3, "maps accelerations of 1 mm/s^2 to 1000 km/s^2 into tanh's range"});
-  v.real("compensator.rnn.gain_n", c.rnn_gain_n,
-         {1e-3, 1e5, "1 mN to 100 kN, the range of the force limit"});
+  v.real("compensator.rnn.gain_n", c.rnn_gain_n, {1e-3, 1e5, "1 mN to 100 kN, the range of the force limit"});
   v.real("compensator.rnn.learning_rate", c.rnn_learning_rate,
          {0.0, 1.0, "eta of (16): a step larger than the gradient itself diverges"});
   v.real("compensator.rnn.momentum", c.rnn_momentum, {0.0, 0.999, "alpha of (16): below 1 to contract"});
@@ -332,7 +325,8 @@ void visit_parameters(Params& p, Visitor& v) {
   v.real("compensator.guard.max_reference_share", c.guard_max_reference_share,
          {1e-3, 1e3, "the error oscillation over the reference's own: a thousandth to a thousand times"});
   v.real("compensator.guard.max_saturated_share", c.guard_max_saturated_share,
-         {1e-3, 1.0, "a share of a window's ticks: above it a window at the compensation's limit is not judged sustained"});
+         {1e-3, 1.0,
+          "a share of a window's ticks: above it a window at the compensation's limit is not judged sustained"});
   v.real("compensator.guard.saturated_output_share", c.guard_saturated_output_share,
          {1e-3, 1.0, "a share of the compensator's own output range: at or above it the compensator is at its limit"});
 }

@@ -38,7 +38,7 @@ struct VelocityControllerOutput {
   double command_mps = 0;  ///< raw command c(t_k)
   double v_ref_mps = 0;
   double a_ref_mps2 = 0;
-  double force_n = 0;      ///< force request after the limit
+  double force_n = 0;  ///< force request after the limit
   double velocity_error_mps = 0;
   bool saturated = false;
   /// The compensation added: the request times the guard's scale.

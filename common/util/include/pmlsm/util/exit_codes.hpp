@@ -6,12 +6,12 @@
 namespace pmlsm {
 
 enum ExitCode : int {
-  kExitOk = 0,           ///< the job did what was asked
-  kExitError = 1,        ///< runtime failure (DDS, I/O)
-  kExitBadConfig = 2,    ///< config, command line or input rejected
-  kExitPeerMissing = 3,  ///< a peer never appeared (discovery timeout)
-  kExitPeerLost = 4,     ///< a peer stopped answering mid-run
-  kExitSafeState = 5,    ///< the drive spent ticks in its safe state or a fault: the run is not valid
+  kExitOk = 0,             ///< the job did what was asked
+  kExitError = 1,          ///< runtime failure (DDS, I/O)
+  kExitBadConfig = 2,      ///< config, command line or input rejected
+  kExitPeerMissing = 3,    ///< a peer never appeared (discovery timeout)
+  kExitPeerLost = 4,       ///< a peer stopped answering mid-run
+  kExitSafeState = 5,      ///< the drive spent ticks in its safe state or a fault: the run is not valid
   kExitVerdictFailed = 6,  ///< the job ran to its end and what it judged failed (a sweep run unstable or worse than PI)
 };
 

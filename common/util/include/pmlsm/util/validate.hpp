@@ -48,8 +48,8 @@ inline void require_non_negative(const char* name, double value) {
 inline void require_in_range(const char* name, double value, double lo, double hi) {
   require_finite(name, value);
   if (!(value >= lo && value <= hi)) {
-    throw std::invalid_argument(std::string(name) + ": must be in [" + format_value(lo) + ", " +
-                                format_value(hi) + "], got " + format_value(value));
+    throw std::invalid_argument(std::string(name) + ": must be in [" + format_value(lo) + ", " + format_value(hi) +
+                                "], got " + format_value(value));
   }
 }
 

@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# clang-tidy-14 (.clang-tidy: function size, naming) over the C++ sources a change touched:
+#   scripts/tidy.sh [REF]    the .cpp files changed since REF (default: HEAD~1), or given by
+#                            PMLSM_TIDY_FILES (space separated)
+# It needs build/compile_commands.json (./scripts/build.sh); with unity builds each source is
+# checked with the flags of the unity file that includes it. Exit 1 when a check reports.
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$root"
+tidy=$(command -v clang-tidy-14 || true)
+[ -n "$tidy" ] || { echo "tidy: clang-tidy-14 is not installed (apt-get install clang-tidy-14)" >&2; exit 77; }
+[ -f build/compile_commands.json ] || { echo "tidy: no build/compile_commands.json: run ./scripts/build.sh" >&2; exit 2; }
+if [ -n "${PMLSM_TIDY_FILES:-}" ]; then
+  read -r -a files <<<"$PMLSM_TIDY_FILES"
+else
+  mapfile -t files < <(git diff --name-only --diff-filter=AM "${1:-HEAD~1}" -- '*.cpp' | grep -v '^tests/node/' || true)
+fi
+[ "${#files[@]}" -gt 0 ] || { echo "tidy: no C++ source changed"; exit 0; }
+# A compile database with one entry per source: the unity file's command for each source it includes.
+db=$(mktemp -d)
+trap 'rm -rf "$db"' EXIT
+python3 - "$root" "$db/compile_commands.json" <<'PY'
+import json, re, sys
+root, out = sys.argv[1], sys.argv[2]
+entries = []
+for e in json.load(open(f"{root}/build/compile_commands.json")):
+    if "/Unity/unity_" not in e["file"]:
+        entries.append(e)
+        continue
+    for line in open(e["file"]):
+        m = re.match(r'#include "(.+)"', line)
+        if m:
+            source = m.group(1)
+            entries.append({"directory": e["directory"], "file": source,
+                            "command": e["command"].replace(e["file"], source)})
+json.dump(entries, open(out, "w"))
+PY
+status=0
+for f in "${files[@]}"; do
+  echo "tidy: $f" >&2
+  "$tidy" -p "$db" --quiet "$f" 2>/dev/null | grep -E "warning|error" && status=1 || true
+done
+[ "$status" = 0 ] && echo "tidy: ${#files[@]} file(s), nothing reported"
+exit "$status"
