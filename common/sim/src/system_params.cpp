@@ -91,18 +91,8 @@ RnnCompensatorParams SystemParams::rnn_compensator_params(bool online_learning) 
 }
 
 VibrationGuardParams SystemParams::vibration_guard_params() const {
-  VibrationGuardParams p;
+  VibrationGuardParams p = compensator.guard;
   p.control_period_s = timing.control_period_s;
-  p.highpass_hz = compensator.guard_highpass_hz;
-  p.window_s = compensator.guard_window_s;
-  p.min_oscillation_mps = compensator.guard_min_oscillation_mps;
-  p.growth_ratio = compensator.guard_growth_ratio;
-  p.min_decay = compensator.guard_min_decay;
-  p.windows_to_trip = static_cast<std::uint32_t>(compensator.guard_windows_to_trip);
-  p.fade_s = compensator.guard_fade_s;
-  p.max_reference_share = compensator.guard_max_reference_share;
-  p.saturated_output_share = compensator.guard_saturated_output_share;
-  p.max_saturated_share = compensator.guard_max_saturated_share;
   return p;
 }
 

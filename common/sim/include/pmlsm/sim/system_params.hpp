@@ -95,18 +95,11 @@ struct CompensatorTuning {
   double state_model_damping_ratio = 0;
   double state_correction_damping_ratio = 0;
   double state_max_correction_gain = 0;
-  /// The vibration guard in the compensation path (pmlsm/compensation/vibration_guard.hpp).
+  /// The vibration guard in the compensation path (pmlsm/compensation/vibration_guard.hpp):
+  /// compensator.guard.* are its parameters, declared once there; its control period is
+  /// timing.control_period_s (vibration_guard_params()).
   bool guard_enabled = true;
-  double guard_highpass_hz = 0;
-  double guard_window_s = 0;
-  double guard_min_oscillation_mps = 0;
-  double guard_growth_ratio = 0;
-  double guard_min_decay = 0;
-  double guard_windows_to_trip = 0;
-  double guard_fade_s = 0;
-  double guard_max_reference_share = 0;
-  double guard_max_saturated_share = 0;
-  double guard_saturated_output_share = 0;
+  VibrationGuardParams guard;
 };
 
 /// A parameter's plausible range and why: a config value outside it is refused by
@@ -311,23 +304,23 @@ void visit_parameters(Params& p, Visitor& v) {
   v.real("compensator.state_feedback.max_correction_gain", c.state_max_correction_gain,
          {1e-3, 1e4, "newtons of correction per newton of spring-force difference"});
   v.flag("compensator.guard.enabled", c.guard_enabled);
-  v.real("compensator.guard.highpass_hz", c.guard_highpass_hz,
+  v.real("compensator.guard.highpass_hz", c.guard.highpass_hz,
          {0.01, 1e4, "the corner between tracking motion and vibration: 10 mHz to 10 kHz"});
-  v.real("compensator.guard.window_s", c.guard_window_s, {1e-3, 100.0, "1 ms to 100 s of evaluation window"});
-  v.real("compensator.guard.min_oscillation_mps", c.guard_min_oscillation_mps,
+  v.real("compensator.guard.window_s", c.guard.window_s, {1e-3, 100.0, "1 ms to 100 s of evaluation window"});
+  v.real("compensator.guard.min_oscillation_mps", c.guard.min_oscillation_mps,
          {1e-6, 10.0, "1 um/s to 10 m/s: below it there is no oscillation worth guarding against"});
-  v.real("compensator.guard.growth_ratio", c.guard_growth_ratio, {1.0001, 100.0, "more than 1: a growth"});
-  v.real("compensator.guard.min_decay", c.guard_min_decay,
+  v.real("compensator.guard.growth_ratio", c.guard.growth_ratio, {1.0001, 100.0, "more than 1: a growth"});
+  v.real("compensator.guard.min_decay", c.guard.min_decay,
          {1e-3, 0.999, "a share of the amplitude lost per window: between none and all"});
-  v.integer("compensator.guard.windows_to_trip", c.guard_windows_to_trip,
+  v.integer("compensator.guard.windows_to_trip", c.guard.windows_to_trip,
             {1.0, 1000.0, "a count of windows in a row: a whole number, 1 to 1000"});
-  v.real("compensator.guard.fade_s", c.guard_fade_s, {0.0, 10.0, "0 (at once) to 10 s"});
-  v.real("compensator.guard.max_reference_share", c.guard_max_reference_share,
+  v.real("compensator.guard.fade_s", c.guard.fade_s, {0.0, 10.0, "0 (at once) to 10 s"});
+  v.real("compensator.guard.max_reference_share", c.guard.max_reference_share,
          {1e-3, 1e3, "the error oscillation over the reference's own: a thousandth to a thousand times"});
-  v.real("compensator.guard.max_saturated_share", c.guard_max_saturated_share,
+  v.real("compensator.guard.max_saturated_share", c.guard.max_saturated_share,
          {1e-3, 1.0,
           "a share of a window's ticks: above it a window at the compensation's limit is not judged sustained"});
-  v.real("compensator.guard.saturated_output_share", c.guard_saturated_output_share,
+  v.real("compensator.guard.saturated_output_share", c.guard.saturated_output_share,
          {1e-3, 1.0, "a share of the compensator's own output range: at or above it the compensator is at its limit"});
 }
 
