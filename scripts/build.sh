@@ -10,10 +10,12 @@ PROGRESS_NAME=build
 . "$root/scripts/progress.sh"
 mkdir -p "$root/build"
 log="$root/build/build.log"
-# PMLSM_WERROR=ON (CI): every compiler warning is an error.
-werror="${PMLSM_WERROR:-OFF}"
-phase_start "configure" "cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DPMLSM_WERROR=$werror"
-if ! cmake -S "$root" -B "$root/build" -DCMAKE_BUILD_TYPE=Release -DPMLSM_WERROR="$werror" >"$log" 2>&1; then
+# PMLSM_WERROR=ON (CI): every compiler warning is an error. Unset, the build keeps what it had
+# (a change of flags would compile everything again).
+config_args=(-DCMAKE_BUILD_TYPE=Release)
+[ -n "${PMLSM_WERROR:-}" ] && config_args+=(-DPMLSM_WERROR="$PMLSM_WERROR")
+phase_start "configure" "cmake -S . -B build ${config_args[*]}"
+if ! cmake -S "$root" -B "$root/build" "${config_args[@]}" >"$log" 2>&1; then
   cat "$log" >&2
   echo "build: cmake configure failed (log above, also in $log)" >&2
   exit 1
