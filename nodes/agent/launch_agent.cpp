@@ -187,10 +187,10 @@ struct AgentOptions {
   bool insecure = false;
 };
 
-pdds::ParticipantOptions named(pdds::ParticipantOptions options) {
-  options.node_name = "launch_agent";
+/// The agent's participant: its identity in a keystore is launch_agent unless given.
+pdds::ParticipantOptions agent_participant(pdds::ParticipantOptions options) {
   if (options.identity.empty()) options.identity = "launch_agent";
-  return options;
+  return node::named(std::move(options), "launch_agent");
 }
 
 class LaunchAgentComponent final : public node::Component {
@@ -200,7 +200,7 @@ class LaunchAgentComponent final : public node::Component {
         allowed_count_(allowed.size()),
         policy_(std::move(allowed)),
         launcher_((fs::path(opt_.bin_dir) / "launcher").string()),
-        participant_(named(opt_.dds)),
+        participant_(agent_participant(opt_.dds)),
         announce_writer_(participant_.make_writer<msg::AgentAnnouncePubSubType>(pdds::topics::kAgentAnnounce)),
         output_writer_(participant_.make_writer<msg::NodeOutputPubSubType>(pdds::topics::kNodeOutput)),
         exit_writer_(participant_.make_writer<msg::NodeExitPubSubType>(pdds::topics::kNodeExit)),

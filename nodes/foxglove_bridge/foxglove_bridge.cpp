@@ -242,7 +242,7 @@ class FoxgloveBridgeComponent final : public node::Component {
   FoxgloveBridgeComponent(BridgeOptions options, std::vector<BridgedTopic> topics)
       : opt_(std::move(options)),
         topics_(std::move(topics)),
-        participant_(named(opt_.dds)),
+        participant_(node::named(opt_.dds, kNodeName)),
         status_(participant_),
         server_(
             server_options(opt_), channels_of(topics_),
@@ -268,10 +268,6 @@ class FoxgloveBridgeComponent final : public node::Component {
   int run() override;
 
  private:
-  static pdds::ParticipantOptions named(pdds::ParticipantOptions options) {
-    options.node_name = kNodeName;
-    return options;
-  }
   static foxglove::ServerOptions server_options(const BridgeOptions& opt) {
     foxglove::ServerOptions o;
     o.address = opt.address;

@@ -38,9 +38,7 @@ std::unique_ptr<can::CanBus> open_can_bus(const CanOptions& options) {
 }
 
 CanopenRigConfig load_canopen_config(const CanOptions& options) {
-  std::vector<ConfigOverride> overrides;
-  for (const auto& text : options.canopen_overrides) overrides.push_back(ConfigOverride::parse(text));
-  return pmlsm::load_canopen_config(options.canopen_path, overrides);
+  return pmlsm::load_canopen_config(options.canopen_path, parse_overrides(options.canopen_overrides));
 }
 
 }  // namespace pmlsm::node

@@ -162,10 +162,17 @@ pmlsm_msgs::msg::Stamp make_stamp(std::uint64_t tick, double control_period_s, s
   return s;
 }
 
-namespace {
-dds::ParticipantOptions named(dds::ParticipantOptions options, const std::string& node_name,
-                              const ComponentContext& context, Clock clock) {
+dds::ParticipantOptions named(dds::ParticipantOptions options, const std::string& node_name) {
   options.node_name = node_name;
+  return options;
+}
+
+namespace {
+/// A runtime's participant: named, and in a container on its in-process path (paced toward
+/// outside readers in lockstep).
+dds::ParticipantOptions runtime_participant(dds::ParticipantOptions options, const std::string& node_name,
+                                            const ComponentContext& context, Clock clock) {
+  options = named(std::move(options), node_name);
   options.local_bus = context.local_bus;
   options.pace_remote_readers = context.local_bus != nullptr && clock == Clock::kLockstep;
   return options;
@@ -187,7 +194,7 @@ NodeRuntime::NodeRuntime(const std::string& node_name, CommonOptions& options, c
       realtime(context.local_bus == nullptr ? options.realtime : RealtimeOptions{}),
       wakeup(spin_time(options), std::chrono::nanoseconds(static_cast<std::int64_t>(options.wake_batch_us * 1e3)),
              context.local_bus != nullptr ? &context.local_bus->scheduler() : nullptr),
-      participant(named(options.dds, node_name, context, cfg.clock)),
+      participant(runtime_participant(options.dds, node_name, context, cfg.clock)),
       status(participant, node_name) {
   if (options.realtime.rt_priority > 0 || options.realtime.cpu_dma_latency_us >= 0) {
     if (context.local_bus != nullptr) {

@@ -125,6 +125,9 @@ int end_of_feedback_wait(const char* node_name, const CommonOptions& options, Cl
 /// message on stderr: ConfigError and dds::SecurityConfigError -> 2, anything else -> 1.
 int run_node(const std::string& node_name, const std::function<int()>& body);
 
+/// `options` for the participant of node `node_name` (its NodeStatus and discovery name).
+dds::ParticipantOptions named(dds::ParticipantOptions options, const std::string& node_name);
+
 std::chrono::nanoseconds spin_time(const CommonOptions& options);
 
 /// Only the DDS options (--profiles, --participant-profile, --domain, --data-sharing, and

@@ -83,9 +83,8 @@ struct TrainerOptions {
 
 /// The training file with its plants commissioned where they ask for it (printed).
 TrainingParams load_training(const TrainerOptions& opt, const SystemParams& params) {
-  std::vector<ConfigOverride> parsed;
-  for (const auto& o : opt.training_overrides) parsed.push_back(ConfigOverride::parse(o));
-  TrainingParams training = load_training_params(opt.training_path, params.timing.control_period_s, parsed);
+  TrainingParams training =
+      load_training_params(opt.training_path, params.timing.control_period_s, parse_overrides(opt.training_overrides));
   if (!training.identify_models) return training;
   training.plants = commissioned_plants(params, std::move(training.plants), training.identification_scenario);
   for (const PlantVariant& plant : training.plants) {
@@ -102,9 +101,7 @@ TrainingParams load_training(const TrainerOptions& opt, const SystemParams& para
 }
 
 SystemParams load_system(const TrainerOptions& opt) {
-  std::vector<ConfigOverride> parsed;
-  for (const auto& o : opt.overrides) parsed.push_back(ConfigOverride::parse(o));
-  return load_system_params(opt.config_path, parsed);
+  return load_system_params(opt.config_path, parse_overrides(opt.overrides));
 }
 
 std::shared_ptr<const RnnCost> make_cost(const SystemParams& params, const TrainingParams& training) {
@@ -131,11 +128,6 @@ DeParams make_de_params(const SystemParams& params, const TrainingParams& traini
   return de;
 }
 
-pdds::ParticipantOptions named(pdds::ParticipantOptions options) {
-  options.node_name = "de_trainer";
-  return options;
-}
-
 std::chrono::milliseconds to_ms(double seconds) {
   return std::chrono::milliseconds(static_cast<long long>(seconds * 1000));
 }
@@ -148,7 +140,7 @@ class DeTrainerComponent final : public node::Component {
         training_(load_training(opt_, params_)),
         cost_(make_cost(params_, training_)),
         de_(make_de_params(params_, training_, cost_->dimension())),
-        participant_(named(opt_.dds)),
+        participant_(node::named(opt_.dds, "de_trainer")),
         run_id_(static_cast<std::uint64_t>(wall_time_ns()) ^ (static_cast<std::uint64_t>(getpid()) << 40)),
         setup_writer_(participant_.make_writer<msg::TrainingSetupPubSubType>(pdds::topics::kTrainingSetup)),
         progress_writer_(participant_.make_writer<msg::TrainerProgressPubSubType>(pdds::topics::kTrainerProgress)),

@@ -38,7 +38,7 @@ class DeWorkerComponent final : public node::Component {
  public:
   explicit DeWorkerComponent(WorkerOptions options)
       : opt_(std::move(options)),
-        participant_(named(opt_.dds)),
+        participant_(node::named(opt_.dds, "de_worker")),
         setup_reader_(participant_.make_reader<msg::TrainingSetupPubSubType>(pdds::topics::kTrainingSetup, wakeup_)),
         request_reader_(
             participant_.make_reader<msg::EvaluationRequestPubSubType>(pdds::topics::kEvaluationRequest, wakeup_)),
@@ -48,11 +48,6 @@ class DeWorkerComponent final : public node::Component {
   int run() override;
 
  private:
-  static pdds::ParticipantOptions named(pdds::ParticipantOptions options) {
-    options.node_name = "de_worker";
-    return options;
-  }
-
   WorkerOptions opt_;
   pdds::Wakeup wakeup_;  // outlives the participant, whose listeners signal it
   pdds::Participant participant_;
