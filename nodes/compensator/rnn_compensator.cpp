@@ -27,7 +27,7 @@ namespace flags = pmlsm_msgs::msg::CompensatorOutput_Constants;
 // system file it shares with this node (TrainingSetup), so it takes this node's.
 RnnWeightsFile from_message(const msg::NetworkWeights& m, const SystemParams& params) {
   RnnWeightsFile w;
-  w.on_reference_error = params.compensator.rnn_on_reference_error;
+  w.on_reference_error = params.compensator.rnn.on_reference_error;
   for (auto size : m.layer_sizes()) w.layer_sizes.push_back(size);
   w.input_scale_s2_per_m = m.input_scale();
   w.gain_n = m.gain_n();

@@ -32,8 +32,8 @@ class StateFeedbackComponent final : public node::Component {
     std::printf(
         "state_feedback: model %.1f/%.1f kg, %.0f N/m, %llu ticks answered, %llu saturated, %llu rejected, "
         "%llu model restarts, %llu skipped\n",
-        params_.motor_mass_kg, params_.load_mass_kg, params_.spring_n_per_m, static_cast<unsigned long long>(answered),
-        static_cast<unsigned long long>(counters.saturated),
+        params_.model.motor_mass_kg, params_.model.load_mass_kg, params_.model.spring_n_per_m,
+        static_cast<unsigned long long>(answered), static_cast<unsigned long long>(counters.saturated),
         static_cast<unsigned long long>(inputs_.rejected() + counters.rejected_inputs),
         static_cast<unsigned long long>(counters.model_resets), static_cast<unsigned long long>(inputs_.skipped()));
     return result.exit_code;

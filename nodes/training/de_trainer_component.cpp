@@ -228,11 +228,11 @@ std::unique_ptr<Optimiser> DeTrainerComponent::make_started_optimiser() {
   progress_msg_.optimiser(optimiser->name().substr(0, 32));
   progress_msg_.population_size(static_cast<std::uint32_t>(de_.population_size));
   progress_msg_.max_generations(0);
-  for (int size : params_.compensator.rnn_layer_sizes) {
+  for (int size : params_.compensator.rnn.layer_sizes) {
     weights_msg_.layer_sizes().push_back(static_cast<std::uint16_t>(size));
   }
-  weights_msg_.input_scale(params_.compensator.rnn_input_scale_s2_per_m);
-  weights_msg_.gain_n(params_.compensator.rnn_gain_n);
+  weights_msg_.input_scale(params_.compensator.rnn.input_scale_s2_per_m);
+  weights_msg_.gain_n(params_.compensator.rnn.gain_n);
   return optimiser;
 }
 
@@ -290,10 +290,10 @@ void DeTrainerComponent::publish_generation(const Search& s, double elapsed_s, d
 
 void DeTrainerComponent::write_weights_file(const Optimiser& optimiser, const OptimiserReport& report) const {
   RnnWeightsFile file;
-  file.layer_sizes = params_.compensator.rnn_layer_sizes;
-  file.input_scale_s2_per_m = params_.compensator.rnn_input_scale_s2_per_m;
-  file.on_reference_error = params_.compensator.rnn_on_reference_error;
-  file.gain_n = params_.compensator.rnn_gain_n;
+  file.layer_sizes = params_.compensator.rnn.layer_sizes;
+  file.input_scale_s2_per_m = params_.compensator.rnn.input_scale_s2_per_m;
+  file.on_reference_error = params_.compensator.rnn.on_reference_error;
+  file.gain_n = params_.compensator.rnn.gain_n;
   file.cost = report.best_cost;
   // The system overrides the search ran with belong to its provenance: the same command remakes
   // the same bits, and a check of the file's cost must judge it as it was searched.

@@ -55,10 +55,10 @@ Scenario scenario(const SystemParams& params) { return load_scenario(scenario_pa
 /// Weights in [-0.5, 0.5] from a fixed seed, sized and tagged as configs/system.yaml's network.
 RnnWeightsFile pseudo_random_weights(const SystemParams& params, std::uint64_t seed) {
   RnnWeightsFile w;
-  w.layer_sizes = params.compensator.rnn_layer_sizes;
-  w.input_scale_s2_per_m = params.compensator.rnn_input_scale_s2_per_m;
-  w.on_reference_error = params.compensator.rnn_on_reference_error;
-  w.gain_n = params.compensator.rnn_gain_n;
+  w.layer_sizes = params.compensator.rnn.layer_sizes;
+  w.input_scale_s2_per_m = params.compensator.rnn.input_scale_s2_per_m;
+  w.on_reference_error = params.compensator.rnn.on_reference_error;
+  w.gain_n = params.compensator.rnn.gain_n;
   w.cost = -1;
   w.source = "compensator_test seed " + std::to_string(seed);
   std::mt19937_64 rng(seed);

@@ -364,7 +364,7 @@ TEST(Identify, ARecordedCommissioningRunGivesTheInProcessFit) {
   EXPECT_EQ(a.kalman.friction_input.model.coulomb_n, b.kalman.friction_input.model.coulomb_n);
   EXPECT_NEAR(a.kalman.model.load_mass_kg, 2.0, 0.3);
   EXPECT_NEAR(std::sqrt(a.kalman.model.spring_n_per_m / a.kalman.model.load_mass_kg), std::sqrt(27400.0 / 2.0), 1.5);
-  EXPECT_EQ(a.compensator.state_model_load_mass_kg, a.kalman.model.load_mass_kg);
+  EXPECT_EQ(a.compensator.state_feedback.model.load_mass_kg, a.kalman.model.load_mass_kg);
   EXPECT_EQ(a.plant.mechanics.load_mass_kg,
             load_system_params(source("configs/system.yaml")).plant.mechanics.load_mass_kg);
   fs::remove_all(dir);

@@ -71,10 +71,10 @@ TEST(AccelFeedback, OnTheReferenceErrorOpposesOnlyTheUncommandedAcceleration) {
 // tracks worse than PI alone; on the error it tracks better, and the pulse gets cheaper too.
 TEST(AccelFeedback, OnTheReferenceErrorTracksASineBetterThanPiAlone) {
   const SystemParams& shipped = shipped_params();
-  ASSERT_TRUE(shipped.compensator.accel_feedback_on_reference_error);
+  ASSERT_TRUE(shipped.compensator.acceleration_feedback.on_reference_error);
   const auto cost = [&](const char* scenario_name, bool on_error, bool compensated) {
     SystemParams p = shipped;
-    p.compensator.accel_feedback_on_reference_error = on_error;
+    p.compensator.acceleration_feedback.on_reference_error = on_error;
     const Scenario s = shipped_scenario(scenario_name);
     AccelFeedback feedback(p.accel_feedback_params());
     const auto trace = run_compensated(p, s, [&](const CompensatorView& v) {
@@ -229,8 +229,8 @@ TEST(TrainingConfig, BadValuesNameTheKey) {
 // and a bad value is named.
 TEST(TrainingStart, TheNetworkEquivalentOfAccelerationFeedback) {
   SystemParams p = shipped_params();
-  p.compensator.rnn_on_reference_error = true;
-  p.compensator.accel_feedback_on_reference_error = true;
+  p.compensator.rnn.on_reference_error = true;
+  p.compensator.acceleration_feedback.on_reference_error = true;
   RnnCompensator rnn(p.rnn_compensator_params(false));
   rnn.set_weights(rnn_weights_from_acceleration_feedback(p));
   AccelFeedback law(p.accel_feedback_params());
@@ -239,7 +239,7 @@ TEST(TrainingStart, TheNetworkEquivalentOfAccelerationFeedback) {
     EXPECT_NEAR(rnn.step({a_load, 0.0, 0.0, a_ref}).force_n, expected, 0.01 * std::abs(expected)) << a_load;
   }
   EXPECT_LT(std::abs(rnn.step({4.0, 0.0, 0.0, 0.0}).force_n), std::abs(law.step({4.0, 0.0})));
-  p.compensator.rnn_on_reference_error = false;
+  p.compensator.rnn.on_reference_error = false;
   try {
     rnn_weights_from_acceleration_feedback(p);
     ADD_FAILURE() << "a network on a_L was started from the law on the error";
@@ -423,15 +423,15 @@ TEST(ShippedWeights, RnnBeatsPiOnlyAndThePapersAccelerationFeedbackOnThePulseTes
   const SystemParams& p = shipped_params();
   const Scenario pulse = shipped_scenario("pulse");
   const RnnWeightsFile file = load_rnn_weights(source("configs/rnn_weights.yaml"));
-  ASSERT_EQ(file.layer_sizes, p.compensator.rnn_layer_sizes);
-  ASSERT_EQ(file.gain_n, p.compensator.rnn_gain_n);
-  ASSERT_EQ(file.input_scale_s2_per_m, p.compensator.rnn_input_scale_s2_per_m);
-  ASSERT_EQ(file.on_reference_error, p.compensator.rnn_on_reference_error);
+  ASSERT_EQ(file.layer_sizes, p.compensator.rnn.layer_sizes);
+  ASSERT_EQ(file.gain_n, p.compensator.rnn.gain_n);
+  ASSERT_EQ(file.input_scale_s2_per_m, p.compensator.rnn.input_scale_s2_per_m);
+  ASSERT_EQ(file.on_reference_error, p.compensator.rnn.on_reference_error);
   const double period = p.timing.control_period_s;
   const ScenarioMetrics pi = compute_metrics(run_scenario(p, pulse), pulse, period);
   const auto accel_cost = [&](bool on_reference_error) {
     SystemParams q = p;
-    q.compensator.accel_feedback_on_reference_error = on_reference_error;
+    q.compensator.acceleration_feedback.on_reference_error = on_reference_error;
     return compute_metrics(run_with_compensator(q, pulse, {CompensatorKind::kAccel, {}, false}), pulse, period)
         .cost_true;
   };

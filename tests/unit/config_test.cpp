@@ -388,7 +388,7 @@ TEST(ConfigFiles, AWrittenCopyHoldsTheValuesAndTheirSource) {
   EXPECT_EQ(after.kalman.model.load_mass_kg, mass);
   EXPECT_EQ(after.kalman.friction_input.model.coulomb_n, 12.5);
   EXPECT_EQ(after.plant.mechanics.load_mass_kg, before.plant.mechanics.load_mass_kg);
-  EXPECT_EQ(after.compensator.accel_feedback_gain_kg, before.compensator.accel_feedback_gain_kg);
+  EXPECT_EQ(after.compensator.acceleration_feedback.gain_kg, before.compensator.acceleration_feedback.gain_kg);
   const YAML::Node written = YAML::LoadFile(out);
   EXPECT_EQ(written["kalman"]["model"]["load_mass_kg"]["source"].as<std::string>(), "chosen: identified (test)");
   EXPECT_EQ(written["kalman"]["model"]["spring_n_per_m"]["source"].as<std::string>().rfind("paper", 0), 0u);
@@ -439,11 +439,11 @@ TEST(ConfigKalmanModel, IsTheFiltersOwnSoAPlantOverrideLeavesItNominal) {
       load_system_params(path, {ConfigOverride::parse("plant.mechanics.load_mass_kg=2"),
                                 ConfigOverride::parse("plant.mechanics.spring_n_per_m=27400")});
   EXPECT_DOUBLE_EQ(mismatched.plant.mechanics.load_mass_kg, 2.0);
-  EXPECT_DOUBLE_EQ(mismatched.kalman_params().load_mass_kg, 4.0);
-  EXPECT_DOUBLE_EQ(mismatched.kalman_params().spring_n_per_m, 13700.0);
+  EXPECT_DOUBLE_EQ(mismatched.kalman_params().model.load_mass_kg, 4.0);
+  EXPECT_DOUBLE_EQ(mismatched.kalman_params().model.spring_n_per_m, 13700.0);
   // And the model alone.
   const SystemParams model = load_system_params(path, {ConfigOverride::parse("kalman.model.load_mass_kg=8")});
-  EXPECT_DOUBLE_EQ(model.kalman_params().load_mass_kg, 8.0);
+  EXPECT_DOUBLE_EQ(model.kalman_params().model.load_mass_kg, 8.0);
   EXPECT_DOUBLE_EQ(model.plant.mechanics.load_mass_kg, 4.0);
 }
 

@@ -115,8 +115,8 @@ TEST(Identification, TheIdentifiedLoadSetsTheModelsAndSchedulesTheGains) {
   EXPECT_EQ(p.kalman.model.spring_n_per_m, 27400);
   EXPECT_EQ(p.kalman.friction_input.model.coulomb_n, 12);
   EXPECT_EQ(p.kalman.friction_input.model.viscous_n_s_per_m, 25);
-  EXPECT_EQ(p.compensator.state_model_load_mass_kg, 2.0);
-  EXPECT_EQ(p.compensator.state_model_spring_n_per_m, 27400);
+  EXPECT_EQ(p.compensator.state_feedback.model.load_mass_kg, 2.0);
+  EXPECT_EQ(p.compensator.state_feedback.model.spring_n_per_m, 27400);
   EXPECT_EQ(p.plant.mechanics.load_mass_kg, shipped.plant.mechanics.load_mass_kg);
   EXPECT_EQ(p.plant.friction.coulomb_n, shipped.plant.friction.coulomb_n);
   EXPECT_DOUBLE_EQ(shipped.compensator_gain_scale(), 1.0);

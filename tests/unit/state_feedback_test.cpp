@@ -32,8 +32,8 @@ TEST(StateFeedback, ValidatesItsParametersNamingTheValue) {
     }
     return std::string("no error");
   };
-  EXPECT_NE(message([](StateFeedbackParams& p) { p.load_mass_kg = -4; }).find("load_mass_kg"), std::string::npos);
-  EXPECT_NE(message([](StateFeedbackParams& p) { p.spring_n_per_m = std::nan(""); }).find("spring_n_per_m"),
+  EXPECT_NE(message([](StateFeedbackParams& p) { p.model.load_mass_kg = -4; }).find("load_mass_kg"), std::string::npos);
+  EXPECT_NE(message([](StateFeedbackParams& p) { p.model.spring_n_per_m = std::nan(""); }).find("spring_n_per_m"),
             std::string::npos);
   EXPECT_NE(message([](StateFeedbackParams& p) { p.force_limit_n = 0; }).find("force_limit_n"), std::string::npos);
   EXPECT_NE(message([](StateFeedbackParams& p) { p.correction_damping_ratio = -0.1; }).find("correction_damping_ratio"),
@@ -50,10 +50,10 @@ TEST(StateFeedback, ItsModelIsItsOwnNotThePlants) {
   SystemParams p = shipped_params();
   p.plant.mechanics.load_mass_kg = 2;
   p.plant.mechanics.spring_n_per_m = 27400;
-  EXPECT_EQ(p.state_feedback_params().load_mass_kg, 4.0);
-  EXPECT_EQ(p.state_feedback_params().spring_n_per_m, 13700.0);
-  p.compensator.state_model_load_mass_kg = 2;
-  EXPECT_EQ(p.state_feedback_params().load_mass_kg, 2.0);
+  EXPECT_EQ(p.state_feedback_params().model.load_mass_kg, 4.0);
+  EXPECT_EQ(p.state_feedback_params().model.spring_n_per_m, 13700.0);
+  p.compensator.state_feedback.model.load_mass_kg = 2;
+  EXPECT_EQ(p.state_feedback_params().model.load_mass_kg, 2.0);
   EXPECT_EQ(p.plant.mechanics.load_mass_kg, 2.0);
 }
 
@@ -64,7 +64,7 @@ TEST(StateFeedback, AtRestGivesNothingAndPullsOnTheSpringForceDifference) {
   // The model is at rest: 10 N of estimated spring force is 10 N off the model.
   // F = (2 zeta_c Kp / sqrt(k m_L) - 1) (0 - 10 N), about -332 N with the shipped values.
   const double gain = 2 * params.correction_damping_ratio * params.velocity_gain_n_s_per_m /
-                          std::sqrt(params.spring_n_per_m * params.load_mass_kg) -
+                          std::sqrt(params.model.spring_n_per_m * params.model.load_mass_kg) -
                       1;
   StateFeedbackInput in;
   in.spring_force_n = 10;
@@ -81,8 +81,8 @@ TEST(StateFeedback, AtRestGivesNothingAndPullsOnTheSpringForceDifference) {
 // twice as hard per newton of spring force (67.3); the pull stops at max_correction_gain.
 TEST(StateFeedback, TheCorrectionGainStopsAtItsLimit) {
   StateFeedbackParams params = shipped_params().state_feedback_params();
-  params.load_mass_kg = 2;
-  params.spring_n_per_m = 6850;
+  params.model.load_mass_kg = 2;
+  params.model.spring_n_per_m = 6850;
   ASSERT_LT(params.max_correction_gain,
             2 * params.correction_damping_ratio * params.velocity_gain_n_s_per_m / std::sqrt(6850.0 * 2.0) - 1);
   StateFeedback f(params);

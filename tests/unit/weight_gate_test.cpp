@@ -37,10 +37,10 @@ class WeightGate : public ::testing::Test {
 
   RnnWeightsFile fitting(double scale, std::uint64_t seed, double cost) const {
     RnnWeightsFile f;
-    f.layer_sizes = params_.compensator.rnn_layer_sizes;
-    f.input_scale_s2_per_m = params_.compensator.rnn_input_scale_s2_per_m;
-    f.on_reference_error = params_.compensator.rnn_on_reference_error;
-    f.gain_n = params_.compensator.rnn_gain_n;
+    f.layer_sizes = params_.compensator.rnn.layer_sizes;
+    f.input_scale_s2_per_m = params_.compensator.rnn.input_scale_s2_per_m;
+    f.on_reference_error = params_.compensator.rnn.on_reference_error;
+    f.gain_n = params_.compensator.rnn.gain_n;
     f.cost = cost;
     f.source = "de_trainer gen " + std::to_string(seed);
     f.weights = random_weights(91, scale, seed);
@@ -91,7 +91,7 @@ TEST_F(WeightGate, RefusesImplausibleSetsKeepingTheCurrentOne) {
   EXPECT_NE(gate.offer(gain, 3, "the NetworkWeights topic").find("gain"), std::string::npos);
   // A set trained on the other input would read every acceleration as something else.
   RnnWeightsFile other_input = fitting(1.0, 3, 0.1);
-  other_input.on_reference_error = !params_.compensator.rnn_on_reference_error;
+  other_input.on_reference_error = !params_.compensator.rnn.on_reference_error;
   EXPECT_NE(
       gate.offer(other_input, 3, "the NetworkWeights topic").find("differs from compensator.rnn.on_reference_error"),
       std::string::npos);
@@ -102,7 +102,7 @@ TEST_F(WeightGate, RefusesImplausibleSetsKeepingTheCurrentOne) {
   const RnnCost cost(params_, {TrainingScenario{pulse, "pulse.yaml", 1.0}}, CostVelocity::truth);
   EXPECT_TRUE(std::isinf(cost(huge.weights)));
   // And the network itself refuses them.
-  JordanRnn net(params_.compensator.rnn_layer_sizes);
+  JordanRnn net(params_.compensator.rnn.layer_sizes);
   EXPECT_THROW(net.set_weights(huge.weights), std::invalid_argument);
 }
 

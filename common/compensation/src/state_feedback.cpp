@@ -12,9 +12,7 @@
 namespace pmlsm {
 
 void StateFeedbackParams::validate() const {
-  require_positive("motor_mass_kg", motor_mass_kg);
-  require_positive("load_mass_kg", load_mass_kg);
-  require_positive("spring_n_per_m", spring_n_per_m);
+  model.validate();
   require_positive("velocity_gain_n_s_per_m", velocity_gain_n_s_per_m);
   // c0 = r^2 - 1 >= 0: a load mode no slower than the open one (a negative c0 would feed the
   // load's velocity error forward, along the error).
@@ -36,9 +34,9 @@ void StateFeedbackParams::validate() const {
 
 StateFeedback::StateFeedback(const StateFeedbackParams& params) : params_(params) {
   params_.validate();
-  const double m_m = params_.motor_mass_kg;
-  const double m_l = params_.load_mass_kg;
-  const double k = params_.spring_n_per_m;
+  const double m_m = params_.model.motor_mass_kg;
+  const double m_l = params_.model.load_mass_kg;
+  const double k = params_.model.spring_n_per_m;
   const double r = params_.model_frequency_ratio;
   const double w = r * std::sqrt(k / m_l);
   c0_ = r * r - 1.0;
@@ -67,7 +65,7 @@ StateFeedback::StateFeedback(const StateFeedbackParams& params) : params_(params
 }
 
 double StateFeedback::model_spring_force_n() const {
-  return params_.spring_n_per_m * (model_reported_(0) - model_reported_(2));
+  return params_.model.spring_n_per_m * (model_reported_(0) - model_reported_(2));
 }
 
 void StateFeedback::reset_model() {
@@ -86,7 +84,7 @@ double StateFeedback::step(const StateFeedbackInput& in) {
     return 0.0;
   }
   const StateFeedbackParams& p = params_;
-  const double k = p.spring_n_per_m;
+  const double k = p.model.spring_n_per_m;
   const double limit = p.force_limit_n;
 
   // The reference when this force acts: the model (25) one tick on, c held.
@@ -102,10 +100,10 @@ double StateFeedback::step(const StateFeedbackInput& in) {
   const double model_spring_n = k * (x(0) - x(2));
   const double model_motor_velocity_mps = (x(0) - model_motor_position_before_m_) / p.period_s;  // encoder-like mean
   const double model_pi_n = p.velocity_gain_n_s_per_m * (v_ref - model_motor_velocity_mps);
-  const double motor_offset_mps =
-      (p.load_mass_kg / k) * j_ref + c1_s_ * (a_ref - model_spring_n / p.load_mass_kg) + c0_ * (v_ref - x(3));
+  const double motor_offset_mps = (p.model.load_mass_kg / k) * j_ref +
+                                  c1_s_ * (a_ref - model_spring_n / p.model.load_mass_kg) + c0_ * (v_ref - x(3));
   const double model_force_n = std::clamp(
-      p.velocity_gain_n_s_per_m * motor_offset_mps + p.motor_mass_kg * a_ref + model_spring_n, -limit, limit);
+      p.velocity_gain_n_s_per_m * motor_offset_mps + p.model.motor_mass_kg * a_ref + model_spring_n, -limit, limit);
   const double model_drive_n = std::clamp(model_pi_n + model_force_n, -limit, limit);
 
   // The plant pulled onto the model: the estimate against the model at the estimate's tick.

@@ -318,19 +318,19 @@ std::string rnn_weights_misfit(const RnnWeightsFile& w, const SystemParams& p) {
   } catch (const std::exception& e) {
     return e.what();
   }
-  if (w.layer_sizes != p.compensator.rnn_layer_sizes) return "layer sizes differ from compensator.rnn.layer_sizes";
-  if (w.input_scale_s2_per_m != p.compensator.rnn_input_scale_s2_per_m) {
+  if (w.layer_sizes != p.compensator.rnn.layer_sizes) return "layer sizes differ from compensator.rnn.layer_sizes";
+  if (w.input_scale_s2_per_m != p.compensator.rnn.input_scale_s2_per_m) {
     return "input scale " + format_value(w.input_scale_s2_per_m) +
-           " differs from compensator.rnn.input_scale_s2_per_m " + format_value(p.compensator.rnn_input_scale_s2_per_m);
+           " differs from compensator.rnn.input_scale_s2_per_m " + format_value(p.compensator.rnn.input_scale_s2_per_m);
   }
-  if (w.on_reference_error != p.compensator.rnn_on_reference_error) {
+  if (w.on_reference_error != p.compensator.rnn.on_reference_error) {
     return std::string("input ") + (w.on_reference_error ? kInputAccelError : kInputLoadAccel) +
            " differs from compensator.rnn.on_reference_error " +
-           (p.compensator.rnn_on_reference_error ? "true" : "false");
+           (p.compensator.rnn.on_reference_error ? "true" : "false");
   }
-  if (w.gain_n != p.compensator.rnn_gain_n) {
+  if (w.gain_n != p.compensator.rnn.gain_n) {
     return "gain " + format_value(w.gain_n) + " N differs from compensator.rnn.gain_n " +
-           format_value(p.compensator.rnn_gain_n);
+           format_value(p.compensator.rnn.gain_n);
   }
   return {};
 }

@@ -14,9 +14,7 @@ void KalmanStandstillHold::validate() const {
 }
 
 void KalmanParams::validate() const {
-  require_positive("motor_mass_kg", motor_mass_kg);
-  require_positive("load_mass_kg", load_mass_kg);
-  require_positive("spring_n_per_m", spring_n_per_m);
+  model.validate();
   require_in_range("period_s", period_s, 1e-6, 1.0);
   require_in_range("thrust_lag_s", thrust_lag_s, 0.0, 1.0);
   require_non_negative("process_noise_diag[0]", process_noise_diag(0));
@@ -33,14 +31,14 @@ void KalmanParams::validate() const {
 
 Eigen::Matrix3d KalmanFilter::continuous_a(const KalmanParams& p) {
   Eigen::Matrix3d a;
-  a << 0.0, 0.0, -1.0 / p.motor_mass_kg,  //
-      0.0, 0.0, 1.0 / p.load_mass_kg,     //
-      p.spring_n_per_m, -p.spring_n_per_m, 0.0;
+  a << 0.0, 0.0, -1.0 / p.model.motor_mass_kg,  //
+      0.0, 0.0, 1.0 / p.model.load_mass_kg,     //
+      p.model.spring_n_per_m, -p.model.spring_n_per_m, 0.0;
   return a;
 }
 
 Eigen::Vector3d KalmanFilter::continuous_b(const KalmanParams& p) {
-  return Eigen::Vector3d(1.0 / p.motor_mass_kg, 0.0, 0.0);
+  return Eigen::Vector3d(1.0 / p.model.motor_mass_kg, 0.0, 0.0);
 }
 
 KalmanFilter::KalmanFilter(const KalmanParams& params) : params_(params) {
@@ -49,7 +47,7 @@ KalmanFilter::KalmanFilter(const KalmanParams& params) : params_(params) {
   phi_ = d.phi;
   gamma_ = d.gamma;
   q_ = params_.process_noise_diag.asDiagonal();
-  load_impedance_n_s_per_m_ = std::sqrt(params_.spring_n_per_m * params_.load_mass_kg);
+  load_impedance_n_s_per_m_ = std::sqrt(params_.model.spring_n_per_m * params_.model.load_mass_kg);
   if (params_.thrust_lag_s > 0) {
     lag_decay_ = std::exp(-params_.period_s / params_.thrust_lag_s);
     lag_over_period_ = params_.thrust_lag_s / params_.period_s;
@@ -152,7 +150,7 @@ KalmanEstimate KalmanFilter::step(const KalmanInput& in) {
   out.motor_velocity_mps = x_(0);
   out.load_velocity_mps = x_(1);
   out.spring_force_n = x_(2);
-  out.load_accel_mps2 = x_(2) / params_.load_mass_kg;
+  out.load_accel_mps2 = x_(2) / params_.model.load_mass_kg;
   out.covariance_diag = p_.diagonal();
   return out;
 }

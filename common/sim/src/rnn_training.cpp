@@ -39,18 +39,18 @@ const char* to_string(TrainingStart start) {
 
 std::vector<double> rnn_weights_from_acceleration_feedback(const SystemParams& params) {
   const CompensatorTuning& c = params.compensator;
-  if (c.rnn_on_reference_error != c.accel_feedback_on_reference_error) {
+  if (c.rnn.on_reference_error != c.acceleration_feedback.on_reference_error) {
     throw std::invalid_argument(std::string("start acceleration_feedback: the network reads ") +
-                                (c.rnn_on_reference_error ? "a_L - dV_ref/dt" : "a_L") +
+                                (c.rnn.on_reference_error ? "a_L - dV_ref/dt" : "a_L") +
                                 " (compensator.rnn.on_reference_error) but "
                                 "acceleration feedback acts on " +
-                                (c.accel_feedback_on_reference_error ? "a_L - dV_ref/dt" : "a_L") +
+                                (c.acceleration_feedback.on_reference_error ? "a_L - dV_ref/dt" : "a_L") +
                                 " (compensator.acceleration_feedback.on_reference_error): set them alike");
   }
   // F = G_n u_n = -K_a a and x_0 = s a: u_n = -(K_a / (G_n s)) x_0.
-  const double gain = -c.accel_feedback_gain_kg / (c.rnn_gain_n * c.rnn_input_scale_s2_per_m);
+  const double gain = -c.acceleration_feedback.gain_kg / (c.rnn.gain_n * c.rnn.input_scale_s2_per_m);
   try {
-    return JordanRnn::linear_chain_weights(c.rnn_layer_sizes, gain);
+    return JordanRnn::linear_chain_weights(c.rnn.layer_sizes, gain);
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(std::string("start acceleration_feedback: ") + e.what());
   }
@@ -170,7 +170,7 @@ RnnCost::RnnCost(const SystemParams& params, std::vector<TrainingScenario> scena
     : scenarios_(std::move(scenarios)), which_(which), objective_(objective) {
   params.validate();
   control_period_s_ = params.timing.control_period_s;
-  dimension_ = JordanRnn::parameter_count(params.compensator.rnn_layer_sizes);
+  dimension_ = JordanRnn::parameter_count(params.compensator.rnn.layer_sizes);
   for (const TrainingScenario& s : scenarios_) {
     require_positive("weight", s.weight);
     s.scenario.validate(params.timing.control_period_s);

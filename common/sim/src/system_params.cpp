@@ -26,18 +26,11 @@ int TimingParams::current_steps_per_tick() const {
   return static_cast<int>(std::lround(control_period_s / current_loop_period_s));
 }
 
-void CurrentLoopTuning::validate() const {
-  require_positive("kp_v_per_a", kp_v_per_a);
-  require_non_negative("ki_v_per_a_s", ki_v_per_a_s);
-  require_positive("current_limit_a", current_limit_a);
-}
+// Each accessor takes its component's section whole and fills what the system derives.
 
 CurrentControllerParams SystemParams::current_controller_params() const {
-  CurrentControllerParams p;
-  p.kp_v_per_a = current_loop.kp_v_per_a;
-  p.ki_v_per_a_s = current_loop.ki_v_per_a_s;
+  CurrentControllerParams p = current_loop;
   p.period_s = timing.current_loop_period_s;
-  p.current_limit_a = current_loop.current_limit_a;
   p.voltage_limit_v = plant.inverter.voltage_limit_v();
   p.motor_constant_n_per_a = plant.electrical.motor_constant_n_per_a;
   p.pole_pitch_m = plant.electrical.pole_pitch_m;
@@ -48,45 +41,28 @@ CurrentControllerParams SystemParams::current_controller_params() const {
 }
 
 VelocityPiParams SystemParams::velocity_pi_params() const {
-  return VelocityPiParams{velocity_loop.kp_n_s_per_m, velocity_loop.ki_n_per_m, timing.control_period_s,
-                          velocity_loop.force_limit_n};
+  VelocityPiParams p = velocity_loop;
+  p.period_s = timing.control_period_s;
+  return p;
 }
 
 ReferenceModelParams SystemParams::reference_model_params() const {
-  return ReferenceModelParams{reference_model.natural_frequency_rad_s, reference_model.damping_ratio,
-                              timing.control_period_s};
+  ReferenceModelParams p = reference_model;
+  p.period_s = timing.control_period_s;
+  return p;
 }
 
 KalmanParams SystemParams::kalman_params() const {
-  KalmanParams p;
-  p.motor_mass_kg = kalman.model.motor_mass_kg;
-  p.load_mass_kg = kalman.model.load_mass_kg;
-  p.spring_n_per_m = kalman.model.spring_n_per_m;
+  KalmanParams p = kalman;
   p.period_s = timing.control_period_s;
-  p.process_noise_diag = kalman.process_noise_diag;
-  p.measurement_noise = kalman.measurement_noise;
-  p.initial_covariance_diag = kalman.initial_covariance_diag;
-  p.friction_input = kalman.friction_input;
-  p.ripple_input = kalman.ripple_input;
-  p.standstill_hold = kalman.standstill_hold;
-  p.thrust_lag_s = kalman.thrust_lag_s;
   return p;
 }
 
 RnnCompensatorParams SystemParams::rnn_compensator_params(bool online_learning) const {
-  RnnCompensatorParams p;
-  p.layer_sizes = compensator.rnn_layer_sizes;
-  p.input_scale_s2_per_m = compensator.rnn_input_scale_s2_per_m;
-  p.on_reference_error = compensator.rnn_on_reference_error;
-  p.gain_n = compensator.rnn_gain_n;
+  RnnCompensatorParams p = compensator.rnn;
   p.output_scale = compensator_gain_scale();
   p.period_s = timing.control_period_s;
   p.online_learning = online_learning;
-  p.learning_rate = compensator.rnn_learning_rate;
-  p.momentum = compensator.rnn_momentum;
-  p.tolerance_mps = compensator.rnn_tolerance_mps;
-  p.kc_limit_mps = compensator.rnn_kc_limit_mps;
-  p.du_deadband_per_s = compensator.rnn_du_deadband_per_s;
   return p;
 }
 
@@ -101,20 +77,15 @@ double SystemParams::compensator_gain_scale() const {
 }
 
 AccelFeedbackParams SystemParams::accel_feedback_params() const {
-  return AccelFeedbackParams{compensator.accel_feedback_gain_kg * compensator_gain_scale(), velocity_loop.force_limit_n,
-                             compensator.accel_feedback_on_reference_error};
+  AccelFeedbackParams p = compensator.acceleration_feedback;
+  p.gain_kg *= compensator_gain_scale();
+  p.force_limit_n = velocity_loop.force_limit_n;
+  return p;
 }
 
 StateFeedbackParams SystemParams::state_feedback_params() const {
-  StateFeedbackParams p;
-  p.motor_mass_kg = compensator.state_model_motor_mass_kg;
-  p.load_mass_kg = compensator.state_model_load_mass_kg;
-  p.spring_n_per_m = compensator.state_model_spring_n_per_m;
+  StateFeedbackParams p = compensator.state_feedback;
   p.velocity_gain_n_s_per_m = velocity_loop.kp_n_s_per_m;
-  p.model_frequency_ratio = compensator.state_model_frequency_ratio;
-  p.model_damping_ratio = compensator.state_model_damping_ratio;
-  p.correction_damping_ratio = compensator.state_correction_damping_ratio;
-  p.max_correction_gain = compensator.state_max_correction_gain;
   p.reference_natural_frequency_rad_s = reference_model.natural_frequency_rad_s;
   p.reference_damping_ratio = reference_model.damping_ratio;
   p.period_s = timing.control_period_s;
@@ -220,7 +191,6 @@ void SystemParams::validate() const {
   visit_parameters(*this, check);
   validate_section("timing", [&] { timing.validate(); });
   validate_section("plant", [&] { plant.validate(); });
-  validate_section("current_loop", [&] { current_loop.validate(); });
   validate_section("current_loop", [&] { current_controller_params().validate(); });
   validate_section("velocity_loop", [&] { velocity_pi_params().validate(); });
   validate_section("reference_model", [&] { reference_model_params().validate(); });

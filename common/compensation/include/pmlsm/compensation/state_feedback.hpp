@@ -42,13 +42,12 @@
 #include <Eigen/Dense>
 #include <cstdint>
 
+#include "pmlsm/util/two_mass_model.hpp"
+
 namespace pmlsm {
 
 struct StateFeedbackParams {
-  // The two-mass model (its own, like the Kalman filter's).
-  double motor_mass_kg = 0;
-  double load_mass_kg = 0;
-  double spring_n_per_m = 0;
+  TwoMassModel model;                  ///< its own, like the Kalman filter's
   double velocity_gain_n_s_per_m = 0;  ///< the velocity PI's Kp the force passes through, > 0
   // Design.
   double model_frequency_ratio = 0;     ///< r = w_d / sqrt(k / m_L), >= 1 (c0 >= 0)

@@ -64,6 +64,7 @@
 #include <cstdint>
 
 #include "pmlsm/plant/plant.hpp"
+#include "pmlsm/util/two_mass_model.hpp"
 
 namespace pmlsm {
 
@@ -99,9 +100,7 @@ struct KalmanStandstillHold {
 };
 
 struct KalmanParams {
-  double motor_mass_kg = 0;
-  double load_mass_kg = 0;
-  double spring_n_per_m = 0;
+  TwoMassModel model;  ///< the mechanics (34) the filter assumes: its own, not the plant's
   double period_s = 0;
   Eigen::Vector3d process_noise_diag = Eigen::Vector3d::Zero();       ///< Q diagonal (35)
   double measurement_noise = 0;                                       ///< R

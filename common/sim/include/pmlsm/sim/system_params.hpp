@@ -27,77 +27,19 @@ struct TimingParams {
   int current_steps_per_tick() const;
 };
 
-/// Current-loop tuning and limits; its motor model comes from the plant.
-struct CurrentLoopTuning {
-  double kp_v_per_a = 0;
-  double ki_v_per_a_s = 0;
-  double current_limit_a = 0;
-  void validate() const;
-};
-
-/// Kalman filter tuning; its model (34) comes from the plant's mechanics. The
-/// friction and ripple models of its input are its own values (what a rig
-/// identifies), not the simulated plant's, so a mismatch can be studied.
-/// The two-mass model the Kalman filter (eqs. 30-33) assumes: its own copy, so that a study of
-/// a plant the model does not match (a heavier load, a stiffer coupling) changes the plant alone.
-struct KalmanModel {
-  double motor_mass_kg = 0;
-  double load_mass_kg = 0;
-  double spring_n_per_m = 0;
-};
-
-struct KalmanTuning {
-  KalmanModel model;
-  Eigen::Vector3d process_noise_diag = Eigen::Vector3d::Zero();
-  double measurement_noise = 0;
-  Eigen::Vector3d initial_covariance_diag = Eigen::Vector3d::Zero();
-  KalmanFrictionInput friction_input;
-  KalmanRippleInput ripple_input;
-  KalmanStandstillHold standstill_hold;
-  double thrust_lag_s = 0;  ///< tau_i, the current loop as a first-order lag in the filter's input
-};
-
-struct VelocityLoopTuning {
-  double kp_n_s_per_m = 0;
-  double ki_n_per_m = 0;
-  double force_limit_n = 0;
-};
-
-struct ReferenceTuning {
-  double natural_frequency_rad_s = 0;
-  double damping_ratio = 0;
-};
-
-/// The compensators added to the PI output: the Jordan RNN (section 3.2) and the
-/// linear load-acceleration feedback it is compared with.
+/// The compensators added to the PI output: the Jordan RNN (section 3.2), the linear
+/// load-acceleration feedback it is compared with, state feedback with inverse-model feedforward,
+/// and the vibration guard in the compensation path. Each is its component's own Params; the
+/// fields the system derives (periods, the velocity loop's gain and limit, the gain schedule) are
+/// left unset here and filled by SystemParams' accessors.
 struct CompensatorTuning {
-  std::vector<int> rnn_layer_sizes;
-  double rnn_input_scale_s2_per_m = 0;
-  double rnn_gain_n = 0;
-  double rnn_learning_rate = 0;
-  double rnn_momentum = 0;
-  double rnn_tolerance_mps = 0;
-  double rnn_kc_limit_mps = 0;
-  double rnn_du_deadband_per_s = 0;
-  bool rnn_on_reference_error = false;  ///< the network's signal a_L - dV_ref/dt (RnnCompensatorParams)
-  double accel_feedback_gain_kg = 0;
+  RnnCompensatorParams rnn;
+  AccelFeedbackParams acceleration_feedback;
+  StateFeedbackParams state_feedback;
   /// The load mass K_a and the RNN's weights were tuned for: both scale with the Kalman model's
   /// load mass over this one (compensator_gain_scale).
   double design_load_mass_kg = 0;
-  double max_gain_scale = 0;                       ///< the schedule's upper limit (the stiff PI's, not the load's)
-  bool accel_feedback_on_reference_error = false;  ///< F_c = -K_a (a_L - dV_ref/dt)
-  /// State feedback with inverse-model feedforward (pmlsm/compensation/state_feedback.hpp):
-  /// its own two-mass model (defaults: the nominal plant) and the design of the load's error.
-  double state_model_motor_mass_kg = 0;
-  double state_model_load_mass_kg = 0;
-  double state_model_spring_n_per_m = 0;
-  double state_model_frequency_ratio = 0;
-  double state_model_damping_ratio = 0;
-  double state_correction_damping_ratio = 0;
-  double state_max_correction_gain = 0;
-  /// The vibration guard in the compensation path (pmlsm/compensation/vibration_guard.hpp):
-  /// compensator.guard.* are its parameters, declared once there; its control period is
-  /// timing.control_period_s (vibration_guard_params()).
+  double max_gain_scale = 0;  ///< the schedule's upper limit (the stiff PI's, not the load's)
   bool guard_enabled = true;
   VibrationGuardParams guard;
 };
@@ -135,13 +77,17 @@ void visit_parameters(Params& p, Visitor& v);
 /// @throws std::invalid_argument when no real entry has that key path.
 double& real_parameter(SystemParams& params, const std::string& key_path, Plausible* range = nullptr);
 
+/// The parameters of configs/system.yaml, nested as the file is. A component's Params appears
+/// whole where the file has its section; the values it takes from elsewhere in the system (its
+/// period from timing, a motor model from the plant) are filled by the accessors below, which are
+/// what components are built from.
 struct SystemParams {
   TimingParams timing;
   PlantParams plant;
-  CurrentLoopTuning current_loop;
-  VelocityLoopTuning velocity_loop;
-  ReferenceTuning reference_model;
-  KalmanTuning kalman;
+  CurrentControllerParams current_loop;  ///< period_s: timing; voltage limit and motor model: the plant
+  VelocityPiParams velocity_loop;        ///< period_s: timing.control_period_s
+  ReferenceModelParams reference_model;  ///< period_s: timing.control_period_s
+  KalmanParams kalman;                   ///< period_s: timing.control_period_s
   CompensatorTuning compensator;
 
   /// @throws std::invalid_argument with the section path of the first invalid value.
@@ -193,6 +139,11 @@ void visit_two_mass(const std::string& at, Real& motor_mass_kg, Real& load_mass_
   v.real(at + ".spring_n_per_m", spring_n_per_m,
          {1.0, 1e9,
           "from a rubber band to a short steel coupling (for the plant, its integrator step bounds it further)"});
+}
+
+template <typename Model, typename Visitor>
+void visit_two_mass(const std::string& at, Model& m, Visitor& v) {
+  visit_two_mass(at, m.motor_mass_kg, m.load_mass_kg, m.spring_n_per_m, v);
 }
 
 }  // namespace detail
@@ -257,8 +208,7 @@ void visit_parameters(Params& p, Visitor& v) {
          {0.01, 100.0, "from barely damped to overdamped a hundred times"});
 
   // The filter's model of the mechanics: the ranges of the plant's (the model is of such a plant).
-  detail::visit_two_mass("kalman.model", p.kalman.model.motor_mass_kg, p.kalman.model.load_mass_kg,
-                         p.kalman.model.spring_n_per_m, v);
+  detail::visit_two_mass("kalman.model", p.kalman.model, v);
   const Plausible noise{0.0, 1e12, "a variance: 0 to 1e12 (a 1 MN or 1 Mm/s standard deviation)"};
   v.vector3("kalman.process_noise_diag", p.kalman.process_noise_diag, noise);
   v.real("kalman.measurement_noise", p.kalman.measurement_noise,
@@ -276,32 +226,31 @@ void visit_parameters(Params& p, Visitor& v) {
          {0.0, 100.0, "0 (every swing at rest) to 100 times the bearing friction"});
 
   auto& c = p.compensator;
-  v.integer_list("compensator.rnn.layer_sizes", c.rnn_layer_sizes,
+  v.integer_list("compensator.rnn.layer_sizes", c.rnn.layer_sizes,
                  {1.0, 1000.0, "neurons of a layer: a whole number, 1 to 1000"});
-  v.real("compensator.rnn.input_scale_s2_per_m", c.rnn_input_scale_s2_per_m,
+  v.real("compensator.rnn.input_scale_s2_per_m", c.rnn.input_scale_s2_per_m,
          {1e-6, 1e3, "maps accelerations of 1 mm/s^2 to 1000 km/s^2 into tanh's range"});
-  v.real("compensator.rnn.gain_n", c.rnn_gain_n, {1e-3, 1e5, "1 mN to 100 kN, the range of the force limit"});
-  v.real("compensator.rnn.learning_rate", c.rnn_learning_rate,
+  v.real("compensator.rnn.gain_n", c.rnn.gain_n, {1e-3, 1e5, "1 mN to 100 kN, the range of the force limit"});
+  v.real("compensator.rnn.learning_rate", c.rnn.learning_rate,
          {0.0, 1.0, "eta of (16): a step larger than the gradient itself diverges"});
-  v.real("compensator.rnn.momentum", c.rnn_momentum, {0.0, 0.999, "alpha of (16): below 1 to contract"});
-  v.real("compensator.rnn.tolerance_mps", c.rnn_tolerance_mps, {0.0, 1.0, "0 to 1 m/s of dead band"});
-  v.real("compensator.rnn.kc_limit_mps", c.rnn_kc_limit_mps, {1e-6, 1e3, "1 um/s to 1 km/s"});
-  v.real("compensator.rnn.du_deadband_per_s", c.rnn_du_deadband_per_s, {1e-6, 1e6, "1e-6 to 1e6 1/s"});
-  v.flag("compensator.rnn.on_reference_error", c.rnn_on_reference_error);
-  v.real("compensator.acceleration_feedback.gain_kg", c.accel_feedback_gain_kg,
+  v.real("compensator.rnn.momentum", c.rnn.momentum, {0.0, 0.999, "alpha of (16): below 1 to contract"});
+  v.real("compensator.rnn.tolerance_mps", c.rnn.tolerance_mps, {0.0, 1.0, "0 to 1 m/s of dead band"});
+  v.real("compensator.rnn.kc_limit_mps", c.rnn.kc_limit_mps, {1e-6, 1e3, "1 um/s to 1 km/s"});
+  v.real("compensator.rnn.du_deadband_per_s", c.rnn.du_deadband_per_s, {1e-6, 1e6, "1e-6 to 1e6 1/s"});
+  v.flag("compensator.rnn.on_reference_error", c.rnn.on_reference_error);
+  v.real("compensator.acceleration_feedback.gain_kg", c.acceleration_feedback.gain_kg,
          {0.0, 1e5, "0 to 100 t of virtual mass"});
-  v.flag("compensator.acceleration_feedback.on_reference_error", c.accel_feedback_on_reference_error);
+  v.flag("compensator.acceleration_feedback.on_reference_error", c.acceleration_feedback.on_reference_error);
   v.real("compensator.design_load_mass_kg", c.design_load_mass_kg, {0.01, 1e4, "from a 10 g load to a 10 t one"});
   v.real("compensator.max_gain_scale", c.max_gain_scale, {1.0, 100.0, "1 (never above the tuned gains) to 100"});
-  detail::visit_two_mass("compensator.state_feedback.model", c.state_model_motor_mass_kg, c.state_model_load_mass_kg,
-                         c.state_model_spring_n_per_m, v);
-  v.real("compensator.state_feedback.model_frequency_ratio", c.state_model_frequency_ratio,
+  detail::visit_two_mass("compensator.state_feedback.model", c.state_feedback.model, v);
+  v.real("compensator.state_feedback.model_frequency_ratio", c.state_feedback.model_frequency_ratio,
          {1.0, 100.0, "the model's load mode 1 to 100 times the open one sqrt(k / m_L)"});
-  v.real("compensator.state_feedback.model_damping_ratio", c.state_model_damping_ratio,
+  v.real("compensator.state_feedback.model_damping_ratio", c.state_feedback.model_damping_ratio,
          {0.0, 100.0, "from undamped to overdamped a hundred times"});
-  v.real("compensator.state_feedback.correction_damping_ratio", c.state_correction_damping_ratio,
+  v.real("compensator.state_feedback.correction_damping_ratio", c.state_feedback.correction_damping_ratio,
          {0.0, 100.0, "from none to overdamped a hundred times"});
-  v.real("compensator.state_feedback.max_correction_gain", c.state_max_correction_gain,
+  v.real("compensator.state_feedback.max_correction_gain", c.state_feedback.max_correction_gain,
          {1e-3, 1e4, "newtons of correction per newton of spring-force difference"});
   v.flag("compensator.guard.enabled", c.guard_enabled);
   v.real("compensator.guard.highpass_hz", c.guard.highpass_hz,
