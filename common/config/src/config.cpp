@@ -388,7 +388,7 @@ void collect_leaves(const YAML::Node& node, const std::string& path, const std::
                     std::vector<SourcedLeaf>& out) {
   if (is_sourced_leaf(node)) {
     check_sourced_leaf(node, origin, path);
-    out.push_back({path, node["source"].as<std::string>()});
+    out.push_back({path, node["source"].as<std::string>(), describe(node["value"])});
   } else if (node.IsMap()) {
     for (const auto& kv : node) collect_leaves(kv.second, join(path, kv.first.as<std::string>()), origin, out);
   } else if (node.IsSequence() && node.size() > 0 && node[0].IsMap()) {
@@ -397,7 +397,7 @@ void collect_leaves(const YAML::Node& node, const std::string& path, const std::
       collect_leaves(node[i], path + "[" + std::to_string(i) + "]", origin, out);
     }
   } else {
-    out.push_back({path, ""});
+    out.push_back({path, "", describe(node)});
   }
 }
 }  // namespace

@@ -70,6 +70,7 @@ TrainingParams parse_training_params(const std::string& yaml_text, const std::st
 struct SourcedLeaf {
   std::string key_path;
   std::string source;
+  std::string value;  ///< the value as the file writes it (a list in flow form)
 };
 std::vector<SourcedLeaf> list_leaf_sources(const std::string& yaml_text, const std::string& origin);
 

@@ -1,0 +1,133 @@
+#include "pmlsm/config/parameter_reference.hpp"
+
+#include <array>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "pmlsm/config/config.hpp"
+#include "pmlsm/util/validate.hpp"
+
+namespace pmlsm {
+
+std::string unit_of_key(const std::string& key_path) {
+  // Longest suffixes first: "_n_s_per_m" before "_n_per_m" before "_m".
+  static const std::array<std::pair<const char*, const char*>, 23> kSuffixes{{
+      {"_n_s_per_m", "N s/m"}, {"_v_per_a_s", "V/(A s)"}, {"_rad_per_m", "rad/m"}, {"_s2_per_m", "s^2/m"},
+      {"_n_per_m", "N/m"},     {"_n_per_a", "N/A"},       {"_v_per_a", "V/A"},     {"_rad_s", "rad/s"},
+      {"_per_s", "1/s"},       {"_mps2", "m/s^2"},        {"_mps", "m/s"},         {"_ohm", "Ohm"},
+      {"_hz", "Hz"},           {"_kg", "kg"},             {"_wb", "Wb"},           {"_us", "us"},
+      {"_s", "s"},             {"_m", "m"},               {"_n", "N"},             {"_h", "H"},
+      {"_v", "V"},             {"_a", "A"},               {"_bps", "bit/s"},
+  }};
+  const std::string name = key_path.substr(key_path.rfind('.') + 1);
+  for (const auto& [suffix, unit] : kSuffixes) {
+    const std::string s(suffix);
+    if (name.size() > s.size() && name.compare(name.size() - s.size(), s.size(), s) == 0) return unit;
+  }
+  return "";
+}
+
+namespace {
+
+struct ReferenceRow {
+  std::string key_path;
+  std::string kind;  ///< what the reader takes and the range it checks
+  std::string reason;
+};
+
+// Walks the parameter table and writes down each entry's declaration.
+class DeclarationCollector {
+ public:
+  void real(const std::string& path, const double&, const Plausible& r) { add(path, "real in " + range(r), r.reason); }
+  template <typename T>
+  void integer(const std::string& path, const T&, const Plausible& r) {
+    add(path, "whole number in " + range(r), r.reason);
+  }
+  void flag(const std::string& path, const bool&) { add(path, "true or false", ""); }
+  template <typename E, typename F>
+  void choice(const std::string& path, const E&, F from_string) {
+    // The set of names is the parser's own: its refusal lists them ("must be one of a, b, got 'x'").
+    std::string names = "a name";
+    try {
+      from_string("");
+    } catch (const std::invalid_argument& e) {
+      names = e.what();
+      const std::size_t got = names.rfind(", got");
+      if (got != std::string::npos) names.resize(got);
+      if (names.rfind("must be ", 0) == 0) names.erase(0, 8);
+    }
+    add(path, "a name: " + names, "");
+  }
+  void vector3(const std::string& path, const Eigen::Vector3d&, const Plausible& r) {
+    add(path, "3 reals, each in " + range(r), r.reason);
+  }
+  void integer_list(const std::string& path, const std::vector<int>&, const Plausible& r) {
+    add(path, "whole numbers, each in " + range(r), r.reason);
+  }
+
+  std::vector<ReferenceRow> rows;
+
+ private:
+  static std::string range(const Plausible& r) { return "[" + format_value(r.min) + ", " + format_value(r.max) + "]"; }
+  void add(const std::string& path, std::string kind, const std::string& reason) {
+    rows.push_back({path, std::move(kind), reason});
+  }
+};
+
+// A table cell: one line, no column separator.
+std::string cell(std::string text) {
+  std::string out;
+  for (char c : text) {
+    if (c == '|') {
+      out += "\\|";
+    } else if (c == '\n') {
+      out += ' ';
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string system_parameter_reference(const std::string& yaml_text, const std::string& origin) {
+  const SystemParams params = parse_system_params(yaml_text, origin);
+  std::map<std::string, SourcedLeaf> leaves;
+  for (SourcedLeaf& leaf : list_leaf_sources(yaml_text, origin)) leaves.emplace(leaf.key_path, std::move(leaf));
+  DeclarationCollector collector;
+  visit_parameters(params, collector);
+
+  std::ostringstream out;
+  out << "# Configuration reference: `" << origin << "`\n\n"
+      << "Generated from the parameter declarations (the table `visit_parameters` in\n"
+      << "`common/sim/include/pmlsm/sim/system_params.hpp`) and the values and sources of `" << origin << "`\n"
+      << "by `./build/bin/pmlsm config reference -o docs/configuration-reference.md`; the test\n"
+      << "`config_reference` fails when this page and either of them disagree. Do not edit it by hand.\n\n"
+      << "A value outside its range is refused with the range and its reason; the unit is the one the\n"
+      << "key's name carries. Where a source needs more than a sentence or two, the rest is in\n"
+      << "[parameters.md](parameters.md); how the file is read and overridden: [configuration.md](configuration.md).\n";
+  std::string section;
+  for (const ReferenceRow& row : collector.rows) {
+    const std::size_t dot = row.key_path.rfind('.');
+    const std::string parent = row.key_path.substr(0, dot);
+    if (parent != section) {
+      section = parent;
+      out << "\n## `" << section << "`\n\n"
+          << "| key | value | unit | accepted | why that range | source |\n"
+          << "|---|---|---|---|---|---|\n";
+    }
+    const auto leaf = leaves.find(row.key_path);
+    const std::string value = leaf != leaves.end() ? leaf->second.value : "";
+    const std::string source = leaf != leaves.end() ? leaf->second.source : "";
+    out << "| `" << row.key_path.substr(dot + 1) << "` | " << cell(value) << " | " << unit_of_key(row.key_path) << " | "
+        << cell(row.kind) << " | " << cell(row.reason) << " | " << cell(source) << " |\n";
+  }
+  return out.str();
+}
+
+}  // namespace pmlsm

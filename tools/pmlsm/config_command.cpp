@@ -1,0 +1,113 @@
+// `pmlsm config`: the system file's reference and checks.
+//   pmlsm config reference [-c FILE] [-o PAGE] [--check]   the generated configuration reference
+//   pmlsm config check [-c FILE] [--set K=V ...]            every check a program makes when it loads the file
+// `reference --check` compares PAGE with what it would write and exits 1 when they differ (the
+// ctest `config_reference` runs it on docs/configuration-reference.md).
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "commands.hpp"
+#include "pmlsm/config/config.hpp"
+#include "pmlsm/config/parameter_reference.hpp"
+#include "pmlsm/util/atomic_file.hpp"
+#include "pmlsm/util/data_files.hpp"
+
+namespace pmlsm::tools {
+namespace {
+
+constexpr const char* kShippedSystemFile = "configs/system.yaml";
+
+struct ConfigCommandOptions {
+  std::string config;  ///< "": the shipped system file
+  std::string out;  ///< the page ("": standard output)
+  bool check = false;
+  std::vector<std::string> set;
+};
+
+std::string text_of(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw UsageError("cannot read " + path);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+/// The file to read: the option's, else the shipped one wherever it is installed.
+std::string system_file(const ConfigCommandOptions& o) {
+  return o.config.empty() ? data_file(kShippedSystemFile) : o.config;
+}
+
+/// The file as messages and the page name it: the shipped one by its place in the source tree.
+std::string origin_of(const ConfigCommandOptions& o) { return o.config.empty() ? kShippedSystemFile : o.config; }
+
+int run_reference(const ConfigCommandOptions& o) {
+  const std::string page = system_parameter_reference(text_of(system_file(o)), origin_of(o));
+  if (o.check) {
+    if (o.out.empty()) throw UsageError("--check needs -o PAGE, the page to compare");
+    std::ifstream in(o.out, std::ios::binary);
+    std::ostringstream current;
+    if (in) current << in.rdbuf();
+    if (current.str() == page) {
+      std::printf("%s: up to date with %s and the parameter declarations\n", o.out.c_str(), origin_of(o).c_str());
+      return kExitOk;
+    }
+    std::fprintf(stderr,
+                 "%s: out of date with %s or the parameter declarations; remake it with\n"
+                 "  ./build/bin/pmlsm config reference -o %s\n",
+                 o.out.c_str(), origin_of(o).c_str(), o.out.c_str());
+    return kExitError;
+  }
+  if (o.out.empty()) {
+    std::fputs(page.c_str(), stdout);
+    return kExitOk;
+  }
+  try {
+    write_file_atomically(o.out, page);
+  } catch (const std::runtime_error& e) {
+    throw UsageError(e.what());
+  }
+  std::printf("wrote %s\n", o.out.c_str());
+  return kExitOk;
+}
+
+int run_check(const ConfigCommandOptions& o) {
+  const std::string text = text_of(system_file(o));
+  parse_system_params(text, origin_of(o), parse_overrides(o.set));
+  std::printf("%s: valid (%zu parameters)\n", origin_of(o).c_str(), list_leaf_sources(text, origin_of(o)).size());
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_config_command(CLI::App& app, int& exit_code) {
+  CLI::App* cmd = app.add_subcommand("config", "The system file: its generated reference, its checks");
+  cmd->require_subcommand(1);
+  auto o = std::make_shared<ConfigCommandOptions>();
+  const auto wrap = [&exit_code](const std::shared_ptr<ConfigCommandOptions>& options, int (*run)(const ConfigCommandOptions&)) {
+    return [options, run, &exit_code] {
+      try {
+        exit_code = run(*options);
+      } catch (const ConfigError& e) {
+        throw UsageError(std::string("config error: ") + e.what());
+      }
+    };
+  };
+  CLI::App* reference = cmd->add_subcommand(
+      "reference", "Markdown: every parameter's key, value, unit, accepted range and its reason, and source");
+  reference->add_option("-c,--config", o->config, "The system file (default: the shipped configs/system.yaml)")
+      ->check(CLI::ExistingFile);
+  reference->add_option("-o,--out", o->out, "The page to write (default: standard output)");
+  reference->add_flag("--check", o->check, "Compare with the page instead of writing it: exit 1 when it differs");
+  reference->callback(wrap(o, &run_reference));
+  CLI::App* check = cmd->add_subcommand("check", "Loads the system file with every check the programs make");
+  check->add_option("-c,--config", o->config, "The system file (default: the shipped configs/system.yaml)")
+      ->check(CLI::ExistingFile);
+  check->add_option("--set", o->set, "Override a system parameter: key.path=value")->take_all();
+  check->callback(wrap(o, &run_check));
+}
+
+}  // namespace pmlsm::tools
