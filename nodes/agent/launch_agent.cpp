@@ -201,10 +201,10 @@ class LaunchAgentComponent final : public node::Component {
         policy_(std::move(allowed)),
         launcher_((fs::path(opt_.bin_dir) / "launcher").string()),
         participant_(agent_participant(opt_.dds)),
-        announce_writer_(participant_.make_writer<msg::AgentAnnouncePubSubType>(pdds::topics::kAgentAnnounce)),
-        output_writer_(participant_.make_writer<msg::NodeOutputPubSubType>(pdds::topics::kNodeOutput)),
-        exit_writer_(participant_.make_writer<msg::NodeExitPubSubType>(pdds::topics::kNodeExit)),
-        request_reader_(participant_.make_reader<msg::LaunchRequestPubSubType>(pdds::topics::kLaunchRequest, wakeup_)),
+        announce_writer_(participant_.make_writer(pdds::topics::kAgentAnnounce)),
+        output_writer_(participant_.make_writer(pdds::topics::kNodeOutput)),
+        exit_writer_(participant_.make_writer(pdds::topics::kNodeExit)),
+        request_reader_(participant_.make_reader(pdds::topics::kLaunchRequest, wakeup_)),
         agent_id_(opt_.host + "-" + std::to_string(::getpid())),
         slice_dir_(fs::temp_directory_path() / ("launch_agent_" + std::to_string(::getpid()))) {}
 

@@ -12,6 +12,7 @@
 #include "CompensatorOutputPubSubTypes.h"
 #include "EstimatedStatePubSubTypes.h"
 #include "VelocityReferencePubSubTypes.h"
+#include "msg_mapping.hpp"
 #include "node_support.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
 
@@ -24,10 +25,8 @@ class CompensatorInputs {
  public:
   CompensatorInputs(dds::Participant& participant, dds::Wakeup& wakeup)
       : wakeup_(wakeup),
-        estimate_reader_(participant.make_reader<pmlsm_msgs::msg::EstimatedStatePubSubType>(
-            dds::topics::kEstimatedState, wakeup, dds::kObserverProfile)),
-        reference_reader_(participant.make_reader<pmlsm_msgs::msg::VelocityReferencePubSubType>(
-            dds::topics::kVelocityReference, wakeup, dds::kObserverProfile)) {}
+        estimate_reader_(participant.make_reader(dds::topics::kEstimatedState, wakeup, dds::kObserverProfile)),
+        reference_reader_(participant.make_reader(dds::topics::kVelocityReference, wakeup, dds::kObserverProfile)) {}
 
   /// Waits for the next complete tick. False on timeout or stop.
   /// The drive run the last estimate followed (stamped on the output, so it follows the same run).
@@ -112,7 +111,7 @@ CompensatorLoopResult run_fixed_law(const char* node_name, NodeRuntime& rt, cons
   const std::uint64_t ticks = scenario_ticks(rt.cfg.scenario, rt.period_s);
   rt.status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_RUNNING, 0, rt.period_s, "running");
   pmlsm_msgs::msg::CompensatorOutput out;
-  out.flags(pmlsm_msgs::msg::CompensatorOutput_Constants::FLAG_ENABLED);
+  CompensatorStep step;
   CompensatorLoopResult result;
   std::uint64_t tick = 0;
   CompensatorView view;
@@ -122,12 +121,11 @@ CompensatorLoopResult run_fixed_law(const char* node_name, NodeRuntime& rt, cons
                                             "estimator or controller", result.answered, common.peer_timeout_s);
       break;
     }
-    const double force_n = force_of(view);
+    step.force_n = force_of(view);
+    step.u_n = step.force_n / force_limit_n;
+    step.training_error_mps = view.v_ref_mps - view.v_load_mps;
+    to_msg(step, pmlsm_msgs::msg::CompensatorOutput_Constants::FLAG_ENABLED, tick, 0, out);
     out.stamp(make_stamp(tick, rt.period_s, inputs.run_id()));
-    out.estimate_tick(tick);
-    out.force_n(force_n);
-    out.u_n(force_n / force_limit_n);
-    out.training_error_mps(view.v_ref_mps - view.v_load_mps);
     writer.write(out);
     result.answered = tick + 1;
   }

@@ -53,9 +53,8 @@ class RnnCompensatorComponent final : public node::Component {
         rnn_(params_.rnn_compensator_params(opt_.online_learning)),
         gate_(params_),
         inputs_(rt_.participant, rt_.wakeup),
-        weights_reader_(
-            rt_.participant.make_reader<msg::NetworkWeightsPubSubType>(pdds::topics::kNetworkWeights, rt_.wakeup)),
-        writer_(rt_.participant.make_writer<msg::CompensatorOutputPubSubType>(pdds::topics::kCompensatorOutput)),
+        weights_reader_(rt_.participant.make_reader(pdds::topics::kNetworkWeights, rt_.wakeup)),
+        writer_(rt_.participant.make_writer(pdds::topics::kCompensatorOutput)),
         ticks_(scenario_ticks(rt_.cfg.scenario, rt_.period_s)) {
     if (!opt_.weights_path.empty()) {
       const RnnWeightsFile file = load_rnn_weights(opt_.weights_path);
@@ -109,28 +108,16 @@ int RnnCompensatorComponent::run() {
       rnn_.set_weights(candidate.weights);
       have_weights_ = true;
     }
-    std::uint32_t out_flags = 0;
+    CompensatorStep step;  // without weights: no force, the training error alone
+    std::uint32_t mode_flags = 0;
     if (have_weights_) {
-      const CompensatorStep step = rnn_.step(rnn_input(view));
-      out.force_n(step.force_n);
-      out.u_n(step.u_n);
-      out.training_error_mps(step.training_error_mps);
-      out.k_c_mps(step.k_c_mps);
-      out_flags |= flags::FLAG_ENABLED;
-      if (online_learning) out_flags |= flags::FLAG_ONLINE_LEARNING;
-      if (step.weights_updated) out_flags |= flags::FLAG_WEIGHTS_UPDATED;
-      if (step.kc_guarded) out_flags |= flags::FLAG_KC_CLAMPED;
-      if (step.input_rejected) out_flags |= flags::FLAG_INPUT_STALE;
+      step = rnn_.step(rnn_input(view));
+      mode_flags = flags::FLAG_ENABLED | (online_learning ? flags::FLAG_ONLINE_LEARNING : 0u);
     } else {
-      out.force_n(0.0);
-      out.u_n(0.0);
-      out.training_error_mps(view.v_ref_mps - view.v_load_mps);
-      out.k_c_mps(0.0);
+      step.training_error_mps = view.v_ref_mps - view.v_load_mps;
     }
-    out.flags(out_flags);
+    node::to_msg(step, mode_flags, tick, gate_.version(), out);
     out.stamp(node::make_stamp(tick, rt_.period_s, inputs_.run_id()));
-    out.estimate_tick(tick);
-    out.weights_version(gate_.version());
     writer_.write(out);
     answered = tick + 1;
   }

@@ -18,8 +18,7 @@ class StateFeedbackComponent final : public node::Component {
         params_(rt_.cfg.params.state_feedback_params()),
         law_(params_),
         inputs_(rt_.participant, rt_.wakeup),
-        writer_(rt_.participant.make_writer<pmlsm_msgs::msg::CompensatorOutputPubSubType>(
-            pmlsm::dds::topics::kCompensatorOutput)) {}
+        writer_(rt_.participant.make_writer(pmlsm::dds::topics::kCompensatorOutput)) {}
 
   int run() override {
     const node::CompensatorLoopResult result =

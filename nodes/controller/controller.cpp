@@ -64,23 +64,19 @@ class ControllerNode {
         lockstep_(rt.cfg.clock == node::Clock::kLockstep),
         compensated_(options.compensation != "none"),
         peer_timeout_(common.peer_timeout_s),
-        feedback_reader_(
-            rt.participant.make_reader<msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback, rt.wakeup)),
-        command_writer_(rt.participant.make_writer<msg::ForceCommandPubSubType>(pdds::topics::kForceCommand)),
-        reference_writer_(
-            rt.participant.make_writer<msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference)),
-        current_reader_(
-            rt.participant.make_reader<msg::CurrentFeedbackPubSubType>(pdds::topics::kCurrentFeedback, rt.wakeup)),
-        voltage_writer_(rt.participant.make_writer<msg::VoltageCommandPubSubType>(pdds::topics::kVoltageCommand)),
+        feedback_reader_(rt.participant.make_reader(pdds::topics::kMotorFeedback, rt.wakeup)),
+        command_writer_(rt.participant.make_writer(pdds::topics::kForceCommand)),
+        reference_writer_(rt.participant.make_writer(pdds::topics::kVelocityReference)),
+        current_reader_(rt.participant.make_reader(pdds::topics::kCurrentFeedback, rt.wakeup)),
+        voltage_writer_(rt.participant.make_writer(pdds::topics::kVoltageCommand)),
         current_loop_(rt.cfg.params.current_controller_params()),
         current_steps_(rt.cfg.params.timing.current_steps_per_tick()),
-        compensation_reader_(rt.participant.make_reader<msg::CompensatorOutputPubSubType>(
-            pdds::topics::kCompensatorOutput, rt.wakeup, pdds::kObserverProfile)),
+        compensation_reader_(
+            rt.participant.make_reader(pdds::topics::kCompensatorOutput, rt.wakeup, pdds::kObserverProfile)),
         controller_(std::in_place, rt.cfg.params, rt.cfg.scenario) {
     if (rt.cfg.scenario.shape == CommandShape::kExternal) {
       external_.emplace(external_reference_params(rt.cfg.scenario, period_s_));
-      setpoint_reader_.emplace(
-          rt.participant.make_reader<msg::VelocitySetpointPubSubType>(pdds::topics::kVelocitySetpoint, rt.wakeup));
+      setpoint_reader_.emplace(rt.participant.make_reader(pdds::topics::kVelocitySetpoint, rt.wakeup));
     }
   }
 

@@ -82,8 +82,8 @@ class EvaluatorNode {
 
  private:
   template <typename PubSubType>
-  pdds::Reader<PubSubType> observe(const pdds::TopicSpec& topic) {
-    return rt_.participant.make_reader<PubSubType>(topic, rt_.wakeup, pdds::kObserverProfile);
+  pdds::Reader<PubSubType> observe(const pdds::Topic<PubSubType>& topic) {
+    return rt_.participant.make_reader(topic, rt_.wakeup, pdds::kObserverProfile);
   }
   /// The record of `tick` with `part` now in, or null (and counted) outside the scenario or for a duplicate.
   TickRecord* mark(std::uint64_t tick, Part part);

@@ -34,9 +34,8 @@ class KalmanEstimatorNode {
         ticks_(scenario_ticks(rt.cfg.scenario, period_s_)),
         // Deep history: the estimator is off the lockstep chain and may fall behind;
         // it must still see every tick.
-        feedback_reader_(rt.participant.make_reader<msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback,
-                                                                                  rt.wakeup, pdds::kObserverProfile)),
-        estimate_writer_(rt.participant.make_writer<msg::EstimatedStatePubSubType>(pdds::topics::kEstimatedState)),
+        feedback_reader_(rt.participant.make_reader(pdds::topics::kMotorFeedback, rt.wakeup, pdds::kObserverProfile)),
+        estimate_writer_(rt.participant.make_writer(pdds::topics::kEstimatedState)),
         filter_(rt.cfg.params.kalman_params()),
         estimate_readers_(estimate_readers) {}
 

@@ -69,10 +69,10 @@ int run_over_agents(const LaunchDescription& launch, const std::vector<NodeSpec>
   if (dds_options.identity.empty()) dds_options.identity = "launcher";
   pdds::Wakeup wakeup;
   pdds::Participant participant(dds_options);
-  auto request_writer = participant.make_writer<msg::LaunchRequestPubSubType>(pdds::topics::kLaunchRequest);
-  auto announce_reader = participant.make_reader<msg::AgentAnnouncePubSubType>(pdds::topics::kAgentAnnounce, wakeup);
-  auto output_reader = participant.make_reader<msg::NodeOutputPubSubType>(pdds::topics::kNodeOutput, wakeup);
-  auto exit_reader = participant.make_reader<msg::NodeExitPubSubType>(pdds::topics::kNodeExit, wakeup);
+  auto request_writer = participant.make_writer(pdds::topics::kLaunchRequest);
+  auto announce_reader = participant.make_reader(pdds::topics::kAgentAnnounce, wakeup);
+  auto output_reader = participant.make_reader(pdds::topics::kNodeOutput, wakeup);
+  auto exit_reader = participant.make_reader(pdds::topics::kNodeExit, wakeup);
 
   const std::uint64_t launch_id = node::new_run_id();
   const std::string me = requester();

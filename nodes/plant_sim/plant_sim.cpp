@@ -49,10 +49,9 @@ class PlantSimHooks final : public node::DriveNodeHooks {
       : rt_(rt),
         common_(common),
         voltage_level_(rt.cfg.command_level == node::CommandLevel::kVoltage),
-        truth_writer_(rt.participant.make_writer<msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth)),
-        current_writer_(rt.participant.make_writer<msg::CurrentFeedbackPubSubType>(pdds::topics::kCurrentFeedback)),
-        voltage_reader_(
-            rt.participant.make_reader<msg::VoltageCommandPubSubType>(pdds::topics::kVoltageCommand, rt.wakeup)),
+        truth_writer_(rt.participant.make_writer(pdds::topics::kPlantTruth)),
+        current_writer_(rt.participant.make_writer(pdds::topics::kCurrentFeedback)),
+        voltage_reader_(rt.participant.make_reader(pdds::topics::kVoltageCommand, rt.wakeup)),
         backend_(rt.cfg.params, scenario_initial_condition(rt.cfg.scenario)) {}
 
   SimulatedDriveBackend& backend() { return backend_; }

@@ -198,6 +198,22 @@ drive::ForceCommandIn from_msg(const pmlsm_msgs::msg::ForceCommand& c, std::uint
   return in;
 }
 
+void to_msg(const CompensatorStep& step, std::uint32_t mode_flags, std::uint64_t estimate_tick,
+            std::uint64_t weights_version, pmlsm_msgs::msg::CompensatorOutput& out) {
+  namespace Flags = pmlsm_msgs::msg::CompensatorOutput_Constants;
+  std::uint32_t flags = mode_flags;
+  if (step.weights_updated) flags |= Flags::FLAG_WEIGHTS_UPDATED;
+  if (step.kc_guarded) flags |= Flags::FLAG_KC_CLAMPED;
+  if (step.input_rejected) flags |= Flags::FLAG_INPUT_STALE;
+  out.force_n(step.force_n);
+  out.u_n(step.u_n);
+  out.training_error_mps(step.training_error_mps);
+  out.k_c_mps(step.k_c_mps);
+  out.flags(flags);
+  out.estimate_tick(estimate_tick);
+  out.weights_version(weights_version);
+}
+
 void to_msg(const drive::Drive& drive, const drive::DriveLoop& loop, std::uint64_t refused_requests,
             pmlsm_msgs::msg::DriveState& out) {
   out.power_state(static_cast<std::uint8_t>(drive.power_state()));

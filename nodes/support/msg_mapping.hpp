@@ -26,6 +26,7 @@
 #include <cstdint>
 
 #include "EstimatedState.h"
+#include "CompensatorOutput.h"
 #include "DriveState.h"
 #include "ForceCommand.h"
 #include "MotorFeedback.h"
@@ -92,6 +93,14 @@ void from_msg(const pmlsm_msgs::msg::ForceCommand& in, TickRecord& rec);
 /// writer and the reception time the caller read from the sample's info.
 drive::ForceCommandIn from_msg(const pmlsm_msgs::msg::ForceCommand& in, std::uint64_t writer_id,
                                std::int64_t received_wall_ns);
+
+// ---- CompensatorOutput -----------------------------------------------------------------------
+
+/// A compensator's answer to estimate tick k: the step's force_n, u_n, training_error_mps and
+/// k_c_mps; flags: `mode_flags` (FLAG_ENABLED, FLAG_ONLINE_LEARNING) and the step's own (weights
+/// updated, k_c clamped, input stale); estimate_tick and weights_version. Every field but the stamp.
+void to_msg(const CompensatorStep& step, std::uint32_t mode_flags, std::uint64_t estimate_tick,
+            std::uint64_t weights_version, pmlsm_msgs::msg::CompensatorOutput& out);
 
 // ---- EstimatedState -----------------------------------------------------------------------
 

@@ -209,7 +209,7 @@ NodeRuntime::NodeRuntime(const std::string& node_name, CommonOptions& options, c
 }
 
 StatusPublisher::StatusPublisher(dds::Participant& participant, const std::string& node_name)
-    : writer_(participant.make_writer<pmlsm_msgs::msg::NodeStatusPubSubType>(dds::topics::kNodeStatus)) {
+    : writer_(participant.make_writer(dds::topics::kNodeStatus)) {
   char host[64] = {};
   gethostname(host, sizeof host - 1);
   status_.node_name(node_name);

@@ -142,9 +142,9 @@ class DeTrainerComponent final : public node::Component {
         de_(make_de_params(params_, training_, cost_->dimension())),
         participant_(node::named(opt_.dds, "de_trainer")),
         run_id_(static_cast<std::uint64_t>(wall_time_ns()) ^ (static_cast<std::uint64_t>(getpid()) << 40)),
-        setup_writer_(participant_.make_writer<msg::TrainingSetupPubSubType>(pdds::topics::kTrainingSetup)),
-        progress_writer_(participant_.make_writer<msg::TrainerProgressPubSubType>(pdds::topics::kTrainerProgress)),
-        weights_writer_(participant_.make_writer<msg::NetworkWeightsPubSubType>(pdds::topics::kNetworkWeights)),
+        setup_writer_(participant_.make_writer(pdds::topics::kTrainingSetup)),
+        progress_writer_(participant_.make_writer(pdds::topics::kTrainerProgress)),
+        weights_writer_(participant_.make_writer(pdds::topics::kNetworkWeights)),
         evaluator_(
             participant_, wakeup_, [cost = cost_](const std::vector<double>& w) { return (*cost)(w); }, opt_.threads,
             run_id_, to_ms(opt_.worker_timeout_s)) {}

@@ -39,11 +39,10 @@ class DeWorkerComponent final : public node::Component {
   explicit DeWorkerComponent(WorkerOptions options)
       : opt_(std::move(options)),
         participant_(node::named(opt_.dds, "de_worker")),
-        setup_reader_(participant_.make_reader<msg::TrainingSetupPubSubType>(pdds::topics::kTrainingSetup, wakeup_)),
-        request_reader_(
-            participant_.make_reader<msg::EvaluationRequestPubSubType>(pdds::topics::kEvaluationRequest, wakeup_)),
-        result_writer_(participant_.make_writer<msg::EvaluationResultPubSubType>(pdds::topics::kEvaluationResult)),
-        status_writer_(participant_.make_writer<msg::WorkerStatusPubSubType>(pdds::topics::kWorkerStatus)) {}
+        setup_reader_(participant_.make_reader(pdds::topics::kTrainingSetup, wakeup_)),
+        request_reader_(participant_.make_reader(pdds::topics::kEvaluationRequest, wakeup_)),
+        result_writer_(participant_.make_writer(pdds::topics::kEvaluationResult)),
+        status_writer_(participant_.make_writer(pdds::topics::kWorkerStatus)) {}
 
   int run() override;
 

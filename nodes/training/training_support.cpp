@@ -155,10 +155,9 @@ DdsEvaluator::DdsEvaluator(dds::Participant& participant, dds::Wakeup& wakeup, C
       local_(std::move(local_cost), local_threads),
       run_id_(run_id),
       worker_timeout_(worker_timeout),
-      request_writer_(participant.make_writer<msg::EvaluationRequestPubSubType>(dds::topics::kEvaluationRequest)),
-      result_reader_(participant.make_reader<msg::EvaluationResultPubSubType>(dds::topics::kEvaluationResult, wakeup)),
-      status_reader_(participant.make_reader<msg::WorkerStatusPubSubType>(dds::topics::kWorkerStatus, wakeup,
-                                                                          dds::kObserverProfile)) {}
+      request_writer_(participant.make_writer(dds::topics::kEvaluationRequest)),
+      result_reader_(participant.make_reader(dds::topics::kEvaluationResult, wakeup)),
+      status_reader_(participant.make_reader(dds::topics::kWorkerStatus, wakeup, dds::kObserverProfile)) {}
 
 void DdsEvaluator::poll_workers() {
   msg::WorkerStatus status;

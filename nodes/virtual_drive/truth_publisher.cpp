@@ -10,8 +10,8 @@ namespace msg = pmlsm_msgs::msg;
 
 TruthPublisher::TruthPublisher(NodeRuntime& rt, std::uint64_t ticks)
     : rt_(rt),
-      writer_(rt.participant.make_writer<msg::PlantTruthPubSubType>(dds::topics::kPlantTruth)),
-      state_reader_(rt.participant.make_reader<msg::DriveStatePubSubType>(dds::topics::kDriveState, rt.wakeup)) {
+      writer_(rt.participant.make_writer(dds::topics::kPlantTruth)),
+      state_reader_(rt.participant.make_reader(dds::topics::kDriveState, rt.wakeup)) {
   pending_.resize(ticks + 1);
 }
 

@@ -271,10 +271,9 @@ TEST(DriveSafety, ALateWritersHistoryCannotPushTheOwnersCommandOutOfTheDrivesRea
   options.node_name = "command_reader_probe";
   dds::Participant participant(options);
   dds::Wakeup wakeup;
-  using Command = pmlsm_msgs::msg::ForceCommandPubSubType;
-  auto reader = participant.make_reader<Command>(dds::topics::kForceCommand, wakeup);
-  auto owner = participant.make_writer<Command>(dds::topics::kForceCommand);
-  auto late = participant.make_writer<Command>(dds::topics::kForceCommand);
+  auto reader = participant.make_reader(dds::topics::kForceCommand, wakeup);
+  auto owner = participant.make_writer(dds::topics::kForceCommand);
+  auto late = participant.make_writer(dds::topics::kForceCommand);
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
   while ((owner.matched_readers() < 1 || late.matched_readers() < 1) && std::chrono::steady_clock::now() < deadline) {
     wakeup.wait_for(wakeup.generation(), std::chrono::milliseconds(10));

@@ -43,12 +43,12 @@ int run(int argc, char** argv) {
   std::optional<dds::Writer<msg::NodeStatusPubSubType>> status_writer;
   std::optional<dds::Reader<msg::NodeStatusPubSubType>> status_reader;
   if (intrude) {
-    feedback.emplace(participant.make_reader<msg::MotorFeedbackPubSubType>(dds::topics::kMotorFeedback, wakeup));
-    force.emplace(participant.make_writer<msg::ForceCommandPubSubType>(dds::topics::kForceCommand));
+    feedback.emplace(participant.make_reader(dds::topics::kMotorFeedback, wakeup));
+    force.emplace(participant.make_writer(dds::topics::kForceCommand));
   }
-  if (!say.empty()) status_writer.emplace(participant.make_writer<msg::NodeStatusPubSubType>(dds::topics::kNodeStatus));
+  if (!say.empty()) status_writer.emplace(participant.make_writer(dds::topics::kNodeStatus));
   if (!listen.empty()) {
-    status_reader.emplace(participant.make_reader<msg::NodeStatusPubSubType>(dds::topics::kNodeStatus, wakeup));
+    status_reader.emplace(participant.make_reader(dds::topics::kNodeStatus, wakeup));
   }
 
   std::uint64_t feedback_seen = 0, sent = 0, heard = 0;

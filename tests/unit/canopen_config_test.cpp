@@ -55,11 +55,11 @@ TEST(CanopenConfig, OverridesAndBadValuesNameTheKeyAndValue) {
   EXPECT_EQ(c.master.node_id, 5);
   EXPECT_NE(error_of([&] {
               parse_canopen_config(text, "drive.yaml", {ConfigOverride::parse("drive.node_id=128")});
-            }).find("drive.yaml: drive.node_id: must be in [1, 127], got 128"),
+            }).find("drive.yaml: drive.node_id: must be in [1, 127] (a CANopen node id"),
             std::string::npos);
   EXPECT_NE(error_of([&] {
               parse_canopen_config(text, "drive.yaml", {ConfigOverride::parse("master.node_id=1")});
-            }).find("master.node_id: must differ from node_id 1"),
+            }).find("master.node_id: must differ from drive.node_id 1"),
             std::string::npos);
   EXPECT_NE(error_of([&] {
               parse_canopen_config(text, "drive.yaml", {ConfigOverride::parse("master.heartbeat_timeout_ms=50")});

@@ -73,7 +73,8 @@ TEST(ParameterReference, FollowsTheFilesValues) {
 }
 
 TEST(ParameterReference, RefusesAFileTheLoaderRefuses) {
-  const std::string bad = edited(system_text(), {{"plant.mechanics.load_mass_kg", std::string("{value: -1, source: \"chosen: x\"}")}});
+  const std::string bad =
+      edited(system_text(), {{"plant.mechanics.load_mass_kg", std::string("{value: -1, source: \"chosen: x\"}")}});
   try {
     system_parameter_reference(bad, "bad.yaml");
     FAIL() << "no ConfigError";

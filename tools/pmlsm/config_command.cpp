@@ -23,7 +23,7 @@ constexpr const char* kShippedSystemFile = "configs/system.yaml";
 
 struct ConfigCommandOptions {
   std::string config;  ///< "": the shipped system file
-  std::string out;  ///< the page ("": standard output)
+  std::string out;     ///< the page ("": standard output)
   bool check = false;
   std::vector<std::string> set;
 };
@@ -87,7 +87,8 @@ void add_config_command(CLI::App& app, int& exit_code) {
   CLI::App* cmd = app.add_subcommand("config", "The system file: its generated reference, its checks");
   cmd->require_subcommand(1);
   auto o = std::make_shared<ConfigCommandOptions>();
-  const auto wrap = [&exit_code](const std::shared_ptr<ConfigCommandOptions>& options, int (*run)(const ConfigCommandOptions&)) {
+  const auto wrap = [&exit_code](const std::shared_ptr<ConfigCommandOptions>& options,
+                                 int (*run)(const ConfigCommandOptions&)) {
     return [options, run, &exit_code] {
       try {
         exit_code = run(*options);

@@ -163,8 +163,8 @@ class DriveLink {
       : options_(o),
         domain_(options.domain_id),
         participant_(with_node_name(options, node_name, "pmlsm_drive")),
-        state_reader_(participant_.make_reader<msg::DriveStatePubSubType>(dds::topics::kDriveState, wakeup_)),
-        control_writer_(participant_.make_writer<msg::DriveControlPubSubType>(dds::topics::kDriveControl)),
+        state_reader_(participant_.make_reader(dds::topics::kDriveState, wakeup_)),
+        control_writer_(participant_.make_writer(dds::topics::kDriveControl)),
         requester_(o.requester.empty() ? user_at_host() : o.requester) {
     // Unique per process and per request, never 0: the pid in the top 16 bits, the wall clock
     // in microseconds below (48 bits: 8.9 years before it repeats).

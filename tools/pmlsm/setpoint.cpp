@@ -43,7 +43,7 @@ int run_setpoint(const dds::ParticipantOptions& dds_options, const SetpointOptio
     throw UsageError("setpoint: --ramp-mps2 must be finite and >= 0, got " + std::to_string(o.ramp_mps2));
   }
   dds::Participant participant(with_node_name(dds_options, "pmlsm_setpoint", "pmlsm_setpoint"));
-  auto writer = participant.make_writer<msg::VelocitySetpointPubSubType>(dds::topics::kVelocitySetpoint);
+  auto writer = participant.make_writer(dds::topics::kVelocitySetpoint);
 
   const auto wait_deadline =
       Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.wait_s));

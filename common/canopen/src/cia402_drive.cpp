@@ -22,31 +22,24 @@ std::string hex(std::uint32_t value, int digits) {
 }  // namespace
 
 void Cia402DriveConfig::validate() const {
-  const auto bad = [](const char* field, const std::string& why) {
-    throw std::invalid_argument(std::string(field) + ": " + why);
+  RangeCheck check;
+  canopen::visit_parameters(*this, check);
+  check_relations();
+}
+
+void Cia402DriveConfig::check_relations() const {
+  const auto bad = [](const char* key, const std::string& why) {
+    throw std::invalid_argument(std::string(key) + ": " + why);
   };
-  if (!is_valid_node_id(node_id)) bad("node_id", "must be in [1, 127], got " + std::to_string(node_id));
-  if (!is_valid_node_id(master_node_id)) {
-    bad("master_node_id", "must be in [1, 127], got " + std::to_string(master_node_id));
-  }
-  if (master_node_id == node_id) bad("master_node_id", "must differ from node_id " + std::to_string(node_id));
-  if (sync_timeout_ms == 0) bad("sync_timeout_ms", "must be >= 1, got 0");
-  if (boot_timeout_ms == 0) bad("boot_timeout_ms", "must be >= 1, got 0");
-  if (sdo_timeout_ms == 0) bad("sdo_timeout_ms", "must be >= 1, got 0");
+  if (master_node_id == node_id) bad("master.node_id", "must differ from drive.node_id " + std::to_string(node_id));
   if (drive_heartbeat_ms > 0 && drive_heartbeat_timeout_ms <= drive_heartbeat_ms) {
-    bad("drive_heartbeat_timeout_ms", "must exceed drive_heartbeat_ms " + std::to_string(drive_heartbeat_ms) +
-                                          ", got " + std::to_string(drive_heartbeat_timeout_ms));
+    bad("master.drive_heartbeat_timeout_ms", "must exceed drive.heartbeat_ms " + std::to_string(drive_heartbeat_ms) +
+                                                 ", got " + std::to_string(drive_heartbeat_timeout_ms));
   }
-  if (master_heartbeat_ms == 0) bad("master_heartbeat_ms", "must be >= 1, got 0");
   if (master_heartbeat_timeout_ms <= master_heartbeat_ms) {
-    bad("master_heartbeat_timeout_ms", "must exceed master_heartbeat_ms " + std::to_string(master_heartbeat_ms) +
+    bad("master.heartbeat_timeout_ms", "must exceed master.heartbeat_ms " + std::to_string(master_heartbeat_ms) +
                                            ", got " + std::to_string(master_heartbeat_timeout_ms));
   }
-  if (sync_overflow < 2 || sync_overflow > kSyncCounterMax) {
-    bad("sync_overflow", "must be in [2, 240], got " + std::to_string(sync_overflow));
-  }
-  if (enable_timeout_cycles == 0) bad("enable_timeout_cycles", "must be >= 1, got 0");
-  if (max_missed_answers == 0) bad("max_missed_answers", "must be >= 1, got 0");
 }
 
 namespace {

@@ -408,90 +408,21 @@ std::vector<SourcedLeaf> list_leaf_sources(const std::string& yaml_text, const s
   return out;
 }
 
-namespace {
-// An unsigned integer key that must lie in [lo, hi].
-std::uint64_t integer_in(Section& section, const std::string& origin, const std::string& path, const std::string& key,
-                         std::uint64_t lo, std::uint64_t hi) {
-  const std::uint64_t x = section.unsigned_integer(key);
-  if (x < lo || x > hi) {
-    throw ConfigError(origin + ": " + join(path, key) + ": must be in [" + std::to_string(lo) + ", " +
-                      std::to_string(hi) + "], got " + std::to_string(x));
-  }
-  return x;
+void CanopenRigConfig::validate() const {
+  RangeCheck check;
+  visit_rig_parameters(*this, check);
+  master.check_relations();
 }
-}  // namespace
 
 CanopenRigConfig parse_canopen_config(const std::string& yaml_text, const std::string& origin,
                                       const std::vector<ConfigOverride>& overrides) {
   YAML::Node root = parse_yaml(yaml_text, origin);
   apply_overrides(root, overrides, origin);
-  Section top(root, origin, "");
   CanopenRigConfig c;
-  canopen::Cia402DriveConfig& m = c.master;
-
-  Section bus = top.child("bus");
-  c.bitrate_bps = static_cast<std::uint32_t>(integer_in(bus, origin, "bus", "bitrate_bps", 10000, 1000000));
-  bus.finish();
-
-  Section drive = top.child("drive");
-  m.node_id = static_cast<int>(integer_in(drive, origin, "drive", "node_id", 1, 127));
-  m.scaling.rated_force_n = drive.number("rated_force_n");
-  m.scaling.increments_per_metre = drive.number("increments_per_metre");
-  validate_in(origin, [&] {
-    try {
-      canopen::UnitScaling check(m.scaling);
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(std::string("drive.") + e.what());
-    }
-  });
-  m.drive_heartbeat_ms = static_cast<std::uint16_t>(integer_in(drive, origin, "drive", "heartbeat_ms", 0, 65535));
-  c.drive_sync_timeout_ms = static_cast<std::uint16_t>(integer_in(drive, origin, "drive", "sync_timeout_ms", 1, 65535));
-  drive.finish();
-
-  Section master = top.child("master");
-  m.master_node_id = static_cast<int>(integer_in(master, origin, "master", "node_id", 1, 127));
-  m.master_heartbeat_ms = static_cast<std::uint16_t>(integer_in(master, origin, "master", "heartbeat_ms", 1, 65535));
-  m.master_heartbeat_timeout_ms =
-      static_cast<std::uint16_t>(integer_in(master, origin, "master", "heartbeat_timeout_ms", 1, 65535));
-  m.drive_heartbeat_timeout_ms =
-      static_cast<std::uint16_t>(integer_in(master, origin, "master", "drive_heartbeat_timeout_ms", 1, 65535));
-  m.boot_timeout_ms = static_cast<std::uint32_t>(integer_in(master, origin, "master", "boot_timeout_ms", 1, 600000));
-  m.sdo_timeout_ms = static_cast<std::uint32_t>(integer_in(master, origin, "master", "sdo_timeout_ms", 1, 60000));
-  m.enable_timeout_cycles =
-      static_cast<std::uint32_t>(integer_in(master, origin, "master", "enable_timeout_cycles", 1, 1000000));
-  m.sync_overflow = static_cast<std::uint8_t>(integer_in(master, origin, "master", "sync_overflow", 2, 240));
-  Section lockstep = master.child("lockstep");
-  m.sync_timeout_ms =
-      static_cast<std::uint32_t>(integer_in(lockstep, origin, "master.lockstep", "sync_timeout_ms", 1, 60000));
-  m.sync_retries = static_cast<std::uint32_t>(integer_in(lockstep, origin, "master.lockstep", "sync_retries", 0, 1000));
-  lockstep.finish();
-  Section realtime = master.child("realtime");
-  m.tpdo_deadline_us =
-      static_cast<std::uint32_t>(integer_in(realtime, origin, "master.realtime", "tpdo_deadline_us", 0, 1000000));
-  m.max_missed_answers =
-      static_cast<std::uint32_t>(integer_in(realtime, origin, "master.realtime", "max_missed_answers", 1, 100000));
-  realtime.finish();
-  master.finish();
-  top.finish();
-  // Cross-field checks (node ids differ, time-outs exceed their periods), named as in the file.
-  validate_in(origin, [&] {
-    try {
-      m.validate();
-    } catch (const std::invalid_argument& e) {
-      const std::string what = e.what();
-      const auto colon = what.find(':');
-      const std::string field = what.substr(0, colon);
-      static const std::pair<const char*, const char*> kPaths[] = {
-          {"node_id", "drive.node_id"},
-          {"master_node_id", "master.node_id"},
-          {"drive_heartbeat_timeout_ms", "master.drive_heartbeat_timeout_ms"},
-          {"master_heartbeat_timeout_ms", "master.heartbeat_timeout_ms"}};
-      for (const auto& [from, to] : kPaths) {
-        if (field == from) throw std::invalid_argument(to + what.substr(colon));
-      }
-      throw;
-    }
-  });
+  TableReader reader(root, origin);
+  visit_rig_parameters(c, reader);
+  reader.finish();
+  validate_in(origin, [&] { c.validate(); });
   return c;
 }
 

@@ -16,12 +16,29 @@ namespace pmlsm {
 std::string unit_of_key(const std::string& key_path) {
   // Longest suffixes first: "_n_s_per_m" before "_n_per_m" before "_m".
   static const std::array<std::pair<const char*, const char*>, 23> kSuffixes{{
-      {"_n_s_per_m", "N s/m"}, {"_v_per_a_s", "V/(A s)"}, {"_rad_per_m", "rad/m"}, {"_s2_per_m", "s^2/m"},
-      {"_n_per_m", "N/m"},     {"_n_per_a", "N/A"},       {"_v_per_a", "V/A"},     {"_rad_s", "rad/s"},
-      {"_per_s", "1/s"},       {"_mps2", "m/s^2"},        {"_mps", "m/s"},         {"_ohm", "Ohm"},
-      {"_hz", "Hz"},           {"_kg", "kg"},             {"_wb", "Wb"},           {"_us", "us"},
-      {"_s", "s"},             {"_m", "m"},               {"_n", "N"},             {"_h", "H"},
-      {"_v", "V"},             {"_a", "A"},               {"_bps", "bit/s"},
+      {"_n_s_per_m", "N s/m"},
+      {"_v_per_a_s", "V/(A s)"},
+      {"_rad_per_m", "rad/m"},
+      {"_s2_per_m", "s^2/m"},
+      {"_n_per_m", "N/m"},
+      {"_n_per_a", "N/A"},
+      {"_v_per_a", "V/A"},
+      {"_rad_s", "rad/s"},
+      {"_per_s", "1/s"},
+      {"_mps2", "m/s^2"},
+      {"_mps", "m/s"},
+      {"_ohm", "Ohm"},
+      {"_hz", "Hz"},
+      {"_kg", "kg"},
+      {"_wb", "Wb"},
+      {"_us", "us"},
+      {"_s", "s"},
+      {"_m", "m"},
+      {"_n", "N"},
+      {"_h", "H"},
+      {"_v", "V"},
+      {"_a", "A"},
+      {"_bps", "bit/s"},
   }};
   const std::string name = key_path.substr(key_path.rfind('.') + 1);
   for (const auto& [suffix, unit] : kSuffixes) {

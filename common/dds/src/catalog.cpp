@@ -3,6 +3,7 @@
 #include <fastdds/dds/topic/TopicDataType.hpp>
 
 #include <memory>
+#include <type_traits>
 #include <stdexcept>
 #include <utility>
 
@@ -48,38 +49,16 @@ std::string schema_of(const std::string& short_name) {
   throw std::logic_error("no embedded IDL for type " + short_name);
 }
 
-template <typename PubSubType>
-CatalogEntry entry(const TopicSpec& spec, const std::string& short_name) {
-  const PubSubType type;  // for its registered name and size bound, as the typed nodes use them
-  return CatalogEntry{spec, type.getName(), schema_of(short_name), type.m_typeSize};
-}
+/// "pmlsm_msgs::msg::MotorFeedback" -> "MotorFeedback": the IDL file's (and its schema's) name.
+std::string short_name_of(const std::string& type_name) { return type_name.substr(type_name.rfind(':') + 1); }
 
 std::vector<CatalogEntry> make_catalog() {
-  namespace msg = pmlsm_msgs::msg;
-  return {
-      entry<msg::MotorFeedbackPubSubType>(topics::kMotorFeedback, "MotorFeedback"),
-      entry<msg::ForceCommandPubSubType>(topics::kForceCommand, "ForceCommand"),
-      entry<msg::CurrentFeedbackPubSubType>(topics::kCurrentFeedback, "CurrentFeedback"),
-      entry<msg::VoltageCommandPubSubType>(topics::kVoltageCommand, "VoltageCommand"),
-      entry<msg::PlantTruthPubSubType>(topics::kPlantTruth, "PlantTruth"),
-      entry<msg::VelocityReferencePubSubType>(topics::kVelocityReference, "VelocityReference"),
-      entry<msg::EstimatedStatePubSubType>(topics::kEstimatedState, "EstimatedState"),
-      entry<msg::DriveControlPubSubType>(topics::kDriveControl, "DriveControl"),
-      entry<msg::DriveStatePubSubType>(topics::kDriveState, "DriveState"),
-      entry<msg::CompensatorOutputPubSubType>(topics::kCompensatorOutput, "CompensatorOutput"),
-      entry<msg::NodeStatusPubSubType>(topics::kNodeStatus, "NodeStatus"),
-      entry<msg::NetworkWeightsPubSubType>(topics::kNetworkWeights, "NetworkWeights"),
-      entry<msg::TrainerProgressPubSubType>(topics::kTrainerProgress, "TrainerProgress"),
-      entry<msg::TrainingSetupPubSubType>(topics::kTrainingSetup, "TrainingSetup"),
-      entry<msg::EvaluationRequestPubSubType>(topics::kEvaluationRequest, "EvaluationRequest"),
-      entry<msg::EvaluationResultPubSubType>(topics::kEvaluationResult, "EvaluationResult"),
-      entry<msg::WorkerStatusPubSubType>(topics::kWorkerStatus, "WorkerStatus"),
-      entry<msg::VelocitySetpointPubSubType>(topics::kVelocitySetpoint, "VelocitySetpoint"),
-      entry<msg::AgentAnnouncePubSubType>(topics::kAgentAnnounce, "AgentAnnounce"),
-      entry<msg::LaunchRequestPubSubType>(topics::kLaunchRequest, "LaunchRequest"),
-      entry<msg::NodeOutputPubSubType>(topics::kNodeOutput, "NodeOutput"),
-      entry<msg::NodeExitPubSubType>(topics::kNodeExit, "NodeExit"),
-  };
+  std::vector<CatalogEntry> entries;
+  for_each_topic([&entries](const auto& topic) {
+    const typename std::decay_t<decltype(topic)>::Type type;  // its registered name and size bound, as nodes use them
+    entries.push_back(CatalogEntry{topic, type.getName(), schema_of(short_name_of(type.getName())), type.m_typeSize});
+  });
+  return entries;
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "pmlsm/util/parameter_table.hpp"
 #include "pmlsm/util/validate.hpp"
 
 namespace pmlsm {
@@ -92,50 +93,6 @@ StateFeedbackParams SystemParams::state_feedback_params() const {
   p.force_limit_n = velocity_loop.force_limit_n;
   return p;
 }
-
-namespace {
-
-// Checks each value of the parameter table against its plausible range.
-class RangeCheck {
- public:
-  void real(const std::string& path, double value, const Plausible& range) const { check(path, value, range); }
-  template <typename T>
-  void integer(const std::string& path, T value, const Plausible& range) const {
-    const double x = static_cast<double>(value);
-    if (std::isfinite(x) && x != std::trunc(x)) {
-      throw std::invalid_argument(path + ": must be a whole number (" + range.reason + "), got " + format_value(x));
-    }
-    check(path, x, range);
-  }
-  void flag(const std::string&, bool) const {}
-  template <typename E, typename F>
-  void choice(const std::string&, E, F) const {}
-  void vector3(const std::string& path, const Eigen::Vector3d& value, const Plausible& range) const {
-    for (int i = 0; i < 3; ++i) check(path + "[" + std::to_string(i) + "]", value(i), range);
-  }
-  void integer_list(const std::string& path, const std::vector<int>& value, const Plausible& range) const {
-    for (std::size_t i = 0; i < value.size(); ++i) {
-      check(path + "[" + std::to_string(i) + "]", value[i], range);
-    }
-  }
-
- private:
-  static void check(const std::string& path, double value, const Plausible& range) {
-    require_finite(path.c_str(), value);
-    // A subnormal number (|x| < 2.2e-308, not 0) is no physical quantity; it only
-    // overflows whatever divides by it.
-    if (value != 0.0 && std::fabs(value) < DBL_MIN) {
-      throw std::invalid_argument(path + ": must be 0 or at least 2.2e-308 in size (a subnormal number), got " +
-                                  format_value(value));
-    }
-    if (!(value >= range.min && value <= range.max)) {
-      throw std::invalid_argument(path + ": must be in [" + format_value(range.min) + ", " + format_value(range.max) +
-                                  "] (" + range.reason + "), got " + format_value(value));
-    }
-  }
-};
-
-}  // namespace
 
 namespace {
 

@@ -47,6 +47,7 @@
 #include "pmlsm/canopen/sdo.hpp"
 #include "pmlsm/canopen/sync.hpp"
 #include "pmlsm/drive/drive.hpp"
+#include "pmlsm/util/parameter_table.hpp"
 
 namespace pmlsm::canopen {
 
@@ -54,6 +55,7 @@ struct Cia402DriveConfig {
   int node_id = 1;
   int master_node_id = 127;
   ScalingConfig scaling{675.0, 1e6};
+
   bool realtime = false;
   /// Lockstep: how long one SYNC waits for its answer before it is resent.
   std::uint32_t sync_timeout_ms = 50;
@@ -77,9 +79,45 @@ struct Cia402DriveConfig {
   std::uint8_t sync_overflow = 240;
   /// Cycles in one state while a move is expected before the walk is stuck.
   std::uint32_t enable_timeout_cycles = 200;
-  /// @throws std::invalid_argument naming the field.
+  /// The ranges of visit_parameters, then check_relations().
+  /// @throws std::invalid_argument naming the key (as the rig file writes it) and the value.
   void validate() const;
+  /// What ties two values together: the node ids differ, each heartbeat time-out exceeds its period.
+  /// @throws std::invalid_argument naming the key and the value.
+  void check_relations() const;
 };
+
+/// Every setting of Cia402DriveConfig a rig file sets, declared once (pmlsm/util/parameter_table.hpp)
+/// with its key in configs/canopen/drive.yaml, its range and why; realtime and
+/// reset_communication are the program's. validate() checks these ranges and the reader of the
+/// file reads by this table. Config is Cia402DriveConfig or const Cia402DriveConfig.
+template <typename Config, typename Visitor>
+void visit_parameters(Config& m, Visitor& v) {
+  const Plausible node_id{1.0, 127.0, "a CANopen node id (CiA 301: 1 to 127)"};
+  const Plausible heartbeat{1.0, 65535.0, "a heartbeat time of 0x1016/0x1017: 16 bits of milliseconds"};
+  v.integer("drive.node_id", m.node_id, node_id);
+  v.real("drive.rated_force_n", m.scaling.rated_force_n,
+         {1e-3, 4294967.295, "0x6076 holds it as 32 bits of millinewtons: 1 mN to 4.29 MN"});
+  v.real("drive.increments_per_metre", m.scaling.increments_per_metre,
+         {1.0, 1e12, "from a 1 m coarse scale to a 1 pm interferometer"});
+  v.integer("drive.heartbeat_ms", m.drive_heartbeat_ms, {0.0, 65535.0, "0x1017: 0 (none) or 16 bits of milliseconds"});
+  v.integer("master.node_id", m.master_node_id, node_id);
+  v.integer("master.heartbeat_ms", m.master_heartbeat_ms, heartbeat);
+  v.integer("master.heartbeat_timeout_ms", m.master_heartbeat_timeout_ms, heartbeat);
+  v.integer("master.drive_heartbeat_timeout_ms", m.drive_heartbeat_timeout_ms, heartbeat);
+  v.integer("master.boot_timeout_ms", m.boot_timeout_ms, {1.0, 600000.0, "1 ms to 10 minutes for a boot-up"});
+  v.integer("master.sdo_timeout_ms", m.sdo_timeout_ms, {1.0, 60000.0, "1 ms to a minute for an SDO answer"});
+  v.integer("master.enable_timeout_cycles", m.enable_timeout_cycles,
+            {1.0, 1000000.0, "1 to a million control cycles in one power state"});
+  v.integer("master.sync_overflow", m.sync_overflow, {2.0, 240.0, "the SYNC counter's overflow (CiA 301 0x1019)"});
+  v.integer("master.lockstep.sync_timeout_ms", m.sync_timeout_ms,
+            {1.0, 60000.0, "1 ms to a minute for a SYNC's answer"});
+  v.integer("master.lockstep.sync_retries", m.sync_retries, {0.0, 1000.0, "0 to 1000 resends of a SYNC"});
+  v.integer("master.realtime.tpdo_deadline_us", m.tpdo_deadline_us,
+            {0.0, 1000000.0, "0 to 1 s into the tick (a tick is far shorter)"});
+  v.integer("master.realtime.max_missed_answers", m.max_missed_answers,
+            {1.0, 100000.0, "1 to 100,000 ticks in a row without the TPDOs"});
+}
 
 class Cia402DriveError : public std::runtime_error {
  public:

@@ -36,7 +36,22 @@ struct CanopenRigConfig {
   /// The drive's own SYNC watch: no SYNC this long while enabled -> fault (virtual drive).
   std::uint16_t drive_sync_timeout_ms = 10;
   std::uint32_t bitrate_bps = 1000000;
+  /// The ranges of visit_rig_parameters, then the master's relations.
+  /// @throws std::invalid_argument naming the key and the value.
+  void validate() const;
 };
+
+/// Every setting of configs/canopen/drive.yaml, declared once (pmlsm/util/parameter_table.hpp):
+/// the rig's own and the master's (canopen::visit_parameters). Config is CanopenRigConfig or
+/// const CanopenRigConfig.
+template <typename Config, typename Visitor>
+void visit_rig_parameters(Config& c, Visitor& v) {
+  v.integer("bus.bitrate_bps", c.bitrate_bps,
+            {10000.0, 1000000.0, "CiA 301 bit rates: 10 kbit/s to 1 Mbit/s (for the bus load figure)"});
+  v.integer("drive.sync_timeout_ms", c.drive_sync_timeout_ms,
+            {1.0, 65535.0, "the drive's own SYNC watch: 16 bits of milliseconds"});
+  canopen::visit_parameters(c.master, v);
+}
 
 /// The device-specific part of a slave's object dictionary, EDS-like
 /// (configs/canopen/virtual_drive_od.yaml): the identity (0x1018), manufacturer-specific objects

@@ -247,8 +247,9 @@ class Participant {
   Participant(const Participant&) = delete;
   Participant& operator=(const Participant&) = delete;
 
+  /// The type is the topic's (topics.hpp).
   template <typename PubSubType>
-  Writer<PubSubType> make_writer(const TopicSpec& spec) {
+  Writer<PubSubType> make_writer(const Topic<PubSubType>& spec) {
     using Message = typename PubSubType::type;
     if (local_bus_ == nullptr) return Writer<PubSubType>(create_writer(topic_for<PubSubType>(spec), spec.qos_profile));
     // The listener must be there from the start: it counts the readers outside the process.
@@ -269,7 +270,7 @@ class Participant {
   /// The reader's listener notifies `wakeup` on every arrival. `qos_profile`
   /// replaces the topic's own, e.g. the deep observer profile for a monitor.
   template <typename PubSubType>
-  Reader<PubSubType> make_reader(const TopicSpec& spec, Wakeup& wakeup, const char* qos_profile = nullptr) {
+  Reader<PubSubType> make_reader(const Topic<PubSubType>& spec, Wakeup& wakeup, const char* qos_profile = nullptr) {
     using Message = typename PubSubType::type;
     Reader<PubSubType> reader(
         create_reader(topic_for<PubSubType>(spec), qos_profile != nullptr ? qos_profile : spec.qos_profile, wakeup));

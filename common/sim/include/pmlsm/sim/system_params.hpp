@@ -14,6 +14,7 @@
 #include "pmlsm/compensation/state_feedback.hpp"
 #include "pmlsm/estimation/kalman_filter.hpp"
 #include "pmlsm/plant/plant.hpp"
+#include "pmlsm/util/parameter_table.hpp"
 #include "pmlsm/control/reference_model.hpp"
 #include "pmlsm/control/velocity_pi.hpp"
 
@@ -44,31 +45,13 @@ struct CompensatorTuning {
   VibrationGuardParams guard;
 };
 
-/// A parameter's plausible range and why: a config value outside it is refused by
-/// SystemParams::validate() with the range and this reason. The ranges are wide (a
-/// study may move a value by orders of magnitude) but keep every value a physical
-/// motor, drive or filter could have, so that a typo like 1e308 or 1e-320 stops the
-/// program instead of turning the plant state into NaN.
-struct Plausible {
-  double min;
-  double max;
-  const char* reason;
-};
-
 struct SystemParams;
 
-/// Every parameter of SystemParams in one declaration: its key path in
-/// configs/system.yaml, its kind and its plausible range with the reason. The
-/// config loader reads the file by this table (so every key is known and present),
-/// SystemParams::validate() checks the ranges, tests mutate every entry.
-/// The visitor has:
-///   real(path, double&, Plausible)                  a finite number
-///   integer(path, T&, Plausible)                    a whole number (counts, seeds), T double or uint64
-///   flag(path, bool&)
-///   choice(path, E&, E (*from_string)(const std::string&))  one of a set of names
-///   vector3(path, Eigen::Vector3d&, Plausible)      three numbers, each in range
-///   integer_list(path, std::vector<int>&, Plausible)  whole numbers, each in range
-/// Params is SystemParams or const SystemParams.
+/// Every parameter of SystemParams in one declaration (pmlsm/util/parameter_table.hpp): its key
+/// path in configs/system.yaml, its kind and its plausible range with the reason. The config
+/// loader reads the file by this table (so every key is known and present),
+/// SystemParams::validate() checks the ranges, tests mutate every entry, `pmlsm config
+/// reference` writes it out. Params is SystemParams or const SystemParams.
 template <typename Params, typename Visitor>
 void visit_parameters(Params& p, Visitor& v);
 
