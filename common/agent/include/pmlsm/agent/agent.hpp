@@ -1,5 +1,5 @@
 // Launch agents: the policy an agent (`pmlsm agent`) and a launcher follow, without DDS or
-// processes, so every decision is tested directly (tests/unit/agent_test.cpp).
+// processes, so every decision is tested directly (tests/unit/agent/agent_test.cpp).
 //   LeaseTracker     who was heard from within its lease (agents by the launcher, the
 //                    launcher by an agent)
 //   ExecutablePolicy which executables an agent may start: the installed or built pmlsm

@@ -49,7 +49,7 @@
 // h lambda = 0.075 at 10 us. step(input, dt) splits dt
 // into the fewest equal sub-steps no longer than max_step_s (10 us in the
 // paper); the input voltage is held over dt (zero-order hold, as a PWM
-// inverter holds its duty cycle). tests/unit/plant_test.cpp measures the
+// inverter holds its duty cycle). tests/unit/plant/plant_test.cpp measures the
 // order and the error against a fine-step reference.
 #pragma once
 
@@ -126,7 +126,7 @@ struct EncoderParams {
   void validate() const;
 };
 
-/// Fixed-step explicit integrators; tests/unit/plant_test.cpp measures their order and error.
+/// Fixed-step explicit integrators; tests/unit/plant/plant_test.cpp measures their order and error.
 enum class Integrator { kRk4, kHeun, kAdamsBashforth2 };
 const char* to_string(Integrator integrator);
 /// @throws std::invalid_argument on an unknown name.

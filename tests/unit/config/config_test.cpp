@@ -143,7 +143,7 @@ TEST(ConfigShipped, ValuesMatchThePaper) {
   EXPECT_DOUBLE_EQ(p.reference_model.natural_frequency_rad_s, 100.0);  // eq. 25
   EXPECT_DOUBLE_EQ(p.reference_model.damping_ratio, 1.732);
   // Q is chosen, not the paper's diag(100, 10, 1) of eq. 35 (see its source in
-  // system.yaml and tests/unit/kalman_test.cpp); R is the paper's.
+  // system.yaml and tests/unit/estimation/kalman_test.cpp); R is the paper's.
   EXPECT_DOUBLE_EQ(p.kalman.measurement_noise, 0.01);
   EXPECT_DOUBLE_EQ(p.timing.control_period_s, 1e-3);  // section 4.1
   EXPECT_DOUBLE_EQ(p.timing.current_loop_period_s, 31.25e-6);

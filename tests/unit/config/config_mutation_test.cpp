@@ -3,7 +3,7 @@
 // ConfigError naming the file, the key path and the value. The leaves come from the
 // parameter table (visit_parameters), which is checked to cover every leaf of the file.
 // Whole-file classes (empty, binary, oversized, anchor bombs, deep nesting, duplicated
-// keys) follow. tests/unit/config_cli_check.cmake runs some of them through the programs.
+// keys) follow. tests/unit/config/config_cli_check.cmake runs some of them through the programs.
 #include <gtest/gtest.h>
 
 #include <cstdlib>

@@ -23,7 +23,7 @@
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/config/weights_file.hpp"
 #include "pmlsm/sim/rnn_training.hpp"
-#include "rnn_test_support.hpp"
+#include "compensation/rnn_test_support.hpp"
 
 namespace pmlsm {
 namespace {
