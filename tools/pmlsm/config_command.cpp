@@ -1,6 +1,6 @@
-// `pmlsm config`: the system file's reference and checks.
-//   pmlsm config reference [-c FILE] [-o PAGE] [--check]   the generated configuration reference
-//   pmlsm config check [-c FILE] [--set K=V ...]            every check a program makes when it loads the file
+// `pmlsm config`: the configuration files' references and checks.
+//   pmlsm config reference [--kind system|canopen] [-c FILE] [-o PAGE] [--check]   the generated reference
+//   pmlsm config check [--kind system|canopen] [-c FILE] [--set K=V ...]   every check a program makes on loading it
 // `reference --check` compares PAGE with what it would write and exits 1 when they differ (the
 // ctest `config_reference` runs it on docs/configuration-reference.md).
 #include <cstdio>
@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "pmlsm/config/canopen_config.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/config/parameter_reference.hpp"
 #include "pmlsm/util/atomic_file.hpp"
@@ -19,11 +20,10 @@
 namespace pmlsm::tools {
 namespace {
 
-constexpr const char* kShippedSystemFile = "configs/system.yaml";
-
 struct ConfigCommandOptions {
-  std::string config;  ///< "": the shipped system file
-  std::string out;     ///< the page ("": standard output)
+  std::string kind = "system";  ///< system (configs/system.yaml) or canopen (configs/canopen/drive.yaml)
+  std::string config;           ///< "": the shipped file of that kind
+  std::string out;              ///< the page ("": standard output)
   bool check = false;
   std::vector<std::string> set;
 };
@@ -36,16 +36,23 @@ std::string text_of(const std::string& path) {
   return text.str();
 }
 
+/// The shipped file of the kind, by its place in the source tree.
+std::string shipped_file(const ConfigCommandOptions& o) {
+  return o.kind == "canopen" ? "configs/canopen/drive.yaml" : "configs/system.yaml";
+}
+
 /// The file to read: the option's, else the shipped one wherever it is installed.
 std::string system_file(const ConfigCommandOptions& o) {
-  return o.config.empty() ? data_file(kShippedSystemFile) : o.config;
+  return o.config.empty() ? data_file(shipped_file(o)) : o.config;
 }
 
 /// The file as messages and the page name it: the shipped one by its place in the source tree.
-std::string origin_of(const ConfigCommandOptions& o) { return o.config.empty() ? kShippedSystemFile : o.config; }
+std::string origin_of(const ConfigCommandOptions& o) { return o.config.empty() ? shipped_file(o) : o.config; }
 
 int run_reference(const ConfigCommandOptions& o) {
-  const std::string page = system_parameter_reference(text_of(system_file(o)), origin_of(o));
+  const std::string text = text_of(system_file(o));
+  const std::string page = o.kind == "canopen" ? canopen_parameter_reference(text, origin_of(o))
+                                               : system_parameter_reference(text, origin_of(o));
   if (o.check) {
     if (o.out.empty()) throw UsageError("--check needs -o PAGE, the page to compare");
     std::ifstream in(o.out, std::ios::binary);
@@ -76,7 +83,11 @@ int run_reference(const ConfigCommandOptions& o) {
 
 int run_check(const ConfigCommandOptions& o) {
   const std::string text = text_of(system_file(o));
-  parse_system_params(text, origin_of(o), parse_overrides(o.set));
+  if (o.kind == "canopen") {
+    parse_canopen_config(text, origin_of(o), parse_overrides(o.set));
+  } else {
+    parse_system_params(text, origin_of(o), parse_overrides(o.set));
+  }
   std::printf("%s: valid (%zu parameters)\n", origin_of(o).c_str(), list_leaf_sources(text, origin_of(o)).size());
   return kExitOk;
 }
@@ -84,7 +95,8 @@ int run_check(const ConfigCommandOptions& o) {
 }  // namespace
 
 void add_config_command(CLI::App& app, int& exit_code) {
-  CLI::App* cmd = app.add_subcommand("config", "The system file: its generated reference, its checks");
+  CLI::App* cmd =
+      app.add_subcommand("config", "The system and CANopen files: their generated references, their checks");
   cmd->require_subcommand(1);
   auto o = std::make_shared<ConfigCommandOptions>();
   const auto wrap = [&exit_code](const std::shared_ptr<ConfigCommandOptions>& options,
@@ -99,15 +111,25 @@ void add_config_command(CLI::App& app, int& exit_code) {
   };
   CLI::App* reference = cmd->add_subcommand(
       "reference", "Markdown: every parameter's key, value, unit, accepted range and its reason, and source");
-  reference->add_option("-c,--config", o->config, "The system file (default: the shipped configs/system.yaml)")
+  reference
+      ->add_option("--kind", o->kind,
+                   "Which file: system (configs/system.yaml) or canopen (configs/canopen/drive.yaml)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"system", "canopen"}));
+  reference->add_option("-c,--config", o->config, "The file (default: the shipped one of its kind)")
       ->check(CLI::ExistingFile);
   reference->add_option("-o,--out", o->out, "The page to write (default: standard output)");
   reference->add_flag("--check", o->check, "Compare with the page instead of writing it: exit 1 when it differs");
   reference->callback(wrap(o, &run_reference));
   CLI::App* check = cmd->add_subcommand("check", "Loads the system file with every check the programs make");
-  check->add_option("-c,--config", o->config, "The system file (default: the shipped configs/system.yaml)")
+  check
+      ->add_option("--kind", o->kind,
+                   "Which file: system (configs/system.yaml) or canopen (configs/canopen/drive.yaml)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"system", "canopen"}));
+  check->add_option("-c,--config", o->config, "The file (default: the shipped one of its kind)")
       ->check(CLI::ExistingFile);
-  check->add_option("--set", o->set, "Override a system parameter: key.path=value")->take_all();
+  check->add_option("--set", o->set, "Override a parameter of the file: key.path=value")->take_all();
   check->callback(wrap(o, &run_check));
 }
 

@@ -1,5 +1,6 @@
 #include "pmlsm/config/parameter_reference.hpp"
 
+#include <algorithm>
 #include <array>
 #include <map>
 #include <sstream>
@@ -8,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "pmlsm/config/canopen_config.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/util/validate.hpp"
 
@@ -15,7 +17,7 @@ namespace pmlsm {
 
 std::string unit_of_key(const std::string& key_path) {
   // Longest suffixes first: "_n_s_per_m" before "_n_per_m" before "_m".
-  static const std::array<std::pair<const char*, const char*>, 23> kSuffixes{{
+  static const std::array<std::pair<const char*, const char*>, 25> kSuffixes{{
       {"_n_s_per_m", "N s/m"},
       {"_v_per_a_s", "V/(A s)"},
       {"_rad_per_m", "rad/m"},
@@ -32,6 +34,8 @@ std::string unit_of_key(const std::string& key_path) {
       {"_kg", "kg"},
       {"_wb", "Wb"},
       {"_us", "us"},
+      {"_ms", "ms"},
+      {"_per_metre", "1/m"},
       {"_s", "s"},
       {"_m", "m"},
       {"_n", "N"},
@@ -110,41 +114,72 @@ std::string cell(std::string text) {
   return out;
 }
 
+// The page: an introduction, then a table a section of the file, a row a declared parameter.
+std::string reference_page(const std::vector<ReferenceRow>& rows, const std::string& yaml_text,
+                           const std::string& origin, const std::string& introduction) {
+  std::map<std::string, SourcedLeaf> leaves;
+  for (SourcedLeaf& leaf : list_leaf_sources(yaml_text, origin)) leaves.emplace(leaf.key_path, std::move(leaf));
+  std::ostringstream out;
+  out << "# Configuration reference: `" << origin << "`\n\n" << introduction;
+  // One table a section, the sections in the order the declarations first name them.
+  std::vector<std::string> sections;
+  for (const ReferenceRow& row : rows) {
+    const std::string parent = row.key_path.substr(0, row.key_path.rfind('.'));
+    if (std::find(sections.begin(), sections.end(), parent) == sections.end()) sections.push_back(parent);
+  }
+  for (const std::string& section : sections) {
+    out << "\n## `" << section << "`\n\n"
+        << "| key | value | unit | accepted | why that range | source |\n"
+        << "|---|---|---|---|---|---|\n";
+    for (const ReferenceRow& row : rows) {
+      const std::size_t dot = row.key_path.rfind('.');
+      if (row.key_path.compare(0, dot, section) != 0 || dot != section.size()) continue;
+      const auto leaf = leaves.find(row.key_path);
+      const std::string value = leaf != leaves.end() ? leaf->second.value : "";
+      const std::string source = leaf != leaves.end() ? leaf->second.source : "";
+      out << "| `" << row.key_path.substr(dot + 1) << "` | " << cell(value) << " | " << unit_of_key(row.key_path)
+          << " | " << cell(row.kind) << " | " << cell(row.reason) << " | " << cell(source) << " |\n";
+    }
+  }
+  return out.str();
+}
+
 }  // namespace
 
 std::string system_parameter_reference(const std::string& yaml_text, const std::string& origin) {
   const SystemParams params = parse_system_params(yaml_text, origin);
-  std::map<std::string, SourcedLeaf> leaves;
-  for (SourcedLeaf& leaf : list_leaf_sources(yaml_text, origin)) leaves.emplace(leaf.key_path, std::move(leaf));
   DeclarationCollector collector;
   visit_parameters(params, collector);
+  return reference_page(
+      collector.rows, yaml_text, origin,
+      "Generated from the parameter declarations (the table `visit_parameters` in\n"
+      "`common/sim/include/pmlsm/sim/system_params.hpp`) and the values and sources of `" +
+          origin +
+          "`\n"
+          "by `./build/bin/pmlsm config reference -o docs/configuration-reference.md`; the test\n"
+          "`config_reference` fails when this page and either of them disagree. Do not edit it by hand.\n\n"
+          "A value outside its range is refused with the range and its reason; the unit is the one the\n"
+          "key's name carries. Where a source needs more than a sentence or two, the rest is in\n"
+          "[parameters.md](parameters.md); how the file is read and overridden: [configuration.md](configuration.md).\n"
+          "The CANopen rig file: [canopen-reference.md](canopen-reference.md).\n");
+}
 
-  std::ostringstream out;
-  out << "# Configuration reference: `" << origin << "`\n\n"
-      << "Generated from the parameter declarations (the table `visit_parameters` in\n"
-      << "`common/sim/include/pmlsm/sim/system_params.hpp`) and the values and sources of `" << origin << "`\n"
-      << "by `./build/bin/pmlsm config reference -o docs/configuration-reference.md`; the test\n"
-      << "`config_reference` fails when this page and either of them disagree. Do not edit it by hand.\n\n"
-      << "A value outside its range is refused with the range and its reason; the unit is the one the\n"
-      << "key's name carries. Where a source needs more than a sentence or two, the rest is in\n"
-      << "[parameters.md](parameters.md); how the file is read and overridden: [configuration.md](configuration.md).\n";
-  std::string section;
-  for (const ReferenceRow& row : collector.rows) {
-    const std::size_t dot = row.key_path.rfind('.');
-    const std::string parent = row.key_path.substr(0, dot);
-    if (parent != section) {
-      section = parent;
-      out << "\n## `" << section << "`\n\n"
-          << "| key | value | unit | accepted | why that range | source |\n"
-          << "|---|---|---|---|---|---|\n";
-    }
-    const auto leaf = leaves.find(row.key_path);
-    const std::string value = leaf != leaves.end() ? leaf->second.value : "";
-    const std::string source = leaf != leaves.end() ? leaf->second.source : "";
-    out << "| `" << row.key_path.substr(dot + 1) << "` | " << cell(value) << " | " << unit_of_key(row.key_path) << " | "
-        << cell(row.kind) << " | " << cell(row.reason) << " | " << cell(source) << " |\n";
-  }
-  return out.str();
+std::string canopen_parameter_reference(const std::string& yaml_text, const std::string& origin) {
+  const CanopenRigConfig config = parse_canopen_config(yaml_text, origin);
+  DeclarationCollector collector;
+  visit_rig_parameters(config, collector);
+  return reference_page(
+      collector.rows, yaml_text, origin,
+      "Generated from the parameter declarations (`visit_rig_parameters` in\n"
+      "`common/config/include/pmlsm/config/canopen_config.hpp` and `canopen::visit_parameters` in\n"
+      "`common/canopen/include/pmlsm/canopen/cia402_drive.hpp`) and the values and sources of `" +
+          origin +
+          "`\n"
+          "by `./build/bin/pmlsm config reference --kind canopen -o docs/canopen-reference.md`; the test\n"
+          "`canopen_reference` fails when this page and either of them disagree. Do not edit it by hand.\n\n"
+          "Both ends of the bus read this file (drive_bridge, the master; virtual_drive, the simulated\n"
+          "drive), so they agree; a value outside its range is refused with the range and its reason.\n"
+          "Connecting a drive: [real-drive.md](real-drive.md).\n");
 }
 
 }  // namespace pmlsm

@@ -35,14 +35,14 @@ TEST(ParameterReference, ReadsTheUnitFromTheKeysName) {
   EXPECT_EQ(unit_of_key("compensator.rnn.layer_sizes"), "");
 }
 
-TEST(ParameterReference, ListsEveryLeafOfTheFileOnceWithItsValueAndSource) {
-  const std::string page = system_parameter_reference(system_text(), kShippedOrigin);
+/// Every leaf of `text` has one row on `page`, in its section's table, with its value and source.
+void expect_every_leaf_on_the_page(const std::string& page, const std::string& text, const std::string& origin) {
   std::size_t rows = 0;
   std::istringstream lines(page);
   for (std::string line; std::getline(lines, line);) {
     if (line.rfind("| `", 0) == 0) ++rows;
   }
-  const auto leaves = list_leaf_sources(system_text(), kShippedOrigin);
+  const auto leaves = list_leaf_sources(text, origin);
   EXPECT_EQ(rows, leaves.size());
   for (const SourcedLeaf& leaf : leaves) {
     const std::string key = leaf.key_path.substr(leaf.key_path.rfind('.') + 1);
@@ -55,6 +55,18 @@ TEST(ParameterReference, ListsEveryLeafOfTheFileOnceWithItsValueAndSource) {
     for (char c : leaf.source) source_cell += c == '|' ? std::string("\\|") : std::string(1, c);
     EXPECT_NE(page.find(source_cell, row), std::string::npos) << leaf.key_path;
   }
+}
+
+TEST(ParameterReference, ListsEveryLeafOfTheFileOnceWithItsValueAndSource) {
+  expect_every_leaf_on_the_page(system_parameter_reference(system_text(), kShippedOrigin), system_text(),
+                                kShippedOrigin);
+}
+
+TEST(ParameterReference, ListsEveryLeafOfTheCanopenRigFile) {
+  const std::string text = test::read_text("configs/canopen/drive.yaml");
+  const std::string page = canopen_parameter_reference(text, "configs/canopen/drive.yaml");
+  expect_every_leaf_on_the_page(page, text, "configs/canopen/drive.yaml");
+  EXPECT_NE(page.find("| `node_id` | 1 |  | whole number in [1, 127] | a CANopen node id"), std::string::npos);
 }
 
 TEST(ParameterReference, StatesTheDeclaredRangeAndItsReason) {

@@ -18,4 +18,9 @@ std::string unit_of_key(const std::string& key_path);
 /// @throws ConfigError as parse_system_params when the file is not a valid system file.
 std::string system_parameter_reference(const std::string& yaml_text, const std::string& origin);
 
+/// The same for a CANopen rig file (configs/canopen/drive.yaml; pmlsm/config/canopen_config.hpp):
+/// docs/canopen-reference.md, checked by the ctest `canopen_reference`.
+/// @throws ConfigError as parse_canopen_config.
+std::string canopen_parameter_reference(const std::string& yaml_text, const std::string& origin);
+
 }  // namespace pmlsm
