@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <fstream>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -97,18 +98,41 @@ class TableReader {
   /// Every key of the file that no table entry named is unknown.
   void finish() const { check_known(root_, ""); }
 
+  /// Runs the checks of what was read (a validate()): an error names the file, and the line of the
+  /// key it starts with ("plant.mechanics.load_mass_kg: must be ...").
+  template <typename Check>
+  void validate(Check&& check) const {
+    validate_in(origin_, [&] {
+      try {
+        check();
+      } catch (const std::invalid_argument& e) {
+        const std::string what = e.what();
+        throw std::invalid_argument(what + line_of_key(what.substr(0, what.find(':'))));
+      }
+    });
+  }
+
  private:
-  [[noreturn]] void fail(const std::string& path, const std::string& what) const { fail_at(origin_, path, what); }
+  [[noreturn]] void fail(const std::string& path, const std::string& what) const {
+    fail_at(origin_, path, what + line_of_key(path));
+  }
 
   [[noreturn]] void out_of_range(const std::string& path, double value, const Plausible& range) const {
     fail(path, "must be in [" + format_value(range.min) + ", " + format_value(range.max) + "] (" + range.reason +
                    "), got " + format_value(value));
   }
 
-  double number(const YAML::Node& v, const std::string& path) const { return to_number(v, origin_, path); }
+  double number(const YAML::Node& v, const std::string& path) const {
+    return with_line_of(v, [&] { return to_number(v, origin_, path); });
+  }
 
   std::uint64_t whole_number(const YAML::Node& v, const std::string& path) const {
-    return to_whole_number(v, origin_, path);
+    return with_line_of(v, [&] { return to_whole_number(v, origin_, path); });
+  }
+
+  std::string line_of_key(const std::string& path) const {
+    const auto found = lines_.find(path);
+    return found != lines_.end() ? found->second : std::string();
   }
 
   // The value at a key path; every section on the way must be a mapping and
@@ -122,19 +146,20 @@ class TableReader {
         fail(walked, "must be a mapping of keys, got '" + describe(node) + "'");
       }
       const YAML::Node child = static_cast<const YAML::Node&>(node)[key];
+      if (!child) fail_at(origin_, join(walked, key), "missing key" + line_of(node));
       walked = join(walked, key);
-      if (!child) fail(walked, "missing key");
       known_.insert(walked);
       node.reset(child);
     }
-    return leaf_value(node, origin_, path);
+    lines_[path] = line_of(node);
+    return with_line_of(node, [&] { return leaf_value(node, origin_, path); });
   }
 
   void check_known(const YAML::Node& node, const std::string& path) const {
     if (!node.IsMap() || is_sourced_leaf(node)) return;
     for (const auto& kv : node) {
       const std::string key = join(path, kv.first.as<std::string>());
-      if (known_.count(key) == 0) fail(key, "unknown key");
+      if (known_.count(key) == 0) fail_at(origin_, key, "unknown key" + line_of(kv.first));
       check_known(kv.second, key);
     }
   }
@@ -142,6 +167,7 @@ class TableReader {
   YAML::Node root_;
   std::string origin_;
   std::set<std::string> known_;
+  std::map<std::string, std::string> lines_;  ///< key path -> " (line N)" of the keys read
 };
 
 }  // namespace
@@ -154,7 +180,7 @@ SystemParams parse_system_params(const std::string& yaml_text, const std::string
   TableReader reader(root, origin);
   visit_parameters(p, reader);
   reader.finish();
-  validate_in(origin, [&] { p.validate(); });
+  reader.validate([&] { p.validate(); });
   return p;
 }
 
@@ -422,7 +448,7 @@ CanopenRigConfig parse_canopen_config(const std::string& yaml_text, const std::s
   TableReader reader(root, origin);
   visit_rig_parameters(c, reader);
   reader.finish();
-  validate_in(origin, [&] { c.validate(); });
+  reader.validate([&] { c.validate(); });
   return c;
 }
 

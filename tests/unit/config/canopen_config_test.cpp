@@ -73,6 +73,26 @@ TEST(CanopenConfig, OverridesAndBadValuesNameTheKeyAndValue) {
             std::string::npos);
 }
 
+TEST(CanopenConfig, AnErrorInTheFileNamesItsLine) {
+  const std::string text = shipped("configs/canopen/drive.yaml");
+  std::size_t line = 1;
+  for (std::size_t i = 0; i < text.find("  node_id: {value: 1,"); ++i) line += text[i] == '\n' ? 1 : 0;
+  const std::string where = "(line " + std::to_string(line) + ")";
+  // Out of range (found by validate(), after reading) and not a number (found while reading).
+  EXPECT_NE(error_of([&] {
+              parse_canopen_config(replaced(text, "node_id: {value: 1,", "node_id: {value: 0,"), "drive.yaml");
+            }).find("drive.node_id: must be in [1, 127] (a CANopen node id (CiA 301: 1 to 127)), got 0 " + where),
+            std::string::npos);
+  EXPECT_NE(error_of([&] {
+              parse_canopen_config(replaced(text, "node_id: {value: 1,", "node_id: {value: one,"), "drive.yaml");
+            }).find("drive.node_id: expected a non-negative integer, got 'one' " + where),
+            std::string::npos);
+  EXPECT_NE(error_of([&] {
+              parse_canopen_config(replaced(text, "node_id: {value: 127,", "node_id: {value: 1,"), "drive.yaml");
+            }).find("master.node_id: must differ from drive.node_id 1 (line "),
+            std::string::npos);
+}
+
 TEST(DeviceDictionary, TheShippedDescriptionLoads) {
   const DeviceDictionary d = parse_device_dictionary(shipped("configs/canopen/virtual_drive_od.yaml"), "od.yaml");
   EXPECT_EQ(d.product_code, 0x402U);
