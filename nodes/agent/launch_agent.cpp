@@ -27,6 +27,7 @@
 #include "LaunchRequestPubSubTypes.h"
 #include "NodeExitPubSubTypes.h"
 #include "NodeOutputPubSubTypes.h"
+#include "launch_agent_command_line.hpp"
 #include "launch_file.hpp"
 #include "node_support.hpp"
 #include "pmlsm/agent/agent.hpp"
@@ -42,12 +43,6 @@ namespace pdds = pmlsm::dds;
 namespace msg = pmlsm_msgs::msg;
 namespace fs = std::filesystem;
 using SteadyClock = std::chrono::steady_clock;
-
-std::string host_name() {
-  char host[128] = {};
-  gethostname(host, sizeof(host) - 1);
-  return host;
-}
 
 // The pmlsm programs present in bin_dir, by their resolved paths.
 std::vector<std::string> allowed_programs(const std::string& bin_dir) {
@@ -178,14 +173,7 @@ int slice_exit_code(int status, bool interrupted_by_agent) {
   return kExitError;
 }
 
-struct AgentOptions {
-  pdds::ParticipantOptions dds;
-  std::string host = host_name();
-  std::string bin_dir = pmlsm::program_dir();
-  std::string work_dir;
-  int lease_ms = 2000;
-  bool insecure = false;
-};
+using AgentOptions = node::LaunchAgentOptions;
 
 /// The agent's participant: its identity in a keystore is launch_agent unless given.
 pdds::ParticipantOptions agent_participant(pdds::ParticipantOptions options) {
@@ -433,27 +421,8 @@ void LaunchAgentComponent::publish_event(std::uint64_t launch_id, std::uint8_t e
 namespace pmlsm::node {
 
 MadeComponent make_launch_agent(const ComponentContext& /*context*/, int argc, char** argv) {
-  CLI::App app{
-      "Launch agent: announces this host over DDS and starts the slices of launch descriptions that a "
-      "launcher (`launcher FILE --agents`) sends it; only the pmlsm programs beside it."};
   AgentOptions opt;
-  add_dds_options(app, opt.dds);
-  app.add_option("--host", opt.host, "The host name launch files use for this machine (default: its host name)")
-      ->capture_default_str();
-  app.add_option("--bin-dir", opt.bin_dir, "Where the programs it may start are (default: its own folder)")
-      ->check(CLI::ExistingDirectory)
-      ->capture_default_str();
-  app.add_option("--work-dir", opt.work_dir,
-                 "Folder the nodes run in, where relative paths in their args start "
-                 "(default: the current folder; without configs/ there, the installed "
-                 "share/pmlsm beside its bin folder)")
-      ->check(CLI::ExistingDirectory);
-  app.add_option("--lease-ms", opt.lease_ms, "Announce every lease/4; a launcher takes it as gone after a lease")
-      ->check(CLI::Range(200, 60000))
-      ->capture_default_str();
-  app.add_flag("--insecure", opt.insecure,
-               "Run without a keystore: anyone on the DDS domain may then make it start pmlsm programs");
-  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  if (const auto code = parse_launch_agent_command_line(argc, argv, opt)) return {nullptr, *code};
   if (opt.dds.keystore.empty() && !opt.insecure) {
     std::cerr << "launch_agent: refusing to start without a keystore: any participant on DDS domain "
               << opt.dds.domain_id

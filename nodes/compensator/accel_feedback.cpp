@@ -3,6 +3,7 @@
 // so either can be launched in the other's place.
 #include <cstdio>
 
+#include "compensator_command_lines.hpp"
 #include "compensator_node.hpp"
 #include "pmlsm/compensation/accel_feedback.hpp"
 
@@ -52,10 +53,8 @@ class AccelFeedbackComponent final : public node::Component {
 namespace pmlsm::node {
 
 MadeComponent make_accel_feedback(const ComponentContext& context, int argc, char** argv) {
-  CLI::App app{"Load-acceleration feedback compensator F = -K_a a_L on DDS (the RNN's baseline)"};
   CommonOptions common;
-  add_common_options(app, common);
-  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  if (const auto code = parse_accel_feedback_command_line(argc, argv, common)) return {nullptr, *code};
   return {std::make_unique<AccelFeedbackComponent>(context, std::move(common))};
 }
 

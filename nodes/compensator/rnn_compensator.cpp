@@ -11,6 +11,7 @@
 #include <cstdio>
 
 #include "NetworkWeightsPubSubTypes.h"
+#include "compensator_command_lines.hpp"
 #include "compensator_node.hpp"
 #include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/util/validate.hpp"
@@ -37,12 +38,7 @@ RnnWeightsFile from_message(const msg::NetworkWeights& m, const SystemParams& pa
   return w;
 }
 
-struct RnnOptions {
-  node::CommonOptions common;
-  std::string weights_path;
-  bool online_learning = false;
-  bool ignore_topic = false;
-};
+using node::RnnOptions;
 
 class RnnCompensatorComponent final : public node::Component {
  public:
@@ -143,13 +139,8 @@ int RnnCompensatorComponent::run() {
 namespace pmlsm::node {
 
 MadeComponent make_rnn_compensator(const ComponentContext& context, int argc, char** argv) {
-  CLI::App app{"Jordan RNN vibration compensator on DDS"};
   RnnOptions opt;
-  add_common_options(app, opt.common);
-  app.add_option("-w,--weights", opt.weights_path, "Weights file (from de_trainer)")->check(CLI::ExistingFile);
-  app.add_flag("--online-learning", opt.online_learning, "Refine the weights online, eqs. (16)-(19)");
-  app.add_flag("--no-weights-topic", opt.ignore_topic, "Do not take weight sets from the NetworkWeights topic");
-  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  if (const auto code = parse_rnn_compensator_command_line(argc, argv, opt)) return {nullptr, *code};
   return {std::make_unique<RnnCompensatorComponent>(context, std::move(opt))};
 }
 

@@ -3,6 +3,7 @@
 // accel_feedback and rnn_compensator, so any of them can be launched in another's place.
 #include <cstdio>
 
+#include "compensator_command_lines.hpp"
 #include "compensator_node.hpp"
 #include "pmlsm/compensation/state_feedback.hpp"
 
@@ -52,10 +53,8 @@ class StateFeedbackComponent final : public node::Component {
 namespace pmlsm::node {
 
 MadeComponent make_state_feedback(const ComponentContext& context, int argc, char** argv) {
-  CLI::App app{"Model-following state feedback compensator on DDS (inverse-model feedforward, estimated spring force)"};
   CommonOptions common;
-  add_common_options(app, common);
-  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  if (const auto code = parse_state_feedback_command_line(argc, argv, common)) return {nullptr, *code};
   return {std::make_unique<StateFeedbackComponent>(context, std::move(common))};
 }
 

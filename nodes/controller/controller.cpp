@@ -30,6 +30,7 @@
 #include "MotorFeedbackPubSubTypes.h"
 #include "VelocityReferencePubSubTypes.h"
 #include "VelocitySetpointPubSubTypes.h"
+#include "controller_command_line.hpp"
 #include "msg_mapping.hpp"
 #include "node_support.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
@@ -43,14 +44,7 @@ namespace pdds = pmlsm::dds;
 namespace msg = pmlsm_msgs::msg;
 namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
 
-struct ControllerOptions {
-  std::string compensation = "none";
-  // Readers of the commands to wait for before the first answer: a sample written before a
-  // reader matched is lost to it, and a lockstep drive that never enables itself steps 300
-  // ticks in 30 ms, before an observer (the evaluator) may have matched the controller.
-  int command_readers = 0;    ///< ForceCommand readers (the drive, the evaluator, a recorder)
-  int reference_readers = 0;  ///< VelocityReference readers (the evaluator, a compensator)
-};
+using node::ControllerOptions;
 
 class ControllerNode {
  public:
@@ -361,26 +355,10 @@ class ControllerComponent final : public node::Component {
 namespace pmlsm::node {
 
 MadeComponent make_controller(const ComponentContext& context, int argc, char** argv) {
-  CLI::App app{"Velocity loop (reference model + PI) of the PMLSM on DDS"};
   CommonOptions common;
   common.spin_us = 200.0;
   ControllerOptions opt;
-  add_common_options(app, common);
-  app.add_option(
-         "--compensation", opt.compensation,
-         "none (PI only) or topic (add CompensatorOutput to the PI output); accel, rnn and state are topic, named "
-         "after the compensator that publishes it (launch files pass their compensator arg)")
-      ->check(CLI::IsMember({"none", "topic", "accel", "rnn", "state"}))
-      ->capture_default_str();
-  app.add_option("--command-readers", opt.command_readers,
-                 "ForceCommand readers to wait for before the first answer (0: answer at once)")
-      ->check(CLI::Range(0, 64))
-      ->capture_default_str();
-  app.add_option("--reference-readers", opt.reference_readers,
-                 "VelocityReference readers to wait for before the first answer (0: answer at once)")
-      ->check(CLI::Range(0, 64))
-      ->capture_default_str();
-  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  if (const auto code = parse_controller_command_line(argc, argv, common, opt)) return {nullptr, *code};
   return {std::make_unique<ControllerComponent>(context, std::move(common), opt)};
 }
 

@@ -24,6 +24,7 @@
 #include <string>
 
 #include "can_options.hpp"
+#include "drive_bridge_command_line.hpp"
 #include "drive_node.hpp"
 #include "pmlsm/canopen/bus_load.hpp"
 #include "pmlsm/canopen/cia402_drive.hpp"
@@ -128,12 +129,7 @@ class BridgeHooks final : public node::DriveNodeHooks {
   std::uint16_t reported_error_ = 0;
 };
 
-struct BridgeOptions {
-  node::CommonOptions common;
-  node::DriveNodeOptions drive;
-  node::CanOptions can;
-  bool no_reset = false;
-};
+using BridgeOptions = node::DriveBridgeOptions;
 
 class DriveBridgeComponent final : public node::Component {
  public:
@@ -201,15 +197,9 @@ canopen::Cia402DriveConfig DriveBridgeComponent::checked_config() {
 namespace pmlsm::node {
 
 MadeComponent make_drive_bridge(const ComponentContext& context, int argc, char** argv) {
-  CLI::App app{"Bridge from DDS to a CiA 402 servo drive on CAN (cyclic synchronous torque)"};
   BridgeOptions opt;
   opt.common.spin_us = 200.0;
-  add_common_options(app, opt.common);
-  add_drive_node_options(app, opt.drive);
-  add_can_options(app, opt.can);
-  app.add_flag("--no-reset-communication", opt.no_reset,
-               "do not start the boot with NMT reset communication: wait for the drive's own boot-up or heartbeat");
-  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  if (const auto code = parse_drive_bridge_command_line(argc, argv, opt)) return {nullptr, *code};
   return {std::make_unique<DriveBridgeComponent>(context, std::move(opt))};
 }
 

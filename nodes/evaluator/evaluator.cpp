@@ -28,6 +28,7 @@
 #include "MotorFeedbackPubSubTypes.h"
 #include "PlantTruthPubSubTypes.h"
 #include "VelocityReferencePubSubTypes.h"
+#include "evaluator_command_line.hpp"
 #include "msg_mapping.hpp"
 #include "node_support.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
@@ -55,12 +56,7 @@ void clear_truth(TickRecord& r) {
   r.load_accel_mps2 = r.spring_force_n = r.thrust_n = r.ripple_n = r.friction_n = r.i_q_a = r.u_q_v = nan;
 }
 
-struct EvaluatorOptions {
-  std::string out_dir = "out";
-  bool print_header = true;
-  std::string label;
-  bool truth_optional = false;  ///< --truth optional
-};
+using node::EvaluatorOptions;
 
 class EvaluatorNode {
  public:
@@ -286,22 +282,10 @@ class EvaluatorComponent final : public node::Component {
 namespace pmlsm::node {
 
 MadeComponent make_evaluator(const ComponentContext& context, int argc, char** argv) {
-  CLI::App app{"Collects a distributed run's topics per tick, prints the results table, writes the CSV trace"};
   CommonOptions common;
   common.spin_us = 0.0;
   EvaluatorOptions opt;
-  add_common_options(app, common);
-  app.add_option("-o,--out", opt.out_dir, "Folder for the CSV trace");
-  app.add_option("--header", opt.print_header, "Print the table header (true/false)");
-  app.add_option("--label", opt.label, "Names this run in the table and the CSV (<scenario>_<label>.csv), e.g. pi_rnn");
-  std::string truth = "required";
-  app.add_option("--truth", truth,
-                 "required: PlantTruth must come for every tick; optional: a drive without it (a real one, the virtual "
-                 "rig in realtime) gets the table from the other topics, the true load's columns n/a")
-      ->check(CLI::IsMember({"required", "optional"}))
-      ->capture_default_str();
-  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
-  opt.truth_optional = truth == "optional";
+  if (const auto code = parse_evaluator_command_line(argc, argv, common, opt)) return {nullptr, *code};
   return {std::make_unique<EvaluatorComponent>(context, std::move(common), opt)};
 }
 

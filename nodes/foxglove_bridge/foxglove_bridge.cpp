@@ -40,6 +40,7 @@
 #include <vector>
 
 #include "NodeStatusPubSubTypes.h"
+#include "foxglove_bridge_command_line.hpp"
 #include "foxglove_server.hpp"
 #include "node_support.hpp"
 #include "pmlsm/dds/catalog.hpp"
@@ -56,7 +57,7 @@ constexpr const char* kNodeName = "foxglove_bridge";
 /// The bridge's reader QoS (see the header comment), built in so that any --profiles file
 /// works. A profile of this name in --profiles wins: that file is loaded first (Fast DDS then
 /// logs that it cannot add this one).
-constexpr const char* kLiveReaderProfile = "pmlsm_bridge_live";
+using node::kLiveReaderProfile;
 constexpr char kLiveReaderProfileXml[] = R"xml(<?xml version="1.0" encoding="UTF-8" ?>
 <dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
   <profiles>
@@ -76,19 +77,7 @@ constexpr char kLiveReaderProfileXml[] = R"xml(<?xml version="1.0" encoding="UTF
 /// Samples taken from one reader before looking at the others and at the clock again.
 constexpr std::size_t kMaxSamplesPerPass = 256;
 
-struct BridgeOptions {
-  pdds::ParticipantOptions dds;
-  std::string address = "0.0.0.0";
-  int port = 8765;
-  std::vector<std::string> topics;  // empty: every catalog topic
-  std::string reader_profile = kLiveReaderProfile;
-  std::size_t queue_frames = 1024;
-  std::size_t client_buffer_kib = 1024;
-  std::size_t max_clients = 8;
-  double status_period_s = 1.0;
-  double batch_ms = 5.0;
-  int nice = 10;
-};
+using BridgeOptions = node::FoxgloveBridgeOptions;
 
 struct BridgedTopic {
   const pdds::CatalogEntry* entry = nullptr;
@@ -377,48 +366,13 @@ int FoxgloveBridgeComponent::finish(const PassClock& clock) {
   return network_failed ? kExitError : kExitOk;
 }
 
-void add_bridge_options(CLI::App& app, BridgeOptions& opt) {
-  node::add_dds_options(app, opt.dds);
-  app.add_option("--address", opt.address, "IP address to listen on")->capture_default_str();
-  app.add_option("--port", opt.port, "TCP port to listen on (0: any free one, printed at start)")
-      ->check(CLI::Range(0, 65535))
-      ->capture_default_str();
-  app.add_option("--topics", opt.topics, "Topics to offer, comma separated (default: every project topic)")
-      ->delimiter(',');
-  app.add_option("--reader-profile", opt.reader_profile,
-                 "DDS reader profile of the bridged topics (default: best-effort, volatile, built in)")
-      ->capture_default_str();
-  app.add_option("--queue-frames", opt.queue_frames, "Frames queued per client before the oldest are dropped")
-      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 20))
-      ->capture_default_str();
-  app.add_option("--client-buffer-kib", opt.client_buffer_kib, "Unsent data per client before frames are dropped [KiB]")
-      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 20))
-      ->capture_default_str();
-  app.add_option("--max-clients", opt.max_clients, "Clients served at once")
-      ->check(CLI::Range(std::size_t{1}, std::size_t{256}))
-      ->capture_default_str();
-  app.add_option("--status-period-s", opt.status_period_s, "NodeStatus heartbeat period [s]")
-      ->check(CLI::Range(0.05, 60.0))
-      ->capture_default_str();
-  app.add_option("--batch-ms", opt.batch_ms,
-                 "Forward samples at most this often [ms]: fewer wake-ups on the control machine, that much "
-                 "later in Foxglove (0: at once)")
-      ->check(CLI::Range(0.0, 100.0))
-      ->capture_default_str();
-  app.add_option("--nice", opt.nice, "Scheduling niceness of the bridge (0: unchanged): the control loop goes first")
-      ->check(CLI::Range(0, 19))
-      ->capture_default_str();
-}
-
 }  // namespace
 
 namespace pmlsm::node {
 
 MadeComponent make_foxglove_bridge(const ComponentContext& /*context*/, int argc, char** argv) {
-  CLI::App app{"Foxglove WebSocket bridge: the system's topics live in Foxglove (foxglove.websocket.v1)"};
   BridgeOptions opt;
-  add_bridge_options(app, opt);
-  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  if (const auto code = parse_foxglove_bridge_command_line(argc, argv, opt)) return {nullptr, *code};
   std::vector<BridgedTopic> topics = select_topics(opt.topics);
   // Before any thread exists (DDS, network): Linux sets the niceness per thread, and new
   // threads inherit their creator's.

@@ -13,6 +13,7 @@
 #include "EstimatedStatePubSubTypes.h"
 #include "MotorFeedbackPubSubTypes.h"
 #include "msg_mapping.hpp"
+#include "kalman_estimator_command_line.hpp"
 #include "node_support.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/estimation/kalman_filter.hpp"
@@ -133,16 +134,12 @@ class KalmanEstimatorComponent final : public node::Component {
 namespace pmlsm::node {
 
 MadeComponent make_kalman_estimator(const ComponentContext& context, int argc, char** argv) {
-  CLI::App app{"Kalman estimator of the load velocity and spring force on DDS"};
   CommonOptions common;
   common.spin_us = 0.0;
-  add_common_options(app, common);
   int estimate_readers = 0;
-  app.add_option("--estimate-readers", estimate_readers,
-                 "EstimatedState readers to wait for before the first estimate (0: estimate at once)")
-      ->check(CLI::Range(0, 64))
-      ->capture_default_str();
-  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  if (const auto code = parse_kalman_estimator_command_line(argc, argv, common, estimate_readers)) {
+    return {nullptr, *code};
+  }
   return {std::make_unique<KalmanEstimatorComponent>(context, std::move(common), estimate_readers)};
 }
 

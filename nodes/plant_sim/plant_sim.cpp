@@ -34,6 +34,7 @@
 #include "node_support.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/sim/simulated_drive.hpp"
+#include "plant_sim_command_line.hpp"
 
 namespace {
 
@@ -161,13 +162,10 @@ class PlantSimComponent final : public node::Component {
 namespace pmlsm::node {
 
 MadeComponent make_plant_sim(const ComponentContext& context, int argc, char** argv) {
-  CLI::App app{"Simulated PMLSM servo drive (plant + drive current loop) on DDS"};
   CommonOptions common;
   common.spin_us = 200.0;
   DriveNodeOptions opt;
-  add_common_options(app, common);
-  add_drive_node_options(app, opt);
-  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  if (const auto code = parse_plant_sim_command_line(argc, argv, common, opt)) return {nullptr, *code};
   return {std::make_unique<PlantSimComponent>(context, std::move(common), opt)};
 }
 

@@ -1,4 +1,5 @@
 #include "can_options.hpp"
+#include <CLI/CLI.hpp>
 
 #include <stdexcept>
 

@@ -8,7 +8,6 @@
 #pragma once
 
 #include "pmlsm/util/data_files.hpp"
-#include <CLI/CLI.hpp>
 
 #include <memory>
 #include <string>
@@ -17,6 +16,11 @@
 #include "pmlsm/can/can_bus.hpp"
 #include "pmlsm/can/udp_multicast_bus.hpp"
 #include "pmlsm/config/canopen_config.hpp"
+
+// Only declared, as in node_support.hpp: CLI11 is compiled only where options are declared.
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace pmlsm::node {
 

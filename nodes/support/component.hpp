@@ -10,7 +10,11 @@
 #include <memory>
 #include <string>
 
-#include "pmlsm/dds/local_bus.hpp"
+// Only declared: every node's main includes this file, and local_bus.hpp brings in Fast DDS (about
+// 2 s of CPU per file); the components that use the bus include it through node_support.hpp.
+namespace pmlsm::dds {
+class LocalBus;
+}  // namespace pmlsm::dds
 
 namespace pmlsm::node {
 

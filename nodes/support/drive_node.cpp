@@ -1,4 +1,5 @@
 #include "drive_node.hpp"
+#include <CLI/CLI.hpp>
 
 #include <sys/resource.h>
 #include <unistd.h>

@@ -1,4 +1,5 @@
 #include "pmlsm/util/data_files.hpp"
+#include <CLI/CLI.hpp>
 #include "node_support.hpp"
 
 #include <unistd.h>

@@ -4,7 +4,6 @@
 #pragma once
 
 #include "pmlsm/util/data_files.hpp"
-#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -24,6 +23,12 @@
 #include "pmlsm/util/exit_codes.hpp"
 #include "realtime_setup.hpp"
 #include "tick_filter.hpp"
+
+// Only declared: <CLI/CLI.hpp> (CLI11 2.1.2, header-only) costs 5-9 s of CPU in every file that
+// includes it, so only the files that declare options include it (see nodes/support/CMakeLists.txt).
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace pmlsm::node {
 

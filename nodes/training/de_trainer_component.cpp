@@ -23,6 +23,7 @@
 #include "pmlsm/config/weights_file.hpp"
 #include "pmlsm/optim/pagmo_optimisers.hpp"
 #include "pmlsm/util/data_files.hpp"
+#include "training_command_lines.hpp"
 #include "training_support.hpp"
 
 namespace {
@@ -63,23 +64,7 @@ class ProgressBar {
   int last_decile_ = -1;
 };
 
-struct TrainerOptions {
-  pdds::ParticipantOptions dds;
-  std::string config_path = pmlsm::data_file("configs/system.yaml");
-  std::string training_path = pmlsm::data_file("configs/training.yaml");
-  std::vector<std::string> overrides, training_overrides;
-  std::string out_path = "out/rnn_weights.yaml";
-  std::string checkpoint_path;  // default: <out>.checkpoint
-  std::string history_path;     // default: <out>.history.csv
-  bool resume = false;
-  bool no_progress = false;
-  unsigned threads = std::max(1u, std::thread::hardware_concurrency());
-  std::size_t wait_workers = 0;
-  double wait_workers_s = 10.0;
-  double worker_timeout_s = 1.5;
-  std::uint64_t first_version = 1;
-  double linger_s = 0;
-};
+using node::TrainerOptions;
 
 /// The training file with its plants commissioned where they ask for it (printed).
 TrainingParams load_training(const TrainerOptions& opt, const SystemParams& params) {
@@ -325,45 +310,8 @@ void DeTrainerComponent::print_summary(const Search& s, double elapsed_s) const 
 namespace pmlsm::node {
 
 MadeComponent make_de_trainer(const ComponentContext& /*context*/, int argc, char** argv) {
-  CLI::App app{"Offline weight search of the RNN compensator (DE/rand/1/bin, jDE or CMA-ES)"};
   TrainerOptions opt;
-  add_dds_options(app, opt.dds);
-  app.add_option("-c,--config", opt.config_path, "System parameters (YAML)")
-      ->check(CLI::ExistingFile)
-      ->capture_default_str();
-  app.add_option("--set", opt.overrides, "Override a system parameter: key.path=value")->take_all();
-  app.add_option("-t,--training", opt.training_path, "Training parameters (YAML)")
-      ->check(CLI::ExistingFile)
-      ->capture_default_str();
-  app.add_option("--train-set", opt.training_overrides, "Override a training parameter: key=value (e.g. optimiser=jde)")
-      ->take_all();
-  app.add_option("-o,--out", opt.out_path, "Weights file written at the end")->capture_default_str();
-  app.add_option("--checkpoint", opt.checkpoint_path, "Checkpoint file (default: <out>.checkpoint)");
-  app.add_option("--history", opt.history_path,
-                 "CSV of best and mean cost per generation (default: <out>.history.csv)");
-  app.add_flag("--resume", opt.resume, "Go on from the checkpoint");
-  app.add_option("--threads", opt.threads, "Local evaluation threads (used when no worker is there)")
-      ->check(CLI::Range(1u, 256u))
-      ->capture_default_str();
-  app.add_option("--wait-workers", opt.wait_workers, "Wait for this many de_workers before starting");
-  app.add_option("--wait-workers-s", opt.wait_workers_s, "How long to wait for them")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
-  app.add_option("--worker-timeout-s", opt.worker_timeout_s, "A worker silent this long is dead")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
-  app.add_flag("--no-progress", opt.no_progress, "No progress bar on stderr");
-  app.add_option("--first-version", opt.first_version,
-                 "Version of the first NetworkWeights set (each better set: +1). A compensator takes only "
-                 "versions above the one it uses: to replace a newer set (a rollback, or a new run after an "
-                 "earlier one) start above that version")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
-  app.add_option("--linger-s", opt.linger_s,
-                 "Stay on the domain this long after the end, so compensators that start later still get the "
-                 "final NetworkWeights (transient-local lives only as long as its writer)")
-      ->check(CLI::NonNegativeNumber);
-  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  if (const auto code = parse_de_trainer_command_line(argc, argv, opt)) return {nullptr, *code};
   if (opt.checkpoint_path.empty()) opt.checkpoint_path = opt.out_path + ".checkpoint";
   if (opt.history_path.empty()) opt.history_path = opt.out_path + ".history.csv";
   if (opt.resume && !file_exists(opt.checkpoint_path))

@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "node_support.hpp"
+#include "training_command_lines.hpp"
 #include "training_support.hpp"
 
 namespace {
@@ -21,18 +22,7 @@ using namespace pmlsm;
 namespace pdds = pmlsm::dds;
 namespace msg = pmlsm_msgs::msg;
 
-std::string default_worker_id() {
-  char host[128] = {};
-  gethostname(host, sizeof(host) - 1);
-  return std::string(host) + "-" + std::to_string(getpid());
-}
-
-struct WorkerOptions {
-  pdds::ParticipantOptions dds;
-  unsigned threads = 1;
-  std::string worker_id = default_worker_id();
-  double idle_exit_s = 0;
-};
+using node::WorkerOptions;
 
 class DeWorkerComponent final : public node::Component {
  public:
@@ -182,17 +172,8 @@ int DeWorkerComponent::run() {
 namespace pmlsm::node {
 
 MadeComponent make_de_worker(const ComponentContext& /*context*/, int argc, char** argv) {
-  CLI::App app{"Evaluation worker of the distributed weight search (joins any de_trainer on the domain)"};
   WorkerOptions opt;
-  add_dds_options(app, opt.dds);
-  app.add_option("--threads", opt.threads, "Evaluations run at once")
-      ->check(CLI::Range(1u, 256u))
-      ->capture_default_str();
-  app.add_option("--id", opt.worker_id, "Worker id (unique on the domain)")->capture_default_str();
-  app.add_option("--idle-exit-s", opt.idle_exit_s,
-                 "Exit after this long without a request, counted from the first setup (0: run until SIGINT)")
-      ->check(CLI::NonNegativeNumber);
-  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  if (const auto code = parse_de_worker_command_line(argc, argv, opt)) return {nullptr, *code};
   if (opt.worker_id.empty() || opt.worker_id.size() > 64) {
     throw ConfigError("--id: 1 to 64 characters, got '" + opt.worker_id + "'");
   }

@@ -5,8 +5,6 @@
 // configs/canopen/drive.yaml (shared with drive_bridge) and --dictionary (the device's part).
 // Lockstep: the SYNC is the clock, the run ends after the scenario's ticks; realtime: its own
 // clock with the latest torque, until SIGINT. Exit 0 ok, 2 bad input, 1 socket, 5 it faulted.
-#include <CLI/CLI.hpp>
-
 #include <cinttypes>
 #include <cstdio>
 #include <memory>
@@ -20,6 +18,7 @@
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/util/data_files.hpp"
 #include "truth_publisher.hpp"
+#include "virtual_drive_command_line.hpp"
 
 namespace {
 
@@ -28,13 +27,7 @@ namespace co = pmlsm::canopen;
 namespace pdds = pmlsm::dds;
 namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
 
-struct Options {
-  node::CommonOptions common;
-  node::CanOptions can;
-  std::string dictionary_path = pmlsm::data_file("configs/canopen/virtual_drive_od.yaml");
-  std::optional<std::uint64_t> inject_fault_at_tick;
-  bool publish_truth = false;
-};
+using Options = node::VirtualDriveOptions;
 
 class VirtualDriveComponent final : public node::Component, co::Cia402SlaveEvents {
  public:
@@ -186,19 +179,8 @@ int VirtualDriveComponent::finish() {
 namespace pmlsm::node {
 
 MadeComponent make_virtual_drive(const ComponentContext& context, int argc, char** argv) {
-  CLI::App app{"virtual_drive: the simulated PMLSM drive behind a CiA 402 CANopen slave"};
   Options opt;
-  add_common_options(app, opt.common);
-  add_can_options(app, opt.can);
-  app.add_option("--dictionary", opt.dictionary_path,
-                 "the device's part of the object dictionary (identity, manufacturer objects, PDO defaults), EDS-like")
-      ->capture_default_str();
-  app.add_option("--inject-fault-at-tick", opt.inject_fault_at_tick,
-                 "fault 0x5000 (device hardware) at this period; cleared by fault reset and enable");
-  app.add_flag(
-      "--publish-truth", opt.publish_truth,
-      "lockstep: publish PlantTruth on DDS (for the evaluator), stamped with the bridge's run (realtime: none)");
-  if (const auto code = parse_command_line(app, argc, argv)) return {nullptr, *code};
+  if (const auto code = parse_virtual_drive_command_line(argc, argv, opt)) return {nullptr, *code};
   return {std::make_unique<VirtualDriveComponent>(context, std::move(opt))};
 }
 

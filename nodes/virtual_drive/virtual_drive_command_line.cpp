@@ -1,0 +1,22 @@
+#include "virtual_drive_command_line.hpp"
+
+#include <CLI/CLI.hpp>
+
+namespace pmlsm::node {
+
+std::optional<int> parse_virtual_drive_command_line(int argc, char** argv, VirtualDriveOptions& opt) {
+  CLI::App app{"virtual_drive: the simulated PMLSM drive behind a CiA 402 CANopen slave"};
+  add_common_options(app, opt.common);
+  add_can_options(app, opt.can);
+  app.add_option("--dictionary", opt.dictionary_path,
+                 "the device's part of the object dictionary (identity, manufacturer objects, PDO defaults), EDS-like")
+      ->capture_default_str();
+  app.add_option("--inject-fault-at-tick", opt.inject_fault_at_tick,
+                 "fault 0x5000 (device hardware) at this period; cleared by fault reset and enable");
+  app.add_flag(
+      "--publish-truth", opt.publish_truth,
+      "lockstep: publish PlantTruth on DDS (for the evaluator), stamped with the bridge's run (realtime: none)");
+  return parse_command_line(app, argc, argv);
+}
+
+}  // namespace pmlsm::node
