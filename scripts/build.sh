@@ -2,7 +2,7 @@
 # Configures and builds into build/ (Release). Generated IDL code goes to build/idl/generated.
 # Says how far along it is: the build's percent (make's "[ 45%]" or ninja's "[n/m]"), every
 # 5 % (in place on a terminal); warnings and errors pass through; the whole output in
-# build/build.log; fastddsgen's own output in build/idl/fastddsgen.log. A first build takes about 8
+# build/build.log; fastddsgen's own output in build/idl/fastddsgen.log. A first build takes 5-6
 # minutes on 2 cores (unity builds, see CMakeLists.txt).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"

@@ -22,9 +22,9 @@ phase_end() {
 }
 
 # Lines "PERCENT<TAB>TEXT" on stdin (made by the callers' awk) become progress lines on stderr.
-# Not on a terminal (CI logs): one line per 5 % step, and the line of the moment when 20 s went
-# by without one (a log is then never silent longer than the slowest step); on a terminal: one
-# line rewritten in place.
+# Not on a terminal (CI logs): one line per 5 % step, and a line whenever 20 s went by without
+# one (the last percent and step again, "(still)"), so a log is never silent for more than about
+# 21 s; on a terminal: one line rewritten in place.
 # mawk (Debian's awk) reads a pipe in blocks of kilobytes, so progress lines would arrive in
 # bursts minutes apart; its -W interactive reads line by line. Other awks read lines already.
 if awk -W version 2>&1 | head -n 1 | grep -q mawk; then
@@ -36,10 +36,26 @@ fi
 percent_filter() {
   local step=5 tty=0
   [ -t 2 ] && tty=1
-  line_awk -v name="$PROGRESS_NAME" -v what="$1" -v step="$step" -v tty="$tty" -F '\t' '
-    BEGIN { last = -step; printed = systime() }
+  # A "tick" line a second beside the input: a step that prints nothing for long (one large file
+  # compiling, dpkg unpacking) still gets its line every 20 s, with the last percent and text.
+  {
+    cat &
+    local reader=$!
+    while kill -0 "$reader" 2>/dev/null; do
+      sleep 1
+      printf 'tick\t\n'
+    done
+    wait "$reader"
+  } | line_awk -v name="$PROGRESS_NAME" -v what="$1" -v step="$step" -v tty="$tty" -F '\t' '
+    BEGIN { last = -step; printed = systime(); p = 0; text = "" }
+    $1 == "tick" {
+      if (!tty && systime() - printed >= 20) {
+        printf "%s: %s %3d%% %s (still)\n", name, what, p, text > "/dev/stderr"; printed = systime(); fflush("/dev/stderr")
+      }
+      next
+    }
     {
-      p = int($1); if (p < last) last = -step;  # a new pass (download, then install)
+      p = int($1); text = $2; if (p < last) last = -step;  # a new pass (download, then install)
       if (tty) { printf "\r\033[K%s: %s %3d%% %s", name, what, p, substr($2, 1, 70) > "/dev/stderr"; shown = 1 }
       else if (p >= last + step || (p == 100 && last != 100) || systime() - printed >= 20) {
         printf "%s: %s %3d%% %s\n", name, what, p, $2 > "/dev/stderr"; if (p >= last + step) last = p; printed = systime()

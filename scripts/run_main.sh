@@ -27,7 +27,7 @@ t_start=$SECONDS
 phase_start "[1/4] packages" "Debian packages and npm packages the project needs (scripts/install_deps.sh)"
 "$root/scripts/install_deps.sh"
 phase_end
-phase_start "[2/4] build" "about 15 minutes the first time on 2 cores, seconds after that (scripts/build.sh)"
+phase_start "[2/4] build" "about 6 minutes the first time on 2 cores, seconds after that (scripts/build.sh)"
 "$root/scripts/build.sh"
 phase_end
 cd "$root"

@@ -18,7 +18,7 @@ t_start=$SECONDS
 phase_start "[1/3] packages" "scripts/install_deps.sh"
 "$root/scripts/install_deps.sh"
 phase_end
-phase_start "[2/3] build" "about 8 minutes the first time on 2 cores (scripts/build.sh)"
+phase_start "[2/3] build" "about 6 minutes the first time on 2 cores, seconds after that (scripts/build.sh)"
 "$root/scripts/build.sh"
 phase_end
 cd "$root/build"

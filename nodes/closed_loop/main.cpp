@@ -21,6 +21,7 @@
 #include "pmlsm/util/exit_codes.hpp"
 #include "results_table.hpp"
 #include "trace_csv.hpp"
+#include "system_file_options.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -30,9 +31,8 @@ int main(int argc, char** argv) {
   std::vector<std::string> scenario_paths;
   std::vector<std::string> overrides_text;
   std::string out_dir = "out";
-  app.add_option("-c,--config", config_path, "System parameters (YAML)")->check(CLI::ExistingFile);
+  pmlsm::add_system_file_options(app, config_path, overrides_text);
   app.add_option("-s,--scenario", scenario_paths, "Scenario file(s) (YAML)")->required()->check(CLI::ExistingFile);
-  app.add_option("--set", overrides_text, "Override a system parameter: key.path=value")->take_all();
   app.add_option("-o,--out", out_dir, "Folder for the CSV traces");
   std::string compensator = "none";
   std::string weights_path;

@@ -10,6 +10,7 @@
 #include <exception>
 
 #include "pmlsm/dds/shutdown.hpp"
+#include "system_file_options.hpp"
 
 namespace pmlsm::node {
 
@@ -36,9 +37,8 @@ void add_security_options(CLI::App& app, dds::ParticipantOptions& o) {
 }
 
 void add_common_options(CLI::App& app, CommonOptions& o) {
-  app.add_option("-c,--config", o.config_path, "System parameters (YAML)")->check(CLI::ExistingFile);
+  add_system_file_options(app, o.config_path, o.overrides);
   app.add_option("-s,--scenario", o.scenario_path, "Scenario (YAML)")->check(CLI::ExistingFile);
-  app.add_option("--set", o.overrides, "Override a system parameter: key.path=value")->take_all();
   add_dds_options(app, o.dds);
   app.add_option("--clock", o.clock, "lockstep (deterministic, as fast as possible) or realtime")
       ->check(CLI::IsMember({"lockstep", "realtime"}));

@@ -1,4 +1,5 @@
 #include "training_command_lines.hpp"
+#include "system_file_options.hpp"
 
 #include <unistd.h>
 
@@ -15,10 +16,7 @@ std::string default_worker_id() {
 std::optional<int> parse_de_trainer_command_line(int argc, char** argv, TrainerOptions& opt) {
   CLI::App app{"Offline weight search of the RNN compensator (DE/rand/1/bin, jDE or CMA-ES)"};
   add_dds_options(app, opt.dds);
-  app.add_option("-c,--config", opt.config_path, "System parameters (YAML)")
-      ->check(CLI::ExistingFile)
-      ->capture_default_str();
-  app.add_option("--set", opt.overrides, "Override a system parameter: key.path=value")->take_all();
+  add_system_file_options(app, opt.config_path, opt.overrides);
   app.add_option("-t,--training", opt.training_path, "Training parameters (YAML)")
       ->check(CLI::ExistingFile)
       ->capture_default_str();

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "system_file_options.hpp"
 #include "commands.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/introspect/cdr_schema.hpp"
@@ -202,10 +203,7 @@ void add_identify_command(CLI::App& app, int& exit_code) {
       "recording's /pmlsm/motor_feedback, or --simulate), written into a copy of the system file");
   cmd->add_option("recording", o->recording, "MCAP recording of the commissioning run");
   cmd->add_flag("--simulate", o->simulate, "Run the commissioning in process on the configured (simulated) plant");
-  cmd->add_option("-c,--config", o->config, "The system file whose models are replaced")
-      ->capture_default_str()
-      ->check(CLI::ExistingFile);
-  cmd->add_option("--set", o->set, "Override a system parameter: key.path=value")->take_all();
+  add_system_file_options(*cmd, o->config, o->set, "The system file whose models are replaced");
   cmd->add_option("-s,--scenario", o->scenario, "With --simulate: the commissioning scenario")
       ->capture_default_str()
       ->check(CLI::ExistingFile);

@@ -13,6 +13,7 @@
 #include <thread>
 #include <vector>
 
+#include "system_file_options.hpp"
 #include "commands.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/config/sweep_file.hpp"
@@ -249,10 +250,8 @@ void add_sweep_command(CLI::App& app, int& exit_code) {
       "Robustness sweep in process (no DDS): a plant family x compensators x scenarios, a verdict per run, "
       "a table, a CSV and heat maps (configs/sweeps/*.yaml)");
   cmd->add_option("file", o->file, "Sweep file (YAML)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("-c,--config", o->config, "The nominal system (YAML)")
-      ->capture_default_str()
-      ->check(CLI::ExistingFile);
-  cmd->add_option("--set", o->set, "Override a system parameter of the nominal system: key.path=value")->take_all();
+  add_system_file_options(*cmd, o->config, o->set, "The nominal system (YAML)",
+                          "Override a system parameter of the nominal system: key.path=value");
   cmd->add_option("--sweep-set", o->sweep_set, "Override a value of the sweep file: key.path=value")->take_all();
   cmd->add_option("-o,--out", o->out_dir, "Folder for sweep.csv and the heat maps")->capture_default_str();
   cmd->add_option("-j,--jobs", o->threads, "Threads (0: one per core)")->capture_default_str();
