@@ -36,10 +36,11 @@ std::vector<ConfigOverride> parse_overrides(const std::vector<std::string>& text
 
 namespace {
 
-// Reads configs/system.yaml by the parameter table (visit_parameters in
-// system_params.hpp): each entry's key path must be present with a value of its
-// kind; every key the table does not name is unknown. The ranges are checked
-// afterwards by SystemParams::validate().
+// Reads a file by its parameter table (pmlsm/util/parameter_table.hpp: visit_parameters of
+// SystemParams for configs/system.yaml, visit_rig_parameters for configs/canopen/drive.yaml): each
+// entry's key path must be present with a value of its kind; every key the table does not name is
+// unknown. The ranges are checked afterwards by the params' validate(), through validate() here,
+// which adds the line of the key an error names.
 class TableReader {
  public:
   TableReader(YAML::Node root, std::string origin) : root_(std::move(root)), origin_(std::move(origin)) {}
