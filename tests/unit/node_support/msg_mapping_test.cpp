@@ -352,6 +352,33 @@ TEST(MsgMapping, EstimatedStateFromTheKalmanEstimate) {
   expect_stamp_untouched(m.stamp());
 }
 
+TEST(MsgMapping, CompensatorOutputFromTheLawsStep) {
+  namespace flags = msg::CompensatorOutput_Constants;
+  CompensatorStep step;
+  step.force_n = 7.01;
+  step.u_n = 7.02;
+  step.training_error_mps = 7.03;
+  step.k_c_mps = 7.04;
+  step.kc_guarded = true;
+  msg::CompensatorOutput m;
+  m.stamp(some_stamp());
+  to_msg(step, flags::FLAG_ENABLED | flags::FLAG_ONLINE_LEARNING, 7010, 12, m);
+  EXPECT_EQ(m.force_n(), 7.01);
+  EXPECT_EQ(m.u_n(), 7.02);
+  EXPECT_EQ(m.training_error_mps(), 7.03);
+  EXPECT_EQ(m.k_c_mps(), 7.04);
+  EXPECT_EQ(m.estimate_tick(), 7010u);
+  EXPECT_EQ(m.weights_version(), 12u);
+  EXPECT_EQ(m.flags(), flags::FLAG_ENABLED | flags::FLAG_ONLINE_LEARNING | flags::FLAG_KC_CLAMPED);
+  // The step's own flags each map to theirs; the mode's are the caller's alone.
+  step.kc_guarded = false;
+  step.weights_updated = true;
+  step.input_rejected = true;
+  to_msg(step, 0, 7011, 12, m);
+  EXPECT_EQ(m.flags(), flags::FLAG_WEIGHTS_UPDATED | flags::FLAG_INPUT_STALE);
+  expect_stamp_untouched(m.stamp());
+}
+
 TEST(MsgMapping, EstimatedStateRoundTrip) {
   msg::EstimatedState m;
   const KalmanEstimate e = distinct_estimate();
@@ -401,6 +428,8 @@ TEST(MsgMapping, PerTickMappingsDoNotAllocate) {
   msg::VelocityReference reference;
   msg::ForceCommand command;
   msg::EstimatedState estimate_msg;
+  msg::CompensatorOutput compensator_msg;
+  const CompensatorStep step;
   TickRecord record;
   KalmanInput input;
   node::DriveTickStatus status;
@@ -422,6 +451,7 @@ TEST(MsgMapping, PerTickMappingsDoNotAllocate) {
   to_msg(estimate, 3, estimate_msg);
   from_msg(estimate_msg, estimate_back);
   from_msg(estimate_msg, record);
+  to_msg(step, 0, 3, 0, compensator_msg);
   EXPECT_EQ(pmlsm::test::allocations(), before);
 }
 
