@@ -28,14 +28,6 @@ struct ConfigCommandOptions {
   std::vector<std::string> set;
 };
 
-std::string text_of(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw UsageError("cannot read " + path);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
 /// The shipped file of the kind, by its place in the source tree.
 std::string shipped_file(const ConfigCommandOptions& o) {
   return o.kind == "canopen" ? "configs/canopen/drive.yaml" : "configs/system.yaml";
@@ -50,7 +42,7 @@ std::string system_file(const ConfigCommandOptions& o) {
 std::string origin_of(const ConfigCommandOptions& o) { return o.config.empty() ? shipped_file(o) : o.config; }
 
 int run_reference(const ConfigCommandOptions& o) {
-  const std::string text = text_of(system_file(o));
+  const std::string text = read_config_file(system_file(o));
   const std::string page = o.kind == "canopen" ? canopen_parameter_reference(text, origin_of(o))
                                                : system_parameter_reference(text, origin_of(o));
   if (o.check) {
@@ -82,7 +74,7 @@ int run_reference(const ConfigCommandOptions& o) {
 }
 
 int run_check(const ConfigCommandOptions& o) {
-  const std::string text = text_of(system_file(o));
+  const std::string text = read_config_file(system_file(o));
   if (o.kind == "canopen") {
     parse_canopen_config(text, origin_of(o), parse_overrides(o.set));
   } else {

@@ -185,6 +185,8 @@ SystemParams parse_system_params(const std::string& yaml_text, const std::string
   return p;
 }
 
+std::string read_config_file(const std::string& path) { return read_file(path); }
+
 SystemParams load_system_params(const std::string& path, const std::vector<ConfigOverride>& overrides) {
   return parse_system_params(read_file(path), path, overrides);
 }

@@ -37,6 +37,10 @@ struct ConfigOverride {
 /// Every text of a command line's --set list, parsed. @throws ConfigError as ConfigOverride::parse.
 std::vector<ConfigOverride> parse_overrides(const std::vector<std::string>& texts);
 
+/// The text of a configuration file, for tools that read it themselves (`pmlsm config`).
+/// @throws ConfigError "<path>: cannot open file".
+std::string read_config_file(const std::string& path);
+
 /// @throws ConfigError naming the file, key path and value of the first problem.
 SystemParams load_system_params(const std::string& path, const std::vector<ConfigOverride>& overrides = {});
 
