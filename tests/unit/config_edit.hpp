@@ -1,6 +1,7 @@
 // Shared by the config tests: the shipped files' texts and YAML edits of them.
 #pragma once
 
+#include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
 #include <fstream>
@@ -9,6 +10,8 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include "pmlsm/config/config.hpp"
 
 namespace pmlsm::test {
 
@@ -20,6 +23,18 @@ inline std::string read_text(const std::string& relative) {
   std::ostringstream text;
   text << in.rdbuf();
   return text.str();
+}
+
+/// The ConfigError message of `load`, or "" with a test failure when it throws none.
+template <typename F>
+std::string error_of(F&& load) {
+  try {
+    load();
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "no ConfigError thrown";
+  return "";
 }
 
 /// The shipped configs/system.yaml, read once.

@@ -34,7 +34,7 @@ std::string shipped_file(const ConfigCommandOptions& o) {
 }
 
 /// The file to read: the option's, else the shipped one wherever it is installed.
-std::string system_file(const ConfigCommandOptions& o) {
+std::string file_to_read(const ConfigCommandOptions& o) {
   return o.config.empty() ? data_file(shipped_file(o)) : o.config;
 }
 
@@ -42,7 +42,7 @@ std::string system_file(const ConfigCommandOptions& o) {
 std::string origin_of(const ConfigCommandOptions& o) { return o.config.empty() ? shipped_file(o) : o.config; }
 
 int run_reference(const ConfigCommandOptions& o) {
-  const std::string text = read_config_file(system_file(o));
+  const std::string text = read_config_file(file_to_read(o));
   const std::string page = o.kind == "canopen" ? canopen_parameter_reference(text, origin_of(o))
                                                : system_parameter_reference(text, origin_of(o));
   if (o.check) {
@@ -74,7 +74,7 @@ int run_reference(const ConfigCommandOptions& o) {
 }
 
 int run_check(const ConfigCommandOptions& o) {
-  const std::string text = read_config_file(system_file(o));
+  const std::string text = read_config_file(file_to_read(o));
   if (o.kind == "canopen") {
     parse_canopen_config(text, origin_of(o), parse_overrides(o.set));
   } else {
@@ -101,26 +101,23 @@ void add_config_command(CLI::App& app, int& exit_code) {
       }
     };
   };
+  // Which file, for both subcommands.
+  const auto add_file_options = [&o](CLI::App& sub) {
+    sub.add_option("--kind", o->kind,
+                   "Which file: system (configs/system.yaml) or canopen (configs/canopen/drive.yaml)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"system", "canopen"}));
+    sub.add_option("-c,--config", o->config, "The file (default: the shipped one of its kind)")
+        ->check(CLI::ExistingFile);
+  };
   CLI::App* reference = cmd->add_subcommand(
       "reference", "Markdown: every parameter's key, value, unit, accepted range and its reason, and source");
-  reference
-      ->add_option("--kind", o->kind,
-                   "Which file: system (configs/system.yaml) or canopen (configs/canopen/drive.yaml)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"system", "canopen"}));
-  reference->add_option("-c,--config", o->config, "The file (default: the shipped one of its kind)")
-      ->check(CLI::ExistingFile);
+  add_file_options(*reference);
   reference->add_option("-o,--out", o->out, "The page to write (default: standard output)");
   reference->add_flag("--check", o->check, "Compare with the page instead of writing it: exit 1 when it differs");
   reference->callback(wrap(o, &run_reference));
-  CLI::App* check = cmd->add_subcommand("check", "Loads the system file with every check the programs make");
-  check
-      ->add_option("--kind", o->kind,
-                   "Which file: system (configs/system.yaml) or canopen (configs/canopen/drive.yaml)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"system", "canopen"}));
-  check->add_option("-c,--config", o->config, "The file (default: the shipped one of its kind)")
-      ->check(CLI::ExistingFile);
+  CLI::App* check = cmd->add_subcommand("check", "Loads the file with every check the programs make");
+  add_file_options(*check);
   check->add_option("--set", o->set, "Override a parameter of the file: key.path=value")->take_all();
   check->callback(wrap(o, &run_check));
 }

@@ -1,8 +1,6 @@
 #include "pmlsm/sim/system_params.hpp"
 
 #include <algorithm>
-
-#include <cfloat>
 #include <cmath>
 #include <stdexcept>
 #include <string>

@@ -2,31 +2,16 @@
 // with the values they say; every bad value is refused naming the file, the key and the value.
 #include <gtest/gtest.h>
 
-#include <fstream>
-#include <sstream>
 #include <string>
 
+#include "config_edit.hpp"
 #include "pmlsm/config/canopen_config.hpp"
 
 namespace pmlsm {
 namespace {
 
-std::string shipped(const std::string& rel) {
-  std::ifstream in(std::string(PMLSM_SOURCE_DIR) + "/" + rel);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-template <typename F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const ConfigError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+using test::error_of;
+const auto& shipped = test::read_text;
 
 std::string replaced(std::string text, const std::string& from, const std::string& to) {
   const auto at = text.find(from);

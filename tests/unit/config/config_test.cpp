@@ -23,6 +23,7 @@ constexpr double kControlPeriod = 1e-3;
 
 using test::Edit;
 using test::edited;
+using test::error_of;
 using test::read_text;
 using test::source_path;
 
@@ -34,18 +35,6 @@ const std::string& pulse_text() {
 const std::string& free_vibration_text() {
   static const std::string text = read_text("configs/scenarios/free_vibration.yaml");
   return text;
-}
-
-/// The ConfigError message of `load`, or "" with a test failure when it throws none.
-template <typename F>
-std::string error_of(F&& load) {
-  try {
-    load();
-  } catch (const ConfigError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "no ConfigError thrown";
-  return "";
 }
 
 std::string system_error(const std::vector<Edit>& edits, const std::vector<ConfigOverride>& overrides = {}) {
