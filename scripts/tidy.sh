@@ -11,7 +11,7 @@ tidy=$(command -v clang-tidy-14 || true)
 [ -n "$tidy" ] || { echo "tidy: clang-tidy-14 is not installed (apt-get install clang-tidy-14)" >&2; exit 77; }
 [ -f build/compile_commands.json ] || { echo "tidy: no build/compile_commands.json: run ./scripts/build.sh" >&2; exit 2; }
 if [ -n "${PMLSM_TIDY_FILES:-}" ]; then
-  read -r -a files <<<"$PMLSM_TIDY_FILES"
+  read -r -a files <<<"$(tr '\n' ' ' <<<"$PMLSM_TIDY_FILES")"
 else
   mapfile -t files < <(git diff --name-only --diff-filter=AM "${1:-HEAD~1}" -- '*.cpp' | grep -v '^tests/node/' || true)
 fi
@@ -35,10 +35,13 @@ for e in json.load(open(f"{root}/build/compile_commands.json")):
                             "command": e["command"].replace(e["file"], source)})
 json.dump(entries, open(out, "w"))
 PY
-status=0
-for f in "${files[@]}"; do
-  echo "tidy: $f" >&2
-  "$tidy" -p "$db" --quiet "$f" 2>/dev/null | grep -E "warning|error" && status=1 || true
-done
-[ "$status" = 0 ] && echo "tidy: ${#files[@]} file(s), nothing reported"
-exit "$status"
+# One clang-tidy per core; each file's findings are printed together as it ends.
+report="$db/report.txt"
+printf '%s\n' "${files[@]}" | xargs -P "$(nproc)" -I{} sh -c \
+  'out=$("$0" -p "$1" --quiet "$2" 2>/dev/null | grep -E "warning|error"); echo "tidy: $2" >&2; [ -z "$out" ] || echo "$out"' \
+  "$tidy" "$db" {} | tee "$report"
+if [ -s "$report" ]; then
+  echo "tidy: $(grep -c . "$report") finding(s) in ${#files[@]} file(s)" >&2
+  exit 1
+fi
+echo "tidy: ${#files[@]} file(s), nothing reported"

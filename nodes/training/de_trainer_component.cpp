@@ -99,14 +99,8 @@ std::shared_ptr<const RnnCost> make_cost(const SystemParams& params, const Train
 }
 
 DeParams make_de_params(const SystemParams& params, const TrainingParams& training, std::size_t dimension) {
-  DeParams de;
-  de.population_size = training.population_size;
+  DeParams de = training.search;
   de.dimension = dimension;
-  de.mutation_factor = training.mutation_factor;
-  de.crossover_rate = training.crossover_rate;
-  de.init_lower = training.init_lower;
-  de.init_upper = training.init_upper;
-  de.seed = training.seed;
   if (training.start == TrainingStart::kAccelerationFeedback) {
     de.first_member = rnn_weights_from_acceleration_feedback(params);
   }

@@ -319,12 +319,12 @@ TrainingParams parse_training_params(const std::string& yaml_text, const std::st
   Section top(root, origin, "");
   TrainingParams t;
   t.optimiser = top.text("optimiser");
-  t.population_size = top.unsigned_integer("population_size");
-  t.mutation_factor = top.number("mutation_factor");
-  t.crossover_rate = top.number("crossover_rate");
-  t.init_lower = top.number("init_lower");
-  t.init_upper = top.number("init_upper");
-  t.seed = top.unsigned_integer("seed");
+  t.search.population_size = top.unsigned_integer("population_size");
+  t.search.mutation_factor = top.number("mutation_factor");
+  t.search.crossover_rate = top.number("crossover_rate");
+  t.search.init_lower = top.number("init_lower");
+  t.search.init_upper = top.number("init_upper");
+  t.search.seed = top.unsigned_integer("seed");
   // Optional (the paper draws every member): a member that applies acceleration feedback.
   if (top.has("start")) {
     const std::string start = top.text("start");

@@ -112,25 +112,11 @@ void TrainingParams::validate(double control_period_s) const {
   if (optimiser != "de" && optimiser != "jde" && optimiser != "cmaes") {
     throw std::invalid_argument("optimiser: expected de, jde or cmaes, got '" + optimiser + "'");
   }
-  if (population_size < 4) {
-    throw std::invalid_argument("population_size: must be >= 4 (DE draws 3 others), got " +
-                                std::to_string(population_size));
-  }
-  // Plausible sizes: the paper's NP is 120; 1e5 members of 91 weights already hold 73 MB.
-  if (population_size > 100000) {
-    throw std::invalid_argument("population_size: must be <= 100000 (the paper's NP is 120), got " +
-                                std::to_string(population_size));
-  }
-  require_in_range("mutation_factor", mutation_factor, 1e-9, 2.0);
-  require_in_range("crossover_rate", crossover_rate, 0.0, 1.0);
+  search.validate();
   // Initial weights inside what a weight set may hold (JordanRnn::kMaxAbsWeight).
-  require_in_range("init_lower", init_lower, -JordanRnn::kMaxAbsWeight, JordanRnn::kMaxAbsWeight);
-  require_in_range("init_upper", init_upper, -JordanRnn::kMaxAbsWeight, JordanRnn::kMaxAbsWeight);
-  if (!(init_lower < init_upper)) {
-    throw std::invalid_argument("init_upper: must be > init_lower (" + format_value(init_lower) + "), got " +
-                                format_value(init_upper));
-  }
-  if (max_evaluations < population_size) {
+  require_in_range("init_lower", search.init_lower, -JordanRnn::kMaxAbsWeight, JordanRnn::kMaxAbsWeight);
+  require_in_range("init_upper", search.init_upper, -JordanRnn::kMaxAbsWeight, JordanRnn::kMaxAbsWeight);
+  if (max_evaluations < search.population_size) {
     throw std::invalid_argument("max_evaluations: must be >= population_size, got " + std::to_string(max_evaluations));
   }
   // 1e9 closed-loop runs: over a month at the ~290 runs/s of the README's 52,000 in 3 minutes.

@@ -130,11 +130,11 @@ TEST(AccelFeedback, SettlesTheFreeVibrationOnlyWithTheShippedFilter) {
 TEST(TrainingConfig, ShippedFileLoadsWithTable1Values) {
   const TrainingParams t = load_training_params(source("configs/training.yaml"), 1e-3);
   EXPECT_EQ(t.optimiser, "de");
-  EXPECT_EQ(t.population_size, 120u);
-  EXPECT_DOUBLE_EQ(t.mutation_factor, 0.8);
-  EXPECT_DOUBLE_EQ(t.crossover_rate, 0.7);
-  EXPECT_DOUBLE_EQ(t.init_lower, -1.0);
-  EXPECT_DOUBLE_EQ(t.init_upper, 1.0);
+  EXPECT_EQ(t.search.population_size, 120u);
+  EXPECT_DOUBLE_EQ(t.search.mutation_factor, 0.8);
+  EXPECT_DOUBLE_EQ(t.search.crossover_rate, 0.7);
+  EXPECT_DOUBLE_EQ(t.search.init_lower, -1.0);
+  EXPECT_DOUBLE_EQ(t.search.init_upper, 1.0);
   ASSERT_FALSE(t.scenarios.empty());
   EXPECT_EQ(t.scenarios[0].scenario.name, "pulse");
 }

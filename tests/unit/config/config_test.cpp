@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <fstream>
+#include <functional>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
@@ -13,7 +15,9 @@
 #include <vector>
 
 #include "config_edit.hpp"
+#include "pmlsm/config/canopen_config.hpp"
 #include "pmlsm/config/config.hpp"
+#include "pmlsm/config/sweep_file.hpp"
 
 namespace pmlsm {
 namespace {
@@ -367,6 +371,44 @@ TEST(ConfigFiles, ErrorsNameTheFilePath) {
 
 // `pmlsm identify` writes its values into a copy of the system file: that copy loads with every
 // check, holds the values to the last bit with the given source, and nothing else changed.
+// Every kind of file the config library reads (each through its shared reader) names the file,
+// the key path, the line and the value of a value of the wrong kind. The edit replaces one value
+// in place, so the line is the shipped file's.
+TEST(ConfigFiles, EveryFileKindNamesTheFileKeyLineAndValueOfABadValue) {
+  const SystemParams nominal = parse_system_params(system_text(), kOrigin);
+  struct Kind {
+    const char* file;
+    std::string shipped;  ///< the value as the file writes it
+    std::string key;      ///< the key path the error must name
+    std::function<void(const std::string& text, const std::string& origin)> parse;
+  };
+  const std::vector<Kind> kinds = {
+      {"configs/system.yaml", "load_mass_kg: {value: 4.0,", "plant.mechanics.load_mass_kg",
+       [](const std::string& text, const std::string& origin) { parse_system_params(text, origin); }},
+      {"configs/scenarios/pulse.yaml", "duty_cycle: {value: 0.5,", "command.duty_cycle",
+       [](const std::string& text, const std::string& origin) { parse_scenario(text, origin, kControlPeriod); }},
+      {"configs/training.yaml", "mutation_factor: {value: 0.8,", "mutation_factor",
+       [](const std::string& text, const std::string& origin) { parse_training_params(text, origin, kControlPeriod); }},
+      {"configs/sweeps/plant_family.yaml", "random: {value: 50,", "plants.random",
+       [&nominal](const std::string& text, const std::string& origin) { parse_sweep_file(text, origin, nominal); }},
+      {"configs/canopen/drive.yaml", "heartbeat_ms: {value: 100,", "drive.heartbeat_ms",
+       [](const std::string& text, const std::string& origin) { parse_canopen_config(text, origin); }},
+  };
+  for (const Kind& kind : kinds) {
+    SCOPED_TRACE(kind.file);
+    std::string text = read_text(kind.file);
+    const std::size_t at = text.find(kind.shipped);
+    ASSERT_NE(at, std::string::npos) << kind.shipped;
+    const std::size_t line = 1 + static_cast<std::size_t>(std::count(text.begin(), text.begin() + at, '\n'));
+    const std::size_t value_at = text.find("value: ", at) + 7;
+    text.replace(value_at, text.find(',', value_at) - value_at, "abc");
+    // The real path: files named inside (a training file's scenarios) are found beside it.
+    const std::string origin = source_path(kind.file);
+    expect_names(error_of([&] { kind.parse(text, origin); }), origin,
+                 {kind.key + ":", "'abc'", "line " + std::to_string(line)});
+  }
+}
+
 TEST(ConfigFiles, AWrittenCopyHoldsTheValuesAndTheirSource) {
   const std::string shipped = source_path("configs/system.yaml");
   const std::string out = ::testing::TempDir() + "/system_written.yaml";

@@ -175,7 +175,7 @@ TEST(DeParams, BadValuesThrowNamingTheField) {
   EXPECT_THROW_WITH(with([](DeParams& p) { p.dimension = 0; }).validate(), std::invalid_argument,
                     "dimension: must be >= 1, got 0");
   EXPECT_THROW_WITH(with([](DeParams& p) { p.mutation_factor = 0; }).validate(), std::invalid_argument,
-                    "mutation_factor: must be in (0, 2], got 0");
+                    "mutation_factor: must be in [1e-09, 2], got 0");
   EXPECT_THROW_WITH(with([](DeParams& p) { p.mutation_factor = 2.5; }).validate(), std::invalid_argument,
                     "mutation_factor");
   EXPECT_THROW_WITH(with([](DeParams& p) { p.mutation_factor = kNan; }).validate(), std::invalid_argument,

@@ -17,6 +17,7 @@
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/sim/identification.hpp"
 #include "pmlsm/compensation/jordan_rnn.hpp"
+#include "pmlsm/optim/de_params.hpp"
 #include "pmlsm/sim/scenario.hpp"
 #include "pmlsm/sim/sweep.hpp"
 #include "pmlsm/sim/system_params.hpp"
@@ -86,13 +87,11 @@ std::vector<double> rnn_weights_from_acceleration_feedback(const SystemParams& p
 
 /// configs/training.yaml: the optimiser and what it is scored on.
 struct TrainingParams {
-  std::string optimiser;              ///< "de" (the paper), "jde", "cmaes"
-  std::uint64_t population_size = 0;  ///< NP
-  double mutation_factor = 0;         ///< F_s (21)
-  double crossover_rate = 0;          ///< CR (22)
-  double init_lower = 0;              ///< initial weights uniform in [lower, upper]
-  double init_upper = 0;
-  std::uint64_t seed = 0;
+  std::string optimiser;  ///< "de" (the paper), "jde", "cmaes"
+  /// The search's own parameters (population_size, mutation_factor, crossover_rate, init_lower,
+  /// init_upper, seed: top-level keys of the file), checked by DeParams::validate. Its dimension
+  /// and first member are the network's, set when the search starts (make_de_params).
+  DeParams search;
   TrainingStart start = TrainingStart::kRandom;
   std::uint64_t max_evaluations = 0;  ///< budget; the run stops at the first generation that reaches it
   double target_cost = 0;             ///< stop early at or below this cost (0: never)
