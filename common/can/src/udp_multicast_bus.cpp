@@ -106,6 +106,10 @@ double wall_clock_seconds() noexcept {
 
 void validate(const UdpMulticastParams& params) { (void)resolve(params); }
 
+// Two sockets, for IPv4 or IPv6: the receiving one bound to the group's port and joined to it, the
+// sending one with its hop limit, loopback and interface. One socket call after another, each
+// checked and named in its error; split up it would only pass half-made sockets around.
+// NOLINTNEXTLINE(readability-function-size)
 UdpMulticastBus::UdpMulticastBus(const UdpMulticastParams& params) : params_(params) {
   const Resolved r = resolve(params_);
   family_ = r.family;

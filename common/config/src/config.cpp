@@ -217,29 +217,26 @@ std::string write_system_file_with(const std::string& in_path,
   return text;
 }
 
-Scenario parse_scenario(const std::string& yaml_text, const std::string& origin, double control_period_s,
-                        const std::vector<ConfigOverride>& overrides) {
-  YAML::Node root = parse_yaml(yaml_text, origin);
-  apply_overrides(root, overrides, origin);
-  Section top(root, origin, "");
-  Scenario s;
-  s.name = top.text("name");
-  if (s.name.empty() || s.name.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-") !=
-                            std::string::npos) {
-    throw ConfigError(origin + ": name: must be letters, digits, '_' or '-' (it names output files), got '" + s.name +
-                      "'");
-  }
-  s.duration_s = top.number("duration_s");
-  Section cmd = top.child("command");
-  const std::string shape = cmd.text("shape");
+namespace {
+
+// A value named from a fixed list (a shape, an objective): the list's error, prefixed by the key.
+template <typename E>
+E named_choice(const std::string& origin, const char* key, const std::string& text,
+               E (*from_string)(const std::string&)) {
+  E out{};
   validate_in(origin, [&] {
     try {
-      s.shape = command_shape_from_string(shape);
+      out = from_string(text);
     } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(std::string("command.shape: ") + e.what());
+      throw std::invalid_argument(std::string(key) + ": " + e.what());
     }
   });
-  // Each shape has its own keys, all required; a key of another shape is unknown.
+  return out;
+}
+
+// The keys of `command:` after its shape: each shape has its own, all required (a key of another
+// shape is unknown when the section is finished).
+void read_command_keys(Section& cmd, Scenario& s, const std::string& origin, double control_period_s) {
   switch (s.shape) {
     case CommandShape::kZero:
     case CommandShape::kStep:
@@ -297,6 +294,26 @@ Scenario parse_scenario(const std::string& yaml_text, const std::string& origin,
       s.accel_mps2 = cmd.number("accel_mps2");
       break;
   }
+}
+
+}  // namespace
+
+Scenario parse_scenario(const std::string& yaml_text, const std::string& origin, double control_period_s,
+                        const std::vector<ConfigOverride>& overrides) {
+  YAML::Node root = parse_yaml(yaml_text, origin);
+  apply_overrides(root, overrides, origin);
+  Section top(root, origin, "");
+  Scenario s;
+  s.name = top.text("name");
+  if (s.name.empty() || s.name.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-") !=
+                            std::string::npos) {
+    throw ConfigError(origin + ": name: must be letters, digits, '_' or '-' (it names output files), got '" + s.name +
+                      "'");
+  }
+  s.duration_s = top.number("duration_s");
+  Section cmd = top.child("command");
+  s.shape = named_choice(origin, "command.shape", cmd.text("shape"), command_shape_from_string);
+  read_command_keys(cmd, s, origin, control_period_s);
   cmd.finish();
   // Optional: without it the reference model (25) shapes the command, as in the paper.
   if (top.has("reference_model")) s.use_reference_model = top.flag("reference_model");
@@ -312,53 +329,12 @@ Scenario load_scenario(const std::string& path, double control_period_s, const s
   return parse_scenario(read_file(path), path, control_period_s, overrides);
 }
 
-TrainingParams parse_training_params(const std::string& yaml_text, const std::string& origin, double control_period_s,
-                                     const std::vector<ConfigOverride>& overrides) {
-  YAML::Node root = parse_yaml(yaml_text, origin);
-  apply_overrides(root, overrides, origin);
-  Section top(root, origin, "");
-  TrainingParams t;
-  t.optimiser = top.text("optimiser");
-  t.search.population_size = top.unsigned_integer("population_size");
-  t.search.mutation_factor = top.number("mutation_factor");
-  t.search.crossover_rate = top.number("crossover_rate");
-  t.search.init_lower = top.number("init_lower");
-  t.search.init_upper = top.number("init_upper");
-  t.search.seed = top.unsigned_integer("seed");
-  // Optional (the paper draws every member): a member that applies acceleration feedback.
-  if (top.has("start")) {
-    const std::string start = top.text("start");
-    validate_in(origin, [&] {
-      try {
-        t.start = training_start_from_string(start);
-      } catch (const std::invalid_argument& e) {
-        throw std::invalid_argument(std::string("start: ") + e.what());
-      }
-    });
-  }
-  t.max_evaluations = top.unsigned_integer("max_evaluations");
-  t.target_cost = top.number("target_cost");
-  const std::string velocity = top.text("cost_velocity");
-  validate_in(origin, [&] {
-    try {
-      t.cost_velocity = cost_velocity_from_string(velocity);
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(std::string("cost_velocity: ") + e.what());
-    }
-  });
-  // Scenario files are named relative to the training file.
-  for (Section& item : top.sections("scenarios")) {
-    const std::string file = item.text("file");
-    TrainingScenario ts;
-    ts.weight = item.number("weight");
-    item.finish();
-    ts.file = relative_to(origin, file);
-    ts.scenario = load_scenario(ts.file, control_period_s);
-    t.scenarios.push_back(ts);
-  }
-  // The plants each weight set is scored on: "key.path=value" moves of the configured plant.
+namespace {
+
+// `plants:` of a training file; commission_key names the first that says whether it is commissioned.
+std::vector<PlantVariant> read_plant_variants(Section& top, const std::string& origin, std::string& commission_key) {
+  std::vector<PlantVariant> out;
   std::vector<Section> plants = top.sections("plants");
-  std::string commission_key;  // the first plant that says whether it is commissioned
   for (std::size_t i = 0; i < plants.size(); ++i) {
     Section& item = plants[i];
     const std::string at = "plants[" + std::to_string(i) + "]";
@@ -375,16 +351,45 @@ TrainingParams parse_training_params(const std::string& yaml_text, const std::st
       if (commission_key.empty()) commission_key = at + ".commission";
     }
     item.finish();
-    t.plants.push_back(variant);
+    out.push_back(variant);
   }
-  const std::string objective = top.text("plant_objective");
-  validate_in(origin, [&] {
-    try {
-      t.plant_objective = plant_objective_from_string(objective);
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(std::string("plant_objective: ") + e.what());
-    }
-  });
+  return out;
+}
+
+}  // namespace
+
+TrainingParams parse_training_params(const std::string& yaml_text, const std::string& origin, double control_period_s,
+                                     const std::vector<ConfigOverride>& overrides) {
+  YAML::Node root = parse_yaml(yaml_text, origin);
+  apply_overrides(root, overrides, origin);
+  Section top(root, origin, "");
+  TrainingParams t;
+  t.optimiser = top.text("optimiser");
+  t.search.population_size = top.unsigned_integer("population_size");
+  t.search.mutation_factor = top.number("mutation_factor");
+  t.search.crossover_rate = top.number("crossover_rate");
+  t.search.init_lower = top.number("init_lower");
+  t.search.init_upper = top.number("init_upper");
+  t.search.seed = top.unsigned_integer("seed");
+  // Optional (the paper draws every member): a member that applies acceleration feedback.
+  if (top.has("start")) t.start = named_choice(origin, "start", top.text("start"), training_start_from_string);
+  t.max_evaluations = top.unsigned_integer("max_evaluations");
+  t.target_cost = top.number("target_cost");
+  t.cost_velocity = named_choice(origin, "cost_velocity", top.text("cost_velocity"), cost_velocity_from_string);
+  // Scenario files are named relative to the training file.
+  for (Section& item : top.sections("scenarios")) {
+    const std::string file = item.text("file");
+    TrainingScenario ts;
+    ts.weight = item.number("weight");
+    item.finish();
+    ts.file = relative_to(origin, file);
+    ts.scenario = load_scenario(ts.file, control_period_s);
+    t.scenarios.push_back(ts);
+  }
+  // The plants each weight set is scored on: "key.path=value" moves of the configured plant.
+  std::string commission_key;  // the first plant that says whether it is commissioned
+  t.plants = read_plant_variants(top, origin, commission_key);
+  t.plant_objective = named_choice(origin, "plant_objective", top.text("plant_objective"), plant_objective_from_string);
   // Optional: each run judged whole by a sweep file's verdict (named relative to the training
   // file), the thresholds the sweep reports with. Without it the paper's objective, the cost
   // window alone.
@@ -491,117 +496,127 @@ std::int64_t c_signed(const std::string& text, const std::string& origin, const 
 }
 }  // namespace
 
+namespace {
+
+canopen::DataType dictionary_data_type(const std::string& type, const std::string& origin, const std::string& path) {
+  static const std::pair<const char*, canopen::DataType> kTypes[] = {
+      {"u8", canopen::DataType::kU8}, {"u16", canopen::DataType::kU16}, {"u32", canopen::DataType::kU32},
+      {"i8", canopen::DataType::kI8}, {"i16", canopen::DataType::kI16}, {"i32", canopen::DataType::kI32}};
+  for (const auto& [name, t] : kTypes) {
+    if (type == name) return t;
+  }
+  throw ConfigError(origin + ": " + path + ".type: one of u8, u16, u32, i8, i16, i32, got '" + type + "'");
+}
+
+canopen::Access dictionary_access(const std::string& access, const std::string& origin, const std::string& path) {
+  if (access == "ro") return canopen::Access::kRo;
+  if (access == "rw") return canopen::Access::kRw;
+  if (access == "wo") return canopen::Access::kWo;
+  if (access == "const") return canopen::Access::kConst;
+  throw ConfigError(origin + ": " + path + ".access: one of ro, rw, wo, const, got '" + access + "'");
+}
+
+// One manufacturer-specific object of `objects:`, not yet listed in `d`.
+DictionaryObject read_dictionary_object(Section& o, const DeviceDictionary& d, const std::string& origin,
+                                        const std::string& path) {
+  DictionaryObject obj;
+  obj.index = static_cast<std::uint16_t>(c_number(o.text("index"), origin, path + ".index", 0xFFFF));
+  if (obj.index < 0x2000 || obj.index > 0x5FFF) {
+    throw ConfigError(origin + ": " + path + ".index: a manufacturer-specific object lies in 0x2000-0x5FFF, got " +
+                      o.text("index"));
+  }
+  obj.subindex = static_cast<std::uint8_t>(c_number(o.text("subindex"), origin, path + ".subindex", 0xFF));
+  obj.name = o.text("name");
+  if (obj.name.empty()) throw ConfigError(origin + ": " + path + ".name: must not be empty");
+  obj.type = dictionary_data_type(o.text("type"), origin, path);
+  obj.access = dictionary_access(o.text("access"), origin, path);
+  const std::string mappable = o.text("pdo_mappable");
+  if (mappable != "true" && mappable != "false") {
+    throw ConfigError(origin + ": " + path + ".pdo_mappable: true or false, got '" + mappable + "'");
+  }
+  obj.pdo_mappable = mappable == "true";
+  obj.value = c_signed(o.text("value"), origin, path + ".value");
+  o.finish();
+  for (const DictionaryObject& other : d.objects) {
+    if (other.index == obj.index && other.subindex == obj.subindex) {
+      throw ConfigError(origin + ": " + path + ": object " + o.text("index") + " sub " + std::to_string(obj.subindex) +
+                        " is listed twice");
+    }
+  }
+  return obj;
+}
+
+// "0xIIII:SS:BITS": the object a PDO entry maps and its width.
+canopen::PdoMapEntry read_pdo_map_entry(const std::string& text, const std::string& origin,
+                                        const std::string& item_path) {
+  const auto first = text.find(':');
+  const auto second = first == std::string::npos ? std::string::npos : text.find(':', first + 1);
+  if (second == std::string::npos) {
+    throw ConfigError(origin + ": " + item_path + ": expected \"0xIIII:SS:BITS\", got '" + text + "'");
+  }
+  canopen::PdoMapEntry e;
+  e.index = static_cast<std::uint16_t>(c_number(text.substr(0, first), origin, item_path, 0xFFFF));
+  e.subindex = static_cast<std::uint8_t>(c_number(text.substr(first + 1, second - first - 1), origin, item_path, 0xFF));
+  e.bit_length = static_cast<std::uint8_t>(c_number(text.substr(second + 1), origin, item_path, 0xFF));
+  if (e.bit_length != 8 && e.bit_length != 16 && e.bit_length != 32) {
+    throw ConfigError(origin + ": " + item_path + ": the bit length must be 8, 16 or 32, got '" + text + "'");
+  }
+  return e;
+}
+
+// One default PDO of `pdos:`, its channel not yet listed in `d`.
+PdoDefault read_pdo_default(Section& p, const DeviceDictionary& d, const std::string& origin, const std::string& path) {
+  PdoDefault pdo;
+  pdo.channel = p.text("channel");
+  if (pdo.channel != "rpdo1" && pdo.channel != "tpdo1" && pdo.channel != "tpdo2") {
+    throw ConfigError(origin + ": " + path + ".channel: one of rpdo1, tpdo1, tpdo2, got '" + pdo.channel + "'");
+  }
+  for (const PdoDefault& other : d.pdos) {
+    if (other.channel == pdo.channel) {
+      throw ConfigError(origin + ": " + path + ".channel: " + pdo.channel + " is listed twice");
+    }
+  }
+  std::string cob = p.text("cob_id");
+  const std::string node_prefix = "$NODEID+";
+  pdo.node_relative = cob.rfind(node_prefix, 0) == 0;
+  if (pdo.node_relative) cob = cob.substr(node_prefix.size());
+  pdo.cob_id = static_cast<std::uint32_t>(c_number(cob, origin, path + ".cob_id", 0x7FF));
+  pdo.transmission_type =
+      static_cast<std::uint8_t>(c_number(p.text("transmission_type"), origin, path + ".transmission_type", 0xFF));
+  const std::vector<std::string> mapping = p.texts("mapping");
+  if (mapping.empty() || mapping.size() > 8) {
+    throw ConfigError(origin + ": " + path + ".mapping: a list of 1 to 8 entries \"0xIIII:SS:BITS\"");
+  }
+  for (std::size_t k = 0; k < mapping.size(); ++k) {
+    pdo.mapping.push_back(read_pdo_map_entry(mapping[k], origin, path + ".mapping[" + std::to_string(k) + "]"));
+  }
+  p.finish();
+  return pdo;
+}
+
+}  // namespace
+
 DeviceDictionary parse_device_dictionary(const std::string& yaml_text, const std::string& origin) {
   YAML::Node root = parse_yaml(yaml_text, origin);
   Section top(root, origin, "");
   DeviceDictionary d;
   Section identity = top.child("identity");
-  d.vendor_id =
-      static_cast<std::uint32_t>(c_number(identity.text("vendor_id"), origin, "identity.vendor_id", 0xFFFFFFFFULL));
-  d.product_code = static_cast<std::uint32_t>(
-      c_number(identity.text("product_code"), origin, "identity.product_code", 0xFFFFFFFFULL));
-  d.revision_number = static_cast<std::uint32_t>(
-      c_number(identity.text("revision_number"), origin, "identity.revision_number", 0xFFFFFFFFULL));
-  d.serial_number = static_cast<std::uint32_t>(
-      c_number(identity.text("serial_number"), origin, "identity.serial_number", 0xFFFFFFFFULL));
+  const auto u32 = [&](const char* key) {
+    return static_cast<std::uint32_t>(
+        c_number(identity.text(key), origin, std::string("identity.") + key, 0xFFFFFFFFULL));
+  };
+  d.vendor_id = u32("vendor_id");
+  d.product_code = u32("product_code");
+  d.revision_number = u32("revision_number");
+  d.serial_number = u32("serial_number");
   identity.finish();
-
   std::size_t i = 0;
   for (Section& o : top.sections("objects")) {
-    const std::string path = "objects[" + std::to_string(i++) + "]";
-    DictionaryObject obj;
-    obj.index = static_cast<std::uint16_t>(c_number(o.text("index"), origin, path + ".index", 0xFFFF));
-    if (obj.index < 0x2000 || obj.index > 0x5FFF) {
-      throw ConfigError(origin + ": " + path + ".index: a manufacturer-specific object lies in 0x2000-0x5FFF, got " +
-                        o.text("index"));
-    }
-    obj.subindex = static_cast<std::uint8_t>(c_number(o.text("subindex"), origin, path + ".subindex", 0xFF));
-    obj.name = o.text("name");
-    if (obj.name.empty()) throw ConfigError(origin + ": " + path + ".name: must not be empty");
-    const std::string type = o.text("type");
-    static const std::pair<const char*, canopen::DataType> kTypes[] = {
-        {"u8", canopen::DataType::kU8}, {"u16", canopen::DataType::kU16}, {"u32", canopen::DataType::kU32},
-        {"i8", canopen::DataType::kI8}, {"i16", canopen::DataType::kI16}, {"i32", canopen::DataType::kI32}};
-    bool known = false;
-    for (const auto& [name, t] : kTypes) {
-      if (type == name) {
-        obj.type = t;
-        known = true;
-      }
-    }
-    if (!known)
-      throw ConfigError(origin + ": " + path + ".type: one of u8, u16, u32, i8, i16, i32, got '" + type + "'");
-    const std::string access = o.text("access");
-    if (access == "ro") {
-      obj.access = canopen::Access::kRo;
-    } else if (access == "rw") {
-      obj.access = canopen::Access::kRw;
-    } else if (access == "wo") {
-      obj.access = canopen::Access::kWo;
-    } else if (access == "const") {
-      obj.access = canopen::Access::kConst;
-    } else {
-      throw ConfigError(origin + ": " + path + ".access: one of ro, rw, wo, const, got '" + access + "'");
-    }
-    const std::string mappable = o.text("pdo_mappable");
-    if (mappable != "true" && mappable != "false") {
-      throw ConfigError(origin + ": " + path + ".pdo_mappable: true or false, got '" + mappable + "'");
-    }
-    obj.pdo_mappable = mappable == "true";
-    obj.value = c_signed(o.text("value"), origin, path + ".value");
-    o.finish();
-    for (const DictionaryObject& other : d.objects) {
-      if (other.index == obj.index && other.subindex == obj.subindex) {
-        throw ConfigError(origin + ": " + path + ": object " + o.text("index") + " sub " +
-                          std::to_string(obj.subindex) + " is listed twice");
-      }
-    }
-    d.objects.push_back(std::move(obj));
+    d.objects.push_back(read_dictionary_object(o, d, origin, "objects[" + std::to_string(i++) + "]"));
   }
-
   i = 0;
   for (Section& p : top.sections("pdos")) {
-    const std::string path = "pdos[" + std::to_string(i++) + "]";
-    PdoDefault pdo;
-    pdo.channel = p.text("channel");
-    if (pdo.channel != "rpdo1" && pdo.channel != "tpdo1" && pdo.channel != "tpdo2") {
-      throw ConfigError(origin + ": " + path + ".channel: one of rpdo1, tpdo1, tpdo2, got '" + pdo.channel + "'");
-    }
-    for (const PdoDefault& other : d.pdos) {
-      if (other.channel == pdo.channel)
-        throw ConfigError(origin + ": " + path + ".channel: " + pdo.channel + " is listed twice");
-    }
-    std::string cob = p.text("cob_id");
-    const std::string node_prefix = "$NODEID+";
-    pdo.node_relative = cob.rfind(node_prefix, 0) == 0;
-    if (pdo.node_relative) cob = cob.substr(node_prefix.size());
-    pdo.cob_id = static_cast<std::uint32_t>(c_number(cob, origin, path + ".cob_id", 0x7FF));
-    pdo.transmission_type =
-        static_cast<std::uint8_t>(c_number(p.text("transmission_type"), origin, path + ".transmission_type", 0xFF));
-    const std::vector<std::string> mapping = p.texts("mapping");
-    if (mapping.empty() || mapping.size() > 8) {
-      throw ConfigError(origin + ": " + path + ".mapping: a list of 1 to 8 entries \"0xIIII:SS:BITS\"");
-    }
-    for (std::size_t k = 0; k < mapping.size(); ++k) {
-      const std::string item_path = path + ".mapping[" + std::to_string(k) + "]";
-      const std::string& text = mapping[k];
-      const auto first = text.find(':');
-      const auto second = first == std::string::npos ? std::string::npos : text.find(':', first + 1);
-      if (second == std::string::npos) {
-        throw ConfigError(origin + ": " + item_path + ": expected \"0xIIII:SS:BITS\", got '" + text + "'");
-      }
-      canopen::PdoMapEntry e;
-      e.index = static_cast<std::uint16_t>(c_number(text.substr(0, first), origin, item_path, 0xFFFF));
-      e.subindex =
-          static_cast<std::uint8_t>(c_number(text.substr(first + 1, second - first - 1), origin, item_path, 0xFF));
-      e.bit_length = static_cast<std::uint8_t>(c_number(text.substr(second + 1), origin, item_path, 0xFF));
-      if (e.bit_length != 8 && e.bit_length != 16 && e.bit_length != 32) {
-        throw ConfigError(origin + ": " + item_path + ": the bit length must be 8, 16 or 32, got '" + text + "'");
-      }
-      pdo.mapping.push_back(e);
-    }
-    p.finish();
-    d.pdos.push_back(std::move(pdo));
+    d.pdos.push_back(read_pdo_default(p, d, origin, "pdos[" + std::to_string(i++) + "]"));
   }
   top.finish();
   return d;

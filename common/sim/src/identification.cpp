@@ -68,6 +68,27 @@ class PredictionError {
 
 using Point = std::array<double, 4>;
 
+/// Puts the first n vertices of a simplex in order of value, best first.
+void sort_simplex_best_first(std::array<Point, 5>& v, std::array<double, 5>& fv, std::size_t n) {
+  std::array<std::size_t, 5> order{0, 1, 2, 3, 4};
+  // A stable insertion sort, as std::sort is on 5 elements (the same order on ties), written
+  // out because GCC 12 cannot see that n <= 5 through std::sort (-Warray-bounds).
+  for (std::size_t i = 1; i < n && i < order.size(); ++i) {
+    const std::size_t key = order[i];
+    std::size_t j = i;
+    for (; j > 0 && fv[key] < fv[order[j - 1]]; --j) order[j] = order[j - 1];
+    order[j] = key;
+  }
+  std::array<Point, 5> sv{};
+  std::array<double, 5> sf{};
+  for (std::size_t i = 0; i < n; ++i) {
+    sv[i] = v[order[i]];
+    sf[i] = fv[order[i]];
+  }
+  v = sv;
+  fv = sf;
+}
+
 /// Nelder-Mead on the first `dims` coordinates, every vertex clamped into [lo, hi]; stops after
 /// `budget` evaluations. Returns the best vertex and its value.
 template <typename F>
@@ -95,24 +116,7 @@ std::pair<Point, double> nelder_mead(F&& f, std::size_t dims, const Point& start
   const std::size_t n = dims + 1;
   std::uint32_t spent = static_cast<std::uint32_t>(n);
   while (spent + n + 2 <= budget) {
-    // Order: best first.
-    std::array<std::size_t, 5> order{0, 1, 2, 3, 4};
-    // A stable insertion sort, as std::sort is on 5 elements (the same order on ties), written
-    // out because GCC 12 cannot see that n <= 5 through std::sort (-Warray-bounds).
-    for (std::size_t i = 1; i < n && i < order.size(); ++i) {
-      const std::size_t key = order[i];
-      std::size_t j = i;
-      for (; j > 0 && fv[key] < fv[order[j - 1]]; --j) order[j] = order[j - 1];
-      order[j] = key;
-    }
-    std::array<Point, 5> sv{};
-    std::array<double, 5> sf{};
-    for (std::size_t i = 0; i < n; ++i) {
-      sv[i] = v[order[i]];
-      sf[i] = fv[order[i]];
-    }
-    v = sv;
-    fv = sf;
+    sort_simplex_best_first(v, fv, n);
     Point centroid{};
     for (std::size_t i = 0; i + 1 < n; ++i)
       for (std::size_t d = 0; d < dims; ++d) centroid[d] += v[i][d] / static_cast<double>(dims);
@@ -160,6 +164,115 @@ std::pair<Point, double> nelder_mead(F&& f, std::size_t dims, const Point& start
   return {v[best], fv[best]};
 }
 
+/// The search space: log-coordinates of the fitted parameters, each within range_ratio of the
+/// configured value and inside its plausible range.
+struct SearchBox {
+  std::vector<Coordinate> coords;
+  Point lo{}, hi{}, start{}, step{};
+  double span = 0;  ///< log(range_ratio)
+};
+
+SearchBox search_box(const SystemParams& configured, const IdentificationParams& params) {
+  SearchBox box;
+  // The load always, the friction when the filter models it (and has some to scale).
+  std::vector<const char*> keys{kLoadMassKey, kSpringKey};
+  if (configured.kalman.friction_input.enabled) {
+    if (configured.kalman.friction_input.model.coulomb_n > 0) keys.push_back(kCoulombKey);
+    if (configured.kalman.friction_input.model.viscous_n_s_per_m > 0) keys.push_back(kViscousKey);
+  }
+  box.span = std::log(params.range_ratio);
+  for (const char* key : keys) {
+    SystemParams probe = configured;
+    Plausible range{0, 0, ""};
+    const double value = real_parameter(probe, key, &range);
+    Coordinate c{key, std::log(value) - box.span, std::log(value) + box.span};
+    if (range.min > 0) c.lo = std::max(c.lo, std::log(range.min));
+    c.hi = std::min(c.hi, std::log(range.max));
+    const std::size_t i = box.coords.size();
+    box.lo[i] = c.lo;
+    box.hi[i] = c.hi;
+    box.start[i] = std::clamp(std::log(value), c.lo, c.hi);
+    box.step[i] = 0.25 * box.span;
+    box.coords.push_back(c);
+  }
+  return box;
+}
+
+void check_identification_samples(const std::vector<IdentificationSample>& samples,
+                                  const IdentificationParams& params) {
+  if (samples.size() < params.skip_samples + kMinJudgedSamples) {
+    throw std::invalid_argument("samples: need at least " + std::to_string(params.skip_samples + kMinJudgedSamples) +
+                                " (" + std::to_string(params.skip_samples) + " skipped + " +
+                                std::to_string(kMinJudgedSamples) + "), got " + std::to_string(samples.size()));
+  }
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const IdentificationSample& s = samples[i];
+    if (std::isfinite(s.motor_velocity_measured_mps) && std::isfinite(s.encoder_position_m) &&
+        std::isfinite(s.applied_force_n)) {
+      continue;
+    }
+    const std::string at = "samples[" + std::to_string(i) + "].";
+    require_finite((at + "motor_velocity_measured_mps").c_str(), s.motor_velocity_measured_mps);
+    require_finite((at + "encoder_position_m").c_str(), s.encoder_position_m);
+    require_finite((at + "applied_force_n").c_str(), s.applied_force_n);
+  }
+}
+
+constexpr std::size_t kLoadDims = 2;  ///< load mass and spring come first in a SearchBox
+
+/// The friction coordinates fitted on the configured load (the box's start), a tenth of the
+/// budget spent: a wrong Coulomb force dominates the innovations wherever the motor turns, and
+/// hides the load's valley (a plant with 30 N against the model's 20 N showed no minimum near its
+/// load at all). Returns the start with the fitted friction.
+template <typename F>
+Point fit_friction_first(F&& f, const SearchBox& box, std::uint32_t budget, std::uint32_t& evaluations) {
+  Point friction = box.start;
+  const std::size_t dims = box.coords.size();
+  if (dims <= kLoadDims) return friction;
+  const std::size_t friction_dims = dims - kLoadDims;
+  Point f_start{}, f_step{}, f_lo{}, f_hi{};
+  for (std::size_t i = 0; i < friction_dims; ++i) {
+    f_start[i] = box.start[kLoadDims + i];
+    f_step[i] = box.step[kLoadDims + i];
+    f_lo[i] = box.lo[kLoadDims + i];
+    f_hi[i] = box.hi[kLoadDims + i];
+  }
+  const auto f_friction = [&](const Point& x) {
+    Point z = box.start;
+    for (std::size_t i = 0; i < friction_dims; ++i) z[kLoadDims + i] = x[i];
+    return f(z);
+  };
+  std::uint32_t used = 0;
+  const Point fitted = nelder_mead(f_friction, friction_dims, f_start, f_step, f_lo, f_hi, budget, used).first;
+  evaluations += used;
+  for (std::size_t i = 0; i < friction_dims; ++i) friction[kLoadDims + i] = fitted[i];
+  return friction;
+}
+
+struct Candidate {
+  Point z;
+  double value;
+};
+
+/// A 5 x 5 grid over load mass and spring (half a span apart) with the given friction, best first:
+/// where the valleys are.
+template <typename F>
+std::vector<Candidate> load_grid_best_first(F&& f, const SearchBox& box, const Point& friction,
+                                            std::uint32_t& evaluations) {
+  std::vector<Candidate> grid;
+  for (int a = -2; a <= 2; ++a) {
+    for (int b = -2; b <= 2; ++b) {
+      Point z = friction;
+      z[0] = std::clamp(box.start[0] + 0.5 * a * box.span, box.lo[0], box.hi[0]);
+      z[1] = std::clamp(box.start[1] + 0.5 * b * box.span, box.lo[1], box.hi[1]);
+      grid.push_back({z, f(z)});
+      ++evaluations;
+    }
+  }
+  std::sort(grid.begin(), grid.end(), [](const Candidate& x, const Candidate& y) { return x.value < y.value; });
+  return grid;
+}
+
 }  // namespace
 
 void IdentificationParams::validate() const {
@@ -178,95 +291,19 @@ IdentifiedLoad identify_load(const SystemParams& configured, const std::vector<I
                              const IdentificationParams& params) {
   params.validate();
   configured.validate();
-  if (samples.size() < params.skip_samples + kMinJudgedSamples) {
-    throw std::invalid_argument("samples: need at least " + std::to_string(params.skip_samples + kMinJudgedSamples) +
-                                " (" + std::to_string(params.skip_samples) + " skipped + " +
-                                std::to_string(kMinJudgedSamples) + "), got " + std::to_string(samples.size()));
-  }
-  for (std::size_t i = 0; i < samples.size(); ++i) {
-    const IdentificationSample& s = samples[i];
-    if (std::isfinite(s.motor_velocity_measured_mps) && std::isfinite(s.encoder_position_m) &&
-        std::isfinite(s.applied_force_n)) {
-      continue;
-    }
-    const std::string at = "samples[" + std::to_string(i) + "].";
-    require_finite((at + "motor_velocity_measured_mps").c_str(), s.motor_velocity_measured_mps);
-    require_finite((at + "encoder_position_m").c_str(), s.encoder_position_m);
-    require_finite((at + "applied_force_n").c_str(), s.applied_force_n);
-  }
-
-  // The coordinates: the load always, the friction when the filter models it (and has some to scale).
-  std::vector<Coordinate> coords;
-  std::vector<const char*> keys{kLoadMassKey, kSpringKey};
-  if (configured.kalman.friction_input.enabled) {
-    if (configured.kalman.friction_input.model.coulomb_n > 0) keys.push_back(kCoulombKey);
-    if (configured.kalman.friction_input.model.viscous_n_s_per_m > 0) keys.push_back(kViscousKey);
-  }
-  const double span = std::log(params.range_ratio);
-  Point lo{}, hi{}, start{}, step{};
-  for (const char* key : keys) {
-    SystemParams probe = configured;
-    Plausible range{0, 0, ""};
-    const double value = real_parameter(probe, key, &range);
-    Coordinate c{key, std::log(value) - span, std::log(value) + span};
-    if (range.min > 0) c.lo = std::max(c.lo, std::log(range.min));
-    c.hi = std::min(c.hi, std::log(range.max));
-    const std::size_t i = coords.size();
-    lo[i] = c.lo;
-    hi[i] = c.hi;
-    start[i] = std::clamp(std::log(value), c.lo, c.hi);
-    step[i] = 0.25 * span;
-    coords.push_back(c);
-  }
-  const std::size_t dims = coords.size();
+  check_identification_samples(samples, params);
+  const SearchBox box = search_box(configured, params);
+  const std::size_t dims = box.coords.size();
+  const std::vector<Coordinate>& coords = box.coords;
+  const Point& lo = box.lo;
+  const Point& hi = box.hi;
 
   const PredictionError error(configured, samples, params.skip_samples);
   IdentifiedLoad out;
   const auto f = [&](const Point& z) { return error.mean_square(coords, z.data()); };
   out.configured_innovation_rms_mps = std::sqrt(error.mean_square(configured));
-
-  // The friction first, on the configured load: a wrong Coulomb force dominates the innovations
-  // wherever the motor turns, and hides the load's valley (a plant with 30 N against the model's
-  // 20 N showed no minimum near its load at all).
-  constexpr std::size_t kLoadDims = 2;
-  Point friction = start;
-  if (dims > kLoadDims) {
-    const std::size_t friction_dims = dims - kLoadDims;
-    Point f_start{}, f_step{}, f_lo{}, f_hi{};
-    for (std::size_t i = 0; i < friction_dims; ++i) {
-      f_start[i] = start[kLoadDims + i];
-      f_step[i] = step[kLoadDims + i];
-      f_lo[i] = lo[kLoadDims + i];
-      f_hi[i] = hi[kLoadDims + i];
-    }
-    const auto f_friction = [&](const Point& x) {
-      Point z = start;
-      for (std::size_t i = 0; i < friction_dims; ++i) z[kLoadDims + i] = x[i];
-      return f(z);
-    };
-    std::uint32_t used = 0;
-    const Point fitted =
-        nelder_mead(f_friction, friction_dims, f_start, f_step, f_lo, f_hi, params.max_evaluations / 10, used).first;
-    out.evaluations += used;
-    for (std::size_t i = 0; i < friction_dims; ++i) friction[kLoadDims + i] = fitted[i];
-  }
-
-  // The grid over the load with that friction: where the valleys are.
-  struct Candidate {
-    Point z;
-    double value;
-  };
-  std::vector<Candidate> grid;
-  for (int a = -2; a <= 2; ++a) {
-    for (int b = -2; b <= 2; ++b) {
-      Point z = friction;
-      z[0] = std::clamp(start[0] + 0.5 * a * span, lo[0], hi[0]);
-      z[1] = std::clamp(start[1] + 0.5 * b * span, lo[1], hi[1]);
-      grid.push_back({z, f(z)});
-      ++out.evaluations;
-    }
-  }
-  std::sort(grid.begin(), grid.end(), [](const Candidate& x, const Candidate& y) { return x.value < y.value; });
+  const Point friction = fit_friction_first(f, box, params.max_evaluations / 10, out.evaluations);
+  const std::vector<Candidate> grid = load_grid_best_first(f, box, friction, out.evaluations);
 
   // Nelder-Mead from the three best grid points, the budget shared.
   constexpr std::size_t kStarts = 3;
@@ -274,7 +311,7 @@ IdentifiedLoad identify_load(const SystemParams& configured, const std::vector<I
   Candidate best = grid.front();
   for (std::size_t s = 0; s < kStarts; ++s) {
     std::uint32_t used = 0;
-    const auto [z, value] = nelder_mead(f, dims, grid[s].z, step, lo, hi, per_start, used);
+    const auto [z, value] = nelder_mead(f, dims, grid[s].z, box.step, lo, hi, per_start, used);
     out.evaluations += used;
     if (value < best.value) best = {z, value};
   }

@@ -177,52 +177,27 @@ double rms_about(const std::vector<double>& values, std::size_t begin, std::size
   return std::sqrt(sum / static_cast<double>(end - begin));
 }
 
-}  // namespace
-
-RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scenario, double control_period_s,
-                     double force_limit_n, const VerdictParams& verdict) {
-  RunVerdict out;
-  if (trace.empty()) {
-    out.non_finite = true;
-    return out;
-  }
-  for (const TickRecord& r : trace) {
-    if (r.plant_fault_state != nullptr || !record_finite(r)) out.non_finite = true;
-    if (r.guard_tripped && out.guard_trip_s < 0) out.guard_trip_s = r.time_s;
-  }
-  const ScenarioMetrics metrics = compute_metrics(trace, scenario, control_period_s);
-  out.cost = metrics.cost_true;
-  out.settling_s = metrics.load_settling_time_s;
-  out.slow = scenario.initial_load_displacement_m != 0.0 && !(out.settling_s <= verdict.max_free_vibration_settling_s);
-
-  // Cost (23) per window of the run: a later window cheaper than the first is a decaying error.
-  const auto window = static_cast<std::size_t>(std::llround(scenario.cost_window_s / control_period_s));
+// Cost (23) per window of the run: a later window cheaper than the first is a decaying error.
+// The last window's cost over the first's; NaN without two windows or with a free first one.
+double last_to_first_window_cost(const std::vector<TickRecord>& trace, std::size_t window) {
   std::vector<double> window_costs;
   for (std::size_t begin = 1; window > 0 && begin + window <= trace.size(); begin += window) {
     double cost = 0;
-    for (std::size_t k = begin; k < begin + window; ++k)
+    for (std::size_t k = begin; k < begin + window; ++k) {
       cost += std::fabs(trace[k].v_ref_mps - trace[k].load_velocity_mps);
+    }
     window_costs.push_back(cost);
   }
-  if (window_costs.size() >= 2 && window_costs.front() > 0) {
-    out.last_to_first_window_cost = window_costs.back() / window_costs.front();
-  }
+  if (window_costs.size() >= 2 && window_costs.front() > 0) return window_costs.back() / window_costs.front();
+  return std::numeric_limits<double>::quiet_NaN();
+}
 
-  // The tail: spring stretch x_L - x_M about its mean; its amplitude and how fast it decays.
-  const std::size_t n = trace.size();
-  const std::size_t tail =
-      std::min<std::size_t>(n, static_cast<std::size_t>(std::llround(verdict.tail_s / control_period_s)));
-  const std::size_t begin = n - tail;
-  std::vector<double> stretch(n);
-  for (std::size_t k = 0; k < n; ++k) stretch[k] = trace[k].load_position_m - trace[k].motor_position_m;
-  double mean = 0;
-  for (std::size_t k = begin; k < n; ++k) mean += stretch[k];
-  mean /= static_cast<double>(std::max<std::size_t>(tail, 1));
-  out.tail_stretch_amplitude_m = std::sqrt(2.0) * rms_about(stretch, begin, n, mean);
-  // Decay rate: least-squares slope of ln(RMS) over the windows' centres. A window without
-  // motion (RMS 0) means the oscillation is gone: nothing left to decay.
-  const std::size_t windows = static_cast<std::size_t>(verdict.tail_windows);
-  const std::size_t per_window = tail / windows;
+// Decay rate of the stretch from `begin` to its end, in `windows` equal windows: the
+// least-squares slope of ln(RMS) over the windows' centres, negated. A window without motion
+// (RMS 0) means the oscillation is gone: nothing left to decay (+inf).
+double tail_decay_rate_per_s(const std::vector<double>& stretch, std::size_t begin, std::size_t windows, double mean,
+                             double control_period_s) {
+  const std::size_t per_window = (stretch.size() - begin) / windows;
   double sum_t = 0, sum_y = 0, sum_tt = 0, sum_ty = 0;
   bool silent = per_window == 0;
   for (std::size_t w = 0; w < windows && !silent; ++w) {
@@ -241,8 +216,43 @@ RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scena
   }
   const double count = static_cast<double>(windows);
   const double spread = count * sum_tt - sum_t * sum_t;
+  return silent || !(spread > 0) ? std::numeric_limits<double>::infinity() : -(count * sum_ty - sum_t * sum_y) / spread;
+}
+
+}  // namespace
+
+RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scenario, double control_period_s,
+                     double force_limit_n, const VerdictParams& verdict) {
+  RunVerdict out;
+  if (trace.empty()) {
+    out.non_finite = true;
+    return out;
+  }
+  for (const TickRecord& r : trace) {
+    if (r.plant_fault_state != nullptr || !record_finite(r)) out.non_finite = true;
+    if (r.guard_tripped && out.guard_trip_s < 0) out.guard_trip_s = r.time_s;
+  }
+  const ScenarioMetrics metrics = compute_metrics(trace, scenario, control_period_s);
+  out.cost = metrics.cost_true;
+  out.settling_s = metrics.load_settling_time_s;
+  out.slow = scenario.initial_load_displacement_m != 0.0 && !(out.settling_s <= verdict.max_free_vibration_settling_s);
+
+  out.last_to_first_window_cost = last_to_first_window_cost(
+      trace, static_cast<std::size_t>(std::llround(scenario.cost_window_s / control_period_s)));
+
+  // The tail: spring stretch x_L - x_M about its mean; its amplitude and how fast it decays.
+  const std::size_t n = trace.size();
+  const std::size_t tail =
+      std::min<std::size_t>(n, static_cast<std::size_t>(std::llround(verdict.tail_s / control_period_s)));
+  const std::size_t begin = n - tail;
+  std::vector<double> stretch(n);
+  for (std::size_t k = 0; k < n; ++k) stretch[k] = trace[k].load_position_m - trace[k].motor_position_m;
+  double mean = 0;
+  for (std::size_t k = begin; k < n; ++k) mean += stretch[k];
+  mean /= static_cast<double>(std::max<std::size_t>(tail, 1));
+  out.tail_stretch_amplitude_m = std::sqrt(2.0) * rms_about(stretch, begin, n, mean);
   out.tail_decay_rate_per_s =
-      silent || !(spread > 0) ? std::numeric_limits<double>::infinity() : -(count * sum_ty - sum_t * sum_y) / spread;
+      tail_decay_rate_per_s(stretch, begin, static_cast<std::size_t>(verdict.tail_windows), mean, control_period_s);
   out.limit_cycle = std::isfinite(out.tail_stretch_amplitude_m) &&
                     out.tail_stretch_amplitude_m >= verdict.limit_cycle_amplitude_m &&
                     !(out.tail_decay_rate_per_s >= verdict.min_decay_rate_per_s);
@@ -269,20 +279,18 @@ const SweepRun& SweepResult::run(std::size_t plant, std::size_t compensator, std
   return runs.at((plant * compensators.size() + compensator) * scenarios + scenario);
 }
 
-SweepResult run_sweep(const SystemParams& nominal, const SweepSpec& spec, const std::vector<double>& rnn_weights,
-                      unsigned threads, const SweepProgress& progress) {
-  spec.validate(nominal);
+namespace {
+
+// The sweep's plants and its runs in order (plant, compensator, scenario), PI alone first on
+// every plant; the verdicts are filled by the runs.
+SweepResult sweep_layout(const SweepSpec& spec) {
   SweepResult result;
   result.plants = sample_plants(spec);
   result.compensators.push_back(CompensatorKind::kNone);
   for (CompensatorKind kind : spec.compensators) {
     if (kind != CompensatorKind::kNone) result.compensators.push_back(kind);
   }
-  std::vector<SystemParams> variants;
-  variants.reserve(result.plants.size());
-  for (const PlantSample& plant : result.plants) variants.push_back(plant_variant(nominal, spec, plant));
-  if (spec.identify_models) result.identified.resize(variants.size());
-
+  if (spec.identify_models) result.identified.resize(result.plants.size());
   const std::size_t per_plant = result.compensators.size() * spec.scenarios.size();
   result.runs.resize(result.plants.size() * per_plant);
   for (std::size_t i = 0; i < result.runs.size(); ++i) {
@@ -290,6 +298,30 @@ SweepResult run_sweep(const SystemParams& nominal, const SweepSpec& spec, const 
     result.runs[i].compensator = (i % per_plant) / spec.scenarios.size();
     result.runs[i].scenario = i % spec.scenarios.size();
   }
+  return result;
+}
+
+// Each run against PI alone on its plant and scenario: the cost ratio, and passed when clean and
+// cheaper (PI alone passes by definition).
+void compare_with_pi_alone(SweepResult& result) {
+  for (SweepRun& run : result.runs) {
+    const SweepRun& pi = result.run(run.plant, 0, run.scenario);
+    run.cost_ratio_to_pi =
+        pi.verdict.cost > 0 ? run.verdict.cost / pi.verdict.cost : std::numeric_limits<double>::quiet_NaN();
+    const bool clean = run.verdict.faults().empty();
+    run.passed = run.compensator == 0 || (clean && run.verdict.cost < pi.verdict.cost);
+  }
+}
+
+}  // namespace
+
+SweepResult run_sweep(const SystemParams& nominal, const SweepSpec& spec, const std::vector<double>& rnn_weights,
+                      unsigned threads, const SweepProgress& progress) {
+  spec.validate(nominal);
+  SweepResult result = sweep_layout(spec);
+  std::vector<SystemParams> variants;
+  variants.reserve(result.plants.size());
+  for (const PlantSample& plant : result.plants) variants.push_back(plant_variant(nominal, spec, plant));
 
   // Commissioning first (every plant's identification), then the runs: one pool, two phases.
   const std::size_t commissioning = spec.identify_models ? variants.size() : 0;
@@ -355,14 +387,7 @@ SweepResult run_sweep(const SystemParams& nominal, const SweepSpec& spec, const 
   work();
   for (std::thread& t : pool) t.join();
   if (failure) std::rethrow_exception(failure);
-
-  for (SweepRun& run : result.runs) {
-    const SweepRun& pi = result.run(run.plant, 0, run.scenario);
-    run.cost_ratio_to_pi =
-        pi.verdict.cost > 0 ? run.verdict.cost / pi.verdict.cost : std::numeric_limits<double>::quiet_NaN();
-    const bool clean = run.verdict.faults().empty();
-    run.passed = run.compensator == 0 || (clean && run.verdict.cost < pi.verdict.cost);
-  }
+  compare_with_pi_alone(result);
   return result;
 }
 
