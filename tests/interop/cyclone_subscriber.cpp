@@ -20,6 +20,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <deque>
 #include <string>
 #include <vector>
 
@@ -242,7 +243,8 @@ struct Options {
   std::string cyclone_config;  // empty: Cyclone's defaults, or CYCLONEDDS_URI if set
   bool answer = false;         // answer MotorFeedback with ForceCommand
   double answer_force_n = 0.0;
-  bool bad_answers = false;  // malformed commands before some answers (see the top)
+  bool bad_answers = false;       // malformed commands before some answers (see the top)
+  bool ros2_default_qos = false;  // read as a ROS 2 subscriber with default QoS does
 };
 
 void print_usage(std::FILE* to) {
@@ -250,6 +252,7 @@ void print_usage(std::FILE* to) {
                "usage: cyclone_subscriber --topic NAME [--topic NAME ...] --count K --out FILE.csv\n"
                "                          [--domain N] [--timeout-s T] [--linger-s T]\n"
                "                          [--cyclone-config XML] [--answer-force-n F [--bad-answers]]\n"
+               "                          [--ros2-default-qos]\n"
                "  --topic NAME         one of our topics, short (motor_feedback) or DDS name\n"
                "                       (rt/pmlsm/motor_feedback); repeatable\n"
                "  --count K            exit 0 once every topic got K samples\n"
@@ -266,6 +269,8 @@ void print_usage(std::FILE* to) {
                "                       ForceCommand of force (-1)^k * F (needs --topic motor_feedback)\n"
                "  --bad-answers        before the answer to every tick k with k %% 7 == 3, send a command\n"
                "                       for tick k + 1000 (999 N) and one for tick k with a NaN force\n"
+               "  --ros2-default-qos   read with ROS 2's default subscriber QoS (reliable, volatile,\n"
+               "                       keep last 10), as `ros2 topic echo` does\n"
                "topics:");
   for (const TopicKind& kind : kTopicKinds) std::fprintf(to, " %s", kind.short_name);
   std::fputc('\n', to);
@@ -305,6 +310,10 @@ std::string parse_options(int argc, char** argv, Options& opt, bool& help) {
     }
     if (arg == "--bad-answers") {  // a flag: no value
       opt.bad_answers = true;
+      continue;
+    }
+    if (arg == "--ros2-default-qos") {
+      opt.ros2_default_qos = true;
       continue;
     }
     if (!is_option(arg)) return (arg.rfind("-", 0) == 0 ? "unknown option '" : "unexpected argument '") + arg + "'";
@@ -367,9 +376,19 @@ std::string parse_options(int argc, char** argv, Options& opt, bool& help) {
 // which means XCDR1). Cyclone 0.10 offers XCDR1 for our @final types by default as well, but the
 // choice is pinned here rather than left to a default: in XCDR2 a double is aligned to 4 bytes,
 // not 8, so every message would decode differently.
-dds_qos_t* make_qos(bool writer) {
+//
+// With ros2_default: the reader QoS of a ROS 2 subscriber that asks for nothing (rmw's default
+// profile: reliable, volatile, keep last 10), which our writers must serve as they are.
+dds_qos_t* make_qos(bool writer, bool ros2_default = false) {
   dds_qos_t* qos = dds_create_qos();
   dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+  if (ros2_default) {
+    dds_qset_durability(qos, DDS_DURABILITY_VOLATILE);
+    dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 10);
+    const dds_data_representation_id_t xcdr1 = DDS_DATA_REPRESENTATION_XCDR1;
+    dds_qset_data_representation(qos, 1, &xcdr1);
+    return qos;
+  }
   dds_qset_durability(qos, DDS_DURABILITY_TRANSIENT_LOCAL);
   if (writer) {
     dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 4096);  // as pmlsm_control's writers
@@ -476,9 +495,10 @@ class Program {
     if (participant_ < 0) return dds_error("cannot create the participant", participant_);
     waitset_ = dds_create_waitset(participant_);
     if (waitset_ < 0) return dds_error("cannot create the waitset", waitset_);
-    dds_qos_t* reader_qos = make_qos(false);
+    dds_qos_t* reader_qos = make_qos(false, opt_.ros2_default_qos);
     for (const TopicKind* kind : opt_.topics) {
-      const dds_entity_t topic = dds_create_topic(participant_, kind->descriptor, kind->dds_name, nullptr, nullptr);
+      const dds_entity_t topic =
+          dds_create_topic(participant_, ros2_named(kind->descriptor), kind->dds_name, nullptr, nullptr);
       if (topic < 0) {
         dds_delete_qos(reader_qos);
         return dds_error((std::string("cannot create topic ") + kind->dds_name).c_str(), topic);
@@ -502,8 +522,8 @@ class Program {
     }
     dds_delete_qos(reader_qos);
     if (opt_.answer) {
-      const dds_entity_t topic =
-          dds_create_topic(participant_, &pmlsm_msgs_msg_ForceCommand_desc, "rt/pmlsm/force_command", nullptr, nullptr);
+      const dds_entity_t topic = dds_create_topic(participant_, ros2_named(&pmlsm_msgs_msg_ForceCommand_desc),
+                                                  "rt/pmlsm/force_command", nullptr, nullptr);
       if (topic < 0) return dds_error("cannot create topic rt/pmlsm/force_command", topic);
       dds_qos_t* writer_qos = make_qos(true);
       answer_writer_ = dds_create_writer(participant_, topic, writer_qos, nullptr);
@@ -605,6 +625,21 @@ class Program {
 
   const Options& opt_;
   std::FILE* out_ = nullptr;
+  // idlc names a type as its IDL does ("pmlsm_msgs::msg::MotorFeedback"); on the wire our types
+  // carry ROS 2's name for it ("pmlsm_msgs::msg::dds_::MotorFeedback_", ros2/design "Topic and
+  // Service name mapping to DDS"), so this reader uses a copy of idlc's descriptor renamed so.
+  // The copies and their names live as long as the program (deque: stable addresses).
+  const dds_topic_descriptor_t* ros2_named(const dds_topic_descriptor_t* idlc) {
+    const std::string idl_name = idlc->m_typename;
+    const auto last = idl_name.rfind("::");
+    ros2_names_.push_back(idl_name.substr(0, last) + "::dds_::" + idl_name.substr(last + 2) + "_");
+    ros2_descriptors_.push_back(*idlc);
+    ros2_descriptors_.back().m_typename = ros2_names_.back().c_str();
+    return &ros2_descriptors_.back();
+  }
+
+  std::deque<std::string> ros2_names_;
+  std::deque<dds_topic_descriptor_t> ros2_descriptors_;
   dds_entity_t domain_ = 0;
   dds_entity_t participant_ = 0;
   dds_entity_t waitset_ = 0;

@@ -252,6 +252,35 @@ TEST(CycloneController, FastDdsPlantRunsInLockstepOnCycloneCommands) {
   if (!HasFailure()) fs::remove_all(dir);
 }
 
+// A ROS 2 subscriber that asks for nothing (`ros2 topic echo`): the reader QoS rmw gives it by
+// default (reliable, volatile, keep last 10) and ROS 2's DDS type names, which our writers
+// register (pmlsm/dds/ros2_names.hpp). It matches our writers as they are and gets every tick of
+// a lockstep run (the plant waits for each answer, so no sample is pushed out of its history).
+TEST(CycloneController, AReaderWithRos2DefaultQosMatchesOurWritersUnderRos2TypeNames) {
+  const std::string scenario = source("configs/scenarios/pulse.yaml");
+  const std::uint64_t ticks = 2000;
+  const fs::path dir = test::fresh_dir("pmlsm_interop", "ros2_qos");
+  const std::string domain = test_domain(24);
+  const fs::path csv = dir / "cyclone.csv";
+  test::ChildProcess cyclone(cyclone_args(domain, {"motor_feedback", "plant_truth"}, ticks, csv,
+                                          {"--answer-force-n", "20", "--ros2-default-qos"}),
+                             (dir / "cyclone.log").string());
+  ASSERT_TRUE(cyclone.wait_for_output("readers ready", 20s)) << cyclone.output();
+  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "1"}), (dir / "plant.log").string());
+  for (auto* p : {&plant, &cyclone}) {
+    const auto code = p->wait_for(60s);
+    ASSERT_TRUE(code.has_value()) << "still running:\n" << p->output();
+    EXPECT_EQ(*code, 0) << p->output();
+  }
+  EXPECT_NE(cyclone.output().find("answered 2000 ticks"), std::string::npos) << cyclone.output();
+  const auto topics = read_cyclone_csv(csv);
+  for (const char* topic : {"motor_feedback", "plant_truth"}) {
+    ASSERT_EQ(topics.count(topic), 1u) << topic << " missing in " << csv;
+    expect_consecutive_ticks(topic, topics.at(topic), ticks);
+  }
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
 // Bad input on the wire, from another vendor's writer: before some answers the Cyclone controller
 // sends a command for a tick not yet published (999 N) and one with a NaN force. The realtime
 // plant must reject and count both and never apply either; the genuine answers still drive it.

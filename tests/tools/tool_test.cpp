@@ -330,7 +330,8 @@ TEST(Topic, ListEchoHzDelayOnARealtimeLoop) {
 
   EXPECT_EQ(run_to_end(list), 0) << list.output();
   const std::string l = list.output();
-  EXPECT_NE(l.find("/pmlsm/motor_feedback [pmlsm_msgs::msg::MotorFeedback]  writers: 1"), std::string::npos) << l;
+  EXPECT_NE(l.find("/pmlsm/motor_feedback [pmlsm_msgs::msg::dds_::MotorFeedback_]  writers: 1"), std::string::npos)
+      << l;
   EXPECT_NE(l.find("writer plant_sim  reliable, transient-local"), std::string::npos) << l;
   EXPECT_NE(l.find("reader controller"), std::string::npos) << l;
 

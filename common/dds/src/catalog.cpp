@@ -1,4 +1,5 @@
 #include "pmlsm/dds/catalog.hpp"
+#include "pmlsm/dds/ros2_names.hpp"
 
 #include <fastdds/dds/topic/TopicDataType.hpp>
 
@@ -56,7 +57,8 @@ std::vector<CatalogEntry> make_catalog() {
   std::vector<CatalogEntry> entries;
   for_each_topic([&entries](const auto& topic) {
     const typename std::decay_t<decltype(topic)>::Type type;  // its registered name and size bound, as nodes use them
-    entries.push_back(CatalogEntry{topic, type.getName(), schema_of(short_name_of(type.getName())), type.m_typeSize});
+    entries.push_back(CatalogEntry{topic, type.getName(), ros2_type_name(type.getName()),
+                                   schema_of(short_name_of(type.getName())), type.m_typeSize});
   });
   return entries;
 }

@@ -1,4 +1,5 @@
 #include "pmlsm/dds/participant.hpp"
+#include "pmlsm/dds/ros2_names.hpp"
 
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 
@@ -234,7 +235,8 @@ Participant::QueueShape Participant::queue_shape(eprosima::fastdds::dds::DataRea
 }
 
 eprosima::fastdds::dds::Topic* Participant::create_topic(const std::string& name,
-                                                         eprosima::fastdds::dds::TypeSupport type) {
+                                                         eprosima::fastdds::dds::TypeSupport type, bool ros2_name) {
+  if (ros2_name) type->setName(ros2_type_name(type->getName()).c_str());
   if (type.register_type(participant_) != ReturnCode::RETCODE_OK) {
     throw std::runtime_error("cannot register type '" + type.get_type_name() + "'");
   }
@@ -248,8 +250,8 @@ Reader<RawPubSubType> Participant::make_raw_reader(const CatalogEntry& entry, Wa
   auto found = topics_.find(entry.spec.name);
   auto* topic = found != topics_.end()
                     ? found->second
-                    : create_topic(entry.spec.name, eprosima::fastdds::dds::TypeSupport(
-                                                        new RawPubSubType(entry.type_name, entry.max_serialized_size)));
+                    : create_topic(entry.spec.name, eprosima::fastdds::dds::TypeSupport(new RawPubSubType(
+                                                        entry.wire_type_name, entry.max_serialized_size)));
   return Reader<RawPubSubType>(
       create_reader(topic, qos_profile != nullptr ? qos_profile : entry.spec.qos_profile, wakeup));
 }
@@ -258,8 +260,8 @@ Writer<RawPubSubType> Participant::make_raw_writer(const CatalogEntry& entry, co
   auto found = topics_.find(entry.spec.name);
   auto* topic = found != topics_.end()
                     ? found->second
-                    : create_topic(entry.spec.name, eprosima::fastdds::dds::TypeSupport(
-                                                        new RawPubSubType(entry.type_name, entry.max_serialized_size)));
+                    : create_topic(entry.spec.name, eprosima::fastdds::dds::TypeSupport(new RawPubSubType(
+                                                        entry.wire_type_name, entry.max_serialized_size)));
   return Writer<RawPubSubType>(create_writer(topic, qos_profile != nullptr ? qos_profile : entry.spec.qos_profile));
 }
 

@@ -15,7 +15,8 @@ namespace pmlsm::dds {
 
 struct CatalogEntry {
   TopicSpec spec;                         // DDS topic name ("rt/pmlsm/...") and its QoS profile
-  std::string type_name;                  // registered DDS type name, e.g. "pmlsm_msgs::msg::MotorFeedback"
+  std::string type_name;                  // IDL type name, e.g. "pmlsm_msgs::msg::MotorFeedback"
+  std::string wire_type_name;             // registered DDS type name: ROS 2's (ros2_names.hpp)
   std::string schema_idl;                 // flattened IDL text defining type_name
   std::uint32_t max_serialized_size = 0;  // bound of one sample's CDR, encapsulation included [bytes]
 };

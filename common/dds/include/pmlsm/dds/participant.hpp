@@ -310,9 +310,12 @@ class Participant {
     auto found = topics_.find(spec.name);
     if (found != topics_.end()) return found->second;
     eprosima::fastdds::dds::TypeSupport type(new PubSubType());  // TypeSupport owns it
-    return create_topic(spec.name, type);
+    return create_topic(spec.name, type, /*ros2_name=*/true);
   }
-  eprosima::fastdds::dds::Topic* create_topic(const std::string& name, eprosima::fastdds::dds::TypeSupport type);
+  /// Registers the type (under ROS 2's name for it when ros2_name: a generated type carries its
+  /// IDL name) and creates the topic.
+  eprosima::fastdds::dds::Topic* create_topic(const std::string& name, eprosima::fastdds::dds::TypeSupport type,
+                                              bool ros2_name = false);
   eprosima::fastdds::dds::DataWriter* create_writer(eprosima::fastdds::dds::Topic* topic, const std::string& profile,
                                                     eprosima::fastdds::dds::DataWriterListener* listener = nullptr);
   /// TRANSIENT_LOCAL with a history of one: the newest sample is state a late joiner must get.
