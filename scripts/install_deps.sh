@@ -29,6 +29,7 @@ packages=(
   libssl-dev openssl              # DDS Security keystores: keys, certificates, S/MIME signatures (pmlsm security)
   clang-14 libclang-rt-14-dev     # libFuzzer and the sanitizer runtimes for clang (bench/fuzz.sh)
   clang-format-14                 # the code style (.clang-format; the test code_format)
+  clang-tidy-14                   # function size and naming (.clang-tidy; scripts/tidy.sh, run by CI)
   debootstrap                     # a clean Debian root for the package test (scripts/deb_clean_root.sh)
 )
 # Node.js and npm run the third-party readers in the tests (@mcap/core, @foxglove/* from npm).
