@@ -3,8 +3,10 @@
 // them (schema = the flattened IDL, encoding "omgidl", messages in CDR from the fastddsgen types),
 // with values check_node_decode.cmake compares after decoding.
 //
-//   mcap_write_cdr_sample COMPRESSION OUTPUT TRUNCATED_OUTPUT
+//   mcap_write_cdr_sample COMPRESSION OUTPUT TRUNCATED_OUTPUT [omgidl|ros2]
 //
+// The last argument picks the profile, as `pmlsm record --profile` does: omgidl (the default)
+// or ros2 (ros2msg schemas, the header's profile "ros2"); the messages are the same bytes.
 // TRUNCATED_OUTPUT is OUTPUT cut in the middle of its fifth chunk, as a killed recorder leaves it.
 
 #include <fastdds/rtps/common/SerializedPayload.h>
@@ -208,10 +210,11 @@ std::map<std::string, Generator> generators() {
   };
 }
 
-int run(const std::string& compression_name, const std::string& output, const std::string& truncated_output) {
+int run(const std::string& compression_name, const std::string& output, const std::string& truncated_output,
+        pmlsm::dds::RecordingProfile profile) {
   pmlsm::mcap::WriterOptions options;
   options.compression = pmlsm::mcap::parse_compression(compression_name);
-  options.profile = "";
+  options.profile = profile == pmlsm::dds::RecordingProfile::kRos2 ? "ros2" : "";
   pmlsm::mcap::Writer writer(output, options);
 
   const std::map<std::string, Generator> make = generators();
@@ -227,7 +230,8 @@ int run(const std::string& compression_name, const std::string& output, const st
       std::fprintf(stderr, "mcap_write_cdr_sample: no sample for %s; add one\n", entry.type_name.c_str());
       return 1;
     }
-    const std::uint16_t schema_id = writer.add_schema(entry.type_name, "omgidl", entry.schema_idl);
+    const pmlsm::dds::RecordedSchema schema = pmlsm::dds::recorded_schema(entry, profile);
+    const std::uint16_t schema_id = writer.add_schema(schema.name, schema.encoding, schema.data);
     const std::string topic = pmlsm::dds::display_name(entry.spec.name);
     const std::uint16_t channel_id = writer.add_channel(schema_id, topic, "cdr");
     topics.push_back(
@@ -268,12 +272,12 @@ int run(const std::string& compression_name, const std::string& output, const st
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc != 4) {
-    std::fprintf(stderr, "usage: %s none|zstd|lz4 OUTPUT.mcap TRUNCATED_OUTPUT.mcap\n", argv[0]);
+  if (argc != 4 && argc != 5) {
+    std::fprintf(stderr, "usage: %s none|zstd|lz4 OUTPUT.mcap TRUNCATED_OUTPUT.mcap [omgidl|ros2]\n", argv[0]);
     return 2;
   }
   try {
-    return run(argv[1], argv[2], argv[3]);
+    return run(argv[1], argv[2], argv[3], pmlsm::dds::recording_profile_from_string(argc == 5 ? argv[4] : "omgidl"));
   } catch (const std::exception& error) {
     std::fprintf(stderr, "mcap_write_cdr_sample: %s\n", error.what());
     return 1;

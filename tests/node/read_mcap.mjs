@@ -1,7 +1,8 @@
 #!/usr/bin/env node
 // Third-party check of our MCAP recordings: opens FILE with @mcap/core, the library Foxglove and
-// most MCAP tools use, and decodes EVERY message from its channel's schema with the Foxglove OMG
-// IDL parser and CDR reader. Our own reader cannot prove the files are valid MCAP; this can.
+// most MCAP tools use, and decodes EVERY message from its channel's schema: an omgidl schema with
+// the Foxglove OMG IDL parser and CDR reader, a ros2msg schema (the ros2 profile) with Foxglove's
+// ROS 2 message parser and CDR reader. Our own reader cannot prove the files are valid MCAP; this can.
 //
 //   node read_mcap.mjs FILE [--expect-topic TOPIC ...] [--min-messages N] [--allow-truncated]
 //                           [--print-first TOPIC ...]
@@ -17,6 +18,8 @@ import { open, readFile } from "node:fs/promises";
 import { McapIndexedReader, McapStreamReader } from "@mcap/core";
 import { parseIDL } from "@foxglove/omgidl-parser";
 import { MessageReader } from "@foxglove/omgidl-serialization";
+import { parse as parseRosMsg } from "@foxglove/rosmsg";
+import { MessageReader as Ros2MessageReader } from "@foxglove/rosmsg2-serialization";
 import { decompress as zstdDecompress } from "fzstd";
 import { decompress as lz4Decompress } from "lz4js";
 
@@ -108,11 +111,15 @@ class Checker {
       }
       const schema = this.schemas.get(channel.schemaId);
       if (schema === undefined) throw new Error(`channel ${channel.topic}: schema ${channel.schemaId} is missing`);
-      if (schema.encoding !== "omgidl") {
-        throw new Error(`schema ${schema.name}: encoding '${schema.encoding}', not 'omgidl'`);
+      const text = new TextDecoder().decode(schema.data);
+      if (schema.encoding === "omgidl") {
+        decoder = new MessageReader(schema.name, parseIDL(text));
+      } else if (schema.encoding === "ros2msg") {
+        // MCAP's ros2 profile: the .msg definition with its dependencies, as rosbag2 writes it.
+        decoder = new Ros2MessageReader(parseRosMsg(text, { ros2: true }));
+      } else {
+        throw new Error(`schema ${schema.name}: encoding '${schema.encoding}', not 'omgidl' or 'ros2msg'`);
       }
-      const definitions = parseIDL(new TextDecoder().decode(schema.data));
-      decoder = new MessageReader(schema.name, definitions);
     } catch (error) {
       decoder = new Error(`cannot build a decoder for channel ${channelId}: ${error.message}`);
       this.error(decoder.message);

@@ -1,5 +1,6 @@
 #include "pmlsm/dds/catalog.hpp"
 #include "pmlsm/dds/ros2_names.hpp"
+#include "pmlsm/introspect/ros2_msg.hpp"
 
 #include <fastdds/dds/topic/TopicDataType.hpp>
 
@@ -57,8 +58,10 @@ std::vector<CatalogEntry> make_catalog() {
   std::vector<CatalogEntry> entries;
   for_each_topic([&entries](const auto& topic) {
     const typename std::decay_t<decltype(topic)>::Type type;  // its registered name and size bound, as nodes use them
-    entries.push_back(CatalogEntry{topic, type.getName(), ros2_type_name(type.getName()),
-                                   schema_of(short_name_of(type.getName())), type.m_typeSize});
+    const std::string idl = schema_of(short_name_of(type.getName()));
+    const InterfaceName name = interface_name(type.getName());
+    entries.push_back(CatalogEntry{topic, type.getName(), ros2_type_name(type.getName()), idl,
+                                   introspect::ros2_message_definition(idl, name.package, name.type), type.m_typeSize});
   });
   return entries;
 }
@@ -97,6 +100,44 @@ std::string known_topics_list() {
   std::string out;
   for (const auto& e : catalog()) out += "  " + display_name(e.spec.name) + "  (" + e.type_name + ")\n";
   return out;
+}
+
+RecordingProfile recording_profile_from_string(const std::string& text) {
+  if (text == "omgidl") return RecordingProfile::kOmgIdl;
+  if (text == "ros2") return RecordingProfile::kRos2;
+  throw std::invalid_argument("unknown recording profile '" + text + "' (omgidl or ros2)");
+}
+
+RecordedSchema recorded_schema(const CatalogEntry& entry, RecordingProfile profile) {
+  if (profile == RecordingProfile::kRos2) {
+    return {ros2_interface_path(entry.type_name), "ros2msg", entry.ros2_definition};
+  }
+  return {entry.type_name, "omgidl", entry.schema_idl};
+}
+
+const CatalogEntry* recorded_entry(const std::string& topic, const RecordedSchema& schema, std::string& why) {
+  const CatalogEntry* entry = find_topic(topic);
+  if (entry == nullptr) {
+    why = "not a project topic";
+    return nullptr;
+  }
+  if (schema.encoding != "omgidl" && schema.encoding != "ros2msg") {
+    why = "schema encoding '" + schema.encoding + "' (a recording of ours has omgidl or ros2msg)";
+    return nullptr;
+  }
+  const RecordedSchema expected =
+      recorded_schema(*entry, schema.encoding == "ros2msg" ? RecordingProfile::kRos2 : RecordingProfile::kOmgIdl);
+  if (schema.name != expected.name) {
+    why = "schema '" + schema.name + "', but the topic carries " + expected.name;
+    return nullptr;
+  }
+  // An omgidl schema of an older build may differ in comments or added types and still decode
+  // (the decoders read it); a ros2msg definition is ROS 2's contract and must be ours.
+  if (schema.encoding == "ros2msg" && schema.data != expected.data) {
+    why = "its ros2msg definition of " + schema.name + " differs from this build's";
+    return nullptr;
+  }
+  return entry;
 }
 
 }  // namespace pmlsm::dds

@@ -13,10 +13,12 @@
 #include <deque>
 #include <limits>
 #include <map>
+#include <sstream>
 #include <string_view>
 #include <utility>
 
 #include "pmlsm/introspect/cdr_schema.hpp"
+#include "pmlsm/introspect/ros2_msg.hpp"
 
 namespace pmlsm::introspect {
 // Named rather than anonymous: MessageSchema::Impl holds these types, and a class with linkage
@@ -224,6 +226,15 @@ struct Symbol {
   std::optional<std::int64_t> integer;  // for constants whose value is an integer expression
 };
 
+/// A constant as declared, for the ROS 2 message files (ros2_message_files).
+struct DeclaredConstant {
+  std::string scoped_name;
+  const TypeNode* type = nullptr;
+  std::optional<std::int64_t> integer;
+  std::string text;  ///< the value's tokens, literals re-quoted
+  int line = 0;
+};
+
 struct Annotation {
   std::string name;
   std::size_t args_begin = 0;  // token range inside the parentheses (empty when none)
@@ -260,6 +271,9 @@ class Parser {
     if (found == symbols_.end() || found->second.what != Symbol::What::Type) return nullptr;
     return found->second.type->kind == Kind::Struct ? found->second.type : nullptr;
   }
+
+  const std::vector<std::string>& struct_names() const { return struct_names_; }
+  const std::vector<DeclaredConstant>& constants() const { return constants_; }
 
   std::string struct_list() const {
     std::string list;
@@ -650,6 +664,12 @@ class Parser {
     // Only integer constants matter (as bounds); others (strings, floats) are just declared.
     std::optional<std::int64_t> integer;
     if (is_integer_kind(type->kind)) integer = evaluate(begin, end, 0);
+    std::string text;
+    for (std::size_t i = begin; i < end; ++i) {
+      const Token& t = tokens_[i];
+      text += t.kind == TokenKind::Literal ? "\"" + t.text + "\"" : t.text;
+    }
+    constants_.push_back(DeclaredConstant{scoped(name), type, integer, text, name_token.line});
     define(name, name_token, Symbol{Symbol::What::Constant, nullptr, integer});
   }
 
@@ -784,9 +804,10 @@ class Parser {
   std::vector<Token> tokens_;
   std::size_t pos_ = 0;
   std::deque<TypeNode>& nodes_;
-  std::vector<std::string> scope_;         // enclosing modules
-  std::map<std::string, Symbol> symbols_;  // by scoped name without leading "::"
-  std::vector<std::string> struct_names_;  // in definition order, for "unknown type" errors
+  std::vector<std::string> scope_;           // enclosing modules
+  std::map<std::string, Symbol> symbols_;    // by scoped name without leading "::"
+  std::vector<std::string> struct_names_;    // in definition order, for "unknown type" errors
+  std::vector<DeclaredConstant> constants_;  // in definition order
   std::array<const TypeNode*, kKindCount> primitives_{};
   int nesting_ = 0;
 };
@@ -1111,6 +1132,187 @@ Decoded MessageSchema::decode(const std::uint8_t* data, std::size_t size) const 
     decoded.error = std::string("decoding stopped: ") + error.what();
   }
   return decoded;
+}
+
+}  // namespace pmlsm::introspect
+
+// ------------------------------------------------------------------------------ ROS 2 .msg files
+
+namespace pmlsm::introspect {
+namespace {
+
+using schema_detail::DeclaredConstant;
+using schema_detail::Kind;
+using schema_detail::TypeNode;
+
+// rosidl's field and constant names (rosidl_adapter/parser.py): fields lower case with single
+// underscores inside, constants upper case.
+bool is_ros2_field_name(const std::string& name) {
+  if (name.empty() || !(name[0] >= 'a' && name[0] <= 'z') || name.back() == '_') return false;
+  for (std::size_t i = 0; i < name.size(); ++i) {
+    const char c = name[i];
+    if (!((c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_')) return false;
+    if (c == '_' && name[i - 1] == '_') return false;
+  }
+  return true;
+}
+
+bool is_ros2_constant_name(const std::string& name) {
+  if (name.empty() || !(name[0] >= 'A' && name[0] <= 'Z')) return false;
+  for (const char c : name) {
+    if (!((c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_')) return false;
+  }
+  return true;
+}
+
+const char* ros2_primitive(Kind kind) {
+  switch (kind) {
+    case Kind::Boolean: return "bool";
+    case Kind::Char: return "char";
+    case Kind::Int8: return "int8";
+    case Kind::UInt8: return "uint8";
+    case Kind::Int16: return "int16";
+    case Kind::UInt16: return "uint16";
+    case Kind::Int32: return "int32";
+    case Kind::UInt32: return "uint32";
+    case Kind::Int64: return "int64";
+    case Kind::UInt64: return "uint64";
+    case Kind::Float: return "float32";
+    case Kind::Double: return "float64";
+    default: return nullptr;
+  }
+}
+
+class Ros2MsgWriter {
+ public:
+  explicit Ros2MsgWriter(std::string package) : module_(std::move(package) + "::msg::") {}
+
+  /// The .msg type of a member's type: IDL string<N> is string<=N, sequence<T, N> is T[<=N],
+  /// T name[N] is T[N], a struct of this package its name.
+  std::string type_of(const TypeNode& type, const std::string& where) const {
+    if (const char* primitive = ros2_primitive(type.kind)) return primitive;
+    switch (type.kind) {
+      case Kind::String: return type.length > 0 ? "string<=" + std::to_string(type.length) : "string";
+      case Kind::Sequence:
+        return element_of(*type.element, where) + (type.length > 0 ? "[<=" + std::to_string(type.length) + "]" : "[]");
+      case Kind::Array: return element_of(*type.element, where) + "[" + std::to_string(type.length) + "]";
+      case Kind::Struct: return message_name(type.name, where);
+      case Kind::Enum: refuse(where, "an enum ('" + type.name + "'): a ROS 2 message has none; use an integer");
+      default: refuse(where, "a type a ROS 2 message cannot hold");
+    }
+  }
+
+  /// "pmlsm_msgs::msg::Stamp" -> "Stamp"; a struct outside the package's msg module is refused.
+  std::string message_name(const std::string& scoped, const std::string& where) const {
+    if (scoped.compare(0, module_.size(), module_) != 0 || scoped.find("::", module_.size()) != std::string::npos) {
+      refuse(where, "'" + scoped + "' is not a message of " + module_.substr(0, module_.size() - 2));
+    }
+    return scoped.substr(module_.size());
+  }
+
+  /// A constant of module <package>::msg::<Name>_Constants: the message it belongs to, or "".
+  std::string owner_of(const DeclaredConstant& c) const {
+    const std::string suffix = "_Constants::";
+    const auto end = c.scoped_name.rfind("::");
+    if (c.scoped_name.compare(0, module_.size(), module_) != 0 || end < suffix.size()) return "";
+    const std::string module = c.scoped_name.substr(module_.size(), end + 2 - module_.size());
+    if (module.size() <= suffix.size() || module.compare(module.size() - suffix.size(), suffix.size(), suffix) != 0) {
+      return "";
+    }
+    return module.substr(0, module.size() - suffix.size());
+  }
+
+  std::string constant_line(const DeclaredConstant& c) const {
+    const std::string name = c.scoped_name.substr(c.scoped_name.rfind("::") + 2);
+    const std::string where = "constant '" + c.scoped_name + "' (IDL line " + std::to_string(c.line) + ")";
+    if (!is_ros2_constant_name(name)) refuse(where, "a ROS 2 constant name is upper case letters, digits and '_'");
+    const char* primitive = ros2_primitive(c.type->kind);
+    if (primitive == nullptr && c.type->kind != Kind::String)
+      refuse(where, "a ROS 2 constant is a primitive or string");
+    const std::string value = c.integer ? std::to_string(*c.integer) : c.text;
+    return std::string(primitive != nullptr ? primitive : "string") + " " + name + "=" + value + "\n";
+  }
+
+  [[noreturn]] static void refuse(const std::string& where, const std::string& what) {
+    throw SchemaError("ROS 2 message: " + where + ": " + what);
+  }
+
+ private:
+  std::string element_of(const TypeNode& element, const std::string& where) const {
+    if (element.kind == Kind::Sequence || element.kind == Kind::Array) {
+      refuse(where, "a list of lists: a ROS 2 message field has one dimension");
+    }
+    return type_of(element, where);
+  }
+
+  std::string module_;
+};
+
+}  // namespace
+
+std::vector<Ros2MessageFile> ros2_message_files(const std::string& idl, const std::string& package) {
+  std::deque<schema_detail::TypeNode> nodes;
+  schema_detail::Parser parser(idl, nodes);
+  parser.parse_specification();
+  const Ros2MsgWriter writer(package);
+  std::vector<Ros2MessageFile> files;
+  for (const std::string& scoped : parser.struct_names()) {
+    const std::string name = writer.message_name(scoped, "struct '" + scoped + "'");
+    Ros2MessageFile file{name, ""};
+    for (const DeclaredConstant& c : parser.constants()) {
+      if (writer.owner_of(c) == name) file.text += writer.constant_line(c);
+    }
+    if (!file.text.empty()) file.text += "\n";
+    for (const auto& member : parser.find_struct(scoped)->members) {
+      const std::string where = "field '" + scoped + "::" + member.name + "'";
+      if (!is_ros2_field_name(member.name)) {
+        Ros2MsgWriter::refuse(where, "a ROS 2 field name is lower case letters, digits and single '_'");
+      }
+      file.text += writer.type_of(*member.type, where) + " " + member.name + "\n";
+    }
+    files.push_back(std::move(file));
+  }
+  for (const DeclaredConstant& c : parser.constants()) {
+    const std::string owner = writer.owner_of(c);
+    const bool owned =
+        std::any_of(files.begin(), files.end(), [&](const Ros2MessageFile& f) { return f.name == owner; });
+    if (!owned) {
+      Ros2MsgWriter::refuse("constant '" + c.scoped_name + "' (IDL line " + std::to_string(c.line) + ")",
+                            "not in a module <Message>_Constants of " + package + "::msg beside its message");
+    }
+  }
+  return files;
+}
+
+std::string ros2_message_definition(const std::string& idl, const std::string& package, const std::string& name) {
+  const std::vector<Ros2MessageFile> files = ros2_message_files(idl, package);
+  const auto file_of = [&](const std::string& n) -> const Ros2MessageFile* {
+    for (const Ros2MessageFile& f : files) {
+      if (f.name == n) return &f;
+    }
+    return nullptr;
+  };
+  const Ros2MessageFile* root = file_of(name);
+  if (root == nullptr) throw SchemaError("ROS 2 message: no message '" + name + "' in the IDL");
+  // The messages it uses, each once, in the order first met (depth first): the root's text, then
+  // "MSG: <package>/<Name>" blocks, as rosbag2 stores a definition (MCAP's ros2msg profile).
+  std::vector<std::string> order{name};
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    std::istringstream lines(file_of(order[i])->text);
+    for (std::string line; std::getline(lines, line);) {
+      // "Type[<=8] name" is a field; "uint8 NAME=1" a constant ('=' after the type).
+      const std::size_t space = line.find(' ');
+      if (space == std::string::npos || line.find('=', space) != std::string::npos) continue;
+      const std::string used = line.substr(0, std::min(space, line.find_first_of("[<")));
+      if (file_of(used) == nullptr) continue;
+      if (std::find(order.begin(), order.end(), used) == order.end()) order.push_back(used);
+    }
+  }
+  std::string text = root->text;
+  for (std::size_t i = 1; i < order.size(); ++i) {
+    text += std::string(80, '=') + "\nMSG: " + package + "/" + order[i] + "\n" + file_of(order[i])->text;
+  }
+  return text;
 }
 
 }  // namespace pmlsm::introspect
