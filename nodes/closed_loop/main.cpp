@@ -23,80 +23,115 @@
 #include "trace_csv.hpp"
 #include "system_file_options.hpp"
 
-int main(int argc, char** argv) {
-  CLI::App app{
-      "In-process closed loop of the PMLSM two-mass system: plant, current loop, "
-      "velocity PI, reference model and Kalman filter, without DDS."};
+namespace {
+
+struct ClosedLoopOptions {
   std::string config_path = pmlsm::data_file("configs/system.yaml");
   std::vector<std::string> scenario_paths;
   std::vector<std::string> overrides_text;
   std::string out_dir = "out";
-  pmlsm::add_system_file_options(app, config_path, overrides_text);
-  app.add_option("-s,--scenario", scenario_paths, "Scenario file(s) (YAML)")->required()->check(CLI::ExistingFile);
-  app.add_option("-o,--out", out_dir, "Folder for the CSV traces");
   std::string compensator = "none";
   std::string weights_path;
   bool online_learning = false;
+};
+
+void add_closed_loop_options(CLI::App& app, ClosedLoopOptions& o) {
+  pmlsm::add_system_file_options(app, o.config_path, o.overrides_text);
+  app.add_option("-s,--scenario", o.scenario_paths, "Scenario file(s) (YAML)")->required()->check(CLI::ExistingFile);
+  app.add_option("-o,--out", o.out_dir, "Folder for the CSV traces");
   app.add_option(
-         "--compensator", compensator,
+         "--compensator", o.compensator,
          "none (PI only), accel (load-acceleration feedback), rnn (the paper's network), state (state feedback with "
          "inverse-model feedforward): one of " +
              pmlsm::compensator_kind_names())
       ->capture_default_str();
-  app.add_option("-w,--weights", weights_path, "RNN weights file (with --compensator rnn)")->check(CLI::ExistingFile);
-  app.add_flag("--online-learning", online_learning, "RNN online learning, eqs. (16)-(19)");
-  CLI11_PARSE(app, argc, argv);
+  app.add_option("-w,--weights", o.weights_path, "RNN weights file (with --compensator rnn)")->check(CLI::ExistingFile);
+  app.add_flag("--online-learning", o.online_learning, "RNN online learning, eqs. (16)-(19)");
+}
+
+/// --compensator, --weights and --online-learning. @throws ConfigError for a bad kind or weights
+/// that do not fit the system.
+pmlsm::CompensatorSetup compensator_setup(const ClosedLoopOptions& o, const pmlsm::SystemParams& params) {
+  pmlsm::CompensatorSetup setup;
+  try {
+    setup.kind = pmlsm::compensator_kind_from_string(o.compensator);
+  } catch (const std::invalid_argument& e) {
+    throw pmlsm::ConfigError(std::string("--compensator: ") + e.what());
+  }
+  setup.online_learning = o.online_learning;
+  if (setup.kind == pmlsm::CompensatorKind::kRnn) {
+    if (o.weights_path.empty()) throw pmlsm::ConfigError("--compensator rnn: needs --weights FILE");
+    const pmlsm::RnnWeightsFile file = pmlsm::load_rnn_weights(o.weights_path);
+    const std::string misfit = pmlsm::rnn_weights_misfit(file, params);
+    if (!misfit.empty()) throw pmlsm::ConfigError(o.weights_path + ": " + misfit + " (" + o.config_path + ")");
+    setup.rnn_weights = file.weights;
+  }
+  return setup;
+}
+
+/// Runs one scenario, writes its trace and prints its row of the results table; false when the
+/// plant diverged (a fault: the run is not valid).
+bool run_scenario(const pmlsm::SystemParams& params, const pmlsm::Scenario& scenario,
+                  const pmlsm::CompensatorSetup& setup, const std::string& out_dir, const std::string& suffix) {
+  const double period = params.timing.control_period_s;
+  const std::vector<pmlsm::TickRecord> trace = pmlsm::run_with_compensator(params, scenario, setup);
+  const auto m = pmlsm::compute_metrics(trace, scenario, period);
+  const std::string csv = out_dir + "/" + scenario.name + suffix + ".csv";
+  pmlsm::write_trace_csv(csv, trace);
+  // A plant that diverged is a fault: its row is marked, the run is not valid.
+  const std::string fault = pmlsm::plant_fault_reason(trace);
+  pmlsm::node::print_results_row(scenario.name + suffix, m, fault);
+  // The vibration guard's verdict: the compensation ran the whole scenario, or from when it was out.
+  const auto trip =
+      std::find_if(trace.begin(), trace.end(), [](const pmlsm::TickRecord& r) { return r.guard_tripped; });
+  if (trip != trace.end()) {
+    std::printf(
+        "  vibration guard: compensation faded out from t = %.3f s (the oscillation grew or did not "
+        "decay); the rest of the run is PI alone\n",
+        trip->time_s);
+  }
+  if (!fault.empty()) {
+    std::fprintf(stderr, "closed_loop: %s: %s: run not valid\n", scenario.name.c_str(), fault.c_str());
+    return false;
+  }
+  return true;
+}
+
+/// Every scenario with the chosen compensator; kExitSafeState when a plant diverged.
+/// @throws ConfigError, std::invalid_argument (parameters refused)
+int run_closed_loop(const ClosedLoopOptions& o) {
+  std::vector<pmlsm::ConfigOverride> overrides;
+  for (const auto& text : o.overrides_text) overrides.push_back(pmlsm::ConfigOverride::parse(text));
+  const pmlsm::SystemParams params = pmlsm::load_system_params(o.config_path, overrides);
+  std::vector<pmlsm::Scenario> scenarios;
+  for (const auto& path : o.scenario_paths) {
+    scenarios.push_back(pmlsm::load_scenario(path, params.timing.control_period_s));
+  }
+  std::filesystem::create_directories(o.out_dir);
+  const pmlsm::CompensatorSetup setup = compensator_setup(o, params);
+  const std::string suffix = o.compensator == "none" ? "" : "_" + o.compensator + (o.online_learning ? "_online" : "");
 
   int exit_code = pmlsm::kExitOk;
+  pmlsm::node::print_results_header();
+  for (const pmlsm::Scenario& scenario : scenarios) {
+    if (!run_scenario(params, scenario, setup, o.out_dir, suffix)) exit_code = pmlsm::kExitSafeState;
+  }
+  pmlsm::node::print_results_footer(o.out_dir);
+  return exit_code;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "In-process closed loop of the PMLSM two-mass system: plant, current loop, "
+      "velocity PI, reference model and Kalman filter, without DDS."};
+  ClosedLoopOptions options;
+  add_closed_loop_options(app, options);
+  CLI11_PARSE(app, argc, argv);
+
   try {
-    std::vector<pmlsm::ConfigOverride> overrides;
-    for (const auto& text : overrides_text) overrides.push_back(pmlsm::ConfigOverride::parse(text));
-    const pmlsm::SystemParams params = pmlsm::load_system_params(config_path, overrides);
-    const double period = params.timing.control_period_s;
-    std::vector<pmlsm::Scenario> scenarios;
-    for (const auto& path : scenario_paths) scenarios.push_back(pmlsm::load_scenario(path, period));
-    std::filesystem::create_directories(out_dir);
-
-    pmlsm::CompensatorSetup setup;
-    try {
-      setup.kind = pmlsm::compensator_kind_from_string(compensator);
-    } catch (const std::invalid_argument& e) {
-      throw pmlsm::ConfigError(std::string("--compensator: ") + e.what());
-    }
-    setup.online_learning = online_learning;
-    if (setup.kind == pmlsm::CompensatorKind::kRnn) {
-      if (weights_path.empty()) throw pmlsm::ConfigError("--compensator rnn: needs --weights FILE");
-      const pmlsm::RnnWeightsFile file = pmlsm::load_rnn_weights(weights_path);
-      const std::string misfit = pmlsm::rnn_weights_misfit(file, params);
-      if (!misfit.empty()) throw pmlsm::ConfigError(weights_path + ": " + misfit + " (" + config_path + ")");
-      setup.rnn_weights = file.weights;
-    }
-    const std::string suffix = compensator == "none" ? "" : "_" + compensator + (online_learning ? "_online" : "");
-
-    pmlsm::node::print_results_header();
-    for (const pmlsm::Scenario& scenario : scenarios) {
-      const std::vector<pmlsm::TickRecord> trace = pmlsm::run_with_compensator(params, scenario, setup);
-      const auto m = pmlsm::compute_metrics(trace, scenario, period);
-      const std::string csv = out_dir + "/" + scenario.name + suffix + ".csv";
-      pmlsm::write_trace_csv(csv, trace);
-      // A plant that diverged is a fault: its row is marked, the run is not valid.
-      const std::string fault = pmlsm::plant_fault_reason(trace);
-      pmlsm::node::print_results_row(scenario.name + suffix, m, fault);
-      // The vibration guard's verdict: the compensation ran the whole scenario, or from when it was out.
-      const auto trip =
-          std::find_if(trace.begin(), trace.end(), [](const pmlsm::TickRecord& r) { return r.guard_tripped; });
-      if (trip != trace.end()) {
-        std::printf(
-            "  vibration guard: compensation faded out from t = %.3f s (the oscillation grew or did not "
-            "decay); the rest of the run is PI alone\n",
-            trip->time_s);
-      }
-      if (!fault.empty()) {
-        std::fprintf(stderr, "closed_loop: %s: %s: run not valid\n", scenario.name.c_str(), fault.c_str());
-        exit_code = pmlsm::kExitSafeState;
-      }
-    }
-    pmlsm::node::print_results_footer(out_dir);
+    return run_closed_loop(options);
   } catch (const pmlsm::ConfigError& e) {
     std::fprintf(stderr, "config error: %s\n", e.what());
     return pmlsm::kExitBadConfig;
@@ -108,5 +143,4 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return pmlsm::kExitError;
   }
-  return exit_code;
 }

@@ -61,20 +61,25 @@ struct Slot {
   std::unique_ptr<node::Component> component;
 };
 
-}  // namespace
-
-ContainerResult run_container(const ContainerOptions& options, const std::vector<ComponentSpec>& specs) {
-  ContainerResult result;
-  dds::FiberScheduler scheduler(options.stack_bytes);
-  dds::LocalBus bus(scheduler);
+/// The slots of `specs`, the chain first (stable among equals: the file's order), so made and
+/// spawned in that order.
+std::vector<Slot> slots_by_priority(const std::vector<ComponentSpec>& specs) {
   std::vector<Slot> slots;
   for (const auto& spec : specs) slots.push_back({spec, &type_of(spec.type), nullptr});
-  // The chain first (stable among equals: the file's order), so made and spawned in that order.
   std::stable_sort(slots.begin(), slots.end(),
                    [](const Slot& a, const Slot& b) { return a.type->priority < b.type->priority; });
+  return slots;
+}
 
-  // Make every component before any runs: a bad one stops the container with nothing running.
-  const node::ComponentContext context{&bus};
+/// In reverse, before the bus and the scheduler.
+void destroy_components(std::vector<Slot>& slots) {
+  for (auto it = slots.rbegin(); it != slots.rend(); ++it) it->component.reset();
+}
+
+/// Makes every component before any runs: a bad one stops the container with nothing running
+/// (those made are destroyed, its exit goes to `result`). False when one was not made.
+bool make_components(const ContainerOptions& options, const node::ComponentContext& context, std::vector<Slot>& slots,
+                     ContainerResult& result) {
   for (auto& slot : slots) {
     std::vector<std::string> args = slot.spec.args;
     std::vector<char*> argv = argv_of(slot.spec.name, args);
@@ -88,35 +93,32 @@ ContainerResult run_container(const ContainerOptions& options, const std::vector
     if (!made) {
       std::fprintf(stderr, "container %s: component %s (%s) was not made: exit %d (%s); nothing runs\n",
                    options.name.c_str(), slot.spec.name.c_str(), slot.spec.type.c_str(), code, exit_code_meaning(code));
-      // Destroyed in reverse, before the bus and the scheduler.
-      for (auto it = slots.rbegin(); it != slots.rend(); ++it) it->component.reset();
+      destroy_components(slots);
       result.exit_code = code;
       result.exits.push_back({slot.spec.name, slot.spec.type, code});
-      return result;
+      return false;
     }
   }
-  // The chain thread's real-time setup, now that every participant and its threads exist.
-  std::optional<node::RealtimeSetup> realtime;
-  if (options.realtime.rt_priority > 0 || options.realtime.cpu_dma_latency_us >= 0) {
-    const int code = node::run_node("container", [&] {
-      realtime.emplace(options.realtime);
-      return 0;
-    });
-    if (code != kExitOk) {
-      for (auto it = slots.rbegin(); it != slots.rend(); ++it) it->component.reset();
-      result.exit_code = code;
-      return result;
-    }
+  return true;
+}
+
+/// The chain thread's real-time setup, when asked for, into `realtime`; the exit code of its failure.
+int set_up_chain_realtime(const ContainerOptions& options, std::optional<node::RealtimeSetup>& realtime) {
+  if (options.realtime.rt_priority <= 0 && options.realtime.cpu_dma_latency_us < 0) return kExitOk;
+  const int code = node::run_node("container", [&] {
+    realtime.emplace(options.realtime);
+    return 0;
+  });
+  if (code == kExitOk) {
     std::printf("container %s: real-time setup of the chain thread: %s\n", options.name.c_str(),
                 realtime->summary().c_str());
   }
-  std::printf("container %s: %zu components on one chain thread:", options.name.c_str(), slots.size());
-  for (const auto& slot : slots) std::printf(" %s", slot.spec.name.c_str());
-  std::printf("\n");
+  return code;
+}
 
-  rusage before{};
-  getrusage(RUSAGE_SELF, &before);
-  const auto wall_start = std::chrono::steady_clock::now();
+/// Each component's loop as a fiber; one that ends is destroyed at once and its exit recorded.
+void spawn_components(dds::FiberScheduler& scheduler, std::vector<Slot>& slots, ContainerResult& result,
+                      const ContainerOptions& options) {
   for (auto& slot : slots) {
     scheduler.spawn(
         slot.spec.name,
@@ -134,13 +136,10 @@ ContainerResult run_container(const ContainerOptions& options, const std::vector
         },
         slot.type->priority);
   }
-  scheduler.run();
-  rusage after{};
-  getrusage(RUSAGE_SELF, &after);
-  result.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
-  result.cpu_user_s = seconds(after.ru_utime) - seconds(before.ru_utime);
-  result.cpu_system_s = seconds(after.ru_stime) - seconds(before.ru_stime);
-  result.switches = scheduler.switches();
+}
+
+/// The CPU the run took, the in-process losses and the first failure, into `result` and printed.
+void report_container_run(const ContainerOptions& options, const dds::LocalBus& bus, ContainerResult& result) {
   std::printf("container %s: CPU %.3f s user + %.3f s system in %.3f s wall (%.3f cores), %llu fiber switches\n",
               options.name.c_str(), result.cpu_user_s, result.cpu_system_s, result.wall_s,
               result.wall_s > 0.0 ? (result.cpu_user_s + result.cpu_system_s) / result.wall_s : 0.0,
@@ -162,6 +161,40 @@ ContainerResult run_container(const ContainerOptions& options, const std::vector
       break;
     }
   }
+}
+
+}  // namespace
+
+ContainerResult run_container(const ContainerOptions& options, const std::vector<ComponentSpec>& specs) {
+  ContainerResult result;
+  dds::FiberScheduler scheduler(options.stack_bytes);
+  dds::LocalBus bus(scheduler);
+  std::vector<Slot> slots = slots_by_priority(specs);
+  const node::ComponentContext context{&bus};
+  if (!make_components(options, context, slots, result)) return result;
+  // The chain thread's real-time setup, now that every participant and its threads exist.
+  std::optional<node::RealtimeSetup> realtime;
+  if (const int code = set_up_chain_realtime(options, realtime); code != kExitOk) {
+    destroy_components(slots);
+    result.exit_code = code;
+    return result;
+  }
+  std::printf("container %s: %zu components on one chain thread:", options.name.c_str(), slots.size());
+  for (const auto& slot : slots) std::printf(" %s", slot.spec.name.c_str());
+  std::printf("\n");
+
+  rusage before{};
+  getrusage(RUSAGE_SELF, &before);
+  const auto wall_start = std::chrono::steady_clock::now();
+  spawn_components(scheduler, slots, result, options);
+  scheduler.run();
+  rusage after{};
+  getrusage(RUSAGE_SELF, &after);
+  result.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  result.cpu_user_s = seconds(after.ru_utime) - seconds(before.ru_utime);
+  result.cpu_system_s = seconds(after.ru_stime) - seconds(before.ru_stime);
+  result.switches = scheduler.switches();
+  report_container_run(options, bus, result);
   return result;
 }
 

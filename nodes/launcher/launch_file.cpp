@@ -272,12 +272,11 @@ std::vector<std::string> string_list(const Location& loc, const YAML::Node& node
   return out;
 }
 
-// One `containers:` entry against the nodes already parsed: replaces its components in
-// `launch.nodes` (when its `if` holds). `taken` collects the nodes already in a container.
-void apply_container(const Location& loc, const YAML::Node& node, const std::string& path,
-                     const std::vector<NodeSpec>& all_nodes, std::set<std::string>& taken, LaunchDescription& launch) {
-  if (!node.IsMap()) loc.fail(node, path, "must be a map with name and components, got " + describe(node));
-  const auto fields = checked_fields(loc, node, path, kContainerKeys);
+using Fields = std::vector<std::pair<std::string, YAML::Node>>;
+
+/// A container's `name`: a valid name that is neither a node's nor the launcher's.
+std::string checked_container_name(const Location& loc, const YAML::Node& node, const Fields& fields,
+                                   const std::string& path, const std::vector<NodeSpec>& all_nodes) {
   const YAML::Node& name_node = require(loc, node, fields, path, "name");
   const std::string name = string_value(loc, name_node, path + ".name");
   if (!matches(name, node_name_char)) {
@@ -287,25 +286,96 @@ void apply_container(const Location& loc, const YAML::Node& node, const std::str
     if (n.name == name) loc.fail(name_node, path + ".name", "'" + name + "' is already the name of a node");
   }
   if (name == "launcher") loc.fail(name_node, path + ".name", "'launcher' is reserved for the launcher's own messages");
-  bool enabled = true;
-  if (const YAML::Node* condition = find(fields, "if")) {
-    const std::string where = loc.at(*condition, path + ".if");
-    enabled =
-        evaluate_condition(substitute_args(string_value(loc, *condition, path + ".if"), launch.args, where), where);
+  return name;
+}
+
+/// The entry's `if` after substitution; true without one.
+bool entry_condition_holds(const Location& loc, const Fields& fields, const std::string& path,
+                           const std::map<std::string, std::string>& args) {
+  const YAML::Node* condition = find(fields, "if");
+  if (condition == nullptr) return true;
+  const std::string where = loc.at(*condition, path + ".if");
+  return evaluate_condition(substitute_args(string_value(loc, *condition, path + ".if"), args, where), where);
+}
+
+/// A left-out container's components are checked all the same: a typo shows whatever the args.
+void check_left_out_components(const Location& loc, const YAML::Node& list, const std::string& path,
+                               const std::vector<std::string>& names, const std::vector<NodeSpec>& all_nodes) {
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    const bool known =
+        std::any_of(all_nodes.begin(), all_nodes.end(), [&](const NodeSpec& n) { return n.name == names[i]; });
+    if (!known) {
+      loc.fail(list[i], path + ".components[" + std::to_string(i) + "]",
+               "'" + names[i] + "' is not a node of this file");
+    }
   }
+}
+
+/// The node a container's component names, checked: in the file and in no other container
+/// (`taken`); when its own `if` holds, without env and named, not a path. nullptr when its own
+/// `if` left it out.
+const NodeSpec* checked_component(const Location& loc, const YAML::Node& item, const std::string& item_path,
+                                  const std::string& name, const std::vector<NodeSpec>& all_nodes,
+                                  std::set<std::string>& taken) {
+  const auto in_file =
+      std::find_if(all_nodes.begin(), all_nodes.end(), [&](const NodeSpec& n) { return n.name == name; });
+  if (in_file == all_nodes.end()) {
+    std::vector<std::string> known;
+    for (const auto& n : all_nodes) known.push_back(n.name);
+    loc.fail(item, item_path, "'" + name + "' is not a node of this file (nodes: " + join(known) + ")");
+  }
+  if (!taken.insert(name).second) loc.fail(item, item_path, "'" + name + "' is already in a container");
+  if (!in_file->enabled) return nullptr;
+  if (!in_file->env.empty()) {
+    loc.fail(item, item_path,
+             "'" + name +
+                 "' sets env: the components of a container share one process's "
+                 "environment; run it alone or move the variables to the launch");
+  }
+  if (in_file->executable.find('/') != std::string::npos) {
+    loc.fail(item, item_path,
+             "'" + name + "' runs '" + in_file->executable +
+                 "': a container makes components by node name (plant_sim, controller, ...), not paths");
+  }
+  return &*in_file;
+}
+
+/// Puts `container` in `launch.nodes` at `first_index` in place of its components, with each
+/// component's command line as its args.
+void replace_components_by_container(LaunchDescription& launch, NodeSpec container, std::size_t first_index) {
+  const auto is_component = [&](const NodeSpec& n) {
+    return std::find(container.components.begin(), container.components.end(), n.name) != container.components.end();
+  };
+  // Each component's command line, in the order of `nodes` (the container sorts the chain itself).
+  for (const auto& n : launch.nodes) {
+    if (!is_component(n)) continue;
+    container.args.push_back("--component");
+    container.args.push_back(n.name);
+    container.args.push_back(n.executable);
+    container.args.insert(container.args.end(), n.args.begin(), n.args.end());
+  }
+  std::vector<NodeSpec> rest;
+  for (std::size_t i = 0; i < launch.nodes.size(); ++i) {
+    if (i == first_index) rest.push_back(container);
+    const auto& n = launch.nodes[i];
+    if (!is_component(n)) rest.push_back(n);
+  }
+  launch.nodes = std::move(rest);
+}
+
+// One `containers:` entry against the nodes already parsed: replaces its components in
+// `launch.nodes` (when its `if` holds). `taken` collects the nodes already in a container.
+void apply_container(const Location& loc, const YAML::Node& node, const std::string& path,
+                     const std::vector<NodeSpec>& all_nodes, std::set<std::string>& taken, LaunchDescription& launch) {
+  if (!node.IsMap()) loc.fail(node, path, "must be a map with name and components, got " + describe(node));
+  const auto fields = checked_fields(loc, node, path, kContainerKeys);
+  const std::string name = checked_container_name(loc, node, fields, path, all_nodes);
+  const bool enabled = entry_condition_holds(loc, fields, path, launch.args);
   const YAML::Node& list = require(loc, node, fields, path, "components");
   const std::vector<std::string> names = string_list(loc, list, path + ".components", launch.args);
   if (names.empty()) loc.fail(list, path + ".components", "must list at least one node");
   if (!enabled) {
-    // Left out, but its names checked all the same: a typo shows whatever the args.
-    for (std::size_t i = 0; i < names.size(); ++i) {
-      const bool known =
-          std::any_of(all_nodes.begin(), all_nodes.end(), [&](const NodeSpec& n) { return n.name == names[i]; });
-      if (!known) {
-        loc.fail(list[i], path + ".components[" + std::to_string(i) + "]",
-                 "'" + names[i] + "' is not a node of this file");
-      }
-    }
+    check_left_out_components(loc, list, path, names, all_nodes);
     launch.left_out.push_back(name);
     return;
   }
@@ -318,43 +388,26 @@ void apply_container(const Location& loc, const YAML::Node& node, const std::str
     const auto more = string_list(loc, *own, path + ".args", launch.args);
     spec.args.insert(spec.args.end(), more.begin(), more.end());
   }
+  const YAML::Node* own_host = find(fields, "host");
   std::optional<std::string> host;
-  if (const YAML::Node* h = find(fields, "host")) host = string_value(loc, *h, path + ".host");
+  if (own_host != nullptr) host = string_value(loc, *own_host, path + ".host");
   std::size_t first_index = launch.nodes.size();
   for (std::size_t i = 0; i < names.size(); ++i) {
     const std::string item_path = path + ".components[" + std::to_string(i) + "]";
-    const auto in_file =
-        std::find_if(all_nodes.begin(), all_nodes.end(), [&](const NodeSpec& n) { return n.name == names[i]; });
-    if (in_file == all_nodes.end()) {
-      std::vector<std::string> known;
-      for (const auto& n : all_nodes) known.push_back(n.name);
-      loc.fail(list[i], item_path, "'" + names[i] + "' is not a node of this file (nodes: " + join(known) + ")");
-    }
-    if (!taken.insert(names[i]).second) loc.fail(list[i], item_path, "'" + names[i] + "' is already in a container");
-    if (!in_file->enabled) continue;  // left out by its own `if`
-    if (!in_file->env.empty()) {
-      loc.fail(list[i], item_path,
-               "'" + names[i] +
-                   "' sets env: the components of a container share one process's "
-                   "environment; run it alone or move the variables to the launch");
-    }
-    if (in_file->executable.find('/') != std::string::npos) {
-      loc.fail(list[i], item_path,
-               "'" + names[i] + "' runs '" + in_file->executable +
-                   "': a container makes components by node name (plant_sim, controller, ...), not paths");
-    }
+    const NodeSpec* component = checked_component(loc, list[i], item_path, names[i], all_nodes, taken);
+    if (component == nullptr) continue;  // left out by its own `if`
     // With its own `host` the container takes its components there; without, they share one.
-    if (!host) host = in_file->host;
-    if (!find(fields, "host") && in_file->host != *host) {
+    if (!host) host = component->host;
+    if (own_host == nullptr && component->host != *host) {
       loc.fail(list[i], item_path,
-               "'" + names[i] + "' is on host " + in_file->host + ", the container on " + *host +
+               "'" + names[i] + "' is on host " + component->host + ", the container on " + *host +
                    ": a container is one process on one host");
     }
     const auto at =
         std::find_if(launch.nodes.begin(), launch.nodes.end(), [&](const NodeSpec& n) { return n.name == names[i]; });
     first_index = std::min(first_index, static_cast<std::size_t>(at - launch.nodes.begin()));
     spec.components.push_back(names[i]);
-    spec.ends_launch = spec.ends_launch || in_file->ends_launch;
+    spec.ends_launch = spec.ends_launch || component->ends_launch;
   }
   if (spec.components.empty()) {
     launch.left_out.push_back(name);  // every component left out by its own `if`
@@ -364,21 +417,7 @@ void apply_container(const Location& loc, const YAML::Node& node, const std::str
   for (const auto& h : launch.hosts) known_host = known_host || h == *host;
   if (!known_host) loc.fail(node, path + ".host", "'" + *host + "' is not among hosts [" + join(launch.hosts) + "]");
   spec.host = *host;
-  // Each component's command line, in the order of `nodes` (the container sorts the chain itself).
-  for (const auto& n : launch.nodes) {
-    if (std::find(spec.components.begin(), spec.components.end(), n.name) == spec.components.end()) continue;
-    spec.args.push_back("--component");
-    spec.args.push_back(n.name);
-    spec.args.push_back(n.executable);
-    spec.args.insert(spec.args.end(), n.args.begin(), n.args.end());
-  }
-  std::vector<NodeSpec> rest;
-  for (std::size_t i = 0; i < launch.nodes.size(); ++i) {
-    if (i == first_index) rest.push_back(spec);
-    const auto& n = launch.nodes[i];
-    if (std::find(spec.components.begin(), spec.components.end(), n.name) == spec.components.end()) rest.push_back(n);
-  }
-  launch.nodes = std::move(rest);
+  replace_components_by_container(launch, std::move(spec), first_index);
 }
 
 }  // namespace

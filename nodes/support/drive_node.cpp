@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -198,14 +199,15 @@ void DriveNode::take_commands(std::uint64_t k) {
   offer_all();
 }
 
-int DriveNode::run() {
-  if (!wait_for_peers()) {
-    if (pdds::stop_requested()) return kExitOk;
-    std::fprintf(stderr, "%s: peers missing after %.1f s: %zu of %d MotorFeedback readers, %zu ForceCommand writers\n",
-                 name_.c_str(), common_.peer_timeout_s, feedback_writer_.matched_readers(), opt_.peers,
-                 command_reader_.matched_writers());
-    return kExitPeerMissing;
-  }
+int DriveNode::report_missing_peers() {
+  if (pdds::stop_requested()) return kExitOk;
+  std::fprintf(stderr, "%s: peers missing after %.1f s: %zu of %d MotorFeedback readers, %zu ForceCommand writers\n",
+               name_.c_str(), common_.peer_timeout_s, feedback_writer_.matched_readers(), opt_.peers,
+               command_reader_.matched_writers());
+  return kExitPeerMissing;
+}
+
+void DriveNode::start_run() {
   std::printf("%s: %d peers matched %.1f ms after start%s\n", name_.c_str(), opt_.peers,
               static_cast<double>(monotonic_ns() - rt_.start_ns) * 1e-6,
               rt_.participant.identity().empty() ? "" : " (secure)");
@@ -217,6 +219,95 @@ int DriveNode::run() {
   if (opt_.auto_enable) hooks_.enable_at_start(*this);
   publish_drive_state(0);
   rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "running");
+}
+
+void DriveNode::publish_feedback(std::uint64_t k) {
+  const drive::TickReport& report = loop_.begin_tick(k, monotonic_ns(), clock_.tick_start_ns());
+  feedback_.stamp(node::make_stamp(k, period_s_, run_id_));
+  node::to_msg(report, feedback_);
+  hooks_.before_publish(k, report);
+  loop_.published(wall_time_ns(), monotonic_ns());
+  feedback_writer_.write(feedback_);
+  hooks_.after_publish(k);
+}
+
+std::optional<int> DriveNode::missing_command_exit(std::uint64_t k) {
+  if (!realtime_ && !loop_.answered()) {
+    if (pdds::stop_requested()) return kExitOk;
+    std::fprintf(stderr, "%s: no ForceCommand for tick %llu within %.1f s: controller lost; safe state\n",
+                 name_.c_str(), static_cast<unsigned long long>(k), common_.peer_timeout_s);
+  } else if (const char* missing = hooks_.during_tick(k)) {
+    if (pdds::stop_requested()) return kExitOk;
+    std::fprintf(stderr, "%s: %s in tick %llu within %.1f s: controller lost; safe state\n", name_.c_str(), missing,
+                 static_cast<unsigned long long>(k), common_.peer_timeout_s);
+  } else {
+    return std::nullopt;
+  }
+  rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "controller lost");
+  return kExitPeerLost;
+}
+
+void DriveNode::report_watchdog_trip(std::uint64_t k, const drive::TickEvents& events) {
+  // The wall time the force went off (the trip may have come at the tick's start).
+  const std::int64_t tripped_wall_ns = wall_time_ns() - (monotonic_ns() - events.tripped_mono_ns);
+  std::fprintf(stderr,
+               "%s: watchdog: tick %llu unanswered for %.1f ms at tick %llu: fault 0x%04x, zero force "
+               "[wall %.6f s]\n",
+               name_.c_str(), static_cast<unsigned long long>(events.unanswered_tick), opt_.watchdog_ms,
+               static_cast<unsigned long long>(k), backend_.error_code(), static_cast<double>(tripped_wall_ns) * 1e-9);
+  rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "watchdog: feedback unanswered, fault, zero force");
+  char reason[128];
+  std::snprintf(reason, sizeof reason, "watchdog: feedback of tick %llu unanswered for %.1f ms (tick %llu)",
+                static_cast<unsigned long long>(events.unanswered_tick), opt_.watchdog_ms,
+                static_cast<unsigned long long>(k));
+  drive_state_.fault_reason(reason);
+}
+
+void DriveNode::report_tick_events(std::uint64_t k, const drive::TickEvents& events, std::uint64_t& faults_seen) {
+  if (loop_.watchdog_armed() != watchdog_armed_) {
+    watchdog_armed_ = loop_.watchdog_armed();
+    if (watchdog_armed_) {
+      std::printf("%s: watchdog armed at tick %llu (%u ticks answered in their own tick)\n", name_.c_str(),
+                  static_cast<unsigned long long>(k), opt_.watchdog_arm_ticks);
+    }
+  }
+  if (events.watchdog_tripped) report_watchdog_trip(k, events);
+  if (backend_.fault_count() != faults_seen) {
+    faults_seen = backend_.fault_count();
+    const char* detail = backend_.fault_detail();
+    if (!events.watchdog_tripped && detail[0] != '\0') {
+      std::fprintf(stderr, "%s: drive fault 0x%04x at tick %llu: %s: zero force\n", name_.c_str(),
+                   backend_.error_code(), static_cast<unsigned long long>(k), detail);
+      rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "drive fault, zero force");
+      set_fault_reason(detail);
+    }
+  }
+}
+
+bool DriveNode::controller_lost_ends_run(std::uint64_t k) {
+  std::fprintf(stderr, "%s: no acceptable ForceCommand for %.0f ms at tick %llu: controller lost [wall %.6f s]\n",
+               name_.c_str(), loop_.any_command() ? opt_.controller_lost_ms : common_.peer_timeout_s * 1e3,
+               static_cast<unsigned long long>(k), static_cast<double>(wall_time_ns()) * 1e-9);
+  rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "controller lost");
+  if (backend_.power_state() == drive::PowerState::kOperationEnabled)
+    loop_.request(drive::DriveCommand::kQuickStop, monotonic_ns());
+  return opt_.on_controller_lost == "exit";
+}
+
+void DriveNode::publish_periodic_status(std::uint64_t k) {
+  auto& s = rt_.status.status();
+  s.late(loop_.counters().late);
+  s.rejected(loop_.counters().rejected + loop_.counters().foreign);
+  s.deadline_misses(loop_.statistics().deadline_misses());
+  rt_.status.publish(backend_.power_state() == drive::PowerState::kOperationEnabled ? node_state::STATE_RUNNING
+                                                                                    : node_state::STATE_SAFE,
+                     k, period_s_);
+  publish_drive_state(k);
+}
+
+int DriveNode::run() {
+  if (!wait_for_peers()) return report_missing_peers();
+  start_run();
 
   int exit_code = kExitOk;
   faults_at_start_ = backend_.fault_count();
@@ -226,91 +317,23 @@ int DriveNode::run() {
   clock_.start();
   std::uint64_t k = 0;
   for (; k < ticks_ && !pdds::stop_requested(); ++k) {
-    const drive::TickReport& report = loop_.begin_tick(k, monotonic_ns(), clock_.tick_start_ns());
-    feedback_.stamp(node::make_stamp(k, period_s_, run_id_));
-    node::to_msg(report, feedback_);
-    hooks_.before_publish(k, report);
-    loop_.published(wall_time_ns(), monotonic_ns());
-    feedback_writer_.write(feedback_);
-    hooks_.after_publish(k);
-
+    publish_feedback(k);
     take_commands(k);
-    if (!realtime_ && !loop_.answered()) {
-      if (pdds::stop_requested()) break;
-      std::fprintf(stderr, "%s: no ForceCommand for tick %llu within %.1f s: controller lost; safe state\n",
-                   name_.c_str(), static_cast<unsigned long long>(k), common_.peer_timeout_s);
-      rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "controller lost");
-      exit_code = kExitPeerLost;
-      break;
-    }
-    if (const char* missing = hooks_.during_tick(k)) {
-      if (pdds::stop_requested()) break;
-      std::fprintf(stderr, "%s: %s in tick %llu within %.1f s: controller lost; safe state\n", name_.c_str(), missing,
-                   static_cast<unsigned long long>(k), common_.peer_timeout_s);
-      rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "controller lost");
-      exit_code = kExitPeerLost;
+    if (const std::optional<int> end_code = missing_command_exit(k)) {
+      exit_code = *end_code;
       break;
     }
     const drive::TickEvents events = loop_.end_tick(monotonic_ns(), hooks_.apply_force());
-    if (loop_.watchdog_armed() != watchdog_armed_) {
-      watchdog_armed_ = loop_.watchdog_armed();
-      if (watchdog_armed_) {
-        std::printf("%s: watchdog armed at tick %llu (%u ticks answered in their own tick)\n", name_.c_str(),
-                    static_cast<unsigned long long>(k), opt_.watchdog_arm_ticks);
-      }
-    }
-    if (events.watchdog_tripped) {
-      // The wall time the force went off (the trip may have come at the tick's start).
-      const std::int64_t tripped_wall_ns = wall_time_ns() - (monotonic_ns() - events.tripped_mono_ns);
-      std::fprintf(stderr,
-                   "%s: watchdog: tick %llu unanswered for %.1f ms at tick %llu: fault 0x%04x, zero force "
-                   "[wall %.6f s]\n",
-                   name_.c_str(), static_cast<unsigned long long>(events.unanswered_tick), opt_.watchdog_ms,
-                   static_cast<unsigned long long>(k), backend_.error_code(),
-                   static_cast<double>(tripped_wall_ns) * 1e-9);
-      rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "watchdog: feedback unanswered, fault, zero force");
-      char reason[128];
-      std::snprintf(reason, sizeof reason, "watchdog: feedback of tick %llu unanswered for %.1f ms (tick %llu)",
-                    static_cast<unsigned long long>(events.unanswered_tick), opt_.watchdog_ms,
-                    static_cast<unsigned long long>(k));
-      drive_state_.fault_reason(reason);
-    }
-    if (backend_.fault_count() != faults_seen) {
-      faults_seen = backend_.fault_count();
-      const char* detail = backend_.fault_detail();
-      if (!events.watchdog_tripped && detail[0] != '\0') {
-        std::fprintf(stderr, "%s: drive fault 0x%04x at tick %llu: %s: zero force\n", name_.c_str(),
-                     backend_.error_code(), static_cast<unsigned long long>(k), detail);
-        rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "drive fault, zero force");
-        set_fault_reason(detail);
-      }
-    }
-    if (events.controller_lost) {
-      std::fprintf(stderr, "%s: no acceptable ForceCommand for %.0f ms at tick %llu: controller lost [wall %.6f s]\n",
-                   name_.c_str(), loop_.any_command() ? opt_.controller_lost_ms : common_.peer_timeout_s * 1e3,
-                   static_cast<unsigned long long>(k), static_cast<double>(wall_time_ns()) * 1e-9);
-      rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "controller lost");
-      if (backend_.power_state() == drive::PowerState::kOperationEnabled)
-        loop_.request(drive::DriveCommand::kQuickStop, monotonic_ns());
-      if (opt_.on_controller_lost == "exit") {
-        exit_code = kExitPeerLost;
-        ++k;
-        break;
-      }
+    report_tick_events(k, events, faults_seen);
+    if (events.controller_lost && controller_lost_ends_run(k)) {
+      exit_code = kExitPeerLost;
+      ++k;  // this tick was done
+      break;
     }
     hooks_.after_tick(*this, k);
     if (backend_.power_state() != published_state_) publish_drive_state(k);
     if (clock_.wait_next_tick()) loop_.statistics().record_deadline_miss();
-    if (k % 1000 == 999) {
-      auto& s = rt_.status.status();
-      s.late(loop_.counters().late);
-      s.rejected(loop_.counters().rejected + loop_.counters().foreign);
-      s.deadline_misses(loop_.statistics().deadline_misses());
-      rt_.status.publish(backend_.power_state() == drive::PowerState::kOperationEnabled ? node_state::STATE_RUNNING
-                                                                                        : node_state::STATE_SAFE,
-                         k, period_s_);
-      publish_drive_state(k);
-    }
+    if (k % 1000 == 999) publish_periodic_status(k);
   }
   const double loop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - loop_start).count();
   if (exit_code == kExitOk) hooks_.at_end(*this);

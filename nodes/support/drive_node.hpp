@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include "DriveControlPubSubTypes.h"
@@ -105,6 +106,22 @@ class DriveNode {
   /// Takes DriveControl requests addressed to this drive and answers each on DriveState.
   void serve_drive_control();
   void take_commands(std::uint64_t k);
+  /// Peers missing before tick 0: says which; kExitPeerMissing (kExitOk when stopped meanwhile).
+  int report_missing_peers();
+  /// What runs, then the hooks' start (boot, enable) and DriveState and NodeStatus of tick 0.
+  void start_run();
+  /// Tick k's MotorFeedback out.
+  void publish_feedback(std::uint64_t k);
+  /// After tick k's commands: nullopt when the tick goes on; else the run ends with this code
+  /// (kExitPeerLost: lockstep without a ForceCommand, or what a hook misses; kExitOk when stopped).
+  std::optional<int> missing_command_exit(std::uint64_t k);
+  /// The watchdog's arming and trip and a new drive fault, on stdout/stderr and NodeStatus.
+  void report_tick_events(std::uint64_t k, const drive::TickEvents& events, std::uint64_t& faults_seen);
+  void report_watchdog_trip(std::uint64_t k, const drive::TickEvents& events);
+  /// A lost controller: says so, quick-stops an enabled drive; true with --on-controller-lost exit.
+  bool controller_lost_ends_run(std::uint64_t k);
+  /// NodeStatus with the counts, and DriveState (every 1000 ticks).
+  void publish_periodic_status(std::uint64_t k);
   int finish(std::uint64_t ticks_done, int exit_code, double loop_s);
 
   std::string name_;

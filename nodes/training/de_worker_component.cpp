@@ -37,6 +37,20 @@ class DeWorkerComponent final : public node::Component {
   int run() override;
 
  private:
+  using SteadyClock = std::chrono::steady_clock;
+
+  /// A pool thread: scores the queued requests until stopping_.
+  void serve_requests();
+  /// One request scored with the setup `cost` of run `cost_run` (nullptr: none yet) into `result`.
+  void score(const msg::EvaluationRequest& request, const RnnCost* cost, std::uint64_t cost_run,
+             msg::EvaluationResult& result);
+  /// Takes the trainer's setups: the cost of the newest one, or why it was refused.
+  void take_setups();
+  /// Queues the requests addressed to this worker; returns how many wait.
+  std::size_t queue_requests();
+  void publish_status(SteadyClock::time_point now, std::size_t queued);
+  void stop_pool(std::vector<std::thread>& pool);
+
   WorkerOptions opt_;
   pdds::Wakeup wakeup_;  // outlives the participant, whose listeners signal it
   pdds::Participant participant_;
@@ -44,126 +58,147 @@ class DeWorkerComponent final : public node::Component {
   pdds::Reader<msg::EvaluationRequestPubSubType> request_reader_;
   pdds::Writer<msg::EvaluationResultPubSubType> result_writer_;
   pdds::Writer<msg::WorkerStatusPubSubType> status_writer_;
+
+  // Shared with the pool threads, guarded by mutex_.
+  std::mutex mutex_;
+  std::condition_variable work_ready_;
+  std::deque<msg::EvaluationRequest> queue_;
+  std::shared_ptr<const RnnCost> cost_;  // the pool threads copy the pointer
+  std::uint64_t run_id_ = 0;
+  std::string setup_error_;
+  bool stopping_ = false;
+  std::atomic<std::uint64_t> evaluated_{0};
+  std::atomic<std::uint32_t> busy_{0};
+
+  // The DDS loop's own.
+  msg::TrainingSetup setup_;
+  msg::EvaluationRequest request_;
+  msg::WorkerStatus status_;
+  SteadyClock::time_point next_heartbeat_;
+  SteadyClock::time_point last_request_;
+  bool have_setup_ = false;
 };
 
-int DeWorkerComponent::run() {
-  const std::string& worker_id = opt_.worker_id;
-  std::mutex mutex;
-  std::condition_variable work_ready;
-  std::deque<msg::EvaluationRequest> queue;
-  std::shared_ptr<const RnnCost> cost;  // guarded by mutex; workers copy the pointer
-  std::uint64_t run_id = 0;
-  std::string setup_error;
-  std::atomic<std::uint64_t> evaluated{0};
-  std::atomic<std::uint32_t> busy{0};
-  bool stopping = false;
-
-  std::vector<std::thread> pool;
-  for (unsigned t = 0; t < opt_.threads; ++t) {
-    pool.emplace_back([&] {
-      msg::EvaluationResult result;
-      result.worker_id(worker_id);
-      for (;;) {
-        msg::EvaluationRequest request;
-        std::shared_ptr<const RnnCost> my_cost;
-        std::uint64_t my_run = 0;
-        {
-          std::unique_lock<std::mutex> lock(mutex);
-          work_ready.wait(lock, [&] { return stopping || !queue.empty(); });
-          if (stopping) return;
-          request = std::move(queue.front());
-          queue.pop_front();
-          my_cost = cost;
-          my_run = run_id;
-          ++busy;
-        }
-        result.run_id(request.run_id());
-        result.job_id(request.job_id());
-        const auto start = std::chrono::steady_clock::now();
-        if (!my_cost || my_run != request.run_id()) {
-          result.status(msg::EvaluationResult_Constants::STATUS_NO_SETUP);
-          result.cost(0);
-        } else if (request.candidate().size() != my_cost->dimension()) {
-          result.status(msg::EvaluationResult_Constants::STATUS_BAD_CANDIDATE);
-          result.cost(0);
-        } else {
-          result.status(msg::EvaluationResult_Constants::STATUS_OK);
-          result.cost((*my_cost)(request.candidate()));
-          ++evaluated;
-        }
-        result.eval_time_s(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-        result.stamp().source_time_ns(wall_time_ns());
-        result_writer_.write(result);
-        --busy;
-      }
-    });
+void DeWorkerComponent::serve_requests() {
+  msg::EvaluationResult result;
+  result.worker_id(opt_.worker_id);
+  for (;;) {
+    msg::EvaluationRequest request;
+    std::shared_ptr<const RnnCost> my_cost;
+    std::uint64_t my_run = 0;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      work_ready_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
+      if (stopping_) return;
+      request = std::move(queue_.front());
+      queue_.pop_front();
+      my_cost = cost_;
+      my_run = run_id_;
+      ++busy_;
+    }
+    score(request, my_cost.get(), my_run, result);
+    result_writer_.write(result);
+    --busy_;
   }
+}
 
-  msg::TrainingSetup setup;
-  msg::EvaluationRequest request;
-  msg::WorkerStatus status;
-  status.worker_id(worker_id);
-  status.slots(opt_.threads);
-  auto next_heartbeat = std::chrono::steady_clock::now();
-  auto last_request = std::chrono::steady_clock::now();
-  bool have_setup = false;
-  std::printf("de_worker %s: %u thread(s), waiting for a trainer\n", worker_id.c_str(), opt_.threads);
+void DeWorkerComponent::score(const msg::EvaluationRequest& request, const RnnCost* cost, std::uint64_t cost_run,
+                              msg::EvaluationResult& result) {
+  result.run_id(request.run_id());
+  result.job_id(request.job_id());
+  const auto start = SteadyClock::now();
+  if (cost == nullptr || cost_run != request.run_id()) {
+    result.status(msg::EvaluationResult_Constants::STATUS_NO_SETUP);
+    result.cost(0);
+  } else if (request.candidate().size() != cost->dimension()) {
+    result.status(msg::EvaluationResult_Constants::STATUS_BAD_CANDIDATE);
+    result.cost(0);
+  } else {
+    result.status(msg::EvaluationResult_Constants::STATUS_OK);
+    result.cost((*cost)(request.candidate()));
+    ++evaluated_;
+  }
+  result.eval_time_s(std::chrono::duration<double>(SteadyClock::now() - start).count());
+  result.stamp().source_time_ns(wall_time_ns());
+}
+
+void DeWorkerComponent::take_setups() {
+  const std::string& worker_id = opt_.worker_id;
+  while (setup_reader_.take(setup_)) {
+    try {
+      auto fresh = training::cost_from_setup(setup_);
+      std::lock_guard<std::mutex> lock(mutex_);
+      cost_ = std::move(fresh);
+      run_id_ = setup_.run_id();
+      setup_error_.clear();
+      last_request_ = SteadyClock::now();
+      have_setup_ = true;
+      std::printf("de_worker %s: setup of run %llu taken (%zu weights, %zu scenario(s))\n", worker_id.c_str(),
+                  static_cast<unsigned long long>(run_id_), cost_->dimension(), setup_.scenarios().size());
+    } catch (const std::exception& e) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      setup_error_ = std::string(e.what()).substr(0, 128);
+      std::fprintf(stderr, "de_worker %s: setup of run %llu refused: %s\n", worker_id.c_str(),
+                   static_cast<unsigned long long>(setup_.run_id()), e.what());
+    }
+    next_heartbeat_ = SteadyClock::now();
+  }
+}
+
+std::size_t DeWorkerComponent::queue_requests() {
+  while (request_reader_.take(request_)) {
+    if (request_.worker_id().to_string() != opt_.worker_id) continue;
+    last_request_ = SteadyClock::now();
+    std::lock_guard<std::mutex> lock(mutex_);
+    queue_.push_back(request_);
+    work_ready_.notify_one();
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  return queue_.size();
+}
+
+void DeWorkerComponent::publish_status(SteadyClock::time_point now, std::size_t queued) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  status_.run_id(setup_error_.empty() ? run_id_ : 0);
+  status_.setup_error(setup_error_);
+  status_.queued(static_cast<std::uint32_t>(queued + busy_.load()));
+  status_.evaluated(evaluated_.load());
+  status_.stamp().source_time_ns(wall_time_ns());
+  status_writer_.write(status_);
+  next_heartbeat_ = now + std::chrono::milliseconds(200);
+}
+
+void DeWorkerComponent::stop_pool(std::vector<std::thread>& pool) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+  }
+  work_ready_.notify_all();
+  for (auto& t : pool) t.join();
+}
+
+int DeWorkerComponent::run() {
+  std::vector<std::thread> pool;
+  for (unsigned t = 0; t < opt_.threads; ++t) pool.emplace_back([this] { serve_requests(); });
+  status_.worker_id(opt_.worker_id);
+  status_.slots(opt_.threads);
+  next_heartbeat_ = SteadyClock::now();
+  last_request_ = SteadyClock::now();
+  std::printf("de_worker %s: %u thread(s), waiting for a trainer\n", opt_.worker_id.c_str(), opt_.threads);
   while (!pdds::stop_requested()) {
     const std::uint64_t seen = wakeup_.generation();
-    while (setup_reader_.take(setup)) {
-      try {
-        auto fresh = training::cost_from_setup(setup);
-        std::lock_guard<std::mutex> lock(mutex);
-        cost = std::move(fresh);
-        run_id = setup.run_id();
-        setup_error.clear();
-        last_request = std::chrono::steady_clock::now();
-        have_setup = true;
-        std::printf("de_worker %s: setup of run %llu taken (%zu weights, %zu scenario(s))\n", worker_id.c_str(),
-                    static_cast<unsigned long long>(run_id), cost->dimension(), setup.scenarios().size());
-      } catch (const std::exception& e) {
-        std::lock_guard<std::mutex> lock(mutex);
-        setup_error = std::string(e.what()).substr(0, 128);
-        std::fprintf(stderr, "de_worker %s: setup of run %llu refused: %s\n", worker_id.c_str(),
-                     static_cast<unsigned long long>(setup.run_id()), e.what());
-      }
-      next_heartbeat = std::chrono::steady_clock::now();
-    }
-    std::size_t queued = 0;
-    while (request_reader_.take(request)) {
-      if (request.worker_id().to_string() != worker_id) continue;
-      last_request = std::chrono::steady_clock::now();
-      std::lock_guard<std::mutex> lock(mutex);
-      queue.push_back(request);
-      work_ready.notify_one();
-    }
-    {
-      std::lock_guard<std::mutex> lock(mutex);
-      queued = queue.size();
-    }
-    const auto now = std::chrono::steady_clock::now();
-    if (now >= next_heartbeat) {
-      std::lock_guard<std::mutex> lock(mutex);
-      status.run_id(setup_error.empty() ? run_id : 0);
-      status.setup_error(setup_error);
-      status.queued(static_cast<std::uint32_t>(queued + busy.load()));
-      status.evaluated(evaluated.load());
-      status.stamp().source_time_ns(wall_time_ns());
-      status_writer_.write(status);
-      next_heartbeat = now + std::chrono::milliseconds(200);
-    }
-    if (opt_.idle_exit_s > 0 && have_setup && now - last_request > std::chrono::duration<double>(opt_.idle_exit_s))
+    take_setups();
+    const std::size_t queued = queue_requests();
+    const auto now = SteadyClock::now();
+    if (now >= next_heartbeat_) publish_status(now, queued);
+    if (opt_.idle_exit_s > 0 && have_setup_ && now - last_request_ > std::chrono::duration<double>(opt_.idle_exit_s))
       break;
     wakeup_.wait_for(seen, std::chrono::milliseconds(50));
   }
-  {
-    std::lock_guard<std::mutex> lock(mutex);
-    stopping = true;
-  }
-  work_ready.notify_all();
-  for (auto& t : pool) t.join();
+  stop_pool(pool);
   result_writer_.wait_for_acknowledgments(std::chrono::seconds(2));
-  std::printf("de_worker %s: %llu evaluations\n", worker_id.c_str(), static_cast<unsigned long long>(evaluated.load()));
+  std::printf("de_worker %s: %llu evaluations\n", opt_.worker_id.c_str(),
+              static_cast<unsigned long long>(evaluated_.load()));
   return kExitOk;
 }
 

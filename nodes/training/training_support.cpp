@@ -239,6 +239,66 @@ void DdsEvaluator::evaluate_locally(const std::vector<std::vector<double>>& cand
   counters_.local_evaluations += batch.size();
 }
 
+void DdsEvaluator::requeue_lost_jobs(std::deque<std::size_t>& pending) {
+  for (auto it = in_flight_.begin(); it != in_flight_.end();) {
+    const auto w = workers_.find(it->second.worker);
+    if (w == workers_.end() || !usable(w->second)) {
+      pending.push_front(it->second.index);
+      ++counters_.requeued;
+      if (w != workers_.end() && w->second.in_flight > 0) --w->second.in_flight;
+      it = in_flight_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+void DdsEvaluator::send_requests(const std::vector<std::vector<double>>& candidates, std::deque<std::size_t>& pending,
+                                 msg::EvaluationRequest& request) {
+  // Keep every live worker busy with up to 2 x slots jobs in flight.
+  for (auto& [origin, w] : workers_) {
+    if (!usable(w)) continue;
+    while (!pending.empty() && w.in_flight < 2 * static_cast<std::size_t>(w.slots)) {
+      const std::size_t index = pending.front();
+      pending.pop_front();
+      const std::uint64_t job = next_job_id_++;
+      request.job_id(job);
+      request.worker_id(w.id);
+      request.candidate(candidates[index]);
+      request_writer_.write(request);
+      in_flight_[job] = Job{index, origin};
+      ++w.in_flight;
+    }
+  }
+}
+
+bool DdsEvaluator::take_results(msg::EvaluationResult& result, std::vector<double>& costs,
+                                std::deque<std::size_t>& pending, std::size_t& done) {
+  bool progressed = false;
+  eprosima::fastdds::dds::SampleInfo info;
+  while (result_reader_.take(result, info)) {
+    const auto it = in_flight_.find(result.job_id());
+    if (result.run_id() != run_id_ || it == in_flight_.end() ||
+        info.sample_identity.writer_guid().guidPrefix != it->second.worker) {
+      ++counters_.stale_results;
+      continue;
+    }
+    auto w = workers_.find(it->second.worker);
+    if (w != workers_.end() && w->second.in_flight > 0) --w->second.in_flight;
+    if (result.status() == msg::EvaluationResult_Constants::STATUS_OK) {
+      costs[it->second.index] = result.cost();
+      ++done;
+      ++counters_.remote_evaluations;
+    } else {
+      pending.push_front(it->second.index);
+      ++counters_.requeued;
+    }
+    in_flight_.erase(it);
+    progressed = true;
+  }
+  return progressed;
+}
+
 void DdsEvaluator::evaluate(const std::vector<std::vector<double>>& candidates, std::vector<double>& costs) {
   costs.assign(candidates.size(), std::numeric_limits<double>::infinity());
   if (live_workers() == 0) {
@@ -256,62 +316,15 @@ void DdsEvaluator::evaluate(const std::vector<std::vector<double>>& candidates, 
 
   while (done < candidates.size()) {
     poll_workers();
-    // Jobs of workers that vanished go back to the queue.
-    for (auto it = in_flight_.begin(); it != in_flight_.end();) {
-      const auto w = workers_.find(it->second.worker);
-      if (w == workers_.end() || !usable(w->second)) {
-        pending.push_front(it->second.index);
-        ++counters_.requeued;
-        if (w != workers_.end() && w->second.in_flight > 0) --w->second.in_flight;
-        it = in_flight_.erase(it);
-      } else {
-        ++it;
-      }
-    }
-    const std::size_t live = live_workers();
-    if (live == 0) {
+    requeue_lost_jobs(pending);
+    if (live_workers() == 0) {
       // Nobody left: the rest is evaluated here, in one batch.
       evaluate_locally(candidates, pending, costs);
       break;
     }
-    // Keep every live worker busy with up to 2 x slots jobs in flight.
-    for (auto& [origin, w] : workers_) {
-      if (!usable(w)) continue;
-      while (!pending.empty() && w.in_flight < 2 * static_cast<std::size_t>(w.slots)) {
-        const std::size_t index = pending.front();
-        pending.pop_front();
-        const std::uint64_t job = next_job_id_++;
-        request.job_id(job);
-        request.worker_id(w.id);
-        request.candidate(candidates[index]);
-        request_writer_.write(request);
-        in_flight_[job] = Job{index, origin};
-        ++w.in_flight;
-      }
-    }
+    send_requests(candidates, pending, request);
     const std::uint64_t seen = wakeup_.generation();
-    bool progressed = false;
-    eprosima::fastdds::dds::SampleInfo info;
-    while (result_reader_.take(result, info)) {
-      const auto it = in_flight_.find(result.job_id());
-      if (result.run_id() != run_id_ || it == in_flight_.end() ||
-          info.sample_identity.writer_guid().guidPrefix != it->second.worker) {
-        ++counters_.stale_results;
-        continue;
-      }
-      auto w = workers_.find(it->second.worker);
-      if (w != workers_.end() && w->second.in_flight > 0) --w->second.in_flight;
-      if (result.status() == msg::EvaluationResult_Constants::STATUS_OK) {
-        costs[it->second.index] = result.cost();
-        ++done;
-        ++counters_.remote_evaluations;
-      } else {
-        pending.push_front(it->second.index);
-        ++counters_.requeued;
-      }
-      in_flight_.erase(it);
-      progressed = true;
-    }
+    const bool progressed = take_results(result, costs, pending, done);
     if (!progressed && done < candidates.size()) wakeup_.wait_for(seen, std::chrono::milliseconds(20));
     if (dds::stop_requested()) {
       // Finish the generation locally so the population stays consistent for the checkpoint.

@@ -93,6 +93,15 @@ class DdsEvaluator final : public BatchEvaluator {
   /// Evaluates candidates[i] for i in `indices` in the local threads, into costs[i].
   void evaluate_locally(const std::vector<std::vector<double>>& candidates, const std::deque<std::size_t>& indices,
                         std::vector<double>& costs);
+  /// Jobs of workers that vanished (or are no longer usable) go back to the front of `pending`.
+  void requeue_lost_jobs(std::deque<std::size_t>& pending);
+  /// Sends jobs from `pending` until every usable worker has 2 x slots in flight.
+  void send_requests(const std::vector<std::vector<double>>& candidates, std::deque<std::size_t>& pending,
+                     pmlsm_msgs::msg::EvaluationRequest& request);
+  /// Takes the workers' answers: a cost into costs[index] (`done` counts them), a refusal back to
+  /// `pending`; answers of other runs, re-queued jobs or other processes are stale. True when one counted.
+  bool take_results(pmlsm_msgs::msg::EvaluationResult& result, std::vector<double>& costs,
+                    std::deque<std::size_t>& pending, std::size_t& done);
 
   dds::Wakeup& wakeup_;
   ThreadPoolEvaluator local_;

@@ -98,18 +98,18 @@ void refuse_live_writers(dds::Participant& participant, DiscoveryCollector& disc
                    live + "play on another --domain, choose other --topics, or add --force");
 }
 
-int run_play(const dds::ParticipantOptions& dds_options, const PlayOptions& o) {
-  FileChannels file = [&] {
-    try {
-      return scan(o.file);
-    } catch (const std::runtime_error& e) {
-      throw UsageError(e.what());
-    }
-  }();
-  print_problems(file.report);
+FileChannels scan_play_file(const std::string& path) {
+  try {
+    return scan(path);
+  } catch (const std::runtime_error& e) {
+    throw UsageError(e.what());
+  }
+}
 
-  // Which channels to play: those of project topics, in cdr, whose schema is our type.
-  std::map<std::string, std::uint16_t> playable;  // display topic -> channel id
+/// The channels that can be played: those of project topics, in cdr, whose schema is our type;
+/// display topic -> channel id.
+std::map<std::string, std::uint16_t> playable_channels(const FileChannels& file) {
+  std::map<std::string, std::uint16_t> playable;
   for (const auto& [id, channel] : file.channels) {
     const auto* entry = dds::find_topic(channel.topic);
     const auto schema = file.schemas.find(channel.schema_id);
@@ -120,6 +120,13 @@ int run_play(const dds::ParticipantOptions& dds_options, const PlayOptions& o) {
     }
     playable[dds::display_name(entry->spec.name)] = id;
   }
+  return playable;
+}
+
+/// The channel ids of --topics (all playable ones without). @throws UsageError for a topic the
+/// file does not hold, or when nothing is left to play.
+std::set<std::uint16_t> select_played_channels(const PlayOptions& o,
+                                               const std::map<std::string, std::uint16_t>& playable) {
   std::set<std::uint16_t> selected;
   if (o.topics.empty()) {
     for (const auto& [topic, id] : playable) selected.insert(id);
@@ -136,12 +143,13 @@ int run_play(const dds::ParticipantOptions& dds_options, const PlayOptions& o) {
     }
   }
   if (selected.empty()) throw UsageError(o.file + " holds no project topic to play");
+  return selected;
+}
 
-  DiscoveryCollector discovery;
-  dds::ParticipantOptions options = with_node_name(dds_options, "pmlsm_play", "pmlsm_play");
-  options.listener = &discovery;
-  dds::Participant participant(options);
-  refuse_live_writers(participant, discovery, file, selected, o);
+/// A writer per selected channel, then up to `wait_matched_s` for each to match a subscriber.
+std::map<std::uint16_t, PlayedChannel> make_played_writers(dds::Participant& participant, FileChannels& file,
+                                                           const std::set<std::uint16_t>& selected,
+                                                           double wait_matched_s) {
   std::map<std::uint16_t, PlayedChannel> played;
   for (const auto id : selected) {
     const auto* entry = dds::find_topic(file.channels[id].topic);
@@ -151,55 +159,58 @@ int run_play(const dds::ParticipantOptions& dds_options, const PlayOptions& o) {
   // Give subscribers a moment to match, so the first samples are not sent into the void (the
   // writers are transient-local besides, so a reader matching a little later still gets them).
   const auto match_deadline =
-      Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.wait_matched_s));
+      Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(wait_matched_s));
   for (auto& [id, p] : played) {
     while (p.writer->matched_readers() == 0 && Clock::now() < match_deadline && !dds::stop_requested()) {
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
   }
+  return played;
+}
 
-  const bool show_progress = !o.no_progress && isatty(STDERR_FILENO) != 0;
-  dds::RawSample sample;
-  std::uint64_t total = 0;
-  mcap::ReadReport last_report;
-  do {
-    bool have_origin = false;
-    std::uint64_t first_log_ns = 0;
-    Clock::time_point wall_origin;
-    auto next_progress = Clock::now();
-    mcap::ReadCallbacks callbacks;
-    callbacks.on_message = [&](const mcap::Message& m) {
-      if (dds::stop_requested()) return;
-      const auto found = played.find(m.channel_id);
-      if (found == played.end()) return;
-      if (!have_origin) {
-        have_origin = true;
-        first_log_ns = m.log_time_ns;
-        wall_origin = Clock::now();
-      }
-      // Original timing: the message's offset from the first one, divided by the rate.
-      const double offset_s =
-          static_cast<double>(m.log_time_ns - std::min(m.log_time_ns, first_log_ns)) * 1e-9 / o.rate;
-      std::this_thread::sleep_until(
-          wall_origin + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(offset_s)));
-      sample.bytes.assign(m.data, m.data + m.size);
-      auto& p = found->second;
-      if (p.writer->write(sample)) {
-        ++p.published;
-      } else {
-        ++p.refused;
-      }
-      ++total;
-      if (show_progress && Clock::now() >= next_progress) {
-        next_progress = Clock::now() + std::chrono::milliseconds(250);
-        std::fprintf(stderr, "\rplaying %8.2f s of the recording  %10llu messages  ", offset_s * o.rate,
-                     static_cast<unsigned long long>(total));
-      }
-    };
-    last_report = mcap::read(o.file, callbacks);
-  } while (o.loop && !dds::stop_requested());
-  if (show_progress) std::fprintf(stderr, "\n");
+/// One pass over the file, each message published at its original time divided by --rate;
+/// `total` counts the messages of every pass, `sample` is a reused buffer.
+mcap::ReadReport play_file_once(const PlayOptions& o, std::map<std::uint16_t, PlayedChannel>& played,
+                                bool show_progress, dds::RawSample& sample, std::uint64_t& total) {
+  bool have_origin = false;
+  std::uint64_t first_log_ns = 0;
+  Clock::time_point wall_origin;
+  auto next_progress = Clock::now();
+  mcap::ReadCallbacks callbacks;
+  callbacks.on_message = [&](const mcap::Message& m) {
+    if (dds::stop_requested()) return;
+    const auto found = played.find(m.channel_id);
+    if (found == played.end()) return;
+    if (!have_origin) {
+      have_origin = true;
+      first_log_ns = m.log_time_ns;
+      wall_origin = Clock::now();
+    }
+    // Original timing: the message's offset from the first one, divided by the rate.
+    const double offset_s = static_cast<double>(m.log_time_ns - std::min(m.log_time_ns, first_log_ns)) * 1e-9 / o.rate;
+    std::this_thread::sleep_until(wall_origin +
+                                  std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(offset_s)));
+    sample.bytes.assign(m.data, m.data + m.size);
+    auto& p = found->second;
+    if (p.writer->write(sample)) {
+      ++p.published;
+    } else {
+      ++p.refused;
+    }
+    ++total;
+    if (show_progress && Clock::now() >= next_progress) {
+      next_progress = Clock::now() + std::chrono::milliseconds(250);
+      std::fprintf(stderr, "\rplaying %8.2f s of the recording  %10llu messages  ", offset_s * o.rate,
+                   static_cast<unsigned long long>(total));
+    }
+  };
+  return mcap::read(o.file, callbacks);
+}
 
+/// Waits for the readers' acknowledgements, prints what each channel published; kExitError when
+/// a writer refused a sample.
+int finish_playing(std::map<std::uint16_t, PlayedChannel>& played, const mcap::ReadReport& last_report,
+                   const std::string& file) {
   // Reliable readers get everything before the writers go.
   for (auto& [id, p] : played) p.writer->wait_for_acknowledgments(std::chrono::seconds(15));
   std::uint64_t refused = 0;
@@ -210,10 +221,33 @@ int run_play(const dds::ParticipantOptions& dds_options, const PlayOptions& o) {
                 p.refused > 0 ? (", " + std::to_string(p.refused) + " refused").c_str() : "");
   }
   if (!last_report.complete()) {
-    std::printf("played what is whole of %s; not whole:\n", o.file.c_str());
+    std::printf("played what is whole of %s; not whole:\n", file.c_str());
     for (const auto& p : last_report.problems) std::printf("  %s\n", p.c_str());
   }
   return refused == 0 ? kExitOk : kExitError;
+}
+
+int run_play(const dds::ParticipantOptions& dds_options, const PlayOptions& o) {
+  FileChannels file = scan_play_file(o.file);
+  print_problems(file.report);
+  const std::set<std::uint16_t> selected = select_played_channels(o, playable_channels(file));
+
+  DiscoveryCollector discovery;
+  dds::ParticipantOptions options = with_node_name(dds_options, "pmlsm_play", "pmlsm_play");
+  options.listener = &discovery;
+  dds::Participant participant(options);
+  refuse_live_writers(participant, discovery, file, selected, o);
+  std::map<std::uint16_t, PlayedChannel> played = make_played_writers(participant, file, selected, o.wait_matched_s);
+
+  const bool show_progress = !o.no_progress && isatty(STDERR_FILENO) != 0;
+  dds::RawSample sample;
+  std::uint64_t total = 0;
+  mcap::ReadReport last_report;
+  do {
+    last_report = play_file_once(o, played, show_progress, sample, total);
+  } while (o.loop && !dds::stop_requested());
+  if (show_progress) std::fprintf(stderr, "\n");
+  return finish_playing(played, last_report, o.file);
 }
 
 }  // namespace
