@@ -16,7 +16,7 @@
 namespace pmlsm::container {
 
 const std::vector<ComponentType>& component_types() {
-  static const std::vector<ComponentType> types = {
+  static const std::vector<ComponentType> kTypes = {
       {"plant_sim", node::make_plant_sim, 0},
       {"drive_bridge", node::make_drive_bridge, 0},
       {"controller", node::make_controller, 0},
@@ -26,7 +26,7 @@ const std::vector<ComponentType>& component_types() {
       {"state_feedback", node::make_state_feedback, 1},
       {"evaluator", node::make_evaluator, 2},
   };
-  return types;
+  return kTypes;
 }
 
 std::vector<std::string> component_type_names() {

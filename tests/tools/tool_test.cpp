@@ -1,6 +1,7 @@
 // The pmlsm tool against real nodes on real DDS (loopback): recording a lockstep run loses
 // nothing and third-party readers decode it; a recording stands in for the plant; a recorder
-// killed by SIGKILL leaves a readable file; topic list/echo/hz/delay on a running loop; bad input.
+// killed by SIGKILL leaves a readable file; the ros2 profile read by ROS 2's decoders; topic
+// list/echo/hz/delay on a running loop; bad input.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -12,6 +13,7 @@
 #include "child_process.hpp"
 #include "integration_support.hpp"
 #include "pmlsm/config/config.hpp"
+#include "pmlsm/dds/catalog.hpp"
 #include "pmlsm/introspect/cdr_schema.hpp"
 #include "pmlsm/mcap/mcap.hpp"
 
@@ -58,7 +60,12 @@ FileContents read_all(const fs::path& file) {
   callbacks.on_schema = [&](const mcap::Schema& s) { schemas[s.id] = s; };
   callbacks.on_channel = [&](const mcap::Channel& c) {
     const auto& s = schemas.at(c.schema_id);
-    channels.emplace(c.id, std::make_pair(c.topic, introspect::MessageSchema::parse(s.data, s.name)));
+    // A ros2msg schema (the ros2 profile) is decoded by this build's IDL of the topic's type.
+    const auto* entry = dds::find_topic(c.topic);
+    channels.emplace(c.id,
+                     std::make_pair(c.topic, s.encoding == "ros2msg" && entry != nullptr
+                                                 ? introspect::MessageSchema::parse(entry->schema_idl, entry->type_name)
+                                                 : introspect::MessageSchema::parse(s.data, s.name)));
   };
   callbacks.on_message = [&](const mcap::Message& m) {
     const auto& [topic, schema] = channels.at(m.channel_id);
@@ -132,6 +139,80 @@ TEST(Record, LockstepRunWholeAndDecodedByThirdPartyReaders) {
   }
   EXPECT_EQ(plot.output().find("force off"), std::string::npos) << plot.output();  // the drive was on throughout
   fs::remove_all(dir);
+}
+
+// The ros2 profile (`--profile ros2`): the same messages with ROS 2's .msg definitions, as rosbag2
+// writes them. Foxglove's ROS 2 parser and CDR reader decode every message, each definition is
+// the generated ROS 2 package's (build/ros2/pmlsm_msgs), and our own tools read it as the other.
+TEST(Record, TheRos2ProfileIsReadByRos2ToolsAndByOurs) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "record_ros2");
+  const std::string log = record_lockstep_run(test_domain(92), dir, {"--profile", "ros2"});
+  EXPECT_NE(log.find("ros2 profile"), std::string::npos) << log;
+  EXPECT_NE(log.find(", 0 lost;"), std::string::npos) << log;
+  const FileContents file = read_all(dir / "run.mcap");
+  EXPECT_TRUE(file.report.complete());
+  ASSERT_EQ(file.by_topic.count("/pmlsm/motor_feedback"), 1u);
+  EXPECT_EQ(file.by_topic.at("/pmlsm/motor_feedback").size(), 2000u);
+
+  test::ChildProcess reader(node_js({(dir / "run.mcap").string(), "--expect-topic", "/pmlsm/motor_feedback",
+                                     "--expect-topic", "/pmlsm/estimated_state", "--min-messages", "10000"}),
+                            (dir / "node.log").string());
+  EXPECT_EQ(run_to_end(reader), 0) << reader.output();
+  test::ChildProcess package(
+      {PMLSM_NODE, source("tests/node/check_ros2_package.mjs"), PMLSM_ROS2_PACKAGE_DIR, (dir / "run.mcap").string()},
+      (dir / "package.log").string());
+  EXPECT_EQ(run_to_end(package), 0) << package.output();
+
+  test::ChildProcess plot(
+      pmlsm_args(test_domain(92), {"plot", (dir / "run.mcap").string(), "-o", (dir / "plots").string()}),
+      (dir / "plot.log").string());
+  EXPECT_EQ(run_to_end(plot), 0) << plot.output();
+  EXPECT_GT(fs::exists(dir / "plots" / "velocities.png") ? fs::file_size(dir / "plots" / "velocities.png") : 0u,
+            10000u);
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+// A recording whose channel of one of our topics does not carry that topic's type (another type's
+// definition, an unknown schema encoding) is refused with the channel named: nothing is played.
+TEST(Play, ChannelsNotCarryingTheirTopicsTypeAreRefusedAndNothingIsPlayed) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "play_refused");
+  const auto& catalog = dds::catalog();
+  const auto* feedback = dds::find_topic("/pmlsm/motor_feedback");
+  const auto* command = dds::find_topic("/pmlsm/force_command");
+  ASSERT_NE(feedback, nullptr);
+  ASSERT_NE(command, nullptr);
+  ASSERT_FALSE(catalog.empty());
+  struct Case {
+    const char* what;
+    dds::RecordedSchema schema;
+    const char* expected;
+  };
+  const dds::RecordedSchema other = dds::recorded_schema(*command, dds::RecordingProfile::kRos2);
+  dds::RecordedSchema edited = dds::recorded_schema(*feedback, dds::RecordingProfile::kRos2);
+  edited.data.replace(edited.data.find("float64 position_m"), 18, "float32 position_m");
+  for (const Case& c : {Case{"another type's definition", other, "but the topic carries pmlsm_msgs/msg/MotorFeedback"},
+                        Case{"an edited definition", edited, "differs from this build's"},
+                        Case{"an unknown encoding", {"pmlsm_msgs/MotorFeedback", "protobuf", "x"}, "'protobuf'"}}) {
+    SCOPED_TRACE(c.what);
+    const fs::path file = dir / "bad.mcap";
+    {
+      mcap::Writer writer(file.string(), mcap::WriterOptions{});
+      const auto schema = writer.add_schema(c.schema.name, c.schema.encoding, c.schema.data);
+      const auto channel = writer.add_channel(schema, "/pmlsm/motor_feedback", "cdr");
+      const std::uint8_t sample[8] = {0, 1, 0, 0, 0, 0, 0, 0};
+      writer.write(channel, 0, 1, 1, sample, sizeof sample);
+      writer.close();
+    }
+    test::ChildProcess player(
+        pmlsm_args(test_domain(93), {"play", file.string(), "--wait-matched-s", "0", "--no-progress"}),
+        (dir / "play.log").string());
+    EXPECT_EQ(run_to_end(player), 2) << player.output();
+    EXPECT_NE(player.output().find(" /pmlsm/motor_feedback: "), std::string::npos) << player.output();
+    EXPECT_NE(player.output().find("  channel "), std::string::npos) << player.output();
+    EXPECT_NE(player.output().find(c.expected), std::string::npos) << player.output();
+    EXPECT_EQ(player.output().find("published"), std::string::npos) << player.output();
+  }
+  if (!HasFailure()) fs::remove_all(dir);
 }
 
 // A run at zero force (a drive never enabled) is plain in the plots: the applied force is drawn

@@ -48,4 +48,28 @@ std::string user_at_host() {
   return std::string(user) + "@" + host;
 }
 
+const dds::CatalogEntry* recorded_channel(const mcap::Channel& channel, const mcap::Schema* schema,
+                                          std::optional<introspect::MessageSchema>& decoder, std::string& why) {
+  decoder.reset();
+  if (schema == nullptr) {
+    why = "no schema";
+    return nullptr;
+  }
+  if (channel.message_encoding != "cdr") {
+    why = "message encoding '" + channel.message_encoding + "', not cdr";
+    return nullptr;
+  }
+  const dds::CatalogEntry* entry =
+      dds::recorded_entry(channel.topic, {schema->name, schema->encoding, schema->data}, why);
+  if (entry == nullptr) return nullptr;
+  try {
+    decoder = schema->encoding == "omgidl" ? introspect::MessageSchema::parse(schema->data, schema->name)
+                                           : introspect::MessageSchema::parse(entry->schema_idl, entry->type_name);
+  } catch (const introspect::SchemaError& e) {
+    why = std::string("schema not usable: ") + e.what();
+    return nullptr;
+  }
+  return entry;
+}
+
 }  // namespace pmlsm::tools

@@ -57,17 +57,14 @@ std::vector<IdentificationSample> recorded_samples(const std::string& path) {
   mcap::ReadCallbacks callbacks;
   callbacks.on_schema = [&](const mcap::Schema& s) { schemas[s.id] = s; };
   callbacks.on_channel = [&](const mcap::Channel& c) {
+    if (c.topic != kFeedbackTopic) return;
     const auto found = schemas.find(c.schema_id);
-    if (c.topic != kFeedbackTopic || found == schemas.end() || found->second.encoding != "omgidl" ||
-        c.message_encoding != "cdr") {
+    std::string why;
+    if (recorded_channel(c, found != schemas.end() ? &found->second : nullptr, schema, why) == nullptr) {
+      problem = std::string(kFeedbackTopic) + ": " + why;
       return;
     }
-    try {
-      schema = introspect::MessageSchema::parse(found->second.data, found->second.name);
-      channel = c.id;
-    } catch (const introspect::SchemaError& e) {
-      problem = std::string(kFeedbackTopic) + ": schema not usable: " + e.what();
-    }
+    channel = c.id;
   };
   callbacks.on_message = [&](const mcap::Message& m) {
     if (!channel || m.channel_id != *channel || !problem.empty()) return;

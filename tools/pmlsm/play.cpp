@@ -106,19 +106,31 @@ FileChannels scan_play_file(const std::string& path) {
   }
 }
 
-/// The channels that can be played: those of project topics, in cdr, whose schema is our type;
-/// display topic -> channel id.
+/// The channels that can be played: those of project topics, in cdr, whose schema is our type in
+/// either profile (omgidl or ros2); display topic -> channel id. Channels of other topics are
+/// skipped. @throws UsageError naming each channel of a project topic that does not match: a
+/// player never puts bytes of another type on a topic of ours, so nothing is played then.
 std::map<std::string, std::uint16_t> playable_channels(const FileChannels& file) {
   std::map<std::string, std::uint16_t> playable;
+  std::string refused;
   for (const auto& [id, channel] : file.channels) {
-    const auto* entry = dds::find_topic(channel.topic);
+    if (dds::find_topic(channel.topic) == nullptr) {
+      std::cerr << "pmlsm play: skipping channel " << channel.topic << " (not a project topic)\n";
+      continue;
+    }
     const auto schema = file.schemas.find(channel.schema_id);
-    if (entry == nullptr || channel.message_encoding != "cdr" || schema == file.schemas.end() ||
-        schema->second.name != entry->type_name) {
-      std::cerr << "pmlsm play: skipping channel " << channel.topic << " (not a project topic in cdr)\n";
+    std::optional<introspect::MessageSchema> decoder;
+    std::string why;
+    const auto* entry =
+        recorded_channel(channel, schema != file.schemas.end() ? &schema->second : nullptr, decoder, why);
+    if (entry == nullptr) {
+      refused += "  channel " + std::to_string(id) + " " + channel.topic + ": " + why + "\n";
       continue;
     }
     playable[dds::display_name(entry->spec.name)] = id;
+  }
+  if (!refused.empty()) {
+    throw UsageError("not played: channels of project topics that do not carry the topic's type:\n" + refused);
   }
   return playable;
 }

@@ -37,14 +37,14 @@ struct TopicColumns {
 };
 
 const std::vector<TopicColumns>& plotted() {
-  static const std::vector<TopicColumns> columns = {
+  static const std::vector<TopicColumns> kColumns = {
       {"/pmlsm/velocity_reference", {"v_ref_mps"}},
       {"/pmlsm/motor_feedback", {"velocity_mps", "applied_force_n", "status", "power_state"}},
       {"/pmlsm/plant_truth", {"load_velocity_mps", "load_position_m", "motor_position_m", "spring_force_n"}},
       {"/pmlsm/estimated_state", {"v_load_mps", "spring_force_n"}},
       {"/pmlsm/force_command", {"force_n", "pi_force_n", "compensation_force_n"}},
   };
-  return columns;
+  return kColumns;
 }
 
 struct Series {
@@ -90,12 +90,12 @@ struct PlotData {
 };
 
 /// Opens the series' data file once its channel's schema parses; false (said on stderr) when not.
-bool open_plot_series(Series& s, const mcap::Schema& schema, const std::string& topic,
+bool open_plot_series(Series& s, const mcap::Channel& channel, const mcap::Schema* schema,
                       const std::filesystem::path& dir) {
-  try {
-    s.schema = introspect::MessageSchema::parse(schema.data, schema.name);
-  } catch (const introspect::SchemaError& e) {
-    std::cerr << "pmlsm plot: " << topic << ": schema not usable: " << e.what() << "\n";
+  const std::string& topic = channel.topic;
+  std::string why;
+  if (recorded_channel(channel, schema, s.schema, why) == nullptr) {
+    std::cerr << "pmlsm plot: " << topic << ": not plotted: " << why << "\n";
     return false;
   }
   s.data.open(data_path(dir, topic));
@@ -150,11 +150,10 @@ PlotData read_plot_data(const std::string& file, const std::filesystem::path& di
   callbacks.on_channel = [&](const mcap::Channel& c) {
     const auto found = data.by_topic.find(c.topic);
     const auto schema = schemas.find(c.schema_id);
-    if (found == data.by_topic.end() || schema == schemas.end() || schema->second.encoding != "omgidl" ||
-        c.message_encoding != "cdr") {
-      return;
+    if (found == data.by_topic.end()) return;
+    if (open_plot_series(found->second, c, schema != schemas.end() ? &schema->second : nullptr, dir)) {
+      by_channel[c.id] = &found->second;
     }
-    if (open_plot_series(found->second, schema->second, c.topic, dir)) by_channel[c.id] = &found->second;
   };
   callbacks.on_message = [&](const mcap::Message& m) {
     const auto found = by_channel.find(m.channel_id);

@@ -1,6 +1,7 @@
 // `pmlsm record`: every project topic (or a selection) into an MCAP file, as the DDS bytes
-// arrived: schema encoding 'omgidl' (the flattened IDL), message encoding 'cdr' with its
-// encapsulation header; log time = reception, publish time = the writer's source timestamp.
+// arrived: message encoding 'cdr' with its encapsulation header; log time = reception, publish
+// time = the writer's source timestamp. The schemas follow --profile: omgidl (the flattened IDL,
+// Foxglove's) or ros2 (ROS 2's .msg definitions, MCAP's ros2 profile, as rosbag2 writes it).
 //
 // Losses are counted from each writer's sequence numbers (a reliable writer skips none unless a
 // reader's history overflowed) and from Fast DDS's sample-lost status. Chunks are written when
@@ -34,6 +35,7 @@ struct RecordOptions {
   double duration_s = 0.0;
   double stop_after_idle_s = 0.0;
   bool no_progress = false;
+  std::string profile = "omgidl";
 };
 
 struct RecordedTopic {
@@ -71,12 +73,15 @@ mcap::Compression parse_record_compression(const std::string& name) {
 /// A channel per topic and a schema per type in `writer`, and a reader per topic.
 std::vector<std::unique_ptr<RecordedTopic>> add_recorded_topics(const std::vector<const dds::CatalogEntry*>& entries,
                                                                 dds::Participant& participant, dds::Wakeup& wakeup,
-                                                                mcap::Writer& writer) {
+                                                                mcap::Writer& writer, dds::RecordingProfile profile) {
   std::map<std::string, std::uint16_t> schema_ids;  // one schema per type
   std::vector<std::unique_ptr<RecordedTopic>> recorded;
   for (const auto* entry : entries) {
     auto [schema, added] = schema_ids.try_emplace(entry->type_name, 0);
-    if (added) schema->second = writer.add_schema(entry->type_name, "omgidl", entry->schema_idl);
+    if (added) {
+      const dds::RecordedSchema recorded_schema = dds::recorded_schema(*entry, profile);
+      schema->second = writer.add_schema(recorded_schema.name, recorded_schema.encoding, recorded_schema.data);
+    }
     // The observer profile: deep, reliable, transient-local, so a recorder started just after
     // the nodes still gets the run from its first tick (up to the writers' history depth).
     auto t = std::make_unique<RecordedTopic>(
@@ -211,6 +216,12 @@ void print_record_summary(const std::vector<std::unique_ptr<RecordedTopic>>& rec
 int run_record(const dds::ParticipantOptions& dds_options, RecordOptions o) {
   const auto entries = select_topics(o.topics);
   const mcap::Compression compression = parse_record_compression(o.compression);
+  dds::RecordingProfile profile = dds::RecordingProfile::kOmgIdl;
+  try {
+    profile = dds::recording_profile_from_string(o.profile);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--profile: ") + e.what());
+  }
   if (o.output.empty()) o.output = default_file_name();
 
   dds::Wakeup wakeup;  // outlives the participant, whose listeners signal it
@@ -218,10 +229,11 @@ int run_record(const dds::ParticipantOptions& dds_options, RecordOptions o) {
   mcap::WriterOptions writer_options;
   writer_options.compression = compression;
   writer_options.chunk_size_bytes = o.chunk_size_kib * 1024;
+  if (profile == dds::RecordingProfile::kRos2) writer_options.profile = "ros2";
   mcap::Writer writer(o.output, writer_options);
-  auto recorded = add_recorded_topics(entries, participant, wakeup, writer);
+  auto recorded = add_recorded_topics(entries, participant, wakeup, writer, profile);
   std::cerr << "pmlsm record: " << recorded.size() << " topics on domain " << dds_options.domain_id << " -> "
-            << o.output << " (" << o.compression << ")\n";
+            << o.output << " (" << o.compression << ", " << o.profile << " profile)\n";
 
   const bool show_progress = !o.no_progress && isatty(STDERR_FILENO) != 0;
   const RecordTally tally = record_until_done(o, recorded, writer, wakeup, show_progress);
@@ -235,7 +247,7 @@ int run_record(const dds::ParticipantOptions& dds_options, RecordOptions o) {
 
 void add_record_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code) {
   auto o = std::make_shared<RecordOptions>();
-  auto* record = app.add_subcommand("record", "Records topics into an MCAP file (omgidl schemas, cdr messages)");
+  auto* record = app.add_subcommand("record", "Records topics into an MCAP file (cdr messages)");
   record->add_option("topics", o->topics, "Topics to record (default: every project topic)");
   record->add_option("-o,--output", o->output, "MCAP file (default: pmlsm_<date>-<time>.mcap)");
   record->add_option("--compression", o->compression, "Chunk compression: zstd, lz4 or none")->capture_default_str();
@@ -254,6 +266,10 @@ void add_record_command(CLI::App& app, dds::ParticipantOptions& dds_options, int
                    "Stop once nothing arrived for this long after the first sample (0 = never)")
       ->check(CLI::NonNegativeNumber);
   record->add_flag("--no-progress", o->no_progress, "No progress line on stderr");
+  record
+      ->add_option("--profile", o->profile,
+                   "Schemas: omgidl (the IDL, Foxglove) or ros2 (ROS 2 .msg definitions: rosbag2, ROS 2 tools)")
+      ->capture_default_str();
   record->callback([&dds_options, o, &exit_code] { exit_code = run_record(dds_options, *o); });
 }
 

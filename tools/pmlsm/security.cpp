@@ -19,12 +19,12 @@ namespace {
 /// Every program that opens a participant, by the identity it uses (its node name; the tool's
 /// command groups): the names a policy may grant to.
 const std::vector<std::string>& node_identities() {
-  static const std::vector<std::string> names{
+  static const std::vector<std::string> kNames{
       "plant_sim",      "drive_bridge",   "virtual_drive",   "controller",   "kalman_estimator",
       "accel_feedback", "state_feedback", "rnn_compensator", "evaluator",    "foxglove_bridge",
       "de_trainer",     "de_worker",      "pmlsm_topic",     "pmlsm_record", "pmlsm_play",
       "pmlsm_drive",    "pmlsm_setpoint", "launcher",        "launch_agent"};
-  return names;
+  return kNames;
 }
 
 security::Policy load(const std::string& path) {

@@ -58,8 +58,10 @@ std::string package_xml(const std::string& version) {
 <?xml-model href="http://download.ros.org/schema/package_format3.xsd" schematypens="http://www.w3.org/2001/XMLSchema"?>
 <!-- Generated from idl/ by the pmlsm build (tools/ros2_package); edit the IDL, not this file. -->
 <package format="3">
-  <name>)") + kPackage + R"(</name>
-  <version>)" + version + R"(</version>
+  <name>)") +
+         kPackage + R"(</name>
+  <version>)" +
+         version + R"(</version>
   <description>The messages of the PMLSM vibration control system (drive feedback, force commands,
     estimates, compensation, power states, training), as its DDS topics carry them.</description>
   <maintainer email="pmlsm@localhost">PMLSM vibration control</maintainer>

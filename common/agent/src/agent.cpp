@@ -9,11 +9,11 @@
 namespace pmlsm::agent {
 
 const std::vector<std::string>& node_programs() {
-  static const std::vector<std::string> names{
+  static const std::vector<std::string> kNames{
       "plant_sim",       "controller",      "kalman_estimator", "evaluator", "accel_feedback",
       "rnn_compensator", "state_feedback",  "de_trainer",       "de_worker", "virtual_drive",
       "drive_bridge",    "foxglove_bridge", "closed_loop",      "container"};
-  return names;
+  return kNames;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -69,8 +69,8 @@ std::vector<CatalogEntry> make_catalog() {
 }  // namespace
 
 const std::vector<CatalogEntry>& catalog() {
-  static const std::vector<CatalogEntry> entries = make_catalog();  // immutable after first use
-  return entries;
+  static const std::vector<CatalogEntry> kEntries = make_catalog();  // immutable after first use
+  return kEntries;
 }
 
 std::string display_name(std::string_view dds_topic_name) {
