@@ -33,6 +33,7 @@ struct ClosedLoopOptions {
   std::string compensator = "none";
   std::string weights_path;
   bool online_learning = false;
+  std::string input_shaper;  ///< empty: each scenario's own
 };
 
 void add_closed_loop_options(CLI::App& app, ClosedLoopOptions& o) {
@@ -47,6 +48,9 @@ void add_closed_loop_options(CLI::App& app, ClosedLoopOptions& o) {
       ->capture_default_str();
   app.add_option("-w,--weights", o.weights_path, "RNN weights file (with --compensator rnn)")->check(CLI::ExistingFile);
   app.add_flag("--online-learning", o.online_learning, "RNN online learning, eqs. (16)-(19)");
+  app.add_option("--input-shaper", o.input_shaper,
+                 "Shape every scenario's command: none, zv, zvd or ei, timed to the velocity loop's mode "
+                 "(default: each scenario's own input_shaper)");
 }
 
 /// --compensator, --weights and --online-learning. @throws ConfigError for a bad kind or weights
@@ -97,6 +101,21 @@ bool run_scenario(const pmlsm::SystemParams& params, const pmlsm::Scenario& scen
   return true;
 }
 
+/// Says, for a scenario that shapes its command, the mode and the impulses the shaper uses.
+void print_shaper(const pmlsm::SystemParams& params, const pmlsm::Scenario& scenario) {
+  if (scenario.input_shaper == pmlsm::ShaperKind::kNone) return;
+  const pmlsm::InputShaperParams shaper = params.input_shaper_params(scenario.input_shaper);
+  std::string impulses;
+  for (const auto& i : pmlsm::shaper_impulses(shaper)) {
+    char text[48];
+    std::snprintf(text, sizeof text, "%s%.3f at %.1f ms", impulses.empty() ? "" : ", ", i.amplitude, i.time_s * 1e3);
+    impulses += text;
+  }
+  std::fprintf(stderr, "closed_loop: %s: %s shaper on the loop's mode %.2f Hz, damping %.3f: %s\n",
+               scenario.name.c_str(), pmlsm::to_string(scenario.input_shaper), shaper.frequency_hz,
+               shaper.damping_ratio, impulses.c_str());
+}
+
 /// Every scenario with the chosen compensator; kExitSafeState when a plant diverged.
 /// @throws ConfigError, std::invalid_argument (parameters refused)
 int run_closed_loop(const ClosedLoopOptions& o) {
@@ -107,12 +126,25 @@ int run_closed_loop(const ClosedLoopOptions& o) {
   for (const auto& path : o.scenario_paths) {
     scenarios.push_back(pmlsm::load_scenario(path, params.timing.control_period_s));
   }
+  if (!o.input_shaper.empty()) {
+    pmlsm::ShaperKind kind = pmlsm::ShaperKind::kNone;
+    try {
+      kind = pmlsm::shaper_kind_from_string(o.input_shaper);
+    } catch (const std::invalid_argument& e) {
+      throw pmlsm::ConfigError(std::string("--input-shaper: ") + e.what());
+    }
+    for (pmlsm::Scenario& scenario : scenarios) {
+      scenario.input_shaper = kind;
+      if (kind != pmlsm::ShaperKind::kNone) scenario.name += std::string("_") + pmlsm::to_string(kind);
+    }
+  }
   std::filesystem::create_directories(o.out_dir);
   const pmlsm::CompensatorSetup setup = compensator_setup(o, params);
   const std::string suffix = o.compensator == "none" ? "" : "_" + o.compensator + (o.online_learning ? "_online" : "");
 
   int exit_code = pmlsm::kExitOk;
   pmlsm::node::print_results_header();
+  for (const pmlsm::Scenario& scenario : scenarios) print_shaper(params, scenario);
   for (const pmlsm::Scenario& scenario : scenarios) {
     if (!run_scenario(params, scenario, setup, o.out_dir, suffix)) exit_code = pmlsm::kExitSafeState;
   }

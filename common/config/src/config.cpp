@@ -317,6 +317,10 @@ Scenario parse_scenario(const std::string& yaml_text, const std::string& origin,
   cmd.finish();
   // Optional: without it the reference model (25) shapes the command, as in the paper.
   if (top.has("reference_model")) s.use_reference_model = top.flag("reference_model");
+  // Optional: without it the command is not shaped.
+  if (top.has("input_shaper")) {
+    s.input_shaper = named_choice(origin, "input_shaper", top.text("input_shaper"), shaper_kind_from_string);
+  }
   s.initial_load_displacement_m = top.number("initial_load_displacement_m");
   s.cost_window_s = top.number("cost_window_s");
   s.settling_band = top.number("settling_band");

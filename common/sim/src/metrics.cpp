@@ -63,13 +63,16 @@ ScenarioMetrics compute_metrics(const std::vector<TickRecord>& trace, const Scen
   } else if (scenario.has_constant_segments() && scenario.command_scale_mps() != 0.0) {
     for (std::size_t i = 0; i < n; ++i) signal[i] = trace[i].v_ref_mps - trace[i].load_velocity_mps;
     const double band = scenario.settling_band * scenario.command_scale_mps();
-    // Split the run where the raw command changes and take the worst constant segment (two
-    // ticks or more): the flat parts of a step, pulse, ramp, trapezoid, S-curve or profile.
-    // The ticks of a rise or fall change every tick and are tracking, not settling.
+    // Split the run where the scenario's raw command changes and take the worst constant segment
+    // (two ticks or more): the flat parts of a step, pulse, ramp, trapezoid, S-curve or profile.
+    // The ticks of a rise or fall change every tick and are tracking, not settling. The raw
+    // command, not the trace's (which is input-shaped when the scenario shapes it): settling
+    // counts from the step asked for, so a shaper's delay is part of it.
+    const auto raw_command = [&](std::size_t i) { return scenario.command_mps(trace[i].time_s); };
     std::size_t begin = 0;
     double worst = 0;
     for (std::size_t i = 1; i <= n; ++i) {
-      if (i == n || trace[i].command_mps != trace[i - 1].command_mps) {
+      if (i == n || raw_command(i) != raw_command(i - 1)) {
         if (i - begin >= 2) worst = std::max(worst, settling_time(signal, begin, i, band, control_period_s));
         begin = i;
       }

@@ -2,8 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <stdexcept>
 #include <string>
+
+#include <Eigen/Eigenvalues>
 
 #include "pmlsm/util/parameter_table.hpp"
 #include "pmlsm/util/validate.hpp"
@@ -68,6 +71,46 @@ RnnCompensatorParams SystemParams::rnn_compensator_params(bool online_learning) 
 VibrationGuardParams SystemParams::vibration_guard_params() const {
   VibrationGuardParams p = compensator.guard;
   p.control_period_s = timing.control_period_s;
+  return p;
+}
+
+VibrationMode SystemParams::loop_vibration_mode() const {
+  const double m_m = kalman.model.motor_mass_kg;
+  const double m_l = kalman.model.load_mass_kg;
+  const double k = kalman.model.spring_n_per_m;
+  const double kp = velocity_loop.kp_n_s_per_m;
+  const double ki = velocity_loop.ki_n_per_m;
+  // x = [x_M, v_M, x_L, v_L, z], z = integral of -v_M (the PI's state for V_ref = 0).
+  Eigen::Matrix<double, 5, 5> a = Eigen::Matrix<double, 5, 5>::Zero();
+  a(0, 1) = 1.0;
+  a(1, 0) = -k / m_m;
+  a(1, 1) = -kp / m_m;
+  a(1, 2) = k / m_m;
+  a(1, 4) = ki / m_m;
+  a(2, 3) = 1.0;
+  a(3, 0) = k / m_l;
+  a(3, 2) = -k / m_l;
+  a(4, 1) = -1.0;
+  const Eigen::EigenSolver<Eigen::Matrix<double, 5, 5>> solver(a, false);
+  VibrationMode least_damped{std::sqrt(k / m_l) / (2.0 * M_PI), 1.0};
+  for (Eigen::Index i = 0; i < solver.eigenvalues().size(); ++i) {
+    const std::complex<double> pole = solver.eigenvalues()(i);
+    if (pole.imag() <= 0.0) continue;  // one of each conjugate pair; real poles do not ring
+    const double w_n = std::abs(pole);
+    const double zeta = -pole.real() / w_n;
+    if (zeta < least_damped.damping_ratio) least_damped = {w_n / (2.0 * M_PI), zeta};
+  }
+  return least_damped;
+}
+
+InputShaperParams SystemParams::input_shaper_params(ShaperKind kind) const {
+  const VibrationMode mode = loop_vibration_mode();
+  InputShaperParams p;
+  p.kind = kind;
+  p.frequency_hz = mode.frequency_hz;
+  p.damping_ratio = std::clamp(mode.damping_ratio, 0.0, 0.5);
+  p.vibration_tolerance = input_shaping.vibration_tolerance;
+  p.period_s = timing.control_period_s;
   return p;
 }
 

@@ -9,6 +9,7 @@ VelocityController::VelocityController(const SystemParams& params, const Scenari
       velocity_(params.velocity_pi_params()) {
   scenario_.validate(period_s_);
   if (params.compensator.guard_enabled) guard_.emplace(params.vibration_guard_params());
+  if (scenario_.input_shaper != ShaperKind::kNone) shaper_.emplace(params.input_shaper_params(scenario_.input_shaper));
 }
 
 ExternalReferenceParams external_reference_params(const Scenario& scenario, double control_period_s) {
@@ -28,7 +29,7 @@ VelocityControllerOutput VelocityController::step(std::uint64_t tick, double mot
 VelocityControllerOutput VelocityController::step_command(double command_mps, double motor_velocity_mps,
                                                           const Compensation& compensation) {
   VelocityControllerOutput out;
-  out.command_mps = command_mps;
+  out.command_mps = shaper_ ? shaper_->step(command_mps) : command_mps;
   ReferenceSample ref;
   if (scenario_.use_reference_model) {
     ref = reference_.step(out.command_mps);

@@ -6,6 +6,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <optional>
@@ -121,6 +122,28 @@ TEST(ConfigShipped, EveryLeafHasAPaperOrChosenSource) {
       EXPECT_TRUE(is_valid_source(leaf.source)) << leaf.key_path << ": '" << leaf.source << "'";
     }
   }
+}
+
+// A source says where a value comes from in a sentence or two and points to docs/ for the rest:
+// at most 300 characters, in every shipped file that holds sourced values.
+TEST(ConfigShipped, EverySourceIsASentenceOrTwo) {
+  std::size_t files = 0;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(source_path("configs"))) {
+    if (entry.path().extension() != ".yaml") continue;
+    const std::string relative = std::filesystem::relative(entry.path(), source_path("")).string();
+    const std::string text = read_text(relative);
+    if (text.find("source:") == std::string::npos) continue;
+    ++files;
+    std::size_t from = 0;
+    for (std::size_t at; (at = text.find("source: \"", from)) != std::string::npos; from = at + 1) {
+      const std::size_t begin = at + 9;
+      const std::size_t end = text.find('"', begin);
+      ASSERT_NE(end, std::string::npos) << relative;
+      const std::size_t line = 1 + static_cast<std::size_t>(std::count(text.begin(), text.begin() + at, '\n'));
+      EXPECT_LE(end - begin, 300u) << relative << ":" << line << ": " << text.substr(begin, 80) << "...";
+    }
+  }
+  EXPECT_GE(files, 20u);
 }
 
 TEST(ConfigShipped, ValuesMatchThePaper) {

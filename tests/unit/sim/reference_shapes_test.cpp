@@ -349,6 +349,7 @@ TEST(ReferenceLoop, SettlingIsMeasuredOverConstantSegmentsOnly) {
   std::vector<TickRecord> trace(2000);
   for (std::size_t k = 0; k < trace.size(); ++k) {
     const double t = static_cast<double>(k) * kPeriod;
+    trace[k].time_s = t;  // the segments are the scenario's raw command at each tick's time
     trace[k].command_mps = s.command_mps(t);
     trace[k].v_ref_mps = trace[k].command_mps;
     // Lags the rise and fall by far (never within the band there), settles 30 ms into the hold

@@ -30,7 +30,7 @@ namespace pmlsm {
 struct TickRecord {
   std::uint64_t tick = 0;
   double time_s = 0;
-  double command_mps = 0;  ///< raw command c(t_k)
+  double command_mps = 0;  ///< command c(t_k) into the reference model (after input shaping)
   double v_ref_mps = 0;    ///< reference model output
   double a_ref_mps2 = 0;   ///< its derivative dV_ref/dt
   double encoder_position_m = 0;
@@ -116,7 +116,7 @@ struct CompensatorView {
   double v_ref_mps = 0;
   double v_load_mps = 0;      ///< estimated load velocity (the paper's V_load)
   double spring_force_n = 0;  ///< estimated spring force F_s
-  double command_mps = 0;     ///< raw command c(t_k) before the reference model
+  double command_mps = 0;     ///< command c(t_k) into the reference model (after input shaping)
   double a_ref_mps2 = 0;      ///< dV_ref/dt
 };
 inline CompensatorView compensator_view(const TickRecord& rec) {

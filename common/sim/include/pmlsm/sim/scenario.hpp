@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "pmlsm/control/input_shaper.hpp"
+
 namespace pmlsm {
 
 /// The largest |command| any scenario may ask for (a typo guard, far above this motor).
@@ -74,6 +76,9 @@ struct Scenario {
   /// false: V_ref is the command itself (a profiled reference is already smooth);
   /// true: the reference model (25) shapes it.
   bool use_reference_model = true;
+  /// Input shaping of the command before the reference model (none: the paper's reference),
+  /// timed to the velocity loop's mode (SystemParams::input_shaper_params).
+  ShaperKind input_shaper = ShaperKind::kNone;
   double initial_load_displacement_m = 0;  ///< x_L - x_M at t = 0 (spring stretched, Fig. 10)
   double cost_window_s = 0;                ///< window of the cost (23): the first second in the paper
   double settling_band = 0;                ///< settling tolerance as a fraction (0.02: 2 %)

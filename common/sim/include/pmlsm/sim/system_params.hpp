@@ -10,6 +10,7 @@
 #include "pmlsm/compensation/accel_feedback.hpp"
 #include "pmlsm/compensation/vibration_guard.hpp"
 #include "pmlsm/control/current_controller.hpp"
+#include "pmlsm/control/input_shaper.hpp"
 #include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/compensation/state_feedback.hpp"
 #include "pmlsm/estimation/kalman_filter.hpp"
@@ -45,6 +46,18 @@ struct CompensatorTuning {
   VibrationGuardParams guard;
 };
 
+/// Input shaping of the command (a scenario's `input_shaper`): the mode it is timed to is the
+/// velocity loop's own (loop_vibration_mode), so only EI's tolerance is set here.
+struct InputShapingTuning {
+  double vibration_tolerance = 0;  ///< EI's residual vibration on the mode
+};
+
+/// A lightly damped mode of a linear loop: s = -zeta w_n +- j w_n sqrt(1 - zeta^2).
+struct VibrationMode {
+  double frequency_hz = 0;  ///< w_n / (2 pi)
+  double damping_ratio = 0;
+};
+
 struct SystemParams;
 
 /// Every parameter of SystemParams in one declaration (pmlsm/util/parameter_table.hpp): its key
@@ -72,6 +85,7 @@ struct SystemParams {
   ReferenceModelParams reference_model;  ///< period_s: timing.control_period_s
   KalmanParams kalman;                   ///< period_s: timing.control_period_s
   CompensatorTuning compensator;
+  InputShapingTuning input_shaping;
 
   /// @throws std::invalid_argument with the section path of the first invalid value.
   void validate() const;
@@ -88,6 +102,14 @@ struct SystemParams {
   AccelFeedbackParams accel_feedback_params() const;
   StateFeedbackParams state_feedback_params() const;
   VibrationGuardParams vibration_guard_params() const;
+  /// The load's vibration under the velocity loop, from the Kalman filter's model of the mechanics
+  /// (the identified one after commissioning) and the PI's gains: the least damped oscillatory
+  /// pole pair of the linear loop (m_M dv_M/dt = F - k (x_M - x_L), m_L dv_L/dt = k (x_M - x_L),
+  /// F = -K_p v_M + K_i integral(-v_M)). It lies between the load's mode on a held motor,
+  /// sqrt(k / m_L), and the free two-mass resonance, sqrt(k (1/m_M + 1/m_L)).
+  VibrationMode loop_vibration_mode() const;
+  /// A shaper of `kind` timed to loop_vibration_mode(), at the control period.
+  InputShaperParams input_shaper_params(ShaperKind kind) const;
 };
 
 namespace detail {
@@ -189,6 +211,8 @@ void visit_parameters(Params& p, Visitor& v) {
          {0.1, 1e4, "0.1 rad/s to 10 krad/s (the loop's 1 ms sampling resolves far less)"});
   v.real("reference_model.damping_ratio", p.reference_model.damping_ratio,
          {0.01, 100.0, "from barely damped to overdamped a hundred times"});
+  v.real("input_shaping.vibration_tolerance", p.input_shaping.vibration_tolerance,
+         {1e-6, 0.25, "EI's residual vibration on its mode: above 0, at most a quarter of unshaped"});
 
   // The filter's model of the mechanics: the ranges of the plant's (the model is of such a plant).
   detail::visit_two_mass("kalman.model", p.kalman.model, v);

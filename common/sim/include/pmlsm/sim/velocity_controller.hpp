@@ -1,6 +1,6 @@
-// The motor-side controller of one control tick: the scenario's raw command,
-// shaped by the reference model (25) into V_ref (or taken as V_ref when the
-// scenario bypasses the model), and the velocity PI with the
+// The motor-side controller of one control tick: the scenario's raw command, input-shaped when
+// the scenario asks (ZV, ZVD, EI timed to the loop's mode), shaped by the reference model (25)
+// into V_ref (or taken as V_ref when the scenario bypasses the model), and the velocity PI with the
 // compensator's force added inside its saturation (the hybrid controller,
 // Fig. 4). The controller node and the in-process loop both run it.
 #pragma once
@@ -10,6 +10,7 @@
 #include <optional>
 
 #include "pmlsm/control/external_reference.hpp"
+#include "pmlsm/control/input_shaper.hpp"
 #include "pmlsm/control/reference_model.hpp"
 #include "pmlsm/sim/scenario.hpp"
 #include "pmlsm/sim/system_params.hpp"
@@ -35,7 +36,7 @@ inline Compensation clamped_compensation(double force_n, double force_limit_n) {
 }
 
 struct VelocityControllerOutput {
-  double command_mps = 0;  ///< raw command c(t_k)
+  double command_mps = 0;  ///< the command c(t_k) into the reference model, after input shaping
   double v_ref_mps = 0;
   double a_ref_mps2 = 0;
   double force_n = 0;  ///< force request after the limit
@@ -64,6 +65,7 @@ class VelocityController {
   Scenario scenario_;
   double period_s_;
   ReferenceModel reference_;
+  std::optional<InputShaper> shaper_;
   double last_command_mps_ = 0;  ///< without the reference model: c(t_{k-1})
   bool have_last_command_ = false;
   VelocityPi velocity_;
