@@ -18,7 +18,8 @@ if [ -z "$formatter" ]; then
 fi
 cd "$root"
 if [ -d .git ] && command -v git >/dev/null; then
-  mapfile -t files < <(git ls-files '*.cpp' '*.hpp' '*.h' | grep -v '/node_modules/')
+  # Tracked and new (not ignored) files: a file not yet added is checked too.
+  mapfile -t files < <(git ls-files --cached --others --exclude-standard '*.cpp' '*.hpp' '*.h' | grep -v '/node_modules/')
 else
   mapfile -t files < <(find common nodes tools tests bench fuzz -name node_modules -prune -o \
                             \( -name '*.cpp' -o -name '*.hpp' -o -name '*.h' \) -print | sort)

@@ -168,9 +168,9 @@ TEST(InputShaper, InvalidParametersAreRefusedByName) {
   InputShaperParams too_slow = params(ShaperKind::kZvd, 0.05);
   InputShaperParams bad_period = params(ShaperKind::kNone);
   bad_period.period_s = 0.0;
-  for (const Case& c : {Case{bad_frequency, "frequency_hz"}, Case{bad_damping, "damping_ratio"},
-                        Case{bad_tolerance, "vibration_tolerance"}, Case{too_slow, "over 10 s"},
-                        Case{bad_period, "period_s"}}) {
+  for (const Case& c :
+       {Case{bad_frequency, "frequency_hz"}, Case{bad_damping, "damping_ratio"},
+        Case{bad_tolerance, "vibration_tolerance"}, Case{too_slow, "over 10 s"}, Case{bad_period, "period_s"}}) {
     try {
       InputShaper shaper(c.p);
       ADD_FAILURE() << "accepted: " << c.expected;

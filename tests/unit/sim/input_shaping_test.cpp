@@ -41,9 +41,9 @@ TEST(LoopVibrationMode, LiesBetweenTheHeldAndTheFreeResonanceAndIsWhereTheLoadRi
   const SystemParams& p = shipped_params();
   const VibrationMode mode = p.loop_vibration_mode();
   const double held_hz = std::sqrt(p.kalman.model.spring_n_per_m / p.kalman.model.load_mass_kg) / (2 * M_PI);
-  const double free_hz = std::sqrt(p.kalman.model.spring_n_per_m *
-                                   (1 / p.kalman.model.load_mass_kg + 1 / p.kalman.model.motor_mass_kg)) /
-                         (2 * M_PI);
+  const double free_hz =
+      std::sqrt(p.kalman.model.spring_n_per_m * (1 / p.kalman.model.load_mass_kg + 1 / p.kalman.model.motor_mass_kg)) /
+      (2 * M_PI);
   EXPECT_GT(mode.frequency_hz, held_hz);
   EXPECT_LT(mode.frequency_hz, free_hz);
   EXPECT_GT(mode.damping_ratio, 0.0);
@@ -99,8 +99,8 @@ TEST(InputShapingInTheLoop, AScenarioNamesItsShaperAndABadOneIsRefusedByKey) {
   std::string text = test::read_text("configs/scenarios/pulse.yaml");
   text += "input_shaper: {value: zvd, source: \"chosen: test\"}\n";
   EXPECT_EQ(parse_scenario(text, origin, 1e-3).input_shaper, ShaperKind::kZvd);
-  const std::string bad = test::read_text("configs/scenarios/pulse.yaml") +
-                          "input_shaper: {value: zvdd, source: \"chosen: test\"}\n";
+  const std::string bad =
+      test::read_text("configs/scenarios/pulse.yaml") + "input_shaper: {value: zvdd, source: \"chosen: test\"}\n";
   const std::string error = test::error_of([&] { parse_scenario(bad, origin, 1e-3); });
   EXPECT_NE(error.find("input_shaper: expected none, zv, zvd or ei, got 'zvdd'"), std::string::npos) << error;
 }
