@@ -90,13 +90,13 @@ void FiberScheduler::run() {
     ++switches_;
     if (!f.started) {
       f.started = true;
-      f.context = bctx::fiber(std::allocator_arg, bctx::protected_fixedsize_stack(stack_bytes_),
-                              [this, &f](bctx::fiber&& back) {
-                                f.back = std::move(back);
-                                f.body();
-                                f.done = true;
-                                return std::move(f.back);
-                              });
+      f.context =
+          bctx::fiber(std::allocator_arg, bctx::protected_fixedsize_stack(stack_bytes_), [&f](bctx::fiber&& back) {
+            f.back = std::move(back);
+            f.body();
+            f.done = true;
+            return std::move(f.back);
+          });
     }
     f.context = std::move(f.context).resume();
     current_ = nullptr;
