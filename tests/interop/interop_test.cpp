@@ -207,16 +207,19 @@ TEST(CycloneSubscriber, GetsEveryTickOfTheLockstepLoopWithTheInProcessLoopsValue
 // The other direction: Cyclone is the controller. It answers MotorFeedback tick k with a
 // ForceCommand of (-1)^k * 20 N, and the Fast DDS plant, in lockstep, takes each one as the answer
 // to its tick and applies it; its next MotorFeedback and PlantTruth report the force it applied.
-TEST(CycloneController, FastDdsPlantRunsInLockstepOnCycloneCommands) {
+// `extra` adds options of the Cyclone program (its reader QoS).
+void expect_plant_runs_on_cyclone_commands(int domain_offset, const std::string& dir_name,
+                                           const std::vector<std::string>& extra) {
+  std::vector<std::string> answer_args{"--answer-force-n", "20"};
+  answer_args.insert(answer_args.end(), extra.begin(), extra.end());
   const std::string scenario = source("configs/scenarios/pulse.yaml");
   const std::uint64_t ticks = 2000;  // the pulse scenario's 2 s
   const double force_n = 20.0;
-  const fs::path dir = test::fresh_dir("pmlsm_interop", "controller");
-  const std::string domain = test_domain(21);
+  const fs::path dir = test::fresh_dir("pmlsm_interop", dir_name);
+  const std::string domain = test_domain(domain_offset);
   const fs::path csv = dir / "cyclone.csv";
-  test::ChildProcess cyclone(
-      cyclone_args(domain, {"motor_feedback", "plant_truth"}, ticks, csv, {"--answer-force-n", "20"}),
-      (dir / "cyclone.log").string());
+  test::ChildProcess cyclone(cyclone_args(domain, {"motor_feedback", "plant_truth"}, ticks, csv, answer_args),
+                             (dir / "cyclone.log").string());
   ASSERT_TRUE(cyclone.wait_for_output("readers ready", 20s)) << cyclone.output();
   test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "1"}), (dir / "plant.log").string());
 
@@ -249,7 +252,11 @@ TEST(CycloneController, FastDdsPlantRunsInLockstepOnCycloneCommands) {
                      describe("plant_truth", k, "command_force_n", truth.number(k, "command_force_n"), sent));
   }
   EXPECT_TRUE(mismatches.none()) << mismatches.report() << " (" << dir << ")";
-  if (!HasFailure()) fs::remove_all(dir);
+  if (!::testing::Test::HasFailure()) fs::remove_all(dir);
+}
+
+TEST(CycloneController, FastDdsPlantRunsInLockstepOnCycloneCommands) {
+  expect_plant_runs_on_cyclone_commands(21, "controller", {});
 }
 
 // A ROS 2 subscriber that asks for nothing (`ros2 topic echo`): the reader QoS rmw gives it by
@@ -257,28 +264,7 @@ TEST(CycloneController, FastDdsPlantRunsInLockstepOnCycloneCommands) {
 // register (pmlsm/dds/ros2_names.hpp). It matches our writers as they are and gets every tick of
 // a lockstep run (the plant waits for each answer, so no sample is pushed out of its history).
 TEST(CycloneController, AReaderWithRos2DefaultQosMatchesOurWritersUnderRos2TypeNames) {
-  const std::string scenario = source("configs/scenarios/pulse.yaml");
-  const std::uint64_t ticks = 2000;
-  const fs::path dir = test::fresh_dir("pmlsm_interop", "ros2_qos");
-  const std::string domain = test_domain(24);
-  const fs::path csv = dir / "cyclone.csv";
-  test::ChildProcess cyclone(cyclone_args(domain, {"motor_feedback", "plant_truth"}, ticks, csv,
-                                          {"--answer-force-n", "20", "--ros2-default-qos"}),
-                             (dir / "cyclone.log").string());
-  ASSERT_TRUE(cyclone.wait_for_output("readers ready", 20s)) << cyclone.output();
-  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "1"}), (dir / "plant.log").string());
-  for (auto* p : {&plant, &cyclone}) {
-    const auto code = p->wait_for(60s);
-    ASSERT_TRUE(code.has_value()) << "still running:\n" << p->output();
-    EXPECT_EQ(*code, 0) << p->output();
-  }
-  EXPECT_NE(cyclone.output().find("answered 2000 ticks"), std::string::npos) << cyclone.output();
-  const auto topics = read_cyclone_csv(csv);
-  for (const char* topic : {"motor_feedback", "plant_truth"}) {
-    ASSERT_EQ(topics.count(topic), 1u) << topic << " missing in " << csv;
-    expect_consecutive_ticks(topic, topics.at(topic), ticks);
-  }
-  if (!HasFailure()) fs::remove_all(dir);
+  expect_plant_runs_on_cyclone_commands(24, "ros2_qos", {"--ros2-default-qos"});
 }
 
 // Bad input on the wire, from another vendor's writer: before some answers the Cyclone controller

@@ -11,12 +11,10 @@
 // Prints one JSON line {"messages":N,"constants":N,"schemas_checked":N,"errors":[...]}; exits 1 on
 // any error, 2 on a usage error.
 
-import { open, readFile, readdir } from "node:fs/promises";
+import { readFile, readdir } from "node:fs/promises";
 import { join } from "node:path";
 import { parse } from "@foxglove/rosmsg";
-import { McapIndexedReader } from "@mcap/core";
-import { decompress as zstdDecompress } from "fzstd";
-import { decompress as lz4Decompress } from "lz4js";
+import { withIndexedReader } from "./mcap_file.mjs";
 
 const PACKAGE = "pmlsm_msgs";
 const SEPARATOR = "=".repeat(80);
@@ -88,22 +86,7 @@ async function checkPackage(dir, errors) {
 }
 
 async function checkRecording(file, texts, errors) {
-  const handle = await open(file, "r");
-  try {
-    const { size } = await handle.stat();
-    const readable = {
-      size: async () => BigInt(size),
-      read: async (offset, length) => {
-        const buffer = new Uint8Array(Number(length));
-        await handle.read(buffer, 0, buffer.length, Number(offset));
-        return buffer;
-      },
-    };
-    const decompressHandlers = {
-      zstd: (buffer, decompressedSize) => zstdDecompress(buffer, new Uint8Array(Number(decompressedSize))),
-      lz4: (buffer, decompressedSize) => lz4Decompress(buffer, Number(decompressedSize)),
-    };
-    const reader = await McapIndexedReader.Initialize({ readable, decompressHandlers });
+  return withIndexedReader(file, async (reader) => {
     if (reader.header.profile !== "ros2") errors.push(`${file}: header profile '${reader.header.profile}', not 'ros2'`);
     let checked = 0;
     for (const schema of reader.schemasById.values()) {
@@ -119,9 +102,7 @@ async function checkRecording(file, texts, errors) {
       }
     }
     return checked;
-  } finally {
-    await handle.close();
-  }
+  });
 }
 
 async function main() {

@@ -14,14 +14,13 @@
 // strings; typed arrays as arrays). Exits 1 on any read or decode error, a missing expected topic
 // or too few messages; 2 on a usage error.
 
-import { open, readFile } from "node:fs/promises";
-import { McapIndexedReader, McapStreamReader } from "@mcap/core";
+import { readFile } from "node:fs/promises";
+import { McapStreamReader } from "@mcap/core";
 import { parseIDL } from "@foxglove/omgidl-parser";
 import { MessageReader } from "@foxglove/omgidl-serialization";
 import { parse as parseRosMsg } from "@foxglove/rosmsg";
 import { MessageReader as Ros2MessageReader } from "@foxglove/rosmsg2-serialization";
-import { decompress as zstdDecompress } from "fzstd";
-import { decompress as lz4Decompress } from "lz4js";
+import { decompressHandlers, withIndexedReader } from "./mcap_file.mjs";
 
 const USAGE =
   "usage: node read_mcap.mjs FILE [--expect-topic TOPIC ...] [--min-messages N] [--allow-truncated] " +
@@ -60,12 +59,6 @@ function parseArguments(argv) {
   if (options.file === undefined) throw new Error("no FILE given");
   return options;
 }
-
-// MCAP "zstd" is a zstd frame, "lz4" an LZ4 frame (not a raw block).
-const decompressHandlers = {
-  zstd: (buffer, decompressedSize) => zstdDecompress(buffer, new Uint8Array(Number(decompressedSize))),
-  lz4: (buffer, decompressedSize) => lz4Decompress(buffer, Number(decompressedSize)),
-};
 
 // For JSON: bigint (uint64/int64 fields) as a number when exact, else a decimal string; typed
 // arrays (sequences of numbers) as plain arrays.
@@ -145,22 +138,7 @@ class Checker {
   }
 
   async readIndexed(file) {
-    const handle = await open(file, "r");
-    try {
-      const { size } = await handle.stat();
-      const readable = {
-        size: async () => BigInt(size),
-        read: async (offset, length) => {
-          const buffer = new Uint8Array(Number(length));
-          for (let done = 0; done < buffer.length; ) {
-            const { bytesRead } = await handle.read(buffer, done, buffer.length - done, Number(offset) + done);
-            if (bytesRead === 0) throw new Error(`short read at byte ${Number(offset) + done}`);
-            done += bytesRead;
-          }
-          return buffer;
-        },
-      };
-      const reader = await McapIndexedReader.Initialize({ readable, decompressHandlers });
+    await withIndexedReader(file, async (reader) => {
       for (const [id, schema] of reader.schemasById) this.schemas.set(id, schema);
       for (const [id, channel] of reader.channelsById) this.channels.set(id, channel);
       for await (const message of reader.readMessages({ validateCrcs: true })) this.onMessage(message);
@@ -168,9 +146,7 @@ class Checker {
       if (counted !== undefined && counted !== BigInt(this.messages)) {
         this.error(`the Statistics record counts ${counted} messages, the indexes gave ${this.messages}`);
       }
-    } finally {
-      await handle.close();
-    }
+    });
   }
 
   async readStream(file) {
