@@ -1,0 +1,103 @@
+// Frequency-response measurement of the drive under its velocity loop, the pure part: the
+// excitation, the response estimated from what was recorded, and the two-mass model fitted to it.
+//
+// Excitation: a periodic multisine (Schroeder phases, so its crest factor stays low) on lines
+// k df, f_min <= k df <= f_max, added to the force command under the velocity loop. Each line
+// is a whole number of cycles per period, so the DFT of each period sees it without leakage.
+//
+// Estimates per excited line, averaged over the measured periods p (after the settling ones):
+//   plant        G = sum_p V_p / sum_p F_p     force -> motor velocity (errors-in-variables mean)
+//   sensitivity  S = sum_p F_p / sum_p R_p     F = R - C V = R / (1 + C G)
+//   open loop    L = C G = 1/S - 1;  closed loop T = L / (1 + L) = 1 - S
+//   coherence    |sum_p V_p R_p*|^2 / (sum_p |V_p|^2 sum_p |R_p|^2): 1 when V follows R alone
+// with R, F, V the DFTs of excitation, applied force and measured motor velocity.
+//
+// Two-mass model (motor m_M with viscous friction b, spring k and damper c to the load m_L):
+//   1/G(s) = m_M s + b + m_L s (c s + k) / (m_L s^2 + c s + k)
+//   G(s)   = (s^2 + n1 s + n0) / (d3 s^3 + d2 s^2 + d1 s + d0)   (numerator and denominator / m_L)
+//   n0 = k/m_L (anti-resonance w_a^2), n1 = c/m_L, d3 = m_M, d0 = b k/m_L,
+//   d1 = ((m_M + m_L) k + b c)/m_L, d2 = ((m_M + m_L) c + b m_L)/m_L.
+// The fit is linear in (n1, n0, d3, d2, d1, d0) once the equation N - G D = 0 is weighted by
+// 1/|D| of the previous estimate (Levy's method with Sanathanan-Koerner iterations), so it needs
+// no start value and no search. From the coefficients: m_M = d3, m_L and b from d1, d0 and n0,
+// k = n0 m_L, c = n1 m_L; resonance from the denominator's oscillatory pair.
+#pragma once
+
+#include <complex>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace pmlsm {
+
+struct MultisineParams {
+  double amplitude_n = 0;       ///< peak of the summed force [N], > 0
+  double min_frequency_hz = 0;  ///< lowest excited line, > 0
+  double max_frequency_hz = 0;  ///< highest, below the Nyquist frequency
+  double resolution_hz = 0;     ///< line spacing df: the period is 1/df
+  double period_s = 0;          ///< the control period the excitation runs at
+  /// @throws std::invalid_argument naming the first invalid value.
+  void validate() const;
+};
+
+class Multisine {
+ public:
+  /// @throws std::invalid_argument as MultisineParams::validate, or when no line is excited.
+  explicit Multisine(const MultisineParams& params);
+  /// The force to add at tick n (periodic in ticks_per_period()). Allocation-free.
+  double value(std::uint64_t tick) const { return table_[tick % table_.size()]; }
+  std::size_t ticks_per_period() const { return table_.size(); }
+  /// The excited DFT bins k (frequency k df) of one period.
+  const std::vector<std::size_t>& lines() const { return lines_; }
+  double resolution_hz() const { return params_.resolution_hz; }
+
+ private:
+  MultisineParams params_;
+  std::vector<double> table_;
+  std::vector<std::size_t> lines_;
+};
+
+struct FrequencyPoint {
+  double frequency_hz = 0;
+  std::complex<double> plant;        ///< G: motor velocity over force [m/s / N]
+  std::complex<double> sensitivity;  ///< S = F / R
+  double coherence = 0;              ///< of the velocity with the excitation, [0, 1]
+  std::complex<double> open_loop() const { return 1.0 / sensitivity - 1.0; }
+  std::complex<double> closed_loop() const { return 1.0 - sensitivity; }
+};
+
+/// The estimates per excited line from recorded sequences of one sample per tick, starting at
+/// the excitation's tick 0: `excitation` R, applied `force_n` F, measured `velocity_mps` V. The
+/// first `settle_periods` periods are skipped; every whole period after them is averaged.
+/// @throws std::invalid_argument when the sequences differ in length, hold a non-finite value,
+/// or leave fewer than two periods to average.
+std::vector<FrequencyPoint> estimate_frequency_response(const Multisine& excitation,
+                                                        const std::vector<double>& excitation_n,
+                                                        const std::vector<double>& force_n,
+                                                        const std::vector<double>& velocity_mps,
+                                                        std::size_t settle_periods);
+
+struct TwoMassFit {
+  double motor_mass_kg = 0;
+  double load_mass_kg = 0;
+  double spring_n_per_m = 0;
+  double spring_damping_n_s_per_m = 0;  ///< c
+  double motor_viscous_n_s_per_m = 0;   ///< b
+  double anti_resonance_hz = 0;         ///< w_a / 2 pi = sqrt(k / m_L) / 2 pi
+  double anti_resonance_damping = 0;    ///< c / (2 sqrt(k m_L))
+  double resonance_hz = 0;              ///< the denominator's oscillatory pair
+  double resonance_damping = 0;
+  double rms_log_error = 0;  ///< RMS of |ln G_measured - ln G_model| over the lines used
+  std::size_t lines_used = 0;
+};
+
+/// Fits the two-mass model to the plant estimates whose coherence is at least `min_coherence`.
+/// @throws std::invalid_argument when fewer than 6 lines qualify or the fit is not physical
+/// (a mass, the spring or the anti-resonance not positive), naming what.
+TwoMassFit fit_two_mass(const std::vector<FrequencyPoint>& points, double min_coherence);
+
+/// G(j 2 pi f) of the two-mass model with the given parameters.
+std::complex<double> two_mass_response(const TwoMassFit& model, double frequency_hz);
+
+}  // namespace pmlsm
