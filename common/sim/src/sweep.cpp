@@ -257,6 +257,18 @@ RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scena
                     out.tail_stretch_amplitude_m >= verdict.limit_cycle_amplitude_m &&
                     !(out.tail_decay_rate_per_s >= verdict.min_decay_rate_per_s);
 
+  // Chatter over the tail: the force command about its mean, and the compensation.
+  double force_mean = 0;
+  for (std::size_t k = begin; k < n; ++k) force_mean += trace[k].force_command_n;
+  force_mean /= static_cast<double>(std::max<std::size_t>(tail, 1));
+  double force_square = 0, compensation_square = 0;
+  for (std::size_t k = begin; k < n; ++k) {
+    force_square += (trace[k].force_command_n - force_mean) * (trace[k].force_command_n - force_mean);
+    compensation_square += trace[k].compensation_force_n * trace[k].compensation_force_n;
+  }
+  out.tail_force_rms_n = std::sqrt(force_square / static_cast<double>(std::max<std::size_t>(tail, 1)));
+  out.tail_compensation_rms_n = std::sqrt(compensation_square / static_cast<double>(std::max<std::size_t>(tail, 1)));
+
   // Saturation: the force command at its limit (the velocity PI's output after the compensation).
   std::size_t saturated = 0;
   std::size_t saturated_tail = 0;

@@ -105,6 +105,25 @@ TEST(SweepSampling, VariantMovesThePlantOnlyNotTheModels) {
   EXPECT_EQ(variant.kalman.model.spring_n_per_m, nominal.kalman.model.spring_n_per_m);
 }
 
+// Force chatter at rest is measured over the tail: the command's RMS about its mean (a +-50 N
+// square wave about 20 N of friction holding: 50 N) and the compensation's RMS (a 30 N sine: 21.2 N).
+// Before the tail (the first 1.6 s) the force does not count.
+TEST(SweepVerdict, ForceChatterOverTheTailIsMeasured) {
+  std::vector<TickRecord> trace = oscillation(0.0, 0.0, 10.0, 2.0);
+  for (std::size_t k = 0; k < trace.size(); ++k) {
+    const double t = trace[k].time_s;
+    trace[k].force_command_n = t < 1.6 ? 400.0 : 20.0 + (k % 10 < 5 ? 50.0 : -50.0);
+    trace[k].compensation_force_n = t < 1.6 ? 0.0 : 30.0 * std::sin(2 * M_PI * 167.0 * t);
+  }
+  const RunVerdict v = judge_run(trace, zero_scenario(2.0), kT, 675, verdict());
+  EXPECT_NEAR(v.tail_force_rms_n, 50.0, 1e-9);
+  EXPECT_NEAR(v.tail_compensation_rms_n, 30.0 / std::sqrt(2.0), 0.5);
+  // A quiet tail measures none.
+  const RunVerdict quiet = judge_run(oscillation(0.0, 0.0, 10.0, 2.0), zero_scenario(2.0), kT, 675, verdict());
+  EXPECT_EQ(quiet.tail_force_rms_n, 0.0);
+  EXPECT_EQ(quiet.tail_compensation_rms_n, 0.0);
+}
+
 TEST(SweepVerdict, SustainedOscillationIsALimitCycleADecayingOneIsNot) {
   const Scenario s = zero_scenario(2.0);
   const RunVerdict cycle = judge_run(oscillation(2e-3, 0.0, 21.0, 2.0), s, kT, 675, verdict());

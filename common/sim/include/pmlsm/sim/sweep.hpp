@@ -98,6 +98,10 @@ struct RunVerdict {
   double tail_decay_rate_per_s = 0;     ///< -d ln(RMS of a window) / dt over the tail's windows; < 0: growing
   double saturated_share = 0;           ///< of all ticks, force command at its limit
   double saturated_tail_share = 0;
+  /// Chatter over the tail, measured, not yet judged: RMS of the force command about its mean
+  /// (the drive's own hunting as well as a compensator's) and RMS of the compensation force.
+  double tail_force_rms_n = 0;
+  double tail_compensation_rms_n = 0;
   double guard_trip_s = -1;  ///< time the vibration guard tripped, -1: never
   bool non_finite = false;   ///< the plant diverged or a non-finite number in the trace
   bool limit_cycle = false;
