@@ -49,8 +49,8 @@ std::string user_at_host() {
 }
 
 const dds::CatalogEntry* recorded_channel(const mcap::Channel& channel, const mcap::Schema* schema,
-                                          std::optional<introspect::MessageSchema>& decoder, std::string& why) {
-  decoder.reset();
+                                          std::optional<introspect::MessageSchema>* decoder, std::string& why) {
+  if (decoder != nullptr) decoder->reset();
   if (schema == nullptr) {
     why = "no schema";
     return nullptr;
@@ -61,10 +61,10 @@ const dds::CatalogEntry* recorded_channel(const mcap::Channel& channel, const mc
   }
   const dds::CatalogEntry* entry =
       dds::recorded_entry(channel.topic, {schema->name, schema->encoding, schema->data}, why);
-  if (entry == nullptr) return nullptr;
+  if (entry == nullptr || decoder == nullptr) return entry;
   try {
-    decoder = schema->encoding == "omgidl" ? introspect::MessageSchema::parse(schema->data, schema->name)
-                                           : introspect::MessageSchema::parse(entry->schema_idl, entry->type_name);
+    *decoder = schema->encoding == "omgidl" ? introspect::MessageSchema::parse(schema->data, schema->name)
+                                            : introspect::MessageSchema::parse(entry->schema_idl, entry->type_name);
   } catch (const introspect::SchemaError& e) {
     why = std::string("schema not usable: ") + e.what();
     return nullptr;

@@ -29,12 +29,12 @@ class UsageError : public std::runtime_error {
 /// and listing the known ones.
 std::vector<const dds::CatalogEntry*> select_topics(const std::vector<std::string>& names);
 
-/// The project topic a recorded channel carries and how to decode it, or nullptr with `why`: a
-/// channel in cdr whose schema is ours for its topic, in either profile (dds::recorded_entry).
-/// An omgidl schema is decoded as recorded (a recording of an older build still decodes), a
-/// ros2msg one by this build's IDL, which its definition was checked to equal.
+/// The project topic a recorded channel carries, or nullptr with `why`: a channel in cdr whose
+/// schema is ours for its topic, in either profile (dds::recorded_entry). With `decoder`, also
+/// how to decode it: an omgidl schema as recorded (a recording of an older build still decodes),
+/// a ros2msg one by this build's IDL, which its definition was checked to equal.
 const dds::CatalogEntry* recorded_channel(const mcap::Channel& channel, const mcap::Schema* schema,
-                                          std::optional<introspect::MessageSchema>& decoder, std::string& why);
+                                          std::optional<introspect::MessageSchema>* decoder, std::string& why);
 
 /// A printable key of a DDS writer (its GUID), for per-writer accounting.
 std::string writer_key(const eprosima::fastdds::dds::SampleInfo& info);

@@ -60,7 +60,7 @@ std::vector<IdentificationSample> recorded_samples(const std::string& path) {
     if (c.topic != kFeedbackTopic) return;
     const auto found = schemas.find(c.schema_id);
     std::string why;
-    if (recorded_channel(c, found != schemas.end() ? &found->second : nullptr, schema, why) == nullptr) {
+    if (recorded_channel(c, found != schemas.end() ? &found->second : nullptr, &schema, why) == nullptr) {
       problem = std::string(kFeedbackTopic) + ": " + why;
       return;
     }

@@ -119,10 +119,9 @@ std::map<std::string, std::uint16_t> playable_channels(const FileChannels& file)
       continue;
     }
     const auto schema = file.schemas.find(channel.schema_id);
-    std::optional<introspect::MessageSchema> decoder;
-    std::string why;
+    std::string why;  // play sends the bytes as they are: no decoder needed
     const auto* entry =
-        recorded_channel(channel, schema != file.schemas.end() ? &schema->second : nullptr, decoder, why);
+        recorded_channel(channel, schema != file.schemas.end() ? &schema->second : nullptr, nullptr, why);
     if (entry == nullptr) {
       refused += "  channel " + std::to_string(id) + " " + channel.topic + ": " + why + "\n";
       continue;

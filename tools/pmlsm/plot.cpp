@@ -94,7 +94,7 @@ bool open_plot_series(Series& s, const mcap::Channel& channel, const mcap::Schem
                       const std::filesystem::path& dir) {
   const std::string& topic = channel.topic;
   std::string why;
-  if (recorded_channel(channel, schema, s.schema, why) == nullptr) {
+  if (recorded_channel(channel, schema, &s.schema, why) == nullptr) {
     std::cerr << "pmlsm plot: " << topic << ": not plotted: " << why << "\n";
     return false;
   }

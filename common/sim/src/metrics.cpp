@@ -68,14 +68,16 @@ ScenarioMetrics compute_metrics(const std::vector<TickRecord>& trace, const Scen
     // The ticks of a rise or fall change every tick and are tracking, not settling. The raw
     // command, not the trace's (which is input-shaped when the scenario shapes it): settling
     // counts from the step asked for, so a shaper's delay is part of it.
-    const auto raw_command = [&](std::size_t i) { return scenario.command_mps(trace[i].time_s); };
     std::size_t begin = 0;
     double worst = 0;
+    double previous = n > 0 ? scenario.command_mps(trace[0].time_s) : 0.0;
     for (std::size_t i = 1; i <= n; ++i) {
-      if (i == n || raw_command(i) != raw_command(i - 1)) {
+      const double command = i < n ? scenario.command_mps(trace[i].time_s) : previous;
+      if (i == n || command != previous) {
         if (i - begin >= 2) worst = std::max(worst, settling_time(signal, begin, i, band, control_period_s));
         begin = i;
       }
+      previous = command;
     }
     m.load_settling_time_s = worst;
   } else {
