@@ -483,5 +483,69 @@ TEST(Identify, RefusesWhatCannotBeFittedAndWritesNothing) {
   fs::remove_all(dir);
 }
 
+// `pmlsm commission --simulate` on a plant the shipped model does not match: the modes printed
+// on their own lines within 0.5 % of the plant's, the report (the response per line, the raw
+// samples, the Bode plot) and a system file with the measured two-mass model that loads.
+TEST(Commission, SimulatedPlantGivesItsModesAReportAndASystemFile) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "commission");
+  const std::string out = (dir / "commissioned.yaml").string(), report = (dir / "report").string();
+  test::ChildProcess p(
+      pmlsm_args(test_domain(94), {"commission", "--simulate", "-c", source("configs/system.yaml"), "--identification",
+                                   source("configs/scenarios/identification.yaml"), "--set",
+                                   "plant.mechanics.load_mass_kg=8", "-o", out, "--report", report}),
+      (dir / "commission.log").string());
+  ASSERT_EQ(run_to_end(p), 0) << p.output();
+  const auto number_after = [&](const std::string& label) {
+    const auto at = p.output().find("\n" + label + " ");
+    return at == std::string::npos ? 0.0 : std::stod(p.output().substr(at + label.size() + 2));
+  };
+  const double anti_hz = std::sqrt(13700.0 / 8.0) / (2 * M_PI),
+               resonance_hz = std::sqrt(13700.0 * (1 / 8.0 + 1 / 20.0)) / (2 * M_PI);
+  EXPECT_NEAR(number_after("anti-resonance"), anti_hz, 0.005 * anti_hz) << p.output();
+  EXPECT_NEAR(number_after("resonance"), resonance_hz, 0.005 * resonance_hz) << p.output();
+  const SystemParams written = load_system_params(out);
+  EXPECT_NEAR(written.kalman.model.load_mass_kg, 8.0, 0.16);
+  EXPECT_NEAR(written.kalman.model.spring_n_per_m, 13700.0, 274.0);
+  EXPECT_EQ(written.compensator.state_feedback.model.load_mass_kg, written.kalman.model.load_mass_kg);
+  EXPECT_EQ(written.plant.mechanics.load_mass_kg, 4.0);  // the plant is the file's, untouched
+  std::ifstream response(fs::path(report) / "response.csv");
+  std::size_t lines = 0;
+  for (std::string line; std::getline(response, line);) ++lines;
+  EXPECT_EQ(lines, 1u + 153u);
+  EXPECT_GT(fs::file_size(fs::path(report) / "bode.png"), 10000u);
+  EXPECT_GT(fs::file_size(fs::path(report) / "samples.csv"), 24000u * 20u);
+  fs::remove_all(dir);
+}
+
+// A run that would leave the stroke or exceed the force limit is refused before it starts (2); a
+// measurement a limit ends (a noisy encoder saturates the loop) exits 5 and one whose response
+// is not coherent enough exits 6; none writes the system file.
+TEST(Commission, RefusesARunBeyondItsLimitsAndWritesNothingFromABadOne) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "commission_refused");
+  const std::string out = (dir / "out.yaml").string();
+  const auto commission = [&](const std::string& set, const char* log) {
+    test::ChildProcess p(
+        pmlsm_args(test_domain(94), {"commission", "--simulate", "--no-plots", "-c", source("configs/system.yaml"),
+                                     "--set", set, "-o", out, "--report", (dir / "report").string()}),
+        (dir / log).string());
+    const int exit_code = run_to_end(p);
+    return std::make_pair(exit_code, p.output());
+  };
+  auto [code, text] = commission("commissioning.frequency_response.max_travel_m=0.2", "stroke.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("would leave the stroke"), std::string::npos) << text;
+  std::tie(code, text) = commission("commissioning.frequency_response.amplitude_n=700", "force.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("exceed the force limit"), std::string::npos) << text;
+  std::tie(code, text) = commission("plant.encoder.position_noise_std_m=3e-5", "noise.log");
+  EXPECT_EQ(code, 5) << text;
+  EXPECT_NE(text.find("ended early: force [N] at tick"), std::string::npos) << text;
+  std::tie(code, text) = commission("commissioning.frequency_response.min_coherence=0.9999", "coherence.log");
+  EXPECT_EQ(code, 6) << text;
+  EXPECT_NE(text.find("poor coherence"), std::string::npos) << text;
+  EXPECT_FALSE(fs::exists(out));
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace pmlsm

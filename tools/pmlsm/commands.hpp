@@ -67,6 +67,8 @@ void add_sweep_command(CLI::App& app, int& exit_code);
 
 /// `pmlsm identify [RECORDING] | --simulate`: the commissioning identification (identify.cpp).
 void add_identify_command(CLI::App& app, int& exit_code);
+/// `pmlsm commission --simulate`: frequency response, two-mass fit, Bode plot (commission.cpp).
+void add_commission_command(CLI::App& app, int& exit_code);
 
 /// `pmlsm config reference|check`: the generated configuration reference, the file's checks (config_command.cpp).
 void add_config_command(CLI::App& app, int& exit_code);

@@ -8,6 +8,7 @@
 //   pmlsm security create|...        the DDS Security keystore
 //   pmlsm sweep FILE                 the robustness sweep over a plant family (in process)
 //   pmlsm identify [RECORDING]       the load fitted to a commissioning run (a recording or --simulate)
+//   pmlsm commission --simulate      frequency response, two-mass fit, Bode plot, system file
 #include "pmlsm/util/data_files.hpp"
 #include <unistd.h>
 
@@ -81,6 +82,7 @@ int main(int argc, char** argv) {
   pmlsm::tools::add_security_command(app, exit_code);
   pmlsm::tools::add_sweep_command(app, exit_code);
   pmlsm::tools::add_identify_command(app, exit_code);
+  pmlsm::tools::add_commission_command(app, exit_code);
   pmlsm::tools::add_config_command(app, exit_code);
 
   pmlsm::dds::install_shutdown_handlers();

@@ -103,6 +103,13 @@ VibrationMode SystemParams::loop_vibration_mode() const {
   return least_damped;
 }
 
+FrequencyResponseMeasurementParams SystemParams::frequency_response_params() const {
+  FrequencyResponseMeasurementParams p = commissioning.frequency_response;
+  p.period_s = timing.control_period_s;
+  p.pole_pitch_m = plant.electrical.pole_pitch_m;
+  return p;
+}
+
 InputShaperParams SystemParams::input_shaper_params(ShaperKind kind) const {
   const VibrationMode mode = loop_vibration_mode();
   InputShaperParams p;
@@ -197,6 +204,7 @@ void SystemParams::validate() const {
   validate_section("compensator.acceleration_feedback", [&] { accel_feedback_params().validate(); });
   validate_section("compensator.state_feedback", [&] { state_feedback_params().validate(); });
   validate_section("compensator.guard", [&] { vibration_guard_params().validate(); });
+  validate_section("commissioning.frequency_response", [&] { frequency_response_params().validate(); });
   validate_section("plant", [&] { plant.check_step(); });
 }
 

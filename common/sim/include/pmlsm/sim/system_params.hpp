@@ -15,6 +15,7 @@
 #include "pmlsm/compensation/state_feedback.hpp"
 #include "pmlsm/estimation/kalman_filter.hpp"
 #include "pmlsm/plant/plant.hpp"
+#include "pmlsm/sim/frequency_response_measurement.hpp"
 #include "pmlsm/util/parameter_table.hpp"
 #include "pmlsm/control/reference_model.hpp"
 #include "pmlsm/control/velocity_pi.hpp"
@@ -52,6 +53,12 @@ struct InputShapingTuning {
   double vibration_tolerance = 0;  ///< EI's residual vibration on the mode
 };
 
+/// Commissioning (`pmlsm commission`): the frequency-response measurement; its control period and
+/// the ripple's pole pitch come from the system (SystemParams::frequency_response_params).
+struct CommissioningTuning {
+  FrequencyResponseMeasurementParams frequency_response;
+};
+
 /// A lightly damped mode of a linear loop: s = -zeta w_n +- j w_n sqrt(1 - zeta^2).
 struct VibrationMode {
   double frequency_hz = 0;  ///< w_n / (2 pi)
@@ -86,6 +93,7 @@ struct SystemParams {
   KalmanParams kalman;                   ///< period_s: timing.control_period_s
   CompensatorTuning compensator;
   InputShapingTuning input_shaping;
+  CommissioningTuning commissioning;
 
   /// @throws std::invalid_argument with the section path of the first invalid value.
   void validate() const;
@@ -108,6 +116,9 @@ struct SystemParams {
   /// F = -K_p v_M + K_i integral(-v_M)). It lies between the load's mode on a held motor,
   /// sqrt(k / m_L), and the free two-mass resonance, sqrt(k (1/m_M + 1/m_L)).
   VibrationMode loop_vibration_mode() const;
+  /// The frequency-response measurement at the control period, with the plant's pole pitch (the
+  /// motor's datasheet value: the force ripple's period in space).
+  FrequencyResponseMeasurementParams frequency_response_params() const;
   /// A shaper of `kind` timed to loop_vibration_mode(), at the control period.
   InputShaperParams input_shaper_params(ShaperKind kind) const;
 };
@@ -213,6 +224,20 @@ void visit_parameters(Params& p, Visitor& v) {
          {0.01, 100.0, "from barely damped to overdamped a hundred times"});
   v.real("input_shaping.vibration_tolerance", p.input_shaping.vibration_tolerance,
          {1e-6, 0.25, "EI's residual vibration on its mode: above 0, at most a quarter of unshaped"});
+  auto& fr = p.commissioning.frequency_response;
+  const std::string at = "commissioning.frequency_response.";
+  v.real(at + "amplitude_n", fr.amplitude_n, {1e-3, 1e5, "1 mN to 100 kN, the range of the force limit"});
+  v.real(at + "min_frequency_hz", fr.min_frequency_hz, {0.01, 1e4, "0.01 Hz to 10 kHz"});
+  v.real(at + "max_frequency_hz", fr.max_frequency_hz, {0.01, 1e4, "0.01 Hz to 10 kHz, below the Nyquist frequency"});
+  v.real(at + "resolution_hz", fr.resolution_hz, {0.01, 100.0, "a period of 10 ms to 100 s"});
+  v.real(at + "offset_velocity_mps", fr.offset_velocity_mps, {-10.0, 10.0, "either direction, up to 10 m/s"});
+  v.integer(at + "settle_periods", fr.settle_periods, {1.0, 100.0, "1 to 100 periods"});
+  v.integer(at + "measure_periods", fr.measure_periods, {4.0, 400.0, "4 to 400 periods, a multiple of 4"});
+  v.real(at + "ramp_s", fr.ramp_s, {1e-3, 60.0, "a tick to a minute"});
+  v.real(at + "max_travel_m", fr.max_travel_m, {1e-6, 100.0, "1 um to 100 m of stroke"});
+  v.real(at + "max_velocity_mps", fr.max_velocity_mps, {1e-6, 100.0, "1 um/s to 100 m/s"});
+  v.real(at + "min_coherence", fr.min_coherence, {0.0, 1.0, "a coherence: 0 to 1"});
+  v.real(at + "max_low_coherence_share", fr.max_low_coherence_share, {0.0, 1.0, "a share of the lines: 0 to 1"});
 
   // The filter's model of the mechanics: the ranges of the plant's (the model is of such a plant).
   detail::visit_two_mass("kalman.model", p.kalman.model, v);

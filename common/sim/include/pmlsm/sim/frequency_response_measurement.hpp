@@ -1,0 +1,155 @@
+// Frequency-response measurement on a drive, the tick-by-tick part: a velocity PI holds the motor
+// at a constant velocity while a multisine is added to its force (under the loop, inside the
+// force limit), and the excitation, the applied force and the measured velocity are recorded for
+// estimate_frequency_response. It sees only what a drive reports (drive::Measurement and its
+// power state), so the same measurement runs on the simulated drive, the CANopen rig or a real
+// drive behind the drive seam.
+//
+// Why at a constant velocity: at rest the bearings stick (Coulomb friction switches sign with the
+// velocity: no linear response below the breakaway force). Moving one way, the friction is a
+// constant force and the plant is linear around the motion, as the two-mass fit assumes.
+// Why that velocity: the motor's force ripple (one and two cycles per pole pitch tau) is then a
+// disturbance at f_r = v0 / tau and 2 f_r, and modulates the response by f_r. With
+// f_r = (m + 1/4) df its phase turns by a quarter and a half turn from one excitation period to
+// the next, so it cancels from the average of every 4 measured periods; the offset velocity is
+// the configured one moved to the nearest such velocity.
+//
+// Phases, each a whole number of ticks:
+//   ramp     velocity command 0 -> v0 over ramp_s, no excitation
+//   excite   settle_periods + measure_periods periods of the multisine at v0
+//   stop     v0 -> 0 over ramp_s, no excitation
+//   done     zero velocity command (the loop holds the motor)
+// A breach of a limit (travel from the start, velocity, the force limit, a non-finite reading) or
+// a drive that leaves operation enabled ends the measurement at once: zero force from that tick,
+// and the reason kept. Nothing is thrown and nothing is allocated per tick.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "pmlsm/control/velocity_pi.hpp"
+#include "pmlsm/drive/drive.hpp"
+#include "pmlsm/sim/frequency_response.hpp"
+
+namespace pmlsm {
+
+struct FrequencyResponseMeasurementParams {
+  double amplitude_n = 0;       ///< peak of the multisine [N]
+  double min_frequency_hz = 0;  ///< the excited band
+  double max_frequency_hz = 0;
+  double resolution_hz = 0;            ///< line spacing df (the period is 1 / df)
+  double offset_velocity_mps = 0;      ///< the velocity measured at, before the ripple rule above
+  std::size_t settle_periods = 0;      ///< periods run before the ones averaged
+  std::size_t measure_periods = 0;     ///< periods averaged: a multiple of 4
+  double ramp_s = 0;                   ///< to and from the offset velocity
+  double max_travel_m = 0;             ///< stroke either side of the start the measurement may use
+  double max_velocity_mps = 0;         ///< |v| beyond it ends the measurement
+  double min_coherence = 0;            ///< a line below it is not fitted
+  double max_low_coherence_share = 0;  ///< more lines than this share below min_coherence: no result
+  // From the system, not the file:
+  double period_s = 0;      ///< the control period
+  double pole_pitch_m = 0;  ///< tau: the ripple's period in space
+  /// @throws std::invalid_argument naming the first invalid value.
+  void validate() const;
+};
+
+enum class MeasurementPhase : std::uint8_t { kRamp, kExcite, kStop, kDone, kAborted };
+const char* measurement_phase_name(MeasurementPhase phase);
+
+class FrequencyResponseMeasurement {
+ public:
+  /// Checks the run against its limits before it starts: the travel of the whole run at the
+  /// offset velocity within max_travel_m, the excitation's peak within the force limit, the
+  /// offset velocity within max_velocity_mps.
+  /// @throws std::invalid_argument naming the limit the run would break, with both values.
+  FrequencyResponseMeasurement(const FrequencyResponseMeasurementParams& params, const VelocityPiParams& velocity_pi);
+
+  /// One tick: the drive's reading at the tick's start and whether it is in operation enabled;
+  /// returns the force to apply over the tick. Allocation-free, never throws.
+  double step(const drive::Measurement& measurement, bool operation_enabled);
+
+  MeasurementPhase phase() const { return phase_; }
+  bool finished() const { return phase_ == MeasurementPhase::kDone || phase_ == MeasurementPhase::kAborted; }
+  /// Why the measurement was aborted ("" when it was not).
+  const std::string& abort_reason() const { return abort_reason_; }
+  std::uint64_t ticks() const { return tick_; }
+  /// Ticks of the whole run (ramp, excitation, stop).
+  std::uint64_t total_ticks() const { return stop_end_tick_; }
+  double offset_velocity_mps() const { return offset_velocity_mps_; }
+  const Multisine& excitation() const { return excitation_; }
+  const FrequencyResponseMeasurementParams& params() const { return params_; }
+
+  /// The excitation R, the applied force F and the velocity V measured over the tick F was held,
+  /// one sample per excitation tick, from the excitation's tick 0.
+  const std::vector<double>& excitation_n() const { return excitation_n_; }
+  const std::vector<double>& force_n() const { return force_n_; }
+  const std::vector<double>& velocity_mps() const { return velocity_mps_; }
+  /// The estimates per line after a completed measurement.
+  /// @throws std::invalid_argument when the measurement did not complete.
+  std::vector<FrequencyPoint> response() const;
+
+ private:
+  void abort(const char* what, double value, double limit);
+  double velocity_command_mps() const;
+
+  FrequencyResponseMeasurementParams params_;
+  Multisine excitation_;
+  VelocityPi velocity_pi_;
+  double offset_velocity_mps_ = 0;
+  std::uint64_t ramp_ticks_ = 0;
+  std::uint64_t excite_end_tick_ = 0;
+  std::uint64_t measure_start_tick_ = 0;
+  double trim_gain_per_s_ = 0;
+  double velocity_trim_mps_ = 0;
+  std::uint64_t stop_end_tick_ = 0;
+  MeasurementPhase phase_ = MeasurementPhase::kRamp;
+  std::string abort_reason_;
+  std::uint64_t tick_ = 0;
+  bool have_start_ = false;
+  double start_position_m_ = 0;
+  double last_force_n_ = 0;
+  double last_excitation_n_ = 0;
+  bool last_recorded_ = false;  ///< the force applied over the last tick was an excitation tick's
+  std::vector<double> excitation_n_, force_n_, velocity_mps_;
+};
+
+/// The plant's response and the two-mass fit of a completed measurement.
+struct FrequencyResponseResult {
+  std::vector<FrequencyPoint> points;
+  TwoMassFit fit;
+  std::size_t low_coherence_lines = 0;
+};
+
+/// Runs a measurement on a drive to its end: enables the drive (shutdown, switch on, enable
+/// operation), steps until finished, then disables the drive (zero force, disable operation).
+/// `progress(tick, total)` is called once a second of drive time. The drive must be at rest.
+/// Returns the measurement; a refused enable aborts it with the drive's reason.
+template <typename Progress>
+void run_measurement(drive::Drive& drive, FrequencyResponseMeasurement& measurement, Progress&& progress) {
+  for (const drive::DriveCommand command :
+       {drive::DriveCommand::kShutdown, drive::DriveCommand::kSwitchOn, drive::DriveCommand::kEnableOperation}) {
+    drive.sample();
+    drive.request(command);
+    drive.apply(0.0);
+  }
+  const auto ticks_per_second = static_cast<std::uint64_t>(1.0 / measurement.params().period_s + 0.5);
+  while (!measurement.finished()) {
+    const drive::Measurement m = drive.sample();
+    const double force_n = measurement.step(m, drive.power_state() == drive::PowerState::kOperationEnabled);
+    drive.apply(force_n);
+    if (measurement.ticks() % ticks_per_second == 0) progress(measurement.ticks(), measurement.total_ticks());
+  }
+  drive.sample();
+  drive.apply(0.0);
+  drive.request(drive::DriveCommand::kSwitchOn);  // disable operation (transition 5)
+}
+
+/// The estimates and the fit of a completed measurement, with the coherence rule applied.
+/// @throws std::invalid_argument when the measurement did not complete, when more than
+/// max_low_coherence_share of the lines fall below min_coherence (naming how many and the
+/// worst), or from the fit.
+FrequencyResponseResult evaluate_measurement(const FrequencyResponseMeasurement& measurement);
+
+}  // namespace pmlsm

@@ -1,0 +1,306 @@
+// `pmlsm commission`: the plant's frequency response measured on the drive under its velocity
+// loop (pmlsm/sim/frequency_response_measurement.hpp, commissioning.frequency_response of the
+// system file), the two-mass model fitted to it, cross-checked against the time-domain fit of
+// `pmlsm identify`, and written into a copy of the system file:
+//   pmlsm commission --simulate -o configs/system_commissioned.yaml
+//   pmlsm commission --simulate --set plant.mechanics.load_mass_kg=8 --report out/commissioning
+// The report folder gets response.csv (per line: plant, open and closed loop, coherence, the
+// fitted model), samples.csv (the raw excitation, force and velocity per tick), bode.png and
+// bode.gp. Exit 5 when the measurement ended early (a limit breached, the drive faulted or
+// quick-stopped: nothing written), 6 when the response is not coherent enough or the two fits
+// disagree (nothing written), 2 on bad input.
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "commands.hpp"
+#include "pmlsm/config/config.hpp"
+#include "pmlsm/config/sweep_file.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/sim/frequency_response_measurement.hpp"
+#include "pmlsm/sim/identification.hpp"
+#include "pmlsm/sim/simulated_drive.hpp"
+#include "pmlsm/util/data_files.hpp"
+#include "system_file_options.hpp"
+#include "tool_support.hpp"
+
+namespace pmlsm::tools {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+struct CommissionOptions {
+  bool simulate = false;
+  std::string config = data_file("configs/system.yaml");
+  std::vector<std::string> set;
+  std::string identification = data_file("configs/scenarios/identification.yaml");
+  std::string out;                       ///< the system file to write ("": report only)
+  std::string report = "commissioning";  ///< the report folder
+  bool plots = true;
+  std::string family;  ///< a sweep file: measure every plant of its family instead (--simulate)
+};
+
+double db(std::complex<double> x) { return 20.0 * std::log10(std::abs(x)); }
+double degrees(std::complex<double> x) { return std::arg(x) * 180.0 / kPi; }
+
+/// Runs the measurement on the configured simulated plant, with progress on stderr (quiet: none).
+FrequencyResponseMeasurement measure_on_simulated_plant(const SystemParams& configured, bool quiet = false) {
+  FrequencyResponseMeasurement measurement(configured.frequency_response_params(), configured.velocity_pi_params());
+  SimulatedDriveBackend drive(configured, PlantInitialCondition{});
+  if (quiet) {
+    run_measurement(drive, measurement, [](std::uint64_t, std::uint64_t) {});
+    return measurement;
+  }
+  std::fprintf(stderr, "commission: measuring the frequency response at %.4f m/s, %zu lines %.2f-%.2f Hz, %.1f s\n",
+               measurement.offset_velocity_mps(), measurement.excitation().lines().size(),
+               measurement.params().min_frequency_hz, measurement.params().max_frequency_hz,
+               static_cast<double>(measurement.total_ticks()) * measurement.params().period_s);
+  run_measurement(drive, measurement, [&](std::uint64_t tick, std::uint64_t total) {
+    if (tick % 5000 == 0) {
+      std::fprintf(stderr, "  %5.1f s of %.1f s (%s)\n", static_cast<double>(tick) * measurement.params().period_s,
+                   static_cast<double>(total) * measurement.params().period_s,
+                   measurement_phase_name(measurement.phase()));
+    }
+  });
+  return measurement;
+}
+
+void write_samples_csv(const std::filesystem::path& path, const FrequencyResponseMeasurement& m) {
+  std::ofstream csv(path);
+  csv << "tick,excitation_n,force_n,velocity_mps\n";
+  char line[128];
+  for (std::size_t i = 0; i < m.force_n().size(); ++i) {
+    std::snprintf(line, sizeof line, "%zu,%.9g,%.9g,%.9g\n", i, m.excitation_n()[i], m.force_n()[i],
+                  m.velocity_mps()[i]);
+    csv << line;
+  }
+  if (!csv) throw std::runtime_error("cannot write " + path.string());
+}
+
+void write_response_csv(const std::filesystem::path& path, const FrequencyResponseResult& r) {
+  std::ofstream csv(path);
+  csv << "frequency_hz,plant_db,plant_deg,open_loop_db,open_loop_deg,closed_loop_db,closed_loop_deg,coherence,"
+         "model_db,model_deg\n";
+  char line[256];
+  for (const FrequencyPoint& p : r.points) {
+    const std::complex<double> model = two_mass_response(r.fit, p.frequency_hz);
+    std::snprintf(line, sizeof line, "%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", p.frequency_hz, db(p.plant),
+                  degrees(p.plant), db(p.open_loop()), degrees(p.open_loop()), db(p.closed_loop()),
+                  degrees(p.closed_loop()), p.coherence, db(model), degrees(model));
+    csv << line;
+  }
+  if (!csv) throw std::runtime_error("cannot write " + path.string());
+}
+
+/// bode.gp over response.csv: magnitude, phase and coherence, the modes marked.
+void write_bode_script(const std::filesystem::path& dir, const TwoMassFit& fit) {
+  std::ofstream gp(dir / "bode.gp");
+  gp << "set terminal pngcairo size 1200,1000 noenhanced font ',10'\nset output '" << (dir / "bode.png").string()
+     << "'\nset datafile separator ','\nset grid\nset logscale x\nset key top right\n"
+     << "set arrow from " << fit.anti_resonance_hz << ", graph 0 to " << fit.anti_resonance_hz
+     << ", graph 1 nohead dt 2 lc rgb 'gray40'\nset arrow from " << fit.resonance_hz << ", graph 0 to "
+     << fit.resonance_hz << ", graph 1 nohead dt 2 lc rgb 'gray40'\n"
+     << "set multiplot layout 3,1 title 'frequency response: anti-resonance " << fit.anti_resonance_hz
+     << " Hz, resonance " << fit.resonance_hz << " Hz'\n"
+     << "set ylabel 'magnitude [dB]'\nplot '" << (dir / "response.csv").string()
+     << "' every ::1 using 1:2 w lp pt 7 ps 0.4 title 'plant G = V/F [m/s/N]', '' every ::1 using 1:9 w l lw 2 "
+        "title 'two-mass fit', '' every ::1 using 1:4 w l title 'open loop L', '' every ::1 using 1:6 w l "
+        "title 'closed loop T'\n"
+     << "set ylabel 'phase [deg]'\nplot '" << (dir / "response.csv").string()
+     << "' every ::1 using 1:3 w lp pt 7 ps 0.4 title 'plant G', '' every ::1 using 1:10 w l lw 2 title "
+        "'two-mass fit', '' every ::1 using 1:5 w l title 'open loop L', '' every ::1 using 1:7 w l title "
+        "'closed loop T'\n"
+     << "set ylabel 'coherence'\nset xlabel 'frequency [Hz]'\nset yrange [0:1.05]\nplot '"
+     << (dir / "response.csv").string() << "' every ::1 using 1:8 w lp pt 7 ps 0.4 title 'coherence'\n"
+     << "unset multiplot\n";
+}
+
+/// The fit's table, with the configured model and (simulated) the plant's true values.
+void print_fit(const TwoMassFit& fit, const IdentifiedLoad& time_domain, const SystemParams& configured,
+               bool simulate) {
+  const auto& model = configured.kalman.model;
+  const auto& truth = configured.plant.mechanics;
+  std::printf("  %-22s %12s %12s %12s%s\n", "", "configured", "frequency", "time domain",
+              simulate ? "   simulated plant" : "");
+  const auto row = [&](const char* name, double was, double now, double other, double real) {
+    std::printf("  %-22s %12.6g %12.6g %12.6g", name, was, now, other);
+    if (simulate) std::printf(" %12.6g (%+.2f %%)", real, 100.0 * (now / real - 1.0));
+    std::printf("\n");
+  };
+  const double nan = std::nan("");
+  row("motor mass [kg]", model.motor_mass_kg, fit.motor_mass_kg, nan, truth.motor_mass_kg);
+  row("load mass [kg]", model.load_mass_kg, fit.load_mass_kg, time_domain.load_mass_kg, truth.load_mass_kg);
+  row("spring [N/m]", model.spring_n_per_m, fit.spring_n_per_m, time_domain.spring_n_per_m, truth.spring_n_per_m);
+  const double anti_true_hz = std::sqrt(truth.spring_n_per_m / truth.load_mass_kg) / (2 * kPi);
+  const double res_true_hz =
+      std::sqrt(truth.spring_n_per_m * (1 / truth.load_mass_kg + 1 / truth.motor_mass_kg)) / (2 * kPi);
+  row("anti-resonance [Hz]", std::sqrt(model.spring_n_per_m / model.load_mass_kg) / (2 * kPi), fit.anti_resonance_hz,
+      time_domain.load_mode_hz(), anti_true_hz);
+  row("resonance [Hz]",
+      std::sqrt(model.spring_n_per_m * (1 / model.load_mass_kg + 1 / model.motor_mass_kg)) / (2 * kPi),
+      fit.resonance_hz, nan, res_true_hz);
+  std::printf("  fit: %zu lines, rms log error %.3f; damping: anti-resonance %.4f, resonance %.4f\n", fit.lines_used,
+              fit.rms_log_error, fit.anti_resonance_damping, fit.resonance_damping);
+}
+
+/// The keys the commissioning writes: the two-mass model from the frequency response, the
+/// bearing friction from the time-domain fit (a response at one velocity does not separate it).
+std::vector<std::pair<std::string, double>> commissioned_parameters(const TwoMassFit& fit,
+                                                                    const IdentifiedLoad& time_domain) {
+  std::vector<std::pair<std::string, double>> values;
+  for (const auto& [key, value] : identified_parameters(time_domain)) {
+    const bool load = key.find("load_mass_kg") != std::string::npos;
+    const bool spring = key.find("spring_n_per_m") != std::string::npos;
+    values.emplace_back(key, load ? fit.load_mass_kg : spring ? fit.spring_n_per_m : value);
+  }
+  values.emplace_back("kalman.model.motor_mass_kg", fit.motor_mass_kg);
+  values.emplace_back("compensator.state_feedback.model.motor_mass_kg", fit.motor_mass_kg);
+  return values;
+}
+
+/// The relative error of a measured value against the plant's, in per cent.
+double error_percent(double measured, double truth) { return 100.0 * (measured / truth - 1.0); }
+
+/// Every plant of a sweep file's family measured and fitted in process: a row per plant against
+/// its true modes, masses and spring, family.csv in the report folder, the largest errors. Exit 6
+/// when a plant's measurement ends early or its response is refused.
+int run_family(const CommissionOptions& o, const SystemParams& nominal) {
+  const SweepFile file = load_sweep_file(o.family, nominal);
+  const std::vector<PlantSample> plants = sample_plants(file.spec);
+  std::filesystem::create_directories(o.report);
+  std::ofstream csv(std::filesystem::path(o.report) / "family.csv");
+  csv << "plant,load_mass_kg,spring_n_per_m,anti_resonance_hz,anti_resonance_error_percent,resonance_hz,"
+         "resonance_error_percent,load_mass_error_percent,spring_error_percent,motor_mass_error_percent\n";
+  double worst[5] = {0, 0, 0, 0, 0};
+  std::size_t failed = 0;
+  std::printf("%-10s %8s %9s %22s %22s %8s %8s %8s\n", "plant", "m_L [kg]", "k [N/m]", "anti-resonance [Hz]",
+              "resonance [Hz]", "m_L", "k", "m_M");
+  for (const PlantSample& plant : plants) {
+    const SystemParams p = plant_variant(nominal, file.spec, plant);
+    const FrequencyResponseMeasurement m = measure_on_simulated_plant(p, true);
+    const auto& truth = p.plant.mechanics;
+    if (m.phase() != MeasurementPhase::kDone) {
+      std::printf("%-10s the measurement ended early: %s\n", plant.label.c_str(), m.abort_reason().c_str());
+      ++failed;
+      continue;
+    }
+    FrequencyResponseResult r;
+    try {
+      r = evaluate_measurement(m);
+    } catch (const std::invalid_argument& e) {
+      std::printf("%-10s %s\n", plant.label.c_str(), e.what());
+      ++failed;
+      continue;
+    }
+    const double anti_hz = std::sqrt(truth.spring_n_per_m / truth.load_mass_kg) / (2 * kPi);
+    const double res_hz =
+        std::sqrt(truth.spring_n_per_m * (1 / truth.load_mass_kg + 1 / truth.motor_mass_kg)) / (2 * kPi);
+    const double errors[5] = {error_percent(r.fit.anti_resonance_hz, anti_hz),
+                              error_percent(r.fit.resonance_hz, res_hz),
+                              error_percent(r.fit.load_mass_kg, truth.load_mass_kg),
+                              error_percent(r.fit.spring_n_per_m, truth.spring_n_per_m),
+                              error_percent(r.fit.motor_mass_kg, truth.motor_mass_kg)};
+    for (int i = 0; i < 5; ++i) worst[i] = std::max(worst[i], std::fabs(errors[i]));
+    std::printf("%-10s %8.3f %9.0f %9.3f (%+6.2f %%) %9.3f (%+6.2f %%) %+7.2f%% %+7.2f%% %+7.2f%%\n",
+                plant.label.c_str(), truth.load_mass_kg, truth.spring_n_per_m, r.fit.anti_resonance_hz, errors[0],
+                r.fit.resonance_hz, errors[1], errors[2], errors[3], errors[4]);
+    csv << plant.label << ',' << truth.load_mass_kg << ',' << truth.spring_n_per_m << ',' << r.fit.anti_resonance_hz
+        << ',' << errors[0] << ',' << r.fit.resonance_hz << ',' << errors[1] << ',' << errors[2] << ',' << errors[3]
+        << ',' << errors[4] << '\n';
+  }
+  std::printf(
+      "family of %zu plants (%s): %zu not measured; largest errors: anti-resonance %.2f %%, resonance %.2f %%, "
+      "load mass %.2f %%, spring %.2f %%, motor mass %.2f %%\n",
+      plants.size(), o.family.c_str(), failed, worst[0], worst[1], worst[2], worst[3], worst[4]);
+  return failed == 0 ? kExitOk : kExitVerdictFailed;
+}
+
+int run_commission(const CommissionOptions& o) {
+  if (!o.simulate) {
+    throw UsageError("commission: give --simulate: measuring a live drive over DDS is not available yet");
+  }
+  const SystemParams configured = load_system_params(o.config, parse_overrides(o.set));
+  if (!o.family.empty()) {
+    if (!o.out.empty()) throw UsageError("commission: --family measures a family and writes no system file: drop -o");
+    return run_family(o, configured);
+  }
+  const FrequencyResponseMeasurement measurement = measure_on_simulated_plant(configured);
+  if (measurement.phase() != MeasurementPhase::kDone) {
+    std::printf("commission: the measurement ended early: %s; nothing written\n", measurement.abort_reason().c_str());
+    return kExitSafeState;
+  }
+  const std::filesystem::path dir = o.report;
+  std::filesystem::create_directories(dir);
+  write_samples_csv(dir / "samples.csv", measurement);
+  FrequencyResponseResult result;
+  try {
+    result = evaluate_measurement(measurement);
+  } catch (const std::invalid_argument& e) {
+    std::printf("commission: %s; nothing written but %s\n", e.what(), (dir / "samples.csv").string().c_str());
+    return kExitVerdictFailed;
+  }
+  write_response_csv(dir / "response.csv", result);
+  std::fprintf(stderr, "commission: the time-domain fit (pmlsm identify) on %s\n", o.identification.c_str());
+  const Scenario identification = load_scenario(o.identification, configured.timing.control_period_s);
+  const IdentifiedLoad time_domain = commission_load(configured, identification, IdentificationParams{});
+  std::printf("commissioned from %s (%zu lines, %zu below coherence %.2f):\n",
+              o.simulate ? "the simulated plant" : "the drive", result.points.size(), result.low_coherence_lines,
+              measurement.params().min_coherence);
+  print_fit(result.fit, time_domain, configured, o.simulate);
+  std::printf("anti-resonance %.3f Hz\nresonance %.3f Hz\n", result.fit.anti_resonance_hz, result.fit.resonance_hz);
+  if (o.plots) {
+    write_bode_script(dir, result.fit);
+    if (run_gnuplot(dir / "bode.gp") != 0) throw std::runtime_error("gnuplot failed on " + (dir / "bode.gp").string());
+  }
+  std::printf("report: %s\n", dir.string().c_str());
+  if (o.out.empty()) return kExitOk;
+  char source[320];
+  std::snprintf(source, sizeof source,
+                "chosen: commissioned by pmlsm commission from %s (frequency response: anti-resonance %.3f Hz, "
+                "resonance %.3f Hz; friction from the time-domain fit)",
+                o.simulate ? "the simulated plant" : "the drive", result.fit.anti_resonance_hz,
+                result.fit.resonance_hz);
+  const auto values = commissioned_parameters(result.fit, time_domain);
+  write_system_file_with(o.config, values, source, o.out);
+  std::printf("commission: %s written (%zu values); run the nodes with --config %s\n", o.out.c_str(), values.size(),
+              o.out.c_str());
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_commission_command(CLI::App& app, int& exit_code) {
+  auto o = std::make_shared<CommissionOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "commission",
+      "Commissioning: the plant's frequency response under the velocity loop, the two-mass model fitted to it "
+      "(checked against pmlsm identify's time-domain fit), a Bode plot, and a copy of the system file");
+  cmd->add_flag("--simulate", o->simulate, "Measure the configured (simulated) plant in process");
+  add_system_file_options(*cmd, o->config, o->set, "The system file whose models are replaced");
+  cmd->add_option("--identification", o->identification, "The time-domain fit's scenario (as pmlsm identify's)")
+      ->capture_default_str()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("-o,--out", o->out, "The system file to write (default: the report only)");
+  cmd->add_option("--report", o->report, "The report folder: response.csv, samples.csv, bode.png")
+      ->capture_default_str();
+  cmd->add_flag("!--no-plots", o->plots, "No Bode plot (no gnuplot needed)");
+  cmd->add_option("--family", o->family,
+                  "With --simulate: measure every plant of this sweep file's family and print the fit's errors")
+      ->check(CLI::ExistingFile);
+  cmd->callback([o, &exit_code] {
+    try {
+      exit_code = run_commission(*o);
+    } catch (const ConfigError& e) {
+      throw UsageError(std::string("config error: ") + e.what());
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+  });
+}
+
+}  // namespace pmlsm::tools
