@@ -483,16 +483,17 @@ TEST(Identify, RefusesWhatCannotBeFittedAndWritesNothing) {
   fs::remove_all(dir);
 }
 
-// `pmlsm commission --simulate` on a plant the shipped model does not match: the modes printed
-// on their own lines within 0.5 % of the plant's, the report (the response per line, the raw
-// samples, the Bode plot) and a system file with the measured two-mass model that loads.
+// `pmlsm commission --simulate --tune` on a plant the shipped model does not match: the modes
+// printed on their own lines within 0.5 % of the plant's, the report (the response per line, the
+// raw samples, the Bode plot) and a system file with the measured two-mass model and the tuned
+// PI gains that loads.
 TEST(Commission, SimulatedPlantGivesItsModesAReportAndASystemFile) {
   const fs::path dir = test::fresh_dir("pmlsm_tool", "commission");
   const std::string out = (dir / "commissioned.yaml").string(), report = (dir / "report").string();
   test::ChildProcess p(
       pmlsm_args(test_domain(94), {"commission", "--simulate", "-c", source("configs/system.yaml"), "--identification",
                                    source("configs/scenarios/identification.yaml"), "--set",
-                                   "plant.mechanics.load_mass_kg=8", "-o", out, "--report", report}),
+                                   "plant.mechanics.load_mass_kg=8", "-o", out, "--report", report, "--tune"}),
       (dir / "commission.log").string());
   ASSERT_EQ(run_to_end(p), 0) << p.output();
   const auto number_after = [&](const std::string& label) {
@@ -508,10 +509,16 @@ TEST(Commission, SimulatedPlantGivesItsModesAReportAndASystemFile) {
   EXPECT_NEAR(written.kalman.model.spring_n_per_m, 13700.0, 274.0);
   EXPECT_EQ(written.compensator.state_feedback.model.load_mass_kg, written.kalman.model.load_mass_kg);
   EXPECT_EQ(written.plant.mechanics.load_mass_kg, 4.0);  // the plant is the file's, untouched
+  // --tune: the PI's gains scaled together to the margins (printed), the gain margin binding.
+  EXPECT_NE(p.output().find("velocity loop as measured (Kp 10000 N s/m): phase margin 54."), std::string::npos)
+      << p.output();
+  EXPECT_GT(written.velocity_loop.kp_n_s_per_m, 10000.0);
+  EXPECT_NEAR(written.velocity_loop.ki_n_per_m / written.velocity_loop.kp_n_s_per_m, 0.01 / 10000.0, 1e-12);
+  EXPECT_NE(p.output().find("velocity loop tuned to 45 deg and 8 dB: Kp "), std::string::npos) << p.output();
   std::ifstream response(fs::path(report) / "response.csv");
   std::size_t lines = 0;
   for (std::string line; std::getline(response, line);) ++lines;
-  EXPECT_EQ(lines, 1u + 153u);
+  EXPECT_EQ(lines, 1u + 195u);
   EXPECT_GT(fs::file_size(fs::path(report) / "bode.png"), 10000u);
   EXPECT_GT(fs::file_size(fs::path(report) / "samples.csv"), 24000u * 20u);
   fs::remove_all(dir);

@@ -9,12 +9,14 @@
 // bode.gp. Exit 5 when the measurement ended early (a limit breached, the drive faulted or
 // quick-stopped: nothing written), 6 when the response is not coherent enough or the two fits
 // disagree (nothing written), 2 on bad input.
+#include <algorithm>
 #include <cmath>
 #include <complex>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -24,6 +26,7 @@
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/sim/frequency_response_measurement.hpp"
 #include "pmlsm/sim/identification.hpp"
+#include "pmlsm/sim/loop_tuning.hpp"
 #include "pmlsm/sim/simulated_drive.hpp"
 #include "pmlsm/util/data_files.hpp"
 #include "system_file_options.hpp"
@@ -43,6 +46,7 @@ struct CommissionOptions {
   std::string report = "commissioning";  ///< the report folder
   bool plots = true;
   std::string family;  ///< a sweep file: measure every plant of its family instead (--simulate)
+  bool tune = false;   ///< write the tuned velocity PI gains too
 };
 
 double db(std::complex<double> x) { return 20.0 * std::log10(std::abs(x)); }
@@ -97,8 +101,9 @@ void write_response_csv(const std::filesystem::path& path, const FrequencyRespon
   if (!csv) throw std::runtime_error("cannot write " + path.string());
 }
 
-/// bode.gp over response.csv: magnitude, phase and coherence, the modes marked.
-void write_bode_script(const std::filesystem::path& dir, const TwoMassFit& fit) {
+/// bode.gp over response.csv: magnitude, phase and coherence, the modes marked, the loop's margins
+/// in the title.
+void write_bode_script(const std::filesystem::path& dir, const TwoMassFit& fit, const std::string& margins) {
   std::ofstream gp(dir / "bode.gp");
   gp << "set terminal pngcairo size 1200,1000 noenhanced font ',10'\nset output '" << (dir / "bode.png").string()
      << "'\nset datafile separator ','\nset grid\nset logscale x\nset key top right\n"
@@ -106,7 +111,7 @@ void write_bode_script(const std::filesystem::path& dir, const TwoMassFit& fit) 
      << ", graph 1 nohead dt 2 lc rgb 'gray40'\nset arrow from " << fit.resonance_hz << ", graph 0 to "
      << fit.resonance_hz << ", graph 1 nohead dt 2 lc rgb 'gray40'\n"
      << "set multiplot layout 3,1 title 'frequency response: anti-resonance " << fit.anti_resonance_hz
-     << " Hz, resonance " << fit.resonance_hz << " Hz'\n"
+     << " Hz, resonance " << fit.resonance_hz << " Hz; velocity loop: " << margins << "'\n"
      << "set ylabel 'magnitude [dB]'\nplot '" << (dir / "response.csv").string()
      << "' every ::1 using 1:2 w lp pt 7 ps 0.4 title 'plant G = V/F [m/s/N]', '' every ::1 using 1:9 w l lw 2 "
         "title 'two-mass fit', '' every ::1 using 1:4 w l title 'open loop L', '' every ::1 using 1:6 w l "
@@ -148,6 +153,38 @@ void print_fit(const TwoMassFit& fit, const IdentifiedLoad& time_domain, const S
               fit.rms_log_error, fit.anti_resonance_damping, fit.resonance_damping);
 }
 
+std::string describe(const LoopMargins& m) {
+  char phase[64] = "not in the band", gain[64] = "not in the band";
+  if (m.gain_crossover_found) {
+    std::snprintf(phase, sizeof phase, "%.1f deg at %.1f Hz", m.phase_margin_deg, m.gain_crossover_hz);
+  }
+  if (m.phase_crossover_found) {
+    std::snprintf(gain, sizeof gain, "%.2f dB at %.1f Hz", m.gain_margin_db, m.phase_crossover_hz);
+  }
+  return std::string("phase margin ") + phase + ", gain margin " + gain;
+}
+
+/// The velocity loop's margins as measured and the gains tuned to the targets, printed; nullopt
+/// (and why) when no gain meets them.
+std::optional<TunedGains> tune_and_print(const SystemParams& configured, const FrequencyResponseResult& result) {
+  const auto& targets = configured.commissioning.tuning;
+  const double min_coherence = configured.commissioning.frequency_response.min_coherence;
+  std::string why;
+  const auto tuned = tune_velocity_pi(result.points, configured.velocity_loop.kp_n_s_per_m,
+                                      configured.velocity_loop.ki_n_per_m, targets, min_coherence, why);
+  std::printf("velocity loop as measured (Kp %.6g N s/m): %s\n", configured.velocity_loop.kp_n_s_per_m,
+              describe(loop_margins(result.points, 1.0, min_coherence)).c_str());
+  if (!tuned) {
+    std::printf("velocity loop tuning (%.4g deg, %.4g dB): %s\n", targets.min_phase_margin_deg,
+                targets.min_gain_margin_db, why.c_str());
+    return std::nullopt;
+  }
+  std::printf("velocity loop tuned to %.4g deg and %.4g dB: Kp %.6g N s/m, Ki %.6g N/m (x%.3f): %s\n",
+              targets.min_phase_margin_deg, targets.min_gain_margin_db, tuned->kp_n_s_per_m, tuned->ki_n_per_m,
+              tuned->gain_scale, describe(tuned->after).c_str());
+  return tuned;
+}
+
 /// The keys the commissioning writes: the two-mass model from the frequency response, the
 /// bearing friction from the time-domain fit (a response at one velocity does not separate it).
 std::vector<std::pair<std::string, double>> commissioned_parameters(const TwoMassFit& fit,
@@ -166,57 +203,107 @@ std::vector<std::pair<std::string, double>> commissioned_parameters(const TwoMas
 /// The relative error of a measured value against the plant's, in per cent.
 double error_percent(double measured, double truth) { return 100.0 * (measured / truth - 1.0); }
 
-/// Every plant of a sweep file's family measured and fitted in process: a row per plant against
-/// its true modes, masses and spring, family.csv in the report folder, the largest errors. Exit 6
-/// when a plant's measurement ends early or its response is refused.
+/// A measurement on the simulated plant of `p`, evaluated; nullopt and why when it ended early or
+/// its response was refused.
+std::optional<FrequencyResponseResult> measured_response(const SystemParams& p, std::string& why) {
+  const FrequencyResponseMeasurement m = measure_on_simulated_plant(p, true);
+  if (m.phase() != MeasurementPhase::kDone) {
+    why = "the measurement ended early: " + m.abort_reason();
+    return std::nullopt;
+  }
+  try {
+    return evaluate_measurement(m);
+  } catch (const std::invalid_argument& e) {
+    why = e.what();
+    return std::nullopt;
+  }
+}
+
+/// One plant of a family: the fit's errors against the plant (anti-resonance, resonance, load
+/// mass, spring, motor mass, in per cent) and the margins measured again at the tuned gains.
+struct FamilyRow {
+  double errors[5] = {0, 0, 0, 0, 0};
+  double tuned_kp_n_s_per_m = 0;
+  LoopMargins tuned;  ///< measured at the tuned gains (not predicted)
+};
+
+/// The row of plant `p`; nullopt and why when a measurement or the tuning failed.
+std::optional<FamilyRow> family_row(const SystemParams& p, std::string& why) {
+  const auto r = measured_response(p, why);
+  if (!r) return std::nullopt;
+  const auto& truth = p.plant.mechanics;
+  const double anti_hz = std::sqrt(truth.spring_n_per_m / truth.load_mass_kg) / (2 * kPi);
+  const double res_hz =
+      std::sqrt(truth.spring_n_per_m * (1 / truth.load_mass_kg + 1 / truth.motor_mass_kg)) / (2 * kPi);
+  FamilyRow row;
+  const double errors[5] = {error_percent(r->fit.anti_resonance_hz, anti_hz),
+                            error_percent(r->fit.resonance_hz, res_hz),
+                            error_percent(r->fit.load_mass_kg, truth.load_mass_kg),
+                            error_percent(r->fit.spring_n_per_m, truth.spring_n_per_m),
+                            error_percent(r->fit.motor_mass_kg, truth.motor_mass_kg)};
+  std::copy(std::begin(errors), std::end(errors), std::begin(row.errors));
+  const auto tuned = tune_velocity_pi(r->points, p.velocity_loop.kp_n_s_per_m, p.velocity_loop.ki_n_per_m,
+                                      p.commissioning.tuning, p.commissioning.frequency_response.min_coherence, why);
+  if (!tuned) return std::nullopt;
+  SystemParams at_tuned = p;
+  at_tuned.velocity_loop.kp_n_s_per_m = tuned->kp_n_s_per_m;
+  at_tuned.velocity_loop.ki_n_per_m = tuned->ki_n_per_m;
+  const auto again = measured_response(at_tuned, why);
+  if (!again) return std::nullopt;
+  row.tuned_kp_n_s_per_m = tuned->kp_n_s_per_m;
+  row.tuned = loop_margins(again->points, 1.0, p.commissioning.frequency_response.min_coherence);
+  return row;
+}
+
+/// Every plant of a sweep file's family measured and fitted in process, its velocity PI tuned and
+/// measured again at the tuned gains: a row per plant, family.csv in the report folder, the
+/// largest errors and the smallest margins. Exit 6 when a plant's measurement ends early, its
+/// response is refused, or its tuned loop misses a margin.
 int run_family(const CommissionOptions& o, const SystemParams& nominal) {
   const SweepFile file = load_sweep_file(o.family, nominal);
   const std::vector<PlantSample> plants = sample_plants(file.spec);
   std::filesystem::create_directories(o.report);
   std::ofstream csv(std::filesystem::path(o.report) / "family.csv");
-  csv << "plant,load_mass_kg,spring_n_per_m,anti_resonance_hz,anti_resonance_error_percent,resonance_hz,"
-         "resonance_error_percent,load_mass_error_percent,spring_error_percent,motor_mass_error_percent\n";
-  double worst[5] = {0, 0, 0, 0, 0};
+  csv << "plant,load_mass_kg,spring_n_per_m,anti_resonance_error_percent,resonance_error_percent,"
+         "load_mass_error_percent,spring_error_percent,motor_mass_error_percent,tuned_kp_n_s_per_m,"
+         "tuned_phase_margin_deg,tuned_gain_margin_db\n";
+  double worst[5] = {0, 0, 0, 0, 0}, least_phase_deg = 1e9, least_gain_db = 1e9;
   std::size_t failed = 0;
-  std::printf("%-10s %8s %9s %22s %22s %8s %8s %8s\n", "plant", "m_L [kg]", "k [N/m]", "anti-resonance [Hz]",
-              "resonance [Hz]", "m_L", "k", "m_M");
+  const TuningTargets& targets = nominal.commissioning.tuning;
+  std::printf("%-10s %6s %7s %13s %13s %7s %7s %7s %8s %18s\n", "plant", "m_L", "k", "anti-res. err", "res. err",
+              "m_L err", "k err", "m_M err", "tuned Kp", "margins at it");
   for (const PlantSample& plant : plants) {
     const SystemParams p = plant_variant(nominal, file.spec, plant);
-    const FrequencyResponseMeasurement m = measure_on_simulated_plant(p, true);
-    const auto& truth = p.plant.mechanics;
-    if (m.phase() != MeasurementPhase::kDone) {
-      std::printf("%-10s the measurement ended early: %s\n", plant.label.c_str(), m.abort_reason().c_str());
+    std::string why;
+    const auto row = family_row(p, why);
+    if (!row) {
+      std::printf("%-10s %s\n", plant.label.c_str(), why.c_str());
       ++failed;
       continue;
     }
-    FrequencyResponseResult r;
-    try {
-      r = evaluate_measurement(m);
-    } catch (const std::invalid_argument& e) {
-      std::printf("%-10s %s\n", plant.label.c_str(), e.what());
-      ++failed;
-      continue;
-    }
-    const double anti_hz = std::sqrt(truth.spring_n_per_m / truth.load_mass_kg) / (2 * kPi);
-    const double res_hz =
-        std::sqrt(truth.spring_n_per_m * (1 / truth.load_mass_kg + 1 / truth.motor_mass_kg)) / (2 * kPi);
-    const double errors[5] = {error_percent(r.fit.anti_resonance_hz, anti_hz),
-                              error_percent(r.fit.resonance_hz, res_hz),
-                              error_percent(r.fit.load_mass_kg, truth.load_mass_kg),
-                              error_percent(r.fit.spring_n_per_m, truth.spring_n_per_m),
-                              error_percent(r.fit.motor_mass_kg, truth.motor_mass_kg)};
-    for (int i = 0; i < 5; ++i) worst[i] = std::max(worst[i], std::fabs(errors[i]));
-    std::printf("%-10s %8.3f %9.0f %9.3f (%+6.2f %%) %9.3f (%+6.2f %%) %+7.2f%% %+7.2f%% %+7.2f%%\n",
-                plant.label.c_str(), truth.load_mass_kg, truth.spring_n_per_m, r.fit.anti_resonance_hz, errors[0],
-                r.fit.resonance_hz, errors[1], errors[2], errors[3], errors[4]);
-    csv << plant.label << ',' << truth.load_mass_kg << ',' << truth.spring_n_per_m << ',' << r.fit.anti_resonance_hz
-        << ',' << errors[0] << ',' << r.fit.resonance_hz << ',' << errors[1] << ',' << errors[2] << ',' << errors[3]
-        << ',' << errors[4] << '\n';
+    for (int i = 0; i < 5; ++i) worst[i] = std::max(worst[i], std::fabs(row->errors[i]));
+    const bool met = row->tuned.gain_crossover_found && row->tuned.phase_crossover_found &&
+                     row->tuned.phase_margin_deg >= targets.min_phase_margin_deg &&
+                     row->tuned.gain_margin_db >= targets.min_gain_margin_db;
+    failed += met ? 0 : 1;
+    least_phase_deg = std::min(least_phase_deg, row->tuned.phase_margin_deg);
+    least_gain_db = std::min(least_gain_db, row->tuned.gain_margin_db);
+    const auto& m = p.plant.mechanics;
+    std::printf("%-10s %6.2f %7.0f %+12.2f%% %+12.2f%% %+6.2f%% %+6.2f%% %+6.2f%% %8.0f %6.1f deg %5.2f dB%s\n",
+                plant.label.c_str(), m.load_mass_kg, m.spring_n_per_m, row->errors[0], row->errors[1], row->errors[2],
+                row->errors[3], row->errors[4], row->tuned_kp_n_s_per_m, row->tuned.phase_margin_deg,
+                row->tuned.gain_margin_db, met ? "" : "  margins missed");
+    csv << plant.label << ',' << m.load_mass_kg << ',' << m.spring_n_per_m;
+    for (const double e : row->errors) csv << ',' << e;
+    csv << ',' << row->tuned_kp_n_s_per_m << ',' << row->tuned.phase_margin_deg << ',' << row->tuned.gain_margin_db
+        << '\n';
   }
   std::printf(
-      "family of %zu plants (%s): %zu not measured; largest errors: anti-resonance %.2f %%, resonance %.2f %%, "
-      "load mass %.2f %%, spring %.2f %%, motor mass %.2f %%\n",
-      plants.size(), o.family.c_str(), failed, worst[0], worst[1], worst[2], worst[3], worst[4]);
+      "family of %zu plants (%s): %zu failed; largest errors: anti-resonance %.2f %%, resonance %.2f %%, "
+      "load mass %.2f %%, spring %.2f %%, motor mass %.2f %%; tuned loops measured again: phase margin >= "
+      "%.1f deg, gain margin >= %.2f dB (targets %.4g deg, %.4g dB)\n",
+      plants.size(), o.family.c_str(), failed, worst[0], worst[1], worst[2], worst[3], worst[4], least_phase_deg,
+      least_gain_db, targets.min_phase_margin_deg, targets.min_gain_margin_db);
   return failed == 0 ? kExitOk : kExitVerdictFailed;
 }
 
@@ -253,8 +340,15 @@ int run_commission(const CommissionOptions& o) {
               measurement.params().min_coherence);
   print_fit(result.fit, time_domain, configured, o.simulate);
   std::printf("anti-resonance %.3f Hz\nresonance %.3f Hz\n", result.fit.anti_resonance_hz, result.fit.resonance_hz);
+  const std::optional<TunedGains> tuned = tune_and_print(configured, result);
+  if (o.tune && !tuned) {
+    std::printf("commission: --tune: no gains meet the margins; nothing written\n");
+    return kExitVerdictFailed;
+  }
   if (o.plots) {
-    write_bode_script(dir, result.fit);
+    write_bode_script(
+        dir, result.fit,
+        describe(loop_margins(result.points, 1.0, configured.commissioning.frequency_response.min_coherence)));
     if (run_gnuplot(dir / "bode.gp") != 0) throw std::runtime_error("gnuplot failed on " + (dir / "bode.gp").string());
   }
   std::printf("report: %s\n", dir.string().c_str());
@@ -265,7 +359,11 @@ int run_commission(const CommissionOptions& o) {
                 "resonance %.3f Hz; friction from the time-domain fit)",
                 o.simulate ? "the simulated plant" : "the drive", result.fit.anti_resonance_hz,
                 result.fit.resonance_hz);
-  const auto values = commissioned_parameters(result.fit, time_domain);
+  auto values = commissioned_parameters(result.fit, time_domain);
+  if (o.tune) {
+    values.emplace_back("velocity_loop.kp_n_s_per_m", tuned->kp_n_s_per_m);
+    values.emplace_back("velocity_loop.ki_n_per_m", tuned->ki_n_per_m);
+  }
   write_system_file_with(o.config, values, source, o.out);
   std::printf("commission: %s written (%zu values); run the nodes with --config %s\n", o.out.c_str(), values.size(),
               o.out.c_str());
@@ -289,6 +387,8 @@ void add_commission_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--report", o->report, "The report folder: response.csv, samples.csv, bode.png")
       ->capture_default_str();
   cmd->add_flag("!--no-plots", o->plots, "No Bode plot (no gnuplot needed)");
+  cmd->add_flag("--tune", o->tune,
+                "Write the velocity PI's gains tuned to commissioning.tuning's margins into the system file too");
   cmd->add_option("--family", o->family,
                   "With --simulate: measure every plant of this sweep file's family and print the fit's errors")
       ->check(CLI::ExistingFile);

@@ -32,15 +32,27 @@ void MultisineParams::validate() const {
   }
   // A period of at most 100 s, with a line between the band's ends.
   require_in_range("resolution_hz", resolution_hz, 0.01, max_frequency_hz - min_frequency_hz);
+  if (dense_max_frequency_hz != 0.0) {
+    require_in_range("dense_max_frequency_hz", dense_max_frequency_hz, min_frequency_hz, max_frequency_hz);
+    require_in_range("lines_per_decade", lines_per_decade, 1.0, 1000.0);
+  }
 }
 
 Multisine::Multisine(const MultisineParams& params) : params_(params) {
   params_.validate();
   const auto n = static_cast<std::size_t>(std::llround(1.0 / (params_.resolution_hz * params_.period_s)));
   params_.resolution_hz = 1.0 / (static_cast<double>(n) * params_.period_s);  // whole ticks per period
+  const double dense_max_hz =
+      params_.dense_max_frequency_hz != 0.0 ? params_.dense_max_frequency_hz : params_.max_frequency_hz;
+  const double step = std::pow(10.0, 1.0 / std::max(params_.lines_per_decade, 1.0));
   for (auto k = static_cast<std::size_t>(std::ceil(params_.min_frequency_hz / params_.resolution_hz - 1e-9));
-       static_cast<double>(k) * params_.resolution_hz <= params_.max_frequency_hz + 1e-9; ++k) {
+       static_cast<double>(k) * params_.resolution_hz <= params_.max_frequency_hz + 1e-9;) {
     lines_.push_back(k);
+    const double f = static_cast<double>(k) * params_.resolution_hz;
+    // Log spacing above the dense band: the next line at f 10^(1/lines_per_decade), on the grid.
+    k = f < dense_max_hz - 1e-9
+            ? k + 1
+            : std::max(k + 1, static_cast<std::size_t>(std::llround(f * step / params_.resolution_hz)));
   }
   if (lines_.empty()) throw std::invalid_argument("resolution_hz: no line between min and max frequency");
   // Schroeder phases: phi_i = -pi i (i - 1) / K keep the sum's peak near sqrt(2 K) of a line's.
@@ -158,11 +170,11 @@ Complex denominator(const Eigen::Matrix<double, 6, 1>& x, double frequency_hz) {
 
 }  // namespace
 
-TwoMassFit fit_two_mass(const std::vector<FrequencyPoint>& points, double min_coherence) {
+TwoMassFit fit_two_mass(const std::vector<FrequencyPoint>& points, double min_coherence, double max_frequency_hz) {
   std::vector<const FrequencyPoint*> used;
   for (const FrequencyPoint& p : points) {
-    if (p.coherence >= min_coherence && std::isfinite(p.plant.real()) && std::isfinite(p.plant.imag()) &&
-        std::abs(p.plant) > 0) {
+    if (p.coherence >= min_coherence && p.frequency_hz <= max_frequency_hz && std::isfinite(p.plant.real()) &&
+        std::isfinite(p.plant.imag()) && std::abs(p.plant) > 0) {
       used.push_back(&p);
     }
   }

@@ -18,6 +18,8 @@ MultisineParams multisine_params(const FrequencyResponseMeasurementParams& p) {
   m.max_frequency_hz = p.max_frequency_hz;
   m.resolution_hz = p.resolution_hz;
   m.period_s = p.period_s;
+  m.dense_max_frequency_hz = p.dense_max_frequency_hz;
+  m.lines_per_decade = p.lines_per_decade;
   return m;
 }
 
@@ -205,7 +207,8 @@ FrequencyResponseResult evaluate_measurement(const FrequencyResponseMeasurement&
                                 " at " + format_value(worst->frequency_hz) +
                                 " Hz), more than max_low_coherence_share " + format_value(p.max_low_coherence_share));
   }
-  result.fit = fit_two_mass(result.points, p.min_coherence);
+  result.fit = fit_two_mass(result.points, p.min_coherence,
+                            p.dense_max_frequency_hz != 0.0 ? p.dense_max_frequency_hz : p.max_frequency_hz);
   return result;
 }
 

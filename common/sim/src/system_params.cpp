@@ -205,6 +205,7 @@ void SystemParams::validate() const {
   validate_section("compensator.state_feedback", [&] { state_feedback_params().validate(); });
   validate_section("compensator.guard", [&] { vibration_guard_params().validate(); });
   validate_section("commissioning.frequency_response", [&] { frequency_response_params().validate(); });
+  validate_section("commissioning.tuning", [&] { commissioning.tuning.validate(); });
   validate_section("plant", [&] { plant.check_step(); });
 }
 

@@ -37,6 +37,11 @@ struct MultisineParams {
   double max_frequency_hz = 0;  ///< highest, below the Nyquist frequency
   double resolution_hz = 0;     ///< line spacing df: the period is 1/df
   double period_s = 0;          ///< the control period the excitation runs at
+  /// Every line k df up to this frequency; above it, lines_per_decade lines a decade (on the df
+  /// grid), so the loop's crossovers are reached without spreading the force over a thousand
+  /// lines. 0: every line up to max_frequency_hz.
+  double dense_max_frequency_hz = 0;
+  double lines_per_decade = 0;  ///< above dense_max_frequency_hz, > 0 when that is set
   /// @throws std::invalid_argument naming the first invalid value.
   void validate() const;
 };
@@ -92,10 +97,13 @@ struct TwoMassFit {
   std::size_t lines_used = 0;
 };
 
-/// Fits the two-mass model to the plant estimates whose coherence is at least `min_coherence`.
+/// Fits the two-mass model to the plant estimates whose coherence is at least `min_coherence` and
+/// whose frequency is at most `max_frequency_hz` (the mechanics' band: above it the drive's
+/// current loop and the sampling shape the response, which the model does not hold).
 /// @throws std::invalid_argument when fewer than 6 lines qualify or the fit is not physical
 /// (a mass, the spring or the anti-resonance not positive), naming what.
-TwoMassFit fit_two_mass(const std::vector<FrequencyPoint>& points, double min_coherence);
+TwoMassFit fit_two_mass(const std::vector<FrequencyPoint>& points, double min_coherence,
+                        double max_frequency_hz = 1e300);
 
 /// G(j 2 pi f) of the two-mass model with the given parameters.
 std::complex<double> two_mass_response(const TwoMassFit& model, double frequency_hz);

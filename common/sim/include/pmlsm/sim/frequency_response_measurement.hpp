@@ -40,6 +40,8 @@ struct FrequencyResponseMeasurementParams {
   double min_frequency_hz = 0;  ///< the excited band
   double max_frequency_hz = 0;
   double resolution_hz = 0;            ///< line spacing df (the period is 1 / df)
+  double dense_max_frequency_hz = 0;   ///< every line up to it (the two-mass fit's band), log above
+  double lines_per_decade = 0;         ///< above dense_max_frequency_hz (the loop's crossovers)
   double offset_velocity_mps = 0;      ///< the velocity measured at, before the ripple rule above
   std::size_t settle_periods = 0;      ///< periods run before the ones averaged
   std::size_t measure_periods = 0;     ///< periods averaged: a multiple of 4

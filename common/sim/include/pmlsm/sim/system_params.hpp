@@ -16,6 +16,7 @@
 #include "pmlsm/estimation/kalman_filter.hpp"
 #include "pmlsm/plant/plant.hpp"
 #include "pmlsm/sim/frequency_response_measurement.hpp"
+#include "pmlsm/sim/loop_tuning.hpp"
 #include "pmlsm/util/parameter_table.hpp"
 #include "pmlsm/control/reference_model.hpp"
 #include "pmlsm/control/velocity_pi.hpp"
@@ -57,6 +58,7 @@ struct InputShapingTuning {
 /// the ripple's pole pitch come from the system (SystemParams::frequency_response_params).
 struct CommissioningTuning {
   FrequencyResponseMeasurementParams frequency_response;
+  TuningTargets tuning;  ///< the velocity PI's margins `pmlsm commission --tune` sets the gains to
 };
 
 /// A lightly damped mode of a linear loop: s = -zeta w_n +- j w_n sqrt(1 - zeta^2).
@@ -230,6 +232,8 @@ void visit_parameters(Params& p, Visitor& v) {
   v.real(at + "min_frequency_hz", fr.min_frequency_hz, {0.01, 1e4, "0.01 Hz to 10 kHz"});
   v.real(at + "max_frequency_hz", fr.max_frequency_hz, {0.01, 1e4, "0.01 Hz to 10 kHz, below the Nyquist frequency"});
   v.real(at + "resolution_hz", fr.resolution_hz, {0.01, 100.0, "a period of 10 ms to 100 s"});
+  v.real(at + "dense_max_frequency_hz", fr.dense_max_frequency_hz, {0.0, 1e4, "0 (every line) to 10 kHz"});
+  v.real(at + "lines_per_decade", fr.lines_per_decade, {0.0, 1000.0, "0 (unused) to 1000"});
   v.real(at + "offset_velocity_mps", fr.offset_velocity_mps, {-10.0, 10.0, "either direction, up to 10 m/s"});
   v.integer(at + "settle_periods", fr.settle_periods, {1.0, 100.0, "1 to 100 periods"});
   v.integer(at + "measure_periods", fr.measure_periods, {4.0, 400.0, "4 to 400 periods, a multiple of 4"});
@@ -238,6 +242,13 @@ void visit_parameters(Params& p, Visitor& v) {
   v.real(at + "max_velocity_mps", fr.max_velocity_mps, {1e-6, 100.0, "1 um/s to 100 m/s"});
   v.real(at + "min_coherence", fr.min_coherence, {0.0, 1.0, "a coherence: 0 to 1"});
   v.real(at + "max_low_coherence_share", fr.max_low_coherence_share, {0.0, 1.0, "a share of the lines: 0 to 1"});
+  auto& tuning = p.commissioning.tuning;
+  v.real("commissioning.tuning.min_phase_margin_deg", tuning.min_phase_margin_deg, {1.0, 89.0, "1 to 89 deg"});
+  v.real("commissioning.tuning.min_gain_margin_db", tuning.min_gain_margin_db, {0.1, 40.0, "0.1 to 40 dB"});
+  v.real("commissioning.tuning.max_gain_scale", tuning.max_gain_scale,
+         {1.01, 100.0, "the gains may move by 1 % to a hundredfold either way"});
+  v.real("commissioning.tuning.phase_allowance_deg", tuning.phase_allowance_deg, {0.0, 30.0, "0 to 30 deg"});
+  v.real("commissioning.tuning.gain_allowance_db", tuning.gain_allowance_db, {0.0, 10.0, "0 to 10 dB"});
 
   // The filter's model of the mechanics: the ranges of the plant's (the model is of such a plant).
   detail::visit_two_mass("kalman.model", p.kalman.model, v);

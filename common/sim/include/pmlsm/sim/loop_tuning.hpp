@@ -1,0 +1,64 @@
+// Stability margins of the velocity loop read from its measured open loop, and the PI gains
+// tuned to requested margins (as a drive's auto-tuner does from its Bode plot).
+//
+// The measurement gives L = C G at each line (L = 1/S - 1, S = F/R: the loop as it runs, with
+// the sampling, the current loop and every delay in it). Scaling both PI gains by s keeps the
+// PI's zero: C' = s C, so L' = s L at every line and the margins of any s follow from one
+// measurement:
+//   phase margin  180 deg + arg L'(f_c) at every gain crossover |L'(f_c)| = 1 (the smallest)
+//   gain margin   -20 log10 |L'(f_p)| at every phase crossover arg L'(f_p) = -180 deg with
+//                 |L'| < 1 (the smallest; see loop_margins for why not those with |L'| > 1)
+// with the phase unwrapped along the lines and both read between lines by interpolation in
+// log frequency. A crossover outside the measured band cannot be read: a gain whose crossovers
+// leave the band is not chosen.
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "pmlsm/sim/frequency_response.hpp"
+
+namespace pmlsm {
+
+struct LoopMargins {
+  bool gain_crossover_found = false;
+  double phase_margin_deg = 0;  ///< the smallest over the gain crossovers
+  double gain_crossover_hz = 0;
+  bool phase_crossover_found = false;
+  double gain_margin_db = 0;  ///< the smallest over the phase crossovers
+  double phase_crossover_hz = 0;
+};
+
+/// The margins of s L from the lines whose coherence is at least min_coherence.
+LoopMargins loop_margins(const std::vector<FrequencyPoint>& points, double gain_scale, double min_coherence);
+
+struct TuningTargets {
+  double min_phase_margin_deg = 0;  ///< (0, 90)
+  double min_gain_margin_db = 0;    ///< > 0
+  double max_gain_scale = 0;        ///< the most the gains may grow, > 1
+  /// Designed to the margins plus these, so that the loop measured again at the tuned gains (with
+  /// its own noise) still meets them.
+  double phase_allowance_deg = 0;  ///< [0, 30]
+  double gain_allowance_db = 0;    ///< [0, 10]
+  /// @throws std::invalid_argument naming the first invalid value.
+  void validate() const;
+};
+
+struct TunedGains {
+  double gain_scale = 0;  ///< s: both PI gains times s
+  double kp_n_s_per_m = 0;
+  double ki_n_per_m = 0;
+  LoopMargins before;  ///< at the measured gains (s = 1)
+  LoopMargins after;   ///< at the tuned ones
+};
+
+/// The largest s in [1 / max_gain_scale, max_gain_scale] (on a grid of 1 % steps) whose margins
+/// both meet the targets plus their allowances with both crossovers inside the measured band.
+/// @returns nothing when no such s exists; `why` then says what limited it.
+std::optional<TunedGains> tune_velocity_pi(const std::vector<FrequencyPoint>& points, double kp_n_s_per_m,
+                                           double ki_n_per_m, const TuningTargets& targets, double min_coherence,
+                                           std::string& why);
+
+}  // namespace pmlsm

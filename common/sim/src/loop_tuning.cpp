@@ -1,0 +1,113 @@
+#include "pmlsm/sim/loop_tuning.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+#include "pmlsm/util/validate.hpp"
+
+namespace pmlsm {
+
+namespace {
+
+constexpr double kDegreesPerRadian = 57.295779513082320876;
+
+struct LoopLine {
+  double log_f = 0;
+  double log_mag = 0;    ///< ln |L|
+  double phase_deg = 0;  ///< unwrapped along the lines
+};
+
+std::vector<LoopLine> loop_lines(const std::vector<FrequencyPoint>& points, double gain_scale, double min_coherence) {
+  std::vector<LoopLine> lines;
+  lines.reserve(points.size());
+  for (const FrequencyPoint& p : points) {
+    const std::complex<double> l = gain_scale * p.open_loop();
+    if (p.coherence < min_coherence || !std::isfinite(std::abs(l)) || std::abs(l) == 0) continue;
+    double phase = std::arg(l) * kDegreesPerRadian;
+    if (!lines.empty()) phase += 360.0 * std::round((lines.back().phase_deg - phase) / 360.0);
+    lines.push_back({std::log(p.frequency_hz), std::log(std::abs(l)), phase});
+  }
+  return lines;
+}
+
+double between(double a, double b, double t) { return a + (b - a) * t; }
+
+}  // namespace
+
+LoopMargins loop_margins(const std::vector<FrequencyPoint>& points, double gain_scale, double min_coherence) {
+  const std::vector<LoopLine> lines = loop_lines(points, gain_scale, min_coherence);
+  LoopMargins m;
+  for (std::size_t i = 1; i < lines.size(); ++i) {
+    const LoopLine& a = lines[i - 1];
+    const LoopLine& b = lines[i];
+    // Gain crossover: ln |L| through 0.
+    if ((a.log_mag > 0) != (b.log_mag > 0)) {
+      const double t = a.log_mag / (a.log_mag - b.log_mag);
+      const double phase = between(a.phase_deg, b.phase_deg, t);
+      const double margin = 180.0 + (phase - 360.0 * std::floor((phase + 180.0) / 360.0));
+      if (!m.gain_crossover_found || margin < m.phase_margin_deg) {
+        m.phase_margin_deg = margin;
+        m.gain_crossover_hz = std::exp(between(a.log_f, b.log_f, t));
+      }
+      m.gain_crossover_found = true;
+    }
+    // Phase crossover: the phase through -180 + 360 k.
+    const double ka = std::floor((a.phase_deg + 180.0) / 360.0), kb = std::floor((b.phase_deg + 180.0) / 360.0);
+    // Only where |L| < 1: the phase of a lightly damped mode can turn half a turn between two
+    // lines, where unwrapping cannot tell its direction; such a "crossing" has |L| >> 1 and is no
+    // gain margin (at those frequencies the sampling's delay is a few degrees).
+    if (ka != kb) {
+      const double crossing = 360.0 * std::max(ka, kb) - 180.0;
+      const double t = (crossing - a.phase_deg) / (b.phase_deg - a.phase_deg);
+      const double margin_db = -20.0 / std::log(10.0) * between(a.log_mag, b.log_mag, t);
+      if (margin_db > 0 && (!m.phase_crossover_found || margin_db < m.gain_margin_db)) {
+        m.gain_margin_db = margin_db;
+        m.phase_crossover_hz = std::exp(between(a.log_f, b.log_f, t));
+        m.phase_crossover_found = true;
+      }
+    }
+  }
+  return m;
+}
+
+void TuningTargets::validate() const {
+  require_in_range("min_phase_margin_deg", min_phase_margin_deg, 1.0, 89.0);
+  require_in_range("min_gain_margin_db", min_gain_margin_db, 0.1, 40.0);
+  require_in_range("max_gain_scale", max_gain_scale, 1.01, 100.0);
+  require_in_range("phase_allowance_deg", phase_allowance_deg, 0.0, 30.0);
+  require_in_range("gain_allowance_db", gain_allowance_db, 0.0, 10.0);
+}
+
+std::optional<TunedGains> tune_velocity_pi(const std::vector<FrequencyPoint>& points, double kp_n_s_per_m,
+                                           double ki_n_per_m, const TuningTargets& targets, double min_coherence,
+                                           std::string& why) {
+  targets.validate();
+  TunedGains tuned;
+  tuned.before = loop_margins(points, 1.0, min_coherence);
+  bool found = false;
+  // From the largest scale down: the first that meets both targets.
+  const double steps = std::ceil(2.0 * std::log(targets.max_gain_scale) / std::log(1.01));
+  for (double i = 0; i <= steps && !found; ++i) {
+    const double scale = targets.max_gain_scale * std::pow(1.01, -i);
+    const LoopMargins m = loop_margins(points, scale, min_coherence);
+    if (m.gain_crossover_found && m.phase_crossover_found &&
+        m.phase_margin_deg >= targets.min_phase_margin_deg + targets.phase_allowance_deg &&
+        m.gain_margin_db >= targets.min_gain_margin_db + targets.gain_allowance_db) {
+      tuned.gain_scale = scale;
+      tuned.after = m;
+      found = true;
+    }
+  }
+  if (!found) {
+    why = "no gain within x/" + format_value(targets.max_gain_scale) + " of the measured one gives a phase margin of " +
+          format_value(targets.min_phase_margin_deg + targets.phase_allowance_deg) + " deg and a gain margin of " +
+          format_value(targets.min_gain_margin_db + targets.gain_allowance_db) +
+          " dB (the targets and their allowances) with both crossovers in the measured band";
+    return std::nullopt;
+  }
+  tuned.kp_n_s_per_m = kp_n_s_per_m * tuned.gain_scale;
+  tuned.ki_n_per_m = ki_n_per_m * tuned.gain_scale;
+  return tuned;
+}
+
+}  // namespace pmlsm
