@@ -133,7 +133,12 @@ void print_fit(const TwoMassFit& fit, const IdentifiedLoad& time_domain, const S
   std::printf("  %-22s %12s %12s %12s%s\n", "", "configured", "frequency", "time domain",
               simulate ? "   simulated plant" : "");
   const auto row = [&](const char* name, double was, double now, double other, double real) {
-    std::printf("  %-22s %12.6g %12.6g %12.6g", name, was, now, other);
+    std::printf("  %-22s %12.6g %12.6g ", name, was, now);
+    if (std::isnan(other)) {
+      std::printf("%12s", "-");
+    } else {
+      std::printf("%12.6g", other);
+    }
     if (simulate) std::printf(" %12.6g (%+.2f %%)", real, 100.0 * (now / real - 1.0));
     std::printf("\n");
   };
