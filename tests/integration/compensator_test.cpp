@@ -80,12 +80,14 @@ struct CompensatedRun {
 /// Runs evaluator, estimator, controller --compensation topic and plant in
 /// lockstep around an already running compensator (or one started here).
 /// Every process must end with exit 0 within the deadline.
-CompensatedRun run_loop(const fs::path& dir, const std::string& domain, test::ChildProcess& compensator) {
+CompensatedRun run_loop(const fs::path& dir, const std::string& domain, test::ChildProcess& compensator,
+                        std::vector<std::string> controller_extra = {}) {
   CompensatedRun result;
   test::ChildProcess evaluator(scenario_node_args("evaluator", domain, {"--out", dir.string(), "--label", "comp"}),
                                (dir / "evaluator.log").string());
   test::ChildProcess estimator(scenario_node_args("kalman_estimator", domain), (dir / "estimator.log").string());
-  test::ChildProcess controller(scenario_node_args("controller", domain, {"--compensation", "topic"}),
+  controller_extra.insert(controller_extra.begin(), {"--compensation", "topic"});
+  test::ChildProcess controller(scenario_node_args("controller", domain, controller_extra),
                                 (dir / "controller.log").string());
   test::ChildProcess plant(scenario_node_args("plant_sim", domain, {"--peers", "3"}), (dir / "plant.log").string());
   for (auto* p : {&plant, &controller, &compensator, &estimator, &evaluator}) {
@@ -124,6 +126,32 @@ TEST(CompensatorDistributed, AccelFeedbackTraceEqualsInProcess) {
   const auto in_process = run_with_compensator(params, scenario(params), {CompensatorKind::kAccel, {}, false});
   expect_same_trace(dir, run, in_process);
   EXPECT_NE(run.compensator_output.find("2000 ticks answered"), std::string::npos) << run.compensator_output;
+  if (!::testing::Test::HasFailure()) fs::remove_all(dir);
+}
+
+// The filter slots in the controller node (a low-pass on the compensator's force, a shallow notch
+// on the force command) give the in-process loop's trace with the same filters, byte for byte, and
+// a trace other than the unfiltered one.
+TEST(CompensatorDistributed, FilterSlotsTraceEqualsInProcess) {
+  const fs::path dir = fresh_dir("filters");
+  const std::string domain = test_domain(95);
+  const std::vector<std::string> filters{
+      "filters.compensation.slot_1.kind=low_pass",      "filters.compensation.slot_1.frequency_hz=40",
+      "filters.compensation.slot_1.damping=0.7",        "filters.force_command.slot_3.kind=notch",
+      "filters.force_command.slot_3.frequency_hz=10.2", "filters.force_command.slot_3.damping=0.1",
+      "filters.force_command.slot_3.second_damping=0.2"};
+  test::ChildProcess compensator(scenario_node_args("accel_feedback", domain), (dir / "accel_feedback.log").string());
+  std::vector<std::string> set{"--set"};
+  set.insert(set.end(), filters.begin(), filters.end());
+  const CompensatedRun run = run_loop(dir, domain, compensator, set);
+
+  const SystemParams params = load_system_params(source("configs/system.yaml"), parse_overrides(filters));
+  const auto in_process = run_with_compensator(params, scenario(params), {CompensatorKind::kAccel, {}, false});
+  expect_same_trace(dir, run, in_process);
+  const SystemParams plain = system_params();
+  write_trace_csv((dir / "unfiltered.csv").string(),
+                  run_with_compensator(plain, scenario(plain), {CompensatorKind::kAccel, {}, false}));
+  EXPECT_NE(read_file(dir / "unfiltered.csv"), run.trace) << "the filters changed nothing";
   if (!::testing::Test::HasFailure()) fs::remove_all(dir);
 }
 

@@ -86,16 +86,21 @@ void write_samples_csv(const std::filesystem::path& path, const FrequencyRespons
   if (!csv) throw std::runtime_error("cannot write " + path.string());
 }
 
-void write_response_csv(const std::filesystem::path& path, const FrequencyResponseResult& r) {
+/// Per line: G, L, T, the coherence, the model; the force command's filters H and the loop with
+/// them, H L (what the loop will be once they are in it).
+void write_response_csv(const std::filesystem::path& path, const FrequencyResponseResult& r,
+                        const FilterChain& filters) {
   std::ofstream csv(path);
   csv << "frequency_hz,plant_db,plant_deg,open_loop_db,open_loop_deg,closed_loop_db,closed_loop_deg,coherence,"
-         "model_db,model_deg\n";
-  char line[256];
+         "model_db,model_deg,filters_db,filters_deg,filtered_open_loop_db,filtered_open_loop_deg\n";
+  char line[320];
   for (const FrequencyPoint& p : r.points) {
     const std::complex<double> model = two_mass_response(r.fit, p.frequency_hz);
-    std::snprintf(line, sizeof line, "%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", p.frequency_hz, db(p.plant),
-                  degrees(p.plant), db(p.open_loop()), degrees(p.open_loop()), db(p.closed_loop()),
-                  degrees(p.closed_loop()), p.coherence, db(model), degrees(model));
+    const std::complex<double> h = filters.response(p.frequency_hz), filtered = h * p.open_loop();
+    std::snprintf(line, sizeof line, "%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n",
+                  p.frequency_hz, db(p.plant), degrees(p.plant), db(p.open_loop()), degrees(p.open_loop()),
+                  db(p.closed_loop()), degrees(p.closed_loop()), p.coherence, db(model), degrees(model), db(h),
+                  degrees(h), db(filtered), degrees(filtered));
     csv << line;
   }
   if (!csv) throw std::runtime_error("cannot write " + path.string());
@@ -103,8 +108,15 @@ void write_response_csv(const std::filesystem::path& path, const FrequencyRespon
 
 /// bode.gp over response.csv: magnitude, phase and coherence, the modes marked, the loop's margins
 /// in the title.
-void write_bode_script(const std::filesystem::path& dir, const TwoMassFit& fit, const std::string& margins) {
+void write_bode_script(const std::filesystem::path& dir, const TwoMassFit& fit, const std::string& margins,
+                       bool filters) {
   std::ofstream gp(dir / "bode.gp");
+  const std::string with_filters_db =
+      filters ? ", '' every ::1 using 1:11 w l dt 3 title 'filters H', '' every ::1 using 1:13 w l dt 2 title 'H L'"
+              : "";
+  const std::string with_filters_deg =
+      filters ? ", '' every ::1 using 1:12 w l dt 3 title 'filters H', '' every ::1 using 1:14 w l dt 2 title 'H L'"
+              : "";
   gp << "set terminal pngcairo size 1200,1000 noenhanced font ',10'\nset output '" << (dir / "bode.png").string()
      << "'\nset datafile separator ','\nset grid\nset logscale x\nset key top right\n"
      << "set arrow from " << fit.anti_resonance_hz << ", graph 0 to " << fit.anti_resonance_hz
@@ -115,11 +127,13 @@ void write_bode_script(const std::filesystem::path& dir, const TwoMassFit& fit, 
      << "set ylabel 'magnitude [dB]'\nplot '" << (dir / "response.csv").string()
      << "' every ::1 using 1:2 w lp pt 7 ps 0.4 title 'plant G = V/F [m/s/N]', '' every ::1 using 1:9 w l lw 2 "
         "title 'two-mass fit', '' every ::1 using 1:4 w l title 'open loop L', '' every ::1 using 1:6 w l "
-        "title 'closed loop T'\n"
+        "title 'closed loop T'"
+     << with_filters_db << "\n"
      << "set ylabel 'phase [deg]'\nplot '" << (dir / "response.csv").string()
      << "' every ::1 using 1:3 w lp pt 7 ps 0.4 title 'plant G', '' every ::1 using 1:10 w l lw 2 title "
         "'two-mass fit', '' every ::1 using 1:5 w l title 'open loop L', '' every ::1 using 1:7 w l title "
-        "'closed loop T'\n"
+        "'closed loop T'"
+     << with_filters_deg << "\n"
      << "set ylabel 'coherence'\nset xlabel 'frequency [Hz]'\nset yrange [0:1.05]\nplot '"
      << (dir / "response.csv").string() << "' every ::1 using 1:8 w lp pt 7 ps 0.4 title 'coherence'\n"
      << "unset multiplot\n";
@@ -169,25 +183,47 @@ std::string describe(const LoopMargins& m) {
   return std::string("phase margin ") + phase + ", gain margin " + gain;
 }
 
-/// The velocity loop's margins as measured and the gains tuned to the targets, printed; nullopt
-/// (and why) when no gain meets them.
-std::optional<TunedGains> tune_and_print(const SystemParams& configured, const FrequencyResponseResult& result) {
+/// What the loop's margins allow: the tuned gains (nullopt when none meet the targets), and
+/// whether the force command's filters are refused (they would leave less than the targets).
+struct LoopVerdict {
+  std::optional<TunedGains> tuned;
+  bool filters_refused = false;
+  std::string margins;  ///< as the loop will run: with the filters, at the configured gains
+};
+
+/// The velocity loop's margins as measured, with the configured force-command filters, and the
+/// gains tuned to the targets with those filters in the loop, printed.
+LoopVerdict judge_loop(const SystemParams& configured, const FrequencyResponseResult& result,
+                       const FilterChain& filters) {
   const auto& targets = configured.commissioning.tuning;
   const double min_coherence = configured.commissioning.frequency_response.min_coherence;
-  std::string why;
-  const auto tuned = tune_velocity_pi(result.points, configured.velocity_loop.kp_n_s_per_m,
-                                      configured.velocity_loop.ki_n_per_m, targets, min_coherence, why);
+  LoopVerdict verdict;
   std::printf("velocity loop as measured (Kp %.6g N s/m): %s\n", configured.velocity_loop.kp_n_s_per_m,
               describe(loop_margins(result.points, 1.0, min_coherence)).c_str());
-  if (!tuned) {
+  const LoopMargins with_filters = loop_margins(result.points, 1.0, min_coherence, &filters);
+  verdict.margins = describe(with_filters);
+  if (!filters.empty()) {
+    std::printf("with the force command's filters: %s\n", verdict.margins.c_str());
+    verdict.filters_refused = !with_filters.gain_crossover_found || !with_filters.phase_crossover_found ||
+                              with_filters.phase_margin_deg < targets.min_phase_margin_deg ||
+                              with_filters.gain_margin_db < targets.min_gain_margin_db;
+    if (verdict.filters_refused) {
+      std::printf("the force command's filters are refused: they would leave %s (targets %.4g deg, %.4g dB)\n",
+                  verdict.margins.c_str(), targets.min_phase_margin_deg, targets.min_gain_margin_db);
+    }
+  }
+  std::string why;
+  verdict.tuned = tune_velocity_pi(result.points, configured.velocity_loop.kp_n_s_per_m,
+                                   configured.velocity_loop.ki_n_per_m, targets, min_coherence, why, &filters);
+  if (!verdict.tuned) {
     std::printf("velocity loop tuning (%.4g deg, %.4g dB): %s\n", targets.min_phase_margin_deg,
                 targets.min_gain_margin_db, why.c_str());
-    return std::nullopt;
+    return verdict;
   }
   std::printf("velocity loop tuned to %.4g deg and %.4g dB: Kp %.6g N s/m, Ki %.6g N/m (x%.3f): %s\n",
-              targets.min_phase_margin_deg, targets.min_gain_margin_db, tuned->kp_n_s_per_m, tuned->ki_n_per_m,
-              tuned->gain_scale, describe(tuned->after).c_str());
-  return tuned;
+              targets.min_phase_margin_deg, targets.min_gain_margin_db, verdict.tuned->kp_n_s_per_m,
+              verdict.tuned->ki_n_per_m, verdict.tuned->gain_scale, describe(verdict.tuned->after).c_str());
+  return verdict;
 }
 
 /// The keys the commissioning writes: the two-mass model from the frequency response, the
@@ -336,7 +372,8 @@ int run_commission(const CommissionOptions& o) {
     std::printf("commission: %s; nothing written but %s\n", e.what(), (dir / "samples.csv").string().c_str());
     return kExitVerdictFailed;
   }
-  write_response_csv(dir / "response.csv", result);
+  const FilterChain filters(configured.force_command_filter_params());
+  write_response_csv(dir / "response.csv", result, filters);
   std::fprintf(stderr, "commission: the time-domain fit (pmlsm identify) on %s\n", o.identification.c_str());
   const Scenario identification = load_scenario(o.identification, configured.timing.control_period_s);
   const IdentifiedLoad time_domain = commission_load(configured, identification, IdentificationParams{});
@@ -345,18 +382,18 @@ int run_commission(const CommissionOptions& o) {
               measurement.params().min_coherence);
   print_fit(result.fit, time_domain, configured, o.simulate);
   std::printf("anti-resonance %.3f Hz\nresonance %.3f Hz\n", result.fit.anti_resonance_hz, result.fit.resonance_hz);
-  const std::optional<TunedGains> tuned = tune_and_print(configured, result);
-  if (o.tune && !tuned) {
-    std::printf("commission: --tune: no gains meet the margins; nothing written\n");
-    return kExitVerdictFailed;
-  }
+  const LoopVerdict loop = judge_loop(configured, result, filters);
   if (o.plots) {
-    write_bode_script(
-        dir, result.fit,
-        describe(loop_margins(result.points, 1.0, configured.commissioning.frequency_response.min_coherence)));
+    write_bode_script(dir, result.fit, loop.margins, !filters.empty());
     if (run_gnuplot(dir / "bode.gp") != 0) throw std::runtime_error("gnuplot failed on " + (dir / "bode.gp").string());
   }
   std::printf("report: %s\n", dir.string().c_str());
+  if (loop.filters_refused || (o.tune && !loop.tuned)) {
+    std::printf("commission: %s; nothing written\n",
+                loop.filters_refused ? "the force command's filters leave the loop short of its margins"
+                                     : "--tune: no gains meet the margins");
+    return kExitVerdictFailed;
+  }
   if (o.out.empty()) return kExitOk;
   char source[320];
   std::snprintf(source, sizeof source,
@@ -366,8 +403,8 @@ int run_commission(const CommissionOptions& o) {
                 result.fit.resonance_hz);
   auto values = commissioned_parameters(result.fit, time_domain);
   if (o.tune) {
-    values.emplace_back("velocity_loop.kp_n_s_per_m", tuned->kp_n_s_per_m);
-    values.emplace_back("velocity_loop.ki_n_per_m", tuned->ki_n_per_m);
+    values.emplace_back("velocity_loop.kp_n_s_per_m", loop.tuned->kp_n_s_per_m);
+    values.emplace_back("velocity_loop.ki_n_per_m", loop.tuned->ki_n_per_m);
   }
   write_system_file_with(o.config, values, source, o.out);
   std::printf("commission: %s written (%zu values); run the nodes with --config %s\n", o.out.c_str(), values.size(),

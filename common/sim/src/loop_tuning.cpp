@@ -17,11 +17,13 @@ struct LoopLine {
   double phase_deg = 0;  ///< unwrapped along the lines
 };
 
-std::vector<LoopLine> loop_lines(const std::vector<FrequencyPoint>& points, double gain_scale, double min_coherence) {
+std::vector<LoopLine> loop_lines(const std::vector<FrequencyPoint>& points, double gain_scale, double min_coherence,
+                                 const FilterChain* filters) {
   std::vector<LoopLine> lines;
   lines.reserve(points.size());
   for (const FrequencyPoint& p : points) {
-    const std::complex<double> l = gain_scale * p.open_loop();
+    const std::complex<double> l = gain_scale * p.open_loop() *
+                                   (filters != nullptr ? filters->response(p.frequency_hz) : std::complex<double>(1.0));
     if (p.coherence < min_coherence || !std::isfinite(std::abs(l)) || std::abs(l) == 0) continue;
     double phase = std::arg(l) * kDegreesPerRadian;
     if (!lines.empty()) phase += 360.0 * std::round((lines.back().phase_deg - phase) / 360.0);
@@ -34,8 +36,9 @@ double between(double a, double b, double t) { return a + (b - a) * t; }
 
 }  // namespace
 
-LoopMargins loop_margins(const std::vector<FrequencyPoint>& points, double gain_scale, double min_coherence) {
-  const std::vector<LoopLine> lines = loop_lines(points, gain_scale, min_coherence);
+LoopMargins loop_margins(const std::vector<FrequencyPoint>& points, double gain_scale, double min_coherence,
+                         const FilterChain* filters) {
+  const std::vector<LoopLine> lines = loop_lines(points, gain_scale, min_coherence, filters);
   LoopMargins m;
   for (std::size_t i = 1; i < lines.size(); ++i) {
     const LoopLine& a = lines[i - 1];
@@ -80,16 +83,16 @@ void TuningTargets::validate() const {
 
 std::optional<TunedGains> tune_velocity_pi(const std::vector<FrequencyPoint>& points, double kp_n_s_per_m,
                                            double ki_n_per_m, const TuningTargets& targets, double min_coherence,
-                                           std::string& why) {
+                                           std::string& why, const FilterChain* filters) {
   targets.validate();
   TunedGains tuned;
-  tuned.before = loop_margins(points, 1.0, min_coherence);
+  tuned.before = loop_margins(points, 1.0, min_coherence, filters);
   bool found = false;
   // From the largest scale down: the first that meets both targets.
   const double steps = std::ceil(2.0 * std::log(targets.max_gain_scale) / std::log(1.01));
   for (double i = 0; i <= steps && !found; ++i) {
     const double scale = targets.max_gain_scale * std::pow(1.01, -i);
-    const LoopMargins m = loop_margins(points, scale, min_coherence);
+    const LoopMargins m = loop_margins(points, scale, min_coherence, filters);
     if (m.gain_crossover_found && m.phase_crossover_found &&
         m.phase_margin_deg >= targets.min_phase_margin_deg + targets.phase_allowance_deg &&
         m.gain_margin_db >= targets.min_gain_margin_db + targets.gain_allowance_db) {

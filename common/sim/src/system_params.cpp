@@ -103,6 +103,21 @@ VibrationMode SystemParams::loop_vibration_mode() const {
   return least_damped;
 }
 
+namespace {
+FilterChainParams at_period(FilterChainParams chain, double period_s) {
+  for (BiquadParams& slot : chain.slots) slot.period_s = period_s;
+  return chain;
+}
+}  // namespace
+
+FilterChainParams SystemParams::force_command_filter_params() const {
+  return at_period(force_command_filters, timing.control_period_s);
+}
+
+FilterChainParams SystemParams::compensation_filter_params() const {
+  return at_period(compensation_filters, timing.control_period_s);
+}
+
 FrequencyResponseMeasurementParams SystemParams::frequency_response_params() const {
   FrequencyResponseMeasurementParams p = commissioning.frequency_response;
   p.period_s = timing.control_period_s;
@@ -206,6 +221,8 @@ void SystemParams::validate() const {
   validate_section("compensator.guard", [&] { vibration_guard_params().validate(); });
   validate_section("commissioning.frequency_response", [&] { frequency_response_params().validate(); });
   validate_section("commissioning.tuning", [&] { commissioning.tuning.validate(); });
+  validate_section("filters.force_command", [&] { force_command_filter_params().validate(); });
+  validate_section("filters.compensation", [&] { compensation_filter_params().validate(); });
   validate_section("plant", [&] { plant.check_step(); });
 }
 

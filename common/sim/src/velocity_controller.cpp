@@ -1,12 +1,16 @@
 #include "pmlsm/sim/velocity_controller.hpp"
 
+#include <algorithm>
+
 namespace pmlsm {
 
 VelocityController::VelocityController(const SystemParams& params, const Scenario& scenario)
     : scenario_(scenario),
       period_s_(params.timing.control_period_s),
       reference_(params.reference_model_params()),
-      velocity_(params.velocity_pi_params()) {
+      velocity_(params.velocity_pi_params()),
+      compensation_filters_(params.compensation_filter_params()),
+      force_filters_(params.force_command_filter_params()) {
   scenario_.validate(period_s_);
   if (params.compensator.guard_enabled) guard_.emplace(params.vibration_guard_params());
   if (scenario_.input_shaper != ShaperKind::kNone) shaper_.emplace(params.input_shaper_params(scenario_.input_shaper));
@@ -44,14 +48,17 @@ VelocityControllerOutput VelocityController::step_command(double command_mps, do
   out.a_ref_mps2 = ref.accel_mps2;
   // The guard's scale of the previous period (it judges what was applied), then its new look.
   const double scale = guard_ ? guard_->output().scale : 1.0;
-  out.compensation_applied_n = scale * compensation.force_n;
+  out.compensation_applied_n = compensation_filters_.step(scale * compensation.force_n);
   if (guard_) {
     out.guard =
         guard_->step({motor_velocity_mps, ref.velocity_mps, out.compensation_applied_n, compensation.output_share});
   }
   const VelocityPiOutput f = velocity_.step({ref.velocity_mps, motor_velocity_mps, out.compensation_applied_n});
-  out.force_n = f.force_n;
-  out.saturated = f.saturated;
+  // The force command's filters, then the limit again (a filter may overshoot it).
+  const double limit_n = velocity_.params().force_limit_n;
+  const double filtered_n = force_filters_.step(f.force_n);
+  out.force_n = std::clamp(filtered_n, -limit_n, limit_n);
+  out.saturated = f.saturated || filtered_n != out.force_n;
   out.velocity_error_mps = ref.velocity_mps - motor_velocity_mps;
   return out;
 }

@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "pmlsm/control/biquad.hpp"
 #include "pmlsm/sim/frequency_response.hpp"
 
 namespace pmlsm {
@@ -31,8 +32,11 @@ struct LoopMargins {
   double phase_crossover_hz = 0;
 };
 
-/// The margins of s L from the lines whose coherence is at least min_coherence.
-LoopMargins loop_margins(const std::vector<FrequencyPoint>& points, double gain_scale, double min_coherence);
+/// The margins of s H L from the lines whose coherence is at least min_coherence, with H the
+/// force command's filters (nullptr: none). The measurement runs without them, so a filter is
+/// judged before it is ever in the loop.
+LoopMargins loop_margins(const std::vector<FrequencyPoint>& points, double gain_scale, double min_coherence,
+                         const FilterChain* filters = nullptr);
 
 struct TuningTargets {
   double min_phase_margin_deg = 0;  ///< (0, 90)
@@ -59,6 +63,6 @@ struct TunedGains {
 /// @returns nothing when no such s exists; `why` then says what limited it.
 std::optional<TunedGains> tune_velocity_pi(const std::vector<FrequencyPoint>& points, double kp_n_s_per_m,
                                            double ki_n_per_m, const TuningTargets& targets, double min_coherence,
-                                           std::string& why);
+                                           std::string& why, const FilterChain* filters = nullptr);
 
 }  // namespace pmlsm

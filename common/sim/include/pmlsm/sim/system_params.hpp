@@ -9,6 +9,7 @@
 
 #include "pmlsm/compensation/accel_feedback.hpp"
 #include "pmlsm/compensation/vibration_guard.hpp"
+#include "pmlsm/control/biquad.hpp"
 #include "pmlsm/control/current_controller.hpp"
 #include "pmlsm/control/input_shaper.hpp"
 #include "pmlsm/compensation/jordan_rnn.hpp"
@@ -96,6 +97,10 @@ struct SystemParams {
   CompensatorTuning compensator;
   InputShapingTuning input_shaping;
   CommissioningTuning commissioning;
+  /// Filter slots: on the velocity loop's force command, and on the compensator's force before it
+  /// is added to the PI (period_s: timing.control_period_s).
+  FilterChainParams force_command_filters;
+  FilterChainParams compensation_filters;
 
   /// @throws std::invalid_argument with the section path of the first invalid value.
   void validate() const;
@@ -121,6 +126,8 @@ struct SystemParams {
   /// The frequency-response measurement at the control period, with the plant's pole pitch (the
   /// motor's datasheet value: the force ripple's period in space).
   FrequencyResponseMeasurementParams frequency_response_params() const;
+  FilterChainParams force_command_filter_params() const;
+  FilterChainParams compensation_filter_params() const;
   /// A shaper of `kind` timed to loop_vibration_mode(), at the control period.
   InputShaperParams input_shaper_params(ShaperKind kind) const;
 };
@@ -150,6 +157,21 @@ void visit_friction(const std::string& at, Friction& f, Visitor& v) {
 
 // The two-mass mechanics: the plant's, and the models of it in the Kalman filter and in state
 // feedback, with one set of ranges.
+// A chain of filter slots (pmlsm/control/biquad.hpp): the kind and the four values each kind
+// may use; which it uses is checked by the slot's validate().
+template <typename Chain, typename Visitor>
+void visit_filter_chain(const std::string& at, Chain& chain, Visitor& v) {
+  for (std::size_t i = 0; i < chain.slots.size(); ++i) {
+    auto& slot = chain.slots[i];
+    const std::string key = at + ".slot_" + std::to_string(i + 1) + ".";
+    v.choice(key + "kind", slot.kind, &filter_kind_from_string);
+    v.real(key + "frequency_hz", slot.frequency_hz, {0.0, 1e4, "0 (unused) to 10 kHz"});
+    v.real(key + "damping", slot.damping, {0.0, 10.0, "0 to overdamped tenfold"});
+    v.real(key + "second_frequency_hz", slot.second_frequency_hz, {0.0, 1e4, "0 (unused) to 10 kHz"});
+    v.real(key + "second_damping", slot.second_damping, {0.0, 10.0, "0 to overdamped tenfold"});
+  }
+}
+
 template <typename Real, typename Visitor>
 void visit_two_mass(const std::string& at, Real& motor_mass_kg, Real& load_mass_kg, Real& spring_n_per_m, Visitor& v) {
   v.real(at + ".motor_mass_kg", motor_mass_kg, {0.01, 1e4, "from a 10 g slider to a 10 t gantry"});
@@ -242,6 +264,8 @@ void visit_parameters(Params& p, Visitor& v) {
   v.real(at + "max_velocity_mps", fr.max_velocity_mps, {1e-6, 100.0, "1 um/s to 100 m/s"});
   v.real(at + "min_coherence", fr.min_coherence, {0.0, 1.0, "a coherence: 0 to 1"});
   v.real(at + "max_low_coherence_share", fr.max_low_coherence_share, {0.0, 1.0, "a share of the lines: 0 to 1"});
+  detail::visit_filter_chain("filters.force_command", p.force_command_filters, v);
+  detail::visit_filter_chain("filters.compensation", p.compensation_filters, v);
   auto& tuning = p.commissioning.tuning;
   v.real("commissioning.tuning.min_phase_margin_deg", tuning.min_phase_margin_deg, {1.0, 89.0, "1 to 89 deg"});
   v.real("commissioning.tuning.min_gain_margin_db", tuning.min_gain_margin_db, {0.1, 40.0, "0.1 to 40 dB"});

@@ -2,13 +2,15 @@
 // the scenario asks (ZV, ZVD, EI timed to the loop's mode), shaped by the reference model (25)
 // into V_ref (or taken as V_ref when the scenario bypasses the model), and the velocity PI with the
 // compensator's force added inside its saturation (the hybrid controller,
-// Fig. 4). The controller node and the in-process loop both run it.
+// Fig. 4), with the filter slots (filters.* of the system file) on the compensator's force and on
+// the force command. The controller node and the in-process loop both run it.
 #pragma once
 
 #include <cmath>
 #include <cstdint>
 #include <optional>
 
+#include "pmlsm/control/biquad.hpp"
 #include "pmlsm/control/external_reference.hpp"
 #include "pmlsm/control/input_shaper.hpp"
 #include "pmlsm/control/reference_model.hpp"
@@ -70,6 +72,8 @@ class VelocityController {
   bool have_last_command_ = false;
   VelocityPi velocity_;
   std::optional<VibrationGuard> guard_;
+  FilterChain compensation_filters_;  ///< on the compensator's force, before the PI adds it
+  FilterChain force_filters_;         ///< on the PI's output, then the force limit again
 };
 
 /// An external scenario's setpoint policy at the control period.
