@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <cmath>
 #include <map>
 #include <tuple>
@@ -491,9 +492,10 @@ TEST(Commission, SimulatedPlantGivesItsModesAReportAndASystemFile) {
   const fs::path dir = test::fresh_dir("pmlsm_tool", "commission");
   const std::string out = (dir / "commissioned.yaml").string(), report = (dir / "report").string();
   test::ChildProcess p(
-      pmlsm_args(test_domain(94), {"commission", "--simulate", "-c", source("configs/system.yaml"), "--identification",
-                                   source("configs/scenarios/identification.yaml"), "--set",
-                                   "plant.mechanics.load_mass_kg=8", "-o", out, "--report", report, "--tune"}),
+      pmlsm_args(test_domain(94),
+                 {"commission", "--simulate", "-c", source("configs/system.yaml"), "--identification",
+                  source("configs/scenarios/identification.yaml"), "--set", "plant.mechanics.load_mass_kg=8", "-o", out,
+                  "--report", report, "--tune", "--verify", source("configs/sweeps/plant_family.yaml")}),
       (dir / "commission.log").string());
   ASSERT_EQ(run_to_end(p), 0) << p.output();
   const auto number_after = [&](const std::string& label) {
@@ -521,19 +523,28 @@ TEST(Commission, SimulatedPlantGivesItsModesAReportAndASystemFile) {
   EXPECT_EQ(lines, 1u + 195u);
   EXPECT_GT(fs::file_size(fs::path(report) / "bode.png"), 10000u);
   EXPECT_GT(fs::file_size(fs::path(report) / "samples.csv"), 24000u * 20u);
+  // Verified as the sweep judges a plant: PI alone and each compensator on pulse and free vibration.
+  EXPECT_NE(p.output().find("verification: every compensator clean and cheaper than PI alone"), std::string::npos)
+      << p.output();
+  std::ifstream verification(fs::path(report) / "verification.csv");
+  std::size_t rows = 0;
+  for (std::string line; std::getline(verification, line);) ++rows;
+  EXPECT_EQ(rows, 1u + 2u * 4u);
   fs::remove_all(dir);
 }
 
 // A run that would leave the stroke or exceed the force limit is refused before it starts (2); a
-// measurement a limit ends (a noisy encoder saturates the loop) exits 5 and one whose response
-// is not coherent enough exits 6; none writes the system file.
+// measurement a limit ends (a noisy encoder saturates the loop) exits 5; a response not coherent
+// enough and a commissioned system that fails its verification exit 6; none writes the file.
 TEST(Commission, RefusesARunBeyondItsLimitsAndWritesNothingFromABadOne) {
   const fs::path dir = test::fresh_dir("pmlsm_tool", "commission_refused");
   const std::string out = (dir / "out.yaml").string();
   const auto commission = [&](const std::string& set, const char* log) {
     test::ChildProcess p(
         pmlsm_args(test_domain(94), {"commission", "--simulate", "--no-plots", "-c", source("configs/system.yaml"),
-                                     "--set", set, "-o", out, "--report", (dir / "report").string()}),
+                                     "--identification", source("configs/scenarios/identification.yaml"), "--verify",
+                                     source("configs/sweeps/plant_family.yaml"), "--set", set, "-o", out, "--report",
+                                     (dir / "report").string()}),
         (dir / log).string());
     const int exit_code = run_to_end(p);
     return std::make_pair(exit_code, p.output());
@@ -550,6 +561,21 @@ TEST(Commission, RefusesARunBeyondItsLimitsAndWritesNothingFromABadOne) {
   std::tie(code, text) = commission("commissioning.frequency_response.min_coherence=0.9999", "coherence.log");
   EXPECT_EQ(code, 6) << text;
   EXPECT_NE(text.find("poor coherence"), std::string::npos) << text;
+  // A verification the commissioned system fails (a free vibration to settle in 10 ms): exit 6.
+  std::ifstream family(source("configs/sweeps/plant_family.yaml"));
+  std::string sweep((std::istreambuf_iterator<char>(family)), std::istreambuf_iterator<char>());
+  for (std::size_t at; (at = sweep.find("../")) != std::string::npos;) sweep.replace(at, 3, source("configs/"));
+  const std::string settling = "max_free_vibration_settling_s: {value: 1.0";
+  ASSERT_NE(sweep.find(settling), std::string::npos);
+  sweep.replace(sweep.find(settling), settling.size(), "max_free_vibration_settling_s: {value: 0.01");
+  std::ofstream((dir / "strict.yaml").string()) << sweep;
+  test::ChildProcess strict(
+      pmlsm_args(test_domain(94), {"commission", "--simulate", "--no-plots", "-c", source("configs/system.yaml"),
+                                   "--identification", source("configs/scenarios/identification.yaml"), "--verify",
+                                   (dir / "strict.yaml").string(), "-o", out, "--report", (dir / "report").string()}),
+      (dir / "strict.log").string());
+  EXPECT_EQ(run_to_end(strict), 6) << strict.output();
+  EXPECT_NE(strict.output().find("the verification failed; nothing written"), std::string::npos) << strict.output();
   EXPECT_FALSE(fs::exists(out));
   fs::remove_all(dir);
 }

@@ -23,6 +23,7 @@
 #include "commands.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/config/sweep_file.hpp"
+#include "pmlsm/config/weights_file.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/sim/frequency_response_measurement.hpp"
 #include "pmlsm/sim/identification.hpp"
@@ -47,6 +48,9 @@ struct CommissionOptions {
   bool plots = true;
   std::string family;  ///< a sweep file: measure every plant of its family instead (--simulate)
   bool tune = false;   ///< write the tuned velocity PI gains too
+  /// The sweep file whose scenarios, compensators, weights and verdict verify the commissioned
+  /// system ("": no verification).
+  std::string verify = data_file("configs/sweeps/plant_family.yaml");
 };
 
 double db(std::complex<double> x) { return 20.0 * std::log10(std::abs(x)); }
@@ -348,6 +352,43 @@ int run_family(const CommissionOptions& o, const SystemParams& nominal) {
   return failed == 0 ? kExitOk : kExitVerdictFailed;
 }
 
+/// The commissioned system verified as the sweep judges a plant: every scenario of the sweep file
+/// with PI alone and each compensator on the plant, the models and gains commissioned; a table,
+/// verification.csv, and whether every compensator ran clean and cheaper than PI alone.
+bool verify_commissioned(const std::string& sweep_path, const SystemParams& commissioned,
+                         const std::filesystem::path& dir) {
+  const SweepFile file = load_sweep_file(sweep_path, commissioned);
+  std::vector<double> weights;
+  if (!file.weights_path.empty()) weights = load_rnn_weights(file.weights_path).weights;
+  std::vector<CompensatorKind> kinds{CompensatorKind::kNone};
+  kinds.insert(kinds.end(), file.spec.compensators.begin(), file.spec.compensators.end());
+  std::ofstream csv(dir / "verification.csv");
+  csv << "scenario,compensator,cost,cost_ratio_to_pi,faults,tail_force_rms_n,tail_compensation_rms_n\n";
+  std::printf("verification (%s: scenarios, compensators, verdict) on the plant with the commissioned system:\n",
+              sweep_path.c_str());
+  bool all_passed = true;
+  for (const Scenario& scenario : file.spec.scenarios) {
+    double pi_cost = 0;
+    std::printf("  %-16s", scenario.name.c_str());
+    for (const CompensatorKind kind : kinds) {
+      const auto trace = run_with_compensator(commissioned, scenario, {kind, weights, false});
+      const RunVerdict v = judge_run(trace, scenario, commissioned.timing.control_period_s,
+                                     commissioned.velocity_loop.force_limit_n, file.spec.verdict);
+      if (kind == CompensatorKind::kNone) pi_cost = v.cost;
+      const bool passed = kind == CompensatorKind::kNone || (v.faults().empty() && v.cost < pi_cost);
+      all_passed = all_passed && passed;
+      std::printf("  %s %.3f%s%s", to_string(kind), v.cost, v.faults().empty() ? "" : (" " + v.faults()).c_str(),
+                  passed ? "" : " (fails)");
+      csv << scenario.name << ',' << to_string(kind) << ',' << v.cost << ',' << v.cost / pi_cost << ",\"" << v.faults()
+          << "\"," << v.tail_force_rms_n << ',' << v.tail_compensation_rms_n << '\n';
+    }
+    std::printf("\n");
+  }
+  std::printf("verification: %s\n", all_passed ? "every compensator clean and cheaper than PI alone on every scenario"
+                                               : "a compensator failed (see the table)");
+  return all_passed;
+}
+
 int run_commission(const CommissionOptions& o) {
   if (!o.simulate) {
     throw UsageError("commission: give --simulate: measuring a live drive over DDS is not available yet");
@@ -394,6 +435,18 @@ int run_commission(const CommissionOptions& o) {
                                      : "--tune: no gains meet the margins");
     return kExitVerdictFailed;
   }
+  auto values = commissioned_parameters(result.fit, time_domain);
+  if (o.tune) {
+    values.emplace_back("velocity_loop.kp_n_s_per_m", loop.tuned->kp_n_s_per_m);
+    values.emplace_back("velocity_loop.ki_n_per_m", loop.tuned->ki_n_per_m);
+  }
+  SystemParams commissioned = configured;
+  for (const auto& [key, value] : values) real_parameter(commissioned, key) = value;
+  commissioned.validate();
+  if (!o.verify.empty() && !verify_commissioned(o.verify, commissioned, dir)) {
+    std::printf("commission: the verification failed; nothing written (--no-verify writes it regardless)\n");
+    return kExitVerdictFailed;
+  }
   if (o.out.empty()) return kExitOk;
   char source[320];
   std::snprintf(source, sizeof source,
@@ -401,11 +454,6 @@ int run_commission(const CommissionOptions& o) {
                 "resonance %.3f Hz; friction from the time-domain fit)",
                 o.simulate ? "the simulated plant" : "the drive", result.fit.anti_resonance_hz,
                 result.fit.resonance_hz);
-  auto values = commissioned_parameters(result.fit, time_domain);
-  if (o.tune) {
-    values.emplace_back("velocity_loop.kp_n_s_per_m", loop.tuned->kp_n_s_per_m);
-    values.emplace_back("velocity_loop.ki_n_per_m", loop.tuned->ki_n_per_m);
-  }
   write_system_file_with(o.config, values, source, o.out);
   std::printf("commission: %s written (%zu values); run the nodes with --config %s\n", o.out.c_str(), values.size(),
               o.out.c_str());
@@ -429,6 +477,12 @@ void add_commission_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--report", o->report, "The report folder: response.csv, samples.csv, bode.png")
       ->capture_default_str();
   cmd->add_flag("!--no-plots", o->plots, "No Bode plot (no gnuplot needed)");
+  cmd->add_option("--verify", o->verify,
+                  "The sweep file whose scenarios, compensators and verdict verify the commissioned system")
+      ->capture_default_str()
+      ->check(CLI::ExistingFile);
+  cmd->add_flag_callback(
+      "--no-verify", [o] { o->verify.clear(); }, "No verification (the system file is written regardless)");
   cmd->add_flag("--tune", o->tune,
                 "Write the velocity PI's gains tuned to commissioning.tuning's margins into the system file too");
   cmd->add_option("--family", o->family,
