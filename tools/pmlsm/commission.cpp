@@ -115,12 +115,12 @@ void write_response_csv(const std::filesystem::path& path, const FrequencyRespon
 void write_bode_script(const std::filesystem::path& dir, const TwoMassFit& fit, const std::string& margins,
                        bool filters) {
   std::ofstream gp(dir / "bode.gp");
-  const std::string with_filters_db =
-      filters ? ", '' every ::1 using 1:11 w l dt 3 title 'filters H', '' every ::1 using 1:13 w l dt 2 title 'H L'"
-              : "";
-  const std::string with_filters_deg =
-      filters ? ", '' every ::1 using 1:12 w l dt 3 title 'filters H', '' every ::1 using 1:14 w l dt 2 title 'H L'"
-              : "";
+  const std::string with_filters_db = filters ? ", '' every ::1 using 1:11 w l dt 3 lw 2 lc rgb 'black' title 'filters "
+                                                "H', '' every ::1 using 1:13 w l dt 2 title 'H L'"
+                                              : "";
+  const std::string with_filters_deg = filters ? ", '' every ::1 using 1:12 w l dt 3 lw 2 lc rgb 'black' title "
+                                                 "'filters H', '' every ::1 using 1:14 w l dt 2 title 'H L'"
+                                               : "";
   gp << "set terminal pngcairo size 1200,1000 noenhanced font ',10'\nset output '" << (dir / "bode.png").string()
      << "'\nset datafile separator ','\nset grid\nset logscale x\nset key top right\n"
      << "set arrow from " << fit.anti_resonance_hz << ", graph 0 to " << fit.anti_resonance_hz
