@@ -530,6 +530,11 @@ TEST(Commission, SimulatedPlantGivesItsModesAReportAndASystemFile) {
   std::size_t rows = 0;
   for (std::string line; std::getline(verification, line);) ++rows;
   EXPECT_EQ(rows, 1u + 2u * 4u);
+  std::ifstream report_md(fs::path(report) / "report.md");
+  const std::string md((std::istreambuf_iterator<char>(report_md)), std::istreambuf_iterator<char>());
+  EXPECT_NE(md.find("Exit 0. The system file: " + out), std::string::npos) << md;
+  EXPECT_NE(md.find("![Bode plot](bode.png)"), std::string::npos) << md;
+  EXPECT_NE(md.find("\nanti-resonance "), std::string::npos) << md;
   fs::remove_all(dir);
 }
 

@@ -11,6 +11,7 @@
 // disagree (nothing written), 2 on bad input.
 #include <algorithm>
 #include <cmath>
+#include <cstdarg>
 #include <complex>
 #include <cstdio>
 #include <filesystem>
@@ -54,6 +55,17 @@ struct CommissionOptions {
 };
 
 double db(std::complex<double> x) { return 20.0 * std::log10(std::abs(x)); }
+
+/// printf to stdout, the text kept in `transcript` too (the report's copy).
+[[gnu::format(printf, 2, 3)]] void say(std::string& transcript, const char* format, ...) {
+  char text[1024];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(text, sizeof text, format, args);
+  va_end(args);
+  std::fputs(text, stdout);
+  transcript += text;
+}
 double degrees(std::complex<double> x) { return std::arg(x) * 180.0 / kPi; }
 
 /// Runs the measurement on the configured simulated plant, with progress on stderr (quiet: none).
@@ -144,21 +156,21 @@ void write_bode_script(const std::filesystem::path& dir, const TwoMassFit& fit, 
 }
 
 /// The fit's table, with the configured model and (simulated) the plant's true values.
-void print_fit(const TwoMassFit& fit, const IdentifiedLoad& time_domain, const SystemParams& configured,
-               bool simulate) {
+void print_fit(const TwoMassFit& fit, const IdentifiedLoad& time_domain, const SystemParams& configured, bool simulate,
+               std::string& transcript) {
   const auto& model = configured.kalman.model;
   const auto& truth = configured.plant.mechanics;
-  std::printf("  %-22s %12s %12s %12s%s\n", "", "configured", "frequency", "time domain",
-              simulate ? "   simulated plant" : "");
+  say(transcript, "  %-22s %12s %12s %12s%s\n", "", "configured", "frequency", "time domain",
+      simulate ? "   simulated plant" : "");
   const auto row = [&](const char* name, double was, double now, double other, double real) {
-    std::printf("  %-22s %12.6g %12.6g ", name, was, now);
+    say(transcript, "  %-22s %12.6g %12.6g ", name, was, now);
     if (std::isnan(other)) {
-      std::printf("%12s", "-");
+      say(transcript, "%12s", "-");
     } else {
-      std::printf("%12.6g", other);
+      say(transcript, "%12.6g", other);
     }
-    if (simulate) std::printf(" %12.6g (%+.2f %%)", real, 100.0 * (now / real - 1.0));
-    std::printf("\n");
+    if (simulate) say(transcript, " %12.6g (%+.2f %%)", real, 100.0 * (now / real - 1.0));
+    say(transcript, "\n");
   };
   const double nan = std::nan("");
   row("motor mass [kg]", model.motor_mass_kg, fit.motor_mass_kg, nan, truth.motor_mass_kg);
@@ -172,8 +184,8 @@ void print_fit(const TwoMassFit& fit, const IdentifiedLoad& time_domain, const S
   row("resonance [Hz]",
       std::sqrt(model.spring_n_per_m * (1 / model.load_mass_kg + 1 / model.motor_mass_kg)) / (2 * kPi),
       fit.resonance_hz, nan, res_true_hz);
-  std::printf("  fit: %zu lines, rms log error %.3f; damping: anti-resonance %.4f, resonance %.4f\n", fit.lines_used,
-              fit.rms_log_error, fit.anti_resonance_damping, fit.resonance_damping);
+  say(transcript, "  fit: %zu lines, rms log error %.3f; damping: anti-resonance %.4f, resonance %.4f\n",
+      fit.lines_used, fit.rms_log_error, fit.anti_resonance_damping, fit.resonance_damping);
 }
 
 std::string describe(const LoopMargins& m) {
@@ -198,35 +210,35 @@ struct LoopVerdict {
 /// The velocity loop's margins as measured, with the configured force-command filters, and the
 /// gains tuned to the targets with those filters in the loop, printed.
 LoopVerdict judge_loop(const SystemParams& configured, const FrequencyResponseResult& result,
-                       const FilterChain& filters) {
+                       const FilterChain& filters, std::string& transcript) {
   const auto& targets = configured.commissioning.tuning;
   const double min_coherence = configured.commissioning.frequency_response.min_coherence;
   LoopVerdict verdict;
-  std::printf("velocity loop as measured (Kp %.6g N s/m): %s\n", configured.velocity_loop.kp_n_s_per_m,
-              describe(loop_margins(result.points, 1.0, min_coherence)).c_str());
+  say(transcript, "velocity loop as measured (Kp %.6g N s/m): %s\n", configured.velocity_loop.kp_n_s_per_m,
+      describe(loop_margins(result.points, 1.0, min_coherence)).c_str());
   const LoopMargins with_filters = loop_margins(result.points, 1.0, min_coherence, &filters);
   verdict.margins = describe(with_filters);
   if (!filters.empty()) {
-    std::printf("with the force command's filters: %s\n", verdict.margins.c_str());
+    say(transcript, "with the force command's filters: %s\n", verdict.margins.c_str());
     verdict.filters_refused = !with_filters.gain_crossover_found || !with_filters.phase_crossover_found ||
                               with_filters.phase_margin_deg < targets.min_phase_margin_deg ||
                               with_filters.gain_margin_db < targets.min_gain_margin_db;
     if (verdict.filters_refused) {
-      std::printf("the force command's filters are refused: they would leave %s (targets %.4g deg, %.4g dB)\n",
-                  verdict.margins.c_str(), targets.min_phase_margin_deg, targets.min_gain_margin_db);
+      say(transcript, "the force command's filters are refused: they would leave %s (targets %.4g deg, %.4g dB)\n",
+          verdict.margins.c_str(), targets.min_phase_margin_deg, targets.min_gain_margin_db);
     }
   }
   std::string why;
   verdict.tuned = tune_velocity_pi(result.points, configured.velocity_loop.kp_n_s_per_m,
                                    configured.velocity_loop.ki_n_per_m, targets, min_coherence, why, &filters);
   if (!verdict.tuned) {
-    std::printf("velocity loop tuning (%.4g deg, %.4g dB): %s\n", targets.min_phase_margin_deg,
-                targets.min_gain_margin_db, why.c_str());
+    say(transcript, "velocity loop tuning (%.4g deg, %.4g dB): %s\n", targets.min_phase_margin_deg,
+        targets.min_gain_margin_db, why.c_str());
     return verdict;
   }
-  std::printf("velocity loop tuned to %.4g deg and %.4g dB: Kp %.6g N s/m, Ki %.6g N/m (x%.3f): %s\n",
-              targets.min_phase_margin_deg, targets.min_gain_margin_db, verdict.tuned->kp_n_s_per_m,
-              verdict.tuned->ki_n_per_m, verdict.tuned->gain_scale, describe(verdict.tuned->after).c_str());
+  say(transcript, "velocity loop tuned to %.4g deg and %.4g dB: Kp %.6g N s/m, Ki %.6g N/m (x%.3f): %s\n",
+      targets.min_phase_margin_deg, targets.min_gain_margin_db, verdict.tuned->kp_n_s_per_m, verdict.tuned->ki_n_per_m,
+      verdict.tuned->gain_scale, describe(verdict.tuned->after).c_str());
   return verdict;
 }
 
@@ -356,7 +368,7 @@ int run_family(const CommissionOptions& o, const SystemParams& nominal) {
 /// with PI alone and each compensator on the plant, the models and gains commissioned; a table,
 /// verification.csv, and whether every compensator ran clean and cheaper than PI alone.
 bool verify_commissioned(const std::string& sweep_path, const SystemParams& commissioned,
-                         const std::filesystem::path& dir) {
+                         const std::filesystem::path& dir, std::string& transcript) {
   const SweepFile file = load_sweep_file(sweep_path, commissioned);
   std::vector<double> weights;
   if (!file.weights_path.empty()) weights = load_rnn_weights(file.weights_path).weights;
@@ -364,12 +376,12 @@ bool verify_commissioned(const std::string& sweep_path, const SystemParams& comm
   kinds.insert(kinds.end(), file.spec.compensators.begin(), file.spec.compensators.end());
   std::ofstream csv(dir / "verification.csv");
   csv << "scenario,compensator,cost,cost_ratio_to_pi,faults,tail_force_rms_n,tail_compensation_rms_n\n";
-  std::printf("verification (%s: scenarios, compensators, verdict) on the plant with the commissioned system:\n",
-              sweep_path.c_str());
+  say(transcript, "verification (%s: scenarios, compensators, verdict) on the plant with the commissioned system:\n",
+      sweep_path.c_str());
   bool all_passed = true;
   for (const Scenario& scenario : file.spec.scenarios) {
     double pi_cost = 0;
-    std::printf("  %-16s", scenario.name.c_str());
+    say(transcript, "  %-16s", scenario.name.c_str());
     for (const CompensatorKind kind : kinds) {
       const auto trace = run_with_compensator(commissioned, scenario, {kind, weights, false});
       const RunVerdict v = judge_run(trace, scenario, commissioned.timing.control_period_s,
@@ -377,19 +389,21 @@ bool verify_commissioned(const std::string& sweep_path, const SystemParams& comm
       if (kind == CompensatorKind::kNone) pi_cost = v.cost;
       const bool passed = kind == CompensatorKind::kNone || (v.faults().empty() && v.cost < pi_cost);
       all_passed = all_passed && passed;
-      std::printf("  %s %.3f%s%s", to_string(kind), v.cost, v.faults().empty() ? "" : (" " + v.faults()).c_str(),
-                  passed ? "" : " (fails)");
+      say(transcript, "  %s %.3f%s%s", to_string(kind), v.cost, v.faults().empty() ? "" : (" " + v.faults()).c_str(),
+          passed ? "" : " (fails)");
       csv << scenario.name << ',' << to_string(kind) << ',' << v.cost << ',' << v.cost / pi_cost << ",\"" << v.faults()
           << "\"," << v.tail_force_rms_n << ',' << v.tail_compensation_rms_n << '\n';
     }
-    std::printf("\n");
+    say(transcript, "\n");
   }
-  std::printf("verification: %s\n", all_passed ? "every compensator clean and cheaper than PI alone on every scenario"
-                                               : "a compensator failed (see the table)");
+  say(transcript, "verification: %s\n",
+      all_passed ? "every compensator clean and cheaper than PI alone on every scenario"
+                 : "a compensator failed (see the table)");
   return all_passed;
 }
 
-int run_commission(const CommissionOptions& o) {
+/// The commissioning; what it prints is kept in `transcript` for the report as well.
+int commission(const CommissionOptions& o, std::string& transcript) {
   if (!o.simulate) {
     throw UsageError("commission: give --simulate: measuring a live drive over DDS is not available yet");
   }
@@ -400,7 +414,8 @@ int run_commission(const CommissionOptions& o) {
   }
   const FrequencyResponseMeasurement measurement = measure_on_simulated_plant(configured);
   if (measurement.phase() != MeasurementPhase::kDone) {
-    std::printf("commission: the measurement ended early: %s; nothing written\n", measurement.abort_reason().c_str());
+    say(transcript, "commission: the measurement ended early: %s; nothing written\n",
+        measurement.abort_reason().c_str());
     return kExitSafeState;
   }
   const std::filesystem::path dir = o.report;
@@ -410,7 +425,7 @@ int run_commission(const CommissionOptions& o) {
   try {
     result = evaluate_measurement(measurement);
   } catch (const std::invalid_argument& e) {
-    std::printf("commission: %s; nothing written but %s\n", e.what(), (dir / "samples.csv").string().c_str());
+    say(transcript, "commission: %s; nothing written but %s\n", e.what(), (dir / "samples.csv").string().c_str());
     return kExitVerdictFailed;
   }
   const FilterChain filters(configured.force_command_filter_params());
@@ -418,21 +433,21 @@ int run_commission(const CommissionOptions& o) {
   std::fprintf(stderr, "commission: the time-domain fit (pmlsm identify) on %s\n", o.identification.c_str());
   const Scenario identification = load_scenario(o.identification, configured.timing.control_period_s);
   const IdentifiedLoad time_domain = commission_load(configured, identification, IdentificationParams{});
-  std::printf("commissioned from %s (%zu lines, %zu below coherence %.2f):\n",
-              o.simulate ? "the simulated plant" : "the drive", result.points.size(), result.low_coherence_lines,
-              measurement.params().min_coherence);
-  print_fit(result.fit, time_domain, configured, o.simulate);
-  std::printf("anti-resonance %.3f Hz\nresonance %.3f Hz\n", result.fit.anti_resonance_hz, result.fit.resonance_hz);
-  const LoopVerdict loop = judge_loop(configured, result, filters);
+  say(transcript, "commissioned from %s (%zu lines, %zu below coherence %.2f):\n",
+      o.simulate ? "the simulated plant" : "the drive", result.points.size(), result.low_coherence_lines,
+      measurement.params().min_coherence);
+  print_fit(result.fit, time_domain, configured, o.simulate, transcript);
+  say(transcript, "anti-resonance %.3f Hz\nresonance %.3f Hz\n", result.fit.anti_resonance_hz, result.fit.resonance_hz);
+  const LoopVerdict loop = judge_loop(configured, result, filters, transcript);
   if (o.plots) {
     write_bode_script(dir, result.fit, loop.margins, !filters.empty());
     if (run_gnuplot(dir / "bode.gp") != 0) throw std::runtime_error("gnuplot failed on " + (dir / "bode.gp").string());
   }
-  std::printf("report: %s\n", dir.string().c_str());
+  say(transcript, "report: %s\n", dir.string().c_str());
   if (loop.filters_refused || (o.tune && !loop.tuned)) {
-    std::printf("commission: %s; nothing written\n",
-                loop.filters_refused ? "the force command's filters leave the loop short of its margins"
-                                     : "--tune: no gains meet the margins");
+    say(transcript, "commission: %s; nothing written\n",
+        loop.filters_refused ? "the force command's filters leave the loop short of its margins"
+                             : "--tune: no gains meet the margins");
     return kExitVerdictFailed;
   }
   auto values = commissioned_parameters(result.fit, time_domain);
@@ -443,8 +458,8 @@ int run_commission(const CommissionOptions& o) {
   SystemParams commissioned = configured;
   for (const auto& [key, value] : values) real_parameter(commissioned, key) = value;
   commissioned.validate();
-  if (!o.verify.empty() && !verify_commissioned(o.verify, commissioned, dir)) {
-    std::printf("commission: the verification failed; nothing written (--no-verify writes it regardless)\n");
+  if (!o.verify.empty() && !verify_commissioned(o.verify, commissioned, dir, transcript)) {
+    say(transcript, "commission: the verification failed; nothing written (--no-verify writes it regardless)\n");
     return kExitVerdictFailed;
   }
   if (o.out.empty()) return kExitOk;
@@ -455,9 +470,28 @@ int run_commission(const CommissionOptions& o) {
                 o.simulate ? "the simulated plant" : "the drive", result.fit.anti_resonance_hz,
                 result.fit.resonance_hz);
   write_system_file_with(o.config, values, source, o.out);
-  std::printf("commission: %s written (%zu values); run the nodes with --config %s\n", o.out.c_str(), values.size(),
-              o.out.c_str());
+  say(transcript, "commission: %s written (%zu values); run the nodes with --config %s\n", o.out.c_str(), values.size(),
+      o.out.c_str());
   return kExitOk;
+}
+
+/// The commissioning, then report.md in the report folder (when the measurement made one): the
+/// Bode plot and everything printed, so that a run's report stands on its own.
+int run_commission(const CommissionOptions& o) {
+  std::string transcript;
+  const int code = commission(o, transcript);
+  const std::filesystem::path dir = o.report;
+  if (o.family.empty() && std::filesystem::is_directory(dir) && !transcript.empty()) {
+    std::ofstream md(dir / "report.md");
+    md << "# Commissioning report\n\n"
+       << (code == kExitOk ? "Exit 0." : "Exit " + std::to_string(code) + ": not done.")
+       << " The system file: " << (o.out.empty() || code != kExitOk ? "not written" : o.out) << ".\n\n";
+    if (o.plots && std::filesystem::exists(dir / "bode.png")) md << "![Bode plot](bode.png)\n\n";
+    md << "```\n"
+       << transcript << "```\n\nThe data: response.csv (per line), samples.csv (per tick)"
+       << (std::filesystem::exists(dir / "verification.csv") ? ", verification.csv" : "") << ".\n";
+  }
+  return code;
 }
 
 }  // namespace
