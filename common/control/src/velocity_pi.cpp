@@ -15,6 +15,11 @@ void VelocityPiParams::validate() const {
 
 VelocityPi::VelocityPi(const VelocityPiParams& params) : params_(params) { params_.validate(); }
 
+void VelocityPi::set_params(const VelocityPiParams& params) {
+  params.validate();
+  params_ = params;
+}
+
 void VelocityPi::reset() {
   integral_n_ = 0;
   last_output_ = VelocityPiOutput{};

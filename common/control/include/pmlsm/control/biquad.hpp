@@ -37,6 +37,11 @@ struct BiquadParams {
   double second_frequency_hz = 0;  ///< lead-lag pole, general denominator
   double second_damping = 0;       ///< notch poles (its width), general denominator
   double period_s = 0;             ///< the loop's sampling period
+  bool operator==(const BiquadParams& o) const {
+    return kind == o.kind && frequency_hz == o.frequency_hz && damping == o.damping &&
+           second_frequency_hz == o.second_frequency_hz && second_damping == o.second_damping && period_s == o.period_s;
+  }
+  bool operator!=(const BiquadParams& o) const { return !(*this == o); }
   /// The values the kind uses: frequencies in (0, 0.45 / period_s), dampings in their ranges.
   /// @throws std::invalid_argument naming the first invalid value.
   void validate() const;

@@ -41,6 +41,9 @@ class VelocityPi {
   /// @throws std::invalid_argument naming the first invalid parameter.
   explicit VelocityPi(const VelocityPiParams& params);
   void reset();
+  /// New gains or limit from the next step on (a live change at a tick boundary); the integral is
+  /// kept, so the force does not jump by it. @throws std::invalid_argument as the constructor.
+  void set_params(const VelocityPiParams& params);
   VelocityPiOutput step(const VelocityPiInput& input);
   double integral_n() const { return integral_n_; }
   const VelocityPiParams& params() const { return params_; }

@@ -58,6 +58,11 @@ class VelocityController {
   /// A tick with a command from elsewhere (an external scenario: the setpoints' command).
   VelocityControllerOutput step_command(double command_mps, double motor_velocity_mps,
                                         const Compensation& compensation);
+  /// The live parameters (LiveParameters) at a tick boundary: the PI's gains and limit (its
+  /// integral kept), and each filter chain rebuilt from rest when its slots changed (unchanged
+  /// chains keep their state). The rest of `params` is not looked at.
+  /// @throws std::invalid_argument from the components (LiveParameters has checked them before).
+  void retune(const SystemParams& params);
   const VelocityPi& velocity_pi() const { return velocity_; }
   const ReferenceModel& reference() const { return reference_; }
   /// The guard in the compensation path (nullptr when compensator.guard.enabled is false).
@@ -72,6 +77,8 @@ class VelocityController {
   bool have_last_command_ = false;
   VelocityPi velocity_;
   std::optional<VibrationGuard> guard_;
+  FilterChainParams compensation_filter_params_;
+  FilterChainParams force_filter_params_;
   FilterChain compensation_filters_;  ///< on the compensator's force, before the PI adds it
   FilterChain force_filters_;         ///< on the PI's output, then the force limit again
 };

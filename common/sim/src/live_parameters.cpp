@@ -1,0 +1,177 @@
+#include "pmlsm/sim/live_parameters.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <stdexcept>
+#include <type_traits>
+
+#include "pmlsm/util/validate.hpp"
+
+namespace pmlsm {
+
+namespace {
+
+/// A number that is the whole text: "12000", "1.5e-3"; not "12 000", "0x10", "nan".
+double whole_number_text(const std::string& key, const std::string& text) {
+  const char* begin = text.c_str();
+  char* end = nullptr;
+  errno = 0;
+  const double x = std::strtod(begin, &end);
+  const bool hex = text.find_first_of("xX") != std::string::npos;
+  if (text.empty() || end != begin + text.size() || errno == ERANGE || !std::isfinite(x) || hex) {
+    throw std::invalid_argument(key + ": expected a number, got '" + text + "'");
+  }
+  return x;
+}
+
+/// Finds one entry by its key path and reads (text_ empty: get) or sets it from text.
+class EntryAccess {
+ public:
+  EntryAccess(const std::string& key, const std::string* text) : key_(key), text_(text) {}
+
+  void real(const std::string& path, double& value, const Plausible&) {
+    if (path != key_) return;
+    found_ = true;
+    if (text_ != nullptr) value = whole_number_text(key_, *text_);
+    value_ = format_value(value);
+  }
+  template <typename T>
+  void integer(const std::string& path, T& value, const Plausible&) {
+    if (path != key_) return;
+    found_ = true;
+    if (text_ != nullptr) {
+      const double x = whole_number_text(key_, *text_);
+      if (x != std::trunc(x) || x < static_cast<double>(std::numeric_limits<T>::lowest()) ||
+          x > static_cast<double>(std::numeric_limits<T>::max())) {
+        throw std::invalid_argument(key_ + ": expected a whole number, got '" + *text_ + "'");
+      }
+      value = static_cast<T>(x);
+    }
+    value_ = std::to_string(value);
+  }
+  void flag(const std::string& path, bool& value) {
+    if (path != key_) return;
+    found_ = true;
+    if (text_ != nullptr) {
+      if (*text_ != "true" && *text_ != "false") {
+        throw std::invalid_argument(key_ + ": expected true or false, got '" + *text_ + "'");
+      }
+      value = *text_ == "true";
+    }
+    value_ = value ? "true" : "false";
+  }
+  template <typename E, typename F>
+  void choice(const std::string& path, E& value, F from_string) {
+    if (path != key_) return;
+    found_ = true;
+    if (text_ != nullptr) {
+      try {
+        value = from_string(*text_);
+      } catch (const std::invalid_argument& e) {
+        throw std::invalid_argument(key_ + ": " + e.what());
+      }
+    }
+    value_ = to_string(value);
+  }
+  void vector3(const std::string& path, const Eigen::Vector3d&, const Plausible&) { list(path); }
+  void integer_list(const std::string& path, const std::vector<int>&, const Plausible&) { list(path); }
+
+  /// @throws std::invalid_argument when the key was not found or is a list.
+  const std::string& value() const {
+    if (list_) throw std::invalid_argument(key_ + ": a list: not read or set one value at a time");
+    if (!found_) throw std::invalid_argument(key_ + ": no such parameter");
+    return value_;
+  }
+
+ private:
+  void list(const std::string& path) { list_ = list_ || path == key_; }
+
+  std::string key_;
+  const std::string* text_;
+  bool found_ = false;
+  bool list_ = false;
+  std::string value_;
+};
+
+}  // namespace
+
+std::string parameter_text(const SystemParams& params, const std::string& key_path) {
+  SystemParams copy = params;  // the visitor takes the entries by reference; nothing is written
+  EntryAccess access(key_path, nullptr);
+  visit_parameters(copy, access);
+  return access.value();
+}
+
+void set_parameter(SystemParams& params, const std::string& key_path, const std::string& text) {
+  EntryAccess access(key_path, &text);
+  visit_parameters(params, access);
+  access.value();  // throws when the key was not found
+}
+
+LiveParameters::LiveParameters(const SystemParams& params, std::vector<std::string> live_keys)
+    : params_(params), keys_(std::move(live_keys)) {
+  for (const std::string& key : keys_) parameter_text(params_, key);  // throws for an unknown one
+  history_.reserve(64);
+}
+
+bool LiveParameters::is_live(const std::string& key) const {
+  return std::find(keys_.begin(), keys_.end(), key) != keys_.end();
+}
+
+LiveAnswer LiveParameters::get(const std::string& key) const {
+  LiveAnswer answer;
+  answer.version = version_;
+  if (!is_live(key)) {
+    answer.reason = key + ": not a live parameter of this node (" + std::to_string(keys_.size()) + " are)";
+    return answer;
+  }
+  answer.accepted = true;
+  answer.value = parameter_text(params_, key);
+  return answer;
+}
+
+LiveAnswer LiveParameters::set(const std::string& key, const std::string& text) {
+  LiveAnswer answer = get(key);
+  if (!answer.accepted) return answer;
+  answer.accepted = false;
+  SystemParams changed = params_;
+  try {
+    set_parameter(changed, key, text);
+    changed.validate();  // the file's ranges and the components' checks, with the change in it
+  } catch (const std::invalid_argument& e) {
+    answer.reason = e.what();
+    return answer;
+  }
+  const std::string new_value = parameter_text(changed, key);
+  params_ = std::move(changed);
+  pending_ = true;
+  ++version_;
+  history_.push_back({version_, key, answer.value, new_value});
+  answer.accepted = true;
+  answer.version = version_;
+  answer.value = new_value;
+  return answer;
+}
+
+bool LiveParameters::take_pending() {
+  const bool pending = pending_;
+  pending_ = false;
+  return pending;
+}
+
+std::vector<std::string> velocity_controller_live_keys() {
+  std::vector<std::string> keys{"velocity_loop.kp_n_s_per_m", "velocity_loop.ki_n_per_m"};
+  for (const char* chain : {"filters.force_command", "filters.compensation"}) {
+    for (std::size_t slot = 1; slot <= kFilterSlots; ++slot) {
+      for (const char* value : {"kind", "frequency_hz", "damping", "second_frequency_hz", "second_damping"}) {
+        keys.push_back(std::string(chain) + ".slot_" + std::to_string(slot) + "." + value);
+      }
+    }
+  }
+  return keys;
+}
+
+}  // namespace pmlsm

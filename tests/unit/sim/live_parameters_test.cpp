@@ -1,0 +1,112 @@
+// Live parameters (pmlsm/sim/live_parameters.hpp): a change parsed by its entry's kind and checked
+// with the file's ranges and the components' checks, refused with the reason and the old value
+// kept, versioned; and the velocity controller taking it at a tick boundary with its integral kept.
+#include "pmlsm/sim/live_parameters.hpp"
+
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+#include <string>
+
+#include "pmlsm/sim/velocity_controller.hpp"
+#include "test_support.hpp"
+
+namespace pmlsm {
+namespace {
+
+void expect_live_refused(LiveParameters& live, const std::string& key, const std::string& text, const char* reason) {
+  const std::uint64_t version = live.version();
+  const std::string before = live.get(key).accepted ? live.get(key).value : "";
+  const LiveAnswer a = live.set(key, text);
+  EXPECT_FALSE(a.accepted) << key << "=" << text;
+  EXPECT_NE(a.reason.find(reason), std::string::npos) << a.reason;
+  EXPECT_EQ(a.value, before);
+  EXPECT_EQ(live.version(), version);
+  EXPECT_FALSE(live.take_pending());
+}
+
+TEST(LiveParameters, AChangeIsCheckedLikeTheFileVersionedAndKept) {
+  LiveParameters live(test::shipped_params(), velocity_controller_live_keys());
+  EXPECT_EQ(live.keys().size(), 2u + 2u * 4u * 5u);
+  EXPECT_EQ(live.get("velocity_loop.kp_n_s_per_m").value, "10000");
+  const LiveAnswer a = live.set("velocity_loop.kp_n_s_per_m", "12000");
+  ASSERT_TRUE(a.accepted) << a.reason;
+  EXPECT_EQ(a.version, 1u);
+  EXPECT_EQ(a.value, "12000");
+  EXPECT_EQ(live.params().velocity_loop.kp_n_s_per_m, 12000.0);
+  EXPECT_TRUE(live.take_pending());
+  EXPECT_FALSE(live.take_pending());
+  ASSERT_EQ(live.history().size(), 1u);
+  EXPECT_EQ(live.history()[0].old_value, "10000");
+  EXPECT_EQ(live.history()[0].new_value, "12000");
+
+  expect_live_refused(live, "velocity_loop.kp_n_s_per_m", "2e6", "velocity_loop.kp_n_s_per_m: must be in [0, 1000000]");
+  expect_live_refused(live, "velocity_loop.kp_n_s_per_m", "fast", "expected a number, got 'fast'");
+  expect_live_refused(live, "velocity_loop.kp_n_s_per_m", "0x10", "expected a number");
+  expect_live_refused(live, "velocity_loop.ki_n_per_m", "nan", "expected a number");
+  expect_live_refused(live, "plant.mechanics.load_mass_kg", "5", "not a live parameter of this node");
+  expect_live_refused(live, "filters.force_command.slot_1.kind", "band_pass", "must be one of none, notch");
+  // A slot's kind before its values: the notch has no frequency yet (the component's check).
+  expect_live_refused(live, "filters.force_command.slot_1.kind", "notch", "frequency_hz: must be in");
+  for (const auto& [key, value] : {std::pair<std::string, std::string>{"frequency_hz", "10.2"},
+                                   {"damping", "0.02"},
+                                   {"second_damping", "0.2"},
+                                   {"kind", "notch"}}) {
+    const LiveAnswer set = live.set("filters.force_command.slot_1." + key, value);
+    EXPECT_TRUE(set.accepted) << key << ": " << set.reason;
+  }
+  EXPECT_EQ(live.version(), 5u);
+  EXPECT_EQ(live.get("filters.force_command.slot_1.kind").value, "notch");
+  EXPECT_THROW(LiveParameters(test::shipped_params(), {"velocity_loop.no_such_gain"}), std::invalid_argument);
+}
+
+TEST(LiveParameters, TextIsReadAndWrittenByTheEntrysKind) {
+  SystemParams p = test::shipped_params();
+  set_parameter(p, "kalman.friction_input.enabled", "false");
+  EXPECT_FALSE(p.kalman.friction_input.enabled);
+  EXPECT_EQ(parameter_text(p, "kalman.friction_input.enabled"), "false");
+  set_parameter(p, "plant.integrator", "rk4");
+  EXPECT_EQ(parameter_text(p, "plant.integrator"), "rk4");
+  set_parameter(p, "commissioning.frequency_response.measure_periods", "8");
+  EXPECT_EQ(p.commissioning.frequency_response.measure_periods, 8u);
+  EXPECT_THROW(set_parameter(p, "commissioning.frequency_response.measure_periods", "8.5"), std::invalid_argument);
+  EXPECT_THROW(set_parameter(p, "commissioning.frequency_response.measure_periods", "-4"), std::invalid_argument);
+  EXPECT_THROW(set_parameter(p, "kalman.friction_input.enabled", "yes"), std::invalid_argument);
+  EXPECT_THROW(set_parameter(p, "kalman.process_noise_diag", "1"), std::invalid_argument);
+  EXPECT_THROW(parameter_text(p, "no.such.key"), std::invalid_argument);
+}
+
+// The controller takes new gains at a tick boundary with its integral: with a constant velocity
+// error e, F_k = K_p e + k K_i T e before and K_p' e + k K_i T e after.
+TEST(LiveParameters, TheVelocityControllerTakesThemAtATickBoundaryWithItsIntegral) {
+  const SystemParams& shipped = test::shipped_params();
+  LiveParameters live(shipped, velocity_controller_live_keys());
+  VelocityController controller(shipped, test::shipped_scenario("pulse"));
+  const double e = 0.001, ki = shipped.velocity_loop.ki_n_per_m, t = shipped.timing.control_period_s;
+  for (int k = 0; k < 100; ++k) {
+    if (k == 50) {
+      ASSERT_TRUE(live.set("velocity_loop.kp_n_s_per_m", "12000").accepted);
+      ASSERT_TRUE(live.take_pending());
+      controller.retune(live.params());
+    }
+    const double kp = k < 50 ? 10000.0 : 12000.0;
+    const VelocityControllerOutput out = controller.step_command(0.0, -e, {});
+    EXPECT_NEAR(out.force_n, kp * e + k * ki * t * e, 1e-9) << k;
+  }
+  // A filter slot set live acts from the next tick: a full notch at 10 Hz on the compensation.
+  for (const auto& [key, value] :
+       {std::pair<std::string, std::string>{"frequency_hz", "10"}, {"second_damping", "0.3"}, {"kind", "notch"}}) {
+    ASSERT_TRUE(live.set("filters.compensation.slot_2." + key, value).accepted) << key;
+  }
+  controller.retune(live.params());
+  double peak = 0;
+  for (int k = 0; k < 3000; ++k) {
+    const double compensation_n = 50.0 * std::sin(2 * M_PI * 10.0 * k * t);
+    const VelocityControllerOutput out = controller.step_command(0.0, -e, {compensation_n, 0.1});
+    if (k > 2000) peak = std::max(peak, std::fabs(out.compensation_applied_n));
+  }
+  EXPECT_LT(peak, 0.5);  // 50 N at the notch's centre: gone
+}
+
+}  // namespace
+}  // namespace pmlsm
