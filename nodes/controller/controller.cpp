@@ -33,7 +33,9 @@
 #include "controller_command_line.hpp"
 #include "msg_mapping.hpp"
 #include "node_support.hpp"
+#include "parameter_service.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/sim/live_parameters.hpp"
 #include "pmlsm/control/current_controller.hpp"
 #include "pmlsm/sim/velocity_controller.hpp"
 
@@ -67,7 +69,9 @@ class ControllerNode {
         current_steps_(rt.cfg.params.timing.current_steps_per_tick()),
         compensation_reader_(
             rt.participant.make_reader(pdds::topics::kCompensatorOutput, rt.wakeup, pdds::kObserverProfile)),
-        controller_(std::in_place, rt.cfg.params, rt.cfg.scenario) {
+        controller_(std::in_place, rt.cfg.params, rt.cfg.scenario),
+        live_(rt.cfg.params, velocity_controller_live_keys()),
+        parameters_(rt, "controller", live_) {
     if (rt.cfg.scenario.shape == CommandShape::kExternal) {
       external_.emplace(external_reference_params(rt.cfg.scenario, period_s_));
       setpoint_reader_.emplace(rt.participant.make_reader(pdds::topics::kVelocitySetpoint, rt.wakeup));
@@ -109,6 +113,10 @@ class ControllerNode {
   int current_steps_;
   pdds::Reader<msg::CompensatorOutputPubSubType> compensation_reader_;
   std::optional<VelocityController> controller_;
+  // Live parameters (`pmlsm param set controller KEY VALUE`): the PI's gains and the filter slots,
+  // taken at a tick boundary.
+  LiveParameters live_;
+  node::ParameterService parameters_;
   std::optional<ExternalReference> external_;
   std::optional<pdds::Reader<msg::VelocitySetpointPubSubType>> setpoint_reader_;
   msg::VelocitySetpoint setpoint_;
@@ -166,7 +174,7 @@ double ControllerNode::external_command(std::uint64_t k) {
 }
 
 void ControllerNode::follow_new_run() {
-  controller_.emplace(rt_.cfg.params, rt_.cfg.scenario);
+  controller_.emplace(live_.params(), rt_.cfg.scenario);
   have_compensation_ = false;
   compensation_ = {};
   last_velocity_ = 0.0;
@@ -268,6 +276,7 @@ int ControllerNode::run() {
     }
     if (next == node::FeedbackFollower::Next::kNewRun) follow_new_run();
     const std::uint64_t k = feedback_.stamp().tick();
+    if (parameters_.serve(k)) controller_->retune(live_.params());
     double velocity = feedback_.velocity_mps();
     if (!std::isfinite(velocity)) {
       ++rejected_;  // answer with the last good measurement rather than pass a NaN on

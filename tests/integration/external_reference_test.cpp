@@ -1,7 +1,7 @@
 // The external reference over DDS: a controller on an external scenario follows
 // `pmlsm setpoint` (lockstep, with the evaluator's trace of the raw command), never jumping
 // (rate limit), back to zero when the source ends or dies, and a run whose source died
-// mid-move ends with exit code 5. Domains: offsets 74..77.
+// mid-move ends with exit code 5; `pmlsm param` on the running controller. Domains: offsets 74..77, 96.
 #include <gtest/gtest.h>
 #include <signal.h>
 
@@ -13,6 +13,7 @@
 #include <regex>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "child_process.hpp"
@@ -140,6 +141,66 @@ TEST(ExternalReferenceDistributed, PmlsmSetpointWithoutAControllerExits3AndRefus
   code = nan.wait_for(seconds(30));
   ASSERT_TRUE(code.has_value());
   EXPECT_EQ(*code, 2) << nan.output();
+  fs::remove_all(dir);
+}
+
+std::vector<std::string> param_args(const std::string& domain, std::vector<std::string> extra) {
+  std::vector<std::string> a{bin("pmlsm"), "--domain", domain, "--profiles", source("configs/dds/profiles.xml"),
+                             "param"};
+  a.insert(a.end(), extra.begin(), extra.end());
+  return a;
+}
+
+// `pmlsm param` on a running controller (lockstep, an external scenario at rest): list, get and
+// set its live parameters; a change is taken at a tick boundary, logged and versioned; a value out
+// of range, one that is not a number, a key the node does not have are refused with the reason
+// and the old value kept (exit 2); a node that is not there is reported (exit 3).
+TEST(LiveParametersDistributed, PmlsmParamListsGetsAndSetsTheControllersParameters) {
+  const fs::path dir = fresh_dir("pmlsm_external", "param");
+  const std::string domain = test_domain(96);
+  const std::string scenario = external_scenario(dir, 600.0);
+  ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
+  ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "1"}), (dir / "plant.log").string());
+  ASSERT_TRUE(plant.wait_for_output("lockstep clock", seconds(30))) << plant.output();
+  const auto param = [&](std::vector<std::string> args, const char* log) {
+    ChildProcess p(param_args(domain, std::move(args)), (dir / log).string());
+    const auto code = p.wait_for(seconds(60));
+    EXPECT_TRUE(code.has_value()) << p.output();
+    return std::make_pair(code.value_or(-1), p.output());
+  };
+  auto [code, text] = param({"list", "controller"}, "list.log");
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("velocity_loop.kp_n_s_per_m = 10000\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("filters.compensation.slot_4.second_damping = 0\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("(version 0)"), std::string::npos) << text;
+  std::tie(code, text) = param({"set", "controller", "velocity_loop.kp_n_s_per_m", "12000"}, "set.log");
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("controller: velocity_loop.kp_n_s_per_m 10000 -> 12000 from tick "), std::string::npos) << text;
+  EXPECT_NE(text.find("(version 1)"), std::string::npos) << text;
+  std::tie(code, text) = param({"get", "controller", "velocity_loop.kp_n_s_per_m"}, "get.log");
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_EQ(text, "12000\n");
+  std::tie(code, text) = param({"set", "controller", "velocity_loop.kp_n_s_per_m", "2e6"}, "range.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("refused: velocity_loop.kp_n_s_per_m: must be in [0, 1000000]"), std::string::npos) << text;
+  EXPECT_NE(text.find("stays 12000"), std::string::npos) << text;
+  std::tie(code, text) = param({"set", "controller", "velocity_loop.ki_n_per_m", "much"}, "type.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("expected a number, got 'much'"), std::string::npos) << text;
+  std::tie(code, text) = param({"set", "controller", "plant.mechanics.load_mass_kg", "5"}, "key.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("not a live parameter of this node"), std::string::npos) << text;
+  std::tie(code, text) = param({"get", "estimator", "velocity_loop.kp_n_s_per_m", "--timeout-s", "1"}, "none.log");
+  EXPECT_EQ(code, 3) << text;
+  EXPECT_NE(text.find("node 'estimator' did not answer"), std::string::npos) << text;
+  EXPECT_NE(controller.output().find("controller: tick "), std::string::npos) << controller.output();
+  EXPECT_NE(controller.output().find("parameter velocity_loop.kp_n_s_per_m 10000 -> 12000 (version 1, by "),
+            std::string::npos)
+      << controller.output();
+  for (ChildProcess* p : {&plant, &controller}) {
+    p->signal(SIGINT);
+    EXPECT_TRUE(p->wait_for(seconds(30)).has_value()) << p->output();
+  }
   fs::remove_all(dir);
 }
 

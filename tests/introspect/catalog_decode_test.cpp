@@ -31,6 +31,8 @@
 #include "MotorFeedbackPubSubTypes.h"
 #include "NetworkWeightsPubSubTypes.h"
 #include "NodeExitPubSubTypes.h"
+#include "ParameterEventPubSubTypes.h"
+#include "ParameterRequestPubSubTypes.h"
 #include "NodeOutputPubSubTypes.h"
 #include "NodeStatusPubSubTypes.h"
 #include "PlantTruthPubSubTypes.h"
@@ -444,6 +446,35 @@ msg::NodeExit node_exit(Sampler& s) {
   return v;
 }
 
+msg::ParameterRequest parameter_request(Sampler& s) {
+  msg::ParameterRequest v;
+  v.stamp(stamp(s));
+  v.node(s.text<64>("node"));
+  v.operation(s.u8("operation"));
+  v.key(s.text<128>("key"));
+  v.value(s.text<64>("value"));
+  v.request_id(s.u64("request_id"));
+  v.requester(s.text<64>("requester"));
+  return v;
+}
+
+msg::ParameterEvent parameter_event(Sampler& s) {
+  msg::ParameterEvent v;
+  v.stamp(stamp(s));
+  v.node(s.text<64>("node"));
+  v.request_id(s.u64("request_id"));
+  v.operation(s.u8("operation"));
+  v.accepted(s.flag("accepted"));
+  v.key(s.text<128>("key"));
+  v.value(s.text<64>("value"));
+  v.old_value(s.text<64>("old_value"));
+  v.version(s.u64("version"));
+  v.effective_tick(s.u64("effective_tick"));
+  v.reason(s.text<256>("reason"));
+  v.entries(s.texts<192>("entries", 3));
+  return v;
+}
+
 enum class ByteOrder { Little, Big };
 
 /// Little-endian as Fast DDS publishes it; big-endian through Fast CDR with the same code.
@@ -493,6 +524,8 @@ const CatalogCase kCases[] = {
     {"pmlsm_msgs::msg::LaunchRequest", make_sample<msg::LaunchRequestPubSubType, launch_request>},
     {"pmlsm_msgs::msg::NodeOutput", make_sample<msg::NodeOutputPubSubType, node_output>},
     {"pmlsm_msgs::msg::NodeExit", make_sample<msg::NodeExitPubSubType, node_exit>},
+    {"pmlsm_msgs::msg::ParameterRequest", make_sample<msg::ParameterRequestPubSubType, parameter_request>},
+    {"pmlsm_msgs::msg::ParameterEvent", make_sample<msg::ParameterEventPubSubType, parameter_event>},
 };
 
 const CatalogCase* find_case(const std::string& type_name) {

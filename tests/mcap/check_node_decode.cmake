@@ -29,7 +29,7 @@ if(NOT result EQUAL 0)
   message(FATAL_ERROR "read_mcap.mjs failed (exit ${result})")
 endif()
 
-# 50 ticks: the two control topics every tick, the other 20 every 10th tick.
+# 50 ticks: the two control topics every tick, the other 22 every 10th tick.
 string(JSON message_count GET "${output}" messages)
 string(JSON topic_count LENGTH "${output}" topics)
 string(JSON motor_feedback_count GET "${output}" topics /pmlsm/motor_feedback)
@@ -39,8 +39,8 @@ macro(expect actual expected what)
     string(APPEND failures "\n  ${what}: got '${actual}', expected '${expected}'")
   endif()
 endmacro()
-expect("${message_count}" 200 "message count")
-expect("${topic_count}" 22 "topics with messages")
+expect("${message_count}" 210 "message count")
+expect("${topic_count}" 24 "topics with messages")
 expect("${motor_feedback_count}" 50 "/pmlsm/motor_feedback messages")
 
 # Each check: topic, JSON path below the decoded message, expected text.

@@ -43,6 +43,8 @@
 #include "AgentAnnouncePubSubTypes.h"
 #include "LaunchRequestPubSubTypes.h"
 #include "NodeExitPubSubTypes.h"
+#include "ParameterEventPubSubTypes.h"
+#include "ParameterRequestPubSubTypes.h"
 #include "NodeOutputPubSubTypes.h"
 #include "pmlsm/dds/catalog.hpp"
 #include "pmlsm/mcap/mcap.hpp"
@@ -207,6 +209,8 @@ std::map<std::string, Generator> generators() {
       {"pmlsm_msgs::msg::LaunchRequest", stamped<msg::LaunchRequest, msg::LaunchRequestPubSubType>},
       {"pmlsm_msgs::msg::NodeOutput", stamped<msg::NodeOutput, msg::NodeOutputPubSubType>},
       {"pmlsm_msgs::msg::NodeExit", stamped<msg::NodeExit, msg::NodeExitPubSubType>},
+      {"pmlsm_msgs::msg::ParameterRequest", stamped<msg::ParameterRequest, msg::ParameterRequestPubSubType>},
+      {"pmlsm_msgs::msg::ParameterEvent", stamped<msg::ParameterEvent, msg::ParameterEventPubSubType>},
   };
 }
 

@@ -67,6 +67,8 @@ void add_sweep_command(CLI::App& app, int& exit_code);
 
 /// `pmlsm identify [RECORDING] | --simulate`: the commissioning identification (identify.cpp).
 void add_identify_command(CLI::App& app, int& exit_code);
+/// `pmlsm param list|get|set NODE ...`: a running node's live parameters (param.cpp).
+void add_param_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code);
 /// `pmlsm commission --simulate`: frequency response, two-mass fit, Bode plot (commission.cpp).
 void add_commission_command(CLI::App& app, int& exit_code);
 

@@ -5,6 +5,7 @@
 //   pmlsm agent ...                  the launch agent of this host (launch_agent)
 //   pmlsm drive status|enable|...    the drive's CiA 402 power state
 //   pmlsm setpoint VALUE             a live velocity setpoint for the controller
+//   pmlsm param list|get|set NODE    a running node's live parameters
 //   pmlsm security create|...        the DDS Security keystore
 //   pmlsm sweep FILE                 the robustness sweep over a plant family (in process)
 //   pmlsm identify [RECORDING]       the load fitted to a commissioning run (a recording or --simulate)
@@ -79,6 +80,7 @@ int main(int argc, char** argv) {
   pmlsm::tools::add_plot_command(app, exit_code);
   pmlsm::tools::add_drive_command(app, dds_options, exit_code);
   pmlsm::tools::add_setpoint_command(app, dds_options, exit_code);
+  pmlsm::tools::add_param_command(app, dds_options, exit_code);
   pmlsm::tools::add_security_command(app, exit_code);
   pmlsm::tools::add_sweep_command(app, exit_code);
   pmlsm::tools::add_identify_command(app, exit_code);

@@ -24,6 +24,8 @@
 #include "NodeExitPubSubTypes.h"
 #include "NodeOutputPubSubTypes.h"
 #include "NodeStatusPubSubTypes.h"
+#include "ParameterEventPubSubTypes.h"
+#include "ParameterRequestPubSubTypes.h"
 #include "PlantTruthPubSubTypes.h"
 #include "TrainerProgressPubSubTypes.h"
 #include "TrainingSetupPubSubTypes.h"

@@ -23,6 +23,8 @@ class NetworkWeightsPubSubType;
 class NodeExitPubSubType;
 class NodeOutputPubSubType;
 class NodeStatusPubSubType;
+class ParameterEventPubSubType;
+class ParameterRequestPubSubType;
 class PlantTruthPubSubType;
 class TrainerProgressPubSubType;
 class TrainingSetupPubSubType;
@@ -94,6 +96,12 @@ inline constexpr Topic<pmlsm_msgs::msg::LaunchRequestPubSubType> kLaunchRequest{
                                                                                 "pmlsm_command"};
 inline constexpr Topic<pmlsm_msgs::msg::NodeOutputPubSubType> kNodeOutput{"rt/pmlsm/launch/output", "pmlsm_observe"};
 inline constexpr Topic<pmlsm_msgs::msg::NodeExitPubSubType> kNodeExit{"rt/pmlsm/launch/exit", "pmlsm_observe"};
+// Live parameters (`pmlsm param`): requests to a node, its answers and the record of its changes
+// (kept for late joiners and recordings).
+inline constexpr Topic<pmlsm_msgs::msg::ParameterRequestPubSubType> kParameterRequest{"rt/pmlsm/parameter_request",
+                                                                                      "pmlsm_command"};
+inline constexpr Topic<pmlsm_msgs::msg::ParameterEventPubSubType> kParameterEvent{"rt/pmlsm/parameter_event",
+                                                                                  "pmlsm_observe"};
 }  // namespace topics
 
 /// Calls f(topic) for every topic above, in the catalog's order (control topics first).
@@ -121,6 +129,8 @@ void for_each_topic(F&& f) {
   f(topics::kLaunchRequest);
   f(topics::kNodeOutput);
   f(topics::kNodeExit);
+  f(topics::kParameterRequest);
+  f(topics::kParameterEvent);
 }
 
 }  // namespace pmlsm::dds

@@ -1,0 +1,86 @@
+#include "parameter_service.hpp"
+
+#include <cstdio>
+#include <utility>
+
+namespace pmlsm::node {
+
+namespace msg = pmlsm_msgs::msg;
+namespace ops = pmlsm_msgs::msg::ParameterRequest_Constants;
+
+ParameterService::ParameterService(NodeRuntime& rt, std::string node_name, LiveParameters& live)
+    : rt_(rt),
+      node_name_(std::move(node_name)),
+      live_(live),
+      reader_(rt.participant.make_reader(dds::topics::kParameterRequest, rt.wakeup)),
+      writer_(rt.participant.make_writer(dds::topics::kParameterEvent)) {}
+
+bool ParameterService::serve(std::uint64_t tick) {
+  applied_ = false;
+  while (reader_.take(request_)) {
+    const std::string node = request_.node().to_string();
+    if (!node.empty() && node != "*" && node != node_name_) continue;
+    ++requests_;
+    answer(tick);
+  }
+  return applied_ && live_.take_pending();
+}
+
+void ParameterService::list_into(msg::ParameterEvent& event) const {
+  std::vector<std::string> entries;
+  for (const std::string& key : live_.keys()) entries.push_back(key + " = " + live_.get(key).value);
+  event.entries().clear();
+  for (const std::string& e : entries) event.entries().push_back(e.substr(0, 192));
+}
+
+void ParameterService::answer(std::uint64_t tick) {
+  for (const msg::ParameterEvent& earlier : answered_) {
+    if (earlier.request_id() != 0 && earlier.request_id() == request_.request_id()) {
+      writer_.write(earlier);  // a repeat: the same answer, nothing applied again
+      return;
+    }
+  }
+  event_ = msg::ParameterEvent{};
+  event_.stamp(make_stamp(tick, rt_.period_s));
+  event_.node(node_name_.substr(0, 64));
+  event_.request_id(request_.request_id());
+  event_.operation(request_.operation());
+  const std::string key = request_.key().to_string();
+  const std::string requester = request_.requester().to_string();
+  LiveAnswer a;
+  if (request_.operation() == ops::OPERATION_LIST) {
+    a.accepted = true;
+    a.version = live_.version();
+    list_into(event_);
+  } else if (request_.operation() == ops::OPERATION_GET) {
+    a = live_.get(key);
+  } else if (request_.operation() == ops::OPERATION_SET) {
+    const std::string old_value = live_.get(key).value;
+    a = live_.set(key, request_.value().to_string());
+    if (a.accepted) {
+      event_.old_value(old_value.substr(0, 64));
+      event_.effective_tick(tick);
+      applied_ = true;
+      std::printf("%s: tick %llu: parameter %s %s -> %s (version %llu, by %s)\n", node_name_.c_str(),
+                  static_cast<unsigned long long>(tick), key.c_str(), old_value.c_str(), a.value.c_str(),
+                  static_cast<unsigned long long>(a.version), requester.c_str());
+    } else {
+      std::fprintf(stderr, "%s: tick %llu: parameter %s = '%s' refused (by %s): %s\n", node_name_.c_str(),
+                   static_cast<unsigned long long>(tick), key.c_str(), request_.value().c_str(), requester.c_str(),
+                   a.reason.c_str());
+    }
+  } else {
+    a.reason = "unknown operation " + std::to_string(request_.operation());
+  }
+  refused_ += a.accepted ? 0 : 1;
+  event_.accepted(a.accepted);
+  event_.key(key.substr(0, 128));
+  event_.value(a.value.substr(0, 64));
+  event_.version(a.accepted ? a.version : live_.version());
+  event_.reason(a.reason.substr(0, 256));
+  writer_.write(event_);
+  answered_[next_answered_] = event_;
+  next_answered_ = (next_answered_ + 1) % answered_.size();
+}
+
+}  // namespace pmlsm::node
