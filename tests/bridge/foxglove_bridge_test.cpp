@@ -29,7 +29,7 @@ using test::test_domain;
 
 constexpr std::chrono::seconds kStartTimeout{15};
 /// Topics in the catalog (common/dds/src/catalog.cpp), all of which the bridge advertises.
-constexpr int kCatalogTopics = 22;
+constexpr int kCatalogTopics = 24;
 
 std::vector<std::string> bridge_args(const std::string& domain, std::vector<std::string> extra = {}) {
   std::vector<std::string> a{bin("foxglove_bridge"),

@@ -23,7 +23,7 @@ const std::vector<std::string>& node_identities() {
       "plant_sim",      "drive_bridge",   "virtual_drive",   "controller",   "kalman_estimator",
       "accel_feedback", "state_feedback", "rnn_compensator", "evaluator",    "foxglove_bridge",
       "de_trainer",     "de_worker",      "pmlsm_topic",     "pmlsm_record", "pmlsm_play",
-      "pmlsm_drive",    "pmlsm_setpoint", "launcher",        "launch_agent"};
+      "pmlsm_drive",    "pmlsm_setpoint", "pmlsm_param",     "launcher",     "launch_agent"};
   return kNames;
 }
 
