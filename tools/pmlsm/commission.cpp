@@ -4,11 +4,16 @@
 // `pmlsm identify`, and written into a copy of the system file:
 //   pmlsm commission --simulate -o configs/system_commissioned.yaml
 //   pmlsm commission --simulate --set plant.mechanics.load_mass_kg=8 --report out/commissioning
-// The report folder gets response.csv (per line: plant, open and closed loop, coherence, the
-// fitted model), samples.csv (the raw excitation, force and velocity per tick), bode.png and
-// bode.gp. Exit 5 when the measurement ended early (a limit breached, the drive faulted or
-// quick-stopped: nothing written), 6 when the response is not coherent enough or the two fits
-// disagree (nothing written), 2 on bad input.
+// It also reads the velocity loop's margins from the measured open loop (with the configured
+// filter slots in it), tunes the PI to commissioning.tuning's margins (--tune writes the gains),
+// and verifies the commissioned system as the sweep judges a plant (--verify). The report folder
+// gets report.md (the Bode plot and everything printed), response.csv (per line: plant, open and
+// closed loop, coherence, the fitted model, the filters), samples.csv (the raw excitation, force
+// and velocity per tick), verification.csv, bode.png and bode.gp; --family measures a sweep
+// file's whole family instead (family.csv). Exit 5 when the measurement ended early (a limit
+// breached, the drive faulted or quick-stopped: nothing written); 6 when the response is not
+// coherent enough, the filters leave the loop short of its margins, --tune finds no gains or the
+// verification fails (nothing written); 2 on bad input.
 #include <algorithm>
 #include <cmath>
 #include <cstdarg>

@@ -113,8 +113,9 @@ double FrequencyResponseMeasurement::velocity_command_mps() const {
     return offset_velocity_mps_ * static_cast<double>(tick_) / static_cast<double>(ramp_ticks_);
   }
   if (tick_ < excite_end_tick_) return offset_velocity_mps_ + velocity_trim_mps_;
-  if (tick_ < stop_end_tick_) {
-    return offset_velocity_mps_ * static_cast<double>(stop_end_tick_ - tick_) / static_cast<double>(ramp_ticks_);
+  if (tick_ < stop_end_tick_) {  // from where the trim left the command, so it does not step
+    return (offset_velocity_mps_ + velocity_trim_mps_) * static_cast<double>(stop_end_tick_ - tick_) /
+           static_cast<double>(ramp_ticks_);
   }
   return 0.0;
 }
@@ -122,8 +123,12 @@ double FrequencyResponseMeasurement::velocity_command_mps() const {
 void FrequencyResponseMeasurement::abort(const char* what, double value, double limit) {
   phase_ = MeasurementPhase::kAborted;
   char text[200];
-  std::snprintf(text, sizeof text, "%s at tick %llu: %.6g, the limit is %.6g", what,
-                static_cast<unsigned long long>(tick_), value, limit);
+  if (std::isnan(limit)) {
+    std::snprintf(text, sizeof text, "%s at tick %llu", what, static_cast<unsigned long long>(tick_));
+  } else {
+    std::snprintf(text, sizeof text, "%s at tick %llu: %.6g, the limit is %.6g", what,
+                  static_cast<unsigned long long>(tick_), value, limit);
+  }
   abort_reason_ = text;  // fits the reserved capacity: no allocation
   last_force_n_ = 0.0;
 }
@@ -131,11 +136,11 @@ void FrequencyResponseMeasurement::abort(const char* what, double value, double 
 double FrequencyResponseMeasurement::step(const drive::Measurement& m, bool operation_enabled) {
   if (finished()) return 0.0;
   if (!operation_enabled) {
-    abort("the drive left operation enabled", 0.0, 0.0);
+    abort("the drive left operation enabled", 0.0, std::nan(""));
     return 0.0;
   }
   if (!std::isfinite(m.position_m) || !std::isfinite(m.velocity_mps)) {
-    abort("a non-finite reading", m.velocity_mps, params_.max_velocity_mps);
+    abort("a non-finite reading of the position or velocity", 0.0, std::nan(""));
     return 0.0;
   }
   if (!have_start_) {

@@ -93,6 +93,7 @@ class FrequencyResponseMeasurement {
   std::vector<FrequencyPoint> response() const;
 
  private:
+  /// Ends the measurement with zero force; limit NaN: `what` alone names the cause.
   void abort(const char* what, double value, double limit);
   double velocity_command_mps() const;
 
