@@ -585,5 +585,81 @@ TEST(Commission, RefusesARunBeyondItsLimitsAndWritesNothingFromABadOne) {
   fs::remove_all(dir);
 }
 
+/// configs/scenarios/external.yaml lasting `duration_s`: a drive's run with nothing commanded by
+/// the scenario (commission commands the force).
+std::string drive_run_scenario(const fs::path& dir, double duration_s) {
+  std::ifstream in(source("configs/scenarios/external.yaml"));
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string key = "duration_s: {value: ";
+  const std::size_t at = text.find(key);
+  EXPECT_NE(at, std::string::npos);
+  text.replace(at + key.size(), text.find_first_of(",}", at) - at - key.size(), std::to_string(duration_s));
+  const fs::path path = dir / "drive_run.yaml";
+  std::ofstream(path.string()) << text;
+  return path.string();
+}
+
+// `pmlsm commission` on a live drive over DDS (plant_sim, lockstep), in the controller's place,
+// recorded by `pmlsm record` alongside: every tick answered, the modes within 0.5 % of the plant's,
+// the drive's run valid to its end (exit 0, nothing rejected), the system file written, and the
+// recording holding the measurement's force commands.
+TEST(Commission, ALiveDriveIsMeasuredOverDdsInTheControllersPlace) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "commission_live");
+  const std::string domain = test_domain(97), scenario = drive_run_scenario(dir, 26.0);
+  test::ChildProcess recorder(
+      pmlsm_args(domain, {"record", "-o", (dir / "run.mcap").string(), "--stop-after-idle-s", "2", "--no-progress",
+                          "/pmlsm/motor_feedback", "/pmlsm/force_command"}),
+      (dir / "record.log").string());
+  ASSERT_TRUE(recorder.wait_for_output("topics on domain", std::chrono::seconds(20))) << recorder.output();
+  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "2"}), (dir / "plant.log").string());
+  const std::string out = (dir / "live.yaml").string();
+  test::ChildProcess commission(pmlsm_args(domain, {"commission", "-c", source("configs/system.yaml"), "--verify",
+                                                    source("configs/sweeps/plant_family.yaml"), "--peer-timeout-s", "3",
+                                                    "--no-plots", "-o", out, "--report", (dir / "report").string()}),
+                                (dir / "commission.log").string());
+  const auto code = commission.wait_for(std::chrono::seconds(150));
+  ASSERT_TRUE(code.has_value()) << commission.output();
+  EXPECT_EQ(*code, 0) << commission.output();
+  EXPECT_EQ(run_to_end(plant), 0) << plant.output();
+  EXPECT_NE(plant.output().find("26000 ticks in"), std::string::npos) << plant.output();
+  EXPECT_NE(plant.output().find("late 0, rejected 0, foreign 0"), std::string::npos) << plant.output();
+  EXPECT_NE(commission.output().find("26000 ticks answered"), std::string::npos) << commission.output();
+  const std::string& text = commission.output();
+  const auto number_after = [&](const std::string& label) {
+    const auto at = text.find("\n" + label + " ");
+    return at == std::string::npos ? 0.0 : std::stod(text.substr(at + label.size() + 2));
+  };
+  const double anti_hz = std::sqrt(13700.0 / 4.0) / (2 * M_PI),
+               resonance_hz = std::sqrt(13700.0 * 1.2 / 4.0) / (2 * M_PI);
+  EXPECT_NEAR(number_after("anti-resonance"), anti_hz, 0.005 * anti_hz) << text;
+  EXPECT_NEAR(number_after("resonance"), resonance_hz, 0.005 * resonance_hz) << text;
+  EXPECT_NEAR(load_system_params(out).kalman.model.load_mass_kg, 4.0, 0.12);
+  EXPECT_EQ(run_to_end(recorder), 0) << recorder.output();
+  const FileContents recorded = read_all(dir / "run.mcap");
+  EXPECT_EQ(recorded.by_topic.at("/pmlsm/force_command").size(), 26000u);
+  EXPECT_EQ(recorded.by_topic.at("/pmlsm/motor_feedback").size(), 26000u);
+  fs::remove_all(dir);
+}
+
+// A drive that is not enabled: the measurement ends at once (exit 5), nothing written.
+TEST(Commission, ADriveNotInOperationEnabledEndsTheMeasurementWithNothingWritten) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "commission_disabled");
+  const std::string domain = test_domain(98), scenario = drive_run_scenario(dir, 2.0);
+  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "1", "--auto-enable", "false"}),
+                           (dir / "plant.log").string());
+  const std::string out = (dir / "out.yaml").string();
+  test::ChildProcess commission(
+      pmlsm_args(domain, {"commission", "-c", source("configs/system.yaml"), "--peer-timeout-s", "3", "--no-plots",
+                          "-o", out, "--report", (dir / "report").string()}),
+      (dir / "commission.log").string());
+  EXPECT_EQ(run_to_end(commission), 5) << commission.output();
+  EXPECT_NE(commission.output().find("the measurement ended early: the drive left operation enabled at tick 0"),
+            std::string::npos)
+      << commission.output();
+  EXPECT_FALSE(fs::exists(out));
+  run_to_end(plant);
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace pmlsm

@@ -70,7 +70,7 @@ void add_identify_command(CLI::App& app, int& exit_code);
 /// `pmlsm param list|get|set NODE ...`: a running node's live parameters (param.cpp).
 void add_param_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code);
 /// `pmlsm commission --simulate`: frequency response, two-mass fit, Bode plot (commission.cpp).
-void add_commission_command(CLI::App& app, int& exit_code);
+void add_commission_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code);
 
 /// `pmlsm config reference|check`: the generated configuration reference, the file's checks (config_command.cpp).
 void add_config_command(CLI::App& app, int& exit_code);

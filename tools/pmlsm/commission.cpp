@@ -26,7 +26,10 @@
 #include <string>
 #include <vector>
 
+#include "ForceCommandPubSubTypes.h"
+#include "MotorFeedbackPubSubTypes.h"
 #include "commands.hpp"
+#include "pmlsm/dds/shutdown.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/config/sweep_file.hpp"
 #include "pmlsm/config/weights_file.hpp"
@@ -46,6 +49,8 @@ constexpr double kPi = 3.14159265358979323846;
 
 struct CommissionOptions {
   bool simulate = false;
+  double peer_timeout_s = 10.0;  ///< a live drive: how long to wait for its feedback
+  const dds::ParticipantOptions* dds_options = nullptr;
   std::string config = data_file("configs/system.yaml");
   std::vector<std::string> set;
   std::string identification = data_file("configs/scenarios/identification.yaml");
@@ -92,6 +97,69 @@ FrequencyResponseMeasurement measure_on_simulated_plant(const SystemParams& conf
                    measurement_phase_name(measurement.phase()));
     }
   });
+  return measurement;
+}
+
+namespace msg = pmlsm_msgs::msg;
+
+/// The drive's reading in a MotorFeedback, and whether it applies force (operation enabled and
+/// not in its safe state).
+drive::Measurement measurement_of(const msg::MotorFeedback& f, bool& applying_force) {
+  drive::Measurement m;
+  m.position_m = f.position_m();
+  m.velocity_mps = f.velocity_mps();
+  m.i_d_a = f.i_d_a();
+  m.i_q_a = f.i_q_a();
+  m.thrust_force_n = f.thrust_force_n();
+  applying_force = f.power_state() == static_cast<std::uint8_t>(drive::PowerState::kOperationEnabled) &&
+                   (f.status() & msg::MotorFeedback_Constants::STATUS_SAFE_STATE) == 0;
+  return m;
+}
+
+/// The measurement on a live drive over DDS, in the controller's place (no controller may run: the
+/// drive follows one ForceCommand writer): every MotorFeedback answered with the measurement's
+/// force for that tick, then zero force until the drive's run ends (no feedback for the peer
+/// timeout: a lockstep drive's scenario must outlast the measurement). The drive must be in
+/// operation enabled (plant_sim enables itself; `pmlsm drive enable` a real one).
+FrequencyResponseMeasurement measure_on_live_drive(const dds::ParticipantOptions& dds_options,
+                                                   const SystemParams& configured, double peer_timeout_s) {
+  FrequencyResponseMeasurement measurement(configured.frequency_response_params(), configured.velocity_pi_params());
+  dds::Wakeup wakeup;
+  dds::Participant participant(with_node_name(dds_options, "pmlsm_commission", "controller"));
+  auto feedback_reader = participant.make_reader(dds::topics::kMotorFeedback, wakeup);
+  auto command_writer = participant.make_writer(dds::topics::kForceCommand);
+  std::fprintf(stderr, "commission: waiting up to %.1f s for a drive's MotorFeedback on domain %d\n", peer_timeout_s,
+               dds_options.domain_id);
+  const auto timeout = std::chrono::duration<double>(peer_timeout_s);
+  msg::MotorFeedback feedback;
+  msg::ForceCommand command;
+  std::uint64_t answered = 0;
+  auto last_feedback = std::chrono::steady_clock::now();
+  while (!dds::stop_requested() && std::chrono::steady_clock::now() - last_feedback < timeout) {
+    const auto seen = wakeup.generation();
+    while (feedback_reader.take(feedback)) {
+      last_feedback = std::chrono::steady_clock::now();
+      bool applying_force = false;
+      const drive::Measurement m = measurement_of(feedback, applying_force);
+      const double force_n = measurement.step(m, applying_force);
+      command.stamp(feedback.stamp());
+      command.feedback_tick(feedback.stamp().tick());
+      command.force_n(force_n);
+      command.pi_force_n(force_n);
+      command.compensation_force_n(0.0);
+      command.velocity_error_mps(measurement.offset_velocity_mps() - m.velocity_mps);
+      command.saturated(false);
+      command_writer.write(command);
+      if (++answered % 5000 == 0) {
+        std::fprintf(stderr, "  %llu ticks answered (%s)\n", static_cast<unsigned long long>(answered),
+                     measurement_phase_name(measurement.phase()));
+      }
+    }
+    wakeup.wait_for(seen, std::chrono::milliseconds(50));
+  }
+  command_writer.wait_for_acknowledgments(std::chrono::seconds(1));
+  std::fprintf(stderr, "commission: %llu ticks answered; the drive's feedback ended\n",
+               static_cast<unsigned long long>(answered));
   return measurement;
 }
 
@@ -161,8 +229,8 @@ void write_bode_script(const std::filesystem::path& dir, const TwoMassFit& fit, 
 }
 
 /// The fit's table, with the configured model and (simulated) the plant's true values.
-void print_fit(const TwoMassFit& fit, const IdentifiedLoad& time_domain, const SystemParams& configured, bool simulate,
-               std::string& transcript) {
+void print_fit(const TwoMassFit& fit, const std::optional<IdentifiedLoad>& time_domain, const SystemParams& configured,
+               bool simulate, std::string& transcript) {
   const auto& model = configured.kalman.model;
   const auto& truth = configured.plant.mechanics;
   say(transcript, "  %-22s %12s %12s %12s%s\n", "", "configured", "frequency", "time domain",
@@ -179,13 +247,15 @@ void print_fit(const TwoMassFit& fit, const IdentifiedLoad& time_domain, const S
   };
   const double nan = std::nan("");
   row("motor mass [kg]", model.motor_mass_kg, fit.motor_mass_kg, nan, truth.motor_mass_kg);
-  row("load mass [kg]", model.load_mass_kg, fit.load_mass_kg, time_domain.load_mass_kg, truth.load_mass_kg);
-  row("spring [N/m]", model.spring_n_per_m, fit.spring_n_per_m, time_domain.spring_n_per_m, truth.spring_n_per_m);
+  row("load mass [kg]", model.load_mass_kg, fit.load_mass_kg, time_domain ? time_domain->load_mass_kg : nan,
+      truth.load_mass_kg);
+  row("spring [N/m]", model.spring_n_per_m, fit.spring_n_per_m, time_domain ? time_domain->spring_n_per_m : nan,
+      truth.spring_n_per_m);
   const double anti_true_hz = std::sqrt(truth.spring_n_per_m / truth.load_mass_kg) / (2 * kPi);
   const double res_true_hz =
       std::sqrt(truth.spring_n_per_m * (1 / truth.load_mass_kg + 1 / truth.motor_mass_kg)) / (2 * kPi);
   row("anti-resonance [Hz]", std::sqrt(model.spring_n_per_m / model.load_mass_kg) / (2 * kPi), fit.anti_resonance_hz,
-      time_domain.load_mode_hz(), anti_true_hz);
+      time_domain ? time_domain->load_mode_hz() : nan, anti_true_hz);
   row("resonance [Hz]",
       std::sqrt(model.spring_n_per_m * (1 / model.load_mass_kg + 1 / model.motor_mass_kg)) / (2 * kPi),
       fit.resonance_hz, nan, res_true_hz);
@@ -248,14 +318,22 @@ LoopVerdict judge_loop(const SystemParams& configured, const FrequencyResponseRe
 }
 
 /// The keys the commissioning writes: the two-mass model from the frequency response, the
-/// bearing friction from the time-domain fit (a response at one velocity does not separate it).
+/// bearing friction from the time-domain fit when there is one (a response at one velocity does
+/// not separate it; a live drive's comes from `pmlsm identify` on a recording).
 std::vector<std::pair<std::string, double>> commissioned_parameters(const TwoMassFit& fit,
-                                                                    const IdentifiedLoad& time_domain) {
+                                                                    const std::optional<IdentifiedLoad>& time_domain) {
   std::vector<std::pair<std::string, double>> values;
-  for (const auto& [key, value] : identified_parameters(time_domain)) {
-    const bool load = key.find("load_mass_kg") != std::string::npos;
-    const bool spring = key.find("spring_n_per_m") != std::string::npos;
-    values.emplace_back(key, load ? fit.load_mass_kg : spring ? fit.spring_n_per_m : value);
+  if (time_domain) {
+    for (const auto& [key, value] : identified_parameters(*time_domain)) {
+      const bool load = key.find("load_mass_kg") != std::string::npos;
+      const bool spring = key.find("spring_n_per_m") != std::string::npos;
+      values.emplace_back(key, load ? fit.load_mass_kg : spring ? fit.spring_n_per_m : value);
+    }
+  } else {
+    for (const char* model : {"kalman.model.", "compensator.state_feedback.model."}) {
+      values.emplace_back(std::string(model) + "load_mass_kg", fit.load_mass_kg);
+      values.emplace_back(std::string(model) + "spring_n_per_m", fit.spring_n_per_m);
+    }
   }
   values.emplace_back("kalman.model.motor_mass_kg", fit.motor_mass_kg);
   values.emplace_back("compensator.state_feedback.model.motor_mass_kg", fit.motor_mass_kg);
@@ -409,15 +487,15 @@ bool verify_commissioned(const std::string& sweep_path, const SystemParams& comm
 
 /// The commissioning; what it prints is kept in `transcript` for the report as well.
 int commission(const CommissionOptions& o, std::string& transcript) {
-  if (!o.simulate) {
-    throw UsageError("commission: give --simulate: measuring a live drive over DDS is not available yet");
-  }
+  if (!o.simulate && !o.family.empty()) throw UsageError("commission: --family needs --simulate");
   const SystemParams configured = load_system_params(o.config, parse_overrides(o.set));
   if (!o.family.empty()) {
     if (!o.out.empty()) throw UsageError("commission: --family measures a family and writes no system file: drop -o");
     return run_family(o, configured);
   }
-  const FrequencyResponseMeasurement measurement = measure_on_simulated_plant(configured);
+  const FrequencyResponseMeasurement measurement =
+      o.simulate ? measure_on_simulated_plant(configured)
+                 : measure_on_live_drive(*o.dds_options, configured, o.peer_timeout_s);
   if (measurement.phase() != MeasurementPhase::kDone) {
     say(transcript, "commission: the measurement ended early: %s; nothing written\n",
         measurement.abort_reason().c_str());
@@ -435,9 +513,12 @@ int commission(const CommissionOptions& o, std::string& transcript) {
   }
   const FilterChain filters(configured.force_command_filter_params());
   write_response_csv(dir / "response.csv", result, filters);
-  std::fprintf(stderr, "commission: the time-domain fit (pmlsm identify) on %s\n", o.identification.c_str());
-  const Scenario identification = load_scenario(o.identification, configured.timing.control_period_s);
-  const IdentifiedLoad time_domain = commission_load(configured, identification, IdentificationParams{});
+  std::optional<IdentifiedLoad> time_domain;
+  if (o.simulate) {  // a live drive's: `pmlsm identify` on a recording of its identification run
+    std::fprintf(stderr, "commission: the time-domain fit (pmlsm identify) on %s\n", o.identification.c_str());
+    const Scenario identification = load_scenario(o.identification, configured.timing.control_period_s);
+    time_domain = commission_load(configured, identification, IdentificationParams{});
+  }
   say(transcript, "commissioned from %s (%zu lines, %zu below coherence %.2f):\n",
       o.simulate ? "the simulated plant" : "the drive", result.points.size(), result.low_coherence_lines,
       measurement.params().min_coherence);
@@ -462,6 +543,11 @@ int commission(const CommissionOptions& o, std::string& transcript) {
   }
   SystemParams commissioned = configured;
   for (const auto& [key, value] : values) real_parameter(commissioned, key) = value;
+  if (!o.simulate) {  // verified on the identified plant: the simulation of what was measured
+    commissioned.plant.mechanics.motor_mass_kg = result.fit.motor_mass_kg;
+    commissioned.plant.mechanics.load_mass_kg = result.fit.load_mass_kg;
+    commissioned.plant.mechanics.spring_n_per_m = result.fit.spring_n_per_m;
+  }
   commissioned.validate();
   if (!o.verify.empty() && !verify_commissioned(o.verify, commissioned, dir, transcript)) {
     say(transcript, "commission: the verification failed; nothing written (--no-verify writes it regardless)\n");
@@ -501,13 +587,19 @@ int run_commission(const CommissionOptions& o) {
 
 }  // namespace
 
-void add_commission_command(CLI::App& app, int& exit_code) {
+void add_commission_command(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code) {
   auto o = std::make_shared<CommissionOptions>();
+  o->dds_options = &dds_options;
   CLI::App* cmd = app.add_subcommand(
       "commission",
       "Commissioning: the plant's frequency response under the velocity loop, the two-mass model fitted to it "
       "(checked against pmlsm identify's time-domain fit), a Bode plot, and a copy of the system file");
-  cmd->add_flag("--simulate", o->simulate, "Measure the configured (simulated) plant in process");
+  cmd->add_flag("--simulate", o->simulate,
+                "Measure the configured (simulated) plant in process (without it: the drive on the DDS domain)");
+  cmd->add_option("--peer-timeout-s", o->peer_timeout_s,
+                  "A live drive: how long to wait for its feedback (at the start, and its end after the run)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 3600.0));
   add_system_file_options(*cmd, o->config, o->set, "The system file whose models are replaced");
   cmd->add_option("--identification", o->identification, "The time-domain fit's scenario (as pmlsm identify's)")
       ->capture_default_str()

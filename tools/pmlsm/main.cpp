@@ -84,7 +84,7 @@ int main(int argc, char** argv) {
   pmlsm::tools::add_security_command(app, exit_code);
   pmlsm::tools::add_sweep_command(app, exit_code);
   pmlsm::tools::add_identify_command(app, exit_code);
-  pmlsm::tools::add_commission_command(app, exit_code);
+  pmlsm::tools::add_commission_command(app, dds_options, exit_code);
   pmlsm::tools::add_config_command(app, exit_code);
 
   pmlsm::dds::install_shutdown_handlers();
