@@ -599,13 +599,14 @@ std::string drive_run_scenario(const fs::path& dir, double duration_s) {
   return path.string();
 }
 
-// `pmlsm commission` on a live drive over DDS (plant_sim, lockstep), in the controller's place,
+// `pmlsm commission` on a live drive over DDS (plant_sim, lockstep, on the shipped
+// configs/scenarios/commissioning.yaml run), in the controller's place,
 // recorded by `pmlsm record` alongside: every tick answered, the modes within 0.5 % of the plant's,
 // the drive's run valid to its end (exit 0, nothing rejected), the system file written, and the
 // recording holding the measurement's force commands.
 TEST(Commission, ALiveDriveIsMeasuredOverDdsInTheControllersPlace) {
   const fs::path dir = test::fresh_dir("pmlsm_tool", "commission_live");
-  const std::string domain = test_domain(97), scenario = drive_run_scenario(dir, 26.0);
+  const std::string domain = test_domain(97), scenario = source("configs/scenarios/commissioning.yaml");
   test::ChildProcess recorder(
       pmlsm_args(domain, {"record", "-o", (dir / "run.mcap").string(), "--stop-after-idle-s", "2", "--no-progress",
                           "/pmlsm/motor_feedback", "/pmlsm/force_command"}),
@@ -621,9 +622,9 @@ TEST(Commission, ALiveDriveIsMeasuredOverDdsInTheControllersPlace) {
   ASSERT_TRUE(code.has_value()) << commission.output();
   EXPECT_EQ(*code, 0) << commission.output();
   EXPECT_EQ(run_to_end(plant), 0) << plant.output();
-  EXPECT_NE(plant.output().find("26000 ticks in"), std::string::npos) << plant.output();
+  EXPECT_NE(plant.output().find("27000 ticks in"), std::string::npos) << plant.output();
   EXPECT_NE(plant.output().find("late 0, rejected 0, foreign 0"), std::string::npos) << plant.output();
-  EXPECT_NE(commission.output().find("26000 ticks answered"), std::string::npos) << commission.output();
+  EXPECT_NE(commission.output().find("27000 ticks answered"), std::string::npos) << commission.output();
   const std::string& text = commission.output();
   const auto number_after = [&](const std::string& label) {
     const auto at = text.find("\n" + label + " ");
@@ -636,8 +637,8 @@ TEST(Commission, ALiveDriveIsMeasuredOverDdsInTheControllersPlace) {
   EXPECT_NEAR(load_system_params(out).kalman.model.load_mass_kg, 4.0, 0.12);
   EXPECT_EQ(run_to_end(recorder), 0) << recorder.output();
   const FileContents recorded = read_all(dir / "run.mcap");
-  EXPECT_EQ(recorded.by_topic.at("/pmlsm/force_command").size(), 26000u);
-  EXPECT_EQ(recorded.by_topic.at("/pmlsm/motor_feedback").size(), 26000u);
+  EXPECT_EQ(recorded.by_topic.at("/pmlsm/force_command").size(), 27000u);
+  EXPECT_EQ(recorded.by_topic.at("/pmlsm/motor_feedback").size(), 27000u);
   fs::remove_all(dir);
 }
 
