@@ -134,6 +134,7 @@ FrequencyResponseMeasurement measure_on_live_drive(const dds::ParticipantOptions
   msg::MotorFeedback feedback;
   msg::ForceCommand command;
   std::uint64_t answered = 0;
+  bool announced = false;
   auto last_feedback = std::chrono::steady_clock::now();
   while (!dds::stop_requested() && std::chrono::steady_clock::now() - last_feedback < timeout) {
     const auto seen = wakeup.generation();
@@ -150,6 +151,14 @@ FrequencyResponseMeasurement measure_on_live_drive(const dds::ParticipantOptions
       command.velocity_error_mps(measurement.offset_velocity_mps() - m.velocity_mps);
       command.saturated(false);
       command_writer.write(command);
+      if (measurement.finished() && !announced) {
+        announced = true;
+        std::fprintf(stderr,
+                     "commission: the measurement %s at tick %llu; zero force until the drive's run ends (a drive "
+                     "on the realtime clock: stop it, or Ctrl-C here)\n",
+                     measurement.phase() == MeasurementPhase::kDone ? "is done" : "ended early",
+                     static_cast<unsigned long long>(feedback.stamp().tick()));
+      }
       if (++answered % 5000 == 0) {
         std::fprintf(stderr, "  %llu ticks answered (%s)\n", static_cast<unsigned long long>(answered),
                      measurement_phase_name(measurement.phase()));
