@@ -153,9 +153,7 @@ FrequencyResponseMeasurement measure_on_live_drive(const dds::ParticipantOptions
       command_writer.write(command);
       if (measurement.finished() && !announced) {
         announced = true;
-        std::fprintf(stderr,
-                     "commission: the measurement %s at tick %llu; zero force until the drive's run ends (a drive "
-                     "on the realtime clock: stop it, or Ctrl-C here)\n",
+        std::fprintf(stderr, "commission: the measurement %s at tick %llu; zero force until the drive's run ends\n",
                      measurement.phase() == MeasurementPhase::kDone ? "is done" : "ended early",
                      static_cast<unsigned long long>(feedback.stamp().tick()));
       }
