@@ -39,6 +39,7 @@
 #include "pmlsm/sim/loop_tuning.hpp"
 #include "pmlsm/sim/simulated_drive.hpp"
 #include "pmlsm/util/data_files.hpp"
+#include "run_validity.hpp"
 #include "system_file_options.hpp"
 #include "tool_support.hpp"
 
@@ -102,17 +103,14 @@ FrequencyResponseMeasurement measure_on_simulated_plant(const SystemParams& conf
 
 namespace msg = pmlsm_msgs::msg;
 
-/// The drive's reading in a MotorFeedback, and whether it applies force (operation enabled and
-/// not in its safe state).
-drive::Measurement measurement_of(const msg::MotorFeedback& f, bool& applying_force) {
+/// The drive's reading in a MotorFeedback.
+drive::Measurement measurement_of(const msg::MotorFeedback& f) {
   drive::Measurement m;
   m.position_m = f.position_m();
   m.velocity_mps = f.velocity_mps();
   m.i_d_a = f.i_d_a();
   m.i_q_a = f.i_q_a();
   m.thrust_force_n = f.thrust_force_n();
-  applying_force = f.power_state() == static_cast<std::uint8_t>(drive::PowerState::kOperationEnabled) &&
-                   (f.status() & msg::MotorFeedback_Constants::STATUS_SAFE_STATE) == 0;
   return m;
 }
 
@@ -140,9 +138,10 @@ FrequencyResponseMeasurement measure_on_live_drive(const dds::ParticipantOptions
     const auto seen = wakeup.generation();
     while (feedback_reader.take(feedback)) {
       last_feedback = std::chrono::steady_clock::now();
-      bool applying_force = false;
-      const drive::Measurement m = measurement_of(feedback, applying_force);
-      const double force_n = measurement.step(m, applying_force);
+      const drive::Measurement m = measurement_of(feedback);
+      // Force applied: operation enabled and out of the safe state, as a run's validity judges it.
+      const double force_n =
+          measurement.step(m, node::force_applied({feedback.status(), feedback.power_state(), feedback.error_code()}));
       command.stamp(feedback.stamp());
       command.feedback_tick(feedback.stamp().tick());
       command.force_n(force_n);
@@ -258,14 +257,10 @@ void print_fit(const TwoMassFit& fit, const std::optional<IdentifiedLoad>& time_
       truth.load_mass_kg);
   row("spring [N/m]", model.spring_n_per_m, fit.spring_n_per_m, time_domain ? time_domain->spring_n_per_m : nan,
       truth.spring_n_per_m);
-  const double anti_true_hz = std::sqrt(truth.spring_n_per_m / truth.load_mass_kg) / (2 * kPi);
-  const double res_true_hz =
-      std::sqrt(truth.spring_n_per_m * (1 / truth.load_mass_kg + 1 / truth.motor_mass_kg)) / (2 * kPi);
-  row("anti-resonance [Hz]", std::sqrt(model.spring_n_per_m / model.load_mass_kg) / (2 * kPi), fit.anti_resonance_hz,
-      time_domain ? time_domain->load_mode_hz() : nan, anti_true_hz);
-  row("resonance [Hz]",
-      std::sqrt(model.spring_n_per_m * (1 / model.load_mass_kg + 1 / model.motor_mass_kg)) / (2 * kPi),
-      fit.resonance_hz, nan, res_true_hz);
+  row("anti-resonance [Hz]", anti_resonance_hz(model.load_mass_kg, model.spring_n_per_m), fit.anti_resonance_hz,
+      time_domain ? time_domain->load_mode_hz() : nan, anti_resonance_hz(truth.load_mass_kg, truth.spring_n_per_m));
+  row("resonance [Hz]", resonance_hz(model.motor_mass_kg, model.load_mass_kg, model.spring_n_per_m), fit.resonance_hz,
+      nan, resonance_hz(truth.motor_mass_kg, truth.load_mass_kg, truth.spring_n_per_m));
   say(transcript, "  fit: %zu lines, rms log error %.3f; damping: anti-resonance %.4f, resonance %.4f\n",
       fit.lines_used, fit.rms_log_error, fit.anti_resonance_damping, fit.resonance_damping);
 }
@@ -379,9 +374,8 @@ std::optional<FamilyRow> family_row(const SystemParams& p, std::string& why) {
   const auto r = measured_response(p, why);
   if (!r) return std::nullopt;
   const auto& truth = p.plant.mechanics;
-  const double anti_hz = std::sqrt(truth.spring_n_per_m / truth.load_mass_kg) / (2 * kPi);
-  const double res_hz =
-      std::sqrt(truth.spring_n_per_m * (1 / truth.load_mass_kg + 1 / truth.motor_mass_kg)) / (2 * kPi);
+  const double anti_hz = anti_resonance_hz(truth.load_mass_kg, truth.spring_n_per_m);
+  const double res_hz = resonance_hz(truth.motor_mass_kg, truth.load_mass_kg, truth.spring_n_per_m);
   FamilyRow row;
   const double errors[5] = {error_percent(r->fit.anti_resonance_hz, anti_hz),
                             error_percent(r->fit.resonance_hz, res_hz),

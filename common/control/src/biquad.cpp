@@ -147,7 +147,7 @@ std::array<Biquad, kFilterSlots> in_use_first(const FilterChainParams& p) {
 }  // namespace
 
 FilterChain::FilterChain(const FilterChainParams& params)
-    : filters_(in_use_first(params)), period_s_(params.slots[0].period_s) {
+    : params_(params), filters_(in_use_first(params)), period_s_(params.slots[0].period_s) {
   for (const BiquadParams& slot : params.slots) count_ += slot.kind != FilterKind::kNone ? 1 : 0;
 }
 

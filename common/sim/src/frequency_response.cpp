@@ -124,6 +124,14 @@ std::vector<FrequencyPoint> estimate_frequency_response(const Multisine& excitat
   return out;
 }
 
+double anti_resonance_hz(double load_mass_kg, double spring_n_per_m) {
+  return std::sqrt(spring_n_per_m / load_mass_kg) / (2.0 * kPi);
+}
+
+double resonance_hz(double motor_mass_kg, double load_mass_kg, double spring_n_per_m) {
+  return std::sqrt(spring_n_per_m * (1.0 / load_mass_kg + 1.0 / motor_mass_kg)) / (2.0 * kPi);
+}
+
 std::complex<double> two_mass_response(const TwoMassFit& m, double frequency_hz) {
   const Complex s(0.0, 2.0 * kPi * frequency_hz);
   const Complex coupling = m.load_mass_kg * s * (m.spring_damping_n_s_per_m * s + m.spring_n_per_m) /

@@ -9,10 +9,8 @@ VelocityController::VelocityController(const SystemParams& params, const Scenari
       period_s_(params.timing.control_period_s),
       reference_(params.reference_model_params()),
       velocity_(params.velocity_pi_params()),
-      compensation_filter_params_(params.compensation_filter_params()),
-      force_filter_params_(params.force_command_filter_params()),
-      compensation_filters_(compensation_filter_params_),
-      force_filters_(force_filter_params_) {
+      compensation_filters_(params.compensation_filter_params()),
+      force_filters_(params.force_command_filter_params()) {
   scenario_.validate(period_s_);
   if (params.compensator.guard_enabled) guard_.emplace(params.vibration_guard_params());
   if (scenario_.input_shaper != ShaperKind::kNone) shaper_.emplace(params.input_shaper_params(scenario_.input_shaper));
@@ -20,13 +18,11 @@ VelocityController::VelocityController(const SystemParams& params, const Scenari
 
 void VelocityController::retune(const SystemParams& params) {
   velocity_.set_params(params.velocity_pi_params());
-  const auto rebuild = [](FilterChainParams& held, FilterChain& chain, const FilterChainParams& wanted) {
-    if (held.slots == wanted.slots) return;
-    chain = FilterChain(wanted);
-    held = wanted;
+  const auto rebuild = [](FilterChain& chain, const FilterChainParams& wanted) {
+    if (chain.params().slots != wanted.slots) chain = FilterChain(wanted);
   };
-  rebuild(compensation_filter_params_, compensation_filters_, params.compensation_filter_params());
-  rebuild(force_filter_params_, force_filters_, params.force_command_filter_params());
+  rebuild(compensation_filters_, params.compensation_filter_params());
+  rebuild(force_filters_, params.force_command_filter_params());
 }
 
 ExternalReferenceParams external_reference_params(const Scenario& scenario, double control_period_s) {

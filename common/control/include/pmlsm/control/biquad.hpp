@@ -93,8 +93,11 @@ class FilterChain {
   std::complex<double> response(double frequency_hz) const;
   bool empty() const { return count_ == 0; }
   std::uint64_t rejected_inputs() const { return rejected_; }
+  /// The slots it was made from.
+  const FilterChainParams& params() const { return params_; }
 
  private:
+  FilterChainParams params_;
   std::array<Biquad, kFilterSlots> filters_;
   std::size_t count_ = 0;  ///< the slots in use, first (none are skipped)
   double period_s_ = 0;

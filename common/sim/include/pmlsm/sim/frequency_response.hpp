@@ -105,6 +105,11 @@ struct TwoMassFit {
 TwoMassFit fit_two_mass(const std::vector<FrequencyPoint>& points, double min_coherence,
                         double max_frequency_hz = 1e300);
 
+/// The two-mass model's undamped modes [Hz]: the anti-resonance sqrt(k / m_L) (the load on a held
+/// motor) and the resonance sqrt(k (1/m_L + 1/m_M)) (both masses free).
+double anti_resonance_hz(double load_mass_kg, double spring_n_per_m);
+double resonance_hz(double motor_mass_kg, double load_mass_kg, double spring_n_per_m);
+
 /// G(j 2 pi f) of the two-mass model with the given parameters.
 std::complex<double> two_mass_response(const TwoMassFit& model, double frequency_hz);
 

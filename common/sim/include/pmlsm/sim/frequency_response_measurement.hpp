@@ -127,8 +127,8 @@ struct FrequencyResponseResult {
 
 /// Runs a measurement on a drive to its end: enables the drive (shutdown, switch on, enable
 /// operation), steps until finished, then disables the drive (zero force, disable operation).
-/// `progress(tick, total)` is called once a second of drive time. The drive must be at rest.
-/// Returns the measurement; a refused enable aborts it with the drive's reason.
+/// `progress(tick, total)` is called once a second of drive time. The drive must be at rest. A
+/// drive that refuses to enable ends the measurement at its first tick (not in operation enabled).
 template <typename Progress>
 void run_measurement(drive::Drive& drive, FrequencyResponseMeasurement& measurement, Progress&& progress) {
   for (const drive::DriveCommand command :

@@ -77,8 +77,6 @@ class VelocityController {
   bool have_last_command_ = false;
   VelocityPi velocity_;
   std::optional<VibrationGuard> guard_;
-  FilterChainParams compensation_filter_params_;
-  FilterChainParams force_filter_params_;
   FilterChain compensation_filters_;  ///< on the compensator's force, before the PI adds it
   FilterChain force_filters_;         ///< on the PI's output, then the force limit again
 };
