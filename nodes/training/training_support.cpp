@@ -106,6 +106,11 @@ msg::TrainingSetup make_setup(std::uint64_t run_id, const std::string& system_pa
   verdict.min_decay_rate_per_s(training.verdict.min_decay_rate_per_s);
   verdict.max_saturated_tail_share(training.verdict.max_saturated_tail_share);
   verdict.max_free_vibration_settling_s(training.verdict.max_free_vibration_settling_s);
+  verdict.rest_command_band_mps(training.verdict.rest_command_band_mps);
+  verdict.min_rest_s(training.verdict.min_rest_s);
+  verdict.max_rest_stretch_peak_m(training.verdict.max_rest_stretch_peak_m);
+  verdict.max_rest_compensation_rms_n(training.verdict.max_rest_compensation_rms_n);
+  verdict.max_forced_ratio_to_pi(training.verdict.max_forced_ratio_to_pi);
   return setup;
 }
 
@@ -143,6 +148,11 @@ std::shared_ptr<const RnnCost> cost_from_setup(const msg::TrainingSetup& setup) 
     verdict.min_decay_rate_per_s = v.min_decay_rate_per_s();
     verdict.max_saturated_tail_share = v.max_saturated_tail_share();
     verdict.max_free_vibration_settling_s = v.max_free_vibration_settling_s();
+    verdict.rest_command_band_mps = v.rest_command_band_mps();
+    verdict.min_rest_s = v.min_rest_s();
+    verdict.max_rest_stretch_peak_m = v.max_rest_stretch_peak_m();
+    verdict.max_rest_compensation_rms_n = v.max_rest_compensation_rms_n();
+    verdict.max_forced_ratio_to_pi = v.max_forced_ratio_to_pi();
     return std::make_shared<const RnnCost>(params, std::move(scenarios), which, plants, objective, verdict);
   } catch (const std::invalid_argument& e) {
     throw ConfigError(origin + ": " + e.what());

@@ -358,6 +358,11 @@ msg::TrainingSetup training_setup(Sampler& s) {
   verdict.min_decay_rate_per_s(s.real("verdict.min_decay_rate_per_s"));
   verdict.max_saturated_tail_share(s.real("verdict.max_saturated_tail_share"));
   verdict.max_free_vibration_settling_s(s.real("verdict.max_free_vibration_settling_s"));
+  verdict.rest_command_band_mps(s.real("verdict.rest_command_band_mps"));
+  verdict.min_rest_s(s.real("verdict.min_rest_s"));
+  verdict.max_rest_stretch_peak_m(s.real("verdict.max_rest_stretch_peak_m"));
+  verdict.max_rest_compensation_rms_n(s.real("verdict.max_rest_compensation_rms_n"));
+  verdict.max_forced_ratio_to_pi(s.real("verdict.max_forced_ratio_to_pi"));
   v.verdict(verdict);
   return v;
 }

@@ -465,12 +465,17 @@ bool verify_commissioned(const std::string& sweep_path, const SystemParams& comm
   bool all_passed = true;
   for (const Scenario& scenario : file.spec.scenarios) {
     double pi_cost = 0;
+    RunVerdict pi_alone;
     say(transcript, "  %-16s", scenario.name.c_str());
     for (const CompensatorKind kind : kinds) {
       const auto trace = run_with_compensator(commissioned, scenario, {kind, weights, false});
-      const RunVerdict v = judge_run(trace, scenario, commissioned.timing.control_period_s,
-                                     commissioned.velocity_loop.force_limit_n, file.spec.verdict);
-      if (kind == CompensatorKind::kNone) pi_cost = v.cost;
+      RunVerdict v = judge_run(trace, scenario, commissioned.timing.control_period_s,
+                               commissioned.velocity_loop.force_limit_n, file.spec.verdict);
+      if (kind == CompensatorKind::kNone) {
+        pi_cost = v.cost;
+        pi_alone = v;
+      }
+      judge_against_pi_alone(v, pi_alone, file.spec.verdict);
       const bool passed = kind == CompensatorKind::kNone || (v.faults().empty() && v.cost < pi_cost);
       all_passed = all_passed && passed;
       say(transcript, "  %s %.3f%s%s", to_string(kind), v.cost, v.faults().empty() ? "" : (" " + v.faults()).c_str(),

@@ -55,7 +55,7 @@ void write_csv(const std::filesystem::path& path, const SweepFile& file, const S
          "identified_at_bound";
   out << ",compensator,scenario,cost,cost_ratio_to_pi,settling_s,last_to_first_window_cost,tail_stretch_amplitude_mm,"
          "tail_decay_rate_per_s,saturated_share,saturated_tail_share,tail_force_rms_n,tail_compensation_rms_n,"
-         "guard_trip_s,faults,passed\n";
+         "guard_trip_s,rest_tail,standstill,rest_stretch_peak_um,rest_compensation_rms_n,faults,passed\n";
   for (const SweepRun& run : result.runs) {
     const PlantSample& plant = result.plants[run.plant];
     const RunVerdict& v = run.verdict;
@@ -74,8 +74,9 @@ void write_csv(const std::filesystem::path& path, const SweepFile& file, const S
         << "," << num(v.cost) << "," << num(run.cost_ratio_to_pi) << "," << num(v.settling_s) << ","
         << num(v.last_to_first_window_cost) << "," << num(v.tail_stretch_amplitude_m * 1e3) << ","
         << num(v.tail_decay_rate_per_s) << "," << num(v.saturated_share) << "," << num(v.saturated_tail_share) << ","
-        << num(v.tail_force_rms_n) << "," << num(v.tail_compensation_rms_n) << "," << num(v.guard_trip_s) << ",\""
-        << v.faults() << "\"," << (run.passed ? 1 : 0) << "\n";
+        << num(v.tail_force_rms_n) << "," << num(v.tail_compensation_rms_n) << "," << num(v.guard_trip_s) << ","
+        << (v.rest_tail ? 1 : 0) << "," << (v.standstill ? 1 : 0) << "," << num(v.rest_stretch_peak_m * 1e6) << ","
+        << num(v.rest_compensation_rms_n) << ",\"" << v.faults() << "\"," << (run.passed ? 1 : 0) << "\n";
   }
   if (!out) throw std::runtime_error("cannot write " + path.string());
 }
@@ -83,12 +84,14 @@ void write_csv(const std::filesystem::path& path, const SweepFile& file, const S
 // Per compensator and scenario: how many plants passed, what failed, the spread of the cost
 // ratio to PI and the worst plant. Returns the runs that failed.
 std::size_t print_table(const SystemParams& nominal, const SweepFile& file, const SweepResult& result) {
-  std::printf("\n%-6s %-16s %6s %6s %6s %6s %6s %6s %6s %7s %8s %8s %9s  %s\n", "comp", "scenario", "plants", "passed",
-              "cycle", "satur", "guard", "slow", "nonfin", ">=PI", "ratio50", "ratio_max", "settle_max", "worst plant");
+  std::printf("\n%-6s %-16s %6s %6s %6s %6s %6s %6s %6s %6s %6s %7s %8s %8s %9s  %s\n", "comp", "scenario", "plants",
+              "passed", "cycle", "satur", "guard", "slow", "resid", "chat", "nonfin", ">=PI", "ratio50", "ratio_max",
+              "settle_max", "worst plant");
   std::size_t failed = 0;
   for (std::size_t c = 0; c < result.compensators.size(); ++c) {
     for (std::size_t s = 0; s < file.spec.scenarios.size(); ++s) {
-      std::size_t passed = 0, cycles = 0, saturated = 0, guard = 0, slow = 0, non_finite = 0, worse = 0;
+      std::size_t passed = 0, cycles = 0, saturated = 0, guard = 0, slow = 0, residual = 0, chatter = 0, non_finite = 0,
+                  worse = 0;
       std::vector<double> ratios;
       double worst_ratio = -1, worst_settling = 0;
       std::size_t worst_plant = 0;
@@ -100,6 +103,8 @@ std::size_t print_table(const SystemParams& nominal, const SweepFile& file, cons
         saturated += v.saturated ? 1 : 0;
         guard += v.guard_trip_s >= 0 ? 1 : 0;
         slow += v.slow ? 1 : 0;
+        residual += v.residual ? 1 : 0;
+        chatter += v.chatter ? 1 : 0;
         non_finite += v.non_finite ? 1 : 0;
         if (c != 0 && !(v.cost < result.run(p, 0, s).verdict.cost)) ++worse;
         ratios.push_back(run.cost_ratio_to_pi);
@@ -118,11 +123,12 @@ std::size_t print_table(const SystemParams& nominal, const SweepFile& file, cons
         where += (d ? " " : "") + short_key(file.spec.ranges[d].key_path) + "=" + num(wp.values[d], "%.4g");
       }
       where += ")";
-      std::printf("%-6s %-16s %6zu %6s %6zu %6zu %6zu %6zu %6zu %7s %8s %8s %9s  %s\n",
+      std::printf("%-6s %-16s %6zu %6s %6zu %6zu %6zu %6zu %6zu %6zu %6zu %7s %8s %8s %9s  %s\n",
                   to_string(result.compensators[c]), file.spec.scenarios[s].name.c_str(), result.plants.size(),
-                  c == 0 ? "-" : std::to_string(passed).c_str(), cycles, saturated, guard, slow, non_finite,
-                  c == 0 ? "-" : std::to_string(worse).c_str(), num(ratios[ratios.size() / 2], "%.3f").c_str(),
-                  num(worst_ratio, "%.3f").c_str(), num(worst_settling, "%.3f").c_str(), c == 0 ? "" : where.c_str());
+                  c == 0 ? "-" : std::to_string(passed).c_str(), cycles, saturated, guard, slow, residual, chatter,
+                  non_finite, c == 0 ? "-" : std::to_string(worse).c_str(),
+                  num(ratios[ratios.size() / 2], "%.3f").c_str(), num(worst_ratio, "%.3f").c_str(),
+                  num(worst_settling, "%.3f").c_str(), c == 0 ? "" : where.c_str());
     }
   }
   if (!result.identified.empty()) {
@@ -141,8 +147,11 @@ std::size_t print_table(const SystemParams& nominal, const SweepFile& file, cons
   }
   std::printf(
       "passed: clean (no limit cycle, no saturated tail, the guard never tripped, a free vibration settled\n"
-      "in time, finite) and a cost (eq. 23) below PI alone's on the same plant; ratio: cost / PI's cost on\n"
-      "that plant. PI alone (none) is the baseline: its faults are shown, not judged.\n");
+      "in time, a standstill (the command at rest long enough up to the end) without residual oscillation\n"
+      "(resid) or compensation chatter (chat), finite) and a cost (eq. 23) below PI alone's on the same\n"
+      "plant; ratio: cost / PI's cost on that plant. A moving reference's end is a limit cycle only beyond\n"
+      "PI alone's forced response there. PI alone (none) is the baseline: its faults are shown, not\n"
+      "judged.\n");
   return failed;
 }
 

@@ -19,6 +19,11 @@ VerdictParams read_verdict(Section verdict) {
   out.min_decay_rate_per_s = verdict.number("min_decay_rate_per_s");
   out.max_saturated_tail_share = verdict.number("max_saturated_tail_share");
   out.max_free_vibration_settling_s = verdict.number("max_free_vibration_settling_s");
+  out.rest_command_band_mps = verdict.number("rest_command_band_mps");
+  out.min_rest_s = verdict.number("min_rest_s");
+  out.max_rest_stretch_peak_m = verdict.number("max_rest_stretch_peak_m");
+  out.max_rest_compensation_rms_n = verdict.number("max_rest_compensation_rms_n");
+  out.max_forced_ratio_to_pi = verdict.number("max_forced_ratio_to_pi");
   verdict.finish();
   return out;
 }

@@ -164,7 +164,7 @@ RnnCost::RnnCost(const SystemParams& params, std::vector<TrainingScenario> scena
   if (plants.empty()) throw std::invalid_argument("plants: at least one");
   for (const PlantVariant& variant : plants) {
     require_positive(("plants '" + variant.name + "' weight").c_str(), variant.weight);
-    Plant plant{variant.name, apply_plant_variant(params, variant), variant.weight, {}};
+    Plant plant{variant.name, apply_plant_variant(params, variant), variant.weight, {}, {}};
     if (objective_ == PlantObjective::kWorstRatioToPi) {
       for (const TrainingScenario& s : scenarios_) {
         const auto trace = run_compensated(
@@ -194,6 +194,15 @@ void RnnCost::judge_with(const VerdictParams& verdict) {
   verdict.validate();
   verdict_ = verdict;
   judge_runs_ = true;
+  for (Plant& plant : plants_) {
+    plant.pi_verdicts.clear();
+    for (const TrainingScenario& s : scenarios_) {
+      const auto trace = run_compensated(
+          plant.params, s.scenario, [](const CompensatorView&) { return Compensation{}; }, UINT64_MAX);
+      plant.pi_verdicts.push_back(
+          judge_run(trace, s.scenario, control_period_s_, plant.params.velocity_loop.force_limit_n, verdict_));
+    }
+  }
 }
 
 std::uint64_t RnnCost::cost_ticks(const Scenario& scenario) const {
@@ -231,8 +240,9 @@ double RnnCost::operator()(const std::vector<double>& weights) const {
       }
       double ratio = cost / plant.pi_costs[i];
       if (judge_runs_) {
-        const RunVerdict verdict =
+        RunVerdict verdict =
             judge_run(trace, s.scenario, control_period_s_, plant.params.velocity_loop.force_limit_n, verdict_);
+        judge_against_pi_alone(verdict, plant.pi_verdicts[i], verdict_);
         if (!verdict.faults().empty()) ratio += kFaultPenalty;
       }
       plant_cost += s.weight * ratio;

@@ -23,6 +23,11 @@ void VerdictParams::validate() const {
   require_in_range("verdict.min_decay_rate_per_s", min_decay_rate_per_s, 0.0, 1e4);
   require_in_range("verdict.max_saturated_tail_share", max_saturated_tail_share, 0.0, 1.0);
   require_in_range("verdict.max_free_vibration_settling_s", max_free_vibration_settling_s, 1e-3, 3600.0);
+  require_in_range("verdict.rest_command_band_mps", rest_command_band_mps, 0.0, 10.0);
+  require_in_range("verdict.min_rest_s", min_rest_s, 0.0, 3600.0);
+  require_in_range("verdict.max_rest_stretch_peak_m", max_rest_stretch_peak_m, 1e-9, 1.0);
+  require_in_range("verdict.max_rest_compensation_rms_n", max_rest_compensation_rms_n, 0.0, 1e5);
+  require_in_range("verdict.max_forced_ratio_to_pi", max_forced_ratio_to_pi, 1.0, 1e3);
 }
 
 namespace {
@@ -159,6 +164,8 @@ std::string RunVerdict::faults() const {
   add(saturated, "saturated");
   add(guard_trip_s >= 0, "guard");
   add(slow, "slow");
+  add(residual, "residual");
+  add(chatter, "chatter");
   return out;
 }
 
@@ -221,6 +228,95 @@ double tail_decay_rate_per_s(const std::vector<double>& stretch, std::size_t beg
 
 }  // namespace
 
+namespace {
+
+// The tail's ticks [begin, n) and its last window [n - last_window, n).
+struct TailSpan {
+  std::size_t n = 0, tail = 0, begin = 0, last_window = 1;
+};
+
+TailSpan tail_span(std::size_t n, double control_period_s, const VerdictParams& verdict) {
+  TailSpan span;
+  span.n = n;
+  span.tail = std::min<std::size_t>(n, static_cast<std::size_t>(std::llround(verdict.tail_s / control_period_s)));
+  span.begin = n - span.tail;
+  span.last_window = std::max<std::size_t>(1, span.tail / static_cast<std::size_t>(verdict.tail_windows));
+  return span;
+}
+
+// The spring stretch x_L - x_M over the tail: its amplitude about its mean and how fast it decays;
+// whether the tail and the run's end are at rest; a limit cycle at rest; hunting at a standstill
+// (the stretch's peak in the last window about that window's mean: the first windows may still
+// hold the last edge's decaying transient).
+void judge_tail_stretch(const std::vector<TickRecord>& trace, const TailSpan& span, double control_period_s,
+                        const VerdictParams& verdict, RunVerdict& out) {
+  const std::size_t n = span.n;
+  std::vector<double> stretch(n);
+  for (std::size_t k = 0; k < n; ++k) stretch[k] = trace[k].load_position_m - trace[k].motor_position_m;
+  double mean = 0;
+  for (std::size_t k = span.begin; k < n; ++k) mean += stretch[k];
+  mean /= static_cast<double>(std::max<std::size_t>(span.tail, 1));
+  out.tail_stretch_amplitude_m = std::sqrt(2.0) * rms_about(stretch, span.begin, n, mean);
+  out.tail_decay_rate_per_s = tail_decay_rate_per_s(stretch, span.begin, static_cast<std::size_t>(verdict.tail_windows),
+                                                    mean, control_period_s);
+  std::size_t resting = 0;  // ticks at rest up to the end
+  while (resting < n && std::fabs(trace[n - 1 - resting].command_mps) <= verdict.rest_command_band_mps) ++resting;
+  out.rest_tail = resting >= span.tail;
+  out.standstill =
+      out.rest_tail && static_cast<double>(resting) * control_period_s >= verdict.min_rest_s * (1.0 - 1e-9);
+  // A moving tail holds the reference's forced response: judged against PI alone's instead.
+  out.limit_cycle = out.rest_tail && std::isfinite(out.tail_stretch_amplitude_m) &&
+                    out.tail_stretch_amplitude_m >= verdict.limit_cycle_amplitude_m &&
+                    !(out.tail_decay_rate_per_s >= verdict.min_decay_rate_per_s);
+  double last_mean = 0;
+  for (std::size_t k = n - span.last_window; k < n; ++k) last_mean += stretch[k];
+  last_mean /= static_cast<double>(span.last_window);
+  for (std::size_t k = n - span.last_window; k < n; ++k) {
+    out.rest_stretch_peak_m = std::max(out.rest_stretch_peak_m, std::fabs(stretch[k] - last_mean));
+  }
+  out.residual = out.standstill && !(out.rest_stretch_peak_m <= verdict.max_rest_stretch_peak_m);
+}
+
+// The forces: the force command about its mean and the compensation over the tail; chatter at a
+// standstill (the compensation over the last window: the first may still be damping the last
+// edge's swing, which is the compensation's job); saturation (the force command at its limit,
+// the velocity PI's output after the compensation).
+void judge_tail_forces(const std::vector<TickRecord>& trace, const TailSpan& span, double force_limit_n,
+                       const VerdictParams& verdict, RunVerdict& out) {
+  const std::size_t n = span.n;
+  const double tail_ticks = static_cast<double>(std::max<std::size_t>(span.tail, 1));
+  double force_mean = 0;
+  for (std::size_t k = span.begin; k < n; ++k) force_mean += trace[k].force_command_n;
+  force_mean /= tail_ticks;
+  double force_square = 0, compensation_square = 0, rest_square = 0;
+  for (std::size_t k = span.begin; k < n; ++k) {
+    const double compensation_square_k = trace[k].compensation_force_n * trace[k].compensation_force_n;
+    force_square += (trace[k].force_command_n - force_mean) * (trace[k].force_command_n - force_mean);
+    compensation_square += compensation_square_k;
+    if (k >= n - span.last_window) rest_square += compensation_square_k;
+  }
+  out.tail_force_rms_n = std::sqrt(force_square / tail_ticks);
+  out.tail_compensation_rms_n = std::sqrt(compensation_square / tail_ticks);
+  out.rest_compensation_rms_n = std::sqrt(rest_square / static_cast<double>(span.last_window));
+  out.chatter = out.standstill && !(out.rest_compensation_rms_n <= verdict.max_rest_compensation_rms_n);
+
+  std::size_t saturated = 0;
+  std::size_t saturated_tail = 0;
+  const double at_limit = force_limit_n * (1.0 - 1e-9);
+  for (std::size_t k = 0; k < n; ++k) {
+    if (std::fabs(trace[k].force_command_n) >= at_limit) {
+      ++saturated;
+      if (k >= span.begin) ++saturated_tail;
+    }
+  }
+  out.saturated_share = static_cast<double>(saturated) / static_cast<double>(n);
+  out.saturated_tail_share =
+      span.tail == 0 ? 0.0 : static_cast<double>(saturated_tail) / static_cast<double>(span.tail);
+  out.saturated = out.saturated_tail_share > verdict.max_saturated_tail_share;
+}
+
+}  // namespace
+
 RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scenario, double control_period_s,
                      double force_limit_n, const VerdictParams& verdict) {
   RunVerdict out;
@@ -236,54 +332,24 @@ RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scena
   out.cost = metrics.cost_true;
   out.settling_s = metrics.load_settling_time_s;
   out.slow = scenario.initial_load_displacement_m != 0.0 && !(out.settling_s <= verdict.max_free_vibration_settling_s);
-
   out.last_to_first_window_cost = last_to_first_window_cost(
       trace, static_cast<std::size_t>(std::llround(scenario.cost_window_s / control_period_s)));
 
-  // The tail: spring stretch x_L - x_M about its mean; its amplitude and how fast it decays.
-  const std::size_t n = trace.size();
-  const std::size_t tail =
-      std::min<std::size_t>(n, static_cast<std::size_t>(std::llround(verdict.tail_s / control_period_s)));
-  const std::size_t begin = n - tail;
-  std::vector<double> stretch(n);
-  for (std::size_t k = 0; k < n; ++k) stretch[k] = trace[k].load_position_m - trace[k].motor_position_m;
-  double mean = 0;
-  for (std::size_t k = begin; k < n; ++k) mean += stretch[k];
-  mean /= static_cast<double>(std::max<std::size_t>(tail, 1));
-  out.tail_stretch_amplitude_m = std::sqrt(2.0) * rms_about(stretch, begin, n, mean);
-  out.tail_decay_rate_per_s =
-      tail_decay_rate_per_s(stretch, begin, static_cast<std::size_t>(verdict.tail_windows), mean, control_period_s);
-  out.limit_cycle = std::isfinite(out.tail_stretch_amplitude_m) &&
-                    out.tail_stretch_amplitude_m >= verdict.limit_cycle_amplitude_m &&
-                    !(out.tail_decay_rate_per_s >= verdict.min_decay_rate_per_s);
-
-  // Chatter over the tail: the force command about its mean, and the compensation.
-  double force_mean = 0;
-  for (std::size_t k = begin; k < n; ++k) force_mean += trace[k].force_command_n;
-  force_mean /= static_cast<double>(std::max<std::size_t>(tail, 1));
-  double force_square = 0, compensation_square = 0;
-  for (std::size_t k = begin; k < n; ++k) {
-    force_square += (trace[k].force_command_n - force_mean) * (trace[k].force_command_n - force_mean);
-    compensation_square += trace[k].compensation_force_n * trace[k].compensation_force_n;
+  const TailSpan span = tail_span(trace.size(), control_period_s, verdict);
+  judge_tail_stretch(trace, span, control_period_s, verdict, out);
+  judge_tail_forces(trace, span, force_limit_n, verdict, out);
+  if (out.non_finite) {
+    out.limit_cycle = out.saturated = out.slow = out.residual = out.chatter = false;  // one fault says it all
   }
-  out.tail_force_rms_n = std::sqrt(force_square / static_cast<double>(std::max<std::size_t>(tail, 1)));
-  out.tail_compensation_rms_n = std::sqrt(compensation_square / static_cast<double>(std::max<std::size_t>(tail, 1)));
-
-  // Saturation: the force command at its limit (the velocity PI's output after the compensation).
-  std::size_t saturated = 0;
-  std::size_t saturated_tail = 0;
-  const double at_limit = force_limit_n * (1.0 - 1e-9);
-  for (std::size_t k = 0; k < n; ++k) {
-    if (std::fabs(trace[k].force_command_n) >= at_limit) {
-      ++saturated;
-      if (k >= begin) ++saturated_tail;
-    }
-  }
-  out.saturated_share = static_cast<double>(saturated) / static_cast<double>(n);
-  out.saturated_tail_share = tail == 0 ? 0.0 : static_cast<double>(saturated_tail) / static_cast<double>(tail);
-  out.saturated = out.saturated_tail_share > verdict.max_saturated_tail_share;
-  if (out.non_finite) out.limit_cycle = out.saturated = out.slow = false;  // one fault says it all
   return out;
+}
+
+void judge_against_pi_alone(RunVerdict& run, const RunVerdict& pi_alone, const VerdictParams& verdict) {
+  if (run.rest_tail || run.non_finite) return;
+  run.limit_cycle = std::isfinite(run.tail_stretch_amplitude_m) &&
+                    run.tail_stretch_amplitude_m >= verdict.limit_cycle_amplitude_m &&
+                    run.tail_stretch_amplitude_m > verdict.max_forced_ratio_to_pi * pi_alone.tail_stretch_amplitude_m &&
+                    !(run.tail_decay_rate_per_s >= verdict.min_decay_rate_per_s);
 }
 
 const SweepRun& SweepResult::run(std::size_t plant, std::size_t compensator, std::size_t scenario) const {
@@ -315,9 +381,10 @@ SweepResult sweep_layout(const SweepSpec& spec) {
 
 // Each run against PI alone on its plant and scenario: the cost ratio, and passed when clean and
 // cheaper (PI alone passes by definition).
-void compare_with_pi_alone(SweepResult& result) {
+void compare_with_pi_alone(SweepResult& result, const VerdictParams& verdict) {
   for (SweepRun& run : result.runs) {
     const SweepRun& pi = result.run(run.plant, 0, run.scenario);
+    judge_against_pi_alone(run.verdict, pi.verdict, verdict);
     run.cost_ratio_to_pi =
         pi.verdict.cost > 0 ? run.verdict.cost / pi.verdict.cost : std::numeric_limits<double>::quiet_NaN();
     const bool clean = run.verdict.faults().empty();
@@ -399,7 +466,7 @@ SweepResult run_sweep(const SystemParams& nominal, const SweepSpec& spec, const 
   work();
   for (std::thread& t : pool) t.join();
   if (failure) std::rethrow_exception(failure);
-  compare_with_pi_alone(result);
+  compare_with_pi_alone(result, spec.verdict);
   return result;
 }
 

@@ -74,6 +74,12 @@ VibrationGuardParams SystemParams::vibration_guard_params() const {
   return p;
 }
 
+StandstillGateParams SystemParams::standstill_gate_params() const {
+  StandstillGateParams p = compensator.standstill;
+  p.control_period_s = timing.control_period_s;
+  return p;
+}
+
 VibrationMode SystemParams::loop_vibration_mode() const {
   const double m_m = kalman.model.motor_mass_kg;
   const double m_l = kalman.model.load_mass_kg;
@@ -219,6 +225,7 @@ void SystemParams::validate() const {
   validate_section("compensator.acceleration_feedback", [&] { accel_feedback_params().validate(); });
   validate_section("compensator.state_feedback", [&] { state_feedback_params().validate(); });
   validate_section("compensator.guard", [&] { vibration_guard_params().validate(); });
+  validate_section("compensator.standstill", [&] { standstill_gate_params().validate(); });
   validate_section("commissioning.frequency_response", [&] { frequency_response_params().validate(); });
   validate_section("commissioning.tuning", [&] { commissioning.tuning.validate(); });
   validate_section("filters.force_command", [&] { force_command_filter_params().validate(); });

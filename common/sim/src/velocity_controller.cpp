@@ -13,6 +13,7 @@ VelocityController::VelocityController(const SystemParams& params, const Scenari
       force_filters_(params.force_command_filter_params()) {
   scenario_.validate(period_s_);
   if (params.compensator.guard_enabled) guard_.emplace(params.vibration_guard_params());
+  if (params.compensator.standstill_enabled) standstill_.emplace(params.standstill_gate_params());
   if (scenario_.input_shaper != ShaperKind::kNone) shaper_.emplace(params.input_shaper_params(scenario_.input_shaper));
 }
 
@@ -55,8 +56,11 @@ VelocityControllerOutput VelocityController::step_command(double command_mps, do
   }
   out.v_ref_mps = ref.velocity_mps;
   out.a_ref_mps2 = ref.accel_mps2;
-  // The guard's scale of the previous period (it judges what was applied), then its new look.
-  const double scale = guard_ ? guard_->output().scale : 1.0;
+  // The guard's scale of the previous period (it judges what was applied), then its new look;
+  // the standstill gate's of this period (a move opens it on its first tick).
+  if (standstill_)
+    out.standstill = standstill_->step({out.command_mps, ref.velocity_mps, motor_velocity_mps, compensation.force_n});
+  const double scale = (guard_ ? guard_->output().scale : 1.0) * out.standstill.scale;
   out.compensation_applied_n = compensation_filters_.step(scale * compensation.force_n);
   if (guard_) {
     out.guard =

@@ -174,6 +174,11 @@ TEST(TrainingConfig, ASweepsVerdictJudgesRunsWithTheWorstRatioObjectiveOnly) {
   EXPECT_EQ(judged.verdict.min_decay_rate_per_s, sweep.min_decay_rate_per_s);
   EXPECT_EQ(judged.verdict.max_saturated_tail_share, sweep.max_saturated_tail_share);
   EXPECT_EQ(judged.verdict.max_free_vibration_settling_s, sweep.max_free_vibration_settling_s);
+  EXPECT_EQ(judged.verdict.rest_command_band_mps, sweep.rest_command_band_mps);
+  EXPECT_EQ(judged.verdict.min_rest_s, sweep.min_rest_s);
+  EXPECT_EQ(judged.verdict.max_rest_stretch_peak_m, sweep.max_rest_stretch_peak_m);
+  EXPECT_EQ(judged.verdict.max_rest_compensation_rms_n, sweep.max_rest_compensation_rms_n);
+  EXPECT_EQ(judged.verdict.max_forced_ratio_to_pi, sweep.max_forced_ratio_to_pi);
   const std::string from_sweep = "verdict_from_sweep: {value: sweeps/plant_family.yaml, source: \"chosen: test\"}\n";
   try {
     parse_training_params(test::read_text("configs/training.yaml") + from_sweep, paper, 1e-3);

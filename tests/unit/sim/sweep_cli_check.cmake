@@ -31,6 +31,11 @@ verdict:
   min_decay_rate_per_s: {value: 0.3, source: \"chosen: test\"}
   max_saturated_tail_share: {value: 0.05, source: \"chosen: test\"}
   max_free_vibration_settling_s: {value: 1.0, source: \"chosen: test\"}
+  rest_command_band_mps: {value: 1.0e-6, source: \"chosen: test\"}
+  min_rest_s: {value: 1.0, source: \"chosen: test\"}
+  max_rest_stretch_peak_m: {value: 1.0e-3, source: \"chosen: test\"}
+  max_rest_compensation_rms_n: {value: 1000.0, source: \"chosen: test\"}
+  max_forced_ratio_to_pi: {value: 1.5, source: \"chosen: test\"}
 ")
 endfunction()
 

@@ -31,6 +31,11 @@ VerdictParams verdict() {
   v.min_decay_rate_per_s = 0.3;
   v.max_saturated_tail_share = 0.05;
   v.max_free_vibration_settling_s = 1.0;
+  v.rest_command_band_mps = 1e-6;
+  v.min_rest_s = 1.0;
+  v.max_rest_stretch_peak_m = 5e-6;
+  v.max_rest_compensation_rms_n = 5.0;
+  v.max_forced_ratio_to_pi = 1.5;
   return v;
 }
 
@@ -129,8 +134,8 @@ TEST(SweepVerdict, SustainedOscillationIsALimitCycleADecayingOneIsNot) {
   const RunVerdict cycle = judge_run(oscillation(2e-3, 0.0, 21.0, 2.0), s, kT, 675, verdict());
   EXPECT_TRUE(cycle.limit_cycle);
   EXPECT_NEAR(cycle.tail_stretch_amplitude_m, 2e-3, 1e-4);
-  EXPECT_NEAR(cycle.tail_decay_rate_per_s, 0.0, 0.1);  // 4.2 periods a window: the RMS ripples a little
-  EXPECT_EQ(cycle.faults(), "limit cycle, slow");      // 2 mm never inside the 0.4 mm band
+  EXPECT_NEAR(cycle.tail_decay_rate_per_s, 0.0, 0.1);        // 4.2 periods a window: the RMS ripples a little
+  EXPECT_EQ(cycle.faults(), "limit cycle, slow, residual");  // 2 mm never inside the 0.4 mm band
 
   const RunVerdict growing = judge_run(oscillation(2e-3, -0.5, 21.0, 2.0), s, kT, 675, verdict());
   EXPECT_TRUE(growing.limit_cycle);
@@ -150,6 +155,66 @@ TEST(SweepVerdict, SustainedOscillationIsALimitCycleADecayingOneIsNot) {
   EXPECT_EQ(rest.faults(), "");
 }
 
+// At rest (the command zero over the tail) the end is judged to micrometres: the stretch's peak in
+// the tail's last window (0.2 s) about its mean against 5 um, the compensation's RMS there
+// against 5 N. A swing damped before the last window and compensation that acted only in the
+// first window are the move's end, not hunting or chatter.
+TEST(SweepVerdict, AtRestResidualOscillationAndChatterAreJudgedInTheLastWindow) {
+  const Scenario s = zero_scenario(2.0);
+  const RunVerdict ringing = judge_run(oscillation(2e-5, 0.0, 10.0, 2.0), s, kT, 675, verdict());
+  EXPECT_TRUE(ringing.rest_tail);
+  EXPECT_NEAR(ringing.rest_stretch_peak_m, 2e-5, 1e-6);
+  EXPECT_TRUE(ringing.residual);
+  EXPECT_FALSE(ringing.limit_cycle);  // 20 um is far below the 0.5 mm limit cycle
+  EXPECT_EQ(ringing.faults(), "residual");
+  const RunVerdict quiet = judge_run(oscillation(4e-6, 0.0, 10.0, 2.0), s, kT, 675, verdict());
+  EXPECT_NEAR(quiet.rest_stretch_peak_m, 4e-6, 1e-7);
+  EXPECT_FALSE(quiet.residual);
+
+  std::vector<TickRecord> chatter = oscillation(0.0, 0.0, 10.0, 2.0);
+  for (TickRecord& r : chatter) r.compensation_force_n = 10.0 * std::sin(2 * M_PI * 83.0 * r.time_s);
+  const RunVerdict chattering = judge_run(chatter, s, kT, 675, verdict());
+  EXPECT_NEAR(chattering.rest_compensation_rms_n, 10.0 / std::sqrt(2.0), 0.2);
+  EXPECT_TRUE(chattering.chatter);
+  EXPECT_EQ(chattering.faults(), "chatter");
+  // The same force only until 1.8 s (the tail's first window): damping, not chatter.
+  for (TickRecord& r : chatter) r.compensation_force_n = r.time_s < 1.8 ? r.compensation_force_n : 0.0;
+  const RunVerdict damped = judge_run(chatter, s, kT, 675, verdict());
+  EXPECT_GT(damped.tail_compensation_rms_n, 4.0);
+  EXPECT_EQ(damped.rest_compensation_rms_n, 0.0);
+  EXPECT_FALSE(damped.chatter);
+}
+
+// A moving reference's end holds its forced response: a 2 mm stretch oscillation under a sine
+// command is no limit cycle on its own, nor beside PI alone's 1.9 mm; beside PI alone's 0.5 mm
+// (more than 1.5 times it, and not decaying) it is. Hunting and chatter are not judged there.
+TEST(SweepVerdict, AMovingTailIsALimitCycleOnlyBeyondPiAlonesForcedResponse) {
+  Scenario s = zero_scenario(2.0);
+  s.initial_load_displacement_m = 0.0;
+  std::vector<TickRecord> trace = oscillation(2e-3, 0.0, 5.0, 2.0);
+  for (TickRecord& r : trace) {
+    r.command_mps = 0.3 * std::sin(2 * M_PI * 5.0 * r.time_s);
+    r.compensation_force_n = 50.0;
+  }
+  RunVerdict run = judge_run(trace, s, kT, 675, verdict());
+  EXPECT_FALSE(run.rest_tail);
+  EXPECT_FALSE(run.limit_cycle);
+  EXPECT_FALSE(run.residual);
+  EXPECT_FALSE(run.chatter);
+  RunVerdict pi_alone = judge_run(oscillation(1.9e-3, 0.0, 5.0, 2.0), s, kT, 675, verdict());
+  judge_against_pi_alone(run, pi_alone, verdict());
+  EXPECT_FALSE(run.limit_cycle);
+  pi_alone = judge_run(oscillation(5e-4, 0.0, 5.0, 2.0), s, kT, 675, verdict());
+  judge_against_pi_alone(run, pi_alone, verdict());
+  EXPECT_TRUE(run.limit_cycle);
+  EXPECT_EQ(run.faults(), "limit cycle");
+  // A tail at rest keeps its own judgement.
+  RunVerdict at_rest = judge_run(oscillation(2e-3, 0.0, 5.0, 2.0), s, kT, 675, verdict());
+  ASSERT_TRUE(at_rest.limit_cycle);
+  judge_against_pi_alone(at_rest, judge_run(oscillation(2e-3, 0.0, 5.0, 2.0), s, kT, 675, verdict()), verdict());
+  EXPECT_TRUE(at_rest.limit_cycle);
+}
+
 // The family's free-vibration target: the spring stretch inside the scenario's band (2 % of the
 // 20 mm start) for good within max_free_vibration_settling_s. 20 mm e^{-r t} enters 0.4 mm at
 // ln(50) / r: 0.78 s at 5 1/s, 1.30 s at 3 1/s.
@@ -165,7 +230,7 @@ TEST(SweepVerdict, AFreeVibrationSettledLaterThanAllowedIsSlowOtherScenariosAreN
   EXPECT_LT(late.settling_s, 1.31);
   EXPECT_TRUE(late.slow);
   EXPECT_FALSE(late.limit_cycle);
-  EXPECT_EQ(late.faults(), "slow");
+  EXPECT_EQ(late.faults(), "slow, residual");  // 20 mm e^{-3 x 1.8 s}: 90 um left at the end
   VerdictParams longer = verdict();
   longer.max_free_vibration_settling_s = 1.5;
   EXPECT_FALSE(judge_run(oscillation(2e-2, 3.0, 10.0, 2.0), s, kT, 675, longer).slow);
@@ -247,6 +312,11 @@ verdict:
   min_decay_rate_per_s: {value: 0.3, source: "chosen: test"}
   max_saturated_tail_share: {value: 0.05, source: "chosen: test"}
   max_free_vibration_settling_s: {value: 1.0, source: "chosen: test"}
+  rest_command_band_mps: {value: 1.0e-6, source: "chosen: test"}
+  min_rest_s: {value: 1.0, source: "chosen: test"}
+  max_rest_stretch_peak_m: {value: 1.0e-3, source: "chosen: test"}
+  max_rest_compensation_rms_n: {value: 1000.0, source: "chosen: test"}
+  max_forced_ratio_to_pi: {value: 1.5, source: "chosen: test"}
 )";
 
 std::string sweep_text(const std::string& from = "", const std::string& to = "") {

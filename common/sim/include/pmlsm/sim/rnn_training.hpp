@@ -142,6 +142,8 @@ class RnnCost {
     SystemParams params;
     double weight = 1.0;
     std::vector<double> pi_costs;  ///< per scenario, PI alone (kWorstRatioToPi)
+    /// per scenario, PI alone's whole run judged (judged runs): a moving tail is judged against it
+    std::vector<RunVerdict> pi_verdicts;
   };
   void judge_with(const VerdictParams& verdict);
   std::vector<Plant> plants_;

@@ -57,6 +57,24 @@ struct VerdictParams {
   /// settling is the velocity PI's (its tiny K_i leaves friction's error near the band) and is
   /// shown, not judged.
   double max_free_vibration_settling_s = 0;
+  /// A tail is at rest when the command (into the reference model) stays within this band of
+  /// zero over it: judged for a limit cycle on its own. A moving tail (a sine, a chirp, a ramp's
+  /// cruise) holds the reference's own forced response: judged against PI alone's.
+  double rest_command_band_mps = 0;
+  /// A run ends in a standstill when its command has rested (as above) this long up to its end:
+  /// judged for hunting and chatter (a free vibration, a move and a second after it; the pulse's
+  /// 0.5 s after its last edge is the edge's settling, not a standstill).
+  double min_rest_s = 0;
+  /// A standstill whose spring stretch, in the tail's last window, reaches this far from its
+  /// mean (peak) hunts: "residual".
+  double max_rest_stretch_peak_m = 0;
+  /// A standstill whose compensation force has a larger RMS in the tail's last window chatters:
+  /// "chatter".
+  double max_rest_compensation_rms_n = 0;
+  /// A moving tail is a limit cycle only when its spring-stretch amplitude exceeds
+  /// limit_cycle_amplitude_m, this multiple of PI alone's on the same plant and reference, and
+  /// does not decay (judge_against_pi_alone): the reference's forced response is not one.
+  double max_forced_ratio_to_pi = 0;
   void validate() const;
 };
 
@@ -103,17 +121,36 @@ struct RunVerdict {
   double tail_force_rms_n = 0;
   double tail_compensation_rms_n = 0;
   double guard_trip_s = -1;  ///< time the vibration guard tripped, -1: never
-  bool non_finite = false;   ///< the plant diverged or a non-finite number in the trace
+  /// The command within rest_command_band_mps of zero over the whole tail.
+  bool rest_tail = false;
+  /// ... and for min_rest_s up to the end: judged for residual and chatter.
+  bool standstill = false;
+  /// Peak |x_L - x_M - mean| over the tail's last window (tail_s / tail_windows).
+  double rest_stretch_peak_m = 0;
+  /// RMS of the compensation force over the tail's last window.
+  double rest_compensation_rms_n = 0;
+  bool non_finite = false;  ///< the plant diverged or a non-finite number in the trace
+  /// Tail at rest: the stretch at least limit_cycle_amplitude_m and not decaying. Moving tail:
+  /// set by judge_against_pi_alone only.
   bool limit_cycle = false;
   bool saturated = false;
-  bool slow = false;  ///< a free vibration settled later than the verdict allows
-  /// "" when the run is clean; else its faults: "non-finite", "limit cycle", "saturated", "guard", "slow".
+  bool slow = false;      ///< a free vibration settled later than the verdict allows
+  bool residual = false;  ///< standstill: rest_stretch_peak_m over max_rest_stretch_peak_m
+  bool chatter = false;   ///< standstill: rest_compensation_rms_n over max_rest_compensation_rms_n
+  /// "" when the run is clean; else its faults: "non-finite", "limit cycle", "saturated", "guard",
+  /// "slow", "residual", "chatter".
   std::string faults() const;
 };
 
-/// Judges a trace (pure: tests feed it synthetic ones).
+/// Judges a trace on its own (pure: tests feed it synthetic ones). A moving tail's limit cycle
+/// needs PI alone's run on the same plant and reference: judge_against_pi_alone.
 RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scenario, double control_period_s,
                      double force_limit_n, const VerdictParams& verdict);
+
+/// A moving tail (a continuous reference) against PI alone's on the same plant and reference: a
+/// limit cycle when its stretch amplitude is at least limit_cycle_amplitude_m and more than
+/// max_forced_ratio_to_pi times PI alone's, and does not decay. Tails at rest keep judge_run's.
+void judge_against_pi_alone(RunVerdict& run, const RunVerdict& pi_alone, const VerdictParams& verdict);
 
 struct SweepRun {
   std::size_t plant = 0;        ///< index into the samples

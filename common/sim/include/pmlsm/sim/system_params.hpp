@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "pmlsm/compensation/accel_feedback.hpp"
+#include "pmlsm/compensation/standstill_gate.hpp"
 #include "pmlsm/compensation/vibration_guard.hpp"
 #include "pmlsm/control/biquad.hpp"
 #include "pmlsm/control/current_controller.hpp"
@@ -34,7 +35,7 @@ struct TimingParams {
 
 /// The compensators added to the PI output: the Jordan RNN (section 3.2), the linear
 /// load-acceleration feedback it is compared with, state feedback with inverse-model feedforward,
-/// and the vibration guard in the compensation path. Each is its component's own Params; the
+/// and the vibration guard and the standstill gate in the compensation path. Each is its component's own Params; the
 /// fields the system derives (periods, the velocity loop's gain and limit, the gain schedule) are
 /// left unset here and filled by SystemParams' accessors.
 struct CompensatorTuning {
@@ -47,6 +48,8 @@ struct CompensatorTuning {
   double max_gain_scale = 0;  ///< the schedule's upper limit (the stiff PI's, not the load's)
   bool guard_enabled = true;
   VibrationGuardParams guard;
+  bool standstill_enabled = true;
+  StandstillGateParams standstill;
 };
 
 /// Input shaping of the command (a scenario's `input_shaper`): the mode it is timed to is the
@@ -117,6 +120,7 @@ struct SystemParams {
   AccelFeedbackParams accel_feedback_params() const;
   StateFeedbackParams state_feedback_params() const;
   VibrationGuardParams vibration_guard_params() const;
+  StandstillGateParams standstill_gate_params() const;
   /// The load's vibration under the velocity loop, from the Kalman filter's model of the mechanics
   /// (the identified one after commissioning) and the PI's gains: the least damped oscillatory
   /// pole pair of the linear loop (m_M dv_M/dt = F - k (x_M - x_L), m_L dv_L/dt = k (x_M - x_L),
@@ -338,6 +342,18 @@ void visit_parameters(Params& p, Visitor& v) {
           "a share of a window's ticks: above it a window at the compensation's limit is not judged sustained"});
   v.real("compensator.guard.saturated_output_share", c.guard.saturated_output_share,
          {1e-3, 1.0, "a share of the compensator's own output range: at or above it the compensator is at its limit"});
+  v.flag("compensator.standstill.enabled", c.standstill_enabled);
+  v.real("compensator.standstill.rest_velocity_mps", c.standstill.rest_velocity_mps,
+         {0.0, 10.0, "0 (the command exactly zero) to 10 m/s"});
+  v.real("compensator.standstill.settle_s", c.standstill.settle_s, {0.0, 3600.0, "0 (at once) to an hour at rest"});
+  v.real("compensator.standstill.window_s", c.standstill.window_s, {1e-3, 100.0, "1 ms to 100 s of quiet window"});
+  v.real("compensator.standstill.quiet_velocity_mps", c.standstill.quiet_velocity_mps,
+         {1e-6, 10.0, "1 um/s to 10 m/s of motor velocity (rms over the window)"});
+  v.real("compensator.standstill.wake_velocity_mps", c.standstill.wake_velocity_mps,
+         {1e-6, 10.0, "1 um/s to 10 m/s of motor velocity (rms over the window)"});
+  v.real("compensator.standstill.fade_s", c.standstill.fade_s, {0.0, 60.0, "0 (at once) to a minute"});
+  v.real("compensator.standstill.wake_force_n", c.standstill.wake_force_n,
+         {1e-3, 1e5, "1 mN to 100 kN of requested compensation (rms over a window spent closed)"});
 }
 
 }  // namespace pmlsm

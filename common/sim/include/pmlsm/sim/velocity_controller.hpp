@@ -44,9 +44,10 @@ struct VelocityControllerOutput {
   double force_n = 0;  ///< force request after the limit
   double velocity_error_mps = 0;
   bool saturated = false;
-  /// The compensation added: the request times the guard's scale.
+  /// The compensation added: the request times the guard's and the standstill gate's scales.
   double compensation_applied_n = 0;
   VibrationGuardOutput guard;
+  StandstillGateOutput standstill;
 };
 
 class VelocityController {
@@ -67,6 +68,8 @@ class VelocityController {
   const ReferenceModel& reference() const { return reference_; }
   /// The guard in the compensation path (nullptr when compensator.guard.enabled is false).
   const VibrationGuard* guard() const { return guard_ ? &*guard_ : nullptr; }
+  /// The standstill gate (nullptr when compensator.standstill.enabled is false).
+  const StandstillGate* standstill_gate() const { return standstill_ ? &*standstill_ : nullptr; }
 
  private:
   Scenario scenario_;
@@ -77,6 +80,7 @@ class VelocityController {
   bool have_last_command_ = false;
   VelocityPi velocity_;
   std::optional<VibrationGuard> guard_;
+  std::optional<StandstillGate> standstill_;
   FilterChain compensation_filters_;  ///< on the compensator's force, before the PI adds it
   FilterChain force_filters_;         ///< on the PI's output, then the force limit again
 };

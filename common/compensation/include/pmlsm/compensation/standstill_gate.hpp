@@ -1,0 +1,90 @@
+// A gate in the compensation path for a load at rest. A compensator acts on the estimated load
+// state; with the reference at rest and the motor held by its bearings' static friction, the
+// encoder's counts are all the estimate has, and the compensator works on their quantisation: the
+// motor slips and sticks a few counts at a time and the force chatters (25-40 N rms, most of it
+// at 45-90 Hz). The gate closes the compensation path once the move is over and the motor is
+// quiet, and opens it again as soon as the reference moves, the motor is pushed, or the
+// compensator asks to damp a swing.
+//
+//   at rest:  |c(t_k)| <= rest_velocity_mps and |V_ref(t_k)| <= rest_velocity_mps, for settle_s
+//   quiet:    a window of window_s with rms(v_M) < quiet_velocity_mps (the measured velocity)
+//   closed:   at rest and quiet; the scale ramps 1 -> 0 over fade_s
+//   open:     the reference leaves rest (scale 1 at once: a move needs its compensation from the
+//             first tick), or a window with rms(v_M) > wake_velocity_mps (a push on the load),
+//             or a window spent wholly closed in which the compensator's request has an rms
+//             over wake_force_n (the scale ramps back to 1 over fade_s)
+//
+// The last is for a heavy, soft load on sticky bearings: its swing (1.5 mm on 8 kg and 6,850 N/m
+// pulls 10 N) may not move a motor held by 30 N, so the motor is quiet while the load still
+// swings. Closed, the request is a clean witness: no force reaches the motor, nothing chatters,
+// and the estimate keeps the swing (kalman.standstill_hold), so the compensator asks to damp it.
+// step() never throws and does not allocate; a non-finite input is counted and treated as motion
+// (the gate opens).
+#pragma once
+
+#include <cstdint>
+
+namespace pmlsm {
+
+/// The defaults are the shipped values (configs/system.yaml, compensator.standstill).
+struct StandstillGateParams {
+  double control_period_s = 1e-3;
+  double rest_velocity_mps = 1e-3;   ///< |c| and |V_ref| at or below this: the reference at rest, >= 0
+  double settle_s = 0.3;             ///< at rest this long before the gate may close, >= 0
+  double window_s = 0.1;             ///< the quiet window, at least 2 periods
+  double quiet_velocity_mps = 3e-3;  ///< rms(v_M) of a window below this: quiet, > 0
+  double wake_velocity_mps = 1e-2;   ///< rms(v_M) of a window above this: pushed, > quiet_velocity_mps
+  double wake_force_n = 10.0;        ///< the request's rms over a window spent closed above this: a swing, > 0
+  double fade_s = 0.1;               ///< >= 0 (0: at once)
+  /// @throws std::invalid_argument naming the parameter and its value.
+  void validate() const;
+};
+
+struct StandstillGateInput {
+  double command_mps = 0;             ///< c(t_k), the command into the reference model
+  double reference_velocity_mps = 0;  ///< V_ref(t_k)
+  double motor_velocity_mps = 0;      ///< measured v_M(t_k)
+  double compensation_force_n = 0;    ///< the compensator's request, before any scale
+};
+
+struct StandstillGateOutput {
+  double scale = 1.0;   ///< multiply the compensation force by this
+  bool closed = false;  ///< closing or closed (the scale heads for 0)
+};
+
+struct StandstillGateCounters {
+  std::uint64_t steps = 0;
+  std::uint64_t rejected_inputs = 0;
+  std::uint64_t closings = 0;
+  std::uint64_t openings = 0;
+  double last_window_rms_mps = 0;  ///< rms(v_M) of the last full window
+  double last_closed_force_n = 0;  ///< the request's rms over the last window spent closed
+};
+
+class StandstillGate {
+ public:
+  /// @throws std::invalid_argument naming the invalid parameter.
+  explicit StandstillGate(const StandstillGateParams& params);
+
+  /// One control period.
+  StandstillGateOutput step(const StandstillGateInput& in) noexcept;
+
+  const StandstillGateOutput& output() const noexcept { return out_; }
+  const StandstillGateCounters& counters() const noexcept { return counters_; }
+  const StandstillGateParams& params() const noexcept { return params_; }
+
+ private:
+  void open(bool at_once) noexcept;
+  StandstillGateParams params_;
+  std::uint64_t settle_steps_;
+  std::uint32_t window_steps_;
+  double fade_per_step_;
+  std::uint64_t at_rest_steps_ = 0;
+  std::uint32_t in_window_ = 0;
+  double sum_v2_ = 0, sum_f2_ = 0;
+  std::uint32_t closed_in_window_ = 0;  ///< ticks of the window with the scale at 0
+  StandstillGateOutput out_;
+  StandstillGateCounters counters_;
+};
+
+}  // namespace pmlsm

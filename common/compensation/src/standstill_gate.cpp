@@ -1,0 +1,85 @@
+#include "pmlsm/compensation/standstill_gate.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "pmlsm/util/validate.hpp"
+
+namespace pmlsm {
+
+void StandstillGateParams::validate() const {
+  require_positive("control_period_s", control_period_s);
+  require_in_range("rest_velocity_mps", rest_velocity_mps, 0.0, 10.0);
+  require_in_range("settle_s", settle_s, 0.0, 3600.0);
+  require_positive("window_s", window_s);
+  if (window_s < 2.0 * control_period_s) {
+    throw std::invalid_argument("window_s: must be at least two periods (" + format_value(2.0 * control_period_s) +
+                                " s), got " + format_value(window_s));
+  }
+  require_positive("quiet_velocity_mps", quiet_velocity_mps);
+  require_finite("wake_velocity_mps", wake_velocity_mps);
+  if (!(wake_velocity_mps > quiet_velocity_mps)) {
+    throw std::invalid_argument("wake_velocity_mps: must be above quiet_velocity_mps (" +
+                                format_value(quiet_velocity_mps) + " m/s), got " + format_value(wake_velocity_mps));
+  }
+  require_in_range("fade_s", fade_s, 0.0, 60.0);
+  require_positive("wake_force_n", wake_force_n);
+}
+
+StandstillGate::StandstillGate(const StandstillGateParams& params)
+    : params_((params.validate(), params)),
+      settle_steps_(static_cast<std::uint64_t>(std::llround(params.settle_s / params.control_period_s))),
+      window_steps_(static_cast<std::uint32_t>(std::llround(params.window_s / params.control_period_s))),
+      fade_per_step_(params.fade_s > 0 ? params.control_period_s / params.fade_s : 1.0) {}
+
+void StandstillGate::open(bool at_once) noexcept {
+  if (out_.closed) ++counters_.openings;
+  out_.closed = false;
+  if (at_once) out_.scale = 1.0;
+}
+
+StandstillGateOutput StandstillGate::step(const StandstillGateInput& in) noexcept {
+  ++counters_.steps;
+  const bool finite = std::isfinite(in.command_mps) && std::isfinite(in.reference_velocity_mps) &&
+                      std::isfinite(in.motor_velocity_mps) && std::isfinite(in.compensation_force_n);
+  if (!finite) ++counters_.rejected_inputs;
+  const bool reference_at_rest = finite && std::fabs(in.command_mps) <= params_.rest_velocity_mps &&
+                                 std::fabs(in.reference_velocity_mps) <= params_.rest_velocity_mps;
+  at_rest_steps_ = reference_at_rest ? at_rest_steps_ + 1 : 0;
+  if (!reference_at_rest) {
+    // A move (or a reading that cannot be trusted): the compensation from this tick on.
+    open(true);
+    in_window_ = closed_in_window_ = 0;
+    sum_v2_ = sum_f2_ = 0;
+    return out_;
+  }
+  sum_v2_ += in.motor_velocity_mps * in.motor_velocity_mps;
+  if (out_.closed && out_.scale == 0.0) {
+    sum_f2_ += in.compensation_force_n * in.compensation_force_n;
+    ++closed_in_window_;
+  }
+  if (++in_window_ >= window_steps_) {
+    counters_.last_window_rms_mps = std::sqrt(sum_v2_ / static_cast<double>(in_window_));
+    const bool closed_window = closed_in_window_ == in_window_;
+    if (closed_window) counters_.last_closed_force_n = std::sqrt(sum_f2_ / static_cast<double>(in_window_));
+    in_window_ = closed_in_window_ = 0;
+    sum_v2_ = sum_f2_ = 0;
+    if (counters_.last_window_rms_mps > params_.wake_velocity_mps ||
+        (closed_window && counters_.last_closed_force_n > params_.wake_force_n)) {
+      // Woken: open for settle_s at least, as after a move, so the swing is damped, not sampled.
+      open(false);
+      at_rest_steps_ = 0;
+    } else if (!out_.closed && at_rest_steps_ >= settle_steps_ &&
+               counters_.last_window_rms_mps < params_.quiet_velocity_mps) {
+      out_.closed = true;
+      ++counters_.closings;
+    }
+  }
+  const double target = out_.closed ? 0.0 : 1.0;
+  out_.scale = out_.scale < target ? std::min(target, out_.scale + fade_per_step_)
+                                   : std::max(target, out_.scale - fade_per_step_);
+  return out_;
+}
+
+}  // namespace pmlsm
