@@ -73,6 +73,7 @@ void StateFeedback::reset_model() {
   model_at_tick_.setZero();
   model_reported_.setZero();
   model_motor_position_before_m_ = 0;
+  last_a_ref_mps2_ = 0;
   ++counters_.model_resets;
 }
 
@@ -87,13 +88,30 @@ double StateFeedback::step(const StateFeedbackInput& in) {
   const double k = p.model.spring_n_per_m;
   const double limit = p.force_limit_n;
 
-  // The reference when this force acts: the model (25) one tick on, c held.
-  const Eigen::Vector2d ref =
-      reference_phi_ * Eigen::Vector2d(in.v_ref_mps, in.a_ref_mps2) + reference_gamma_ * in.command_mps;
-  const double v_ref = ref(0);
-  const double a_ref = ref(1);
-  const double wn = p.reference_natural_frequency_rad_s;
-  const double j_ref = wn * wn * (in.command_mps - v_ref) - 2.0 * p.reference_damping_ratio * wn * a_ref;
+  // The reference when this force acts. Shaped by the model (25): one tick on, c held, its jerk
+  // from (25). A profiled reference (the scenario bypasses the model: V_ref = c, dV_ref/dt its
+  // backward difference) has no model to look ahead with: its own slope carries it a tick on,
+  // the acceleration held, the jerk the acceleration's backward difference. (Taking the model
+  // there reads a constant acceleration as a jerk of -2 zeta wn a: the model's load then lags
+  // the profile, and every profiled move cost more than PI alone on some plant.)
+  double v_ref = 0, a_ref = 0, j_ref = 0;
+  if (in.v_ref_mps == in.command_mps) {
+    v_ref = in.v_ref_mps + p.period_s * in.a_ref_mps2;
+    a_ref = in.a_ref_mps2;
+    j_ref = (in.a_ref_mps2 - last_a_ref_mps2_) / p.period_s;
+  } else {
+    const Eigen::Vector2d ref =
+        reference_phi_ * Eigen::Vector2d(in.v_ref_mps, in.a_ref_mps2) + reference_gamma_ * in.command_mps;
+    v_ref = ref(0);
+    a_ref = ref(1);
+    const double wn = p.reference_natural_frequency_rad_s;
+    j_ref = wn * wn * (in.command_mps - v_ref) - 2.0 * p.reference_damping_ratio * wn * a_ref;
+  }
+  last_a_ref_mps2_ = in.a_ref_mps2;
+  if (!std::isfinite(v_ref) || !std::isfinite(a_ref) || !std::isfinite(j_ref)) {
+    reset_model();  // a reference at the edge of the doubles overflowed: restart at rest
+    return 0.0;
+  }
 
   // The law on the model's state at that tick, and the model's PI and drive limit.
   const Eigen::Vector4d& x = model_next_;

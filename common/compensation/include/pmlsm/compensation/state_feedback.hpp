@@ -18,7 +18,8 @@
 // the open load mode, r >= 1) with damping zeta_d:
 //   c0 = r^2 - 1,   c1 = 2 zeta_d w_d m_L / k.
 // d^2V_ref/dt^2 = wn^2 (c - V_ref) - 2 zeta wn dV_ref/dt follows from the reference model
-// (25) and the raw command c.
+// (25) and the raw command c; a profiled reference that bypasses the model (V_ref = c, told by
+// that equality) gives it as the backward difference of dV_ref/dt.
 //
 // Why an internal model: the inverse asks for kilonewtons at a command step (the jerk of
 // V_ref jumps by wn^2 c), so the force limit clips it, and feedback on the Kalman estimate
@@ -111,6 +112,7 @@ class StateFeedback {
   Eigen::Vector4d model_at_tick_ = Eigen::Vector4d::Zero();   ///< model state at the next input's tick
   Eigen::Vector4d model_reported_ = Eigen::Vector4d::Zero();  ///< model state at the last input's tick
   double model_motor_position_before_m_ = 0;                  ///< x_M one tick before model_next_
+  double last_a_ref_mps2_ = 0;                                ///< dV_ref/dt of the last input
   StateFeedbackCounters counters_;
 };
 
