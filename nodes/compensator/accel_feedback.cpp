@@ -19,19 +19,22 @@ class AccelFeedbackComponent final : public node::Component {
         params_(rt_.cfg.params.accel_feedback_params()),
         law_(params_),
         inputs_(rt_.participant, rt_.wakeup),
-        writer_(rt_.participant.make_writer(pmlsm::dds::topics::kCompensatorOutput)) {}
+        writer_(rt_.participant.make_writer(pmlsm::dds::topics::kCompensatorOutput)),
+        live_(rt_.cfg.params, accel_feedback_live_keys()),
+        parameters_(rt_, "accel_feedback", live_) {}
 
   int run() override {
-    const node::CompensatorLoopResult result =
-        node::run_fixed_law("accel_feedback", rt_, common_, inputs_, writer_, params_.force_limit_n,
-                            [&](const CompensatorView& view) { return law_.step(accel_feedback_input(view)); });
+    const node::CompensatorLoopResult result = node::run_fixed_law(
+        "accel_feedback", rt_, common_, inputs_, writer_, params_.force_limit_n, parameters_, live_,
+        [&](const CompensatorView& view) { return law_.step(accel_feedback_input(view)); },
+        [&](const SystemParams& changed) { law_.set_params(changed.accel_feedback_params()); });
     const std::uint64_t answered = result.answered;
     rt_.status.status().rejected(inputs_.rejected() + law_.counters().rejected_inputs);
     rt_.status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_STOPPING, answered, rt_.period_s, "done");
     std::printf(
         "accel_feedback: K_a %.1f kg (x %.3f on the model's load)%s, %llu ticks answered, %llu saturated, "
         "%llu rejected, %llu skipped\n",
-        params_.gain_kg, rt_.cfg.params.compensator_gain_scale(),
+        law_.params().gain_kg, rt_.cfg.params.compensator_gain_scale(),
         params_.on_reference_error ? " on the error to the reference" : "", static_cast<unsigned long long>(answered),
         static_cast<unsigned long long>(law_.counters().saturated),
         static_cast<unsigned long long>(inputs_.rejected() + law_.counters().rejected_inputs),
@@ -46,6 +49,8 @@ class AccelFeedbackComponent final : public node::Component {
   AccelFeedback law_;
   node::CompensatorInputs inputs_;
   node::CompensatorWriter writer_;
+  LiveParameters live_;
+  node::ParameterService parameters_;
 };
 
 }  // namespace

@@ -14,7 +14,9 @@
 #include "VelocityReferencePubSubTypes.h"
 #include "msg_mapping.hpp"
 #include "node_support.hpp"
+#include "parameter_service.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
+#include "pmlsm/sim/live_parameters.hpp"
 
 namespace pmlsm::node {
 
@@ -99,15 +101,18 @@ struct CompensatorLoopResult {
 
 using CompensatorWriter = dds::Writer<pmlsm_msgs::msg::CompensatorOutputPubSubType>;
 
-/// The loop of a compensator whose law is fixed for the run (accel_feedback, state_feedback):
-/// publishes NodeStatus running, then answers every paired tick k with CompensatorOutput k
-/// (force_of(view), u = force / force_limit_n, the training error V_ref - v_L) until the
-/// scenario's ticks are answered, a stop is requested, or the inputs stop coming for the peer
-/// timeout (end_of_failed_wait's exit code). The writer is flushed before it returns.
-template <typename ForceOf>
+/// The loop of a compensator whose law is fixed for the run (accel_feedback, state_feedback), its
+/// gains live: publishes NodeStatus running, then answers every paired tick k with
+/// CompensatorOutput k (force_of(view), u = force / force_limit_n, the training error
+/// V_ref - v_L) until the scenario's ticks are answered, a stop is requested, or the inputs stop
+/// coming for the peer timeout (end_of_failed_wait's exit code). Before each tick it serves the
+/// parameter requests that arrived (`pmlsm param`); an accepted change reaches the law through
+/// retune(live.params()) before that tick's force. The writer is flushed before it returns.
+template <typename ForceOf, typename Retune>
 CompensatorLoopResult run_fixed_law(const char* node_name, NodeRuntime& rt, const CommonOptions& common,
                                     CompensatorInputs& inputs, CompensatorWriter& writer, double force_limit_n,
-                                    ForceOf&& force_of) {
+                                    ParameterService& parameters, const LiveParameters& live, ForceOf&& force_of,
+                                    Retune&& retune) {
   const std::uint64_t ticks = scenario_ticks(rt.cfg.scenario, rt.period_s);
   rt.status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_RUNNING, 0, rt.period_s, "running");
   pmlsm_msgs::msg::CompensatorOutput out;
@@ -121,6 +126,7 @@ CompensatorLoopResult run_fixed_law(const char* node_name, NodeRuntime& rt, cons
                                             "estimator or controller", result.answered, common.peer_timeout_s);
       break;
     }
+    if (parameters.serve(tick)) retune(live.params());
     step.force_n = force_of(view);
     step.u_n = step.force_n / force_limit_n;
     step.training_error_mps = view.v_ref_mps - view.v_load_mps;

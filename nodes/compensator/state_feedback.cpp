@@ -19,12 +19,15 @@ class StateFeedbackComponent final : public node::Component {
         params_(rt_.cfg.params.state_feedback_params()),
         law_(params_),
         inputs_(rt_.participant, rt_.wakeup),
-        writer_(rt_.participant.make_writer(pmlsm::dds::topics::kCompensatorOutput)) {}
+        writer_(rt_.participant.make_writer(pmlsm::dds::topics::kCompensatorOutput)),
+        live_(rt_.cfg.params, state_feedback_live_keys()),
+        parameters_(rt_, "state_feedback", live_) {}
 
   int run() override {
-    const node::CompensatorLoopResult result =
-        node::run_fixed_law("state_feedback", rt_, common_, inputs_, writer_, params_.force_limit_n,
-                            [&](const CompensatorView& view) { return law_.step(state_feedback_input(view)); });
+    const node::CompensatorLoopResult result = node::run_fixed_law(
+        "state_feedback", rt_, common_, inputs_, writer_, params_.force_limit_n, parameters_, live_,
+        [&](const CompensatorView& view) { return law_.step(state_feedback_input(view)); },
+        [&](const SystemParams& changed) { law_.set_params(changed.state_feedback_params()); });
     const std::uint64_t answered = result.answered;
     const StateFeedbackCounters& counters = law_.counters();
     rt_.status.status().rejected(inputs_.rejected() + counters.rejected_inputs + counters.model_resets);
@@ -46,6 +49,8 @@ class StateFeedbackComponent final : public node::Component {
   StateFeedback law_;
   node::CompensatorInputs inputs_;
   node::CompensatorWriter writer_;
+  LiveParameters live_;
+  node::ParameterService parameters_;
 };
 
 }  // namespace

@@ -151,6 +151,15 @@ std::vector<std::string> param_args(const std::string& domain, std::vector<std::
   return a;
 }
 
+/// `pmlsm param ARGS` on the domain, to its end: its exit code (-1: still running after 60 s) and output.
+std::pair<int, std::string> run_param(const fs::path& dir, const std::string& domain, std::vector<std::string> args,
+                                      const char* log) {
+  ChildProcess p(param_args(domain, std::move(args)), (dir / log).string());
+  const auto code = p.wait_for(seconds(60));
+  EXPECT_TRUE(code.has_value()) << p.output();
+  return {code.value_or(-1), p.output()};
+}
+
 // `pmlsm param` on a running controller (lockstep, an external scenario at rest): list, get and
 // set its live parameters; a change is taken at a tick boundary, logged and versioned; a value out
 // of range, one that is not a number, a key the node does not have are refused with the reason
@@ -162,12 +171,7 @@ TEST(LiveParametersDistributed, PmlsmParamListsGetsAndSetsTheControllersParamete
   ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
   ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "1"}), (dir / "plant.log").string());
   ASSERT_TRUE(plant.wait_for_output("lockstep clock", seconds(30))) << plant.output();
-  const auto param = [&](std::vector<std::string> args, const char* log) {
-    ChildProcess p(param_args(domain, std::move(args)), (dir / log).string());
-    const auto code = p.wait_for(seconds(60));
-    EXPECT_TRUE(code.has_value()) << p.output();
-    return std::make_pair(code.value_or(-1), p.output());
-  };
+  const auto param = [&](std::vector<std::string> args, const char* log) { return run_param(dir, domain, args, log); };
   auto [code, text] = param({"list", "controller"}, "list.log");
   EXPECT_EQ(code, 0) << text;
   EXPECT_NE(text.find("velocity_loop.kp_n_s_per_m = 10000\n"), std::string::npos) << text;
@@ -201,6 +205,47 @@ TEST(LiveParametersDistributed, PmlsmParamListsGetsAndSetsTheControllersParamete
     p->signal(SIGINT);
     EXPECT_TRUE(p->wait_for(seconds(30)).has_value()) << p->output();
   }
+  fs::remove_all(dir);
+}
+
+// `pmlsm param` on a running compensator (acceleration feedback in the lockstep chain, an external
+// scenario at rest): its gain K_a listed, set at a tick boundary, logged and versioned; a value
+// out of range and a key of another node's refused with the old value kept.
+TEST(LiveParametersDistributed, PmlsmParamSetsACompensatorsGainAtATickBoundary) {
+  const fs::path dir = fresh_dir("pmlsm_external", "param_compensator");
+  const std::string domain = test_domain(99);
+  const std::string scenario = external_scenario(dir, 600.0);
+  ChildProcess estimator(node_args("kalman_estimator", domain, scenario), (dir / "estimator.log").string());
+  ChildProcess compensator(node_args("accel_feedback", domain, scenario), (dir / "compensator.log").string());
+  ChildProcess controller(node_args("controller", domain, scenario, {"--compensation", "topic"}),
+                          (dir / "controller.log").string());
+  ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "2"}), (dir / "plant.log").string());
+  ASSERT_TRUE(plant.wait_for_output("lockstep clock", seconds(30))) << plant.output();
+  const auto param = [&](std::vector<std::string> args, const char* log) { return run_param(dir, domain, args, log); };
+  const std::string key = "compensator.acceleration_feedback.gain_kg";
+  auto [code, text] = param({"list", "accel_feedback"}, "list.log");
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_NE(text.find(key + " = 160\n"), std::string::npos) << text;
+  std::tie(code, text) = param({"set", "accel_feedback", key, "120"}, "set.log");
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("accel_feedback: " + key + " 160 -> 120 from tick "), std::string::npos) << text;
+  std::tie(code, text) = param({"get", "accel_feedback", key}, "get.log");
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_EQ(text, "120\n");
+  std::tie(code, text) = param({"set", "accel_feedback", key, "-5"}, "range.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("stays 120"), std::string::npos) << text;
+  std::tie(code, text) =
+      param({"set", "accel_feedback", "compensator.state_feedback.model_damping_ratio", "2"}, "key.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("not a live parameter of this node"), std::string::npos) << text;
+  for (ChildProcess* p : {&plant, &controller, &compensator, &estimator}) {
+    p->signal(SIGINT);
+    EXPECT_TRUE(p->wait_for(seconds(30)).has_value()) << p->output();
+  }
+  EXPECT_NE(compensator.output().find("parameter " + key + " 160 -> 120 (version 1, by "), std::string::npos)
+      << compensator.output();
+  EXPECT_NE(compensator.output().find("K_a 120.0 kg"), std::string::npos) << compensator.output();
   fs::remove_all(dir);
 }
 

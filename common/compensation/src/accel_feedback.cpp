@@ -14,6 +14,11 @@ void AccelFeedbackParams::validate() const {
 
 AccelFeedback::AccelFeedback(const AccelFeedbackParams& params) : params_(params) { params_.validate(); }
 
+void AccelFeedback::set_params(const AccelFeedbackParams& params) {
+  params.validate();
+  params_ = params;
+}
+
 double AccelFeedback::step(const AccelFeedbackInput& in) {
   ++counters_.steps;
   const double accel_mps2 =

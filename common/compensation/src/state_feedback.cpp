@@ -37,13 +37,7 @@ StateFeedback::StateFeedback(const StateFeedbackParams& params) : params_(params
   const double m_m = params_.model.motor_mass_kg;
   const double m_l = params_.model.load_mass_kg;
   const double k = params_.model.spring_n_per_m;
-  const double r = params_.model_frequency_ratio;
-  const double w = r * std::sqrt(k / m_l);
-  c0_ = r * r - 1.0;
-  c1_s_ = 2.0 * params_.model_damping_ratio * w * m_l / k;
-  correction_gain_ =
-      std::min(2.0 * params_.correction_damping_ratio * params_.velocity_gain_n_s_per_m / std::sqrt(k * m_l) - 1.0,
-               params_.max_correction_gain);
+  design();
 
   // The controller's reference model (25), for its one-tick look ahead.
   const ReferenceModel reference(
@@ -62,6 +56,38 @@ StateFeedback::StateFeedback(const StateFeedbackParams& params) : params_(params
   const DiscreteModel model = discretize_zoh(a_m, b_m, params_.period_s);
   model_phi_ = model.phi;
   model_gamma_ = model.gamma;
+}
+
+void StateFeedback::design() {
+  const double m_l = params_.model.load_mass_kg;
+  const double k = params_.model.spring_n_per_m;
+  const double r = params_.model_frequency_ratio;
+  const double w = r * std::sqrt(k / m_l);
+  c0_ = r * r - 1.0;
+  c1_s_ = 2.0 * params_.model_damping_ratio * w * m_l / k;
+  correction_gain_ =
+      std::min(2.0 * params_.correction_damping_ratio * params_.velocity_gain_n_s_per_m / std::sqrt(k * m_l) - 1.0,
+               params_.max_correction_gain);
+}
+
+void StateFeedback::set_params(const StateFeedbackParams& params) {
+  params.validate();
+  const StateFeedbackParams& now = params_;
+  const bool same_base = params.model.motor_mass_kg == now.model.motor_mass_kg &&
+                         params.model.load_mass_kg == now.model.load_mass_kg &&
+                         params.model.spring_n_per_m == now.model.spring_n_per_m &&
+                         params.velocity_gain_n_s_per_m == now.velocity_gain_n_s_per_m &&
+                         params.reference_natural_frequency_rad_s == now.reference_natural_frequency_rad_s &&
+                         params.reference_damping_ratio == now.reference_damping_ratio &&
+                         params.period_s == now.period_s && params.force_limit_n == now.force_limit_n;
+  if (!same_base) {
+    throw std::invalid_argument(
+        "state feedback: only the design's ratios change live (model_frequency_ratio, model_damping_ratio, "
+        "correction_damping_ratio, max_correction_gain); the model, the period and the loop's gain and limit need "
+        "a restart");
+  }
+  params_ = params;
+  design();
 }
 
 double StateFeedback::model_spring_force_n() const {

@@ -174,4 +174,11 @@ std::vector<std::string> velocity_controller_live_keys() {
   return keys;
 }
 
+std::vector<std::string> accel_feedback_live_keys() { return {"compensator.acceleration_feedback.gain_kg"}; }
+
+std::vector<std::string> state_feedback_live_keys() {
+  return {"compensator.state_feedback.model_frequency_ratio", "compensator.state_feedback.model_damping_ratio",
+          "compensator.state_feedback.correction_damping_ratio", "compensator.state_feedback.max_correction_gain"};
+}
+
 }  // namespace pmlsm

@@ -8,6 +8,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "pmlsm/compensation/accel_feedback.hpp"
+#include "pmlsm/compensation/state_feedback.hpp"
 #include "pmlsm/sim/velocity_controller.hpp"
 #include "test_support.hpp"
 
@@ -106,6 +108,34 @@ TEST(LiveParameters, TheVelocityControllerTakesThemAtATickBoundaryWithItsIntegra
     if (k > 2000) peak = std::max(peak, std::fabs(out.compensation_applied_n));
   }
   EXPECT_LT(peak, 0.5);  // 50 N at the notch's centre: gone
+}
+
+// The compensator nodes' live keys: acceleration feedback's K_a and state feedback's design
+// ratios, each checked with the file's ranges, reaching the law at a tick boundary; state
+// feedback keeps its internal model and refuses a change of what it was built on.
+TEST(LiveParameters, TheCompensatorsTakeTheirGainsLive) {
+  const SystemParams& shipped = test::shipped_params();
+  LiveParameters accel_live(shipped, accel_feedback_live_keys());
+  ASSERT_TRUE(accel_live.set("compensator.acceleration_feedback.gain_kg", "120").accepted);
+  EXPECT_FALSE(accel_live.set("compensator.acceleration_feedback.gain_kg", "-1").accepted);
+  EXPECT_FALSE(accel_live.set("velocity_loop.kp_n_s_per_m", "9000").accepted);  // the controller's
+  AccelFeedback accel(shipped.accel_feedback_params());
+  ASSERT_TRUE(accel_live.take_pending());
+  accel.set_params(accel_live.params().accel_feedback_params());
+  EXPECT_DOUBLE_EQ(accel.step({1.0, 0.0}), -120.0 * shipped.compensator_gain_scale());
+
+  LiveParameters state_live(shipped, state_feedback_live_keys());
+  ASSERT_TRUE(state_live.set("compensator.state_feedback.correction_damping_ratio", "0.3").accepted);
+  StateFeedback state(shipped.state_feedback_params());
+  for (int k = 0; k < 50; ++k) state.step({0.2, 0.1, 1.0, 0.1, 5.0});
+  const double model_spring_n = state.model_spring_force_n();
+  state.set_params(state_live.params().state_feedback_params());
+  EXPECT_EQ(state.params().correction_damping_ratio, 0.3);
+  EXPECT_EQ(state.model_spring_force_n(), model_spring_n);  // the model's state kept
+  StateFeedbackParams other_model = state.params();
+  other_model.model.load_mass_kg = 5.0;
+  EXPECT_THROW(state.set_params(other_model), std::invalid_argument);
+  EXPECT_EQ(state.params().model.load_mass_kg, shipped.state_feedback_params().model.load_mass_kg);
 }
 
 }  // namespace

@@ -44,6 +44,9 @@ class AccelFeedback {
   double step(const AccelFeedbackInput& in);
   const AccelFeedbackCounters& counters() const { return counters_; }
   const AccelFeedbackParams& params() const { return params_; }
+  /// Live parameters at a tick boundary (the law has no state to keep).
+  /// @throws std::invalid_argument naming the invalid parameter; the old ones are kept.
+  void set_params(const AccelFeedbackParams& params);
 
  private:
   AccelFeedbackParams params_;

@@ -90,6 +90,11 @@ class StateFeedback {
   double step(const StateFeedbackInput& in);
   const StateFeedbackCounters& counters() const { return counters_; }
   const StateFeedbackParams& params() const { return params_; }
+  /// Live parameters at a tick boundary: the design's ratios (r, zeta_d, zeta_c and the
+  /// correction's limit) take effect from the next step, the internal model's state kept.
+  /// @throws std::invalid_argument naming the invalid parameter, or any other field changed (the
+  /// model, the period, the gains and limits it was built on: a restart); the old ones are kept.
+  void set_params(const StateFeedbackParams& params);
   double c0() const { return c0_; }
   double c1_s() const { return c1_s_; }
   /// The model's load velocity at the tick of the last input (what the plant is pulled onto).
@@ -99,6 +104,7 @@ class StateFeedback {
 
  private:
   void reset_model();
+  void design();  ///< c0, c1 and the correction's gain from params_
 
   StateFeedbackParams params_;
   double c0_ = 0;

@@ -69,5 +69,9 @@ class LiveParameters {
 /// The keys the velocity controller (the controller node, the in-process loop) takes live: the
 /// PI's gains and every filter slot.
 std::vector<std::string> velocity_controller_live_keys();
+/// accel_feedback's: its gain K_a.
+std::vector<std::string> accel_feedback_live_keys();
+/// state_feedback's: the design's ratios (SystemParams' model, period and loop stay for the run).
+std::vector<std::string> state_feedback_live_keys();
 
 }  // namespace pmlsm
