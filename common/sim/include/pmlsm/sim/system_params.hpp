@@ -35,9 +35,9 @@ struct TimingParams {
 
 /// The compensators added to the PI output: the Jordan RNN (section 3.2), the linear
 /// load-acceleration feedback it is compared with, state feedback with inverse-model feedforward,
-/// and the vibration guard and the standstill gate in the compensation path. Each is its component's own Params; the
-/// fields the system derives (periods, the velocity loop's gain and limit, the gain schedule) are
-/// left unset here and filled by SystemParams' accessors.
+/// and the vibration guard and the standstill gate in the compensation path. Each is its
+/// component's own Params; the fields the system derives (periods, the velocity loop's gain and
+/// limit, the gain schedule) are left unset here and filled by SystemParams' accessors.
 struct CompensatorTuning {
   RnnCompensatorParams rnn;
   AccelFeedbackParams acceleration_feedback;
@@ -48,7 +48,7 @@ struct CompensatorTuning {
   double max_gain_scale = 0;  ///< the schedule's upper limit (the stiff PI's, not the load's)
   bool guard_enabled = true;
   VibrationGuardParams guard;
-  bool standstill_enabled = true;
+  bool standstill_enabled = false;
   StandstillGateParams standstill;
 };
 
