@@ -187,6 +187,14 @@ void to_msg(const drive::TickReport& r, pmlsm_msgs::msg::MotorFeedback& out) {
   out.error_code(r.error_code);
 }
 
+void from_msg(const pmlsm_msgs::msg::MotorFeedback& in, drive::Measurement& out) {
+  out.position_m = in.position_m();
+  out.velocity_mps = in.velocity_mps();
+  out.i_d_a = in.i_d_a();
+  out.i_q_a = in.i_q_a();
+  out.thrust_force_n = in.thrust_force_n();
+}
+
 drive::ForceCommandIn from_msg(const pmlsm_msgs::msg::ForceCommand& c, std::uint64_t writer,
                                std::int64_t received_wall_ns) {
   drive::ForceCommandIn in;

@@ -69,6 +69,9 @@ void from_msg(const pmlsm_msgs::msg::MotorFeedback& in, DriveTickStatus& out);
 
 /// Every field but the stamp, from the drive loop's report of the tick.
 void to_msg(const drive::TickReport& report, pmlsm_msgs::msg::MotorFeedback& out);
+/// The drive's reading of the tick (the measurement in to_msg's report), for a tool that drives
+/// the force itself (`pmlsm commission` on a live drive).
+void from_msg(const pmlsm_msgs::msg::MotorFeedback& in, drive::Measurement& out);
 
 // ---- DriveState ---------------------------------------------------------------------------
 /// power_state, statusword, error_code, refused_requests, safe_ticks, watchdog_armed, faults

@@ -27,10 +27,9 @@ bool ParameterService::serve(std::uint64_t tick) {
 }
 
 void ParameterService::list_into(msg::ParameterEvent& event) const {
-  std::vector<std::string> entries;
-  for (const std::string& key : live_.keys()) entries.push_back(key + " = " + live_.get(key).value);
   event.entries().clear();
-  for (const std::string& e : entries) event.entries().push_back(e.substr(0, 192));
+  for (const std::string& key : live_.keys())
+    event.entries().push_back((key + " = " + live_.get(key).value).substr(0, 192));
 }
 
 void ParameterService::answer(std::uint64_t tick) {
@@ -55,9 +54,9 @@ void ParameterService::answer(std::uint64_t tick) {
   } else if (request_.operation() == ops::OPERATION_GET) {
     a = live_.get(key);
   } else if (request_.operation() == ops::OPERATION_SET) {
-    const std::string old_value = live_.get(key).value;
     a = live_.set(key, request_.value().to_string());
     if (a.accepted) {
+      const std::string& old_value = live_.history().back().old_value;
       event_.old_value(old_value.substr(0, 64));
       event_.effective_tick(tick);
       applied_ = true;
@@ -70,13 +69,14 @@ void ParameterService::answer(std::uint64_t tick) {
                    a.reason.c_str());
     }
   } else {
+    a.version = live_.version();
     a.reason = "unknown operation " + std::to_string(request_.operation());
   }
   refused_ += a.accepted ? 0 : 1;
   event_.accepted(a.accepted);
   event_.key(key.substr(0, 128));
   event_.value(a.value.substr(0, 64));
-  event_.version(a.accepted ? a.version : live_.version());
+  event_.version(a.version);
   event_.reason(a.reason.substr(0, 256));
   writer_.write(event_);
   answered_[next_answered_] = event_;

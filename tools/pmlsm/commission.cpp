@@ -29,6 +29,7 @@
 #include "ForceCommandPubSubTypes.h"
 #include "MotorFeedbackPubSubTypes.h"
 #include "commands.hpp"
+#include "msg_mapping.hpp"
 #include "pmlsm/dds/shutdown.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/config/sweep_file.hpp"
@@ -103,17 +104,6 @@ FrequencyResponseMeasurement measure_on_simulated_plant(const SystemParams& conf
 
 namespace msg = pmlsm_msgs::msg;
 
-/// The drive's reading in a MotorFeedback.
-drive::Measurement measurement_of(const msg::MotorFeedback& f) {
-  drive::Measurement m;
-  m.position_m = f.position_m();
-  m.velocity_mps = f.velocity_mps();
-  m.i_d_a = f.i_d_a();
-  m.i_q_a = f.i_q_a();
-  m.thrust_force_n = f.thrust_force_n();
-  return m;
-}
-
 /// The measurement on a live drive over DDS, in the controller's place (no controller may run: the
 /// drive follows one ForceCommand writer): every MotorFeedback answered with the measurement's
 /// force for that tick, then zero force until the drive's run ends (no feedback for the peer
@@ -138,10 +128,12 @@ FrequencyResponseMeasurement measure_on_live_drive(const dds::ParticipantOptions
     const auto seen = wakeup.generation();
     while (feedback_reader.take(feedback)) {
       last_feedback = std::chrono::steady_clock::now();
-      const drive::Measurement m = measurement_of(feedback);
+      drive::Measurement m;
+      node::from_msg(feedback, m);
+      node::DriveTickStatus status;
+      node::from_msg(feedback, status);
       // Force applied: operation enabled and out of the safe state, as a run's validity judges it.
-      const double force_n =
-          measurement.step(m, node::force_applied({feedback.status(), feedback.power_state(), feedback.error_code()}));
+      const double force_n = measurement.step(m, node::force_applied(status));
       command.stamp(feedback.stamp());
       command.feedback_tick(feedback.stamp().tick());
       command.force_n(force_n);

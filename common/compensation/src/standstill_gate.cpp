@@ -12,11 +12,7 @@ void StandstillGateParams::validate() const {
   require_positive("control_period_s", control_period_s);
   require_in_range("rest_velocity_mps", rest_velocity_mps, 0.0, 10.0);
   require_in_range("settle_s", settle_s, 0.0, 3600.0);
-  require_positive("window_s", window_s);
-  if (window_s < 2.0 * control_period_s) {
-    throw std::invalid_argument("window_s: must be at least two periods (" + format_value(2.0 * control_period_s) +
-                                " s), got " + format_value(window_s));
-  }
+  require_window("window_s", window_s, control_period_s);
   require_positive("quiet_velocity_mps", quiet_velocity_mps);
   require_finite("wake_velocity_mps", wake_velocity_mps);
   if (!(wake_velocity_mps > quiet_velocity_mps)) {

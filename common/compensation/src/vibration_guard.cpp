@@ -16,11 +16,7 @@ void VibrationGuardParams::validate() const {
     throw std::invalid_argument("highpass_hz: must be below the Nyquist frequency " +
                                 format_value(0.5 / control_period_s) + " Hz, got " + format_value(highpass_hz));
   }
-  require_positive("window_s", window_s);
-  if (window_s < 2.0 * control_period_s) {
-    throw std::invalid_argument("window_s: must be at least two periods (" + format_value(2.0 * control_period_s) +
-                                " s), got " + format_value(window_s));
-  }
+  require_window("window_s", window_s, control_period_s);
   require_positive("min_oscillation_mps", min_oscillation_mps);
   require_finite("growth_ratio", growth_ratio);
   if (!(growth_ratio > 1.0)) {

@@ -53,6 +53,15 @@ inline void require_in_range(const char* name, double value, double lo, double h
   }
 }
 
+/// An evaluation window of at least two control periods (one period holds no oscillation).
+inline void require_window(const char* name, double window_s, double control_period_s) {
+  require_positive(name, window_s);
+  if (window_s < 2.0 * control_period_s) {
+    throw std::invalid_argument(std::string(name) + ": must be at least two periods (" +
+                                format_value(2.0 * control_period_s) + " s), got " + format_value(window_s));
+  }
+}
+
 /// Runs a sub-section's checks and puts the section's name in front of the
 /// parameter name of any error: "mechanics." + "load_mass_kg: ...".
 template <typename F>
