@@ -266,6 +266,18 @@ TEST(MsgMapping, MotorFeedbackIntoDriveTickStatus) {
   EXPECT_EQ(s.error_code, 0x8130u);
 }
 
+// The drive's reading back out of MotorFeedback (`pmlsm commission` on a live drive): the
+// measurement, not the applied force or the status.
+TEST(MsgMapping, MotorFeedbackIntoTheDrivesMeasurement) {
+  drive::Measurement m;
+  from_msg(distinct_feedback(), m);
+  EXPECT_EQ(m.position_m, 3.01);
+  EXPECT_EQ(m.velocity_mps, 3.02);
+  EXPECT_EQ(m.i_d_a, 3.03);
+  EXPECT_EQ(m.i_q_a, 3.04);
+  EXPECT_EQ(m.thrust_force_n, 3.05);
+}
+
 // ---- VelocityReference, ForceCommand ------------------------------------------------------
 
 VelocityControllerOutput distinct_control(bool saturated) {
