@@ -538,6 +538,42 @@ TEST(Commission, SimulatedPlantGivesItsModesAReportAndASystemFile) {
   fs::remove_all(dir);
 }
 
+// `pmlsm commission --simulate --design-filters --tune` on a plant whose encoder sits on a 250 Hz
+// mount: the resonance found over the two-mass model, a notch placed in the force command's
+// first slot that raises the gain the margins allow, and the system file written with it.
+TEST(Commission, DesignsANotchForAResonanceAboveTheTwoMassModel) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "commission_notch");
+  const std::string out = (dir / "commissioned.yaml").string(), report = (dir / "report").string();
+  test::ChildProcess p(pmlsm_args(test_domain(95), {"commission", "--simulate", "-c", source("configs/system.yaml"),
+                                                    "--identification", source("configs/scenarios/identification.yaml"),
+                                                    "--set", "plant.encoder.mount_frequency_hz=250", "-o", out,
+                                                    "--report", report, "--design-filters", "--tune", "--no-verify"}),
+                       (dir / "commission.log").string());
+  ASSERT_EQ(run_to_end(p), 0) << p.output();
+  EXPECT_NE(p.output().find("filter design: resonance 25"), std::string::npos) << p.output();
+  EXPECT_NE(p.output().find("with a notch: placed"), std::string::npos) << p.output();
+  EXPECT_NE(p.output().find("with the force command's filters at the tuned gains"), std::string::npos) << p.output();
+  const SystemParams written = load_system_params(out);
+  const BiquadParams& notch = written.force_command_filters.slots[0];
+  EXPECT_EQ(notch.kind, FilterKind::kNotch);
+  EXPECT_NEAR(notch.frequency_hz, 250.0, 12.5);
+  EXPECT_LT(notch.damping, notch.second_damping);
+  EXPECT_EQ(written.force_command_filters.slots[1].kind, FilterKind::kNone);
+  // The gains the margins allow without the notch (measured: x0.43) raised by it.
+  EXPECT_GT(written.velocity_loop.kp_n_s_per_m, 10000.0 * 0.5);
+  EXPECT_LT(written.velocity_loop.kp_n_s_per_m, 10000.0);
+  // On the shipped (rigid) plant nothing stands out over the model: no notch.
+  test::ChildProcess rigid(
+      pmlsm_args(test_domain(95), {"commission", "--simulate", "--no-plots", "-c", source("configs/system.yaml"),
+                                   "--report", report, "--design-filters", "--no-verify"}),
+      (dir / "rigid.log").string());
+  ASSERT_EQ(run_to_end(rigid), 0) << rigid.output();
+  EXPECT_NE(rigid.output().find("filter design: no resonance 6 dB or more over the two-mass model above 40 Hz"),
+            std::string::npos)
+      << rigid.output();
+  fs::remove_all(dir);
+}
+
 // A run that would leave the stroke or exceed the force limit is refused before it starts (2); a
 // measurement a limit ends (a noisy encoder saturates the loop) exits 5; a response not coherent
 // enough and a commissioned system that fails its verification exit 6; none writes the file.

@@ -37,9 +37,11 @@
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/sim/frequency_response_measurement.hpp"
 #include "pmlsm/sim/identification.hpp"
+#include "pmlsm/sim/filter_design.hpp"
 #include "pmlsm/sim/loop_tuning.hpp"
 #include "pmlsm/sim/simulated_drive.hpp"
 #include "pmlsm/util/data_files.hpp"
+#include "pmlsm/util/validate.hpp"
 #include "run_validity.hpp"
 #include "system_file_options.hpp"
 #include "tool_support.hpp"
@@ -59,8 +61,9 @@ struct CommissionOptions {
   std::string out;                       ///< the system file to write ("": report only)
   std::string report = "commissioning";  ///< the report folder
   bool plots = true;
-  std::string family;  ///< a sweep file: measure every plant of its family instead (--simulate)
-  bool tune = false;   ///< write the tuned velocity PI gains too
+  std::string family;           ///< a sweep file: measure every plant of its family instead (--simulate)
+  bool tune = false;            ///< write the tuned velocity PI gains too
+  bool design_filters = false;  ///< notches on the resonances that limit the loop, in free slots
   /// The sweep file whose scenarios, compensators, weights and verdict verify the commissioned
   /// system ("": no verification).
   std::string verify = data_file("configs/sweeps/plant_family.yaml");
@@ -273,22 +276,29 @@ std::string describe(const LoopMargins& m) {
 struct LoopVerdict {
   std::optional<TunedGains> tuned;
   bool filters_refused = false;
-  std::string margins;  ///< as the loop will run: with the filters, at the configured gains
+  std::string margins;  ///< as the loop will run: with the filters, at the gains it will run with
 };
 
-/// The velocity loop's margins as measured, with the configured force-command filters, and the
-/// gains tuned to the targets with those filters in the loop, printed.
+/// The velocity loop's margins as measured, the gains tuned to the targets with the force
+/// command's filters in the loop, and the filters judged at the gains the loop will run with
+/// (the tuned ones with `tune`, else the configured ones), printed.
 LoopVerdict judge_loop(const SystemParams& configured, const FrequencyResponseResult& result,
-                       const FilterChain& filters, std::string& transcript) {
+                       const FilterChain& filters, bool tune, std::string& transcript) {
   const auto& targets = configured.commissioning.tuning;
   const double min_coherence = configured.commissioning.frequency_response.min_coherence;
   LoopVerdict verdict;
   say(transcript, "velocity loop as measured (Kp %.6g N s/m): %s\n", configured.velocity_loop.kp_n_s_per_m,
       describe(loop_margins(result.points, 1.0, min_coherence)).c_str());
-  const LoopMargins with_filters = loop_margins(result.points, 1.0, min_coherence, &filters);
+  std::string why;
+  verdict.tuned = tune_velocity_pi(result.points, configured.velocity_loop.kp_n_s_per_m,
+                                   configured.velocity_loop.ki_n_per_m, targets, min_coherence, why, &filters);
+  const bool at_tuned = tune && verdict.tuned;
+  const LoopMargins with_filters =
+      loop_margins(result.points, at_tuned ? verdict.tuned->gain_scale : 1.0, min_coherence, &filters);
   verdict.margins = describe(with_filters);
   if (!filters.empty()) {
-    say(transcript, "with the force command's filters: %s\n", verdict.margins.c_str());
+    say(transcript, "with the force command's filters at the %s gains: %s\n", at_tuned ? "tuned" : "configured",
+        verdict.margins.c_str());
     verdict.filters_refused = !with_filters.gain_crossover_found || !with_filters.phase_crossover_found ||
                               with_filters.phase_margin_deg < targets.min_phase_margin_deg ||
                               with_filters.gain_margin_db < targets.min_gain_margin_db;
@@ -297,9 +307,6 @@ LoopVerdict judge_loop(const SystemParams& configured, const FrequencyResponseRe
           verdict.margins.c_str(), targets.min_phase_margin_deg, targets.min_gain_margin_db);
     }
   }
-  std::string why;
-  verdict.tuned = tune_velocity_pi(result.points, configured.velocity_loop.kp_n_s_per_m,
-                                   configured.velocity_loop.ki_n_per_m, targets, min_coherence, why, &filters);
   if (!verdict.tuned) {
     say(transcript, "velocity loop tuning (%.4g deg, %.4g dB): %s\n", targets.min_phase_margin_deg,
         targets.min_gain_margin_db, why.c_str());
@@ -309,6 +316,45 @@ LoopVerdict judge_loop(const SystemParams& configured, const FrequencyResponseRe
       targets.min_phase_margin_deg, targets.min_gain_margin_db, verdict.tuned->kp_n_s_per_m, verdict.tuned->ki_n_per_m,
       verdict.tuned->gain_scale, describe(verdict.tuned->after).c_str());
   return verdict;
+}
+
+/// Notches for the resonances over the two-mass model that limit the loop's gain, in the free
+/// slots of the force command's chain (filter_design.hpp), printed; the slots placed go into
+/// `values` as the system file's keys. Returns the chain the loop will run with.
+FilterChainParams design_force_command_filters(const SystemParams& configured, const FrequencyResponseResult& result,
+                                               std::vector<ConfigOverride>& values, std::string& transcript) {
+  const FilterChainParams before = configured.force_command_filter_params();
+  const auto& design_params = configured.commissioning.filter_design;
+  const FilterDesign design = design_notches(result.points, result.fit, before, configured.commissioning.tuning,
+                                             configured.commissioning.frequency_response.min_coherence,
+                                             configured.timing.control_period_s, design_params);
+  if (design.peaks.empty()) {
+    say(transcript, "filter design: no resonance %.3g dB or more over the two-mass model above %.4g Hz; no notch\n",
+        design_params.min_peak_db, design_params.min_frequency_hz);
+  }
+  for (const ResonancePeak& peak : design.peaks) {
+    say(transcript, "filter design: resonance %.1f Hz, %.1f dB over the model, %.1f Hz wide: ", peak.frequency_hz,
+        peak.height_db, peak.width_hz);
+    if (!peak.slot_free) {
+      say(transcript, "no free slot in filters.force_command; not placed\n");
+      continue;
+    }
+    say(transcript, "the gains the margins allow x%.3f -> x%.3f with a notch: %s\n", peak.gain_scale_before,
+        peak.gain_scale_with, peak.placed ? "placed" : "not placed (less than min_gain_increase)");
+  }
+  for (std::size_t i = 0; i < kFilterSlots; ++i) {
+    const BiquadParams& slot = design.chain.slots[i];
+    if (slot == before.slots[i]) continue;
+    const std::string at = "filters.force_command.slot_" + std::to_string(i + 1) + ".";
+    say(transcript, "filter design: %s* = notch at %.2f Hz, damping %.4g, second_damping %.4g\n", at.c_str(),
+        slot.frequency_hz, slot.damping, slot.second_damping);
+    values.push_back({at + "kind", to_string(slot.kind)});
+    values.push_back({at + "frequency_hz", format_value(slot.frequency_hz)});
+    values.push_back({at + "damping", format_value(slot.damping)});
+    values.push_back({at + "second_frequency_hz", format_value(0.0)});
+    values.push_back({at + "second_damping", format_value(slot.second_damping)});
+  }
+  return design.chain;
 }
 
 /// The keys the commissioning writes: the two-mass model from the frequency response, the
@@ -483,6 +529,41 @@ bool verify_commissioned(const std::string& sweep_path, const SystemParams& comm
   return all_passed;
 }
 
+/// The system the commissioning verifies: the configured one with the commissioned values and the
+/// force command's filters; on a live drive, the simulated plant is the identified one (the
+/// simulation of what was measured).
+SystemParams commissioned_system(const SystemParams& configured,
+                                 const std::vector<std::pair<std::string, double>>& values, const FilterChain& filters,
+                                 const TwoMassFit& fit, bool simulate) {
+  SystemParams commissioned = configured;
+  for (const auto& [key, value] : values) real_parameter(commissioned, key) = value;
+  commissioned.force_command_filters = filters.params();
+  if (!simulate) {
+    commissioned.plant.mechanics.motor_mass_kg = fit.motor_mass_kg;
+    commissioned.plant.mechanics.load_mass_kg = fit.load_mass_kg;
+    commissioned.plant.mechanics.spring_n_per_m = fit.spring_n_per_m;
+  }
+  commissioned.validate();
+  return commissioned;
+}
+
+/// The system file with the commissioned values and the designed filter slots, at o.out.
+void write_commissioned(const CommissionOptions& o, const TwoMassFit& fit,
+                        const std::vector<std::pair<std::string, double>>& values,
+                        const std::vector<ConfigOverride>& filter_values, std::string& transcript) {
+  char source[320];
+  std::snprintf(source, sizeof source,
+                "chosen: commissioned by pmlsm commission from %s (frequency response: anti-resonance %.3f Hz, "
+                "resonance %.3f Hz; friction from the time-domain fit)",
+                o.simulate ? "the simulated plant" : "the drive", fit.anti_resonance_hz, fit.resonance_hz);
+  std::vector<ConfigOverride> written;
+  for (const auto& [key, value] : values) written.push_back({key, format_value(value)});
+  written.insert(written.end(), filter_values.begin(), filter_values.end());
+  write_system_file_with(o.config, written, source, o.out);
+  say(transcript, "commission: %s written (%zu values); run the nodes with --config %s\n", o.out.c_str(),
+      written.size(), o.out.c_str());
+}
+
 /// The commissioning; what it prints is kept in `transcript` for the report as well.
 int commission(const CommissionOptions& o, std::string& transcript) {
   if (!o.simulate && !o.family.empty()) throw UsageError("commission: --family needs --simulate");
@@ -509,8 +590,6 @@ int commission(const CommissionOptions& o, std::string& transcript) {
     say(transcript, "commission: %s; nothing written but %s\n", e.what(), (dir / "samples.csv").string().c_str());
     return kExitVerdictFailed;
   }
-  const FilterChain filters(configured.force_command_filter_params());
-  write_response_csv(dir / "response.csv", result, filters);
   std::optional<IdentifiedLoad> time_domain;
   if (o.simulate) {  // a live drive's: `pmlsm identify` on a recording of its identification run
     std::fprintf(stderr, "commission: the time-domain fit (pmlsm identify) on %s\n", o.identification.c_str());
@@ -522,7 +601,12 @@ int commission(const CommissionOptions& o, std::string& transcript) {
       measurement.params().min_coherence);
   print_fit(result.fit, time_domain, configured, o.simulate, transcript);
   say(transcript, "anti-resonance %.3f Hz\nresonance %.3f Hz\n", result.fit.anti_resonance_hz, result.fit.resonance_hz);
-  const LoopVerdict loop = judge_loop(configured, result, filters, transcript);
+  std::vector<ConfigOverride> filter_values;
+  const FilterChain filters(o.design_filters
+                                ? design_force_command_filters(configured, result, filter_values, transcript)
+                                : configured.force_command_filter_params());
+  write_response_csv(dir / "response.csv", result, filters);
+  const LoopVerdict loop = judge_loop(configured, result, filters, o.tune, transcript);
   if (o.plots) {
     write_bode_script(dir, result.fit, loop.margins, !filters.empty());
     if (run_gnuplot(dir / "bode.gp") != 0) throw std::runtime_error("gnuplot failed on " + (dir / "bode.gp").string());
@@ -539,28 +623,12 @@ int commission(const CommissionOptions& o, std::string& transcript) {
     values.emplace_back("velocity_loop.kp_n_s_per_m", loop.tuned->kp_n_s_per_m);
     values.emplace_back("velocity_loop.ki_n_per_m", loop.tuned->ki_n_per_m);
   }
-  SystemParams commissioned = configured;
-  for (const auto& [key, value] : values) real_parameter(commissioned, key) = value;
-  if (!o.simulate) {  // verified on the identified plant: the simulation of what was measured
-    commissioned.plant.mechanics.motor_mass_kg = result.fit.motor_mass_kg;
-    commissioned.plant.mechanics.load_mass_kg = result.fit.load_mass_kg;
-    commissioned.plant.mechanics.spring_n_per_m = result.fit.spring_n_per_m;
-  }
-  commissioned.validate();
+  const SystemParams commissioned = commissioned_system(configured, values, filters, result.fit, o.simulate);
   if (!o.verify.empty() && !verify_commissioned(o.verify, commissioned, dir, transcript)) {
     say(transcript, "commission: the verification failed; nothing written (--no-verify writes it regardless)\n");
     return kExitVerdictFailed;
   }
-  if (o.out.empty()) return kExitOk;
-  char source[320];
-  std::snprintf(source, sizeof source,
-                "chosen: commissioned by pmlsm commission from %s (frequency response: anti-resonance %.3f Hz, "
-                "resonance %.3f Hz; friction from the time-domain fit)",
-                o.simulate ? "the simulated plant" : "the drive", result.fit.anti_resonance_hz,
-                result.fit.resonance_hz);
-  write_system_file_with(o.config, values, source, o.out);
-  say(transcript, "commission: %s written (%zu values); run the nodes with --config %s\n", o.out.c_str(), values.size(),
-      o.out.c_str());
+  if (!o.out.empty()) write_commissioned(o, result.fit, values, filter_values, transcript);
   return kExitOk;
 }
 
@@ -614,6 +682,9 @@ void add_commission_command(CLI::App& app, dds::ParticipantOptions& dds_options,
       "--no-verify", [o] { o->verify.clear(); }, "No verification (the system file is written regardless)");
   cmd->add_flag("--tune", o->tune,
                 "Write the velocity PI's gains tuned to commissioning.tuning's margins into the system file too");
+  cmd->add_flag("--design-filters", o->design_filters,
+                "Design notches for the resonances over the two-mass model that limit the loop's gain, into free "
+                "slots of filters.force_command (commissioning.filter_design), tune and write with them");
   cmd->add_option("--family", o->family,
                   "With --simulate: measure every plant of this sweep file's family and print the fit's errors")
       ->check(CLI::ExistingFile);

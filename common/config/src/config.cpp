@@ -194,13 +194,19 @@ SystemParams load_system_params(const std::string& path, const std::vector<Confi
 std::string write_system_file_with(const std::string& in_path,
                                    const std::vector<std::pair<std::string, double>>& values, const std::string& source,
                                    const std::string& out_path) {
+  std::vector<ConfigOverride> texts;
+  texts.reserve(values.size());
+  for (const auto& [key, value] : values) texts.push_back({key, format_value(value)});
+  return write_system_file_with(in_path, texts, source, out_path);
+}
+
+std::string write_system_file_with(const std::string& in_path, const std::vector<ConfigOverride>& values,
+                                   const std::string& source, const std::string& out_path) {
   if (source.rfind("chosen:", 0) != 0 || source.find_first_not_of(" \t", 7) == std::string::npos) {
     throw ConfigError(out_path + ": the source of the written values must be 'chosen: <reason>', got '" + source + "'");
   }
   YAML::Node root = parse_yaml(read_file(in_path), in_path);
-  std::vector<ConfigOverride> overrides;
-  for (const auto& [key, value] : values) overrides.push_back({key, format_value(value)});
-  apply_overrides(root, overrides, in_path, source);
+  apply_overrides(root, values, in_path, source);
   YAML::Emitter out;
   out.SetIndent(2);
   out << root;

@@ -130,6 +130,8 @@ double InverterParams::voltage_limit_v() const { return dc_bus_v / std::sqrt(3.0
 void EncoderParams::validate() const {
   require_positive("resolution_m", resolution_m);
   require_non_negative("position_noise_std_m", position_noise_std_m);
+  require_non_negative("mount_frequency_hz", mount_frequency_hz);
+  if (mount_frequency_hz > 0.0) require_in_range("mount_damping", mount_damping, 1e-4, 2.0);
 }
 
 void PlantParams::validate() const {
@@ -172,6 +174,8 @@ void PlantParams::check_step() const {
                std::sqrt(m.spring_n_per_m * inverse_masses), max_step_s, 0.1);
   require_rate("mechanics.damping_n_s_per_m", m.damping_n_s_per_m, "the damping rate b (1/m_M + 1/m_L)",
                m.damping_n_s_per_m * inverse_masses, max_step_s, 0.5);
+  require_rate("encoder.mount_frequency_hz", encoder.mount_frequency_hz, "the read head's mode 2 pi f_e",
+               2.0 * kPi * encoder.mount_frequency_hz, max_step_s, 0.1);
   // Friction (11): its slope at v = 0 is 1.5 F_c / v_eps + F_v, acting on m_M.
   require_rate(
       "friction.regularisation_velocity_mps", friction.regularisation_velocity_mps,
@@ -218,6 +222,10 @@ Plant::Plant(const PlantParams& params) : params_(params), noise_rng_(params.enc
   c.inv_load_mass = 1.0 / params_.mechanics.load_mass_kg;
   voltage_limit_v_ = params_.inverter.voltage_limit_v();
   inv_encoder_resolution_ = 1.0 / params_.encoder.resolution_m;
+  compliant_mount_ = params_.encoder.mount_frequency_hz > 0.0;
+  const double mount_rad_s = 2.0 * kPi * params_.encoder.mount_frequency_hz;
+  mount_stiffness_per_s2_ = mount_rad_s * mount_rad_s;
+  mount_damping_per_s_ = 2.0 * params_.encoder.mount_damping * mount_rad_s;
   inv_max_step_ = 1.0 / params_.max_step_s;
   reset(PlantInitialCondition{});
 }
@@ -261,6 +269,8 @@ void Plant::reset(const PlantInitialCondition& initial) {
   state_.motor_velocity_mps = initial.motor_velocity_mps;
   state_.load_position_m = initial.load_position_m;
   state_.load_velocity_mps = initial.load_velocity_mps;
+  head_offset_m_ = 0.0;
+  head_offset_rate_mps_ = 0.0;
   ripple_phase_ = anchor_at(state_.motor_position_m);
   steps_since_resync_ = 0;
   history_valid_ = false;
@@ -413,10 +423,17 @@ void Plant::integrate(double u_d, double u_q, double load_force, double h, int s
     }
     state_.motor_position_m = y[kXm];
     advance_ripple_phase();
+    if (compliant_mount_) advance_encoder_head(k1.derivative[kVm], h);
   }
   history_step_s_ = h;
   history_input_ = PlantInput{u_d, u_q, load_force};
   state_ = from_vector(y);
+}
+
+void Plant::advance_encoder_head(double motor_accel_mps2, double h) {
+  head_offset_rate_mps_ -=
+      h * (mount_stiffness_per_s2_ * head_offset_m_ + mount_damping_per_s_ * head_offset_rate_mps_ + motor_accel_mps2);
+  head_offset_m_ += h * head_offset_rate_mps_;
 }
 
 PlantMeasurement Plant::step(const PlantInput& input, double dt_s) {
@@ -447,6 +464,7 @@ PlantMeasurement Plant::step(const PlantInput& input, double dt_s) {
   const double h = dt_s / substeps;
   const PlantState before = state_;
   const RippleAnchor ripple_before = ripple_phase_;
+  const double head_offset_before = head_offset_m_, head_offset_rate_before = head_offset_rate_mps_;
   integrate(applied.u_d_v, applied.u_q_v, applied.load_force_n, h, substeps);
   ++steps_since_reset_;
   double bad_value = 0;
@@ -454,6 +472,8 @@ PlantMeasurement Plant::step(const PlantInput& input, double dt_s) {
     divergence_ = PlantDivergence{true, bad, bad_value, steps_since_reset_};
     state_ = before;
     ripple_phase_ = ripple_before;
+    head_offset_m_ = head_offset_before;
+    head_offset_rate_mps_ = head_offset_rate_before;
     history_valid_ = false;
   }
   return measure();
@@ -461,7 +481,7 @@ PlantMeasurement Plant::step(const PlantInput& input, double dt_s) {
 
 PlantMeasurement Plant::measure() {
   const auto& enc = params_.encoder;
-  double x = state_.motor_position_m;
+  double x = state_.motor_position_m + head_offset_m_;
   if (enc.position_noise_std_m > 0.0) x += enc.position_noise_std_m * noise_(noise_rng_);
   PlantMeasurement out;
   // Counts = floor(x / resolution), by truncation corrected for negative x:
@@ -490,6 +510,7 @@ PlantTruth Plant::truth() const {
   t.ripple_n = r.ripple;
   t.friction_n = r.friction;
   t.spring_force_n = r.spring;
+  t.encoder_head_position_m = state_.motor_position_m + head_offset_m_;
   t.motor_accel_mps2 = r.derivative[kVm];
   t.load_accel_mps2 = r.derivative[kVl];
   return t;

@@ -10,6 +10,8 @@ namespace pmlsm {
 namespace {
 
 constexpr double kDegreesPerRadian = 57.295779513082320876;
+/// A phase step between two lines smaller than this is a resolved crossing, not a mode's jump.
+constexpr double kResolvedStepDeg = 90.0;
 
 struct LoopLine {
   double log_f = 0;
@@ -56,14 +58,17 @@ LoopMargins loop_margins(const std::vector<FrequencyPoint>& points, double gain_
     }
     // Phase crossover: the phase through -180 + 360 k.
     const double ka = std::floor((a.phase_deg + 180.0) / 360.0), kb = std::floor((b.phase_deg + 180.0) / 360.0);
-    // Only where |L| < 1: the phase of a lightly damped mode can turn half a turn between two
-    // lines, where unwrapping cannot tell its direction; such a "crossing" has |L| >> 1 and is no
-    // gain margin (at those frequencies the sampling's delay is a few degrees).
+    // The phase of a lightly damped mode can turn half a turn between two lines, where
+    // unwrapping cannot tell its direction; such a "crossing" has |L| >> 1 and is no gain margin
+    // (at those frequencies the sampling's delay is a few degrees). A crossing the lines resolve
+    // (the phase moved less than kResolvedStepDeg between them) is one whatever |L|: with
+    // |L| > 1 its margin is negative, the loop unstable (or stable only for more gain).
     if (ka != kb) {
       const double crossing = 360.0 * std::max(ka, kb) - 180.0;
       const double t = (crossing - a.phase_deg) / (b.phase_deg - a.phase_deg);
       const double margin_db = -20.0 / std::log(10.0) * between(a.log_mag, b.log_mag, t);
-      if (margin_db > 0 && (!m.phase_crossover_found || margin_db < m.gain_margin_db)) {
+      const bool resolved = std::abs(b.phase_deg - a.phase_deg) < kResolvedStepDeg;
+      if ((margin_db > 0 || resolved) && (!m.phase_crossover_found || margin_db < m.gain_margin_db)) {
         m.gain_margin_db = margin_db;
         m.phase_crossover_hz = std::exp(between(a.log_f, b.log_f, t));
         m.phase_crossover_found = true;

@@ -228,6 +228,7 @@ void SystemParams::validate() const {
   validate_section("compensator.standstill", [&] { standstill_gate_params().validate(); });
   validate_section("commissioning.frequency_response", [&] { frequency_response_params().validate(); });
   validate_section("commissioning.tuning", [&] { commissioning.tuning.validate(); });
+  validate_section("commissioning.filter_design", [&] { commissioning.filter_design.validate(); });
   validate_section("filters.force_command", [&] { force_command_filter_params().validate(); });
   validate_section("filters.compensation", [&] { compensation_filter_params().validate(); });
   validate_section("plant", [&] { plant.check_step(); });

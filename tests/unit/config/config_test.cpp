@@ -456,8 +456,8 @@ TEST(ConfigFiles, AWrittenCopyHoldsTheValuesAndTheirSource) {
                  write_system_file_with(shipped, {{"kalman.model.load_mass_kg", -2.0}}, "chosen: x", refused);
                }),
                refused, {"kalman.model.load_mass_kg", "-2"});
-  expect_names(error_of([&] { write_system_file_with(shipped, {}, "identified", refused); }), refused,
-               {"'chosen: <reason>'"});
+  expect_names(error_of([&] { write_system_file_with(shipped, std::vector<ConfigOverride>{}, "identified", refused); }),
+               refused, {"'chosen: <reason>'"});
   EXPECT_FALSE(std::ifstream(refused).good());
 }
 

@@ -177,6 +177,38 @@ TEST(Plant, EncoderNoiseIsSeededAndReproducible) {
   EXPECT_TRUE(differs);
 }
 
+// The read head on a compliant mount: e = x_e - x_m obeys e'' + 2 zeta w e' + w^2 e = -x_m'', so
+// once its own ring has died out (zeta 0.05 at 100 Hz: 32 ms) it lags the motor by the
+// quasi-static -x_m'' / w^2 (to (f / f_e)^2 = 1 %, the motor swinging at 10.2 Hz), and the encoder
+// reads the head. A rigid mount reads the motor.
+TEST(Plant, EncoderOnACompliantMountReadsTheHeadLaggingTheMotor) {
+  SystemParams p = test::ideal_params();
+  p.plant.encoder.mount_frequency_hz = 100.0;
+  p.plant.encoder.mount_damping = 0.05;
+  Drive drive(p);
+  drive.plant.reset({0.0, 0.0, 0.02, 0.0});
+  const double w = 2 * kPi * 100.0, dt = p.timing.current_loop_period_s;
+  double worst_error_m = 0, largest_lag_m = 0;
+  for (int i = 1; i <= static_cast<int>(1.0 / dt); ++i) {
+    const PlantMeasurement m = drive.step(0.0);
+    const PlantTruth t = drive.plant.truth();
+    EXPECT_LE(std::abs(m.encoder_position_m - t.encoder_head_position_m), p.plant.encoder.resolution_m);
+    if (i * dt < 0.3) continue;
+    const double lag_m = -t.state.motor_position_m + t.encoder_head_position_m;
+    const double quasi_static_m = -t.motor_accel_mps2 / (w * w);
+    worst_error_m = std::max(worst_error_m, std::abs(lag_m - quasi_static_m));
+    largest_lag_m = std::max(largest_lag_m, std::abs(quasi_static_m));
+  }
+  EXPECT_GT(largest_lag_m, 10e-6);
+  EXPECT_LT(worst_error_m, 0.03 * largest_lag_m) << worst_error_m << " of " << largest_lag_m;
+
+  Plant rigid(test::shipped_params().plant);
+  rigid.reset({0.0123456789, 0.1, 0.0, 0.0});
+  EXPECT_EQ(rigid.truth().encoder_head_position_m, rigid.state().motor_position_m);
+  p.plant.encoder.mount_damping = 0.0;
+  EXPECT_THROW(Plant{p.plant}, std::invalid_argument);  // a compliant mount needs its damping
+}
+
 TEST(Plant, FrictionIsExactSignAwayFromZeroAndSmoothThrough) {
   const PlantParams p = test::shipped_params().plant;
   Plant plant(p);

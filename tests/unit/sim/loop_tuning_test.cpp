@@ -56,6 +56,13 @@ TEST(LoopMargins, AreThoseOfALoopKnownInClosedForm) {
   // Doubling the gain: the gain margin falls by 6.02 dB.
   EXPECT_NEAR(loop_margins(lines_of(loop), 2.0, 0.9).gain_margin_db, m.gain_margin_db - 20 * std::log10(2.0), 0.05);
 
+  // Four times the gain: the phase passes -180 deg where |L| = 1.6, resolved by the lines: a
+  // negative gain margin (unstable), not a crossing skipped as a mode's jump.
+  const LoopMargins unstable = loop_margins(lines_of(loop), 4.0, 0.9);
+  ASSERT_TRUE(unstable.phase_crossover_found);
+  EXPECT_NEAR(unstable.gain_margin_db, m.gain_margin_db - 20 * std::log10(4.0), 0.05);
+  EXPECT_LT(unstable.gain_margin_db, 0.0);
+
   // Tuned to 45 deg + 2 and 8 dB + 1: the gain margin binds (it is the smaller here).
   TuningTargets targets{45.0, 8.0, 4.0, 2.0, 1.0};
   std::string why;

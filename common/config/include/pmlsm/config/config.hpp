@@ -52,6 +52,9 @@ SystemParams load_system_params(const std::string& path, const std::vector<Confi
 std::string write_system_file_with(const std::string& in_path,
                                    const std::vector<std::pair<std::string, double>>& values, const std::string& source,
                                    const std::string& out_path);
+/// The same with each value as its text (a choice's name, a number as written).
+std::string write_system_file_with(const std::string& in_path, const std::vector<ConfigOverride>& values,
+                                   const std::string& source, const std::string& out_path);
 SystemParams parse_system_params(const std::string& yaml_text, const std::string& origin,
                                  const std::vector<ConfigOverride>& overrides = {});
 

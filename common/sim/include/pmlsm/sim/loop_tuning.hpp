@@ -6,8 +6,9 @@
 // PI's zero: C' = s C, so L' = s L at every line and the margins of any s follow from one
 // measurement:
 //   phase margin  180 deg + arg L'(f_c) at every gain crossover |L'(f_c)| = 1 (the smallest)
-//   gain margin   -20 log10 |L'(f_p)| at every phase crossover arg L'(f_p) = -180 deg with
-//                 |L'| < 1 (the smallest; see loop_margins for why not those with |L'| > 1)
+//   gain margin   -20 log10 |L'(f_p)| at every phase crossover arg L'(f_p) = -180 deg (the
+//                 smallest): a crossing with |L'| > 1 counts (a negative margin: unstable) when
+//                 the lines resolve it, not where a mode turns the phase between two lines
 // with the phase unwrapped along the lines and both read between lines by interpolation in
 // log frequency. A crossover outside the measured band cannot be read: a gain whose crossovers
 // leave the band is not chosen.

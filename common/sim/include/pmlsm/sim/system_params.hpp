@@ -17,6 +17,7 @@
 #include "pmlsm/compensation/state_feedback.hpp"
 #include "pmlsm/estimation/kalman_filter.hpp"
 #include "pmlsm/plant/plant.hpp"
+#include "pmlsm/sim/filter_design.hpp"
 #include "pmlsm/sim/frequency_response_measurement.hpp"
 #include "pmlsm/sim/loop_tuning.hpp"
 #include "pmlsm/util/parameter_table.hpp"
@@ -62,7 +63,8 @@ struct InputShapingTuning {
 /// the ripple's pole pitch come from the system (SystemParams::frequency_response_params).
 struct CommissioningTuning {
   FrequencyResponseMeasurementParams frequency_response;
-  TuningTargets tuning;  ///< the velocity PI's margins `pmlsm commission --tune` sets the gains to
+  TuningTargets tuning;              ///< the velocity PI's margins `pmlsm commission --tune` sets the gains to
+  FilterDesignParams filter_design;  ///< `pmlsm commission --design-filters`: notches on resonances
 };
 
 /// A lightly damped mode of a linear loop: s = -zeta w_n +- j w_n sqrt(1 - zeta^2).
@@ -234,6 +236,10 @@ void visit_parameters(Params& p, Visitor& v) {
          {0.0, 1e-2, "0 to 10 mm of noise"});
   v.integer("plant.encoder.noise_seed", p.plant.encoder.noise_seed,
             {0.0, 18446744073709551615.0, "a seed: any whole number of 64 bits"});
+  v.real("plant.encoder.mount_frequency_hz", p.plant.encoder.mount_frequency_hz,
+         {0.0, 1e5, "0 (a rigid mount) to 100 kHz"});
+  v.real("plant.encoder.mount_damping", p.plant.encoder.mount_damping,
+         {0.0, 2.0, "0 to 2 (at least 1e-4 with a compliant mount)"});
 
   v.real("current_loop.kp_v_per_a", p.current_loop.kp_v_per_a,
          {1e-3, 1e5, "1 mV/A to 100 kV/A: L w_c for any motor and a bandwidth up to the sampling"});
@@ -277,6 +283,12 @@ void visit_parameters(Params& p, Visitor& v) {
          {1.01, 100.0, "the gains may move by 1 % to a hundredfold either way"});
   v.real("commissioning.tuning.phase_allowance_deg", tuning.phase_allowance_deg, {0.0, 30.0, "0 to 30 deg"});
   v.real("commissioning.tuning.gain_allowance_db", tuning.gain_allowance_db, {0.0, 10.0, "0 to 10 dB"});
+  auto& design = p.commissioning.filter_design;
+  v.real("commissioning.filter_design.min_frequency_hz", design.min_frequency_hz,
+         {1e-3, 1e5, "1 mHz to 100 kHz (above it: resonances; below it: the two-mass model)"});
+  v.real("commissioning.filter_design.min_peak_db", design.min_peak_db, {0.1, 60.0, "0.1 to 60 dB"});
+  v.real("commissioning.filter_design.min_gain_increase", design.min_gain_increase,
+         {1.000001, 100.0, "a factor above 1, up to 100"});
 
   // The filter's model of the mechanics: the ranges of the plant's (the model is of such a plant).
   detail::visit_two_mass("kalman.model", p.kalman.model, v);
