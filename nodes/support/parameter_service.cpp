@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <utility>
+#include <vector>
 
 namespace pmlsm::node {
 
@@ -30,6 +31,38 @@ void ParameterService::list_into(msg::ParameterEvent& event) const {
   event.entries().clear();
   for (const std::string& key : live_.keys())
     event.entries().push_back((key + " = " + live_.get(key).value).substr(0, 192));
+}
+
+LiveAnswer ParameterService::set_many(std::uint64_t tick, const std::string& requester) {
+  std::vector<std::pair<std::string, std::string>> changes;
+  for (const auto& entry : request_.entries()) {
+    const std::string text = entry.to_string();
+    const auto equals = text.find(" = ");
+    if (equals == std::string::npos || equals == 0) {
+      LiveAnswer refused;
+      refused.version = live_.version();
+      refused.reason = "entry '" + text + "': expected 'key = value'";
+      return refused;
+    }
+    changes.emplace_back(text.substr(0, equals), text.substr(equals + 3));
+  }
+  const LiveAnswer a = live_.set_many(changes);
+  if (!a.accepted) {
+    std::fprintf(stderr, "%s: tick %llu: %zu parameters refused together (by %s): %s\n", node_name_.c_str(),
+                 static_cast<unsigned long long>(tick), changes.size(), requester.c_str(), a.reason.c_str());
+    return a;
+  }
+  event_.effective_tick(tick);
+  applied_ = true;
+  const auto& history = live_.history();
+  for (auto change = history.end() - static_cast<std::ptrdiff_t>(changes.size()); change != history.end(); ++change) {
+    event_.entries().push_back((change->key + ": " + change->old_value + " -> " + change->new_value).substr(0, 192));
+    std::printf("%s: tick %llu: parameter %s %s -> %s (version %llu, by %s, together with %zu)\n", node_name_.c_str(),
+                static_cast<unsigned long long>(tick), change->key.c_str(), change->old_value.c_str(),
+                change->new_value.c_str(), static_cast<unsigned long long>(change->version), requester.c_str(),
+                changes.size());
+  }
+  return a;
 }
 
 void ParameterService::answer(std::uint64_t tick) {
@@ -68,6 +101,8 @@ void ParameterService::answer(std::uint64_t tick) {
                    static_cast<unsigned long long>(tick), key.c_str(), request_.value().c_str(), requester.c_str(),
                    a.reason.c_str());
     }
+  } else if (request_.operation() == ops::OPERATION_SET_MANY) {
+    a = set_many(tick, requester);
   } else {
     a.version = live_.version();
     a.reason = "unknown operation " + std::to_string(request_.operation());

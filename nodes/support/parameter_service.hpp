@@ -30,6 +30,8 @@ class ParameterService {
 
  private:
   void answer(std::uint64_t tick);
+  /// SET_MANY: the request's "key = value" entries taken together; the event lists the changes.
+  LiveAnswer set_many(std::uint64_t tick, const std::string& requester);
   void list_into(pmlsm_msgs::msg::ParameterEvent& event) const;
 
   NodeRuntime& rt_;

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <regex>
 #include <sstream>
 #include <string>
@@ -246,6 +247,73 @@ TEST(LiveParametersDistributed, PmlsmParamSetsACompensatorsGainAtATickBoundary) 
   EXPECT_NE(compensator.output().find("parameter " + key + " 160 -> 120 (version 1, by "), std::string::npos)
       << compensator.output();
   EXPECT_NE(compensator.output().find("K_a 120.0 kg"), std::string::npos) << compensator.output();
+  fs::remove_all(dir);
+}
+
+// The tuner's result applied live: `pmlsm commission --design-filters --tune` writes a notch and
+// tuned gains; `pmlsm param load` puts every live parameter that differs into the running
+// controller in one request, taken at one tick boundary (the notch's kind with its values, which
+// one change at a time would refuse). A dry run changes nothing; a second load finds nothing to
+// change; a file that does not load is refused before anything is sent.
+TEST(LiveParametersDistributed, PmlsmParamLoadsACommissionedFileIntoTheRunningController) {
+  const fs::path dir = fresh_dir("pmlsm_external", "param_load");
+  const std::string domain = test_domain(100);
+  const std::string commissioned = (dir / "commissioned.yaml").string();
+  ChildProcess commission(
+      {bin("pmlsm"), "commission", "--simulate", "--no-plots", "-c", source("configs/system.yaml"), "--identification",
+       source("configs/scenarios/identification.yaml"), "--set", "plant.encoder.mount_frequency_hz=250",
+       "--design-filters", "--tune", "--no-verify", "-o", commissioned, "--report", (dir / "report").string()},
+      (dir / "commission.log").string());
+  const auto commissioned_code = commission.wait_for(seconds(120));
+  ASSERT_TRUE(commissioned_code.has_value()) << commission.output();
+  ASSERT_EQ(*commissioned_code, 0) << commission.output();
+  EXPECT_NE(commission.output().find("pmlsm param load controller " + commissioned), std::string::npos)
+      << commission.output();
+
+  const std::string scenario = external_scenario(dir, 600.0);
+  ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
+  ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "1"}), (dir / "plant.log").string());
+  ASSERT_TRUE(plant.wait_for_output("lockstep clock", seconds(30))) << plant.output();
+  const auto param = [&](std::vector<std::string> args, const char* log) { return run_param(dir, domain, args, log); };
+  auto [code, text] = param({"load", "controller", commissioned, "--dry-run"}, "dry.log");
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("controller: filters.force_command.slot_1.kind none -> notch (not sent: --dry-run)"),
+            std::string::npos)
+      << text;
+  std::tie(code, text) = param({"get", "controller", "filters.force_command.slot_1.kind"}, "before.log");
+  EXPECT_EQ(text, "none\n");
+  std::tie(code, text) = param({"load", "controller", commissioned}, "load.log");
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("controller: filters.force_command.slot_1.kind: none -> notch\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("controller: velocity_loop.kp_n_s_per_m: 10000 -> "), std::string::npos) << text;
+  EXPECT_NE(text.find("controller: 6 parameters from " + commissioned + " from tick "), std::string::npos) << text;
+  EXPECT_NE(text.find("(version 6)"), std::string::npos) << text;
+  std::tie(code, text) = param({"get", "controller", "filters.force_command.slot_1.kind"}, "after.log");
+  EXPECT_EQ(text, "notch\n");
+  std::tie(code, text) = param({"load", "controller", commissioned}, "again.log");
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("are already as in"), std::string::npos) << text;
+  const std::string broken = (dir / "broken.yaml").string();
+  {
+    std::ifstream in(commissioned);
+    std::string yaml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const auto at = yaml.find("force_limit_n: {value: ");
+    ASSERT_NE(at, std::string::npos);
+    yaml.replace(at, 23, "force_limit_n: {value: -");
+    std::ofstream(broken) << yaml;
+  }
+  std::tie(code, text) = param({"load", "controller", broken}, "broken.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("force_limit_n"), std::string::npos) << text;
+  EXPECT_NE(text.find("(nothing sent)"), std::string::npos) << text;
+  for (ChildProcess* p : {&plant, &controller}) {
+    p->signal(SIGINT);
+    EXPECT_TRUE(p->wait_for(seconds(30)).has_value()) << p->output();
+  }
+  EXPECT_NE(controller.output().find("parameter filters.force_command.slot_1.kind none -> notch (version 3, by "),
+            std::string::npos)
+      << controller.output();
+  EXPECT_NE(controller.output().find("together with 6)"), std::string::npos) << controller.output();
   fs::remove_all(dir);
 }
 

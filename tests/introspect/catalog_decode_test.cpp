@@ -460,6 +460,7 @@ msg::ParameterRequest parameter_request(Sampler& s) {
   v.value(s.text<64>("value"));
   v.request_id(s.u64("request_id"));
   v.requester(s.text<64>("requester"));
+  v.entries(s.texts<192>("entries", 2));
   return v;
 }
 

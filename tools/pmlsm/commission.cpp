@@ -562,6 +562,9 @@ void write_commissioned(const CommissionOptions& o, const TwoMassFit& fit,
   write_system_file_with(o.config, written, source, o.out);
   say(transcript, "commission: %s written (%zu values); run the nodes with --config %s\n", o.out.c_str(),
       written.size(), o.out.c_str());
+  if (o.tune || !filter_values.empty()) {
+    say(transcript, "commission: to a controller already running: pmlsm param load controller %s\n", o.out.c_str());
+  }
 }
 
 /// The commissioning; what it prints is kept in `transcript` for the report as well.

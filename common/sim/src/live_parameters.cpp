@@ -156,6 +156,53 @@ LiveAnswer LiveParameters::set(const std::string& key, const std::string& text) 
   return answer;
 }
 
+LiveAnswer LiveParameters::set_many(const std::vector<std::pair<std::string, std::string>>& changes) {
+  LiveAnswer answer;
+  answer.version = version_;
+  if (changes.empty()) {
+    answer.reason = "no changes";
+    return answer;
+  }
+  SystemParams changed = params_;
+  std::vector<std::string> old_values;
+  old_values.reserve(changes.size());
+  for (const auto& change : changes) {
+    const std::string& key = change.first;
+    const std::string& text = change.second;
+    if (std::count_if(changes.begin(), changes.end(), [&key](const auto& c) { return c.first == key; }) > 1) {
+      answer.reason = key + ": given more than once";
+      return answer;
+    }
+    const LiveAnswer current = get(key);
+    if (!current.accepted) {
+      answer.reason = current.reason;
+      return answer;
+    }
+    old_values.push_back(current.value);
+    try {
+      set_parameter(changed, key, text);
+    } catch (const std::invalid_argument& e) {
+      answer.reason = e.what();
+      return answer;
+    }
+  }
+  try {
+    changed.validate();  // once, with every change in it
+  } catch (const std::invalid_argument& e) {
+    answer.reason = e.what();
+    return answer;
+  }
+  for (std::size_t i = 0; i < changes.size(); ++i) {
+    ++version_;
+    history_.push_back({version_, changes[i].first, old_values[i], parameter_text(changed, changes[i].first)});
+  }
+  params_ = std::move(changed);
+  pending_ = true;
+  answer.accepted = true;
+  answer.version = version_;
+  return answer;
+}
+
 bool LiveParameters::take_pending() {
   const bool pending = pending_;
   pending_ = false;

@@ -7,6 +7,8 @@
 
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "pmlsm/compensation/accel_feedback.hpp"
 #include "pmlsm/compensation/state_feedback.hpp"
@@ -60,6 +62,47 @@ TEST(LiveParameters, AChangeIsCheckedLikeTheFileVersionedAndKept) {
   EXPECT_EQ(live.version(), 5u);
   EXPECT_EQ(live.get("filters.force_command.slot_1.kind").value, "notch");
   EXPECT_THROW(LiveParameters(test::shipped_params(), {"velocity_loop.no_such_gain"}), std::invalid_argument);
+}
+
+// A tuner's result taken together: a notch's values and its kind in one request, in an order one
+// change at a time refuses (the kind first: a notch at 0 Hz), checked once with all of them in;
+// one refused entry refuses them all and changes nothing.
+TEST(LiveParameters, ChangesTakenTogetherAreAllOrNothing) {
+  LiveParameters live(test::shipped_params(), velocity_controller_live_keys());
+  const std::string slot = "filters.force_command.slot_1.";
+  EXPECT_FALSE(live.set(slot + "kind", "notch").accepted);  // alone: its frequency is still 0
+  std::vector<std::pair<std::string, std::string>> notch{{slot + "kind", "notch"},
+                                                         {slot + "frequency_hz", "243.2"},
+                                                         {slot + "damping", "0.12"},
+                                                         {slot + "second_damping", "1.01"},
+                                                         {"velocity_loop.kp_n_s_per_m", "5980"}};
+  auto with_refused = notch;
+  with_refused.emplace_back("velocity_loop.ki_n_per_m", "-1");
+  LiveAnswer a = live.set_many(with_refused);
+  EXPECT_FALSE(a.accepted);
+  EXPECT_NE(a.reason.find("velocity_loop.ki_n_per_m"), std::string::npos) << a.reason;
+  EXPECT_EQ(live.version(), 0u);
+  EXPECT_FALSE(live.take_pending());
+  EXPECT_EQ(live.params().force_command_filters.slots[0].kind, FilterKind::kNone);
+  auto twice = notch;
+  twice.emplace_back(slot + "damping", "0.1");
+  EXPECT_NE(live.set_many(twice).reason.find("given more than once"), std::string::npos);
+  EXPECT_FALSE(live.set_many({{"plant.mechanics.load_mass_kg", "5"}}).accepted);
+  EXPECT_FALSE(live.set_many({}).accepted);
+
+  a = live.set_many(notch);
+  ASSERT_TRUE(a.accepted) << a.reason;
+  EXPECT_EQ(a.version, 5u);
+  EXPECT_TRUE(live.take_pending());
+  EXPECT_EQ(live.params().force_command_filters.slots[0].kind, FilterKind::kNotch);
+  EXPECT_EQ(live.params().force_command_filters.slots[0].frequency_hz, 243.2);
+  EXPECT_EQ(live.params().velocity_loop.kp_n_s_per_m, 5980.0);
+  ASSERT_EQ(live.history().size(), 5u);
+  EXPECT_EQ(live.history()[0].key, slot + "kind");
+  EXPECT_EQ(live.history()[0].old_value, "none");
+  EXPECT_EQ(live.history()[0].new_value, "notch");
+  EXPECT_EQ(live.history()[4].old_value, "10000");
+  EXPECT_EQ(live.history()[4].version, 5u);
 }
 
 TEST(LiveParameters, TextIsReadAndWrittenByTheEntrysKind) {

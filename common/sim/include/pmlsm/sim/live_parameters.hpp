@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pmlsm/sim/system_params.hpp"
@@ -46,6 +47,11 @@ class LiveParameters {
 
   /// A change request: accepted (the next version) or refused with the reason, the old value kept.
   LiveAnswer set(const std::string& key, const std::string& text);
+  /// Several changes taken together (a tuner's result): each parsed by its kind, then the whole
+  /// system checked once with all of them in it, so a filter slot's values and its kind can move
+  /// in any order. All accepted (one version each, in order) or none, the reason naming the
+  /// first key refused; the answer's version is the last one's.
+  LiveAnswer set_many(const std::vector<std::pair<std::string, std::string>>& changes);
   /// The entry's value; refused when the key is not one of this node's.
   LiveAnswer get(const std::string& key) const;
   const std::vector<std::string>& keys() const { return keys_; }
