@@ -51,6 +51,8 @@ class RnnCompensatorComponent final : public node::Component {
         inputs_(rt_.participant, rt_.wakeup),
         weights_reader_(rt_.participant.make_reader(pdds::topics::kNetworkWeights, rt_.wakeup)),
         writer_(rt_.participant.make_writer(pdds::topics::kCompensatorOutput)),
+        live_(rt_.cfg.params, rnn_compensator_live_keys()),
+        parameters_(rt_, "rnn_compensator", live_),
         ticks_(scenario_ticks(rt_.cfg.scenario, rt_.period_s)) {
     if (!opt_.weights_path.empty()) {
       const RnnWeightsFile file = load_rnn_weights(opt_.weights_path);
@@ -74,6 +76,8 @@ class RnnCompensatorComponent final : public node::Component {
   node::CompensatorInputs inputs_;
   pdds::Reader<msg::NetworkWeightsPubSubType> weights_reader_;
   pdds::Writer<msg::CompensatorOutputPubSubType> writer_;
+  LiveParameters live_;
+  node::ParameterService parameters_;
   std::uint64_t ticks_;
 };
 
@@ -93,7 +97,9 @@ int RnnCompensatorComponent::run() {
                                            "estimator or controller", answered, opt_.common.peer_timeout_s);
       break;
     }
-    // Weight swaps happen here, between ticks, never inside a step.
+    // Its online rule's settings (checked by LiveParameters as the file is) and weight swaps
+    // happen here, between ticks, never inside a step.
+    if (parameters_.serve(tick)) rnn_.set_learning(live_.params().rnn_compensator_params(online_learning));
     while (!opt_.ignore_topic && weights_reader_.take(incoming)) {
       const RnnWeightsFile candidate = from_message(incoming, params_);
       if (!gate_.offer(candidate, incoming.version(), "the NetworkWeights topic").empty()) {

@@ -250,6 +250,43 @@ TEST(LiveParametersDistributed, PmlsmParamSetsACompensatorsGainAtATickBoundary) 
   fs::remove_all(dir);
 }
 
+// `pmlsm param` on the RNN compensator learning online in the lockstep chain: its online rule's
+// learning rate set at a tick boundary, logged and versioned; a clamp that would stop the
+// momentum term contracting (alpha k_c >= 1) refused with the old value kept.
+TEST(LiveParametersDistributed, PmlsmParamSetsTheRnnsOnlineRule) {
+  const fs::path dir = fresh_dir("pmlsm_external", "param_rnn");
+  const std::string domain = test_domain(101);
+  const std::string scenario = external_scenario(dir, 600.0);
+  ChildProcess estimator(node_args("kalman_estimator", domain, scenario), (dir / "estimator.log").string());
+  ChildProcess compensator(node_args("rnn_compensator", domain, scenario,
+                                     {"--weights", source("configs/rnn_weights.yaml"), "--online-learning"}),
+                           (dir / "compensator.log").string());
+  ChildProcess controller(node_args("controller", domain, scenario, {"--compensation", "topic"}),
+                          (dir / "controller.log").string());
+  ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "2"}), (dir / "plant.log").string());
+  ASSERT_TRUE(plant.wait_for_output("lockstep clock", seconds(30))) << plant.output();
+  const auto param = [&](std::vector<std::string> args, const char* log) { return run_param(dir, domain, args, log); };
+  const std::string key = "compensator.rnn.learning_rate";
+  auto [code, text] = param({"list", "rnn_compensator"}, "list.log");
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_NE(text.find(key + " = 0.001\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("compensator.rnn.du_deadband_per_s = 1\n"), std::string::npos) << text;
+  std::tie(code, text) = param({"set", "rnn_compensator", key, "0.0005"}, "set.log");
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("rnn_compensator: " + key + " 0.001 -> 0.0005 from tick "), std::string::npos) << text;
+  std::tie(code, text) = param({"set", "rnn_compensator", "compensator.rnn.kc_limit_mps", "2"}, "clamp.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("momentum * kc_limit_mps must be < 1"), std::string::npos) << text;
+  EXPECT_NE(text.find("stays 1"), std::string::npos) << text;
+  for (ChildProcess* p : {&plant, &controller, &compensator, &estimator}) {
+    p->signal(SIGINT);
+    EXPECT_TRUE(p->wait_for(seconds(30)).has_value()) << p->output();
+  }
+  EXPECT_NE(compensator.output().find("parameter " + key + " 0.001 -> 0.0005 (version 1, by "), std::string::npos)
+      << compensator.output();
+  fs::remove_all(dir);
+}
+
 // The tuner's result applied live: `pmlsm commission --design-filters --tune` writes a notch and
 // tuned gains; `pmlsm param load` puts every live parameter that differs into the running
 // controller in one request, taken at one tick boundary (the notch's kind with its values, which

@@ -203,6 +203,21 @@ void RnnCompensator::set_weights(const std::vector<double>& w) {
   std::fill(dw_.begin(), dw_.end(), 0.0);
 }
 
+void RnnCompensator::set_learning(const RnnCompensatorParams& params) {
+  params.validate();
+  const auto needs_restart = [](const char* what) {
+    throw std::invalid_argument(std::string(what) + ": the network was built on it; a change needs a restart");
+  };
+  if (params.layer_sizes != params_.layer_sizes) needs_restart("layer_sizes");
+  if (params.input_scale_s2_per_m != params_.input_scale_s2_per_m) needs_restart("input_scale_s2_per_m");
+  if (params.on_reference_error != params_.on_reference_error) needs_restart("on_reference_error");
+  if (params.gain_n != params_.gain_n) needs_restart("gain_n");
+  if (params.output_scale != params_.output_scale) needs_restart("output_scale");
+  if (params.period_s != params_.period_s) needs_restart("period_s");
+  if (params.online_learning != params_.online_learning) needs_restart("online_learning");
+  params_ = params;
+}
+
 void RnnCompensator::reset() {
   net_.reset_state(0.0);
   u_prev2_ = 0.0;

@@ -223,6 +223,14 @@ std::vector<std::string> velocity_controller_live_keys() {
 
 std::vector<std::string> accel_feedback_live_keys() { return {"compensator.acceleration_feedback.gain_kg"}; }
 
+std::vector<std::string> rnn_compensator_live_keys() {
+  std::vector<std::string> keys;
+  for (const char* key : {"learning_rate", "momentum", "tolerance_mps", "kc_limit_mps", "du_deadband_per_s"}) {
+    keys.push_back(std::string("compensator.rnn.") + key);
+  }
+  return keys;
+}
+
 std::vector<std::string> state_feedback_live_keys() {
   return {"compensator.state_feedback.model_frequency_ratio", "compensator.state_feedback.model_damping_ratio",
           "compensator.state_feedback.correction_damping_ratio", "compensator.state_feedback.max_correction_gain"};

@@ -5,12 +5,14 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "pmlsm/compensation/accel_feedback.hpp"
+#include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/compensation/state_feedback.hpp"
 #include "pmlsm/sim/velocity_controller.hpp"
 #include "test_support.hpp"
@@ -153,9 +155,10 @@ TEST(LiveParameters, TheVelocityControllerTakesThemAtATickBoundaryWithItsIntegra
   EXPECT_LT(peak, 0.5);  // 50 N at the notch's centre: gone
 }
 
-// The compensator nodes' live keys: acceleration feedback's K_a and state feedback's design
-// ratios, each checked with the file's ranges, reaching the law at a tick boundary; state
-// feedback keeps its internal model and refuses a change of what it was built on.
+// The compensator nodes' live keys: acceleration feedback's K_a, state feedback's design ratios
+// and the RNN's online rule, each checked with the file's ranges, reaching the law at a tick
+// boundary; state feedback and the RNN keep their state and refuse a change of what they were
+// built on.
 TEST(LiveParameters, TheCompensatorsTakeTheirGainsLive) {
   const SystemParams& shipped = test::shipped_params();
   LiveParameters accel_live(shipped, accel_feedback_live_keys());
@@ -179,6 +182,35 @@ TEST(LiveParameters, TheCompensatorsTakeTheirGainsLive) {
   other_model.model.load_mass_kg = 5.0;
   EXPECT_THROW(state.set_params(other_model), std::invalid_argument);
   EXPECT_EQ(state.params().model.load_mass_kg, shipped.state_feedback_params().model.load_mass_kg);
+
+  // The RNN's online rule: its settings live, its weights and state kept; the momentum's
+  // contraction (alpha k_c < 1) checked with the change in it; its network's scales not live.
+  LiveParameters rnn_live(shipped, rnn_compensator_live_keys());
+  ASSERT_TRUE(rnn_live.set("compensator.rnn.learning_rate", "0.002").accepted);
+  const LiveAnswer contraction = rnn_live.set("compensator.rnn.kc_limit_mps", "2");
+  EXPECT_FALSE(contraction.accepted);
+  EXPECT_NE(contraction.reason.find("momentum * kc_limit_mps must be < 1"), std::string::npos) << contraction.reason;
+  EXPECT_FALSE(rnn_live.set("compensator.rnn.gain_n", "500").accepted);
+  RnnCompensator rnn(shipped.rnn_compensator_params(true));
+  std::vector<double> weights(rnn.weights().size(), 0.1);
+  rnn.set_weights(weights);
+  for (int k = 0; k < 20; ++k) rnn.step({0.5 * k, 0.1, 0.0, 0.0});
+  const std::vector<double> learned = rnn.weights();
+  const CompensatorStep before = rnn.step({2.0, 0.1, 0.0, 0.0});
+  RnnCompensator twin = rnn;
+  rnn.set_learning(rnn_live.params().rnn_compensator_params(true));
+  EXPECT_EQ(rnn.params().learning_rate, 0.002);
+  EXPECT_EQ(rnn.weights(), twin.weights());
+  EXPECT_EQ(rnn.step({2.0, 0.1, 0.0, 0.0}).force_n, twin.step({2.0, 0.1, 0.0, 0.0}).force_n);  // state kept
+  EXPECT_NE(learned, weights);
+  EXPECT_TRUE(std::isfinite(before.force_n));
+  RnnCompensatorParams other = rnn.params();
+  other.gain_n = 500.0;
+  EXPECT_THROW(rnn.set_learning(other), std::invalid_argument);
+  other = rnn.params();
+  other.online_learning = false;
+  EXPECT_THROW(rnn.set_learning(other), std::invalid_argument);
+  EXPECT_EQ(rnn.params().gain_n, shipped.rnn_compensator_params(true).gain_n);
 }
 
 }  // namespace

@@ -174,6 +174,14 @@ class RnnCompensator {
   /// State unit 0, a_L history 0, momentum 0 (weights and counters kept).
   void reset();
 
+  /// The online rule's settings changed live (learning rate, momentum, tolerance, k_c clamp and
+  /// dead-band), the weights, the state unit and the momentum kept. What the network and its
+  /// weights were built on (layer sizes, input scale, input kind, G_n, output scale, period,
+  /// online learning on or off) needs a restart.
+  /// @throws std::invalid_argument naming the invalid value or the entry that needs a restart;
+  /// the old settings kept.
+  void set_learning(const RnnCompensatorParams& params);
+
   const CompensatorCounters& counters() const { return counters_; }
   const RnnCompensatorParams& params() const { return params_; }
   const JordanRnn& network() const { return net_; }

@@ -79,5 +79,8 @@ std::vector<std::string> velocity_controller_live_keys();
 std::vector<std::string> accel_feedback_live_keys();
 /// state_feedback's: the design's ratios (SystemParams' model, period and loop stay for the run).
 std::vector<std::string> state_feedback_live_keys();
+/// rnn_compensator's: the online rule's settings (the network's shape, scales and weights are not:
+/// its weights come live on /pmlsm/network_weights).
+std::vector<std::string> rnn_compensator_live_keys();
 
 }  // namespace pmlsm
