@@ -193,6 +193,7 @@ void from_msg(const pmlsm_msgs::msg::MotorFeedback& in, drive::Measurement& out)
   out.i_d_a = in.i_d_a();
   out.i_q_a = in.i_q_a();
   out.thrust_force_n = in.thrust_force_n();
+  out.applied_force_n = in.applied_force_n();
 }
 
 drive::ForceCommandIn from_msg(const pmlsm_msgs::msg::ForceCommand& c, std::uint64_t writer,

@@ -159,8 +159,10 @@ FrequencyResponseMeasurement measure_on_live_drive(const dds::ParticipantOptions
     wakeup.wait_for(seen, std::chrono::milliseconds(50));
   }
   command_writer.wait_for_acknowledgments(std::chrono::seconds(1));
-  std::fprintf(stderr, "commission: %llu ticks answered; the drive's feedback ended\n",
-               static_cast<unsigned long long>(answered));
+  std::fprintf(stderr,
+               "commission: %llu ticks answered, %llu excitation ticks held late by the drive (recorded as it held "
+               "them); the drive's feedback ended\n",
+               static_cast<unsigned long long>(answered), static_cast<unsigned long long>(measurement.late_ticks()));
   return measurement;
 }
 

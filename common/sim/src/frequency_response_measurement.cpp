@@ -156,10 +156,14 @@ double FrequencyResponseMeasurement::step(const drive::Measurement& m, bool oper
     abort("velocity [m/s]", m.velocity_mps, params_.max_velocity_mps);
     return 0.0;
   }
-  // The velocity measured now is the mean over the tick the last force was held: one sample.
+  // The velocity measured now is the mean over the tick the last force was held: one sample,
+  // with the force the drive says it held when it says (a command that reached it late left the
+  // one before in force), else the one sent.
   if (last_recorded_) {
+    const bool reported = std::isfinite(m.applied_force_n);
     excitation_n_.push_back(last_excitation_n_);
-    force_n_.push_back(last_force_n_);
+    force_n_.push_back(reported ? m.applied_force_n : last_force_n_);
+    if (reported && m.applied_force_n != last_force_n_) ++late_ticks_;
     velocity_mps_.push_back(m.velocity_mps);
   }
   const bool exciting = tick_ >= ramp_ticks_ && tick_ < excite_end_tick_;

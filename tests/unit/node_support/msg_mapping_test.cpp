@@ -267,7 +267,7 @@ TEST(MsgMapping, MotorFeedbackIntoDriveTickStatus) {
 }
 
 // The drive's reading back out of MotorFeedback (`pmlsm commission` on a live drive): the
-// measurement, not the applied force or the status.
+// measurement and the force the drive says it held, not the status.
 TEST(MsgMapping, MotorFeedbackIntoTheDrivesMeasurement) {
   drive::Measurement m;
   from_msg(distinct_feedback(), m);
@@ -276,6 +276,8 @@ TEST(MsgMapping, MotorFeedbackIntoTheDrivesMeasurement) {
   EXPECT_EQ(m.i_d_a, 3.03);
   EXPECT_EQ(m.i_q_a, 3.04);
   EXPECT_EQ(m.thrust_force_n, 3.05);
+  EXPECT_EQ(m.applied_force_n, 3.06);
+  EXPECT_TRUE(std::isnan(drive::Measurement{}.applied_force_n));  // a backend's reading: not said
 }
 
 // ---- VelocityReference, ForceCommand ------------------------------------------------------

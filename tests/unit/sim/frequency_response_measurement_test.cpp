@@ -7,8 +7,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -135,6 +137,55 @@ TEST(FrequencyResponseMeasurement, ADriveLeavingOperationOrABreachedLimitEndsItW
   EXPECT_EQ(beyond.phase(), MeasurementPhase::kAborted);
   EXPECT_NE(beyond.abort_reason().find("travel from the start [m] at tick 1: 0.7, the limit is 0.5"), std::string::npos)
       << beyond.abort_reason();
+}
+
+/// The measurement on the simulated drive with every `late_every`-th excitation command reaching
+/// the drive late (the drive holds the force before it for that tick), the applied force reported
+/// in the reading (as MotorFeedback.applied_force_n carries it) or not.
+FrequencyResponseMeasurement measured_with_late_commands(int late_every, bool reported) {
+  const SystemParams& p = test::shipped_params();
+  FrequencyResponseMeasurement measurement(p.frequency_response_params(), p.velocity_pi_params());
+  SimulatedDriveBackend drive(p, PlantInitialCondition{});
+  for (const auto command :
+       {drive::DriveCommand::kShutdown, drive::DriveCommand::kSwitchOn, drive::DriveCommand::kEnableOperation}) {
+    drive.request(command);
+  }
+  double held_n = 0;
+  for (std::uint64_t tick = 0; !measurement.finished(); ++tick) {
+    drive::Measurement m = drive.sample();
+    if (reported) m.applied_force_n = held_n;
+    const double sent_n = measurement.step(m, true);
+    const bool late = measurement.phase() == MeasurementPhase::kExcite && tick % late_every == 0;
+    held_n = late ? held_n : sent_n;
+    drive.apply(held_n);
+  }
+  return measurement;
+}
+
+// Commands that reach a live drive late (it holds the force before): with the force the drive
+// reports it held, the response is the one measured without late commands; with the force sent,
+// every late tick is an error in F, which blurs G and S.
+TEST(FrequencyResponseMeasurement, RecordsTheForceTheDriveReportsItHeld) {
+  const auto clean = evaluate_measurement(measured_with_late_commands(1 << 30, false));
+  const FrequencyResponseMeasurement reported = measured_with_late_commands(50, true);
+  const FrequencyResponseMeasurement sent = measured_with_late_commands(50, false);
+  ASSERT_EQ(reported.phase(), MeasurementPhase::kDone) << reported.abort_reason();
+  ASSERT_EQ(sent.phase(), MeasurementPhase::kDone) << sent.abort_reason();
+  EXPECT_GT(reported.late_ticks(), 400u);
+  EXPECT_EQ(sent.late_ticks(), 0u);  // nothing reported: nothing seen
+  const auto worst_plant_error = [&](const FrequencyResponseMeasurement& m) {
+    const auto points = evaluate_measurement(m).points;
+    double worst = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (points[i].frequency_hz > 40.0) break;
+      worst = std::max(worst, std::abs(points[i].plant / clean.points[i].plant - 1.0));
+    }
+    return worst;
+  };
+  const double with_report = worst_plant_error(reported), without = worst_plant_error(sent);
+  std::printf("[ late       ] 1 in 50 commands late: |G| error up to %.3f %% reported, %.3f %% as sent\n",
+              100 * with_report, 100 * without);
+  EXPECT_LT(with_report, without / 3);
 }
 
 // A velocity that does not follow the force (here: noise alone) is refused with the count of

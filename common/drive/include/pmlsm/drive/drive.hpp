@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 
 #include "pmlsm/drive/power_state.hpp"
 
@@ -18,6 +19,10 @@ struct Measurement {
   double i_d_a = 0;           ///< measured d-axis current [A]
   double i_q_a = 0;           ///< measured q-axis current [A]
   double thrust_force_n = 0;  ///< thrust from the currents, K_m i_q (eq. 14) [N]
+  /// The force the drive held over the tick before this reading, as it reports it (a command
+  /// that came late leaves the one before in force) [N]; NaN when the reading does not say
+  /// (the drive backends: their caller knows what it applied).
+  double applied_force_n = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// A drive backend. Called from the loop thread only; no call may block past its tick, throw

@@ -83,8 +83,12 @@ class FrequencyResponseMeasurement {
   const Multisine& excitation() const { return excitation_; }
   const FrequencyResponseMeasurementParams& params() const { return params_; }
 
-  /// The excitation R, the applied force F and the velocity V measured over the tick F was held,
-  /// one sample per excitation tick, from the excitation's tick 0.
+  /// Excitation ticks whose force the drive reported held differently from the one sent (it
+  /// came late; the drive held the one before): recorded as the drive held them.
+  std::uint64_t late_ticks() const { return late_ticks_; }
+  /// The excitation R, the applied force F (as the drive reports it held, else as sent) and the
+  /// velocity V measured over the tick F was held, one sample per excitation tick, from the
+  /// excitation's tick 0.
   const std::vector<double>& excitation_n() const { return excitation_n_; }
   const std::vector<double>& force_n() const { return force_n_; }
   const std::vector<double>& velocity_mps() const { return velocity_mps_; }
@@ -115,6 +119,7 @@ class FrequencyResponseMeasurement {
   double last_force_n_ = 0;
   double last_excitation_n_ = 0;
   bool last_recorded_ = false;  ///< the force applied over the last tick was an excitation tick's
+  std::uint64_t late_ticks_ = 0;
   std::vector<double> excitation_n_, force_n_, velocity_mps_;
 };
 
