@@ -517,6 +517,13 @@ TEST(Commission, SimulatedPlantGivesItsModesAReportAndASystemFile) {
   EXPECT_GT(written.velocity_loop.kp_n_s_per_m, 10000.0);
   EXPECT_NEAR(written.velocity_loop.ki_n_per_m / written.velocity_loop.kp_n_s_per_m, 0.01 / 10000.0, 1e-12);
   EXPECT_NE(p.output().find("velocity loop tuned to 45 deg and 8 dB: Kp "), std::string::npos) << p.output();
+  // --tune: state feedback's output filter tried on the commissioned system, written when on.
+  const auto filter_line =
+      p.output().find("state feedback's output filter (notch at 200 Hz) on the commissioned system");
+  ASSERT_NE(filter_line, std::string::npos) << p.output();
+  const std::string verdict = p.output().substr(filter_line, p.output().find('\n', filter_line) - filter_line);
+  EXPECT_EQ(written.compensator.state_feedback.output_filter_enabled, verdict.substr(verdict.size() - 3) == ": on")
+      << verdict;
   std::ifstream response(fs::path(report) / "response.csv");
   std::size_t lines = 0;
   for (std::string line; std::getline(response, line);) ++lines;

@@ -552,7 +552,7 @@ SystemParams commissioned_system(const SystemParams& configured,
 /// The system file with the commissioned values and the designed filter slots, at o.out.
 void write_commissioned(const CommissionOptions& o, const TwoMassFit& fit,
                         const std::vector<std::pair<std::string, double>>& values,
-                        const std::vector<ConfigOverride>& filter_values, std::string& transcript) {
+                        const std::vector<ConfigOverride>& text_values, std::string& transcript) {
   char source[320];
   std::snprintf(source, sizeof source,
                 "chosen: commissioned by pmlsm commission from %s (frequency response: anti-resonance %.3f Hz, "
@@ -560,13 +560,59 @@ void write_commissioned(const CommissionOptions& o, const TwoMassFit& fit,
                 o.simulate ? "the simulated plant" : "the drive", fit.anti_resonance_hz, fit.resonance_hz);
   std::vector<ConfigOverride> written;
   for (const auto& [key, value] : values) written.push_back({key, format_value(value)});
-  written.insert(written.end(), filter_values.begin(), filter_values.end());
+  written.insert(written.end(), text_values.begin(), text_values.end());
   write_system_file_with(o.config, written, source, o.out);
   say(transcript, "commission: %s written (%zu values); run the nodes with --config %s\n", o.out.c_str(),
       written.size(), o.out.c_str());
-  if (o.tune || !filter_values.empty()) {
+  if (o.tune || !text_values.empty()) {
     say(transcript, "commission: to a controller already running: pmlsm param load controller %s\n", o.out.c_str());
   }
+}
+
+/// With --tune: state feedback's output filter (declared in the system file, off) tried on the
+/// commissioned system, on the verification file's scenarios: on when with it state feedback
+/// passes the verdict on every one and the mean of its costs over PI alone's is lower (its lag
+/// helps only a model that fits the plant, which the commissioning has just measured). Printed;
+/// the key goes into text_values and `commissioned` has it.
+void tune_state_feedback_filter(const std::string& sweep_path, SystemParams& commissioned,
+                                std::vector<ConfigOverride>& text_values, std::string& transcript) {
+  if (commissioned.compensator.state_feedback.output_filter_enabled) return;
+  const SweepFile file = load_sweep_file(sweep_path, commissioned);
+  SystemParams filtered = commissioned;
+  filtered.compensator.state_feedback.output_filter_enabled = true;
+  bool clean = true;
+  double ratio_without = 0, ratio_with = 0;
+  std::string costs;
+  for (const Scenario& scenario : file.spec.scenarios) {
+    const double period_s = commissioned.timing.control_period_s, limit_n = commissioned.velocity_loop.force_limit_n;
+    const RunVerdict pi_alone =
+        judge_run(run_with_compensator(commissioned, scenario, {CompensatorKind::kNone, {}, false}), scenario, period_s,
+                  limit_n, file.spec.verdict);
+    RunVerdict without = judge_run(run_with_compensator(commissioned, scenario, {CompensatorKind::kState, {}, false}),
+                                   scenario, period_s, limit_n, file.spec.verdict);
+    RunVerdict with = judge_run(run_with_compensator(filtered, scenario, {CompensatorKind::kState, {}, false}),
+                                scenario, period_s, limit_n, file.spec.verdict);
+    judge_against_pi_alone(without, pi_alone, file.spec.verdict);
+    judge_against_pi_alone(with, pi_alone, file.spec.verdict);
+    clean = clean && with.faults().empty();
+    ratio_without += without.cost / pi_alone.cost;
+    ratio_with += with.cost / pi_alone.cost;
+    char line[160];
+    std::snprintf(line, sizeof line, "%s%s %.3f -> %.3f%s", costs.empty() ? "" : ", ", scenario.name.c_str(),
+                  without.cost, with.cost, with.faults().empty() ? "" : (" " + with.faults()).c_str());
+    costs += line;
+  }
+  const auto n = static_cast<double>(file.spec.scenarios.size());
+  const bool better = clean && ratio_with < ratio_without;
+  say(transcript,
+      "state feedback's output filter (%s at %.4g Hz) on the commissioned system: %s; mean cost over PI alone's "
+      "%.4f -> %.4f: %s\n",
+      to_string(filtered.compensator.state_feedback.output_filter.kind),
+      filtered.compensator.state_feedback.output_filter.frequency_hz, costs.c_str(), ratio_without / n, ratio_with / n,
+      better ? "on" : "stays off");
+  if (!better) return;
+  commissioned = filtered;
+  text_values.push_back({"compensator.state_feedback.output_filter.enabled", "true"});
 }
 
 /// The commissioning; what it prints is kept in `transcript` for the report as well.
@@ -606,10 +652,9 @@ int commission(const CommissionOptions& o, std::string& transcript) {
       measurement.params().min_coherence);
   print_fit(result.fit, time_domain, configured, o.simulate, transcript);
   say(transcript, "anti-resonance %.3f Hz\nresonance %.3f Hz\n", result.fit.anti_resonance_hz, result.fit.resonance_hz);
-  std::vector<ConfigOverride> filter_values;
-  const FilterChain filters(o.design_filters
-                                ? design_force_command_filters(configured, result, filter_values, transcript)
-                                : configured.force_command_filter_params());
+  std::vector<ConfigOverride> text_values;
+  const FilterChain filters(o.design_filters ? design_force_command_filters(configured, result, text_values, transcript)
+                                             : configured.force_command_filter_params());
   write_response_csv(dir / "response.csv", result, filters);
   const LoopVerdict loop = judge_loop(configured, result, filters, o.tune, transcript);
   if (o.plots) {
@@ -628,12 +673,13 @@ int commission(const CommissionOptions& o, std::string& transcript) {
     values.emplace_back("velocity_loop.kp_n_s_per_m", loop.tuned->kp_n_s_per_m);
     values.emplace_back("velocity_loop.ki_n_per_m", loop.tuned->ki_n_per_m);
   }
-  const SystemParams commissioned = commissioned_system(configured, values, filters, result.fit, o.simulate);
+  SystemParams commissioned = commissioned_system(configured, values, filters, result.fit, o.simulate);
+  if (o.tune && !o.verify.empty()) tune_state_feedback_filter(o.verify, commissioned, text_values, transcript);
   if (!o.verify.empty() && !verify_commissioned(o.verify, commissioned, dir, transcript)) {
     say(transcript, "commission: the verification failed; nothing written (--no-verify writes it regardless)\n");
     return kExitVerdictFailed;
   }
-  if (!o.out.empty()) write_commissioned(o, result.fit, values, filter_values, transcript);
+  if (!o.out.empty()) write_commissioned(o, result.fit, values, text_values, transcript);
   return kExitOk;
 }
 

@@ -11,6 +11,13 @@
 
 namespace pmlsm {
 
+BiquadParams filter_at_loop_period(const StateFeedbackParams& params) {
+  BiquadParams filter = params.output_filter;
+  filter.period_s = params.period_s;
+  if (!params.output_filter_enabled) filter.kind = FilterKind::kNone;
+  return filter;
+}
+
 void StateFeedbackParams::validate() const {
   model.validate();
   require_positive("velocity_gain_n_s_per_m", velocity_gain_n_s_per_m);
@@ -30,10 +37,20 @@ void StateFeedbackParams::validate() const {
   require_positive("reference_damping_ratio", reference_damping_ratio);
   require_in_range("period_s", period_s, 1e-6, 1.0);
   require_positive("force_limit_n", force_limit_n);
+  require_non_negative("friction_coulomb_n", friction_coulomb_n);
+  require_non_negative("friction_viscous_n_s_per_m", friction_viscous_n_s_per_m);
+  require_positive("friction_band_mps", friction_band_mps);
+  try {
+    BiquadParams declared = output_filter;  // checked enabled or not: a declared filter is valid
+    declared.period_s = period_s;
+    declared.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("output_filter: ") + e.what());
+  }
 }
 
-StateFeedback::StateFeedback(const StateFeedbackParams& params) : params_(params) {
-  params_.validate();
+StateFeedback::StateFeedback(const StateFeedbackParams& params)
+    : params_((params.validate(), params)), output_filter_(filter_at_loop_period(params_)) {
   const double m_m = params_.model.motor_mass_kg;
   const double m_l = params_.model.load_mass_kg;
   const double k = params_.model.spring_n_per_m;
@@ -73,18 +90,17 @@ void StateFeedback::design() {
 void StateFeedback::set_params(const StateFeedbackParams& params) {
   params.validate();
   const StateFeedbackParams& now = params_;
-  const bool same_base = params.model.motor_mass_kg == now.model.motor_mass_kg &&
-                         params.model.load_mass_kg == now.model.load_mass_kg &&
-                         params.model.spring_n_per_m == now.model.spring_n_per_m &&
-                         params.velocity_gain_n_s_per_m == now.velocity_gain_n_s_per_m &&
-                         params.reference_natural_frequency_rad_s == now.reference_natural_frequency_rad_s &&
-                         params.reference_damping_ratio == now.reference_damping_ratio &&
-                         params.period_s == now.period_s && params.force_limit_n == now.force_limit_n;
+  const bool same_base =
+      params.model.motor_mass_kg == now.model.motor_mass_kg && params.model.load_mass_kg == now.model.load_mass_kg &&
+      params.model.spring_n_per_m == now.model.spring_n_per_m &&
+      params.velocity_gain_n_s_per_m == now.velocity_gain_n_s_per_m &&
+      params.reference_natural_frequency_rad_s == now.reference_natural_frequency_rad_s &&
+      params.reference_damping_ratio == now.reference_damping_ratio && params.period_s == now.period_s &&
+      params.force_limit_n == now.force_limit_n && filter_at_loop_period(params) == filter_at_loop_period(now);
   if (!same_base) {
     throw std::invalid_argument(
-        "state feedback: only the design's ratios change live (model_frequency_ratio, model_damping_ratio, "
-        "correction_damping_ratio, max_correction_gain); the model, the period and the loop's gain and limit need "
-        "a restart");
+        "state feedback: only the design's ratios and the friction fed forward change live; the model, the "
+        "period, the loop's gain and limit and the output filter need a restart");
   }
   params_ = params;
   design();
@@ -153,16 +169,23 @@ double StateFeedback::step(const StateFeedbackInput& in) {
   // The plant pulled onto the model: the estimate against the model at the estimate's tick.
   model_reported_ = model_at_tick_;
   const double correction_n = correction_gain_ * (model_spring_force_n() - in.spring_force_n);
-  const double force_n = model_force_n + correction_n;
+  // The bearings' friction on the model's motor velocity over the tick the force acts.
+  const double model_motor_next_mps = x(1);
+  const double u = std::clamp(model_motor_next_mps / p.friction_band_mps, -1.0, 1.0);
+  const double friction_n =
+      p.friction_coulomb_n * u * (1.5 - 0.5 * u * u) + p.friction_viscous_n_s_per_m * model_motor_next_mps;
+  const double raw_force_n = model_force_n + correction_n + friction_n;
 
   model_motor_position_before_m_ = x(0);
   model_at_tick_ = model_next_;
   model_next_ = model_phi_ * model_next_ + model_gamma_ * model_drive_n;
-  if (!model_next_.allFinite() || !std::isfinite(force_n)) {
+  if (!model_next_.allFinite() || !std::isfinite(raw_force_n)) {
     reset_model();
     return 0.0;
   }
-  if (std::abs(force_n) > limit) ++counters_.saturated;
+  // Limited, filtered, limited again: the filter softens what the limit leaves of a kick.
+  if (std::abs(raw_force_n) > limit) ++counters_.saturated;
+  const double force_n = output_filter_.step(std::clamp(raw_force_n, -limit, limit));
   return std::clamp(force_n, -limit, limit);
 }
 

@@ -338,7 +338,9 @@ std::vector<std::pair<std::string, double>> identified_parameters(const Identifi
           {kCoulombKey, load.coulomb_n},
           {kViscousKey, load.viscous_n_s_per_m},
           {"compensator.state_feedback.model.load_mass_kg", load.load_mass_kg},
-          {"compensator.state_feedback.model.spring_n_per_m", load.spring_n_per_m}};
+          {"compensator.state_feedback.model.spring_n_per_m", load.spring_n_per_m},
+          {"compensator.state_feedback.friction_feedforward.coulomb_n", load.coulomb_n},
+          {"compensator.state_feedback.friction_feedforward.viscous_n_s_per_m", load.viscous_n_s_per_m}};
 }
 
 SystemParams with_identified_load(const SystemParams& configured, const IdentifiedLoad& load) {

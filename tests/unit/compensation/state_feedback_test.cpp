@@ -2,9 +2,11 @@
 // never-throwing step, the inverse model on its own model, and the targets in the loop.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <string>
 
 #include "pmlsm/compensation/accel_feedback.hpp"
 #include "pmlsm/compensation/state_feedback.hpp"
@@ -18,6 +20,16 @@ namespace {
 
 using test::shipped_params;
 using test::shipped_scenario;
+
+/// The shipped law without what it adds beyond its model (the friction fed forward, the output
+/// filter): what the model-following design alone gives.
+StateFeedbackParams bare_params() {
+  StateFeedbackParams p = shipped_params().state_feedback_params();
+  p.friction_coulomb_n = 0;
+  p.friction_viscous_n_s_per_m = 0;
+  p.output_filter_enabled = false;
+  return p;
+}
 
 TEST(StateFeedback, ValidatesItsParametersNamingTheValue) {
   const StateFeedbackParams good = shipped_params().state_feedback_params();
@@ -58,7 +70,7 @@ TEST(StateFeedback, ItsModelIsItsOwnNotThePlants) {
 }
 
 TEST(StateFeedback, AtRestGivesNothingAndPullsOnTheSpringForceDifference) {
-  const StateFeedbackParams params = shipped_params().state_feedback_params();
+  const StateFeedbackParams params = bare_params();
   StateFeedback f(params);
   for (int i = 0; i < 10; ++i) EXPECT_EQ(f.step({}), 0.0);
   // The model is at rest: 10 N of estimated spring force is 10 N off the model.
@@ -80,7 +92,7 @@ TEST(StateFeedback, AtRestGivesNothingAndPullsOnTheSpringForceDifference) {
 // On a light, soft load (2 kg, 6,850 N/m: sqrt(k m_L) half the nominal's) the design would pull
 // twice as hard per newton of spring force (67.3); the pull stops at max_correction_gain.
 TEST(StateFeedback, TheCorrectionGainStopsAtItsLimit) {
-  StateFeedbackParams params = shipped_params().state_feedback_params();
+  StateFeedbackParams params = bare_params();
   params.model.load_mass_kg = 2;
   params.model.spring_n_per_m = 6850;
   ASSERT_LT(params.max_correction_gain,
@@ -92,7 +104,7 @@ TEST(StateFeedback, TheCorrectionGainStopsAtItsLimit) {
 }
 
 TEST(StateFeedback, NonFiniteInputGivesZeroAndIsCounted) {
-  StateFeedback f(shipped_params().state_feedback_params());
+  StateFeedback f(bare_params());
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();
   for (int field = 0; field < 5; ++field) {
@@ -119,7 +131,7 @@ TEST(StateFeedback, NonFiniteInputGivesZeroAndIsCounted) {
 TEST(StateFeedback, TheModelsLoadFollowsTheReference) {
   const SystemParams p = shipped_params();
   const Scenario pulse = shipped_scenario("pulse");
-  StateFeedback f(p.state_feedback_params());
+  StateFeedback f(bare_params());
   const std::vector<TickRecord> pi_only = run_scenario(p, pulse);  // V_ref and c of every tick
   double model_cost = 0;
   double last_force_n = 0;
@@ -134,6 +146,56 @@ TEST(StateFeedback, TheModelsLoadFollowsTheReference) {
   // At 0.999 s the command has been 0 for half a second: the model is at rest, F_s = 0.
   EXPECT_NEAR(f.model_spring_force_n(), 0.0, 1e-3);
   EXPECT_NEAR(last_force_n, 0.0, 1e-3);
+}
+
+// The bearings' friction fed forward on the model's motor velocity: F_c + F_v v once the model
+// cruises (20 N + 30 N s/m x 0.2 m/s = 26 N on top of the bare law), nothing at rest.
+TEST(StateFeedback, FeedsTheFrictionForwardOnTheModelsMotorVelocity) {
+  StateFeedbackParams with = bare_params();
+  with.friction_coulomb_n = 20;
+  with.friction_viscous_n_s_per_m = 30;
+  StateFeedback bare(bare_params()), fed(with);
+  double difference_n = 0;
+  for (int k = 0; k < 3000; ++k) {
+    const StateFeedbackInput in{0.2, 0.2, 0.0, 0.2, 0.0};  // a profiled cruise: V_ref = c
+    difference_n = fed.step(in) - bare.step(in);
+  }
+  EXPECT_NEAR(difference_n, 20.0 + 30.0 * 0.2, 1e-6);
+  for (int k = 0; k < 3000; ++k) difference_n = fed.step({}) - bare.step({});
+  EXPECT_NEAR(difference_n, 0.0, 1e-6);
+  with.friction_band_mps = 0;
+  EXPECT_THROW(StateFeedback{with}, std::invalid_argument);
+}
+
+// The output filter on the limited force: unit gain at rest (a held spring-force difference gives
+// the bare law's force once the notch has settled), the limit never exceeded, and a filter the
+// loop's period cannot hold refused by name.
+TEST(StateFeedback, TheOutputFilterTakesTheLimitedForce) {
+  const StateFeedbackParams shipped = shipped_params().state_feedback_params();
+  ASSERT_EQ(shipped.output_filter.kind, FilterKind::kNotch);
+  ASSERT_FALSE(shipped.output_filter_enabled);
+  StateFeedbackParams filtered = bare_params();
+  filtered.output_filter_enabled = true;
+  StateFeedback bare(bare_params()), f(filtered);
+  StateFeedbackInput in;
+  in.spring_force_n = 10;
+  double first_n = f.step(in), last_n = first_n;
+  const double bare_n = bare.step(in);
+  EXPECT_NE(first_n, bare_n);
+  for (int k = 0; k < 500; ++k) last_n = f.step(in);
+  EXPECT_NEAR(last_n, bare_n, 1e-6);
+  in.spring_force_n = 100;  // the bare law asks -3317 N
+  double peak_n = 0;
+  for (int k = 0; k < 500; ++k) peak_n = std::max(peak_n, std::abs(f.step(in)));
+  EXPECT_LE(peak_n, shipped.force_limit_n);
+  filtered.output_filter.frequency_hz = 600;  // above 0.45 / 1 ms
+  filtered.output_filter_enabled = false;     // declared: checked even when not in use
+  try {
+    StateFeedback refused(filtered);
+    ADD_FAILURE() << "accepted a 600 Hz notch at 1 kHz";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("output_filter: frequency_hz"), std::string::npos) << e.what();
+  }
 }
 
 // A profiled reference (the scenario bypasses the model (25): V_ref = c) is looked ahead by its

@@ -34,6 +34,14 @@
 // the first factor load-acceleration feedback of damping zeta_c on the open load mode, the
 // -1 putting the estimated spring pull in place of the model's.
 //
+// Beyond the model: the bearings' friction is fed forward on the model's motor velocity over the
+// next tick, F_ff = F_c s(v_M,model / v_band) + F_v v_M,model (s: the plant's smoothed sign), so
+// the loop, whose PI has almost no integral, does not run (F_c + F_v v) / Kp slow (2.6 mm/s at
+// 0.2 m/s on the nominal plant); at rest the model's motor stands still and nothing is fed. The
+// whole force, limited, then passes one biquad (output_filter) and the limit again: a broad notch
+// above the loop's crossover softens what the limit leaves of the inverse's kicks at a command
+// step, and the correction's chatter.
+//
 // Timing: the force of tick k acts from tick k+1, when the PI follows V_ref(k+1); the model
 // runs one tick ahead of the estimate with the reference model's next output (c held), and
 // the correction compares the estimate with the model's state of the same tick.
@@ -43,6 +51,7 @@
 #include <Eigen/Dense>
 #include <cstdint>
 
+#include "pmlsm/control/biquad.hpp"
 #include "pmlsm/util/two_mass_model.hpp"
 
 namespace pmlsm {
@@ -63,8 +72,18 @@ struct StateFeedbackParams {
   double reference_damping_ratio = 0;
   double period_s = 0;
   double force_limit_n = 0;
+  // Beyond the loop's model (see above).
+  double friction_coulomb_n = 0;          ///< F_c fed forward, >= 0 (0 and F_v 0: none)
+  double friction_viscous_n_s_per_m = 0;  ///< F_v fed forward, >= 0
+  double friction_band_mps = 1e-3;        ///< v_band: the sign's smoothed band, > 0
+  bool output_filter_enabled = false;     ///< false: output_filter declared, not used
+  BiquadParams output_filter;             ///< on the whole force (run at period_s)
   void validate() const;
 };
+
+/// The output filter at the loop's period (its own period_s is not read); kind none when it is
+/// not enabled.
+BiquadParams filter_at_loop_period(const StateFeedbackParams& params);
 
 /// What the compensator sees of one tick: the reference and the Kalman estimate.
 struct StateFeedbackInput {
@@ -91,9 +110,11 @@ class StateFeedback {
   const StateFeedbackCounters& counters() const { return counters_; }
   const StateFeedbackParams& params() const { return params_; }
   /// Live parameters at a tick boundary: the design's ratios (r, zeta_d, zeta_c and the
-  /// correction's limit) take effect from the next step, the internal model's state kept.
+  /// correction's limit) and the friction fed forward take effect from the next step, the
+  /// internal model's and the output filter's state kept.
   /// @throws std::invalid_argument naming the invalid parameter, or any other field changed (the
-  /// model, the period, the gains and limits it was built on: a restart); the old ones are kept.
+  /// model, the period, the gains and limits it was built on, the output filter: a restart); the
+  /// old ones are kept.
   void set_params(const StateFeedbackParams& params);
   double c0() const { return c0_; }
   double c1_s() const { return c1_s_; }
@@ -119,6 +140,7 @@ class StateFeedback {
   Eigen::Vector4d model_reported_ = Eigen::Vector4d::Zero();  ///< model state at the last input's tick
   double model_motor_position_before_m_ = 0;                  ///< x_M one tick before model_next_
   double last_a_ref_mps2_ = 0;                                ///< dV_ref/dt of the last input
+  Biquad output_filter_;
   StateFeedbackCounters counters_;
 };
 

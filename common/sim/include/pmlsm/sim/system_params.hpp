@@ -165,16 +165,19 @@ void visit_friction(const std::string& at, Friction& f, Visitor& v) {
 // feedback, with one set of ranges.
 // A chain of filter slots (pmlsm/control/biquad.hpp): the kind and the four values each kind
 // may use; which it uses is checked by the slot's validate().
+template <typename Slot, typename Visitor>
+void visit_filter_slot(const std::string& at, Slot& slot, Visitor& v) {
+  v.choice(at + ".kind", slot.kind, &filter_kind_from_string);
+  v.real(at + ".frequency_hz", slot.frequency_hz, {0.0, 1e4, "0 (unused) to 10 kHz"});
+  v.real(at + ".damping", slot.damping, {0.0, 10.0, "0 to overdamped tenfold"});
+  v.real(at + ".second_frequency_hz", slot.second_frequency_hz, {0.0, 1e4, "0 (unused) to 10 kHz"});
+  v.real(at + ".second_damping", slot.second_damping, {0.0, 10.0, "0 to overdamped tenfold"});
+}
+
 template <typename Chain, typename Visitor>
 void visit_filter_chain(const std::string& at, Chain& chain, Visitor& v) {
   for (std::size_t i = 0; i < chain.slots.size(); ++i) {
-    auto& slot = chain.slots[i];
-    const std::string key = at + ".slot_" + std::to_string(i + 1) + ".";
-    v.choice(key + "kind", slot.kind, &filter_kind_from_string);
-    v.real(key + "frequency_hz", slot.frequency_hz, {0.0, 1e4, "0 (unused) to 10 kHz"});
-    v.real(key + "damping", slot.damping, {0.0, 10.0, "0 to overdamped tenfold"});
-    v.real(key + "second_frequency_hz", slot.second_frequency_hz, {0.0, 1e4, "0 (unused) to 10 kHz"});
-    v.real(key + "second_damping", slot.second_damping, {0.0, 10.0, "0 to overdamped tenfold"});
+    visit_filter_slot(at + ".slot_" + std::to_string(i + 1), chain.slots[i], v);
   }
 }
 
@@ -335,6 +338,15 @@ void visit_parameters(Params& p, Visitor& v) {
          {0.0, 100.0, "from none to overdamped a hundred times"});
   v.real("compensator.state_feedback.max_correction_gain", c.state_feedback.max_correction_gain,
          {1e-3, 1e4, "newtons of correction per newton of spring-force difference"});
+  auto& sf = c.state_feedback;
+  v.real("compensator.state_feedback.friction_feedforward.coulomb_n", sf.friction_coulomb_n,
+         {0.0, 1e4, "0 (none) to 10 kN"});
+  v.real("compensator.state_feedback.friction_feedforward.viscous_n_s_per_m", sf.friction_viscous_n_s_per_m,
+         {0.0, 1e5, "0 (none) to 100 kN s/m"});
+  v.real("compensator.state_feedback.friction_feedforward.band_mps", sf.friction_band_mps,
+         {1e-6, 1.0, "1 um/s to 1 m/s"});
+  v.flag("compensator.state_feedback.output_filter.enabled", sf.output_filter_enabled);
+  detail::visit_filter_slot("compensator.state_feedback.output_filter", sf.output_filter, v);
   v.flag("compensator.guard.enabled", c.guard_enabled);
   v.real("compensator.guard.highpass_hz", c.guard.highpass_hz,
          {0.01, 1e4, "the corner between tracking motion and vibration: 10 mHz to 10 kHz"});
