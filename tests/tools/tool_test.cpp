@@ -572,7 +572,8 @@ TEST(Commission, DesignsANotchForAResonanceAboveTheTwoMassModel) {
   // On the shipped (rigid) plant nothing stands out over the model: no notch.
   test::ChildProcess rigid(
       pmlsm_args(test_domain(95), {"commission", "--simulate", "--no-plots", "-c", source("configs/system.yaml"),
-                                   "--report", report, "--design-filters", "--no-verify"}),
+                                   "--identification", source("configs/scenarios/identification.yaml"), "--report",
+                                   report, "--design-filters", "--no-verify"}),
       (dir / "rigid.log").string());
   ASSERT_EQ(run_to_end(rigid), 0) << rigid.output();
   EXPECT_NE(rigid.output().find("filter design: no resonance 6 dB or more over the two-mass model above 40 Hz"),

@@ -101,16 +101,21 @@ TEST(FrequencyResponseMeasurement, ARunThatWouldBreakALimitIsRefusedBeforeItStar
   expect_refused(p, pi, "max_frequency_hz");
 }
 
+/// Shutdown, switch on, enable operation: the drive in operation enabled.
+void enable(SimulatedDriveBackend& drive) {
+  for (const auto command :
+       {drive::DriveCommand::kShutdown, drive::DriveCommand::kSwitchOn, drive::DriveCommand::kEnableOperation}) {
+    drive.request(command);
+  }
+}
+
 // A quick stop halfway: the measurement ends at once with zero force and says why; there is no
 // response to evaluate. A reading beyond the stroke ends it too. Neither tick allocates.
 TEST(FrequencyResponseMeasurement, ADriveLeavingOperationOrABreachedLimitEndsItWithZeroForce) {
   const SystemParams& p = test::shipped_params();
   FrequencyResponseMeasurement measurement(p.frequency_response_params(), p.velocity_pi_params());
   SimulatedDriveBackend drive(p, PlantInitialCondition{});
-  for (const auto command :
-       {drive::DriveCommand::kShutdown, drive::DriveCommand::kSwitchOn, drive::DriveCommand::kEnableOperation}) {
-    drive.request(command);
-  }
+  enable(drive);
   double force_n = 0;
   const std::uint64_t before = test::allocations();
   for (int tick = 0; tick < 6000; ++tick) {
@@ -146,10 +151,7 @@ FrequencyResponseMeasurement measured_with_late_commands(int late_every, bool re
   const SystemParams& p = test::shipped_params();
   FrequencyResponseMeasurement measurement(p.frequency_response_params(), p.velocity_pi_params());
   SimulatedDriveBackend drive(p, PlantInitialCondition{});
-  for (const auto command :
-       {drive::DriveCommand::kShutdown, drive::DriveCommand::kSwitchOn, drive::DriveCommand::kEnableOperation}) {
-    drive.request(command);
-  }
+  enable(drive);
   double held_n = 0;
   for (std::uint64_t tick = 0; !measurement.finished(); ++tick) {
     drive::Measurement m = drive.sample();
