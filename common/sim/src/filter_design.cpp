@@ -132,11 +132,13 @@ FilterDesign design_notches(const std::vector<FrequencyPoint>& points, const Two
     for (const double shift : {1.0, 0.97, 1.03}) {
       for (const double widen : {1.0, 0.5, 2.0, 4.0}) {
         for (const double deepen_db : {0.0, -6.0, 6.0}) {
+          const double depth_db = peak.height_db + deepen_db;
+          if (depth_db <= 0.0) continue;  // no notch left (a low peak made shallower)
           BiquadParams notch = found;
           notch.frequency_hz = found.frequency_hz * shift;
           if (notch.frequency_hz >= 0.45 / period_s) continue;
           notch.second_damping = std::min(found.second_damping * widen, 10.0);
-          notch.damping = notch.second_damping * std::pow(10.0, -(peak.height_db + deepen_db) / 20.0);
+          notch.damping = notch.second_damping * std::pow(10.0, -depth_db / 20.0);
           FilterChainParams trial = design.chain;
           trial.slots[static_cast<std::size_t>(free_slot - design.chain.slots.begin())] = notch;
           const double with = tunable_scale(points, targets, min_coherence, trial);

@@ -232,8 +232,13 @@ std::vector<std::string> rnn_compensator_live_keys() {
 }
 
 std::vector<std::string> state_feedback_live_keys() {
-  return {"compensator.state_feedback.model_frequency_ratio", "compensator.state_feedback.model_damping_ratio",
-          "compensator.state_feedback.correction_damping_ratio", "compensator.state_feedback.max_correction_gain"};
+  return {"compensator.state_feedback.model_frequency_ratio",
+          "compensator.state_feedback.model_damping_ratio",
+          "compensator.state_feedback.correction_damping_ratio",
+          "compensator.state_feedback.max_correction_gain",
+          "compensator.state_feedback.friction_feedforward.coulomb_n",
+          "compensator.state_feedback.friction_feedforward.viscous_n_s_per_m",
+          "compensator.state_feedback.friction_feedforward.band_mps"};
 }
 
 }  // namespace pmlsm

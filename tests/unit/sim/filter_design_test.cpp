@@ -144,6 +144,12 @@ TEST(FilterDesign, ANotchThatBuysNoGainOrHasNoSlotIsNotPlaced) {
   EXPECT_LT(low.peaks.front().gain_scale_with,
             low.peaks.front().gain_scale_before * shipped_design().min_gain_increase);
   EXPECT_EQ(low.placed, 0u);
+
+  // A low peak let through (min_peak_db 1): the search's shallower trials stop at no notch at all.
+  FilterDesignParams any = shipped_design();
+  any.min_peak_db = 1.0;
+  EXPECT_NO_THROW(design_notches(with_mode(330.0, 0.06, 0.04), measured_nominal().fit, p.force_command_filter_params(),
+                                 p.commissioning.tuning, min_coherence, period_s, any));
 }
 
 TEST(FilterDesign, RefusesInvalidSettings) {

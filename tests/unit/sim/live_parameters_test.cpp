@@ -177,6 +177,9 @@ TEST(LiveParameters, TheCompensatorsTakeTheirGainsLive) {
   const double model_spring_n = state.model_spring_force_n();
   state.set_params(state_live.params().state_feedback_params());
   EXPECT_EQ(state.params().correction_damping_ratio, 0.3);
+  ASSERT_TRUE(state_live.set("compensator.state_feedback.friction_feedforward.coulomb_n", "15").accepted);
+  state.set_params(state_live.params().state_feedback_params());
+  EXPECT_EQ(state.params().friction_coulomb_n, 15.0);
   EXPECT_EQ(state.model_spring_force_n(), model_spring_n);  // the model's state kept
   StateFeedbackParams other_model = state.params();
   other_model.model.load_mass_kg = 5.0;

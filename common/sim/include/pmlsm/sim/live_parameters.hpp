@@ -77,7 +77,8 @@ class LiveParameters {
 std::vector<std::string> velocity_controller_live_keys();
 /// accel_feedback's: its gain K_a.
 std::vector<std::string> accel_feedback_live_keys();
-/// state_feedback's: the design's ratios (SystemParams' model, period and loop stay for the run).
+/// state_feedback's: the design's ratios and the friction fed forward (SystemParams' model, period,
+/// loop and output filter stay for the run).
 std::vector<std::string> state_feedback_live_keys();
 /// rnn_compensator's: the online rule's settings (the network's shape, scales and weights are not:
 /// its weights come live on /pmlsm/network_weights).
