@@ -38,6 +38,7 @@
 #include "pmlsm/sim/frequency_response_measurement.hpp"
 #include "pmlsm/sim/identification.hpp"
 #include "pmlsm/sim/filter_design.hpp"
+#include "pmlsm/sim/live_parameters.hpp"
 #include "pmlsm/sim/loop_tuning.hpp"
 #include "pmlsm/sim/simulated_drive.hpp"
 #include "pmlsm/util/data_files.hpp"
@@ -344,17 +345,15 @@ FilterChainParams design_force_command_filters(const SystemParams& configured, c
     say(transcript, "the gains the margins allow x%.3f -> x%.3f with a notch: %s\n", peak.gain_scale_before,
         peak.gain_scale_with, peak.placed ? "placed" : "not placed (less than min_gain_increase)");
   }
+  SystemParams designed = configured;
+  designed.force_command_filters = design.chain;
   for (std::size_t i = 0; i < kFilterSlots; ++i) {
     const BiquadParams& slot = design.chain.slots[i];
     if (slot == before.slots[i]) continue;
-    const std::string at = "filters.force_command.slot_" + std::to_string(i + 1) + ".";
-    say(transcript, "filter design: %s* = notch at %.2f Hz, damping %.4g, second_damping %.4g\n", at.c_str(),
+    const std::string at = "filters.force_command.slot_" + std::to_string(i + 1);
+    say(transcript, "filter design: %s = notch at %.2f Hz, damping %.4g, second_damping %.4g\n", at.c_str(),
         slot.frequency_hz, slot.damping, slot.second_damping);
-    values.push_back({at + "kind", to_string(slot.kind)});
-    values.push_back({at + "frequency_hz", format_value(slot.frequency_hz)});
-    values.push_back({at + "damping", format_value(slot.damping)});
-    values.push_back({at + "second_frequency_hz", format_value(0.0)});
-    values.push_back({at + "second_damping", format_value(slot.second_damping)});
+    for (const std::string& key : filter_slot_keys(at)) values.push_back({key, parameter_text(designed, key)});
   }
   return design.chain;
 }
@@ -504,24 +503,18 @@ bool verify_commissioned(const std::string& sweep_path, const SystemParams& comm
       sweep_path.c_str());
   bool all_passed = true;
   for (const Scenario& scenario : file.spec.scenarios) {
-    double pi_cost = 0;
     RunVerdict pi_alone;
     say(transcript, "  %-16s", scenario.name.c_str());
     for (const CompensatorKind kind : kinds) {
-      const auto trace = run_with_compensator(commissioned, scenario, {kind, weights, false});
-      RunVerdict v = judge_run(trace, scenario, commissioned.timing.control_period_s,
-                               commissioned.velocity_loop.force_limit_n, file.spec.verdict);
-      if (kind == CompensatorKind::kNone) {
-        pi_cost = v.cost;
-        pi_alone = v;
-      }
+      RunVerdict v = judged_run(commissioned, scenario, {kind, weights, false}, file.spec.verdict);
+      if (kind == CompensatorKind::kNone) pi_alone = v;
       judge_against_pi_alone(v, pi_alone, file.spec.verdict);
-      const bool passed = kind == CompensatorKind::kNone || (v.faults().empty() && v.cost < pi_cost);
+      const bool passed = kind == CompensatorKind::kNone || (v.faults().empty() && v.cost < pi_alone.cost);
       all_passed = all_passed && passed;
       say(transcript, "  %s %.3f%s%s", to_string(kind), v.cost, v.faults().empty() ? "" : (" " + v.faults()).c_str(),
           passed ? "" : " (fails)");
-      csv << scenario.name << ',' << to_string(kind) << ',' << v.cost << ',' << v.cost / pi_cost << ",\"" << v.faults()
-          << "\"," << v.tail_force_rms_n << ',' << v.tail_compensation_rms_n << '\n';
+      csv << scenario.name << ',' << to_string(kind) << ',' << v.cost << ',' << v.cost / pi_alone.cost << ",\""
+          << v.faults() << "\"," << v.tail_force_rms_n << ',' << v.tail_compensation_rms_n << '\n';
     }
     say(transcript, "\n");
   }
@@ -584,14 +577,10 @@ void tune_state_feedback_filter(const std::string& sweep_path, SystemParams& com
   double ratio_without = 0, ratio_with = 0;
   std::string costs;
   for (const Scenario& scenario : file.spec.scenarios) {
-    const double period_s = commissioned.timing.control_period_s, limit_n = commissioned.velocity_loop.force_limit_n;
     const RunVerdict pi_alone =
-        judge_run(run_with_compensator(commissioned, scenario, {CompensatorKind::kNone, {}, false}), scenario, period_s,
-                  limit_n, file.spec.verdict);
-    RunVerdict without = judge_run(run_with_compensator(commissioned, scenario, {CompensatorKind::kState, {}, false}),
-                                   scenario, period_s, limit_n, file.spec.verdict);
-    RunVerdict with = judge_run(run_with_compensator(filtered, scenario, {CompensatorKind::kState, {}, false}),
-                                scenario, period_s, limit_n, file.spec.verdict);
+        judged_run(commissioned, scenario, {CompensatorKind::kNone, {}, false}, file.spec.verdict);
+    RunVerdict without = judged_run(commissioned, scenario, {CompensatorKind::kState, {}, false}, file.spec.verdict);
+    RunVerdict with = judged_run(filtered, scenario, {CompensatorKind::kState, {}, false}, file.spec.verdict);
     judge_against_pi_alone(without, pi_alone, file.spec.verdict);
     judge_against_pi_alone(with, pi_alone, file.spec.verdict);
     clean = clean && with.faults().empty();

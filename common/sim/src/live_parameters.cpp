@@ -213,8 +213,8 @@ std::vector<std::string> velocity_controller_live_keys() {
   std::vector<std::string> keys{"velocity_loop.kp_n_s_per_m", "velocity_loop.ki_n_per_m"};
   for (const char* chain : {"filters.force_command", "filters.compensation"}) {
     for (std::size_t slot = 1; slot <= kFilterSlots; ++slot) {
-      for (const char* value : {"kind", "frequency_hz", "damping", "second_frequency_hz", "second_damping"}) {
-        keys.push_back(std::string(chain) + ".slot_" + std::to_string(slot) + "." + value);
+      for (std::string& key : filter_slot_keys(std::string(chain) + ".slot_" + std::to_string(slot))) {
+        keys.push_back(std::move(key));
       }
     }
   }

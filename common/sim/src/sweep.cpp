@@ -344,6 +344,12 @@ RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scena
   return out;
 }
 
+RunVerdict judged_run(const SystemParams& params, const Scenario& scenario, const CompensatorSetup& compensator,
+                      const VerdictParams& verdict) {
+  return judge_run(run_with_compensator(params, scenario, compensator), scenario, params.timing.control_period_s,
+                   params.velocity_loop.force_limit_n, verdict);
+}
+
 void judge_against_pi_alone(RunVerdict& run, const RunVerdict& pi_alone, const VerdictParams& verdict) {
   if (run.rest_tail || run.non_finite) return;
   run.limit_cycle = std::isfinite(run.tail_stretch_amplitude_m) &&
@@ -445,9 +451,7 @@ SweepResult run_sweep(const SystemParams& nominal, const SweepSpec& spec, const 
         CompensatorSetup setup;
         setup.kind = result.compensators[run.compensator];
         if (setup.kind == CompensatorKind::kRnn) setup.rnn_weights = rnn_weights;
-        const auto trace = run_with_compensator(params, scenario, setup);
-        run.verdict = judge_run(trace, scenario, params.timing.control_period_s, params.velocity_loop.force_limit_n,
-                                spec.verdict);
+        run.verdict = judged_run(params, scenario, setup, spec.verdict);
       } catch (...) {
         const std::lock_guard<std::mutex> lock(progress_mutex);
         if (!failure) failure = std::current_exception();

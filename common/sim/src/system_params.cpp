@@ -198,6 +198,27 @@ class RealFinder {
 
 }  // namespace
 
+namespace {
+
+// Collects the key paths a visit names.
+struct KeyCollector {
+  std::vector<std::string> keys;
+  void real(const std::string& path, double& /*value*/, const Plausible& /*range*/) { keys.push_back(path); }
+  template <typename Enum, typename Parse>
+  void choice(const std::string& path, Enum& /*value*/, Parse /*parse*/) {
+    keys.push_back(path);
+  }
+};
+
+}  // namespace
+
+std::vector<std::string> filter_slot_keys(const std::string& at) {
+  KeyCollector collector;
+  BiquadParams slot;
+  detail::visit_filter_slot(at, slot, collector);
+  return collector.keys;
+}
+
 double& real_parameter(SystemParams& params, const std::string& key_path, Plausible* range) {
   RealFinder finder(key_path);
   visit_parameters(params, finder);

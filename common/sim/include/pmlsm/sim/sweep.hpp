@@ -147,6 +147,11 @@ struct RunVerdict {
 RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scenario, double control_period_s,
                      double force_limit_n, const VerdictParams& verdict);
 
+/// A run of `scenario` on `params` with `compensator`, judged on its own (judge_run with the
+/// system's control period and force limit).
+RunVerdict judged_run(const SystemParams& params, const Scenario& scenario, const CompensatorSetup& compensator,
+                      const VerdictParams& verdict);
+
 /// A moving tail (a continuous reference) against PI alone's on the same plant and reference: a
 /// limit cycle when its stretch amplitude is at least limit_cycle_amplitude_m and more than
 /// max_forced_ratio_to_pi times PI alone's, and does not decay. Tails at rest keep judge_run's.

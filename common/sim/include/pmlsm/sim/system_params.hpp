@@ -88,6 +88,10 @@ void visit_parameters(Params& p, Visitor& v);
 /// @throws std::invalid_argument when no real entry has that key path.
 double& real_parameter(SystemParams& params, const std::string& key_path, Plausible* range = nullptr);
 
+/// The key paths of the filter slot at `at` ("filters.force_command.slot_1"): its kind and its
+/// four values, as the system file names them.
+std::vector<std::string> filter_slot_keys(const std::string& at);
+
 /// The parameters of configs/system.yaml, nested as the file is. A component's Params appears
 /// whole where the file has its section; the values it takes from elsewhere in the system (its
 /// period from timing, a motor model from the plant) are filled by the accessors below, which are
@@ -161,10 +165,8 @@ void visit_friction(const std::string& at, Friction& f, Visitor& v) {
          {1e-7, 1.0, "the smoothed band of sign(v): from 0.1 um/s to 1 m/s"});
 }
 
-// The two-mass mechanics: the plant's, and the models of it in the Kalman filter and in state
-// feedback, with one set of ranges.
-// A chain of filter slots (pmlsm/control/biquad.hpp): the kind and the four values each kind
-// may use; which it uses is checked by the slot's validate().
+// A filter slot (pmlsm/control/biquad.hpp): the kind and the four values each kind may use;
+// which it uses is checked by the slot's validate(). A chain holds four.
 template <typename Slot, typename Visitor>
 void visit_filter_slot(const std::string& at, Slot& slot, Visitor& v) {
   v.choice(at + ".kind", slot.kind, &filter_kind_from_string);
@@ -181,6 +183,8 @@ void visit_filter_chain(const std::string& at, Chain& chain, Visitor& v) {
   }
 }
 
+// The two-mass mechanics: the plant's, and the models of it in the Kalman filter and in state
+// feedback, with one set of ranges.
 template <typename Real, typename Visitor>
 void visit_two_mass(const std::string& at, Real& motor_mass_kg, Real& load_mass_kg, Real& spring_n_per_m, Visitor& v) {
   v.real(at + ".motor_mass_kg", motor_mass_kg, {0.01, 1e4, "from a 10 g slider to a 10 t gantry"});
