@@ -60,7 +60,8 @@ void print_results_row(const std::string& scenario, const ScenarioMetrics& m, co
 
 void print_results_footer(const std::string& out_dir) {
   std::printf(
-      "cost = sum over the first second of |V_ref - v_L| (eq. 23), true and Kalman-estimated "
+      "cost = sum over the scenario's cost window (the first second; a chirp's sweep) of |V_ref - v_L| "
+      "(eq. 23), true and Kalman-estimated "
       "v_L; traces in %s/\n",
       out_dir.c_str());
 }

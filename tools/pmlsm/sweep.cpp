@@ -54,7 +54,8 @@ void write_csv(const std::filesystem::path& path, const SweepFile& file, const S
   out << ",identified_load_mass_kg,identified_spring_n_per_m,identified_coulomb_n,identified_viscous_n_s_per_m,"
          "identified_at_bound";
   out << ",compensator,scenario,cost,cost_ratio_to_pi,settling_s,last_to_first_window_cost,tail_stretch_amplitude_mm,"
-         "tail_decay_rate_per_s,saturated_share,saturated_tail_share,tail_force_rms_n,tail_compensation_rms_n,"
+         "tail_decay_rate_per_s,tail_unforced_amplitude_mm,saturated_share,saturated_tail_share,tail_force_rms_n,tail_"
+         "compensation_rms_n,"
          "guard_trip_s,rest_tail,standstill,rest_stretch_peak_um,rest_compensation_rms_n,faults,passed\n";
   for (const SweepRun& run : result.runs) {
     const PlantSample& plant = result.plants[run.plant];
@@ -73,10 +74,11 @@ void write_csv(const std::filesystem::path& path, const SweepFile& file, const S
     out << "," << to_string(result.compensators[run.compensator]) << "," << file.spec.scenarios[run.scenario].name
         << "," << num(v.cost) << "," << num(run.cost_ratio_to_pi) << "," << num(v.settling_s) << ","
         << num(v.last_to_first_window_cost) << "," << num(v.tail_stretch_amplitude_m * 1e3) << ","
-        << num(v.tail_decay_rate_per_s) << "," << num(v.saturated_share) << "," << num(v.saturated_tail_share) << ","
-        << num(v.tail_force_rms_n) << "," << num(v.tail_compensation_rms_n) << "," << num(v.guard_trip_s) << ","
-        << (v.rest_tail ? 1 : 0) << "," << (v.standstill ? 1 : 0) << "," << num(v.rest_stretch_peak_m * 1e6) << ","
-        << num(v.rest_compensation_rms_n) << ",\"" << v.faults() << "\"," << (run.passed ? 1 : 0) << "\n";
+        << num(v.tail_decay_rate_per_s) << "," << num(v.tail_unforced_amplitude_m * 1e3) << ","
+        << num(v.saturated_share) << "," << num(v.saturated_tail_share) << "," << num(v.tail_force_rms_n) << ","
+        << num(v.tail_compensation_rms_n) << "," << num(v.guard_trip_s) << "," << (v.rest_tail ? 1 : 0) << ","
+        << (v.standstill ? 1 : 0) << "," << num(v.rest_stretch_peak_m * 1e6) << "," << num(v.rest_compensation_rms_n)
+        << ",\"" << v.faults() << "\"," << (run.passed ? 1 : 0) << "\n";
   }
   if (!out) throw std::runtime_error("cannot write " + path.string());
 }

@@ -11,6 +11,8 @@
 #include <stdexcept>
 #include <thread>
 
+#include <Eigen/Dense>
+
 #include "pmlsm/sim/metrics.hpp"
 #include "pmlsm/util/validate.hpp"
 
@@ -262,6 +264,17 @@ void judge_tail_stretch(const std::vector<TickRecord>& trace, const TailSpan& sp
   std::size_t resting = 0;  // ticks at rest up to the end
   while (resting < n && std::fabs(trace[n - 1 - resting].command_mps) <= verdict.rest_command_band_mps) ++resting;
   out.rest_tail = resting >= span.tail;
+  if (out.rest_tail) {
+    out.tail_unforced_amplitude_m = out.tail_stretch_amplitude_m;
+    out.tail_unforced_decay_rate_per_s = out.tail_decay_rate_per_s;
+  } else {
+    const std::vector<double> unforced = unforced_stretch(trace, span.begin, n, control_period_s);
+    std::vector<double> padded(n, 0.0);  // indexed as the stretch, the tail's ticks filled
+    std::copy(unforced.begin(), unforced.end(), padded.begin() + static_cast<std::ptrdiff_t>(span.begin));
+    out.tail_unforced_amplitude_m = std::sqrt(2.0) * rms_about(padded, span.begin, n, 0.0);
+    out.tail_unforced_decay_rate_per_s = tail_decay_rate_per_s(
+        padded, span.begin, static_cast<std::size_t>(verdict.tail_windows), 0.0, control_period_s);
+  }
   out.standstill =
       out.rest_tail && static_cast<double>(resting) * control_period_s >= verdict.min_rest_s * (1.0 - 1e-9);
   // A moving tail holds the reference's forced response: judged against PI alone's instead.
@@ -317,6 +330,37 @@ void judge_tail_forces(const std::vector<TickRecord>& trace, const TailSpan& spa
 
 }  // namespace
 
+std::vector<double> unforced_stretch(const std::vector<TickRecord>& trace, std::size_t begin, std::size_t end,
+                                     double control_period_s) {
+  end = std::min(end, trace.size());
+  if (end <= begin) return {};
+  const auto rows = static_cast<Eigen::Index>(end - begin);
+  const std::size_t spacing =
+      std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(kForcedResponseTapSpacing_s / control_period_s)));
+  // Columns: a constant (the stretch's mean) and V_ref(t_k - j spacing), each scaled to unit norm
+  // so the pivoting QR can tell a reference that does not move (a cruise: the taps are the constant
+  // again) and drop what it does not span.
+  Eigen::MatrixXd a(rows, kForcedResponseTaps + 1);
+  Eigen::VectorXd y(rows);
+  for (Eigen::Index r = 0; r < rows; ++r) {
+    const std::size_t k = begin + static_cast<std::size_t>(r);
+    y(r) = trace[k].load_position_m - trace[k].motor_position_m;
+    a(r, 0) = 1.0;
+    for (int j = 1; j <= kForcedResponseTaps; ++j) {
+      const std::size_t lag = static_cast<std::size_t>(j - 1) * spacing;
+      a(r, j) = trace[k >= lag ? k - lag : 0].v_ref_mps;
+    }
+  }
+  for (Eigen::Index c = 0; c < a.cols(); ++c) {
+    const double norm = a.col(c).norm();
+    if (norm > 0) a.col(c) /= norm;
+  }
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(a);
+  qr.setThreshold(1e-9);
+  const Eigen::VectorXd residual = y - a * qr.solve(y);
+  return {residual.data(), residual.data() + residual.size()};
+}
+
 RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scenario, double control_period_s,
                      double force_limit_n, const VerdictParams& verdict) {
   RunVerdict out;
@@ -352,10 +396,11 @@ RunVerdict judged_run(const SystemParams& params, const Scenario& scenario, cons
 
 void judge_against_pi_alone(RunVerdict& run, const RunVerdict& pi_alone, const VerdictParams& verdict) {
   if (run.rest_tail || run.non_finite) return;
-  run.limit_cycle = std::isfinite(run.tail_stretch_amplitude_m) &&
-                    run.tail_stretch_amplitude_m >= verdict.limit_cycle_amplitude_m &&
-                    run.tail_stretch_amplitude_m > verdict.max_forced_ratio_to_pi * pi_alone.tail_stretch_amplitude_m &&
-                    !(run.tail_decay_rate_per_s >= verdict.min_decay_rate_per_s);
+  run.limit_cycle =
+      std::isfinite(run.tail_unforced_amplitude_m) &&
+      run.tail_unforced_amplitude_m >= verdict.limit_cycle_amplitude_m &&
+      run.tail_unforced_amplitude_m > verdict.max_forced_ratio_to_pi * pi_alone.tail_unforced_amplitude_m &&
+      !(run.tail_unforced_decay_rate_per_s >= verdict.min_decay_rate_per_s);
 }
 
 const SweepRun& SweepResult::run(std::size_t plant, std::size_t compensator, std::size_t scenario) const {

@@ -185,34 +185,86 @@ TEST(SweepVerdict, AtRestResidualOscillationAndChatterAreJudgedInTheLastWindow) 
   EXPECT_FALSE(damped.chatter);
 }
 
-// A moving reference's end holds its forced response: a 2 mm stretch oscillation under a sine
-// command is no limit cycle on its own, nor beside PI alone's 1.9 mm; beside PI alone's 0.5 mm
-// (more than 1.5 times it, and not decaying) it is. Hunting and chatter are not judged there.
-TEST(SweepVerdict, AMovingTailIsALimitCycleOnlyBeyondPiAlonesForcedResponse) {
+// A moving reference's end holds its forced response: a stretch at the reference's own frequency,
+// in any phase and however large, is taken out (unforced_stretch) and no limit cycle, beside PI
+// alone's forced response or not. An oscillation at another frequency (the load mode under a 5 Hz
+// sine) is one when it reaches 0.5 mm and exceeds 1.5 times PI alone's unforced stretch, and does
+// not decay. Hunting and chatter are not judged on a moving tail.
+TEST(SweepVerdict, AMovingTailIsALimitCycleOnlyForMotionTheReferenceDoesNotHold) {
   Scenario s = zero_scenario(2.0);
   s.initial_load_displacement_m = 0.0;
-  std::vector<TickRecord> trace = oscillation(2e-3, 0.0, 5.0, 2.0);
-  for (TickRecord& r : trace) {
-    r.command_mps = 0.3 * std::sin(2 * M_PI * 5.0 * r.time_s);
-    r.compensation_force_n = 50.0;
-  }
-  RunVerdict run = judge_run(trace, s, kT, 675, verdict());
-  EXPECT_FALSE(run.rest_tail);
-  EXPECT_FALSE(run.limit_cycle);
-  EXPECT_FALSE(run.residual);
-  EXPECT_FALSE(run.chatter);
-  RunVerdict pi_alone = judge_run(oscillation(1.9e-3, 0.0, 5.0, 2.0), s, kT, 675, verdict());
-  judge_against_pi_alone(run, pi_alone, verdict());
-  EXPECT_FALSE(run.limit_cycle);
-  pi_alone = judge_run(oscillation(5e-4, 0.0, 5.0, 2.0), s, kT, 675, verdict());
-  judge_against_pi_alone(run, pi_alone, verdict());
-  EXPECT_TRUE(run.limit_cycle);
-  EXPECT_EQ(run.faults(), "limit cycle");
+  const auto under_sine = [](double forced_m, double cycle_m, double cycle_hz) {
+    std::vector<TickRecord> trace = oscillation(cycle_m, 0.0, cycle_hz, 2.0);
+    for (TickRecord& r : trace) {
+      r.command_mps = 0.3 * std::sin(2 * M_PI * 5.0 * r.time_s);
+      r.v_ref_mps = 0.2 * std::sin(2 * M_PI * 5.0 * r.time_s - 0.9);  // the reference model's lag
+      r.load_position_m += forced_m * std::sin(2 * M_PI * 5.0 * r.time_s + 2.0);
+      r.compensation_force_n = 50.0;
+    }
+    return trace;
+  };
+  RunVerdict forced = judge_run(under_sine(2e-3, 0.0, 5.0), s, kT, 675, verdict());
+  EXPECT_FALSE(forced.rest_tail);
+  EXPECT_NEAR(forced.tail_stretch_amplitude_m, 2e-3, 1e-4);
+  EXPECT_LT(forced.tail_unforced_amplitude_m, 1e-6);
+  EXPECT_FALSE(forced.limit_cycle);
+  EXPECT_FALSE(forced.residual);
+  EXPECT_FALSE(forced.chatter);
+  const RunVerdict pi_alone = judge_run(under_sine(5e-4, 0.0, 5.0), s, kT, 675, verdict());
+  judge_against_pi_alone(forced, pi_alone, verdict());
+  EXPECT_FALSE(forced.limit_cycle);  // four times PI alone's stretch, all of it forced
+
+  RunVerdict cycling = judge_run(under_sine(2e-3, 1e-3, 10.0), s, kT, 675, verdict());
+  EXPECT_NEAR(cycling.tail_unforced_amplitude_m, 1e-3, 1e-4);
+  judge_against_pi_alone(cycling, pi_alone, verdict());
+  EXPECT_TRUE(cycling.limit_cycle);
+  EXPECT_EQ(cycling.faults(), "limit cycle");
+  // The same beside PI alone's own 0.8 mm at the load mode: not 1.5 times it.
+  RunVerdict beside = judge_run(under_sine(2e-3, 1e-3, 10.0), s, kT, 675, verdict());
+  judge_against_pi_alone(beside, judge_run(under_sine(5e-4, 8e-4, 10.0), s, kT, 675, verdict()), verdict());
+  EXPECT_FALSE(beside.limit_cycle);
+  // Below 0.5 mm unforced: no limit cycle, whatever PI alone has.
+  RunVerdict small = judge_run(under_sine(2e-3, 3e-4, 10.0), s, kT, 675, verdict());
+  judge_against_pi_alone(small, pi_alone, verdict());
+  EXPECT_FALSE(small.limit_cycle);
+
   // A tail at rest keeps its own judgement.
   RunVerdict at_rest = judge_run(oscillation(2e-3, 0.0, 5.0, 2.0), s, kT, 675, verdict());
   ASSERT_TRUE(at_rest.limit_cycle);
   judge_against_pi_alone(at_rest, judge_run(oscillation(2e-3, 0.0, 5.0, 2.0), s, kT, 675, verdict()), verdict());
   EXPECT_TRUE(at_rest.limit_cycle);
+}
+
+// The chirp's tail (19-20 Hz of a 0.5-20 Hz sweep in 8 s) changes frequency inside the tail: a
+// response with its own gain and phase across that band is still the reference's; a 3 Hz-wide
+// miss is not. A cruise (V_ref constant) leaves the stretch about its mean whole.
+TEST(SweepVerdict, UnforcedStretchTakesOutAChirpsResponseAndLeavesACruisesOscillation) {
+  const double f0 = 0.5, rate = (20.0 - 0.5) / 8.0;
+  std::vector<TickRecord> trace(8000);
+  for (std::size_t k = 0; k < trace.size(); ++k) {
+    const double t = static_cast<double>(k) * kT;
+    const double phase = 2 * M_PI * (f0 * t + 0.5 * rate * t * t);
+    const double hz = f0 + rate * t;
+    trace[k].time_s = t;
+    trace[k].v_ref_mps = 0.05 * std::sin(phase);
+    // Gain and phase that change with frequency, as a loop's response does.
+    trace[k].load_position_m = 1e-3 * (hz / 20.0) * std::sin(phase + 0.05 * hz);
+  }
+  const std::vector<double> unforced = unforced_stretch(trace, 7600, 8000, kT);
+  ASSERT_EQ(unforced.size(), 400U);
+  double peak = 0;
+  for (double u : unforced) peak = std::max(peak, std::fabs(u));
+  EXPECT_LT(peak, 2e-5);  // of 1 mm
+
+  std::vector<TickRecord> cruise = oscillation(1e-3, 0.0, 9.0, 2.0);
+  for (TickRecord& r : cruise) {
+    r.v_ref_mps = 0.2;
+    r.load_position_m += 0.01;  // a constant stretch: the mean, taken out
+  }
+  const std::vector<double> left = unforced_stretch(cruise, 1600, 2000, kT);
+  double square = 0;
+  for (double u : left) square += u * u;
+  EXPECT_NEAR(std::sqrt(2.0 * square / static_cast<double>(left.size())), 1e-3, 5e-5);
 }
 
 // The family's free-vibration target: the spring stretch inside the scenario's band (2 % of the

@@ -114,7 +114,11 @@ struct RunVerdict {
   double last_to_first_window_cost = std::numeric_limits<double>::quiet_NaN();  ///< cost per window: trend
   double tail_stretch_amplitude_m = 0;  ///< sqrt(2) x RMS of x_L - x_M (mean removed) over the tail
   double tail_decay_rate_per_s = 0;     ///< -d ln(RMS of a window) / dt over the tail's windows; < 0: growing
-  double saturated_share = 0;           ///< of all ticks, force command at its limit
+  /// A moving tail's stretch less its forced response (the part a linear filter of V_ref explains,
+  /// unforced_stretch): sqrt(2) x its RMS, and its decay rate as above. At rest: the stretch's own.
+  double tail_unforced_amplitude_m = 0;
+  double tail_unforced_decay_rate_per_s = 0;
+  double saturated_share = 0;  ///< of all ticks, force command at its limit
   double saturated_tail_share = 0;
   /// Chatter over the tail, measured, not yet judged: RMS of the force command about its mean
   /// (the drive's own hunting as well as a compensator's) and RMS of the compensation force.
@@ -152,9 +156,21 @@ RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scena
 RunVerdict judged_run(const SystemParams& params, const Scenario& scenario, const CompensatorSetup& compensator,
                       const VerdictParams& verdict);
 
+/// The tail's spring stretch with its forced response taken out: the least-squares fit of
+/// x_L - x_M over [begin, end) by a constant and a linear filter of V_ref (kForcedResponseTaps taps
+/// kForcedResponseTapSpacing_s apart, the taps reaching back before `begin`), subtracted. Such a
+/// filter reproduces any linear loop's steady response to a reference of up to four frequencies
+/// (a sine, a multi-sine, the narrow band a chirp crosses in a tail); what is left is motion at
+/// frequencies the reference does not hold: a limit cycle, or a start transient still ringing.
+std::vector<double> unforced_stretch(const std::vector<TickRecord>& trace, std::size_t begin, std::size_t end,
+                                     double control_period_s);
+inline constexpr int kForcedResponseTaps = 8;
+inline constexpr double kForcedResponseTapSpacing_s = 0.01;
+
 /// A moving tail (a continuous reference) against PI alone's on the same plant and reference: a
-/// limit cycle when its stretch amplitude is at least limit_cycle_amplitude_m and more than
-/// max_forced_ratio_to_pi times PI alone's, and does not decay. Tails at rest keep judge_run's.
+/// limit cycle when its unforced stretch (unforced_stretch: the reference's own frequencies taken
+/// out) has an amplitude of at least limit_cycle_amplitude_m and more than max_forced_ratio_to_pi
+/// times PI alone's, and does not decay. Tails at rest keep judge_run's.
 void judge_against_pi_alone(RunVerdict& run, const RunVerdict& pi_alone, const VerdictParams& verdict);
 
 struct SweepRun {
