@@ -201,6 +201,37 @@ TEST(VibrationGuard, AReferenceMovingAtTheModeIsTrackingNotALimitCycle) {
   EXPECT_EQ(riding.output().reason, VibrationGuardTrip::kSustained);
 }
 
+// A frequency sweep through and above the load mode, the load following it: the motor must move
+// (w / w_L)^2 times the reference more than the load does, so the motor's error to the reference
+// grows with the sweep's frequency (1.5 times the reference's motion at 1.22 w_L and beyond) and
+// grows window after window. All of it is at the reference's frequency: U, what a gain and a phase
+// of the reference leave, stays at the floor. A 12 Hz limit cycle on the same sweep is not the
+// reference's and trips it.
+TEST(VibrationGuard, AForcedErrorGrowingWithASweepIsTheReferencesAnOscillationBesideItIsNot) {
+  const double f0 = 8.0, rate = 2.4, mode_hz = 9.3;  // the chirp's rate, the nominal load mode
+  const auto sweep = [&](VibrationGuard& g, double cycle_mps) {
+    for (int k = 0; k < 5000; ++k) {
+      const double t = k * kT;
+      const double phase = 2 * M_PI * (f0 * t + 0.5 * rate * t * t);
+      const double ratio = (f0 + rate * t) / mode_hz;
+      const double ref = 0.05 * std::sin(phase);
+      const double error = -0.05 * ratio * ratio * std::sin(phase - 0.2) + cycle_mps * std::sin(2 * M_PI * 12.0 * t);
+      g.step({ref + error, ref, 200.0 * error});
+    }
+  };
+  VibrationGuardParams shipped = params();
+  shipped.max_reference_share = 1.5;
+  VibrationGuard forced(shipped);
+  sweep(forced, 0.0);
+  EXPECT_FALSE(forced.output().tripped);
+  EXPECT_GT(forced.counters().last_amplitude_mps, 1.5 * forced.counters().last_reference_mps)
+      << "the error outgrows the reference's own motion";
+  EXPECT_LT(forced.counters().last_unforced_mps, 0.1 * forced.counters().last_amplitude_mps);
+  VibrationGuard cycling(shipped);
+  sweep(cycling, 0.2);
+  EXPECT_TRUE(cycling.output().tripped);
+}
+
 TEST(VibrationGuard, NonFiniteInputsAreCountedNeverPropagated) {
   VibrationGuard g(params());
   const double nan = std::numeric_limits<double>::quiet_NaN();

@@ -17,6 +17,13 @@
 // A > max_reference_share A_ref: a loop tracking a fast reference has a steady error at the
 // reference's frequency that is its bandwidth's, not a limit cycle (a limit cycle needs no
 // reference; one riding on a moving reference still makes A outgrow the tracking error).
+// Nor is the error's part at the reference's own frequency: growth and decay are judged on
+//   U = rms(e~ - b0 r~(t) - b1 r~(t - kQuadratureLag_s)),  (b0, b1) the window's least squares,
+// the error less what a gain and a phase of the high-passed reference r~ explain (two lagged copies
+// of a narrow-band signal span its sine and cosine). Above the load mode a loop that makes the load
+// follow moves the motor more than the reference (x_M = x_L (1 - w^2 / w_L^2)), and a frequency
+// sweep through there makes that forced error grow window after window: it is no limit cycle,
+// and U, not A, shows whether anything else is there (a reference at rest leaves U = A).
 // A window in which the compensator sat at its own limit for more than max_saturated_share of
 // its ticks is not judged for a sustained oscillation: a saturated compensator forces the motor
 // at a constant amplitude while it damps the load (the free vibration's first 0.4 s on a light
@@ -29,6 +36,8 @@
 // last finite one used instead.
 #pragma once
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
 
 namespace pmlsm {
@@ -72,9 +81,14 @@ struct VibrationGuardCounters {
   std::uint64_t windows = 0;
   std::uint64_t trip_tick = 0;    ///< the step at which it tripped (when tripped)
   double last_amplitude_mps = 0;  ///< A of the last window
+  double last_unforced_mps = 0;   ///< U of the last window (A less the reference's own part)
   double last_reference_mps = 0;  ///< A_ref of the last window
   double last_force_rms_n = 0;    ///< rms of the high-passed compensation force of the last window
 };
+
+/// The lag of the reference's second copy in U's fit (see above): a quarter period at 50 Hz, so
+/// the copies stay apart for any reference from a fraction of a hertz to well above the load modes.
+inline constexpr double kQuadratureLag_s = 5e-3;
 
 class VibrationGuard {
  public:
@@ -91,6 +105,7 @@ class VibrationGuard {
   const VibrationGuardParams& params() const noexcept { return params_; }
 
  private:
+  double unforced_amplitude_mps(double n) const noexcept;  ///< U of the window of n steps
   VibrationGuardParams params_;
   double alpha_;  // high-pass coefficient
   std::uint32_t window_steps_;
@@ -105,6 +120,14 @@ class VibrationGuard {
   bool primed_ = false;
   std::uint32_t in_window_ = 0;
   double sum_e2_ = 0, sum_r2_ = 0, sum_f2_ = 0;
+  /// r~ of the last kQuadratureLag_s (a ring of lag_steps_ entries; a control period under
+  /// 0.08 ms shortens the lag to kMaxLagSteps) and the fit's sums over the window: r~ r~,
+  /// r~ r~_lag, r~_lag r~_lag, e~ r~, e~ r~_lag.
+  static constexpr std::size_t kMaxLagSteps = 64;
+  std::array<double, kMaxLagSteps> reference_lagged_{};
+  std::size_t lag_steps_;
+  std::size_t lag_at_ = 0;
+  double sum_rr_ = 0, sum_rl_ = 0, sum_ll_ = 0, sum_er_ = 0, sum_el_ = 0;
   std::uint32_t saturated_in_window_ = 0;
   double previous_amplitude_ = 0;
   std::uint32_t sustained_run_ = 0, growing_run_ = 0;
