@@ -395,6 +395,14 @@ TEST(SweepFile, ShippedFileLoads) {
   const auto a = sample_plants(file.spec), b = sample_plants(identified.spec);
   ASSERT_EQ(a.size(), b.size());
   for (std::size_t i = 0; i < a.size(); ++i) EXPECT_EQ(a[i].values, b[i].values) << a[i].label;
+  // Every reference a loop follows, on the same identified plants.
+  const SweepFile all =
+      load_sweep_file(std::string(PMLSM_SOURCE_DIR) + "/configs/sweeps/all_references.yaml", test::shipped_params());
+  EXPECT_TRUE(all.spec.identify_models);
+  EXPECT_EQ(all.spec.scenarios.size(), 13u);
+  const auto c = sample_plants(all.spec);
+  ASSERT_EQ(c.size(), b.size());
+  for (std::size_t i = 0; i < c.size(); ++i) EXPECT_EQ(c[i].values, b[i].values) << c[i].label;
 }
 
 TEST(SweepFile, BadInputNamesTheLineAndTheValue) {
