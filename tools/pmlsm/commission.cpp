@@ -554,9 +554,9 @@ void write_commissioned(const CommissionOptions& o, const TwoMassFit& fit,
   std::vector<ConfigOverride> written;
   for (const auto& [key, value] : values) written.push_back({key, format_value(value)});
   written.insert(written.end(), text_values.begin(), text_values.end());
-  write_system_file_with(o.config, written, source, o.out);
-  say(transcript, "commission: %s written (%zu values); run the nodes with --config %s\n", o.out.c_str(),
-      written.size(), o.out.c_str());
+  write_system_file_with(o.config, written, source, o.out, parse_overrides(o.set));
+  say(transcript, "commission: %s written (%zu values, and %zu set with --set); run the nodes with --config %s\n",
+      o.out.c_str(), written.size(), o.set.size(), o.out.c_str());
   if (o.tune || !text_values.empty()) {
     say(transcript, "commission: to a controller already running: pmlsm param load controller %s\n", o.out.c_str());
   }

@@ -184,9 +184,9 @@ int run_identify(const IdentifyOptions& o) {
                 "chosen: identified by pmlsm identify from %s (innovation rms %.3f mm/s against %.3f mm/s with the "
                 "values of %s)",
                 from.c_str(), 1e3 * id.innovation_rms_mps, 1e3 * id.configured_innovation_rms_mps, o.config.c_str());
-  write_system_file_with(o.config, identified_parameters(id), source, o.out);
-  std::printf("identify: %s written (%zu values); run the nodes with --config %s\n", o.out.c_str(),
-              identified_parameters(id).size(), o.out.c_str());
+  write_system_file_with(o.config, identified_parameters(id), source, o.out, parse_overrides(o.set));
+  std::printf("identify: %s written (%zu values, and %zu set with --set); run the nodes with --config %s\n",
+              o.out.c_str(), identified_parameters(id).size(), o.set.size(), o.out.c_str());
   return kExitOk;
 }
 

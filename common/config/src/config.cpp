@@ -193,27 +193,29 @@ SystemParams load_system_params(const std::string& path, const std::vector<Confi
 
 std::string write_system_file_with(const std::string& in_path,
                                    const std::vector<std::pair<std::string, double>>& values, const std::string& source,
-                                   const std::string& out_path) {
+                                   const std::string& out_path, const std::vector<ConfigOverride>& command_line) {
   std::vector<ConfigOverride> texts;
   texts.reserve(values.size());
   for (const auto& [key, value] : values) texts.push_back({key, format_value(value)});
-  return write_system_file_with(in_path, texts, source, out_path);
+  return write_system_file_with(in_path, texts, source, out_path, command_line);
 }
 
 std::string write_system_file_with(const std::string& in_path, const std::vector<ConfigOverride>& values,
-                                   const std::string& source, const std::string& out_path) {
+                                   const std::string& source, const std::string& out_path,
+                                   const std::vector<ConfigOverride>& command_line) {
   if (source.rfind("chosen:", 0) != 0 || source.find_first_not_of(" \t", 7) == std::string::npos) {
     throw ConfigError(out_path + ": the source of the written values must be 'chosen: <reason>', got '" + source + "'");
   }
   YAML::Node root = parse_yaml(read_file(in_path), in_path);
+  apply_overrides(root, command_line, in_path, "chosen: set on the command line that wrote this file (--set)");
   apply_overrides(root, values, in_path, source);
   YAML::Emitter out;
   out.SetIndent(2);
   out << root;
   if (!out.good()) throw ConfigError(out_path + ": cannot render: " + out.GetLastError());
-  const std::string text = "# Written from " + in_path + " with " + std::to_string(values.size()) +
-                           " values replaced (their source says by what); the comments are in that file.\n" +
-                           out.c_str() + "\n";
+  const std::string text =
+      "# Written from " + in_path + " with " + std::to_string(values.size() + command_line.size()) +
+      " values replaced (their source says by what); the comments are in that file.\n" + out.c_str() + "\n";
   parse_system_params(text, out_path);  // every check, before anything is replaced
   try {
     write_file_atomically(out_path, text);

@@ -461,6 +461,31 @@ TEST(ConfigFiles, AWrittenCopyHoldsTheValuesAndTheirSource) {
   EXPECT_FALSE(std::ifstream(refused).good());
 }
 
+// The command that writes a copy (identify, commission) ran on the file with its --set: those go
+// into the copy too, under their own source, so a simulated plant changed with --set stays the
+// plant the copy's models were measured on. A written value wins over a --set of the same key.
+TEST(ConfigFiles, AWrittenCopyKeepsTheCommandLinesSetValues) {
+  const std::string shipped = source_path("configs/system.yaml");
+  const std::string out = ::testing::TempDir() + "/system_written_set.yaml";
+  write_system_file_with(
+      shipped, {{"kalman.model.load_mass_kg", 7.5}}, "chosen: identified (test)", out,
+      {ConfigOverride::parse("plant.mechanics.load_mass_kg=8"), ConfigOverride::parse("kalman.model.load_mass_kg=3")});
+  const SystemParams after = load_system_params(out);
+  EXPECT_EQ(after.plant.mechanics.load_mass_kg, 8.0);
+  EXPECT_EQ(after.kalman.model.load_mass_kg, 7.5);
+  const YAML::Node written = YAML::LoadFile(out);
+  EXPECT_NE(written["plant"]["mechanics"]["load_mass_kg"]["source"].as<std::string>().find("--set"), std::string::npos);
+  EXPECT_EQ(written["kalman"]["model"]["load_mass_kg"]["source"].as<std::string>(), "chosen: identified (test)");
+  // A --set that names no key is refused, nothing written.
+  const std::string refused = ::testing::TempDir() + "/system_refused_set.yaml";
+  expect_names(error_of([&] {
+                 write_system_file_with(shipped, {{"kalman.model.load_mass_kg", 7.5}}, "chosen: x", refused,
+                                        {ConfigOverride::parse("plant.mass=8")});
+               }),
+               shipped, {"plant.mass"});
+  EXPECT_FALSE(std::ifstream(refused).good());
+}
+
 // ------------------------------------------- the Kalman filter's disturbance inputs
 
 TEST(ConfigKalmanInputs, ShippedValuesAreThePlantsAndLoad) {

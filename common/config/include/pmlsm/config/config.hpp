@@ -46,15 +46,18 @@ SystemParams load_system_params(const std::string& path, const std::vector<Confi
 
 /// Writes out_path: the system file in_path with every (key path, value) of `values` set and its
 /// source replaced by `source` ("chosen: <reason>"), the rest as it was (comments are not kept:
-/// a header line names in_path). The text is loaded back with every check of
-/// load_system_params before it is written, atomically. Returns what it wrote.
+/// a header line names in_path). `command_line`, the --set overrides the writing command ran
+/// with, is set first, its source saying so: the copy describes the system that was measured (a
+/// simulated plant changed with --set stays that plant). The text is loaded back with every check
+/// of load_system_params before it is written, atomically. Returns what it wrote.
 /// @throws ConfigError naming the file and the key of the first problem.
 std::string write_system_file_with(const std::string& in_path,
                                    const std::vector<std::pair<std::string, double>>& values, const std::string& source,
-                                   const std::string& out_path);
+                                   const std::string& out_path, const std::vector<ConfigOverride>& command_line = {});
 /// The same with each value as its text (a choice's name, a number as written).
 std::string write_system_file_with(const std::string& in_path, const std::vector<ConfigOverride>& values,
-                                   const std::string& source, const std::string& out_path);
+                                   const std::string& source, const std::string& out_path,
+                                   const std::vector<ConfigOverride>& command_line = {});
 SystemParams parse_system_params(const std::string& yaml_text, const std::string& origin,
                                  const std::vector<ConfigOverride>& overrides = {});
 
