@@ -448,8 +448,11 @@ TEST(Identify, ARecordedCommissioningRunGivesTheInProcessFit) {
   EXPECT_NEAR(a.kalman.model.load_mass_kg, 2.0, 0.3);
   EXPECT_NEAR(std::sqrt(a.kalman.model.spring_n_per_m / a.kalman.model.load_mass_kg), std::sqrt(27400.0 / 2.0), 1.5);
   EXPECT_EQ(a.compensator.state_feedback.model.load_mass_kg, a.kalman.model.load_mass_kg);
+  // From the recording the plant is the file's; --simulate wrote its --set plant with the models.
   EXPECT_EQ(a.plant.mechanics.load_mass_kg,
             load_system_params(source("configs/system.yaml")).plant.mechanics.load_mass_kg);
+  EXPECT_EQ(b.plant.mechanics.load_mass_kg, 2.0);
+  EXPECT_EQ(b.plant.mechanics.spring_n_per_m, 27400.0);
   fs::remove_all(dir);
 }
 
@@ -510,7 +513,9 @@ TEST(Commission, SimulatedPlantGivesItsModesAReportAndASystemFile) {
   EXPECT_NEAR(written.kalman.model.load_mass_kg, 8.0, 0.16);
   EXPECT_NEAR(written.kalman.model.spring_n_per_m, 13700.0, 274.0);
   EXPECT_EQ(written.compensator.state_feedback.model.load_mass_kg, written.kalman.model.load_mass_kg);
-  EXPECT_EQ(written.plant.mechanics.load_mass_kg, 4.0);  // the plant is the file's, untouched
+  // The simulated plant keeps the command's --set: the copy runs the plant it was measured on.
+  EXPECT_EQ(written.plant.mechanics.load_mass_kg, 8.0);
+  EXPECT_EQ(written.plant.mechanics.spring_n_per_m, 13700.0);
   // --tune: the PI's gains scaled together to the margins (printed), the gain margin binding.
   EXPECT_NE(p.output().find("velocity loop as measured (Kp 10000 N s/m): phase margin 54."), std::string::npos)
       << p.output();

@@ -53,9 +53,9 @@ void write_csv(const std::filesystem::path& path, const SweepFile& file, const S
   // With the models identified per plant: what the commissioning found (empty otherwise).
   out << ",identified_load_mass_kg,identified_spring_n_per_m,identified_coulomb_n,identified_viscous_n_s_per_m,"
          "identified_at_bound";
-  out << ",compensator,scenario,cost,cost_ratio_to_pi,settling_s,last_to_first_window_cost,tail_stretch_amplitude_mm,"
-         "tail_decay_rate_per_s,tail_unforced_amplitude_mm,saturated_share,saturated_tail_share,tail_force_rms_n,tail_"
-         "compensation_rms_n,"
+  out << ",compensator,scenario,cost,cost_ratio_to_pi,settling_s,last_to_first_window_cost,"
+         "tail_stretch_amplitude_mm,tail_decay_rate_per_s,tail_unforced_amplitude_mm,"
+         "saturated_share,saturated_tail_share,tail_force_rms_n,tail_compensation_rms_n,"
          "guard_trip_s,rest_tail,standstill,rest_stretch_peak_um,rest_compensation_rms_n,faults,passed\n";
   for (const SweepRun& run : result.runs) {
     const PlantSample& plant = result.plants[run.plant];

@@ -269,11 +269,9 @@ void judge_tail_stretch(const std::vector<TickRecord>& trace, const TailSpan& sp
     out.tail_unforced_decay_rate_per_s = out.tail_decay_rate_per_s;
   } else {
     const std::vector<double> unforced = unforced_stretch(trace, span.begin, n, control_period_s);
-    std::vector<double> padded(n, 0.0);  // indexed as the stretch, the tail's ticks filled
-    std::copy(unforced.begin(), unforced.end(), padded.begin() + static_cast<std::ptrdiff_t>(span.begin));
-    out.tail_unforced_amplitude_m = std::sqrt(2.0) * rms_about(padded, span.begin, n, 0.0);
-    out.tail_unforced_decay_rate_per_s = tail_decay_rate_per_s(
-        padded, span.begin, static_cast<std::size_t>(verdict.tail_windows), 0.0, control_period_s);
+    out.tail_unforced_amplitude_m = std::sqrt(2.0) * rms_about(unforced, 0, unforced.size(), 0.0);
+    out.tail_unforced_decay_rate_per_s =
+        tail_decay_rate_per_s(unforced, 0, static_cast<std::size_t>(verdict.tail_windows), 0.0, control_period_s);
   }
   out.standstill =
       out.rest_tail && static_cast<double>(resting) * control_period_s >= verdict.min_rest_s * (1.0 - 1e-9);

@@ -17,13 +17,13 @@
 // A > max_reference_share A_ref: a loop tracking a fast reference has a steady error at the
 // reference's frequency that is its bandwidth's, not a limit cycle (a limit cycle needs no
 // reference; one riding on a moving reference still makes A outgrow the tracking error).
-// Nor is the error's part at the reference's own frequency: growth and decay are judged on
-//   U = rms(e~ - b0 r~(t) - b1 r~(t - kQuadratureLag_s)),  (b0, b1) the window's least squares,
+// The share compares not A but what the reference leaves of it,
+//   U = rms(e~ - b0 r~(t) - b1 r~(t - kQuadratureLag_s)),  (b0, b1) the window's least squares:
 // the error less what a gain and a phase of the high-passed reference r~ explain (two lagged copies
 // of a narrow-band signal span its sine and cosine). Above the load mode a loop that makes the load
 // follow moves the motor more than the reference (x_M = x_L (1 - w^2 / w_L^2)), and a frequency
-// sweep through there makes that forced error grow window after window: it is no limit cycle,
-// and U, not A, shows whether anything else is there (a reference at rest leaves U = A).
+// sweep through there makes that forced error outgrow the reference window after window: it is no
+// limit cycle, and U stays small; a reference at rest leaves U = A. Growth and decay are A's.
 // A window in which the compensator sat at its own limit for more than max_saturated_share of
 // its ticks is not judged for a sustained oscillation: a saturated compensator forces the motor
 // at a constant amplitude while it damps the load (the free vibration's first 0.4 s on a light
