@@ -59,8 +59,8 @@ struct CommissionOptions {
   std::string config = data_file("configs/system.yaml");
   std::vector<std::string> set;
   std::string identification = data_file("configs/scenarios/identification.yaml");
-  std::string out;                       ///< the system file to write ("": report only)
-  std::string report = "commissioning";  ///< the report folder
+  std::string out;                           ///< the system file to write ("": report only)
+  std::string report = "out/commissioning";  ///< the report folder (out/ as every tool's output)
   bool plots = true;
   std::string family;           ///< a sweep file: measure every plant of its family instead (--simulate)
   bool tune = false;            ///< write the tuned velocity PI gains too
