@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iterator>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <tuple>
 
@@ -367,9 +368,23 @@ TEST(Tool, BadInputIsAClearErrorWithExitCode2) {
   fs::remove_all(dir);
 }
 
-TEST(Topic, ListEchoHzDelayOnARealtimeLoop) {
-  const fs::path dir = test::fresh_dir("pmlsm_tool", "topic");
-  const std::string domain = test_domain(36);
+/// What the processes of the topic tools' run printed and returned.
+struct TopicToolsRun {
+  std::string echo, hz, delay, list, plant, controller;
+  int echo_code = -1, hz_code = -1, delay_code = -1, list_code = -1, plant_code = -1, controller_code = -1;
+  /// Debian's Fast DDS 2.9.1 keeps its assertions, and its participant discovery can abort a
+  /// process on a race between a leaving participant's lease and its removal (PDP.cpp,
+  /// check_remote_participant_liveliness); four short-lived tool participants provoke it now and
+  /// then. Such a run says nothing about the tools.
+  bool discovery_aborted() const {
+    for (const std::string* out : {&echo, &hz, &delay, &list, &plant, &controller}) {
+      if (out->find("check_remote_participant_liveliness") != std::string::npos) return true;
+    }
+    return false;
+  }
+};
+
+TopicToolsRun run_topic_tools(const std::string& domain, const fs::path& dir) {
   const std::string scenario = source("configs/scenarios/free_vibration.yaml");  // 8 s at 1 kHz
   test::ChildProcess controller(
       node_args("controller", domain, scenario, {"--clock", "realtime", "--plant-lost-ms", "5000"}),
@@ -387,37 +402,65 @@ TEST(Topic, ListEchoHzDelayOnARealtimeLoop) {
   test::ChildProcess delay(pmlsm_args(domain, {"topic", "delay", "/pmlsm/force_command", "--duration-s", "3"}),
                            (dir / "delay.log").string());
   test::ChildProcess list(pmlsm_args(domain, {"topic", "list", "--wait-s", "2", "-v"}), (dir / "list.log").string());
+  TopicToolsRun run;
+  run.echo_code = run_to_end(echo);
+  run.hz_code = run_to_end(hz);
+  run.delay_code = run_to_end(delay);
+  run.list_code = run_to_end(list);
+  run.plant_code = run_to_end(plant);
+  run.controller_code = run_to_end(controller);
+  run.echo = echo.output();
+  run.hz = hz.output();
+  run.delay = delay.output();
+  run.list = list.output();
+  run.plant = plant.output();
+  run.controller = controller.output();
+  return run;
+}
 
-  EXPECT_EQ(run_to_end(echo), 0) << echo.output();
-  const std::string e = echo.output();
-  EXPECT_NE(e.find("stamp:\n  tick: "), std::string::npos) << e;
-  EXPECT_NE(e.find("velocity_mps: "), std::string::npos) << e;
+TEST(Topic, ListEchoHzDelayOnARealtimeLoop) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "topic");
+  TopicToolsRun run = run_topic_tools(test_domain(36), dir);
+  if (run.discovery_aborted()) {
+    // Once more on a domain of its own; twice in a row is reported, not judged.
+    std::printf(
+        "[ topic      ] Fast DDS's discovery aborted a process (PDP::check_remote_participant_liveliness); "
+        "once more\n");
+    run = run_topic_tools(test_domain(102), dir);
+    if (run.discovery_aborted()) {
+      GTEST_SKIP() << "Fast DDS 2.9.1's discovery aborted a process twice (an assertion in "
+                      "PDP::check_remote_participant_liveliness, not this project's code):\n"
+                   << run.plant << run.controller;
+    }
+  }
+  EXPECT_EQ(run.echo_code, 0) << run.echo;
+  EXPECT_NE(run.echo.find("stamp:\n  tick: "), std::string::npos) << run.echo;
+  EXPECT_NE(run.echo.find("velocity_mps: "), std::string::npos) << run.echo;
 
-  EXPECT_EQ(run_to_end(hz), 0) << hz.output();
-  const std::string h = hz.output();
-  const auto rate_at = h.rfind("average rate: ");
-  ASSERT_NE(rate_at, std::string::npos) << h;
-  const double rate_hz = std::stod(h.substr(rate_at + 14));
+  EXPECT_EQ(run.hz_code, 0) << run.hz;
+  const auto rate_at = run.hz.rfind("average rate: ");
+  ASSERT_NE(rate_at, std::string::npos) << run.hz;
+  const double rate_hz = std::stod(run.hz.substr(rate_at + 14));
   // A functional check (the loop runs at 1 kHz), with room for a loaded machine.
-  EXPECT_GT(rate_hz, 500.0) << h;
-  EXPECT_LT(rate_hz, 2000.0) << h;
+  EXPECT_GT(rate_hz, 500.0) << run.hz;
+  EXPECT_LT(rate_hz, 2000.0) << run.hz;
 
-  EXPECT_EQ(run_to_end(delay), 0) << delay.output();
-  const std::string d = delay.output();
-  const auto delay_at = d.rfind("average delay: ");
-  ASSERT_NE(delay_at, std::string::npos) << d;
-  const double delay_s = std::stod(d.substr(delay_at + 15));
-  EXPECT_GT(delay_s, 0.0) << d;
-  EXPECT_LT(delay_s, 0.5) << d;
+  EXPECT_EQ(run.delay_code, 0) << run.delay;
+  const auto delay_at = run.delay.rfind("average delay: ");
+  ASSERT_NE(delay_at, std::string::npos) << run.delay;
+  const double delay_s = std::stod(run.delay.substr(delay_at + 15));
+  EXPECT_GT(delay_s, 0.0) << run.delay;
+  EXPECT_LT(delay_s, 0.5) << run.delay;
 
-  EXPECT_EQ(run_to_end(list), 0) << list.output();
-  const std::string l = list.output();
-  EXPECT_NE(l.find("/pmlsm/motor_feedback [pmlsm_msgs::msg::dds_::MotorFeedback_]  writers: 1"), std::string::npos)
-      << l;
-  EXPECT_NE(l.find("writer plant_sim  reliable, transient-local"), std::string::npos) << l;
-  EXPECT_NE(l.find("reader controller"), std::string::npos) << l;
+  EXPECT_EQ(run.list_code, 0) << run.list;
+  EXPECT_NE(run.list.find("/pmlsm/motor_feedback [pmlsm_msgs::msg::dds_::MotorFeedback_]  writers: 1"),
+            std::string::npos)
+      << run.list;
+  EXPECT_NE(run.list.find("writer plant_sim  reliable, transient-local"), std::string::npos) << run.list;
+  EXPECT_NE(run.list.find("reader controller"), std::string::npos) << run.list;
 
-  for (auto* p : {&plant, &controller}) EXPECT_EQ(run_to_end(*p), 0) << p->output();
+  EXPECT_EQ(run.plant_code, 0) << run.plant;
+  EXPECT_EQ(run.controller_code, 0) << run.controller;
   fs::remove_all(dir);
 }
 
