@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <sstream>
 #include <tuple>
 
 #include "child_process.hpp"
@@ -109,7 +110,21 @@ std::string record_lockstep_run(const std::string& domain, const fs::path& dir,
 TEST(Record, LockstepRunWholeAndDecodedByThirdPartyReaders) {
   const fs::path dir = test::fresh_dir("pmlsm_tool", "record");
   const std::string log = record_lockstep_run(test_domain(30), dir);
-  EXPECT_NE(log.find(", 0 lost;"), std::string::npos) << log;
+  // Nothing lost on any stream. The drive's state is latched (KEEP_LAST 1): a state the drive
+  // leaves within the same burst (enabling walks three in a row) is superseded before a reader
+  // takes it, and the recorder counts that gap; it is no loss of the stream.
+  std::istringstream rows(log);
+  std::size_t streams = 0;
+  for (std::string row; std::getline(rows, row);) {
+    if (row.rfind("/pmlsm/", 0) != 0) continue;
+    std::istringstream fields(row);
+    std::string topic;
+    unsigned long long messages = 0, lost = 0;
+    ASSERT_TRUE(static_cast<bool>(fields >> topic >> messages >> lost)) << row;
+    ++streams;
+    if (topic != "/pmlsm/drive_state") EXPECT_EQ(lost, 0u) << row << "\n" << log;
+  }
+  EXPECT_GE(streams, 6u) << log;
 
   const FileContents file = read_all(dir / "run.mcap");
   EXPECT_TRUE(file.report.complete());
