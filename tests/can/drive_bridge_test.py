@@ -202,7 +202,7 @@ def main():
     parser.add_argument("bin_dir")
     parser.add_argument("--source-dir", default=os.path.join(os.path.dirname(__file__), "..", ".."))
     parser.add_argument("--group", default="239.74.171.7")
-    parser.add_argument("--port", type=int, default=43173, help="lockstep; realtime uses port + 1")
+    parser.add_argument("--port", type=int, default=6173, help="lockstep; realtime uses port + 1")
     parser.add_argument("--domain", type=int, default=int(os.environ.get("PMLSM_TEST_DOMAIN_BASE", "100")) + 72,
                         help="lockstep; realtime uses domain + 1 (test offsets 72, 73)")
     args = parser.parse_args()

@@ -100,7 +100,7 @@ def main():
     parser.add_argument("--source-dir", default=os.path.join(os.path.dirname(__file__), "..", ".."))
     pid = os.getpid()
     parser.add_argument("--group", default=f"239.74.{180 + (pid >> 8) % 40}.{pid & 0xFF}")
-    parser.add_argument("--port", type=int, default=43150)
+    parser.add_argument("--port", type=int, default=6150)
     parser.add_argument("--domain", type=int, default=int(os.environ.get("PMLSM_TEST_DOMAIN_BASE", "100")) + 47,
                         help="DDS domain of the drive's NodeStatus (test offset 47)")
     args = parser.parse_args()

@@ -1,6 +1,7 @@
 // The virtual rig: drive_bridge (the CiA 402 master) and virtual_drive (the simulated drive
 // behind a CiA 402 slave) on the UDP multicast CAN bus, with the rest of the system on DDS.
-// Each test has its own DDS domain and CAN port (offsets 45, 46, 48, 49, 70..72; ports 432xx).
+// Each test has its own DDS domain and CAN port (offsets 45, 46, 48, 49, 70..72; ports 62xx: below
+// DDS's port base 7400 and Linux's ephemeral range 32768-60999, where a passing socket could hold one).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -74,9 +75,9 @@ TEST(VirtualRig, TheBridgeRunsTheControllerAgainstTheVirtualDriveOverTheCanBus) 
   const fs::path dir = test::fresh_dir("pmlsm_virtual_rig", "lockstep");
   const std::string scenario = source("configs/scenarios/pulse.yaml");
   const std::string domain = test_domain(45);
-  test::ChildProcess drive = start_virtual_drive(dir, domain, scenario, "43245");
+  test::ChildProcess drive = start_virtual_drive(dir, domain, scenario, "6245");
   test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
-  test::ChildProcess bridge(node_args("drive_bridge", domain, scenario, can_args("43245", {"--peers", "1"})),
+  test::ChildProcess bridge(node_args("drive_bridge", domain, scenario, can_args("6245", {"--peers", "1"})),
                             (dir / "bridge.log").string());
   const auto code = bridge.wait_for(std::chrono::seconds(60));
   ASSERT_TRUE(code.has_value()) << bridge.output();
@@ -99,9 +100,9 @@ TEST(VirtualRig, ADeadDriveFaultsTheBridgeInsteadOfHangingIt) {
   const fs::path dir = test::fresh_dir("pmlsm_virtual_rig", "dead_drive");
   const std::string scenario = source("configs/scenarios/free_vibration.yaml");
   const std::string domain = test_domain(46);
-  test::ChildProcess drive = start_virtual_drive(dir, domain, scenario, "43246");
+  test::ChildProcess drive = start_virtual_drive(dir, domain, scenario, "6246");
   test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
-  test::ChildProcess bridge(node_args("drive_bridge", domain, scenario, can_args("43246", {"--peers", "1"})),
+  test::ChildProcess bridge(node_args("drive_bridge", domain, scenario, can_args("6246", {"--peers", "1"})),
                             (dir / "bridge.log").string());
   ASSERT_TRUE(bridge.wait_for_output("operation enabled", std::chrono::seconds(30))) << bridge.output();
   drive.signal(SIGKILL);
@@ -231,7 +232,7 @@ TEST(VirtualRig, CostsAndSettlingMatchTheSimulatedDriveForEveryCompensatorAndSce
                               "--arg",         "canopen_config=" + source("configs/canopen/drive.yaml"),
                               "--arg",         "dictionary=" + source("configs/canopen/virtual_drive_od.yaml"),
                               "--arg",         std::string("can_group=") + kCanGroup,
-                              "--arg",         "can_port=43248",
+                              "--arg",         "can_port=6248",
                               "--arg",         "out=" + (dir / ("rig_" + tag)).string()},
                              (dir / ("rig_" + tag + ".log")).string());
       const auto code = rig.wait_for(std::chrono::seconds(150));
@@ -311,12 +312,12 @@ TEST(VirtualRig, AKilledBridgeLeavesTheDriveAtZeroForceWithinItsSyncTimeout) {
   const std::string scenario = source("configs/scenarios/free_vibration.yaml");
   const std::string domain = test_domain(49);
   test::ChildProcess drive =
-      start_virtual_drive(dir, domain, scenario, "43249", {"--clock", "realtime", "--canopen-set", kSyncTimeout});
+      start_virtual_drive(dir, domain, scenario, "6249", {"--clock", "realtime", "--canopen-set", kSyncTimeout});
   test::ChildProcess controller(node_args("controller", domain, scenario, {"--clock", "realtime"}),
                                 (dir / "controller.log").string());
   test::ChildProcess bridge(node_args("drive_bridge", domain, scenario,
-                                      can_args("43249", {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "50",
-                                                         "--canopen-set", kMissedAnswers})),
+                                      can_args("6249", {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "50",
+                                                        "--canopen-set", kMissedAnswers})),
                             (dir / "bridge.log").string());
   ASSERT_TRUE(drive.wait_for_output("-> operation enabled", std::chrono::seconds(30))) << bridge.output();
   ASSERT_TRUE(bridge.wait_for_output("operation enabled (auto-enable)", std::chrono::seconds(30))) << bridge.output();
@@ -345,12 +346,12 @@ TEST(VirtualRig, AKilledContainerOfBridgeAndControllerLeavesTheDriveAtZeroForceW
   const std::string scenario = source("configs/scenarios/free_vibration.yaml");
   const std::string domain = test_domain(131);
   test::ChildProcess drive =
-      start_virtual_drive(dir, domain, scenario, "43294", {"--clock", "realtime", "--canopen-set", kSyncTimeout});
+      start_virtual_drive(dir, domain, scenario, "6294", {"--clock", "realtime", "--canopen-set", kSyncTimeout});
   test::ChildProcess chain(
       test::container_args(
           "rig_chain", {test::component_args("drive_bridge", "drive_bridge", domain, scenario,
-                                             can_args("43294", {"--peers", "1", "--clock", "realtime", "--watchdog-ms",
-                                                                "50", "--canopen-set", kMissedAnswers})),
+                                             can_args("6294", {"--peers", "1", "--clock", "realtime", "--watchdog-ms",
+                                                               "50", "--canopen-set", kMissedAnswers})),
                         test::component_args("controller", "controller", domain, scenario, {"--clock", "realtime"})}),
       (dir / "chain.log").string());
   ASSERT_TRUE(drive.wait_for_output("-> operation enabled", std::chrono::seconds(30))) << chain.output();
@@ -378,13 +379,13 @@ TEST(VirtualRig, AKilledControllerQuickStopsTheDriveWithinTheWatchdog) {
   const std::string scenario = source("configs/scenarios/free_vibration.yaml");
   const std::string domain = test_domain(70);
   test::ChildProcess drive =
-      start_virtual_drive(dir, domain, scenario, "43270", {"--clock", "realtime", "--canopen-set", kSyncTimeout});
+      start_virtual_drive(dir, domain, scenario, "6270", {"--clock", "realtime", "--canopen-set", kSyncTimeout});
   test::ChildProcess controller(node_args("controller", domain, scenario, {"--clock", "realtime"}),
                                 (dir / "controller.log").string());
   test::ChildProcess bridge(
       node_args("drive_bridge", domain, scenario,
-                can_args("43270", {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "50", "--on-controller-lost",
-                                   "stay", "--canopen-set", kMissedAnswers})),
+                can_args("6270", {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "50", "--on-controller-lost",
+                                  "stay", "--canopen-set", kMissedAnswers})),
       (dir / "bridge.log").string());
   ASSERT_TRUE(bridge.wait_for_output("watchdog armed", std::chrono::seconds(30))) << bridge.output();
   if (bridge.output().find("watchdog: tick") != std::string::npos) {
@@ -446,7 +447,7 @@ TEST(VirtualRig, AnInjectedDriveFaultIsReportedAndClearedByFaultResetAndEnable) 
   const std::string scenario = source("configs/scenarios/free_vibration.yaml");
   const std::string domain = test_domain(71);
   test::ChildProcess drive =
-      start_virtual_drive(dir, domain, scenario, "43271",
+      start_virtual_drive(dir, domain, scenario, "6271",
                           {"--clock", "realtime", "--canopen-set", kSyncTimeout, "--inject-fault-at-tick", "2500"});
   // Peer loss is not this test's subject: generous time-outs, so a busy host's stall is not one.
   test::ChildProcess controller(
@@ -454,8 +455,8 @@ TEST(VirtualRig, AnInjectedDriveFaultIsReportedAndClearedByFaultResetAndEnable) 
       (dir / "controller.log").string());
   test::ChildProcess bridge(
       node_args("drive_bridge", domain, scenario,
-                can_args("43271", {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "50", "--controller-lost-ms",
-                                   "2000", "--on-controller-lost", "stay", "--canopen-set", kMissedAnswers})),
+                can_args("6271", {"--peers", "1", "--clock", "realtime", "--watchdog-ms", "50", "--controller-lost-ms",
+                                  "2000", "--on-controller-lost", "stay", "--canopen-set", kMissedAnswers})),
       (dir / "bridge.log").string());
   ASSERT_TRUE(bridge.wait_for_output("drive error code 0x5000", std::chrono::seconds(30))) << bridge.output() << "\n"
                                                                                            << drive.output();
