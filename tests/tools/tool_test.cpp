@@ -700,6 +700,86 @@ TEST(Commission, RefusesARunBeyondItsLimitsAndWritesNothingFromABadOne) {
   fs::remove_all(dir);
 }
 
+/// The rows of a CSV file after its header, each without its first `skip` characters.
+std::vector<std::string> csv_rows(const fs::path& path, std::size_t skip = 0) {
+  std::ifstream in(path);
+  std::vector<std::string> rows;
+  std::string line;
+  std::getline(in, line);
+  while (std::getline(in, line)) rows.push_back(line.substr(std::min(skip, line.size())));
+  return rows;
+}
+
+// `pmlsm commission --simulate --family --tune`: every plant of a family (here its centre and two
+// drawn) commissioned as one plant is: a row each with the modes within 0.5 %, the tuned loop's
+// margins measured again, state feedback's output filter decided and the verification run;
+// the centre's decision and verification rows equal a single commissioning of that plant's.
+TEST(Commission, AFamilyIsCommissionedPlantByPlantAsOnePlantIs) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "commission_family");
+  std::ifstream family_file(source("configs/sweeps/plant_family.yaml"));
+  std::string sweep((std::istreambuf_iterator<char>(family_file)), std::istreambuf_iterator<char>());
+  for (std::size_t at; (at = sweep.find("../")) != std::string::npos;) sweep.replace(at, 3, source("configs/"));
+  for (const auto& [from, to] :
+       {std::pair<std::string, std::string>{"grid_points: {value: 2", "grid_points: {value: 0"},
+        {"random: {value: 50", "random: {value: 2"}}) {
+    ASSERT_NE(sweep.find(from), std::string::npos) << from;
+    sweep.replace(sweep.find(from), from.size(), to);
+  }
+  const std::string family = (dir / "family.yaml").string();
+  std::ofstream(family) << sweep;
+  const std::vector<std::string> common = {"commission",
+                                           "--simulate",
+                                           "--no-plots",
+                                           "-c",
+                                           source("configs/system.yaml"),
+                                           "--identification",
+                                           source("configs/scenarios/identification.yaml"),
+                                           "--tune",
+                                           "--verify",
+                                           source("configs/sweeps/plant_family.yaml")};
+  std::vector<std::string> args = common;
+  args.insert(args.end(), {"--family", family, "--report", (dir / "family").string()});
+  test::ChildProcess p(pmlsm_args(test_domain(103), args), (dir / "family.log").string());
+  ASSERT_EQ(run_to_end(p), 0) << p.output();
+  EXPECT_NE(p.output().find("family of 3 plants (" + family + "): 0 failed"), std::string::npos) << p.output();
+  EXPECT_NE(p.output().find("verification (" + source("configs/sweeps/plant_family.yaml") + "): 0 plants failed it"),
+            std::string::npos)
+      << p.output();
+  const std::vector<std::string> rows = csv_rows(dir / "family" / "family.csv");
+  ASSERT_EQ(rows.size(), 3u);
+  std::string centre_filter;
+  for (const std::string& row : rows) {
+    std::vector<std::string> cell;
+    std::stringstream in(row);
+    for (std::string c; std::getline(in, c, ',');) cell.push_back(c);
+    ASSERT_EQ(cell.size(), 16u) << row;
+    EXPECT_LT(std::fabs(std::stod(cell[3])), 0.5) << row;  // anti-resonance, per cent
+    EXPECT_LT(std::fabs(std::stod(cell[4])), 0.5) << row;  // resonance
+    EXPECT_GE(std::stod(cell[9]), 45.0) << row;            // phase margin measured at the tuned gains
+    EXPECT_GE(std::stod(cell[10]), 8.0) << row;            // gain margin
+    EXPECT_EQ(cell[12], "6") << row;                       // 2 scenarios x 3 compensators verified
+    EXPECT_EQ(cell[13], "0") << row;
+    EXPECT_EQ(cell[15], "0") << row;
+    if (cell[0] == "centre") centre_filter = cell[11];
+  }
+  ASSERT_FALSE(centre_filter.empty());
+  // The centre (5 kg, 17,125 N/m, the nominal friction) commissioned alone decides the same.
+  const std::string out = (dir / "centre.yaml").string();
+  args = common;
+  args.insert(args.end(), {"--set", "plant.mechanics.load_mass_kg=5", "--set", "plant.mechanics.spring_n_per_m=17125",
+                           "-o", out, "--report", (dir / "centre").string()});
+  test::ChildProcess centre(pmlsm_args(test_domain(103), args), (dir / "centre.log").string());
+  ASSERT_EQ(run_to_end(centre), 0) << centre.output();
+  EXPECT_EQ(load_system_params(out).compensator.state_feedback.output_filter_enabled, centre_filter == "on");
+  std::vector<std::string> family_centre;
+  for (const std::string& row : csv_rows(dir / "family" / "family_verification.csv")) {
+    if (row.rfind("centre,", 0) == 0) family_centre.push_back(row.substr(7));
+  }
+  EXPECT_EQ(family_centre.size(), 2u * 4u);
+  EXPECT_EQ(family_centre, csv_rows(dir / "centre" / "verification.csv"));
+  fs::remove_all(dir);
+}
+
 /// configs/scenarios/external.yaml lasting `duration_s`: a drive's run with nothing commanded by
 /// the scenario (commission commands the force).
 std::string drive_run_scenario(const fs::path& dir, double duration_s) {

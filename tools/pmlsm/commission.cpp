@@ -9,11 +9,11 @@
 // and verifies the commissioned system as the sweep judges a plant (--verify). The report folder
 // gets report.md (the Bode plot and everything printed), response.csv (per line: plant, open and
 // closed loop, coherence, the fitted model, the filters), samples.csv (the raw excitation, force
-// and velocity per tick), verification.csv, bode.png and bode.gp; --family measures a sweep
-// file's whole family instead (family.csv). Exit 5 when the measurement ended early (a limit
-// breached, the drive faulted or quick-stopped: nothing written); 6 when the response is not
-// coherent enough, the filters leave the loop short of its margins, --tune finds no gains or the
-// verification fails (nothing written); 2 on bad input.
+// and velocity per tick), verification.csv, bode.png and bode.gp; --family commissions every
+// plant of a sweep file's family instead (family.csv, family_verification.csv). Exit 5 when the
+// measurement ended early (a limit breached, the drive faulted or quick-stopped: nothing
+// written); 6 when the response is not coherent enough, the filters leave the loop short of its
+// margins, --tune finds no gains or the verification fails (nothing written); 2 on bad input.
 #include <algorithm>
 #include <cmath>
 #include <cstdarg>
@@ -72,15 +72,22 @@ struct CommissionOptions {
 
 double db(std::complex<double> x) { return 20.0 * std::log10(std::abs(x)); }
 
-/// printf to stdout, the text kept in `transcript` too (the report's copy).
-[[gnu::format(printf, 2, 3)]] void say(std::string& transcript, const char* format, ...) {
+/// What a commissioning prints: on stdout as it goes (not a family's plants: a row each), and
+/// kept for the report.
+struct Transcript {
+  std::string text;
+  bool echo = true;
+};
+
+/// printf to stdout (when echoing), the text kept in the transcript too.
+[[gnu::format(printf, 2, 3)]] void say(Transcript& transcript, const char* format, ...) {
   char text[1024];
   va_list args;
   va_start(args, format);
   std::vsnprintf(text, sizeof text, format, args);
   va_end(args);
-  std::fputs(text, stdout);
-  transcript += text;
+  if (transcript.echo) std::fputs(text, stdout);
+  transcript.text += text;
 }
 double degrees(std::complex<double> x) { return std::arg(x) * 180.0 / kPi; }
 
@@ -234,7 +241,7 @@ void write_bode_script(const std::filesystem::path& dir, const TwoMassFit& fit, 
 
 /// The fit's table, with the configured model and (simulated) the plant's true values.
 void print_fit(const TwoMassFit& fit, const std::optional<IdentifiedLoad>& time_domain, const SystemParams& configured,
-               bool simulate, std::string& transcript) {
+               bool simulate, Transcript& transcript) {
   const auto& model = configured.kalman.model;
   const auto& truth = configured.plant.mechanics;
   say(transcript, "  %-22s %12s %12s %12s%s\n", "", "configured", "frequency", "time domain",
@@ -286,7 +293,7 @@ struct LoopVerdict {
 /// command's filters in the loop, and the filters judged at the gains the loop will run with
 /// (the tuned ones with `tune`, else the configured ones), printed.
 LoopVerdict judge_loop(const SystemParams& configured, const FrequencyResponseResult& result,
-                       const FilterChain& filters, bool tune, std::string& transcript) {
+                       const FilterChain& filters, bool tune, Transcript& transcript) {
   const auto& targets = configured.commissioning.tuning;
   const double min_coherence = configured.commissioning.frequency_response.min_coherence;
   LoopVerdict verdict;
@@ -325,7 +332,7 @@ LoopVerdict judge_loop(const SystemParams& configured, const FrequencyResponseRe
 /// slots of the force command's chain (filter_design.hpp), printed; the slots placed go into
 /// `values` as the system file's keys. Returns the chain the loop will run with.
 FilterChainParams design_force_command_filters(const SystemParams& configured, const FrequencyResponseResult& result,
-                                               std::vector<ConfigOverride>& values, std::string& transcript) {
+                                               std::vector<ConfigOverride>& values, Transcript& transcript) {
   const FilterChainParams before = configured.force_command_filter_params();
   const auto& design_params = configured.commissioning.filter_design;
   const FilterDesign design = design_notches(result.points, result.fit, before, configured.commissioning.tuning,
@@ -400,108 +407,31 @@ std::optional<FrequencyResponseResult> measured_response(const SystemParams& p, 
   }
 }
 
-/// One plant of a family: the fit's errors against the plant (anti-resonance, resonance, load
-/// mass, spring, motor mass, in per cent) and the margins measured again at the tuned gains.
-struct FamilyRow {
-  double errors[5] = {0, 0, 0, 0, 0};
-  double tuned_kp_n_s_per_m = 0;
-  LoopMargins tuned;  ///< measured at the tuned gains (not predicted)
+/// A verification's outcome: whether every compensator ran clean and cheaper than PI alone on
+/// every scenario, how many runs did not, and the largest cost over PI alone's.
+struct Verification {
+  bool passed = true;
+  std::size_t runs = 0;
+  std::size_t failed_runs = 0;
+  double worst_cost_ratio = 0;
 };
 
-/// The row of plant `p`; nullopt and why when a measurement or the tuning failed.
-std::optional<FamilyRow> family_row(const SystemParams& p, std::string& why) {
-  const auto r = measured_response(p, why);
-  if (!r) return std::nullopt;
-  const auto& truth = p.plant.mechanics;
-  const double anti_hz = anti_resonance_hz(truth.load_mass_kg, truth.spring_n_per_m);
-  const double res_hz = resonance_hz(truth.motor_mass_kg, truth.load_mass_kg, truth.spring_n_per_m);
-  FamilyRow row;
-  const double errors[5] = {error_percent(r->fit.anti_resonance_hz, anti_hz),
-                            error_percent(r->fit.resonance_hz, res_hz),
-                            error_percent(r->fit.load_mass_kg, truth.load_mass_kg),
-                            error_percent(r->fit.spring_n_per_m, truth.spring_n_per_m),
-                            error_percent(r->fit.motor_mass_kg, truth.motor_mass_kg)};
-  std::copy(std::begin(errors), std::end(errors), std::begin(row.errors));
-  const auto tuned = tune_velocity_pi(r->points, p.velocity_loop.kp_n_s_per_m, p.velocity_loop.ki_n_per_m,
-                                      p.commissioning.tuning, p.commissioning.frequency_response.min_coherence, why);
-  if (!tuned) return std::nullopt;
-  SystemParams at_tuned = p;
-  at_tuned.velocity_loop.kp_n_s_per_m = tuned->kp_n_s_per_m;
-  at_tuned.velocity_loop.ki_n_per_m = tuned->ki_n_per_m;
-  const auto again = measured_response(at_tuned, why);
-  if (!again) return std::nullopt;
-  row.tuned_kp_n_s_per_m = tuned->kp_n_s_per_m;
-  row.tuned = loop_margins(again->points, 1.0, p.commissioning.frequency_response.min_coherence);
-  return row;
-}
-
-/// Every plant of a sweep file's family measured and fitted in process, its velocity PI tuned and
-/// measured again at the tuned gains: a row per plant, family.csv in the report folder, the
-/// largest errors and the smallest margins. Exit 6 when a plant's measurement ends early, its
-/// response is refused, or its tuned loop misses a margin.
-int run_family(const CommissionOptions& o, const SystemParams& nominal) {
-  const SweepFile file = load_sweep_file(o.family, nominal);
-  const std::vector<PlantSample> plants = sample_plants(file.spec);
-  std::filesystem::create_directories(o.report);
-  std::ofstream csv(std::filesystem::path(o.report) / "family.csv");
-  csv << "plant,load_mass_kg,spring_n_per_m,anti_resonance_error_percent,resonance_error_percent,"
-         "load_mass_error_percent,spring_error_percent,motor_mass_error_percent,tuned_kp_n_s_per_m,"
-         "tuned_phase_margin_deg,tuned_gain_margin_db\n";
-  double worst[5] = {0, 0, 0, 0, 0}, least_phase_deg = 1e9, least_gain_db = 1e9;
-  std::size_t failed = 0;
-  const TuningTargets& targets = nominal.commissioning.tuning;
-  std::printf("%-10s %6s %7s %13s %13s %7s %7s %7s %8s %18s\n", "plant", "m_L", "k", "anti-res. err", "res. err",
-              "m_L err", "k err", "m_M err", "tuned Kp", "margins at it");
-  for (const PlantSample& plant : plants) {
-    const SystemParams p = plant_variant(nominal, file.spec, plant);
-    std::string why;
-    const auto row = family_row(p, why);
-    if (!row) {
-      std::printf("%-10s %s\n", plant.label.c_str(), why.c_str());
-      ++failed;
-      continue;
-    }
-    for (int i = 0; i < 5; ++i) worst[i] = std::max(worst[i], std::fabs(row->errors[i]));
-    const bool met = row->tuned.gain_crossover_found && row->tuned.phase_crossover_found &&
-                     row->tuned.phase_margin_deg >= targets.min_phase_margin_deg &&
-                     row->tuned.gain_margin_db >= targets.min_gain_margin_db;
-    failed += met ? 0 : 1;
-    least_phase_deg = std::min(least_phase_deg, row->tuned.phase_margin_deg);
-    least_gain_db = std::min(least_gain_db, row->tuned.gain_margin_db);
-    const auto& m = p.plant.mechanics;
-    std::printf("%-10s %6.2f %7.0f %+12.2f%% %+12.2f%% %+6.2f%% %+6.2f%% %+6.2f%% %8.0f %6.1f deg %5.2f dB%s\n",
-                plant.label.c_str(), m.load_mass_kg, m.spring_n_per_m, row->errors[0], row->errors[1], row->errors[2],
-                row->errors[3], row->errors[4], row->tuned_kp_n_s_per_m, row->tuned.phase_margin_deg,
-                row->tuned.gain_margin_db, met ? "" : "  margins missed");
-    csv << plant.label << ',' << m.load_mass_kg << ',' << m.spring_n_per_m;
-    for (const double e : row->errors) csv << ',' << e;
-    csv << ',' << row->tuned_kp_n_s_per_m << ',' << row->tuned.phase_margin_deg << ',' << row->tuned.gain_margin_db
-        << '\n';
-  }
-  std::printf(
-      "family of %zu plants (%s): %zu failed; largest errors: anti-resonance %.2f %%, resonance %.2f %%, "
-      "load mass %.2f %%, spring %.2f %%, motor mass %.2f %%; tuned loops measured again: phase margin >= "
-      "%.1f deg, gain margin >= %.2f dB (targets %.4g deg, %.4g dB)\n",
-      plants.size(), o.family.c_str(), failed, worst[0], worst[1], worst[2], worst[3], worst[4], least_phase_deg,
-      least_gain_db, targets.min_phase_margin_deg, targets.min_gain_margin_db);
-  return failed == 0 ? kExitOk : kExitVerdictFailed;
-}
+constexpr const char* kVerificationColumns =
+    "scenario,compensator,cost,cost_ratio_to_pi,faults,tail_force_rms_n,tail_compensation_rms_n";
 
 /// The commissioned system verified as the sweep judges a plant: every scenario of the sweep file
 /// with PI alone and each compensator on the plant, the models and gains commissioned; a table,
-/// verification.csv, and whether every compensator ran clean and cheaper than PI alone.
-bool verify_commissioned(const std::string& sweep_path, const SystemParams& commissioned,
-                         const std::filesystem::path& dir, std::string& transcript) {
+/// a row per run into `csv` (kVerificationColumns, each led by `row_prefix`).
+Verification verify_commissioned(const std::string& sweep_path, const SystemParams& commissioned, std::ostream& csv,
+                                 const std::string& row_prefix, Transcript& transcript) {
   const SweepFile file = load_sweep_file(sweep_path, commissioned);
   std::vector<double> weights;
   if (!file.weights_path.empty()) weights = load_rnn_weights(file.weights_path).weights;
   std::vector<CompensatorKind> kinds{CompensatorKind::kNone};
   kinds.insert(kinds.end(), file.spec.compensators.begin(), file.spec.compensators.end());
-  std::ofstream csv(dir / "verification.csv");
-  csv << "scenario,compensator,cost,cost_ratio_to_pi,faults,tail_force_rms_n,tail_compensation_rms_n\n";
   say(transcript, "verification (%s: scenarios, compensators, verdict) on the plant with the commissioned system:\n",
       sweep_path.c_str());
-  bool all_passed = true;
+  Verification outcome;
   for (const Scenario& scenario : file.spec.scenarios) {
     RunVerdict pi_alone;
     say(transcript, "  %-16s", scenario.name.c_str());
@@ -510,18 +440,23 @@ bool verify_commissioned(const std::string& sweep_path, const SystemParams& comm
       if (kind == CompensatorKind::kNone) pi_alone = v;
       judge_against_pi_alone(v, pi_alone, file.spec.verdict);
       const bool passed = kind == CompensatorKind::kNone || (v.faults().empty() && v.cost < pi_alone.cost);
-      all_passed = all_passed && passed;
+      if (kind != CompensatorKind::kNone) {
+        ++outcome.runs;
+        outcome.failed_runs += passed ? 0 : 1;
+        outcome.worst_cost_ratio = std::max(outcome.worst_cost_ratio, v.cost / pi_alone.cost);
+      }
+      outcome.passed = outcome.passed && passed;
       say(transcript, "  %s %.3f%s%s", to_string(kind), v.cost, v.faults().empty() ? "" : (" " + v.faults()).c_str(),
           passed ? "" : " (fails)");
-      csv << scenario.name << ',' << to_string(kind) << ',' << v.cost << ',' << v.cost / pi_alone.cost << ",\""
-          << v.faults() << "\"," << v.tail_force_rms_n << ',' << v.tail_compensation_rms_n << '\n';
+      csv << row_prefix << scenario.name << ',' << to_string(kind) << ',' << v.cost << ',' << v.cost / pi_alone.cost
+          << ",\"" << v.faults() << "\"," << v.tail_force_rms_n << ',' << v.tail_compensation_rms_n << '\n';
     }
     say(transcript, "\n");
   }
   say(transcript, "verification: %s\n",
-      all_passed ? "every compensator clean and cheaper than PI alone on every scenario"
-                 : "a compensator failed (see the table)");
-  return all_passed;
+      outcome.passed ? "every compensator clean and cheaper than PI alone on every scenario"
+                     : "a compensator failed (see the table)");
+  return outcome;
 }
 
 /// The system the commissioning verifies: the configured one with the commissioned values and the
@@ -545,7 +480,7 @@ SystemParams commissioned_system(const SystemParams& configured,
 /// The system file with the commissioned values and the designed filter slots, at o.out.
 void write_commissioned(const CommissionOptions& o, const TwoMassFit& fit,
                         const std::vector<std::pair<std::string, double>>& values,
-                        const std::vector<ConfigOverride>& text_values, std::string& transcript) {
+                        const std::vector<ConfigOverride>& text_values, Transcript& transcript) {
   char source[320];
   std::snprintf(source, sizeof source,
                 "chosen: commissioned by pmlsm commission from %s (frequency response: anti-resonance %.3f Hz, "
@@ -568,7 +503,7 @@ void write_commissioned(const CommissionOptions& o, const TwoMassFit& fit,
 /// helps only a model that fits the plant, which the commissioning has just measured). Printed;
 /// the key goes into text_values and `commissioned` has it.
 void tune_state_feedback_filter(const std::string& sweep_path, SystemParams& commissioned,
-                                std::vector<ConfigOverride>& text_values, std::string& transcript) {
+                                std::vector<ConfigOverride>& text_values, Transcript& transcript) {
   if (commissioned.compensator.state_feedback.output_filter_enabled) return;
   const SweepFile file = load_sweep_file(sweep_path, commissioned);
   SystemParams filtered = commissioned;
@@ -604,8 +539,194 @@ void tune_state_feedback_filter(const std::string& sweep_path, SystemParams& com
   text_values.push_back({"compensator.state_feedback.output_filter.enabled", "true"});
 }
 
+/// What the commissioning decided from a measured response.
+struct CommissionDecision {
+  int exit_code = kExitOk;
+  FilterChainParams filters;  ///< the force command's, designed or configured
+  LoopVerdict loop;
+  std::vector<std::pair<std::string, double>> values;  ///< the numbers it writes
+  std::vector<ConfigOverride> text_values;             ///< the filter slots and switches it writes
+  std::optional<SystemParams> commissioned;            ///< the system verified (unless refused before)
+  std::optional<Verification> verification;
+};
+
+/// From a measured response on: the force command's filters (designed with --design-filters), the
+/// loop judged and tuned, the commissioned system, state feedback's output filter tried (--tune
+/// with a verification file) and the verification, its rows into `verification_csv` led by
+/// `row_prefix`. Exit 6 in the decision when the filters are refused, --tune finds no gains or the
+/// verification fails.
+CommissionDecision decide(const CommissionOptions& o, const SystemParams& configured,
+                          const FrequencyResponseResult& result, const std::optional<IdentifiedLoad>& time_domain,
+                          std::ostream& verification_csv, const std::string& row_prefix, Transcript& transcript) {
+  CommissionDecision d;
+  d.filters = o.design_filters ? design_force_command_filters(configured, result, d.text_values, transcript)
+                               : configured.force_command_filter_params();
+  const FilterChain filters(d.filters);
+  d.loop = judge_loop(configured, result, filters, o.tune, transcript);
+  if (d.loop.filters_refused || (o.tune && !d.loop.tuned)) {
+    say(transcript, "commission: %s; nothing written\n",
+        d.loop.filters_refused ? "the force command's filters leave the loop short of its margins"
+                               : "--tune: no gains meet the margins");
+    d.exit_code = kExitVerdictFailed;
+    return d;
+  }
+  d.values = commissioned_parameters(result.fit, time_domain);
+  if (o.tune) {
+    d.values.emplace_back("velocity_loop.kp_n_s_per_m", d.loop.tuned->kp_n_s_per_m);
+    d.values.emplace_back("velocity_loop.ki_n_per_m", d.loop.tuned->ki_n_per_m);
+  }
+  SystemParams commissioned = commissioned_system(configured, d.values, filters, result.fit, o.simulate);
+  if (o.tune && !o.verify.empty()) tune_state_feedback_filter(o.verify, commissioned, d.text_values, transcript);
+  d.commissioned = commissioned;
+  if (o.verify.empty()) return d;
+  d.verification = verify_commissioned(o.verify, commissioned, verification_csv, row_prefix, transcript);
+  if (!d.verification->passed) {
+    say(transcript, "commission: the verification failed; nothing written (--no-verify writes it regardless)\n");
+    d.exit_code = kExitVerdictFailed;
+  }
+  return d;
+}
+
+/// One plant of a family: the fit's errors against the plant (anti-resonance, resonance, load
+/// mass, spring, motor mass, in per cent), the margins measured again at the tuned gains with the
+/// force command's filters, and what the commissioning decided.
+struct FamilyRow {
+  double errors[5] = {0, 0, 0, 0, 0};
+  double tuned_kp_n_s_per_m = 0;
+  LoopMargins tuned;  ///< measured at the tuned gains (not predicted)
+  CommissionDecision decision;
+};
+
+/// The row of plant `p`, commissioned as `pmlsm commission --simulate` would with the same options;
+/// nullopt and why when the measurement, the time-domain fit or the tuning failed.
+std::optional<FamilyRow> family_row(const CommissionOptions& o, const SystemParams& p, const Scenario& identification,
+                                    std::ostream& verification_csv, const std::string& label, std::string& why) {
+  const auto r = measured_response(p, why);
+  if (!r) return std::nullopt;
+  std::optional<IdentifiedLoad> time_domain;
+  try {
+    time_domain = commission_load(p, identification, IdentificationParams{});
+  } catch (const std::invalid_argument& e) {
+    why = std::string("the time-domain fit: ") + e.what();
+    return std::nullopt;
+  }
+  const auto& truth = p.plant.mechanics;
+  const double anti_hz = anti_resonance_hz(truth.load_mass_kg, truth.spring_n_per_m);
+  const double res_hz = resonance_hz(truth.motor_mass_kg, truth.load_mass_kg, truth.spring_n_per_m);
+  FamilyRow row;
+  const double errors[5] = {error_percent(r->fit.anti_resonance_hz, anti_hz),
+                            error_percent(r->fit.resonance_hz, res_hz),
+                            error_percent(r->fit.load_mass_kg, truth.load_mass_kg),
+                            error_percent(r->fit.spring_n_per_m, truth.spring_n_per_m),
+                            error_percent(r->fit.motor_mass_kg, truth.motor_mass_kg)};
+  std::copy(std::begin(errors), std::end(errors), std::begin(row.errors));
+  Transcript quiet{{}, false};
+  row.decision = decide(o, p, *r, time_domain, verification_csv, label + ",", quiet);
+  if (!row.decision.loop.tuned) {
+    why = "velocity loop tuning: no gains meet the margins";
+    return std::nullopt;
+  }
+  SystemParams at_tuned = p;
+  at_tuned.velocity_loop.kp_n_s_per_m = row.decision.loop.tuned->kp_n_s_per_m;
+  at_tuned.velocity_loop.ki_n_per_m = row.decision.loop.tuned->ki_n_per_m;
+  const auto again = measured_response(at_tuned, why);
+  if (!again) return std::nullopt;
+  row.tuned_kp_n_s_per_m = row.decision.loop.tuned->kp_n_s_per_m;
+  const FilterChain filters(row.decision.filters);
+  row.tuned = loop_margins(again->points, 1.0, p.commissioning.frequency_response.min_coherence, &filters);
+  return row;
+}
+
+/// Every plant of a sweep file's family commissioned in process as `pmlsm commission --simulate`
+/// commissions one, with the same options (--tune, --design-filters, --verify): measured, fitted,
+/// its velocity PI tuned and measured again at the tuned gains, state feedback's output filter
+/// decided, the commissioned system verified. A row per plant, family.csv (and
+/// family_verification.csv) in the report folder, the largest errors and the smallest margins.
+/// Exit 6 when a plant's measurement ends early, its response is refused, its tuned loop misses a
+/// margin or its commissioning fails (the verification included).
+int run_family(const CommissionOptions& o, const SystemParams& nominal) {
+  const SweepFile file = load_sweep_file(o.family, nominal);
+  const std::vector<PlantSample> plants = sample_plants(file.spec);
+  const Scenario identification = load_scenario(o.identification, nominal.timing.control_period_s);
+  const std::filesystem::path dir = o.report;
+  std::filesystem::create_directories(dir);
+  std::ofstream csv(dir / "family.csv");
+  csv << "plant,load_mass_kg,spring_n_per_m,anti_resonance_error_percent,resonance_error_percent,"
+         "load_mass_error_percent,spring_error_percent,motor_mass_error_percent,tuned_kp_n_s_per_m,"
+         "tuned_phase_margin_deg,tuned_gain_margin_db,state_output_filter,verified_runs,failed_runs,"
+         "worst_cost_ratio_to_pi,exit_code\n";
+  std::ofstream verification_csv;
+  if (!o.verify.empty()) {
+    verification_csv.open(dir / "family_verification.csv");
+    verification_csv << "plant," << kVerificationColumns << '\n';
+  }
+  double worst[5] = {0, 0, 0, 0, 0}, least_phase_deg = 1e9, least_gain_db = 1e9, worst_ratio = 0;
+  std::size_t failed = 0, filter_on = 0, verified_failed = 0;
+  const TuningTargets& targets = nominal.commissioning.tuning;
+  std::fprintf(stderr, "commission: %zu plants of %s, each measured twice%s%s\n", plants.size(), o.family.c_str(),
+               o.tune ? ", tuned" : "", o.verify.empty() ? "" : (" and verified on " + o.verify).c_str());
+  std::printf("%-10s %6s %7s %13s %13s %7s %7s %7s %8s %18s %6s %s\n", "plant", "m_L", "k", "anti-res. err", "res. err",
+              "m_L err", "k err", "m_M err", "tuned Kp", "margins at it", "filter", "verification");
+  for (const PlantSample& plant : plants) {
+    const SystemParams p = plant_variant(nominal, file.spec, plant);
+    std::string why;
+    const auto row = family_row(o, p, identification, verification_csv, plant.label, why);
+    if (!row) {
+      std::printf("%-10s %s\n", plant.label.c_str(), why.c_str());
+      ++failed;
+      continue;
+    }
+    for (int i = 0; i < 5; ++i) worst[i] = std::max(worst[i], std::fabs(row->errors[i]));
+    const bool met = row->tuned.gain_crossover_found && row->tuned.phase_crossover_found &&
+                     row->tuned.phase_margin_deg >= targets.min_phase_margin_deg &&
+                     row->tuned.gain_margin_db >= targets.min_gain_margin_db;
+    const CommissionDecision& d = row->decision;
+    failed += met && d.exit_code == kExitOk ? 0 : 1;
+    least_phase_deg = std::min(least_phase_deg, row->tuned.phase_margin_deg);
+    least_gain_db = std::min(least_gain_db, row->tuned.gain_margin_db);
+    const bool filtered = d.commissioned && d.commissioned->compensator.state_feedback.output_filter_enabled;
+    filter_on += filtered ? 1 : 0;
+    char verified[64] = "-";
+    if (d.verification) {
+      verified_failed += d.verification->passed ? 0 : 1;
+      worst_ratio = std::max(worst_ratio, d.verification->worst_cost_ratio);
+      std::snprintf(verified, sizeof verified, "%zu of %zu pass, worst %.3f x PI",
+                    d.verification->runs - d.verification->failed_runs, d.verification->runs,
+                    d.verification->worst_cost_ratio);
+    } else if (d.exit_code != kExitOk) {
+      std::snprintf(verified, sizeof verified, "refused before it");
+    }
+    const auto& m = p.plant.mechanics;
+    std::printf("%-10s %6.2f %7.0f %+12.2f%% %+12.2f%% %+6.2f%% %+6.2f%% %+6.2f%% %8.0f %6.1f deg %5.2f dB %6s %s%s\n",
+                plant.label.c_str(), m.load_mass_kg, m.spring_n_per_m, row->errors[0], row->errors[1], row->errors[2],
+                row->errors[3], row->errors[4], row->tuned_kp_n_s_per_m, row->tuned.phase_margin_deg,
+                row->tuned.gain_margin_db, filtered ? "on" : "off", verified, met ? "" : "  margins missed");
+    std::fflush(stdout);
+    csv << plant.label << ',' << m.load_mass_kg << ',' << m.spring_n_per_m;
+    for (const double e : row->errors) csv << ',' << e;
+    csv << ',' << row->tuned_kp_n_s_per_m << ',' << row->tuned.phase_margin_deg << ',' << row->tuned.gain_margin_db
+        << ',' << (filtered ? "on" : "off") << ',' << (d.verification ? d.verification->runs : 0) << ','
+        << (d.verification ? d.verification->failed_runs : 0) << ','
+        << (d.verification ? d.verification->worst_cost_ratio : std::nan("")) << ',' << d.exit_code << '\n';
+  }
+  std::printf(
+      "family of %zu plants (%s): %zu failed; largest errors: anti-resonance %.2f %%, resonance %.2f %%, "
+      "load mass %.2f %%, spring %.2f %%, motor mass %.2f %%; tuned loops measured again: phase margin >= "
+      "%.1f deg, gain margin >= %.2f dB (targets %.4g deg, %.4g dB)\n",
+      plants.size(), o.family.c_str(), failed, worst[0], worst[1], worst[2], worst[3], worst[4], least_phase_deg,
+      least_gain_db, targets.min_phase_margin_deg, targets.min_gain_margin_db);
+  if (o.tune && !o.verify.empty()) {
+    std::printf("state feedback's output filter on for %zu of %zu plants\n", filter_on, plants.size());
+  }
+  if (!o.verify.empty()) {
+    std::printf("verification (%s): %zu plants failed it; largest cost over PI alone %.3f; report %s\n",
+                o.verify.c_str(), verified_failed, worst_ratio, dir.string().c_str());
+  }
+  return failed == 0 ? kExitOk : kExitVerdictFailed;
+}
+
 /// The commissioning; what it prints is kept in `transcript` for the report as well.
-int commission(const CommissionOptions& o, std::string& transcript) {
+int commission(const CommissionOptions& o, Transcript& transcript) {
   if (!o.simulate && !o.family.empty()) throw UsageError("commission: --family needs --simulate");
   const SystemParams configured = load_system_params(o.config, parse_overrides(o.set));
   if (!o.family.empty()) {
@@ -641,51 +762,37 @@ int commission(const CommissionOptions& o, std::string& transcript) {
       measurement.params().min_coherence);
   print_fit(result.fit, time_domain, configured, o.simulate, transcript);
   say(transcript, "anti-resonance %.3f Hz\nresonance %.3f Hz\n", result.fit.anti_resonance_hz, result.fit.resonance_hz);
-  std::vector<ConfigOverride> text_values;
-  const FilterChain filters(o.design_filters ? design_force_command_filters(configured, result, text_values, transcript)
-                                             : configured.force_command_filter_params());
-  write_response_csv(dir / "response.csv", result, filters);
-  const LoopVerdict loop = judge_loop(configured, result, filters, o.tune, transcript);
+  std::ofstream verification_csv;
+  if (!o.verify.empty()) {
+    verification_csv.open(dir / "verification.csv");
+    verification_csv << kVerificationColumns << '\n';
+  }
+  const CommissionDecision d = decide(o, configured, result, time_domain, verification_csv, "", transcript);
+  write_response_csv(dir / "response.csv", result, FilterChain(d.filters));
   if (o.plots) {
-    write_bode_script(dir, result.fit, loop.margins, !filters.empty());
+    write_bode_script(dir, result.fit, d.loop.margins, !FilterChain(d.filters).empty());
     if (run_gnuplot(dir / "bode.gp") != 0) throw std::runtime_error("gnuplot failed on " + (dir / "bode.gp").string());
   }
   say(transcript, "report: %s\n", dir.string().c_str());
-  if (loop.filters_refused || (o.tune && !loop.tuned)) {
-    say(transcript, "commission: %s; nothing written\n",
-        loop.filters_refused ? "the force command's filters leave the loop short of its margins"
-                             : "--tune: no gains meet the margins");
-    return kExitVerdictFailed;
-  }
-  auto values = commissioned_parameters(result.fit, time_domain);
-  if (o.tune) {
-    values.emplace_back("velocity_loop.kp_n_s_per_m", loop.tuned->kp_n_s_per_m);
-    values.emplace_back("velocity_loop.ki_n_per_m", loop.tuned->ki_n_per_m);
-  }
-  SystemParams commissioned = commissioned_system(configured, values, filters, result.fit, o.simulate);
-  if (o.tune && !o.verify.empty()) tune_state_feedback_filter(o.verify, commissioned, text_values, transcript);
-  if (!o.verify.empty() && !verify_commissioned(o.verify, commissioned, dir, transcript)) {
-    say(transcript, "commission: the verification failed; nothing written (--no-verify writes it regardless)\n");
-    return kExitVerdictFailed;
-  }
-  if (!o.out.empty()) write_commissioned(o, result.fit, values, text_values, transcript);
+  if (d.exit_code != kExitOk) return d.exit_code;
+  if (!o.out.empty()) write_commissioned(o, result.fit, d.values, d.text_values, transcript);
   return kExitOk;
 }
 
 /// The commissioning, then report.md in the report folder (when the measurement made one): the
 /// Bode plot and everything printed, so that a run's report stands on its own.
 int run_commission(const CommissionOptions& o) {
-  std::string transcript;
+  Transcript transcript;
   const int code = commission(o, transcript);
   const std::filesystem::path dir = o.report;
-  if (o.family.empty() && std::filesystem::is_directory(dir) && !transcript.empty()) {
+  if (o.family.empty() && std::filesystem::is_directory(dir) && !transcript.text.empty()) {
     std::ofstream md(dir / "report.md");
     md << "# Commissioning report\n\n"
        << (code == kExitOk ? "Exit 0." : "Exit " + std::to_string(code) + ": not done.")
        << " The system file: " << (o.out.empty() || code != kExitOk ? "not written" : o.out) << ".\n\n";
     if (o.plots && std::filesystem::exists(dir / "bode.png")) md << "![Bode plot](bode.png)\n\n";
     md << "```\n"
-       << transcript << "```\n\nThe data: response.csv (per line), samples.csv (per tick)"
+       << transcript.text << "```\n\nThe data: response.csv (per line), samples.csv (per tick)"
        << (std::filesystem::exists(dir / "verification.csv") ? ", verification.csv" : "") << ".\n";
   }
   return code;
@@ -726,7 +833,9 @@ void add_commission_command(CLI::App& app, dds::ParticipantOptions& dds_options,
                 "Design notches for the resonances over the two-mass model that limit the loop's gain, into free "
                 "slots of filters.force_command (commissioning.filter_design), tune and write with them");
   cmd->add_option("--family", o->family,
-                  "With --simulate: measure every plant of this sweep file's family and print the fit's errors")
+                  "With --simulate: commission every plant of this sweep file's family as one is (--tune, "
+                  "--design-filters, --verify alike) and print a row per plant: the fit's errors, the tuned "
+                  "margins, the verification")
       ->check(CLI::ExistingFile);
   cmd->callback([o, &exit_code] {
     try {
