@@ -595,6 +595,21 @@ TEST(Commission, SimulatedPlantGivesItsModesAReportAndASystemFile) {
   const std::string verdict = p.output().substr(filter_line, p.output().find('\n', filter_line) - filter_line);
   EXPECT_EQ(written.compensator.state_feedback.output_filter_enabled, verdict.substr(verdict.size() - 3) == ": on")
       << verdict;
+  // --tune: acceleration feedback's gain and the RNN's output scale tried at seven factors each,
+  // written at the factor chosen (the line's last word).
+  for (const auto& [key, configured, value] :
+       {std::tuple<std::string, double, double>{"compensator.acceleration_feedback.gain_kg", 160.0,
+                                                written.compensator.acceleration_feedback.gain_kg},
+        {"compensator.rnn.output_scale", 1.0, written.compensator.rnn.output_scale}}) {
+    const auto line_at = p.output().find(key + " on the commissioned system (mean cost over PI alone's");
+    ASSERT_NE(line_at, std::string::npos) << p.output();
+    const std::string line = p.output().substr(line_at, p.output().find('\n', line_at) - line_at);
+    EXPECT_NE(line.find("x0.67 "), std::string::npos) << line;
+    EXPECT_NE(line.find(", x2.5 "), std::string::npos) << line;
+    const auto chosen_at = line.rfind(": x");
+    ASSERT_NE(chosen_at, std::string::npos) << line;
+    EXPECT_DOUBLE_EQ(value, configured * std::stod(line.substr(chosen_at + 3))) << line;
+  }
   std::ifstream response(fs::path(report) / "response.csv");
   std::size_t lines = 0;
   for (std::string line; std::getline(response, line);) ++lines;

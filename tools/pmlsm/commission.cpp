@@ -539,6 +539,62 @@ void tune_state_feedback_filter(const std::string& sweep_path, SystemParams& com
   text_values.push_back({"compensator.state_feedback.output_filter.enabled", "true"});
 }
 
+/// The factors the gain trial tries on a compensator's configured gain; the largest only as the
+/// step above the one before it.
+constexpr double kGainTrialFactors[] = {0.67, 0.8, 1.0, 1.25, 1.5, 2.0, 2.5};
+
+/// With --tune: acceleration feedback's K_a and the RNN's output scale, each tried at
+/// kGainTrialFactors times its configured value on the commissioned system, on the verification
+/// file's scenarios, each run judged as the verification judges it (a drive vendor's tuner sets a
+/// gain by measuring the loop at a few), and commissioned at choose_gain_factor's choice
+/// (loop_tuning.hpp: the cheapest with a step to spare); none qualifying leaves the configured
+/// gain. Printed; the keys go into text_values and `commissioned` has them.
+void tune_compensator_gains(const std::string& sweep_path, SystemParams& commissioned,
+                            std::vector<ConfigOverride>& text_values, Transcript& transcript) {
+  const SweepFile file = load_sweep_file(sweep_path, commissioned);
+  std::vector<double> weights;
+  if (!file.weights_path.empty()) weights = load_rnn_weights(file.weights_path).weights;
+  std::vector<RunVerdict> pi_alone;
+  for (const Scenario& scenario : file.spec.scenarios) {
+    pi_alone.push_back(judged_run(commissioned, scenario, {CompensatorKind::kNone, {}, false}, file.spec.verdict));
+  }
+  const auto scenarios = static_cast<double>(file.spec.scenarios.size());
+  for (const CompensatorKind kind : file.spec.compensators) {
+    if (kind != CompensatorKind::kAccel && kind != CompensatorKind::kRnn) continue;
+    const bool accel = kind == CompensatorKind::kAccel;
+    const std::string key = accel ? "compensator.acceleration_feedback.gain_kg" : "compensator.rnn.output_scale";
+    double& gain =
+        accel ? commissioned.compensator.acceleration_feedback.gain_kg : commissioned.compensator.rnn.output_scale;
+    const double configured = gain;
+    std::vector<GainTrial> trials;
+    std::string costs;
+    for (const double factor : kGainTrialFactors) {
+      SystemParams trial_system = commissioned;
+      (accel ? trial_system.compensator.acceleration_feedback.gain_kg : trial_system.compensator.rnn.output_scale) =
+          configured * factor;
+      GainTrial trial{factor, true, 0.0};
+      for (std::size_t i = 0; i < file.spec.scenarios.size(); ++i) {
+        RunVerdict v = judged_run(trial_system, file.spec.scenarios[i], {kind, weights, false}, file.spec.verdict);
+        judge_against_pi_alone(v, pi_alone[i], file.spec.verdict);
+        trial.passes = trial.passes && v.faults().empty() && v.cost < pi_alone[i].cost;
+        trial.mean_cost_ratio += v.cost / pi_alone[i].cost / scenarios;
+      }
+      char line[96];
+      std::snprintf(line, sizeof line, "%sx%.3g %.4f%s", costs.empty() ? "" : ", ", factor, trial.mean_cost_ratio,
+                    trial.passes ? "" : " (fails)");
+      costs += line;
+      trials.push_back(trial);
+    }
+    const std::optional<double> chosen = choose_gain_factor(trials);
+    say(transcript, "%s on the commissioned system (mean cost over PI alone's, x its configured %.4g): %s: %s\n",
+        key.c_str(), configured, costs.c_str(),
+        chosen ? ("x" + format_value(*chosen)).c_str() : "none passes with a step to spare, stays");
+    if (!chosen || *chosen == 1.0) continue;
+    gain = configured * *chosen;
+    text_values.push_back({key, format_value(gain)});
+  }
+}
+
 /// What the commissioning decided from a measured response.
 struct CommissionDecision {
   int exit_code = kExitOk;
@@ -576,7 +632,10 @@ CommissionDecision decide(const CommissionOptions& o, const SystemParams& config
     d.values.emplace_back("velocity_loop.ki_n_per_m", d.loop.tuned->ki_n_per_m);
   }
   SystemParams commissioned = commissioned_system(configured, d.values, filters, result.fit, o.simulate);
-  if (o.tune && !o.verify.empty()) tune_state_feedback_filter(o.verify, commissioned, d.text_values, transcript);
+  if (o.tune && !o.verify.empty()) {
+    tune_state_feedback_filter(o.verify, commissioned, d.text_values, transcript);
+    tune_compensator_gains(o.verify, commissioned, d.text_values, transcript);
+  }
   d.commissioned = commissioned;
   if (o.verify.empty()) return d;
   d.verification = verify_commissioned(o.verify, commissioned, verification_csv, row_prefix, transcript);

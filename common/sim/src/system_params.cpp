@@ -62,7 +62,7 @@ KalmanParams SystemParams::kalman_params() const {
 
 RnnCompensatorParams SystemParams::rnn_compensator_params(bool online_learning) const {
   RnnCompensatorParams p = compensator.rnn;
-  p.output_scale = compensator_gain_scale();
+  p.output_scale = compensator.rnn.output_scale * compensator_gain_scale();
   p.period_s = timing.control_period_s;
   p.online_learning = online_learning;
   return p;

@@ -8,8 +8,10 @@
 
 #include <cmath>
 #include <complex>
+#include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pmlsm/sim/frequency_response_measurement.hpp"
@@ -138,6 +140,40 @@ TEST(LoopTuning, TheLoopMeasuredAgainAtTheTunedGainsHasThePredictedMargins) {
       "deg, %.2f dB\n",
       tuned->kp_n_s_per_m, tuned->after.phase_margin_deg, tuned->after.gain_margin_db, again.phase_margin_deg,
       again.gain_margin_db);
+}
+
+// The commissioned factor of a compensator's gain: the cheapest that passes with the next step up
+// passing too. The figures are the nominal plant's on configs/sweeps/all_references.yaml (the
+// RNN's output scale: x1.5 cheapest but x2 fails, so x1.25; acceleration feedback: x1.5).
+TEST(GainTrial, TheCheapestFactorWithAPassingStepAboveIsChosen) {
+  const std::vector<GainTrial> rnn = {{0.67, true, 0.4265}, {0.8, true, 0.3884}, {1.0, true, 0.3616},
+                                      {1.25, true, 0.3381}, {1.5, true, 0.3192}, {2.0, false, 0.8403},
+                                      {2.5, false, 1.4628}};
+  EXPECT_EQ(choose_gain_factor(rnn), std::optional<double>(1.25));
+  const std::vector<GainTrial> accel = {{0.67, true, 0.4304}, {0.8, true, 0.4082}, {1.0, true, 0.3918},
+                                        {1.25, true, 0.3784}, {1.5, true, 0.3639}, {2.0, true, 0.4038},
+                                        {2.5, false, 1.3046}};
+  EXPECT_EQ(choose_gain_factor(accel), std::optional<double>(1.5));
+  // The largest factor is only the step above: cheapest there, it is still not taken.
+  const std::vector<GainTrial> rising = {{1.0, true, 0.5}, {1.5, true, 0.4}, {2.0, true, 0.3}};
+  EXPECT_EQ(choose_gain_factor(rising), std::optional<double>(1.5));
+  // A failing factor between two passing ones disqualifies the one below it.
+  const std::vector<GainTrial> gap = {{1.0, true, 0.5}, {1.5, true, 0.3}, {2.0, false, 0.2}, {2.5, true, 0.1}};
+  EXPECT_EQ(choose_gain_factor(gap), std::optional<double>(1.0));
+  const std::vector<GainTrial> none = {{1.0, true, 0.5}, {1.5, false, 0.3}, {2.0, true, 0.2}};
+  EXPECT_EQ(choose_gain_factor(none), std::nullopt);
+  EXPECT_EQ(choose_gain_factor({}), std::nullopt);
+  EXPECT_EQ(choose_gain_factor({{1.0, true, 0.5}}), std::nullopt);
+  for (const auto& [trials, message] :
+       {std::pair<std::vector<GainTrial>, std::string>{{{1.0, true, 0.5}, {1.0, true, 0.4}}, "got 1 at position 2"},
+        {{{0.0, true, 0.5}, {1.0, true, 0.4}}, "got 0 at position 1"}}) {
+    try {
+      choose_gain_factor(trials);
+      ADD_FAILURE() << "accepted: " << message;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("positive and ascending, " + message), std::string::npos) << e.what();
+    }
+  }
 }
 
 }  // namespace

@@ -108,8 +108,9 @@ struct RnnCompensatorParams {
   /// commanded acceleration is no vibration to the network (AccelFeedbackParams says why).
   bool on_reference_error = false;
   double gain_n = 0;  ///< G_n: force = G_n u_n, > 0
-  /// The force is G_n s_o u_n: s_o rescales a set trained on one load for another (the gain
-  /// schedule on the model's load mass, SystemParams::compensator_gain_scale), > 0.
+  /// The force is G_n s_o u_n: s_o rescales a set trained on one load for another (the
+  /// commissioned compensator.rnn.output_scale times the gain schedule on the model's load mass,
+  /// SystemParams::rnn_compensator_params), > 0.
   double output_scale = 1.0;
   double period_s = 0;  ///< T_s of (18), > 0
   bool online_learning = false;

@@ -66,4 +66,19 @@ std::optional<TunedGains> tune_velocity_pi(const std::vector<FrequencyPoint>& po
                                            double ki_n_per_m, const TuningTargets& targets, double min_coherence,
                                            std::string& why, const FilterChain* filters = nullptr);
 
+/// A compensator's gain tried at one factor of its configured value: whether it passed the
+/// verdict (clean and cheaper than PI alone) on every scenario, and its mean cost over PI alone's.
+struct GainTrial {
+  double factor = 0;
+  bool passes = false;
+  double mean_cost_ratio = 0;
+};
+
+/// The factor a compensator's gain is commissioned at: of the trials (factors ascending) that pass
+/// with the next one up passing too (a gain margin of one step: a gain just short of where the
+/// compensation fights the loop is not taken; the largest factor is only that step), the lowest
+/// mean cost ratio. nullopt when none qualifies.
+/// @throws std::invalid_argument when the factors are not positive and ascending.
+std::optional<double> choose_gain_factor(const std::vector<GainTrial>& trials);
+
 }  // namespace pmlsm

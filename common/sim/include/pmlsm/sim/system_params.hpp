@@ -321,6 +321,7 @@ void visit_parameters(Params& p, Visitor& v) {
   v.real("compensator.rnn.input_scale_s2_per_m", c.rnn.input_scale_s2_per_m,
          {1e-6, 1e3, "maps accelerations of 1 mm/s^2 to 1000 km/s^2 into tanh's range"});
   v.real("compensator.rnn.gain_n", c.rnn.gain_n, {1e-3, 1e5, "1 mN to 100 kN, the range of the force limit"});
+  v.real("compensator.rnn.output_scale", c.rnn.output_scale, {0.05, 20.0, "a twentieth to twenty times the force"});
   v.real("compensator.rnn.learning_rate", c.rnn.learning_rate,
          {0.0, 1.0, "eta of (16): a step larger than the gradient itself diverges"});
   v.real("compensator.rnn.momentum", c.rnn.momentum, {0.0, 0.999, "alpha of (16): below 1 to contract"});
