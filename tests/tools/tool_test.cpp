@@ -728,7 +728,7 @@ std::vector<std::string> csv_rows(const fs::path& path, std::size_t skip = 0) {
 // `pmlsm commission --simulate --family --tune`: every plant of a family (here its centre and two
 // drawn) commissioned as one plant is: a row each with the modes within 0.5 %, the tuned loop's
 // margins measured again, state feedback's output filter decided and the verification run;
-// the centre's decision and verification rows equal a single commissioning of that plant's.
+// the centre's decisions (filter, gains) and verification rows equal a single commissioning's.
 TEST(Commission, AFamilyIsCommissionedPlantByPlantAsOnePlantIs) {
   const fs::path dir = test::fresh_dir("pmlsm_tool", "commission_family");
   std::ifstream family_file(source("configs/sweeps/plant_family.yaml"));
@@ -762,22 +762,22 @@ TEST(Commission, AFamilyIsCommissionedPlantByPlantAsOnePlantIs) {
       << p.output();
   const std::vector<std::string> rows = csv_rows(dir / "family" / "family.csv");
   ASSERT_EQ(rows.size(), 3u);
-  std::string centre_filter;
+  std::vector<std::string> centre_cells;
   for (const std::string& row : rows) {
     std::vector<std::string> cell;
     std::stringstream in(row);
     for (std::string c; std::getline(in, c, ',');) cell.push_back(c);
-    ASSERT_EQ(cell.size(), 16u) << row;
+    ASSERT_EQ(cell.size(), 18u) << row;
     EXPECT_LT(std::fabs(std::stod(cell[3])), 0.5) << row;  // anti-resonance, per cent
     EXPECT_LT(std::fabs(std::stod(cell[4])), 0.5) << row;  // resonance
     EXPECT_GE(std::stod(cell[9]), 45.0) << row;            // phase margin measured at the tuned gains
     EXPECT_GE(std::stod(cell[10]), 8.0) << row;            // gain margin
-    EXPECT_EQ(cell[12], "6") << row;                       // 2 scenarios x 3 compensators verified
-    EXPECT_EQ(cell[13], "0") << row;
+    EXPECT_EQ(cell[14], "6") << row;                       // 2 scenarios x 3 compensators verified
     EXPECT_EQ(cell[15], "0") << row;
-    if (cell[0] == "centre") centre_filter = cell[11];
+    EXPECT_EQ(cell[17], "0") << row;
+    if (cell[0] == "centre") centre_cells = cell;
   }
-  ASSERT_FALSE(centre_filter.empty());
+  ASSERT_FALSE(centre_cells.empty());
   // The centre (5 kg, 17,125 N/m, the nominal friction) commissioned alone decides the same.
   const std::string out = (dir / "centre.yaml").string();
   args = common;
@@ -785,7 +785,11 @@ TEST(Commission, AFamilyIsCommissionedPlantByPlantAsOnePlantIs) {
                            "-o", out, "--report", (dir / "centre").string()});
   test::ChildProcess centre(pmlsm_args(test_domain(103), args), (dir / "centre.log").string());
   ASSERT_EQ(run_to_end(centre), 0) << centre.output();
-  EXPECT_EQ(load_system_params(out).compensator.state_feedback.output_filter_enabled, centre_filter == "on");
+  const SystemParams centre_system = load_system_params(out);
+  EXPECT_EQ(centre_system.compensator.state_feedback.output_filter_enabled, centre_cells[11] == "on");
+  std::ostringstream gains;  // as family.csv writes them
+  gains << centre_system.compensator.acceleration_feedback.gain_kg << ',' << centre_system.compensator.rnn.output_scale;
+  EXPECT_EQ(gains.str(), centre_cells[12] + ',' + centre_cells[13]);
   std::vector<std::string> family_centre;
   for (const std::string& row : csv_rows(dir / "family" / "family_verification.csv")) {
     if (row.rfind("centre,", 0) == 0) family_centre.push_back(row.substr(7));

@@ -547,8 +547,8 @@ constexpr double kGainTrialFactors[] = {0.67, 0.8, 1.0, 1.25, 1.5, 2.0, 2.5};
 /// kGainTrialFactors times its configured value on the commissioned system, on the verification
 /// file's scenarios, each run judged as the verification judges it (a drive vendor's tuner sets a
 /// gain by measuring the loop at a few), and commissioned at choose_gain_factor's choice
-/// (loop_tuning.hpp: the cheapest with a step to spare); none qualifying leaves the configured
-/// gain. Printed; the keys go into text_values and `commissioned` has them.
+/// (loop_tuning.hpp: the cheapest with a step to spare, else the cheapest that passes); none
+/// passing leaves the configured gain. Printed; the keys go into text_values and `commissioned` has them.
 void tune_compensator_gains(const std::string& sweep_path, SystemParams& commissioned,
                             std::vector<ConfigOverride>& text_values, Transcript& transcript) {
   const SweepFile file = load_sweep_file(sweep_path, commissioned);
@@ -585,12 +585,13 @@ void tune_compensator_gains(const std::string& sweep_path, SystemParams& commiss
       costs += line;
       trials.push_back(trial);
     }
-    const std::optional<double> chosen = choose_gain_factor(trials);
+    const std::optional<GainChoice> chosen = choose_gain_factor(trials);
     say(transcript, "%s on the commissioned system (mean cost over PI alone's, x its configured %.4g): %s: %s\n",
         key.c_str(), configured, costs.c_str(),
-        chosen ? ("x" + format_value(*chosen)).c_str() : "none passes with a step to spare, stays");
-    if (!chosen || *chosen == 1.0) continue;
-    gain = configured * *chosen;
+        !chosen ? "none passes, stays"
+                : ("x" + format_value(chosen->factor) + (chosen->step_to_spare ? "" : " (no step to spare)")).c_str());
+    if (!chosen || chosen->factor == 1.0) continue;
+    gain = configured * chosen->factor;
     text_values.push_back({key, format_value(gain)});
   }
 }
@@ -712,8 +713,8 @@ int run_family(const CommissionOptions& o, const SystemParams& nominal) {
   std::ofstream csv(dir / "family.csv");
   csv << "plant,load_mass_kg,spring_n_per_m,anti_resonance_error_percent,resonance_error_percent,"
          "load_mass_error_percent,spring_error_percent,motor_mass_error_percent,tuned_kp_n_s_per_m,"
-         "tuned_phase_margin_deg,tuned_gain_margin_db,state_output_filter,verified_runs,failed_runs,"
-         "worst_cost_ratio_to_pi,exit_code\n";
+         "tuned_phase_margin_deg,tuned_gain_margin_db,state_output_filter,accel_gain_kg,rnn_output_scale,"
+         "verified_runs,failed_runs,worst_cost_ratio_to_pi,exit_code\n";
   std::ofstream verification_csv;
   if (!o.verify.empty()) {
     verification_csv.open(dir / "family_verification.csv");
@@ -724,8 +725,9 @@ int run_family(const CommissionOptions& o, const SystemParams& nominal) {
   const TuningTargets& targets = nominal.commissioning.tuning;
   std::fprintf(stderr, "commission: %zu plants of %s, each measured twice%s%s\n", plants.size(), o.family.c_str(),
                o.tune ? ", tuned" : "", o.verify.empty() ? "" : (" and verified on " + o.verify).c_str());
-  std::printf("%-10s %6s %7s %13s %13s %7s %7s %7s %8s %18s %6s %s\n", "plant", "m_L", "k", "anti-res. err", "res. err",
-              "m_L err", "k err", "m_M err", "tuned Kp", "margins at it", "filter", "verification");
+  std::printf("%-10s %6s %7s %13s %13s %7s %7s %7s %8s %18s %6s %5s %5s %s\n", "plant", "m_L", "k", "anti-res. err",
+              "res. err", "m_L err", "k err", "m_M err", "tuned Kp", "margins at it", "filter", "K_a", "RNN x",
+              "verification");
   for (const PlantSample& plant : plants) {
     const SystemParams p = plant_variant(nominal, file.spec, plant);
     std::string why;
@@ -744,6 +746,8 @@ int run_family(const CommissionOptions& o, const SystemParams& nominal) {
     least_phase_deg = std::min(least_phase_deg, row->tuned.phase_margin_deg);
     least_gain_db = std::min(least_gain_db, row->tuned.gain_margin_db);
     const bool filtered = d.commissioned && d.commissioned->compensator.state_feedback.output_filter_enabled;
+    const double gain_kg = d.commissioned ? d.commissioned->compensator.acceleration_feedback.gain_kg : std::nan("");
+    const double rnn_scale = d.commissioned ? d.commissioned->compensator.rnn.output_scale : std::nan("");
     filter_on += filtered ? 1 : 0;
     char verified[64] = "-";
     if (d.verification) {
@@ -756,17 +760,19 @@ int run_family(const CommissionOptions& o, const SystemParams& nominal) {
       std::snprintf(verified, sizeof verified, "refused before it");
     }
     const auto& m = p.plant.mechanics;
-    std::printf("%-10s %6.2f %7.0f %+12.2f%% %+12.2f%% %+6.2f%% %+6.2f%% %+6.2f%% %8.0f %6.1f deg %5.2f dB %6s %s%s\n",
-                plant.label.c_str(), m.load_mass_kg, m.spring_n_per_m, row->errors[0], row->errors[1], row->errors[2],
-                row->errors[3], row->errors[4], row->tuned_kp_n_s_per_m, row->tuned.phase_margin_deg,
-                row->tuned.gain_margin_db, filtered ? "on" : "off", verified, met ? "" : "  margins missed");
+    std::printf(
+        "%-10s %6.2f %7.0f %+12.2f%% %+12.2f%% %+6.2f%% %+6.2f%% %+6.2f%% %8.0f %6.1f deg %5.2f dB %6s %5.0f %5.3g "
+        "%s%s\n",
+        plant.label.c_str(), m.load_mass_kg, m.spring_n_per_m, row->errors[0], row->errors[1], row->errors[2],
+        row->errors[3], row->errors[4], row->tuned_kp_n_s_per_m, row->tuned.phase_margin_deg, row->tuned.gain_margin_db,
+        filtered ? "on" : "off", gain_kg, rnn_scale, verified, met ? "" : "  margins missed");
     std::fflush(stdout);
     csv << plant.label << ',' << m.load_mass_kg << ',' << m.spring_n_per_m;
     for (const double e : row->errors) csv << ',' << e;
     csv << ',' << row->tuned_kp_n_s_per_m << ',' << row->tuned.phase_margin_deg << ',' << row->tuned.gain_margin_db
-        << ',' << (filtered ? "on" : "off") << ',' << (d.verification ? d.verification->runs : 0) << ','
-        << (d.verification ? d.verification->failed_runs : 0) << ','
-        << (d.verification ? d.verification->worst_cost_ratio : std::nan("")) << ',' << d.exit_code << '\n';
+        << ',' << (filtered ? "on" : "off") << ',' << gain_kg << ',' << rnn_scale << ','
+        << (d.verification ? d.verification->runs : 0) << ',' << (d.verification ? d.verification->failed_runs : 0)
+        << ',' << (d.verification ? d.verification->worst_cost_ratio : std::nan("")) << ',' << d.exit_code << '\n';
   }
   std::printf(
       "family of %zu plants (%s): %zu failed; largest errors: anti-resonance %.2f %%, resonance %.2f %%, "

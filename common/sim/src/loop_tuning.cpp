@@ -118,20 +118,25 @@ std::optional<TunedGains> tune_velocity_pi(const std::vector<FrequencyPoint>& po
   return tuned;
 }
 
-std::optional<double> choose_gain_factor(const std::vector<GainTrial>& trials) {
+std::optional<GainChoice> choose_gain_factor(const std::vector<GainTrial>& trials) {
   for (std::size_t f = 0; f < trials.size(); ++f) {
     if (!(trials[f].factor > 0) || (f > 0 && !(trials[f].factor > trials[f - 1].factor))) {
       throw std::invalid_argument("gain trial factors must be positive and ascending, got " +
                                   format_value(trials[f].factor) + " at position " + std::to_string(f + 1));
     }
   }
-  std::optional<std::size_t> best;
-  for (std::size_t f = 0; f + 1 < trials.size(); ++f) {
-    if (!trials[f].passes || !trials[f + 1].passes) continue;
-    if (!best || trials[f].mean_cost_ratio < trials[*best].mean_cost_ratio) best = f;
-  }
-  if (!best) return std::nullopt;
-  return trials[*best].factor;
+  const auto cheapest = [&](bool with_step) {
+    std::optional<std::size_t> best;
+    for (std::size_t f = 0; f < trials.size(); ++f) {
+      const bool step = f + 1 < trials.size() && trials[f + 1].passes;
+      if (!trials[f].passes || (with_step && !step)) continue;
+      if (!best || trials[f].mean_cost_ratio < trials[*best].mean_cost_ratio) best = f;
+    }
+    return best;
+  };
+  if (const auto f = cheapest(true)) return GainChoice{trials[*f].factor, true};
+  if (const auto f = cheapest(false)) return GainChoice{trials[*f].factor, false};
+  return std::nullopt;
 }
 
 }  // namespace pmlsm

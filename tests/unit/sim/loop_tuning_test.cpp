@@ -143,27 +143,35 @@ TEST(LoopTuning, TheLoopMeasuredAgainAtTheTunedGainsHasThePredictedMargins) {
 }
 
 // The commissioned factor of a compensator's gain: the cheapest that passes with the next step up
-// passing too. The figures are the nominal plant's on configs/sweeps/all_references.yaml (the
-// RNN's output scale: x1.5 cheapest but x2 fails, so x1.25; acceleration feedback: x1.5).
+// passing too, else the cheapest that passes. The figures are the nominal plant's on
+// configs/sweeps/all_references.yaml (the RNN's output scale: x1.5 cheapest but x2 fails, so
+// x1.25; acceleration feedback: x1.5) and the light soft sticky corner's (the RNN: only x1.25).
 TEST(GainTrial, TheCheapestFactorWithAPassingStepAboveIsChosen) {
+  const auto choice = [](const std::vector<GainTrial>& trials) {
+    const auto c = choose_gain_factor(trials);
+    return c ? std::make_pair(c->factor, c->step_to_spare) : std::make_pair(0.0, false);
+  };
   const std::vector<GainTrial> rnn = {{0.67, true, 0.4265}, {0.8, true, 0.3884}, {1.0, true, 0.3616},
                                       {1.25, true, 0.3381}, {1.5, true, 0.3192}, {2.0, false, 0.8403},
                                       {2.5, false, 1.4628}};
-  EXPECT_EQ(choose_gain_factor(rnn), std::optional<double>(1.25));
+  EXPECT_EQ(choice(rnn), std::make_pair(1.25, true));
   const std::vector<GainTrial> accel = {{0.67, true, 0.4304}, {0.8, true, 0.4082}, {1.0, true, 0.3918},
                                         {1.25, true, 0.3784}, {1.5, true, 0.3639}, {2.0, true, 0.4038},
                                         {2.5, false, 1.3046}};
-  EXPECT_EQ(choose_gain_factor(accel), std::optional<double>(1.5));
+  EXPECT_EQ(choice(accel), std::make_pair(1.5, true));
   // The largest factor is only the step above: cheapest there, it is still not taken.
-  const std::vector<GainTrial> rising = {{1.0, true, 0.5}, {1.5, true, 0.4}, {2.0, true, 0.3}};
-  EXPECT_EQ(choose_gain_factor(rising), std::optional<double>(1.5));
+  EXPECT_EQ(choice({{1.0, true, 0.5}, {1.5, true, 0.4}, {2.0, true, 0.3}}), std::make_pair(1.5, true));
   // A failing factor between two passing ones disqualifies the one below it.
-  const std::vector<GainTrial> gap = {{1.0, true, 0.5}, {1.5, true, 0.3}, {2.0, false, 0.2}, {2.5, true, 0.1}};
-  EXPECT_EQ(choose_gain_factor(gap), std::optional<double>(1.0));
-  const std::vector<GainTrial> none = {{1.0, true, 0.5}, {1.5, false, 0.3}, {2.0, true, 0.2}};
-  EXPECT_EQ(choose_gain_factor(none), std::nullopt);
+  EXPECT_EQ(choice({{1.0, true, 0.5}, {1.5, true, 0.3}, {2.0, false, 0.2}, {2.5, true, 0.1}}),
+            std::make_pair(1.0, true));
+  // No factor with a step to spare: the cheapest that passes, said so.
+  const std::vector<GainTrial> corner = {{0.67, false, 0.5250}, {0.8, false, 0.4926}, {1.0, false, 0.4567},
+                                         {1.25, true, 0.4526},  {1.5, false, 0.4058}, {2.0, false, 0.3938},
+                                         {2.5, false, 0.8054}};
+  EXPECT_EQ(choice(corner), std::make_pair(1.25, false));
+  EXPECT_EQ(choice({{1.0, true, 0.5}}), std::make_pair(1.0, false));
+  EXPECT_EQ(choose_gain_factor({{1.0, false, 0.5}, {1.5, false, 0.3}}), std::nullopt);
   EXPECT_EQ(choose_gain_factor({}), std::nullopt);
-  EXPECT_EQ(choose_gain_factor({{1.0, true, 0.5}}), std::nullopt);
   for (const auto& [trials, message] :
        {std::pair<std::vector<GainTrial>, std::string>{{{1.0, true, 0.5}, {1.0, true, 0.4}}, "got 1 at position 2"},
         {{{0.0, true, 0.5}, {1.0, true, 0.4}}, "got 0 at position 1"}}) {

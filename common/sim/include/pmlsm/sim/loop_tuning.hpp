@@ -74,11 +74,18 @@ struct GainTrial {
   double mean_cost_ratio = 0;
 };
 
-/// The factor a compensator's gain is commissioned at: of the trials (factors ascending) that pass
-/// with the next one up passing too (a gain margin of one step: a gain just short of where the
-/// compensation fights the loop is not taken; the largest factor is only that step), the lowest
-/// mean cost ratio. nullopt when none qualifies.
+/// The factor a compensator's gain is commissioned at, and whether it has a step to spare.
+struct GainChoice {
+  double factor = 0;
+  bool step_to_spare = false;
+};
+
+/// Of the trials (factors ascending) that pass with the next one up passing too (a gain margin of
+/// one step: a gain just short of where the compensation fights the loop is not preferred; the
+/// largest factor is only that step), the lowest mean cost ratio; when none has a step to spare,
+/// the lowest of those that pass (a verified gain on a narrow margin, said so); nullopt when none
+/// passes.
 /// @throws std::invalid_argument when the factors are not positive and ascending.
-std::optional<double> choose_gain_factor(const std::vector<GainTrial>& trials);
+std::optional<GainChoice> choose_gain_factor(const std::vector<GainTrial>& trials);
 
 }  // namespace pmlsm
