@@ -697,13 +697,65 @@ std::optional<FamilyRow> family_row(const CommissionOptions& o, const SystemPara
   return row;
 }
 
+/// A family's totals over its rows.
+struct FamilyTally {
+  std::size_t plants = 0, failed = 0, filter_on = 0, verification_failed = 0;
+  double worst_error_percent[5] = {0, 0, 0, 0, 0};
+  double least_phase_deg = 1e9, least_gain_db = 1e9, worst_cost_ratio = 0;
+};
+
+/// Whether the loop measured again at the tuned gains meets the targets.
+bool margins_met(const LoopMargins& m, const TuningTargets& targets) {
+  return m.gain_crossover_found && m.phase_crossover_found && m.phase_margin_deg >= targets.min_phase_margin_deg &&
+         m.gain_margin_db >= targets.min_gain_margin_db;
+}
+
+/// One plant's row printed and into family.csv, and counted.
+void report_family_row(const std::string& label, const MechanicsParams& m, const FamilyRow& row,
+                       const TuningTargets& targets, std::ostream& csv, FamilyTally& tally) {
+  const bool met = margins_met(row.tuned, targets);
+  const CommissionDecision& d = row.decision;
+  tally.failed += met && d.exit_code == kExitOk ? 0 : 1;
+  for (int i = 0; i < 5; ++i)
+    tally.worst_error_percent[i] = std::max(tally.worst_error_percent[i], std::fabs(row.errors[i]));
+  tally.least_phase_deg = std::min(tally.least_phase_deg, row.tuned.phase_margin_deg);
+  tally.least_gain_db = std::min(tally.least_gain_db, row.tuned.gain_margin_db);
+  const bool filtered = d.commissioned && d.commissioned->compensator.state_feedback.output_filter_enabled;
+  const double gain_kg = d.commissioned ? d.commissioned->compensator.acceleration_feedback.gain_kg : std::nan("");
+  const double rnn_scale = d.commissioned ? d.commissioned->compensator.rnn.output_scale : std::nan("");
+  tally.filter_on += filtered ? 1 : 0;
+  char verified[64] = "-";
+  if (d.verification) {
+    tally.verification_failed += d.verification->passed ? 0 : 1;
+    tally.worst_cost_ratio = std::max(tally.worst_cost_ratio, d.verification->worst_cost_ratio);
+    std::snprintf(verified, sizeof verified, "%zu of %zu pass, worst %.3f x PI",
+                  d.verification->runs - d.verification->failed_runs, d.verification->runs,
+                  d.verification->worst_cost_ratio);
+  } else if (d.exit_code != kExitOk) {
+    std::snprintf(verified, sizeof verified, "refused before it");
+  }
+  std::printf(
+      "%-10s %6.2f %7.0f %+12.2f%% %+12.2f%% %+6.2f%% %+6.2f%% %+6.2f%% %8.0f %6.1f deg %5.2f dB %6s %5.0f %5.3g "
+      "%s%s\n",
+      label.c_str(), m.load_mass_kg, m.spring_n_per_m, row.errors[0], row.errors[1], row.errors[2], row.errors[3],
+      row.errors[4], row.tuned_kp_n_s_per_m, row.tuned.phase_margin_deg, row.tuned.gain_margin_db,
+      filtered ? "on" : "off", gain_kg, rnn_scale, verified, met ? "" : "  margins missed");
+  std::fflush(stdout);
+  csv << label << ',' << m.load_mass_kg << ',' << m.spring_n_per_m;
+  for (const double e : row.errors) csv << ',' << e;
+  csv << ',' << row.tuned_kp_n_s_per_m << ',' << row.tuned.phase_margin_deg << ',' << row.tuned.gain_margin_db << ','
+      << (filtered ? "on" : "off") << ',' << gain_kg << ',' << rnn_scale << ','
+      << (d.verification ? d.verification->runs : 0) << ',' << (d.verification ? d.verification->failed_runs : 0) << ','
+      << (d.verification ? d.verification->worst_cost_ratio : std::nan("")) << ',' << d.exit_code << '\n';
+}
+
 /// Every plant of a sweep file's family commissioned in process as `pmlsm commission --simulate`
 /// commissions one, with the same options (--tune, --design-filters, --verify): measured, fitted,
 /// its velocity PI tuned and measured again at the tuned gains, state feedback's output filter
-/// decided, the commissioned system verified. A row per plant, family.csv (and
-/// family_verification.csv) in the report folder, the largest errors and the smallest margins.
-/// Exit 6 when a plant's measurement ends early, its response is refused, its tuned loop misses a
-/// margin or its commissioning fails (the verification included).
+/// and the compensators' gains decided, the commissioned system verified. A row per plant,
+/// family.csv (and family_verification.csv) in the report folder, the largest errors and the
+/// smallest margins. Exit 6 when a plant's measurement ends early, its response is refused, its
+/// tuned loop misses a margin or its commissioning fails (the verification included).
 int run_family(const CommissionOptions& o, const SystemParams& nominal) {
   const SweepFile file = load_sweep_file(o.family, nominal);
   const std::vector<PlantSample> plants = sample_plants(file.spec);
@@ -720,74 +772,40 @@ int run_family(const CommissionOptions& o, const SystemParams& nominal) {
     verification_csv.open(dir / "family_verification.csv");
     verification_csv << "plant," << kVerificationColumns << '\n';
   }
-  double worst[5] = {0, 0, 0, 0, 0}, least_phase_deg = 1e9, least_gain_db = 1e9, worst_ratio = 0;
-  std::size_t failed = 0, filter_on = 0, verified_failed = 0;
   const TuningTargets& targets = nominal.commissioning.tuning;
   std::fprintf(stderr, "commission: %zu plants of %s, each measured twice%s%s\n", plants.size(), o.family.c_str(),
                o.tune ? ", tuned" : "", o.verify.empty() ? "" : (" and verified on " + o.verify).c_str());
   std::printf("%-10s %6s %7s %13s %13s %7s %7s %7s %8s %18s %6s %5s %5s %s\n", "plant", "m_L", "k", "anti-res. err",
               "res. err", "m_L err", "k err", "m_M err", "tuned Kp", "margins at it", "filter", "K_a", "RNN x",
               "verification");
+  FamilyTally tally;
+  tally.plants = plants.size();
   for (const PlantSample& plant : plants) {
     const SystemParams p = plant_variant(nominal, file.spec, plant);
     std::string why;
     const auto row = family_row(o, p, identification, verification_csv, plant.label, why);
-    if (!row) {
+    if (row) {
+      report_family_row(plant.label, p.plant.mechanics, *row, targets, csv, tally);
+    } else {
       std::printf("%-10s %s\n", plant.label.c_str(), why.c_str());
-      ++failed;
-      continue;
+      ++tally.failed;
     }
-    for (int i = 0; i < 5; ++i) worst[i] = std::max(worst[i], std::fabs(row->errors[i]));
-    const bool met = row->tuned.gain_crossover_found && row->tuned.phase_crossover_found &&
-                     row->tuned.phase_margin_deg >= targets.min_phase_margin_deg &&
-                     row->tuned.gain_margin_db >= targets.min_gain_margin_db;
-    const CommissionDecision& d = row->decision;
-    failed += met && d.exit_code == kExitOk ? 0 : 1;
-    least_phase_deg = std::min(least_phase_deg, row->tuned.phase_margin_deg);
-    least_gain_db = std::min(least_gain_db, row->tuned.gain_margin_db);
-    const bool filtered = d.commissioned && d.commissioned->compensator.state_feedback.output_filter_enabled;
-    const double gain_kg = d.commissioned ? d.commissioned->compensator.acceleration_feedback.gain_kg : std::nan("");
-    const double rnn_scale = d.commissioned ? d.commissioned->compensator.rnn.output_scale : std::nan("");
-    filter_on += filtered ? 1 : 0;
-    char verified[64] = "-";
-    if (d.verification) {
-      verified_failed += d.verification->passed ? 0 : 1;
-      worst_ratio = std::max(worst_ratio, d.verification->worst_cost_ratio);
-      std::snprintf(verified, sizeof verified, "%zu of %zu pass, worst %.3f x PI",
-                    d.verification->runs - d.verification->failed_runs, d.verification->runs,
-                    d.verification->worst_cost_ratio);
-    } else if (d.exit_code != kExitOk) {
-      std::snprintf(verified, sizeof verified, "refused before it");
-    }
-    const auto& m = p.plant.mechanics;
-    std::printf(
-        "%-10s %6.2f %7.0f %+12.2f%% %+12.2f%% %+6.2f%% %+6.2f%% %+6.2f%% %8.0f %6.1f deg %5.2f dB %6s %5.0f %5.3g "
-        "%s%s\n",
-        plant.label.c_str(), m.load_mass_kg, m.spring_n_per_m, row->errors[0], row->errors[1], row->errors[2],
-        row->errors[3], row->errors[4], row->tuned_kp_n_s_per_m, row->tuned.phase_margin_deg, row->tuned.gain_margin_db,
-        filtered ? "on" : "off", gain_kg, rnn_scale, verified, met ? "" : "  margins missed");
-    std::fflush(stdout);
-    csv << plant.label << ',' << m.load_mass_kg << ',' << m.spring_n_per_m;
-    for (const double e : row->errors) csv << ',' << e;
-    csv << ',' << row->tuned_kp_n_s_per_m << ',' << row->tuned.phase_margin_deg << ',' << row->tuned.gain_margin_db
-        << ',' << (filtered ? "on" : "off") << ',' << gain_kg << ',' << rnn_scale << ','
-        << (d.verification ? d.verification->runs : 0) << ',' << (d.verification ? d.verification->failed_runs : 0)
-        << ',' << (d.verification ? d.verification->worst_cost_ratio : std::nan("")) << ',' << d.exit_code << '\n';
   }
+  const double* worst = tally.worst_error_percent;
   std::printf(
       "family of %zu plants (%s): %zu failed; largest errors: anti-resonance %.2f %%, resonance %.2f %%, "
       "load mass %.2f %%, spring %.2f %%, motor mass %.2f %%; tuned loops measured again: phase margin >= "
       "%.1f deg, gain margin >= %.2f dB (targets %.4g deg, %.4g dB)\n",
-      plants.size(), o.family.c_str(), failed, worst[0], worst[1], worst[2], worst[3], worst[4], least_phase_deg,
-      least_gain_db, targets.min_phase_margin_deg, targets.min_gain_margin_db);
+      tally.plants, o.family.c_str(), tally.failed, worst[0], worst[1], worst[2], worst[3], worst[4],
+      tally.least_phase_deg, tally.least_gain_db, targets.min_phase_margin_deg, targets.min_gain_margin_db);
   if (o.tune && !o.verify.empty()) {
-    std::printf("state feedback's output filter on for %zu of %zu plants\n", filter_on, plants.size());
+    std::printf("state feedback's output filter on for %zu of %zu plants\n", tally.filter_on, tally.plants);
   }
   if (!o.verify.empty()) {
     std::printf("verification (%s): %zu plants failed it; largest cost over PI alone %.3f; report %s\n",
-                o.verify.c_str(), verified_failed, worst_ratio, dir.string().c_str());
+                o.verify.c_str(), tally.verification_failed, tally.worst_cost_ratio, dir.string().c_str());
   }
-  return failed == 0 ? kExitOk : kExitVerdictFailed;
+  return tally.failed == 0 ? kExitOk : kExitVerdictFailed;
 }
 
 /// The commissioning; what it prints is kept in `transcript` for the report as well.
