@@ -495,6 +495,18 @@ void write_commissioned(const CommissionOptions& o, const TwoMassFit& fit,
   if (o.tune || !text_values.empty()) {
     say(transcript, "commission: to a controller already running: pmlsm param load controller %s\n", o.out.c_str());
   }
+  const auto wrote = [&](const std::string& key) {
+    return std::any_of(text_values.begin(), text_values.end(),
+                       [&](const ConfigOverride& v) { return v.key_path == key; });
+  };
+  if (wrote("compensator.acceleration_feedback.gain_kg")) {
+    say(transcript, "commission: to acceleration feedback already running: pmlsm param load accel_feedback %s\n",
+        o.out.c_str());
+  }
+  if (wrote("compensator.rnn.output_scale")) {
+    say(transcript, "commission: the RNN's output scale is not live: restart rnn_compensator with --config %s\n",
+        o.out.c_str());
+  }
 }
 
 /// With --tune: state feedback's output filter (declared in the system file, off) tried on the
