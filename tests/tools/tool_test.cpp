@@ -726,9 +726,10 @@ std::vector<std::string> csv_rows(const fs::path& path, std::size_t skip = 0) {
 }
 
 // `pmlsm commission --simulate --family --tune`: every plant of a family (here its centre and two
-// drawn) commissioned as one plant is: a row each with the modes within 0.5 %, the tuned loop's
-// margins measured again, state feedback's output filter decided and the verification run;
-// the centre's decisions (filter, gains) and verification rows equal a single commissioning's.
+// drawn; on two threads and on one, the same files) commissioned as one plant is: a row each with
+// the modes within 0.5 %, the tuned loop's margins measured again, state feedback's output filter
+// and the compensators' gains decided and the verification run; the centre's decisions and
+// verification rows equal a single commissioning's.
 TEST(Commission, AFamilyIsCommissionedPlantByPlantAsOnePlantIs) {
   const fs::path dir = test::fresh_dir("pmlsm_tool", "commission_family");
   std::ifstream family_file(source("configs/sweeps/plant_family.yaml"));
@@ -753,9 +754,17 @@ TEST(Commission, AFamilyIsCommissionedPlantByPlantAsOnePlantIs) {
                                            "--verify",
                                            source("configs/sweeps/plant_family.yaml")};
   std::vector<std::string> args = common;
-  args.insert(args.end(), {"--family", family, "--report", (dir / "family").string()});
+  args.insert(args.end(), {"--family", family, "--report", (dir / "family").string(), "-j", "2"});
   test::ChildProcess p(pmlsm_args(test_domain(103), args), (dir / "family.log").string());
   ASSERT_EQ(run_to_end(p), 0) << p.output();
+  // On one thread: the same files (the rows in the family's order whatever the threads).
+  args = common;
+  args.insert(args.end(), {"--family", family, "--report", (dir / "family_1").string(), "-j", "1"});
+  test::ChildProcess one_thread(pmlsm_args(test_domain(103), args), (dir / "family_1.log").string());
+  ASSERT_EQ(run_to_end(one_thread), 0) << one_thread.output();
+  for (const char* file : {"family.csv", "family_verification.csv"}) {
+    EXPECT_EQ(test::read_file(dir / "family" / file), test::read_file(dir / "family_1" / file)) << file;
+  }
   EXPECT_NE(p.output().find("family of 3 plants (" + family + "): 0 failed"), std::string::npos) << p.output();
   EXPECT_NE(p.output().find("verification (" + source("configs/sweeps/plant_family.yaml") + "): 0 plants failed it"),
             std::string::npos)

@@ -15,6 +15,7 @@
 // written); 6 when the response is not coherent enough, the filters leave the loop short of its
 // margins, --tune finds no gains or the verification fails (nothing written); 2 on bad input.
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdarg>
 #include <complex>
@@ -22,8 +23,11 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <mutex>
 #include <optional>
+#include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "ForceCommandPubSubTypes.h"
@@ -65,6 +69,7 @@ struct CommissionOptions {
   std::string family;           ///< a sweep file: measure every plant of its family instead (--simulate)
   bool tune = false;            ///< write the tuned velocity PI gains too
   bool design_filters = false;  ///< notches on the resonances that limit the loop, in free slots
+  unsigned jobs = 0;            ///< --family: plants commissioned at once (0: one per core)
   /// The sweep file whose scenarios, compensators, weights and verdict verify the commissioned
   /// system ("": no verification).
   std::string verify = data_file("configs/sweeps/plant_family.yaml");
@@ -761,6 +766,58 @@ void report_family_row(const std::string& label, const MechanicsParams& m, const
       << (d.verification ? d.verification->worst_cost_ratio : std::nan("")) << ',' << d.exit_code << '\n';
 }
 
+/// The plants of a family commissioned on o.jobs threads (each plant's runs are independent and
+/// in process), their rows reported in the family's order as soon as every plant before them is
+/// done, so that the output and the files do not depend on the threads.
+void commission_plants(const CommissionOptions& o, const SystemParams& nominal, const SweepSpec& spec,
+                       const std::vector<PlantSample>& plants, const Scenario& identification, std::ostream& csv,
+                       std::ostream& verification_csv, FamilyTally& tally) {
+  struct Outcome {
+    bool done = false;
+    std::optional<FamilyRow> row;
+    std::string why;
+    std::string verification_rows;
+  };
+  std::vector<Outcome> outcomes(plants.size());
+  std::mutex mutex;
+  std::size_t reported = 0;
+  std::atomic<std::size_t> next{0};
+  const auto work = [&] {
+    for (std::size_t i = next++; i < plants.size(); i = next++) {
+      const SystemParams p = plant_variant(nominal, spec, plants[i]);
+      Outcome outcome;
+      std::ostringstream rows;
+      try {
+        outcome.row = family_row(o, p, identification, rows, plants[i].label, outcome.why);
+      } catch (const std::exception& e) {
+        outcome.why = e.what();
+      }
+      outcome.verification_rows = rows.str();
+      outcome.done = true;
+      const std::lock_guard<std::mutex> lock(mutex);
+      outcomes[i] = std::move(outcome);
+      for (; reported < plants.size() && outcomes[reported].done; ++reported) {
+        const Outcome& r = outcomes[reported];
+        verification_csv << r.verification_rows;
+        if (r.row) {
+          const SystemParams at = plant_variant(nominal, spec, plants[reported]);
+          report_family_row(plants[reported].label, at.plant.mechanics, *r.row, nominal.commissioning.tuning, csv,
+                            tally);
+        } else {
+          std::printf("%-10s %s\n", plants[reported].label.c_str(), r.why.c_str());
+          std::fflush(stdout);
+          ++tally.failed;
+        }
+      }
+    }
+  };
+  const unsigned threads = o.jobs != 0 ? o.jobs : std::max(1u, std::thread::hardware_concurrency());
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < std::min<std::size_t>(threads, plants.size()); ++t) pool.emplace_back(work);
+  work();
+  for (std::thread& t : pool) t.join();
+}
+
 /// Every plant of a sweep file's family commissioned in process as `pmlsm commission --simulate`
 /// commissions one, with the same options (--tune, --design-filters, --verify): measured, fitted,
 /// its velocity PI tuned and measured again at the tuned gains, state feedback's output filter
@@ -792,17 +849,7 @@ int run_family(const CommissionOptions& o, const SystemParams& nominal) {
               "verification");
   FamilyTally tally;
   tally.plants = plants.size();
-  for (const PlantSample& plant : plants) {
-    const SystemParams p = plant_variant(nominal, file.spec, plant);
-    std::string why;
-    const auto row = family_row(o, p, identification, verification_csv, plant.label, why);
-    if (row) {
-      report_family_row(plant.label, p.plant.mechanics, *row, targets, csv, tally);
-    } else {
-      std::printf("%-10s %s\n", plant.label.c_str(), why.c_str());
-      ++tally.failed;
-    }
-  }
+  commission_plants(o, nominal, file.spec, plants, identification, csv, verification_csv, tally);
   const double* worst = tally.worst_error_percent;
   std::printf(
       "family of %zu plants (%s): %zu failed; largest errors: anti-resonance %.2f %%, resonance %.2f %%, "
@@ -932,6 +979,8 @@ void add_commission_command(CLI::App& app, dds::ParticipantOptions& dds_options,
                   "--design-filters, --verify alike) and print a row per plant: the fit's errors, the tuned "
                   "margins, the verification")
       ->check(CLI::ExistingFile);
+  cmd->add_option("-j,--jobs", o->jobs, "With --family: plants commissioned at once (0: one per core)")
+      ->capture_default_str();
   cmd->callback([o, &exit_code] {
     try {
       exit_code = run_commission(*o);
