@@ -509,8 +509,7 @@ void write_commissioned(const CommissionOptions& o, const TwoMassFit& fit,
         o.out.c_str());
   }
   if (wrote("compensator.rnn.output_scale")) {
-    say(transcript, "commission: the RNN's output scale is not live: restart rnn_compensator with --config %s\n",
-        o.out.c_str());
+    say(transcript, "commission: to the RNN already running: pmlsm param load rnn_compensator %s\n", o.out.c_str());
   }
 }
 

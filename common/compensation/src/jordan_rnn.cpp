@@ -212,7 +212,6 @@ void RnnCompensator::set_learning(const RnnCompensatorParams& params) {
   if (params.input_scale_s2_per_m != params_.input_scale_s2_per_m) needs_restart("input_scale_s2_per_m");
   if (params.on_reference_error != params_.on_reference_error) needs_restart("on_reference_error");
   if (params.gain_n != params_.gain_n) needs_restart("gain_n");
-  if (params.output_scale != params_.output_scale) needs_restart("output_scale");
   if (params.period_s != params_.period_s) needs_restart("period_s");
   if (params.online_learning != params_.online_learning) needs_restart("online_learning");
   params_ = params;

@@ -225,7 +225,8 @@ std::vector<std::string> accel_feedback_live_keys() { return {"compensator.accel
 
 std::vector<std::string> rnn_compensator_live_keys() {
   std::vector<std::string> keys;
-  for (const char* key : {"learning_rate", "momentum", "tolerance_mps", "kc_limit_mps", "du_deadband_per_s"}) {
+  for (const char* key :
+       {"output_scale", "learning_rate", "momentum", "tolerance_mps", "kc_limit_mps", "du_deadband_per_s"}) {
     keys.push_back(std::string("compensator.rnn.") + key);
   }
   return keys;

@@ -213,6 +213,14 @@ TEST(LiveParameters, TheCompensatorsTakeTheirGainsLive) {
   other = rnn.params();
   other.online_learning = false;
   EXPECT_THROW(rnn.set_learning(other), std::invalid_argument);
+  // Its output scale (what the commissioning tunes) is live: the next force scaled, nothing else.
+  ASSERT_TRUE(rnn_live.set("compensator.rnn.output_scale", "1.25").accepted);
+  twin = rnn;
+  rnn.set_learning(rnn_live.params().rnn_compensator_params(true));
+  EXPECT_EQ(rnn.params().output_scale, 1.25 * twin.params().output_scale);
+  EXPECT_EQ(rnn.weights(), twin.weights());
+  EXPECT_DOUBLE_EQ(rnn.step({2.0, 0.1, 0.0, 0.0}).force_n, 1.25 * twin.step({2.0, 0.1, 0.0, 0.0}).force_n);
+  EXPECT_FALSE(rnn_live.set("compensator.rnn.output_scale", "0").accepted);
   EXPECT_EQ(rnn.params().gain_n, shipped.rnn_compensator_params(true).gain_n);
 }
 
