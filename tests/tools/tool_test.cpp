@@ -4,6 +4,7 @@
 // list/echo/hz/delay on a running loop; bad input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -757,14 +758,18 @@ TEST(Commission, AFamilyIsCommissionedPlantByPlantAsOnePlantIs) {
   args.insert(args.end(), {"--family", family, "--report", (dir / "family").string(), "-j", "2"});
   test::ChildProcess p(pmlsm_args(test_domain(103), args), (dir / "family.log").string());
   ASSERT_EQ(run_to_end(p), 0) << p.output();
-  // On one thread: the same files (the rows in the family's order whatever the threads).
+  // On one thread: the same files (the rows in the family's order whatever the threads), and
+  // with plots, the family's PNG.
   args = common;
+  args.erase(std::find(args.begin(), args.end(), "--no-plots"));
   args.insert(args.end(), {"--family", family, "--report", (dir / "family_1").string(), "-j", "1"});
   test::ChildProcess one_thread(pmlsm_args(test_domain(103), args), (dir / "family_1.log").string());
   ASSERT_EQ(run_to_end(one_thread), 0) << one_thread.output();
   for (const char* file : {"family.csv", "family_verification.csv"}) {
     EXPECT_EQ(test::read_file(dir / "family" / file), test::read_file(dir / "family_1" / file)) << file;
   }
+  EXPECT_GT(fs::file_size(dir / "family_1" / "family.png"), 10000u);
+  EXPECT_FALSE(fs::exists(dir / "family" / "family.png"));  // --no-plots
   EXPECT_NE(p.output().find("family of 3 plants (" + family + "): 0 failed"), std::string::npos) << p.output();
   EXPECT_NE(p.output().find("verification (" + source("configs/sweeps/plant_family.yaml") + "): 0 plants failed it"),
             std::string::npos)

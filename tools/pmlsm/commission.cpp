@@ -10,10 +10,11 @@
 // gets report.md (the Bode plot and everything printed), response.csv (per line: plant, open and
 // closed loop, coherence, the fitted model, the filters), samples.csv (the raw excitation, force
 // and velocity per tick), verification.csv, bode.png and bode.gp; --family commissions every
-// plant of a sweep file's family instead (family.csv, family_verification.csv). Exit 5 when the
-// measurement ended early (a limit breached, the drive faulted or quick-stopped: nothing
-// written); 6 when the response is not coherent enough, the filters leave the loop short of its
-// margins, --tune finds no gains or the verification fails (nothing written); 2 on bad input.
+// plant of a sweep file's family instead (family.csv, family_verification.csv, family.png).
+// Exit 5 when the measurement ended early (a limit breached, the drive faulted or quick-stopped:
+// nothing written); 6 when the response is not coherent enough, the filters leave the loop short
+// of its margins, --tune finds no gains or the verification fails (nothing written); 2 on bad
+// input.
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -817,6 +818,37 @@ void commission_plants(const CommissionOptions& o, const SystemParams& nominal, 
   for (std::thread& t : pool) t.join();
 }
 
+/// family.gp over family.csv: six panels over the plants' load mass and spring, each plant a
+/// square coloured by one column (the fit's errors, the tuned gain margin, the gains chosen, the
+/// verification's worst cost over PI alone), a black cross on a plant that failed.
+void write_family_plot_script(const std::filesystem::path& dir, const std::string& family) {
+  struct Panel {
+    int column;
+    const char* title;
+  };
+  const Panel panels[] = {{4, "anti-resonance error [%]"},
+                          {6, "load mass error [%]"},
+                          {11, "gain margin at the tuned gains [dB]"},
+                          {13, "K_a of acceleration feedback [kg]"},
+                          {14, "output scale of the RNN"},
+                          {17, "worst cost over PI alone"}};
+  std::ofstream gp(dir / "family.gp");
+  const std::string csv = (dir / "family.csv").string();
+  gp << "set terminal pngcairo size 1500,900 noenhanced font ',10'\nset output '" << (dir / "family.png").string()
+     << "'\nset datafile separator ','\nset grid\nset key off\nset palette rgbformulae 33,13,10\n"
+     << "set xlabel 'load mass [kg]'\nset ylabel 'spring [N/m]'\nset offsets graph 0.05, graph 0.05, graph 0.05, "
+        "graph 0.05\n"
+     << "set multiplot layout 2,3 title 'pmlsm commission --family " << family
+     << ": each plant commissioned (x: failed)'\n";
+  for (const Panel& panel : panels) {
+    gp << "set title '" << panel.title << "'\nplot '" << csv << "' every ::1 using 2:3:" << panel.column
+       << " with points pt 5 ps 2.2 palette, '' every ::1 using 2:($18 != 0 ? $3 : 1/0) with points pt 2 ps 2.2 lw 2 "
+          "lc rgb 'black'\n";
+  }
+  gp << "unset multiplot\n";
+  if (!gp) throw std::runtime_error("cannot write " + (dir / "family.gp").string());
+}
+
 /// Every plant of a sweep file's family commissioned in process as `pmlsm commission --simulate`
 /// commissions one, with the same options (--tune, --design-filters, --verify): measured, fitted,
 /// its velocity PI tuned and measured again at the tuned gains, state feedback's output filter
@@ -862,6 +894,14 @@ int run_family(const CommissionOptions& o, const SystemParams& nominal) {
   if (!o.verify.empty()) {
     std::printf("verification (%s): %zu plants failed it; largest cost over PI alone %.3f; report %s\n",
                 o.verify.c_str(), tally.verification_failed, tally.worst_cost_ratio, dir.string().c_str());
+  }
+  if (o.plots) {
+    csv.close();
+    write_family_plot_script(dir, o.family);
+    if (run_gnuplot(dir / "family.gp") != 0) {
+      throw std::runtime_error("gnuplot failed on " + (dir / "family.gp").string());
+    }
+    std::printf("plot: %s\n", (dir / "family.png").string().c_str());
   }
   return tally.failed == 0 ? kExitOk : kExitVerdictFailed;
 }
