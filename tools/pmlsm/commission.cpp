@@ -619,16 +619,16 @@ struct CommissionDecision {
   FilterChainParams filters;  ///< the force command's, designed or configured
   LoopVerdict loop;
   std::vector<std::pair<std::string, double>> values;  ///< the numbers it writes
-  std::vector<ConfigOverride> text_values;             ///< the filter slots and switches it writes
+  std::vector<ConfigOverride> text_values;             ///< the filter slots, switches and gains it writes
   std::optional<SystemParams> commissioned;            ///< the system verified (unless refused before)
   std::optional<Verification> verification;
 };
 
 /// From a measured response on: the force command's filters (designed with --design-filters), the
-/// loop judged and tuned, the commissioned system, state feedback's output filter tried (--tune
-/// with a verification file) and the verification, its rows into `verification_csv` led by
-/// `row_prefix`. Exit 6 in the decision when the filters are refused, --tune finds no gains or the
-/// verification fails.
+/// loop judged and tuned, the commissioned system, state feedback's output filter and the
+/// compensators' gains tried (--tune with a verification file) and the verification, its rows
+/// into `verification_csv` led by `row_prefix`. Exit 6 in the decision when the filters are refused, --tune finds no
+/// gains or the verification fails.
 CommissionDecision decide(const CommissionOptions& o, const SystemParams& configured,
                           const FrequencyResponseResult& result, const std::optional<IdentifiedLoad>& time_domain,
                           std::ostream& verification_csv, const std::string& row_prefix, Transcript& transcript) {
