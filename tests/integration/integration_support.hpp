@@ -21,7 +21,7 @@ inline std::string source(const std::string& rel) { return std::string(PMLSM_SOU
 /// parallel, never meet. Offsets: distributed_test.cpp 0..6, compensator_test.cpp
 /// 10..14 and 78 (state feedback), training_test.cpp 15..19, 86, 87, tests/interop 20..24, the Foxglove bridge's tests
 /// 25..29, tests/tools 30..39, drive_safety_test.cpp 40..44, virtual_rig_test.cpp 45, 46, 48, 49, 70, 71 (CAN
-/// ports 432xx by offset), the python CANopen tests 47, 72 and 73, tests/security 50..59, hardening_test.cpp
+/// ports 62xx), the python CANopen tests 47, 72 and 73, tests/security 50..59, hardening_test.cpp
 /// 60..69, external_reference_test.cpp 74..77, agents_test.cpp 80..85, tests/tools' identify 88, 89,
 /// drive_safety_test.cpp 90, 91, container_test.cpp 120..124, 127..130, secure_nodes_test.cpp's containers
 /// 125, 126, virtual_rig_test.cpp's container 131, tests/tools' topic run once more 102.

@@ -425,25 +425,45 @@ struct Verification {
 constexpr const char* kVerificationColumns =
     "scenario,compensator,cost,cost_ratio_to_pi,faults,tail_force_rms_n,tail_compensation_rms_n";
 
+/// The verification file, its RNN weights and PI alone's judged run of each of its scenarios on
+/// the commissioned system: loaded and run once for the trials and the verification alike (PI
+/// alone runs no compensator, so neither the output filter nor a compensator's gain changes it).
+struct VerificationBasis {
+  std::string path;
+  SweepFile file;
+  std::vector<double> weights;
+  std::vector<RunVerdict> pi_alone;  ///< per scenario of the file
+};
+
+VerificationBasis verification_basis(const std::string& sweep_path, const SystemParams& commissioned) {
+  VerificationBasis basis{sweep_path, load_sweep_file(sweep_path, commissioned), {}, {}};
+  if (!basis.file.weights_path.empty()) basis.weights = load_rnn_weights(basis.file.weights_path).weights;
+  for (const Scenario& scenario : basis.file.spec.scenarios) {
+    basis.pi_alone.push_back(
+        judged_run(commissioned, scenario, {CompensatorKind::kNone, {}, false}, basis.file.spec.verdict));
+  }
+  return basis;
+}
+
 /// The commissioned system verified as the sweep judges a plant: every scenario of the sweep file
 /// with PI alone and each compensator on the plant, the models and gains commissioned; a table,
 /// a row per run into `csv` (kVerificationColumns, each led by `row_prefix`).
-Verification verify_commissioned(const std::string& sweep_path, const SystemParams& commissioned, std::ostream& csv,
+Verification verify_commissioned(const VerificationBasis& basis, const SystemParams& commissioned, std::ostream& csv,
                                  const std::string& row_prefix, Transcript& transcript) {
-  const SweepFile file = load_sweep_file(sweep_path, commissioned);
-  std::vector<double> weights;
-  if (!file.weights_path.empty()) weights = load_rnn_weights(file.weights_path).weights;
+  const SweepFile& file = basis.file;
   std::vector<CompensatorKind> kinds{CompensatorKind::kNone};
   kinds.insert(kinds.end(), file.spec.compensators.begin(), file.spec.compensators.end());
   say(transcript, "verification (%s: scenarios, compensators, verdict) on the plant with the commissioned system:\n",
-      sweep_path.c_str());
+      basis.path.c_str());
   Verification outcome;
-  for (const Scenario& scenario : file.spec.scenarios) {
-    RunVerdict pi_alone;
+  for (std::size_t i = 0; i < file.spec.scenarios.size(); ++i) {
+    const Scenario& scenario = file.spec.scenarios[i];
+    const RunVerdict& pi_alone = basis.pi_alone[i];
     say(transcript, "  %-16s", scenario.name.c_str());
     for (const CompensatorKind kind : kinds) {
-      RunVerdict v = judged_run(commissioned, scenario, {kind, weights, false}, file.spec.verdict);
-      if (kind == CompensatorKind::kNone) pi_alone = v;
+      RunVerdict v = kind == CompensatorKind::kNone
+                         ? pi_alone
+                         : judged_run(commissioned, scenario, {kind, basis.weights, false}, file.spec.verdict);
       judge_against_pi_alone(v, pi_alone, file.spec.verdict);
       const bool passed = kind == CompensatorKind::kNone || (v.faults().empty() && v.cost < pi_alone.cost);
       if (kind != CompensatorKind::kNone) {
@@ -519,18 +539,18 @@ void write_commissioned(const CommissionOptions& o, const TwoMassFit& fit,
 /// passes the verdict on every one and the mean of its costs over PI alone's is lower (its lag
 /// helps only a model that fits the plant, which the commissioning has just measured). Printed;
 /// the key goes into text_values and `commissioned` has it.
-void tune_state_feedback_filter(const std::string& sweep_path, SystemParams& commissioned,
+void tune_state_feedback_filter(const VerificationBasis& basis, SystemParams& commissioned,
                                 std::vector<ConfigOverride>& text_values, Transcript& transcript) {
   if (commissioned.compensator.state_feedback.output_filter_enabled) return;
-  const SweepFile file = load_sweep_file(sweep_path, commissioned);
+  const SweepFile& file = basis.file;
   SystemParams filtered = commissioned;
   filtered.compensator.state_feedback.output_filter_enabled = true;
   bool clean = true;
   double ratio_without = 0, ratio_with = 0;
   std::string costs;
-  for (const Scenario& scenario : file.spec.scenarios) {
-    const RunVerdict pi_alone =
-        judged_run(commissioned, scenario, {CompensatorKind::kNone, {}, false}, file.spec.verdict);
+  for (std::size_t i = 0; i < file.spec.scenarios.size(); ++i) {
+    const Scenario& scenario = file.spec.scenarios[i];
+    const RunVerdict& pi_alone = basis.pi_alone[i];
     RunVerdict without = judged_run(commissioned, scenario, {CompensatorKind::kState, {}, false}, file.spec.verdict);
     RunVerdict with = judged_run(filtered, scenario, {CompensatorKind::kState, {}, false}, file.spec.verdict);
     judge_against_pi_alone(without, pi_alone, file.spec.verdict);
@@ -566,15 +586,10 @@ constexpr double kGainTrialFactors[] = {0.67, 0.8, 1.0, 1.25, 1.5, 2.0, 2.5};
 /// gain by measuring the loop at a few), and commissioned at choose_gain_factor's choice
 /// (loop_tuning.hpp: the cheapest with a step to spare, else the cheapest that passes); none
 /// passing leaves the configured gain. Printed; the keys go into text_values and `commissioned` has them.
-void tune_compensator_gains(const std::string& sweep_path, SystemParams& commissioned,
+void tune_compensator_gains(const VerificationBasis& basis, SystemParams& commissioned,
                             std::vector<ConfigOverride>& text_values, Transcript& transcript) {
-  const SweepFile file = load_sweep_file(sweep_path, commissioned);
-  std::vector<double> weights;
-  if (!file.weights_path.empty()) weights = load_rnn_weights(file.weights_path).weights;
-  std::vector<RunVerdict> pi_alone;
-  for (const Scenario& scenario : file.spec.scenarios) {
-    pi_alone.push_back(judged_run(commissioned, scenario, {CompensatorKind::kNone, {}, false}, file.spec.verdict));
-  }
+  const SweepFile& file = basis.file;
+  const std::vector<RunVerdict>& pi_alone = basis.pi_alone;
   const auto scenarios = static_cast<double>(file.spec.scenarios.size());
   for (const CompensatorKind kind : file.spec.compensators) {
     if (kind != CompensatorKind::kAccel && kind != CompensatorKind::kRnn) continue;
@@ -591,7 +606,8 @@ void tune_compensator_gains(const std::string& sweep_path, SystemParams& commiss
           configured * factor;
       GainTrial trial{factor, true, 0.0};
       for (std::size_t i = 0; i < file.spec.scenarios.size(); ++i) {
-        RunVerdict v = judged_run(trial_system, file.spec.scenarios[i], {kind, weights, false}, file.spec.verdict);
+        RunVerdict v =
+            judged_run(trial_system, file.spec.scenarios[i], {kind, basis.weights, false}, file.spec.verdict);
         judge_against_pi_alone(v, pi_alone[i], file.spec.verdict);
         trial.passes = trial.passes && v.faults().empty() && v.cost < pi_alone[i].cost;
         trial.mean_cost_ratio += v.cost / pi_alone[i].cost / scenarios;
@@ -650,13 +666,17 @@ CommissionDecision decide(const CommissionOptions& o, const SystemParams& config
     d.values.emplace_back("velocity_loop.ki_n_per_m", d.loop.tuned->ki_n_per_m);
   }
   SystemParams commissioned = commissioned_system(configured, d.values, filters, result.fit, o.simulate);
-  if (o.tune && !o.verify.empty()) {
-    tune_state_feedback_filter(o.verify, commissioned, d.text_values, transcript);
-    tune_compensator_gains(o.verify, commissioned, d.text_values, transcript);
+  if (o.verify.empty()) {
+    d.commissioned = commissioned;
+    return d;
+  }
+  const VerificationBasis basis = verification_basis(o.verify, commissioned);
+  if (o.tune) {
+    tune_state_feedback_filter(basis, commissioned, d.text_values, transcript);
+    tune_compensator_gains(basis, commissioned, d.text_values, transcript);
   }
   d.commissioned = commissioned;
-  if (o.verify.empty()) return d;
-  d.verification = verify_commissioned(o.verify, commissioned, verification_csv, row_prefix, transcript);
+  d.verification = verify_commissioned(basis, commissioned, verification_csv, row_prefix, transcript);
   if (!d.verification->passed) {
     say(transcript, "commission: the verification failed; nothing written (--no-verify writes it regardless)\n");
     d.exit_code = kExitVerdictFailed;
@@ -774,6 +794,7 @@ void commission_plants(const CommissionOptions& o, const SystemParams& nominal, 
                        std::ostream& verification_csv, FamilyTally& tally) {
   struct Outcome {
     bool done = false;
+    MechanicsParams mechanics;  ///< the plant's, for its row
     std::optional<FamilyRow> row;
     std::string why;
     std::string verification_rows;
@@ -786,6 +807,7 @@ void commission_plants(const CommissionOptions& o, const SystemParams& nominal, 
     for (std::size_t i = next++; i < plants.size(); i = next++) {
       const SystemParams p = plant_variant(nominal, spec, plants[i]);
       Outcome outcome;
+      outcome.mechanics = p.plant.mechanics;
       std::ostringstream rows;
       try {
         outcome.row = family_row(o, p, identification, rows, plants[i].label, outcome.why);
@@ -800,9 +822,7 @@ void commission_plants(const CommissionOptions& o, const SystemParams& nominal, 
         const Outcome& r = outcomes[reported];
         verification_csv << r.verification_rows;
         if (r.row) {
-          const SystemParams at = plant_variant(nominal, spec, plants[reported]);
-          report_family_row(plants[reported].label, at.plant.mechanics, *r.row, nominal.commissioning.tuning, csv,
-                            tally);
+          report_family_row(plants[reported].label, r.mechanics, *r.row, nominal.commissioning.tuning, csv, tally);
         } else {
           std::printf("%-10s %s\n", plants[reported].label.c_str(), r.why.c_str());
           std::fflush(stdout);
@@ -949,9 +969,10 @@ int commission(const CommissionOptions& o, Transcript& transcript) {
     verification_csv << kVerificationColumns << '\n';
   }
   const CommissionDecision d = decide(o, configured, result, time_domain, verification_csv, "", transcript);
-  write_response_csv(dir / "response.csv", result, FilterChain(d.filters));
+  const FilterChain filters(d.filters);
+  write_response_csv(dir / "response.csv", result, filters);
   if (o.plots) {
-    write_bode_script(dir, result.fit, d.loop.margins, !FilterChain(d.filters).empty());
+    write_bode_script(dir, result.fit, d.loop.margins, !filters.empty());
     if (run_gnuplot(dir / "bode.gp") != 0) throw std::runtime_error("gnuplot failed on " + (dir / "bode.gp").string());
   }
   say(transcript, "report: %s\n", dir.string().c_str());
