@@ -10,10 +10,11 @@
 // for a future tick (k + 1000, 999 N) and one for tick k with a NaN force. A plant must reject
 // and count both and apply only the genuine answer.
 //
-// Exit codes (as the nodes'): 0 every topic got --count samples, 1 timeout or DDS error (the
-// message says which topic got how many), 2 bad command line.
+// Exit codes (as the nodes'): 0 every topic got --count samples (a --lossy topic: its last tick),
+// 1 timeout or DDS error (the message says which topic got how many), 2 bad command line.
 #include <dds/dds.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cinttypes>
 #include <cmath>
@@ -89,10 +90,11 @@ struct TopicKind {
   const char* dds_name;    // as in common/dds/include/pmlsm/dds/topics.hpp
   const dds_topic_descriptor_t* descriptor;
   const char* columns;  // after "topic,tick,sim_time_ns"
-  void (*write_row)(std::FILE* out, const char* topic, const void* sample);
+  // Writes the row and returns the sample's tick.
+  std::uint64_t (*write_row)(std::FILE* out, const char* topic, const void* sample);
 };
 
-void motor_feedback_row(std::FILE* out, const char* topic, const void* sample) {
+std::uint64_t motor_feedback_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_MotorFeedback*>(sample);
   CsvRow(out, topic)
       .stamp(m.stamp)
@@ -104,9 +106,10 @@ void motor_feedback_row(std::FILE* out, const char* topic, const void* sample) {
       .num(m.applied_force_n)
       .num(m.applied_command_tick)
       .num(m.status);
+  return m.stamp.tick;
 }
 
-void force_command_row(std::FILE* out, const char* topic, const void* sample) {
+std::uint64_t force_command_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_ForceCommand*>(sample);
   CsvRow(out, topic)
       .stamp(m.stamp)
@@ -116,9 +119,10 @@ void force_command_row(std::FILE* out, const char* topic, const void* sample) {
       .num(m.compensation_force_n)
       .num(m.velocity_error_mps)
       .num(m.saturated);
+  return m.stamp.tick;
 }
 
-void plant_truth_row(std::FILE* out, const char* topic, const void* sample) {
+std::uint64_t plant_truth_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_PlantTruth*>(sample);
   CsvRow(out, topic)
       .stamp(m.stamp)
@@ -137,14 +141,16 @@ void plant_truth_row(std::FILE* out, const char* topic, const void* sample) {
       .num(m.i_q_a)
       .num(m.u_d_v)
       .num(m.u_q_v);
+  return m.stamp.tick;
 }
 
-void velocity_reference_row(std::FILE* out, const char* topic, const void* sample) {
+std::uint64_t velocity_reference_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_VelocityReference*>(sample);
   CsvRow(out, topic).stamp(m.stamp).num(m.velocity_command_mps).num(m.v_ref_mps).num(m.a_ref_mps2);
+  return m.stamp.tick;
 }
 
-void estimated_state_row(std::FILE* out, const char* topic, const void* sample) {
+std::uint64_t estimated_state_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_EstimatedState*>(sample);
   CsvRow(out, topic)
       .stamp(m.stamp)
@@ -155,9 +161,10 @@ void estimated_state_row(std::FILE* out, const char* topic, const void* sample) 
       .num(m.a_load_mps2)
       .num(m.input_force_n)
       .num(m.innovation_mps);
+  return m.stamp.tick;
 }
 
-void compensator_output_row(std::FILE* out, const char* topic, const void* sample) {
+std::uint64_t compensator_output_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_CompensatorOutput*>(sample);
   CsvRow(out, topic)
       .stamp(m.stamp)
@@ -168,14 +175,16 @@ void compensator_output_row(std::FILE* out, const char* topic, const void* sampl
       .num(m.training_error_mps)
       .num(m.k_c_mps)
       .num(m.flags);
+  return m.stamp.tick;
 }
 
-void current_feedback_row(std::FILE* out, const char* topic, const void* sample) {
+std::uint64_t current_feedback_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_CurrentFeedback*>(sample);
   CsvRow(out, topic).stamp(m.stamp).num(m.substep).num(m.i_d_a).num(m.i_q_a).num(m.velocity_mps).num(m.position_m);
+  return m.stamp.tick;
 }
 
-void voltage_command_row(std::FILE* out, const char* topic, const void* sample) {
+std::uint64_t voltage_command_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_VoltageCommand*>(sample);
   CsvRow(out, topic)
       .stamp(m.stamp)
@@ -185,9 +194,10 @@ void voltage_command_row(std::FILE* out, const char* topic, const void* sample) 
       .num(m.i_d_ref_a)
       .num(m.i_q_ref_a)
       .num(m.saturated);
+  return m.stamp.tick;
 }
 
-void node_status_row(std::FILE* out, const char* topic, const void* sample) {
+std::uint64_t node_status_row(std::FILE* out, const char* topic, const void* sample) {
   const auto& m = *static_cast<const pmlsm_msgs_msg_NodeStatus*>(sample);
   CsvRow(out, topic)
       .stamp(m.stamp)
@@ -198,6 +208,7 @@ void node_status_row(std::FILE* out, const char* topic, const void* sample) {
       .num(m.late)
       .num(m.rejected)
       .text(m.message);
+  return m.stamp.tick;
 }
 
 const TopicKind kTopicKinds[] = {
@@ -236,6 +247,7 @@ const TopicKind* find_topic_kind(const std::string& name) {
 struct Options {
   dds_domainid_t domain = 0;
   std::vector<const TopicKind*> topics;
+  std::vector<const TopicKind*> lossy;  // complete once their tick count - 1 has come
   std::uint64_t count = 0;
   double timeout_s = 30.0;
   double linger_s = 0.0;  // after the last sample needed, wait this long for the writers to go
@@ -252,7 +264,7 @@ void print_usage(std::FILE* to) {
                "usage: cyclone_subscriber --topic NAME [--topic NAME ...] --count K --out FILE.csv\n"
                "                          [--domain N] [--timeout-s T] [--linger-s T]\n"
                "                          [--cyclone-config XML] [--answer-force-n F [--bad-answers]]\n"
-               "                          [--ros2-default-qos]\n"
+               "                          [--ros2-default-qos [--lossy NAME ...]]\n"
                "  --topic NAME         one of our topics, short (motor_feedback) or DDS name\n"
                "                       (rt/pmlsm/motor_feedback); repeatable\n"
                "  --count K            exit 0 once every topic got K samples\n"
@@ -271,6 +283,9 @@ void print_usage(std::FILE* to) {
                "                       for tick k + 1000 (999 N) and one for tick k with a NaN force\n"
                "  --ros2-default-qos   read with ROS 2's default subscriber QoS (reliable, volatile,\n"
                "                       keep last 10), as `ros2 topic echo` does\n"
+               "  --lossy NAME         a --topic that is complete once its tick K-1 has come, however\n"
+               "                       many came before it: a keep-last-10 reader keeps only the newest\n"
+               "                       10 of a burst (a reliable repair delivers one); repeatable\n"
                "topics:");
   for (const TopicKind& kind : kTopicKinds) std::fprintf(to, " %s", kind.short_name);
   std::fputc('\n', to);
@@ -293,7 +308,7 @@ bool parse_u64(const char* text, std::uint64_t& value) {
 
 bool is_option(const std::string& arg) {
   for (const char* known : {"--domain", "--topic", "--count", "--timeout-s", "--linger-s", "--out", "--cyclone-config",
-                            "--answer-force-n"}) {
+                            "--answer-force-n", "--lossy"}) {
     if (arg == known) return true;
   }
   return false;
@@ -331,6 +346,10 @@ std::string parse_options(int argc, char** argv, Options& opt, bool& help) {
         if (t == kind) return "--topic: '" + std::string(value) + "' given twice";
       }
       opt.topics.push_back(kind);
+    } else if (arg == "--lossy") {
+      const TopicKind* kind = find_topic_kind(value);
+      if (kind == nullptr) return "--lossy: unknown topic '" + std::string(value) + "' (see --help for the list)";
+      opt.lossy.push_back(kind);
     } else if (arg == "--count") {
       if (!parse_u64(value, opt.count) || opt.count == 0)
         return "--count: '" + std::string(value) + "' is not a positive integer";
@@ -365,6 +384,14 @@ std::string parse_options(int argc, char** argv, Options& opt, bool& help) {
     if (!subscribed) return "--answer-force-n answers MotorFeedback: add --topic motor_feedback";
   }
   if (opt.bad_answers && !opt.answer) return "--bad-answers needs --answer-force-n";
+  for (const TopicKind* lossy : opt.lossy) {
+    bool subscribed = false;
+    for (const TopicKind* t : opt.topics) subscribed = subscribed || t == lossy;
+    if (!subscribed) return "--lossy " + std::string(lossy->short_name) + ": not a --topic";
+  }
+  if (!opt.lossy.empty() && !opt.ros2_default_qos) {
+    return "--lossy needs --ros2-default-qos: the default readers keep every sample";
+  }
   return {};
 }
 
@@ -403,6 +430,8 @@ dds_qos_t* make_qos(bool writer, bool ros2_default = false) {
 struct Subscription {
   const TopicKind* kind = nullptr;
   bool answered = false;  // its samples are MotorFeedback that --answer-force-n answers
+  bool lossy = false;     // complete at its last tick (--lossy)
+  bool last_tick_seen = false;
   dds_entity_t reader = 0;
   std::uint64_t received = 0;
   std::uint32_t matched_writers = 0;
@@ -506,6 +535,7 @@ class Program {
       Subscription s;
       s.kind = kind;
       s.answered = opt_.answer && kind == find_topic_kind("motor_feedback");
+      s.lossy = std::find(opt_.lossy.begin(), opt_.lossy.end(), kind) != opt_.lossy.end();
       s.reader = dds_create_reader(participant_, topic, reader_qos, nullptr);
       if (s.reader < 0) {
         dds_delete_qos(reader_qos);
@@ -542,8 +572,14 @@ class Program {
     while (!done() && dds_time() < deadline) {
       const dds_return_t rc = dds_waitset_wait_until(waitset_, nullptr, 0, deadline);
       if (rc < 0) return dds_error("waitset", rc);
-      for (Subscription& s : subscriptions_) {
-        if (std::string error = drain(s); !error.empty()) return error;
+      // One batch per reader in turn until none holds anything. Draining one reader until it is
+      // empty would starve the others while the lockstep plant, fed by the answers, keeps it
+      // busy; a reader with ROS 2's keep-last-10 then loses the oldest of what waits.
+      for (std::size_t taken = 1; taken > 0;) {
+        taken = 0;
+        for (Subscription& s : subscriptions_) {
+          if (std::string error = take_batch(s, taken); !error.empty()) return error;
+        }
       }
     }
     return {};
@@ -557,13 +593,14 @@ class Program {
 
   bool all_received() const {
     for (const Subscription& s : subscriptions_) {
-      if (s.received < opt_.count) return false;
+      if (s.lossy ? !s.last_tick_seen : s.received < opt_.count) return false;
     }
     return true;
   }
 
-  // Takes everything the reader holds, writes it to the CSV (and answers MotorFeedback).
-  std::string drain(Subscription& s) {
+  // Takes up to a batch of what the reader holds, writes it to the CSV (and answers
+  // MotorFeedback), and adds the number taken to `taken`.
+  std::string take_batch(Subscription& s, std::size_t& taken) {
     dds_subscription_matched_status_t matched{};
     if (dds_get_subscription_matched_status(s.reader, &matched) == DDS_RETCODE_OK &&
         matched.current_count != s.matched_writers) {
@@ -574,22 +611,22 @@ class Program {
     constexpr std::size_t kBatch = 64;
     void* samples[kBatch] = {};  // null: Cyclone lends its own buffers
     dds_sample_info_t infos[kBatch];
-    for (;;) {
-      const dds_return_t n = dds_take(s.reader, samples, infos, kBatch, kBatch);
-      if (n < 0) return dds_error((std::string("take on ") + s.kind->dds_name).c_str(), n);
-      if (n == 0) return {};
-      std::string error;
-      for (dds_return_t i = 0; i < n && error.empty(); ++i) {
-        if (!infos[i].valid_data) continue;  // a writer went away: no sample
-        s.kind->write_row(out_, s.kind->short_name, samples[i]);
-        ++s.received;
-        if (s.answered) {
-          error = answer(*static_cast<const pmlsm_msgs_msg_MotorFeedback*>(samples[i]));
-        }
+    const dds_return_t n = dds_take(s.reader, samples, infos, kBatch, kBatch);
+    if (n < 0) return dds_error((std::string("take on ") + s.kind->dds_name).c_str(), n);
+    if (n == 0) return {};
+    taken += static_cast<std::size_t>(n);
+    std::string error;
+    for (dds_return_t i = 0; i < n && error.empty(); ++i) {
+      if (!infos[i].valid_data) continue;  // a writer went away: no sample
+      const std::uint64_t tick = s.kind->write_row(out_, s.kind->short_name, samples[i]);
+      ++s.received;
+      s.last_tick_seen = s.last_tick_seen || tick + 1 == opt_.count;
+      if (s.answered) {
+        error = answer(*static_cast<const pmlsm_msgs_msg_MotorFeedback*>(samples[i]));
       }
-      dds_return_loan(s.reader, samples, n);
-      if (!error.empty()) return error;
     }
+    dds_return_loan(s.reader, samples, n);
+    return error;
   }
 
   std::string answer(const pmlsm_msgs_msg_MotorFeedback& feedback) {

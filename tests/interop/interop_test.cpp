@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -207,11 +208,21 @@ TEST(CycloneSubscriber, GetsEveryTickOfTheLockstepLoopWithTheInProcessLoopsValue
 // The other direction: Cyclone is the controller. It answers MotorFeedback tick k with a
 // ForceCommand of (-1)^k * 20 N, and the Fast DDS plant, in lockstep, takes each one as the answer
 // to its tick and applies it; its next MotorFeedback and PlantTruth report the force it applied.
-// `extra` adds options of the Cyclone program (its reader QoS).
-void expect_plant_runs_on_cyclone_commands(int domain_offset, const std::string& dir_name,
-                                           const std::vector<std::string>& extra) {
+//
+// With `ros2_default_qos` the Cyclone readers are volatile, as ROS 2's default: a volatile reader
+// gets what is written after it has matched the writer, and the plant's wait for its peers (its
+// writer matched to the reader) can end before the reader's side has matched; tick 0, or the
+// first ticks of PlantTruth, would then go unseen. So the plant waits for a second MotorFeedback
+// reader, a transient-local Cyclone that only listens, started once the first reports both its
+// readers matched. Every MotorFeedback is still seen and answered (the plant waits for each
+// answer); PlantTruth is not paced by anything, and a keep-last-10 reader keeps only the newest
+// 10 of a burst, as when a sample lost on the wire is repaired with the ones written meanwhile.
+// Its samples come in order, end with the last tick and carry the commands' forces.
+void expect_plant_runs_on_cyclone_commands(int domain_offset, const std::string& dir_name, bool ros2_default_qos) {
   std::vector<std::string> answer_args{"--answer-force-n", "20"};
-  answer_args.insert(answer_args.end(), extra.begin(), extra.end());
+  if (ros2_default_qos) {
+    for (const char* a : {"--ros2-default-qos", "--lossy", "plant_truth"}) answer_args.emplace_back(a);
+  }
   const std::string scenario = source("configs/scenarios/pulse.yaml");
   const std::uint64_t ticks = 2000;  // the pulse scenario's 2 s
   const double force_n = 20.0;
@@ -221,12 +232,26 @@ void expect_plant_runs_on_cyclone_commands(int domain_offset, const std::string&
   test::ChildProcess cyclone(cyclone_args(domain, {"motor_feedback", "plant_truth"}, ticks, csv, answer_args),
                              (dir / "cyclone.log").string());
   ASSERT_TRUE(cyclone.wait_for_output("readers ready", 20s)) << cyclone.output();
-  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "1"}), (dir / "plant.log").string());
+  test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", ros2_default_qos ? "2" : "1"}),
+                           (dir / "plant.log").string());
+  std::optional<test::ChildProcess> gate;
+  if (ros2_default_qos) {
+    for (const char* topic : {"motor_feedback", "plant_truth"}) {
+      ASSERT_TRUE(cyclone.wait_for_output(std::string("rt/pmlsm/") + topic + ": 1 matched writers", 20s))
+          << cyclone.output();
+    }
+    gate.emplace(cyclone_args(domain, {"motor_feedback"}, ticks, dir / "gate.csv"), (dir / "gate.log").string());
+  }
 
   for (auto* p : {&plant, &cyclone}) {
     const auto code = p->wait_for(60s);
     ASSERT_TRUE(code.has_value()) << "still running:\n" << p->output();
     EXPECT_EQ(*code, 0) << p->output();
+  }
+  if (gate) {
+    const auto code = gate->wait_for(60s);
+    ASSERT_TRUE(code.has_value()) << "still running:\n" << gate->output();
+    EXPECT_EQ(*code, 0) << gate->output();
   }
   // Every tick answered in time, by a command for that very tick, with a finite force.
   EXPECT_NE(plant.output().find("2000 ticks in"), std::string::npos) << plant.output();
@@ -236,35 +261,54 @@ void expect_plant_runs_on_cyclone_commands(int domain_offset, const std::string&
   const auto topics = read_cyclone_csv(csv);
   for (const char* topic : {"motor_feedback", "plant_truth"}) {
     ASSERT_EQ(topics.count(topic), 1u) << topic << " missing in " << csv;
-    expect_consecutive_ticks(topic, topics.at(topic), ticks);
   }
   const TopicRows& feedback = topics.at("motor_feedback");
   const TopicRows& truth = topics.at("plant_truth");
+  expect_consecutive_ticks("motor_feedback", feedback, ticks);
+  if (ros2_default_qos) {
+    // In order and ending at the last tick; most of them (a burst loses what exceeds 10).
+    ASSERT_GE(truth.rows.size(), ticks / 2) << csv;
+    for (std::size_t row = 1; row < truth.rows.size(); ++row) {
+      ASSERT_GT(truth.integer(row, "tick"), truth.integer(row - 1, "tick")) << "plant_truth row " << row;
+    }
+    ASSERT_EQ(truth.integer(truth.rows.size() - 1, "tick"), ticks - 1) << csv;
+    std::printf("PlantTruth through ROS 2's default QoS: %zu of %llu ticks\n", truth.rows.size(),
+                static_cast<unsigned long long>(ticks));
+  } else {
+    expect_consecutive_ticks("plant_truth", truth, ticks);
+  }
+  // The answer to tick k-1, applied in tick k.
+  auto answer_to_previous = [&](std::uint64_t k) { return ((k - 1) % 2 == 0 ? 1.0 : -1.0) * force_n; };
   Mismatches mismatches;
   for (std::uint64_t k = 1; k < ticks; ++k) {
-    const double sent = ((k - 1) % 2 == 0 ? 1.0 : -1.0) * force_n;  // the answer to tick k-1
+    const double sent = answer_to_previous(k);
     mismatches.check(feedback.number(k, "applied_force_n") == sent,
                      describe("motor_feedback", k, "applied_force_n", feedback.number(k, "applied_force_n"), sent));
     mismatches.check(
         feedback.integer(k, "applied_command_tick") == k - 1,
         "motor_feedback tick " + std::to_string(k) + " applied_command_tick " + feedback.at(k, "applied_command_tick"));
-    mismatches.check(truth.number(k, "command_force_n") == sent,
-                     describe("plant_truth", k, "command_force_n", truth.number(k, "command_force_n"), sent));
+  }
+  for (std::size_t row = 0; row < truth.rows.size(); ++row) {
+    const std::uint64_t k = truth.integer(row, "tick");
+    if (k == 0) continue;
+    const double sent = answer_to_previous(k);
+    mismatches.check(truth.number(row, "command_force_n") == sent,
+                     describe("plant_truth", k, "command_force_n", truth.number(row, "command_force_n"), sent));
   }
   EXPECT_TRUE(mismatches.none()) << mismatches.report() << " (" << dir << ")";
   if (!::testing::Test::HasFailure()) fs::remove_all(dir);
 }
 
 TEST(CycloneController, FastDdsPlantRunsInLockstepOnCycloneCommands) {
-  expect_plant_runs_on_cyclone_commands(21, "controller", {});
+  expect_plant_runs_on_cyclone_commands(21, "controller", false);
 }
 
 // A ROS 2 subscriber that asks for nothing (`ros2 topic echo`): the reader QoS rmw gives it by
 // default (reliable, volatile, keep last 10) and ROS 2's DDS type names, which our writers
-// register (pmlsm/dds/ros2_names.hpp). It matches our writers as they are and gets every tick of
-// a lockstep run (the plant waits for each answer, so no sample is pushed out of its history).
+// register (pmlsm/dds/ros2_names.hpp). It matches our writers as they are and, once it has
+// matched, answers every tick of a lockstep run and reads PlantTruth as `ros2 topic echo` would.
 TEST(CycloneController, AReaderWithRos2DefaultQosMatchesOurWritersUnderRos2TypeNames) {
-  expect_plant_runs_on_cyclone_commands(24, "ros2_qos", {"--ros2-default-qos"});
+  expect_plant_runs_on_cyclone_commands(24, "ros2_qos", true);
 }
 
 // Bad input on the wire, from another vendor's writer: before some answers the Cyclone controller
@@ -360,6 +404,10 @@ TEST(CycloneSubscriber, RefusesBadCommandLinesWithExitCode2) {
       {{exe, "--topic", "motor_feedback", "--count", "1", "--out", csv, "--verbose", "1"},
        "unknown option '--verbose'"},
       {{exe, "--topic", "motor_feedback", "--count", "1", "--out"}, "--out needs a value"},
+      {{exe, "--topic", "motor_feedback", "--count", "1", "--out", csv, "--ros2-default-qos", "--lossy", "plant_truth"},
+       "--lossy plant_truth: not a --topic"},
+      {{exe, "--topic", "plant_truth", "--count", "1", "--out", csv, "--lossy", "plant_truth"},
+       "--lossy needs --ros2-default-qos"},
   };
   for (const auto& [args, message] : cases) {
     test::ChildProcess p(args, (dir / "bad.log").string());
