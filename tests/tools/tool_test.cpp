@@ -597,11 +597,13 @@ TEST(Commission, SimulatedPlantGivesItsModesAReportAndASystemFile) {
   EXPECT_EQ(written.compensator.state_feedback.output_filter_enabled, verdict.substr(verdict.size() - 3) == ": on")
       << verdict;
   // --tune: acceleration feedback's gain and the RNN's output scale tried at seven factors each,
-  // written at the factor chosen (the line's last word).
+  // written at the factor chosen (the line's last word) times the shipped value.
+  const SystemParams shipped = load_system_params(source("configs/system.yaml"));
   for (const auto& [key, configured, value] :
-       {std::tuple<std::string, double, double>{"compensator.acceleration_feedback.gain_kg", 160.0,
+       {std::tuple<std::string, double, double>{"compensator.acceleration_feedback.gain_kg",
+                                                shipped.compensator.acceleration_feedback.gain_kg,
                                                 written.compensator.acceleration_feedback.gain_kg},
-        {"compensator.rnn.output_scale", 1.0, written.compensator.rnn.output_scale}}) {
+        {"compensator.rnn.output_scale", shipped.compensator.rnn.output_scale, written.compensator.rnn.output_scale}}) {
     const auto line_at = p.output().find(key + " on the commissioned system (mean cost over PI alone's");
     ASSERT_NE(line_at, std::string::npos) << p.output();
     const std::string line = p.output().substr(line_at, p.output().find('\n', line_at) - line_at);

@@ -445,6 +445,21 @@ VerificationBasis verification_basis(const std::string& sweep_path, const System
   return basis;
 }
 
+/// Scenario `i` of the basis run on `system` with a compensator, judged as the sweep judges it:
+/// its verdict, then against PI alone's run of the same scenario.
+RunVerdict judged_against_basis(const VerificationBasis& basis, std::size_t i, const SystemParams& system,
+                                CompensatorKind kind) {
+  RunVerdict v =
+      judged_run(system, basis.file.spec.scenarios[i], {kind, basis.weights, false}, basis.file.spec.verdict);
+  judge_against_pi_alone(v, basis.pi_alone[i], basis.file.spec.verdict);
+  return v;
+}
+
+/// A compensator's run passes when it is clean and cheaper than PI alone's.
+bool passes_against(const RunVerdict& v, const RunVerdict& pi_alone) {
+  return v.faults().empty() && v.cost < pi_alone.cost;
+}
+
 /// The commissioned system verified as the sweep judges a plant: every scenario of the sweep file
 /// with PI alone and each compensator on the plant, the models and gains commissioned; a table,
 /// a row per run into `csv` (kVerificationColumns, each led by `row_prefix`).
@@ -461,11 +476,9 @@ Verification verify_commissioned(const VerificationBasis& basis, const SystemPar
     const RunVerdict& pi_alone = basis.pi_alone[i];
     say(transcript, "  %-16s", scenario.name.c_str());
     for (const CompensatorKind kind : kinds) {
-      RunVerdict v = kind == CompensatorKind::kNone
-                         ? pi_alone
-                         : judged_run(commissioned, scenario, {kind, basis.weights, false}, file.spec.verdict);
-      judge_against_pi_alone(v, pi_alone, file.spec.verdict);
-      const bool passed = kind == CompensatorKind::kNone || (v.faults().empty() && v.cost < pi_alone.cost);
+      RunVerdict v = kind == CompensatorKind::kNone ? pi_alone : judged_against_basis(basis, i, commissioned, kind);
+      if (kind == CompensatorKind::kNone) judge_against_pi_alone(v, pi_alone, file.spec.verdict);
+      const bool passed = kind == CompensatorKind::kNone || passes_against(v, pi_alone);
       if (kind != CompensatorKind::kNone) {
         ++outcome.runs;
         outcome.failed_runs += passed ? 0 : 1;
@@ -551,10 +564,8 @@ void tune_state_feedback_filter(const VerificationBasis& basis, SystemParams& co
   for (std::size_t i = 0; i < file.spec.scenarios.size(); ++i) {
     const Scenario& scenario = file.spec.scenarios[i];
     const RunVerdict& pi_alone = basis.pi_alone[i];
-    RunVerdict without = judged_run(commissioned, scenario, {CompensatorKind::kState, {}, false}, file.spec.verdict);
-    RunVerdict with = judged_run(filtered, scenario, {CompensatorKind::kState, {}, false}, file.spec.verdict);
-    judge_against_pi_alone(without, pi_alone, file.spec.verdict);
-    judge_against_pi_alone(with, pi_alone, file.spec.verdict);
+    const RunVerdict without = judged_against_basis(basis, i, commissioned, CompensatorKind::kState);
+    const RunVerdict with = judged_against_basis(basis, i, filtered, CompensatorKind::kState);
     clean = clean && with.faults().empty();
     ratio_without += without.cost / pi_alone.cost;
     ratio_with += with.cost / pi_alone.cost;
@@ -595,21 +606,19 @@ void tune_compensator_gains(const VerificationBasis& basis, SystemParams& commis
     if (kind != CompensatorKind::kAccel && kind != CompensatorKind::kRnn) continue;
     const bool accel = kind == CompensatorKind::kAccel;
     const std::string key = accel ? "compensator.acceleration_feedback.gain_kg" : "compensator.rnn.output_scale";
-    double& gain =
-        accel ? commissioned.compensator.acceleration_feedback.gain_kg : commissioned.compensator.rnn.output_scale;
-    const double configured = gain;
+    const auto gain_of = [accel](SystemParams& system) -> double& {
+      return accel ? system.compensator.acceleration_feedback.gain_kg : system.compensator.rnn.output_scale;
+    };
+    const double configured = gain_of(commissioned);
     std::vector<GainTrial> trials;
     std::string costs;
     for (const double factor : kGainTrialFactors) {
       SystemParams trial_system = commissioned;
-      (accel ? trial_system.compensator.acceleration_feedback.gain_kg : trial_system.compensator.rnn.output_scale) =
-          configured * factor;
+      gain_of(trial_system) = configured * factor;
       GainTrial trial{factor, true, 0.0};
       for (std::size_t i = 0; i < file.spec.scenarios.size(); ++i) {
-        RunVerdict v =
-            judged_run(trial_system, file.spec.scenarios[i], {kind, basis.weights, false}, file.spec.verdict);
-        judge_against_pi_alone(v, pi_alone[i], file.spec.verdict);
-        trial.passes = trial.passes && v.faults().empty() && v.cost < pi_alone[i].cost;
+        const RunVerdict v = judged_against_basis(basis, i, trial_system, kind);
+        trial.passes = trial.passes && passes_against(v, pi_alone[i]);
         trial.mean_cost_ratio += v.cost / pi_alone[i].cost / scenarios;
       }
       char line[96];
@@ -624,8 +633,8 @@ void tune_compensator_gains(const VerificationBasis& basis, SystemParams& commis
         !chosen ? "none passes, stays"
                 : ("x" + format_value(chosen->factor) + (chosen->step_to_spare ? "" : " (no step to spare)")).c_str());
     if (!chosen || chosen->factor == 1.0) continue;
-    gain = configured * chosen->factor;
-    text_values.push_back({key, format_value(gain)});
+    gain_of(commissioned) = configured * chosen->factor;
+    text_values.push_back({key, format_value(gain_of(commissioned))});
   }
 }
 
