@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <memory>
 #include <optional>
+#include <string>
 
 #include "node_support.hpp"
 #include "pmlsm/dds/fiber_scheduler.hpp"
@@ -138,6 +139,30 @@ void spawn_components(dds::FiberScheduler& scheduler, std::vector<Slot>& slots, 
   }
 }
 
+/// Realtime: what the publisher thread handed to readers outside the process, per topic, and what
+/// it could not (an observation lost is counted and named; it never held the chain).
+void report_outbox(const ContainerOptions& options, const dds::Outbox& outbox, ContainerResult& result) {
+  const auto totals = outbox.totals();
+  if (totals.empty()) return;
+  std::uint64_t queued = 0;
+  std::uint64_t published = 0;
+  for (const auto& [topic, c] : totals) {
+    queued += c.queued;
+    published += c.published;
+    result.outbox_losses += c.lost();
+    if (c.lost() == 0) continue;
+    std::printf(
+        "container %s: to readers outside: %s lost %llu of %llu sample(s) (%llu dropped, queue full; %llu refused by "
+        "DDS; %llu undelivered at close)\n",
+        options.name.c_str(), topic.c_str(), static_cast<unsigned long long>(c.lost()),
+        static_cast<unsigned long long>(c.queued), static_cast<unsigned long long>(c.dropped),
+        static_cast<unsigned long long>(c.refused), static_cast<unsigned long long>(c.undelivered));
+  }
+  std::printf("container %s: to readers outside (publisher thread): %llu sample(s) queued, %llu published, %s\n",
+              options.name.c_str(), static_cast<unsigned long long>(queued), static_cast<unsigned long long>(published),
+              result.outbox_losses == 0 ? "none lost" : (std::to_string(result.outbox_losses) + " lost").c_str());
+}
+
 /// The CPU the run took, the in-process losses and the first failure, into `result` and printed.
 void report_container_run(const ContainerOptions& options, const dds::LocalBus& bus, ContainerResult& result) {
   std::printf("container %s: CPU %.3f s user + %.3f s system in %.3f s wall (%.3f cores), %llu fiber switches\n",
@@ -154,6 +179,7 @@ void report_container_run(const ContainerOptions& options, const dds::LocalBus& 
         static_cast<unsigned long long>(lost.overwritten), static_cast<unsigned long long>(lost.refused));
   }
   if (result.local_losses == 0) std::printf("container %s: in-process path: no sample lost\n", options.name.c_str());
+  report_outbox(options, bus.outbox(), result);
   for (const auto& e : result.exits) {
     if (e.exit_code != kExitOk) {
       std::fprintf(stderr, "container %s: exit %d: first failure %s (%s): %s\n", options.name.c_str(), result.exit_code,
@@ -168,7 +194,7 @@ void report_container_run(const ContainerOptions& options, const dds::LocalBus& 
 ContainerResult run_container(const ContainerOptions& options, const std::vector<ComponentSpec>& specs) {
   ContainerResult result;
   dds::FiberScheduler scheduler(options.stack_bytes);
-  dds::LocalBus bus(scheduler);
+  dds::LocalBus bus(scheduler, options.publish_period);
   std::vector<Slot> slots = slots_by_priority(specs);
   const node::ComponentContext context{&bus};
   if (!make_components(options, context, slots, result)) return result;

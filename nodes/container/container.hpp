@@ -12,12 +12,14 @@
 // first non-zero exit of a component, in the order they ended (as the launcher's).
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <string>
 #include <vector>
 
 #include "component.hpp"
 #include "container_spec.hpp"
+#include "pmlsm/dds/outbox.hpp"
 #include "realtime_setup.hpp"
 
 namespace pmlsm::container {
@@ -47,6 +49,9 @@ struct ContainerResult {
   double cpu_user_s = 0.0, cpu_system_s = 0.0, wall_s = 0.0;
   std::uint64_t switches = 0;
   std::uint64_t local_losses = 0;  ///< samples the in-process readers lost (printed per topic)
+  /// Realtime: samples for readers outside the process that the publisher thread did not hand
+  /// to DDS (queue full, refused, still queued at the writer's close; printed per topic).
+  std::uint64_t outbox_losses = 0;
 };
 
 struct ContainerOptions {
@@ -56,6 +61,9 @@ struct ContainerOptions {
   /// normal scheduling (in a container they carry nothing of the chain, and a real-time thread
   /// of theirs that spins would starve the kernel's own workers on a 2-core machine).
   node::RealtimeOptions realtime;
+  /// Realtime: how often the publisher thread hands what the chain wrote for readers outside the
+  /// process to DDS (0: the chain thread writes it to DDS itself, as before the publisher thread).
+  std::chrono::microseconds publish_period = dds::Outbox::kDefaultPeriod;
 };
 
 /// Makes and runs the components of `specs` (types already checked); prints one line per

@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -46,6 +47,13 @@ int main(int argc, char** argv) {
     app.add_option("--cpu-dma-latency-us", realtime.cpu_dma_latency_us,
                    "While the container runs, keep the cores out of idle states slower to leave than this (-1: none)")
         ->check(CLI::Range(-1, 10000000));
+    long publish_period_us = static_cast<long>(options.publish_period.count());
+    app.add_option("--publish-period-us", publish_period_us,
+                   "Realtime: the publisher thread hands what the chain wrote for readers outside the process "
+                   "(recorders, other hosts, ROS 2 tools) to DDS this often; 0: the chain thread writes to DDS "
+                   "itself (to compare)")
+        ->check(CLI::Number & (CLI::Range(0, 0) | CLI::Range(10, 100000)))
+        ->capture_default_str();
     std::string types;
     for (const auto& t : container::component_type_names()) types += (types.empty() ? "" : ", ") + t;
     app.footer("Then: --component NAME TYPE [the node's own options]... (types: " + types + ")");
@@ -55,6 +63,7 @@ int main(int argc, char** argv) {
     if (const auto code = node::parse_command_line(app, static_cast<int>(own_argv.size()), own_argv.data()))
       return *code;
     options.stack_bytes = stack_kib << 10;
+    options.publish_period = std::chrono::microseconds(publish_period_us);
     return container::run_container(options, line.components).exit_code;
   });
 }

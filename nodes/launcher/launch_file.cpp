@@ -172,27 +172,65 @@ std::map<std::string, std::string> parse_args(const Location& loc, const YAML::N
 
 }  // namespace
 
-bool evaluate_condition(const std::string& text, const std::string& where) {
-  const auto trim = [](const std::string& t) {
-    const auto first = t.find_first_not_of(" \t");
-    if (first == std::string::npos) return std::string();
-    return t.substr(first, t.find_last_not_of(" \t") - first + 1);
-  };
-  const std::string condition = trim(text);
+namespace {
+
+std::string trimmed(const std::string& t) {
+  const auto first = t.find_first_not_of(" \t");
+  if (first == std::string::npos) return std::string();
+  return t.substr(first, t.find_last_not_of(" \t") - first + 1);
+}
+
+/// `text` split at every `separator`.
+std::vector<std::string> split_at(const std::string& text, const std::string& separator) {
+  std::vector<std::string> parts;
+  std::size_t from = 0;
+  for (std::size_t at = text.find(separator); at != std::string::npos; at = text.find(separator, from)) {
+    parts.push_back(text.substr(from, at - from));
+    from = at + separator.size();
+  }
+  parts.push_back(text.substr(from));
+  return parts;
+}
+
+/// true, false, A == B or A != B; nullopt when it is none of them.
+std::optional<bool> evaluate_comparison(const std::string& text) {
+  const std::string condition = trimmed(text);
   if (condition == "true") return true;
   if (condition == "false") return false;
   for (const char* op : {"==", "!="}) {
     const auto at = condition.find(op);
     if (at == std::string::npos) continue;
-    const std::string left = trim(condition.substr(0, at));
-    const std::string right = trim(condition.substr(at + 2));
+    const std::string left = trimmed(condition.substr(0, at));
+    const std::string right = trimmed(condition.substr(at + 2));
     if (left.empty() || right.empty() || right.find("==") != std::string::npos ||
         right.find("!=") != std::string::npos) {
-      break;
+      return std::nullopt;
     }
     return (left == right) == (op[0] == '=');
   }
-  throw LaunchFileError(where + ": '" + text + "': a condition is true, false, A == B or A != B");
+  return std::nullopt;
+}
+
+}  // namespace
+
+bool evaluate_condition(const std::string& text, const std::string& where) {
+  // Alternatives (||) of conjunctions (&&) of comparisons; every part is checked, none skipped.
+  bool any = false;
+  bool well_formed = true;
+  for (const std::string& alternative : split_at(text, "||")) {
+    bool all = true;
+    for (const std::string& part : split_at(alternative, "&&")) {
+      const std::optional<bool> value = evaluate_comparison(part);
+      if (!value) well_formed = false;
+      all = all && value.value_or(false);
+    }
+    any = any || all;
+  }
+  if (!well_formed) {
+    throw LaunchFileError(where + ": '" + text +
+                          "': a condition is true, false, A == B or A != B, joined by && and || (&& binds first)");
+  }
+  return any;
 }
 
 namespace {

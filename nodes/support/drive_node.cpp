@@ -316,6 +316,7 @@ int DriveNode::run() {
   const auto loop_start = std::chrono::steady_clock::now();
   clock_.start();
   std::uint64_t k = 0;
+  bool ended_in_order = false;  ///< at_end ran on the last tick
   for (; k < ticks_ && !pdds::stop_requested(); ++k) {
     publish_feedback(k);
     take_commands(k);
@@ -332,11 +333,19 @@ int DriveNode::run() {
     }
     hooks_.after_tick(*this, k);
     if (backend_.power_state() != published_state_) publish_drive_state(k);
+    if (k + 1 == ticks_) {
+      // The last tick's command is out: end in order now, not after a wait for a tick that will
+      // not come. A drive on its own clock watches SYNC while enabled, and whatever holds this
+      // thread next (peers ending, in a container their participants leaving) may take longer
+      // than that watch.
+      hooks_.at_end(*this);
+      ended_in_order = true;
+    }
     if (clock_.wait_next_tick()) loop_.statistics().record_deadline_miss();
     if (k % 1000 == 999) publish_periodic_status(k);
   }
   const double loop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - loop_start).count();
-  if (exit_code == kExitOk) hooks_.at_end(*this);
+  if (exit_code == kExitOk && !ended_in_order) hooks_.at_end(*this);
   return finish(k, exit_code, loop_s);
 }
 

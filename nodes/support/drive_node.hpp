@@ -67,7 +67,8 @@ class DriveNodeHooks {
   virtual bool apply_force() { return true; }
   /// After end_tick and the loop's own reports.
   virtual void after_tick(DriveNode& /*node*/, std::uint64_t /*k*/) {}
-  /// The run ended well (its last tick done, or stopped by a signal), before the summary: a
+  /// The run ended well (at its last tick, once its command is out and before the wait for a
+  /// next tick; or stopped by a signal), before the summary: a
   /// backend behind a bus may hand the drive over cleanly (the bridge disables it before its
   /// SYNC stops, so the drive does not fault for the SYNC it no longer gets).
   virtual void at_end(DriveNode& /*node*/) {}

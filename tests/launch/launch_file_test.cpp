@@ -459,9 +459,33 @@ nodes:
   EXPECT_EQ(rig.left_out, (std::vector<std::string>{"plant", "spare"}));
 }
 
+TEST(LaunchFile, ConditionsJoinComparisonsWithAndBeforeOr) {
+  using pmlsm::launch::evaluate_condition;
+  // What the sim and rig files say for their container: composed when asked, or by default in realtime.
+  const char* const composed = "$C == true || $C == auto && $K == realtime";
+  const auto with = [&](const std::string& c, const std::string& k) {
+    std::string text = composed;
+    for (auto at = text.find("$C"); at != std::string::npos; at = text.find("$C")) text.replace(at, 2, c);
+    for (auto at = text.find("$K"); at != std::string::npos; at = text.find("$K")) text.replace(at, 2, k);
+    return evaluate_condition(text, "x");
+  };
+  EXPECT_TRUE(with("true", "lockstep"));
+  EXPECT_TRUE(with("true", "realtime"));
+  EXPECT_TRUE(with("auto", "realtime"));
+  EXPECT_FALSE(with("auto", "lockstep"));
+  EXPECT_FALSE(with("false", "realtime"));
+  EXPECT_FALSE(with("false", "lockstep"));
+  EXPECT_TRUE(evaluate_condition("a == a && b != c", "x"));
+  EXPECT_FALSE(evaluate_condition("a == a && b == c", "x"));
+  EXPECT_TRUE(evaluate_condition("false || true", "x"));
+  // Every part is checked, also one that cannot change the outcome.
+  EXPECT_THROW(evaluate_condition("true || yes", "x"), pmlsm::launch::LaunchFileError);
+  EXPECT_THROW(evaluate_condition("false && a =", "x"), pmlsm::launch::LaunchFileError);
+}
+
 TEST(LaunchFile, AConditionThatIsNoneOfTheFormsIsAnErrorNamingIt) {
   const std::string base = "name: x\nnodes:\n  - {name: a, executable: b, if: \"";
-  for (const char* bad : {"yes", "", "a = b", "== b", "a ==", "a == b == c"}) {
+  for (const char* bad : {"yes", "", "a = b", "== b", "a ==", "a == b == c", "a == b ||", "&& a == b"}) {
     const std::string e = error_of(base + bad + "\"}\n");
     EXPECT_NE(e.find("nodes[0].if"), std::string::npos) << bad << ": " << e;
     EXPECT_NE(e.find("a condition is true, false, A == B or A != B"), std::string::npos) << bad << ": " << e;

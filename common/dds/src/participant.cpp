@@ -196,6 +196,9 @@ Participant::Participant(const ParticipantOptions& options)
 
 Participant::~Participant() {
   if (participant_ == nullptr) return;
+  // The publisher thread lets go of this participant's writers first (what it still holds goes
+  // out within its close deadline, the rest is counted).
+  if (local_bus_ != nullptr) local_bus_->outbox().remove_owner(this, &local_bus_->scheduler());
   // Empty every writer's history first, under the writer's lock. Fast DDS 2.9.1's
   // ~StatefulWriter releases the history's samples one by one (RTPSWriter::deinit) while
   // its periodic heartbeat event still runs; that event, fired while a matched reader has

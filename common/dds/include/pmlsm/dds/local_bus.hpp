@@ -28,6 +28,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -39,6 +40,7 @@
 #include <vector>
 
 #include "pmlsm/dds/fiber_scheduler.hpp"
+#include "pmlsm/dds/outbox.hpp"
 
 namespace pmlsm::dds {
 
@@ -215,11 +217,16 @@ class RemoteReaders final : public eprosima::fastdds::dds::DataWriterListener {
 /// and removed with them (remove_owner), so a component that ends takes its queues along.
 class LocalBus {
  public:
-  explicit LocalBus(FiberScheduler& scheduler) : scheduler_(scheduler) {}
+  /// `publish_period`: the outbox's (0: samples for readers outside written on the chain thread).
+  explicit LocalBus(FiberScheduler& scheduler, std::chrono::microseconds publish_period = Outbox::kDefaultPeriod)
+      : scheduler_(scheduler), outbox_(publish_period) {}
   LocalBus(const LocalBus&) = delete;
   LocalBus& operator=(const LocalBus&) = delete;
 
   FiberScheduler& scheduler() { return scheduler_; }
+  /// The publisher thread of a realtime container (its thread starts with the first writer).
+  Outbox& outbox() { return outbox_; }
+  const Outbox& outbox() const { return outbox_; }
 
   /// The topic `name` carrying `Message`. @throws std::invalid_argument when the name is
   /// already used by another message type.
@@ -304,6 +311,7 @@ class LocalBus {
   void recount(const LocalTopicBase& topic);
 
   FiberScheduler& scheduler_;
+  Outbox outbox_;
   std::map<std::string, std::unique_ptr<LocalTopicBase>> topics_;
   std::vector<WriterEntry> trackers_;
   std::vector<ReaderEntry> readers_;

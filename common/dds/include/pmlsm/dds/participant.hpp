@@ -28,12 +28,15 @@
 #include <mutex>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "pmlsm/dds/catalog.hpp"
 #include "pmlsm/dds/fiber_scheduler.hpp"
 #include "pmlsm/dds/local_bus.hpp"
+#include "pmlsm/dds/outbox.hpp"
 #include "pmlsm/dds/raw_type.hpp"
+#include "pmlsm/dds/shutdown.hpp"
 #include "pmlsm/dds/topics.hpp"
 
 namespace pmlsm::dds {
@@ -136,12 +139,18 @@ template <typename PubSubType>
 class Writer {
  public:
   using Message = typename PubSubType::type;
-  /// @return false when Fast DDS refuses the sample (counted by the caller).
+  /// @return false when Fast DDS refuses the sample (counted by the caller). In a realtime
+  /// container a sample for readers outside the process is queued for the publisher thread
+  /// (outbox.hpp) and true is returned: what happens to it later is counted there.
   bool write(const Message& sample) {
     if (local_ != nullptr) {
       local_->deliver(sample, guid_);
       // DDS only for readers outside the process, or for state a late joiner must get.
       if (!keeps_state_ && remote_->count() == 0) return true;
+      if (outbox_ != nullptr) {
+        outbox_->push(sample);
+        return true;
+      }
       if (pace_ && ++since_paced_ >= kPaceEvery) {
         since_paced_ = 0;
         wait_for_acknowledgments(kPaceTimeout);
@@ -150,27 +159,34 @@ class Writer {
     return writer_->write(const_cast<Message*>(&sample));
   }
   eprosima::fastdds::dds::DataWriter* entity() { return writer_; }
-  /// Blocks until every matched reliable reader acknowledged all samples, or
-  /// the timeout passes. Call before exiting: a writer deleted with samples
-  /// still unacknowledged takes them with it (the last tick's command, say).
+  /// Blocks until every matched reliable reader acknowledged all samples (in a realtime
+  /// container: first until the publisher thread handed them all to DDS), or the timeout passes.
+  /// Call before exiting: a writer deleted with samples still unacknowledged takes them with it
+  /// (the last tick's command, say). After a stop request the wait ends by the stop's grace
+  /// (shutdown.hpp), whatever the timeout: a reader that never acknowledges does not hold it.
   bool wait_for_acknowledgments(std::chrono::duration<double> timeout) {
-    const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(timeout).count();
-    if (scheduler_ != nullptr && scheduler_->on_scheduler_thread()) {
-      // In a container: ask without blocking and sleep between, so the other components run.
-      const std::int64_t deadline = monotonic_ns_now() + ns;
-      for (;;) {
-        if (writer_->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(0, 0)) ==
-            eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
-          return true;
-        }
-        const std::int64_t now = monotonic_ns_now();
-        if (now >= deadline) return false;
-        scheduler_->sleep_until(std::min(deadline, now + 200000));
+    const std::int64_t deadline =
+        within_stop_grace(monotonic_ns_now() + std::chrono::duration_cast<std::chrono::nanoseconds>(timeout).count());
+    const bool cooperative = scheduler_ != nullptr && scheduler_->on_scheduler_thread();
+    // Waits in slices: in a container the other components run between; alone, a stop request
+    // arriving meanwhile is seen.
+    const std::int64_t slice_ns = cooperative ? 200000 : 20000000;
+    for (;;) {
+      const bool queued = outbox_ != nullptr && outbox_->pending() > 0;
+      if (!queued && writer_->wait_for_acknowledgments(
+                         eprosima::fastrtps::Duration_t(0, cooperative ? 0U : static_cast<std::uint32_t>(slice_ns))) ==
+                         eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+        return true;
+      }
+      const std::int64_t now = monotonic_ns_now();
+      const std::int64_t cut = within_stop_grace(deadline);  // a stop may have come meanwhile
+      if (now >= cut) return false;
+      if (cooperative) {
+        scheduler_->sleep_until(std::min(cut, now + slice_ns));
+      } else if (queued) {
+        std::this_thread::sleep_for(std::chrono::nanoseconds(std::min(cut - now, slice_ns)));
       }
     }
-    const eprosima::fastrtps::Duration_t t(static_cast<std::int32_t>(ns / 1000000000),
-                                           static_cast<std::uint32_t>(ns % 1000000000));
-    return writer_->wait_for_acknowledgments(t) == eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK;
   }
   /// Number of matched readers, for waiting on discovery.
   std::size_t matched_readers() const;
@@ -188,6 +204,8 @@ class Writer {
   unsigned since_paced_ = 0;
   LocalTopic<Message>* local_ = nullptr;
   RemoteReaders* remote_ = nullptr;
+  /// Realtime: the publisher thread's queue for readers outside (nullptr in lockstep).
+  OutboxChannel<Message>* outbox_ = nullptr;
   FiberScheduler* scheduler_ = nullptr;
   Guid guid_;
   bool keeps_state_ = false;
@@ -264,6 +282,9 @@ class Participant {
     writer.scheduler_ = &local_bus_->scheduler();
     writer.keeps_state_ = keeps_state(entity);
     writer.pace_ = pace_remote_readers_;
+    // Realtime (not paced): the chain hands what leaves the process to the publisher thread.
+    if (!pace_remote_readers_ && local_bus_->outbox().enabled())
+      writer.outbox_ = &local_bus_->outbox().add<Message>(this, spec.name, entity);
     return writer;
   }
 
