@@ -16,6 +16,7 @@ packages=(
   libbenchmark-dev                # speed benchmark
   gnuplot-nox                     # PNG plots of the traces
   iproute2                        # network namespaces for the two-host test
+  nftables                        # bench/rig_split_bench.sh: packets dropped at random and a partition between namespaces
   fastdds-tools                   # `fastdds discovery`: the Discovery Server for networks without multicast
   cyclonedds-tools                # ddsperf: the DDS latency floor the distributed benchmark compares with
   rt-tests                        # cyclictest: the machine's timer wake-up floor, in the same benchmark

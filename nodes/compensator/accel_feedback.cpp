@@ -18,7 +18,7 @@ class AccelFeedbackComponent final : public node::Component {
         rt_("accel_feedback", common_, context),
         params_(rt_.cfg.params.accel_feedback_params()),
         law_(params_),
-        inputs_(rt_.participant, rt_.wakeup),
+        inputs_(rt_.participant, rt_.wakeup, rt_.cfg),
         writer_(rt_.participant.make_writer(pmlsm::dds::topics::kCompensatorOutput)),
         live_(rt_.cfg.params, accel_feedback_live_keys()),
         parameters_(rt_, "accel_feedback", live_) {}

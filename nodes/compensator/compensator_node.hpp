@@ -25,10 +25,12 @@ namespace pmlsm::node {
 /// is skipped (counted) once the other topic has moved past it.
 class CompensatorInputs {
  public:
-  CompensatorInputs(dds::Participant& participant, dds::Wakeup& wakeup)
+  CompensatorInputs(dds::Participant& participant, dds::Wakeup& wakeup, const LoadedConfig& cfg)
       : wakeup_(wakeup),
-        estimate_reader_(participant.make_reader(dds::topics::kEstimatedState, wakeup, dds::kObserverProfile)),
-        reference_reader_(participant.make_reader(dds::topics::kVelocityReference, wakeup, dds::kObserverProfile)) {}
+        estimate_reader_(participant.make_reader(dds::topics::kEstimatedState, wakeup,
+                                                 chain_input_profile(cfg, dds::kObserverProfile))),
+        reference_reader_(participant.make_reader(dds::topics::kVelocityReference, wakeup,
+                                                  chain_input_profile(cfg, dds::kObserverProfile))) {}
 
   /// Waits for the next complete tick. False on timeout or stop.
   /// The drive run the last estimate followed (stamped on the output, so it follows the same run).

@@ -48,7 +48,7 @@ class RnnCompensatorComponent final : public node::Component {
         params_(rt_.cfg.params),
         rnn_(params_.rnn_compensator_params(opt_.online_learning)),
         gate_(params_),
-        inputs_(rt_.participant, rt_.wakeup),
+        inputs_(rt_.participant, rt_.wakeup, rt_.cfg),
         weights_reader_(rt_.participant.make_reader(pdds::topics::kNetworkWeights, rt_.wakeup)),
         writer_(rt_.participant.make_writer(pdds::topics::kCompensatorOutput)),
         live_(rt_.cfg.params, rnn_compensator_live_keys()),

@@ -37,6 +37,7 @@
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/sim/live_parameters.hpp"
 #include "pmlsm/control/current_controller.hpp"
+#include "pmlsm/control/input_freshness.hpp"
 #include "pmlsm/sim/velocity_controller.hpp"
 
 namespace {
@@ -67,8 +68,8 @@ class ControllerNode {
         voltage_writer_(rt.participant.make_writer(pdds::topics::kVoltageCommand)),
         current_loop_(rt.cfg.params.current_controller_params()),
         current_steps_(rt.cfg.params.timing.current_steps_per_tick()),
-        compensation_reader_(
-            rt.participant.make_reader(pdds::topics::kCompensatorOutput, rt.wakeup, pdds::kObserverProfile)),
+        compensation_reader_(rt.participant.make_reader(pdds::topics::kCompensatorOutput, rt.wakeup,
+                                                        node::chain_input_profile(rt.cfg, pdds::kObserverProfile))),
         controller_(std::in_place, rt.cfg.params, rt.cfg.scenario),
         live_(rt.cfg.params, velocity_controller_live_keys()),
         parameters_(rt, "controller", live_) {
@@ -88,6 +89,8 @@ class ControllerNode {
   bool compensation_for(std::uint64_t k, Compensation& applied);
   bool take_compensation(std::uint64_t k);
   void publish(std::uint64_t k, const VelocityControllerOutput& out, double applied_compensation_n);
+  /// A late compensation episode's start or end: said on stderr and NodeStatus.
+  void report_freshness(std::uint64_t k, const InputFreshness::Step& fresh);
   /// The voltage command level: the drive's current loop, 32 exchanges per tick.
   void run_current_loop(std::uint64_t k, double force_n);
   int finish(int exit_code);
@@ -133,7 +136,9 @@ class ControllerNode {
   Compensation compensation_;
   std::uint64_t compensation_tick_ = 0;
   bool have_compensation_ = false;
-  std::uint64_t compensation_missing_ = 0;
+  /// Output k-1 belongs to tick k; up to 3 ticks old it is used (realtime takes what is there).
+  InputFreshness freshness_{3};
+  std::uint64_t reported_lines_ = 0;
   bool guard_reported_ = false;
   std::uint64_t next_tick_ = 0;  // ticks up to here are done
   node::FeedbackFollower feedback_follower_{"controller", common_, rt_.cfg.clock};
@@ -176,6 +181,7 @@ double ControllerNode::external_command(std::uint64_t k) {
 void ControllerNode::follow_new_run() {
   controller_.emplace(live_.params(), rt_.cfg.scenario);
   have_compensation_ = false;
+  freshness_.reset();
   compensation_ = {};
   last_velocity_ = 0.0;
 }
@@ -202,12 +208,33 @@ bool ControllerNode::compensation_for(std::uint64_t k, Compensation& applied) {
   } else {
     take_compensation(k);
   }
-  if (have_compensation_ && compensation_tick_ + 3 >= k) {
-    applied = compensation_;
-  } else {
-    ++compensation_missing_;
-  }
+  const InputFreshness::Step fresh =
+      freshness_.step(k, have_compensation_ ? std::optional<std::uint64_t>(compensation_tick_) : std::nullopt);
+  if (fresh.on_time) applied = compensation_;
+  if (fresh.change != InputFreshness::Change::kNone) report_freshness(k, fresh);
   return true;
+}
+
+void ControllerNode::report_freshness(std::uint64_t k, const InputFreshness::Step& fresh) {
+  char text[200];
+  if (fresh.change == InputFreshness::Change::kFirst) {
+    std::printf("controller: tick %llu: compensation on time from here (PI alone for the %llu ticks before)\n",
+                static_cast<unsigned long long>(k), static_cast<unsigned long long>(fresh.gap_ticks));
+    return;
+  }
+  // Once per episode, the first few told (a flapping link would flood the log); all counted.
+  if (++reported_lines_ > 20) return;
+  if (fresh.change == InputFreshness::Change::kLate) {
+    std::snprintf(text, sizeof text,
+                  "compensation late (newest for tick %llu, more than %llu ticks old): PI alone until it is on time",
+                  static_cast<unsigned long long>(compensation_tick_),
+                  static_cast<unsigned long long>(freshness_.max_age_ticks()));
+  } else {
+    std::snprintf(text, sizeof text, "compensation on time again after %llu ticks without",
+                  static_cast<unsigned long long>(fresh.gap_ticks));
+  }
+  std::fprintf(stderr, "controller: tick %llu: %s\n", static_cast<unsigned long long>(k), text);
+  rt_.status.publish(node_state::STATE_RUNNING, k, period_s_, text);
 }
 
 void ControllerNode::publish(std::uint64_t k, const VelocityControllerOutput& out, double applied_compensation_n) {
@@ -332,10 +359,16 @@ int ControllerNode::finish(int exit_code) {
   command_writer_.wait_for_acknowledgments(node::kFlushTimeout);
   if (voltage_level_) voltage_writer_.wait_for_acknowledgments(node::kFlushTimeout);
   reference_writer_.wait_for_acknowledgments(node::kFlushTimeout);
-  std::printf("controller: %llu ticks answered, %llu rejected, compensation %s (%llu ticks without)%s\n",
-              static_cast<unsigned long long>(next_tick_), static_cast<unsigned long long>(rejected_),
-              opt_.compensation.c_str(), static_cast<unsigned long long>(compensation_missing_),
-              guard_reported_ ? ", taken out by the vibration guard" : "");
+  const InputFreshness::Counters& late = freshness_.counters();
+  std::printf(
+      "controller: %llu ticks answered, %llu rejected, compensation %s (%llu ticks without; at the start %llu, "
+      "then late %llu times, the longest %llu ticks)%s\n",
+      static_cast<unsigned long long>(next_tick_), static_cast<unsigned long long>(rejected_),
+      opt_.compensation.c_str(),
+      static_cast<unsigned long long>(compensated_ ? late.ticks_before_first + late.late_ticks : 0),
+      static_cast<unsigned long long>(late.ticks_before_first), static_cast<unsigned long long>(late.episodes),
+      static_cast<unsigned long long>(late.longest_gap_ticks),
+      guard_reported_ ? ", taken out by the vibration guard" : "");
   return exit_code;
 }
 

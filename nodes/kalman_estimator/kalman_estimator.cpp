@@ -33,9 +33,10 @@ class KalmanEstimatorNode {
         rt_(rt),
         period_s_(rt.period_s),
         ticks_(scenario_ticks(rt.cfg.scenario, period_s_)),
-        // Deep history: the estimator is off the lockstep chain and may fall behind;
-        // it must still see every tick.
-        feedback_reader_(rt.participant.make_reader(pdds::topics::kMotorFeedback, rt.wakeup, pdds::kObserverProfile)),
+        // Deep history: the estimator is off the chain and may fall behind, yet must see every
+        // tick (best effort only when asked, across a network in realtime).
+        feedback_reader_(rt.participant.make_reader(pdds::topics::kMotorFeedback, rt.wakeup,
+                                                    node::chain_input_profile(rt.cfg, pdds::kObserverProfile))),
         estimate_writer_(rt.participant.make_writer(pdds::topics::kEstimatedState)),
         filter_(rt.cfg.params.kalman_params()),
         estimate_readers_(estimate_readers) {}

@@ -60,6 +60,12 @@ void add_common_options(CLI::App& app, CommonOptions& o) {
                  "realtime, chain nodes: no MotorFeedback this long after the first -> plant lost, exit 4")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  app.add_option("--realtime-inputs", o.realtime_inputs,
+                 "realtime: how chain inputs from other processes are read (the estimator's feedback, the "
+                 "compensators' estimate and reference, the controller's compensation): reliable, or best_effort "
+                 "where they cross a network (a lost sample costs its own tick, not five behind it)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"reliable", "best_effort"}));
   app.add_option("--rt-priority", o.realtime.rt_priority,
                  "SCHED_FIFO priority 1..99 for the node and its DDS threads, memory locked (0: normal scheduling)")
       ->check(CLI::Range(0, 99));
@@ -81,6 +87,8 @@ LoadedConfig load_config(const CommonOptions& o) {
   c.scenario = load_scenario(o.scenario_path, c.params.timing.control_period_s);
   c.clock = o.clock == "realtime" ? Clock::kRealtime : Clock::kLockstep;
   c.command_level = o.command_level == "voltage" ? CommandLevel::kVoltage : CommandLevel::kForce;
+  // Lockstep waits for every tick: its inputs stay reliable whatever is asked.
+  c.best_effort_inputs = c.clock == Clock::kRealtime && o.realtime_inputs == "best_effort";
   if (c.command_level == CommandLevel::kVoltage && c.clock == Clock::kRealtime) {
     throw ConfigError(
         "--command-level voltage: runs in lockstep only (a 32 kHz exchange over DDS is a simulation device), got "

@@ -59,6 +59,9 @@ struct CommonOptions {
   /// Realtime, on the chain: once the plant ticks, no MotorFeedback for this long means it is
   /// gone (a drive sends feedback every tick, in its safe state too).
   double plant_lost_ms = 50.0;
+  /// Realtime: reliable or best_effort reading of the chain's inputs from other processes
+  /// (chain_input_profile).
+  std::string realtime_inputs = "reliable";
   /// Real-time priority, PM QoS latency request (--rt-priority, --cpu-dma-latency-us).
   RealtimeOptions realtime;
 };
@@ -73,6 +76,8 @@ struct LoadedConfig {
   Scenario scenario;
   Clock clock = Clock::kLockstep;
   CommandLevel command_level = CommandLevel::kForce;
+  /// Realtime with --realtime-inputs best_effort.
+  bool best_effort_inputs = false;
 };
 
 /// @throws ConfigError naming the file, key path and value.
@@ -134,6 +139,14 @@ int run_node(const std::string& node_name, const std::function<int()>& body);
 dds::ParticipantOptions named(dds::ParticipantOptions options, const std::string& node_name);
 
 std::chrono::nanoseconds spin_time(const CommonOptions& options);
+
+/// The reader profile of a chain input that may come from another process or host: with
+/// --realtime-inputs best_effort in realtime dds::kRealtimeInputProfile (a late repair is worth
+/// nothing, a lost sample is a gap the node counts), else `reliable_profile` (lockstep: every tick
+/// waited for).
+inline const char* chain_input_profile(const LoadedConfig& cfg, const char* reliable_profile) {
+  return cfg.best_effort_inputs ? dds::kRealtimeInputProfile : reliable_profile;
+}
 
 /// Only the DDS options (--profiles, --participant-profile, --domain, --data-sharing, and
 /// the security options), for programs that are not part of the control loop (trainer, workers).

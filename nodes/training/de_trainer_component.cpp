@@ -181,6 +181,19 @@ int DeTrainerComponent::run() {
   if (s.report.best.empty()) throw std::runtime_error("interrupted before the first generation: no weights");
   write_weights_file(*optimiser, s.report);
   print_summary(s, elapsed);
+  if (opt_.weights_readers > 0) {
+    // Discovery may find a running compensator only after a short search ends: wait for it on the
+    // match, with a deadline, not on a fixed time.
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(opt_.wait_workers_s);
+    while (weights_writer_.matched_readers() < opt_.weights_readers && !pdds::stop_requested() &&
+           std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    if (weights_writer_.matched_readers() < opt_.weights_readers) {
+      std::fprintf(stderr, "de_trainer: %zu of %zu NetworkWeights reader(s) matched within %.1f s\n",
+                   weights_writer_.matched_readers(), opt_.weights_readers, opt_.wait_workers_s);
+    }
+  }
   weights_writer_.wait_for_acknowledgments(std::chrono::seconds(2));
   const auto linger_end = std::chrono::steady_clock::now() + std::chrono::duration<double>(opt_.linger_s);
   while (std::chrono::steady_clock::now() < linger_end && !pdds::stop_requested()) {

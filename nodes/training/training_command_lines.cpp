@@ -48,6 +48,11 @@ std::optional<int> parse_de_trainer_command_line(int argc, char** argv, TrainerO
                  "Stay on the domain this long after the end, so compensators that start later still get the "
                  "final NetworkWeights (transient-local lives only as long as its writer)")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--weights-readers", opt.weights_readers,
+                 "Before exiting, wait (up to --wait-workers-s) until this many NetworkWeights readers matched "
+                 "and acknowledged the final set: a compensator running meanwhile gets it however late discovery "
+                 "found it")
+      ->check(CLI::NonNegativeNumber);
   return parse_command_line(app, argc, argv);
 }
 

@@ -34,6 +34,8 @@ struct TrainerOptions {
   double worker_timeout_s = 1.5;
   std::uint64_t first_version = 1;
   double linger_s = 0;
+  /// NetworkWeights readers to wait for at the end (0: none).
+  std::size_t weights_readers = 0;
 };
 
 /// This host's name and this process's id: unique on the domain.

@@ -69,7 +69,7 @@ std::chrono::milliseconds time_to_exit(test::ChildProcess& p, std::optional<int>
 
 TEST(Shutdown, SeparateNodesStopWithinASecondWhileAReaderNeverAcknowledges) {
   const fs::path dir = test::fresh_dir("pmlsm_shutdown", "separate");
-  const std::string domain = test_domain(92);
+  const std::string domain = test_domain(104);
   const std::string scenario = long_pulse(dir);
   FrozenRecorder recorder(domain, dir);
   test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
@@ -98,7 +98,7 @@ TEST(Shutdown, SeparateNodesStopWithinASecondWhileAReaderNeverAcknowledges) {
 
 TEST(Shutdown, ARealtimeContainerStopsWithinASecondWhileAReaderNeverAcknowledges) {
   const fs::path dir = test::fresh_dir("pmlsm_shutdown", "container");
-  const std::string domain = test_domain(93);
+  const std::string domain = test_domain(105);
   const std::string scenario = long_pulse(dir);
   FrozenRecorder recorder(domain, dir);
   test::ChildProcess container(

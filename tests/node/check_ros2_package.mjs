@@ -11,36 +11,11 @@
 // Prints one JSON line {"messages":N,"constants":N,"schemas_checked":N,"errors":[...]}; exits 1 on
 // any error, 2 on a usage error.
 
-import { readFile, readdir } from "node:fs/promises";
+import { readFile } from "node:fs/promises";
 import { join } from "node:path";
 import { parse } from "@foxglove/rosmsg";
 import { withIndexedReader } from "./mcap_file.mjs";
-
-const PACKAGE = "pmlsm_msgs";
-const SEPARATOR = "=".repeat(80);
-
-// The file's text without the generated header (its first comment lines): what a definition holds.
-function body(text) {
-  const lines = text.split("\n");
-  while (lines.length > 0 && lines[0].startsWith("#")) lines.shift();
-  return lines.join("\n");
-}
-
-// The package messages a definition uses, in the order first met, each once (breadth first).
-function definitionOf(name, texts) {
-  const order = [name];
-  for (let i = 0; i < order.length; ++i) {
-    for (const line of texts.get(order[i]).split("\n")) {
-      const [type_text, rest] = line.split(" ", 2);
-      if (rest === undefined || rest.includes("=")) continue; // blank, or a constant "uint8 NAME=1"
-      const type = type_text.split(/[[<]/)[0];
-      if (texts.has(type) && !order.includes(type)) order.push(type);
-    }
-  }
-  let text = texts.get(name);
-  for (const dependency of order.slice(1)) text += `${SEPARATOR}\nMSG: ${PACKAGE}/${dependency}\n${texts.get(dependency)}`;
-  return text;
-}
+import { PACKAGE, definitionOf, readPackageTexts } from "./ros2_definitions.mjs";
 
 async function checkPackage(dir, errors) {
   const xml = await readFile(join(dir, "package.xml"), "utf8");
@@ -54,13 +29,11 @@ async function checkPackage(dir, errors) {
     if (!xml.includes(needed)) errors.push(`package.xml lacks ${needed}`);
   }
   const cmake = await readFile(join(dir, "CMakeLists.txt"), "utf8");
-  const files = (await readdir(join(dir, "msg"))).filter((f) => f.endsWith(".msg")).sort();
+  const { files, texts } = await readPackageTexts(dir);
   const listed = [...cmake.matchAll(/"msg\/([A-Za-z0-9]+\.msg)"/g)].map((m) => m[1]).sort();
   if (JSON.stringify(files) !== JSON.stringify(listed)) {
     errors.push(`CMakeLists.txt lists ${listed.join(", ")} but msg/ holds ${files.join(", ")}`);
   }
-  const texts = new Map();
-  for (const file of files) texts.set(file.slice(0, -4), body(await readFile(join(dir, "msg", file), "utf8")));
   let constants = 0;
   for (const [name, text] of texts) {
     try {

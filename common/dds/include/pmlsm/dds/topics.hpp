@@ -51,6 +51,9 @@ struct Topic : TopicSpec {
 /// Reader profile of observers (evaluator, recorder) on every topic: deep
 /// history, so a reader that falls behind a fast lockstep run loses nothing.
 inline constexpr const char* kObserverProfile = "pmlsm_observe";
+/// Reader profile of realtime chain inputs that may cross processes or hosts (best effort: a
+/// sample repaired late is a tick too late; see configs/dds/profiles.xml).
+inline constexpr const char* kRealtimeInputProfile = "pmlsm_realtime_input";
 
 namespace topics {
 inline constexpr Topic<pmlsm_msgs::msg::MotorFeedbackPubSubType> kMotorFeedback{"rt/pmlsm/motor_feedback",

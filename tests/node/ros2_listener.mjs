@@ -1,0 +1,107 @@
+#!/usr/bin/env node
+// An independent ROS 2 node on our domain: Foxglove's standalone TypeScript implementation of the
+// ROS 2 protocol (@foxglove/ros2 on @foxglove/rtps), no ROS 2 installation, no Fast DDS. It is
+// given the generated interface package's .msg files (as a ROS 2 user's node would be built
+// against pmlsm_msgs), subscribes to one topic under its ROS 2 name and type, decodes every
+// sample, and lists what it discovered.
+//
+//   node ros2_listener.mjs --package DIR --domain N [--topic /pmlsm/motor_feedback]
+//        [--type MotorFeedback] [--count N] [--expect-topic NAME]... [--timeout-s S]
+//
+// --count N: done once ticks 0..N-1 have all arrived, in order, each decoded (stamp.tick); every
+// --expect-topic must have been seen published, with its ROS 2 type. Prints "ros2_listener:
+// started" once its participant runs, then one JSON line {"received":N,"in_order":bool,
+// "first_tick":N,"last_tick":N,"topics":{...},"participants":N,"errors":[...]}; exits 0 when
+// everything asked for was met, 1 otherwise (timeout included), 2 on a usage error.
+
+import { parse } from "@foxglove/rosmsg";
+import { RosNode } from "@foxglove/ros2";
+import { getNetworkInterfaces, UdpSocketNode } from "@foxglove/ros2/nodejs";
+import { PACKAGE, definitionOf, readPackageTexts } from "./ros2_definitions.mjs";
+
+function usage(message) {
+  console.error(`ros2_listener: ${message}`);
+  process.exit(2);
+}
+
+function parseArgs(argv) {
+  const o = { topic: "/pmlsm/motor_feedback", type: "MotorFeedback", count: 0, expectTopics: [], timeoutS: 60 };
+  for (let i = 0; i < argv.length; ++i) {
+    const value = () => (i + 1 < argv.length ? argv[++i] : usage(`${argv[i]} needs a value`));
+    switch (argv[i]) {
+      case "--package": o.packageDir = value(); break;
+      case "--domain": o.domain = Number(value()); break;
+      case "--topic": o.topic = value(); break;
+      case "--type": o.type = value(); break;
+      case "--count": o.count = Number(value()); break;
+      case "--expect-topic": o.expectTopics.push(value()); break;
+      case "--timeout-s": o.timeoutS = Number(value()); break;
+      default: usage(`unknown argument '${argv[i]}'`);
+    }
+  }
+  if (!o.packageDir) usage("--package DIR is required");
+  if (!Number.isInteger(o.domain) || o.domain < 0 || o.domain > 232) usage("--domain must be 0..232");
+  if (!Number.isInteger(o.count) || o.count < 0) usage("--count must be a whole number");
+  if (!(o.timeoutS > 0)) usage("--timeout-s must be positive");
+  return o;
+}
+
+async function main() {
+  const o = parseArgs(process.argv.slice(2));
+  const { texts } = await readPackageTexts(o.packageDir);
+  if (!texts.has(o.type)) usage(`no message ${o.type} in ${o.packageDir}/msg`);
+  const msgDefinition = parse(definitionOf(o.type, texts), { ros2: true });
+
+  const errors = [];
+  const participants = new Set();
+  const ros = new RosNode({ name: "pmlsm_ros2_listener", domainId: o.domain, udpSocketCreate: UdpSocketNode.Create,
+                            getNetworkInterfaces });
+  ros.on("discoveredParticipant", (p) => participants.add(JSON.stringify(p.guidPrefix)));
+  await ros.start();
+  console.log("ros2_listener: started");
+
+  let received = 0;
+  let inOrder = true;
+  let firstTick = null;
+  let lastTick = null;
+  let resolveDone;
+  const done = new Promise((resolve) => { resolveDone = resolve; });
+  const subscription = ros.subscribe({ topic: o.topic, dataType: `${PACKAGE}/msg/${o.type}`, msgDefinition });
+  subscription.on("message", (_timestamp, msg) => {
+    const tick = msg?.stamp?.tick;
+    if (typeof tick !== "bigint" && typeof tick !== "number") {
+      if (errors.length < 10) errors.push(`sample ${received}: no stamp.tick decoded`);
+      return;
+    }
+    const t = Number(tick);
+    if (lastTick !== null && t !== lastTick + 1) inOrder = false;
+    if (firstTick === null) firstTick = t;
+    lastTick = t;
+    ++received;
+    if (o.count > 0 && firstTick === 0 && lastTick === o.count - 1) resolveDone();
+  });
+  const timer = setTimeout(resolveDone, o.timeoutS * 1000);
+  if (o.count > 0) await done;
+  else await new Promise((resolve) => setTimeout(resolve, o.timeoutS * 1000));
+  clearTimeout(timer);
+
+  const topics = Object.fromEntries(ros.getPublishedTopics());
+  for (const name of o.expectTopics) {
+    if (!(name in topics)) errors.push(`topic ${name} was not discovered`);
+    else if (!topics[name].startsWith(`${PACKAGE}/msg/`)) errors.push(`topic ${name} has type ${topics[name]}`);
+  }
+  if (o.count > 0) {
+    if (received !== o.count) errors.push(`received ${received} of ${o.count} samples`);
+    if (!inOrder) errors.push("ticks not consecutive");
+    if (firstTick !== 0 || lastTick !== o.count - 1) errors.push(`ticks ${firstTick}..${lastTick}, not 0..${o.count - 1}`);
+  }
+  console.log(JSON.stringify({ received, in_order: inOrder, first_tick: firstTick, last_tick: lastTick, topics,
+                               participants: participants.size, errors }));
+  await ros.shutdown();
+  process.exit(errors.length === 0 ? 0 : 1);
+}
+
+main().catch((error) => {
+  console.error(`ros2_listener: ${error.stack ?? error}`);
+  process.exit(1);
+});
