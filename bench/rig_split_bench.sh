@@ -11,7 +11,9 @@
 # (share of ticks after the first one), late episodes after it and the longest gap (ticks), the
 # chain latency p50 / max at the drive. Needs root (namespaces, nftables); prints figures only;
 # exits 1 when a rig's run did not end 0 (ctrl's evaluator ends 4 on a run with ticks never estimated). PMLSM_BENCH_KEEP=1 keeps every host's log (the folder is printed).
-#   bench/rig_split_bench.sh [runs] [seconds] [loss_pct] [compensator]   (default 5 10 2 rnn)
+# `inputs`: how the chain's inputs cross the link (the launch file's realtime_inputs): best_effort
+# (its default) or reliable, to compare.
+#   bench/rig_split_bench.sh [runs] [seconds] [loss_pct] [compensator] [inputs]   (default 5 10 2 rnn best_effort)
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
@@ -20,6 +22,8 @@ runs="${1:-5}"
 seconds="${2:-10}"
 loss_pct="${3:-2}"
 compensator="${4:-rnn}"
+inputs="${5:-best_effort}"
+[[ "$inputs" =~ ^(best_effort|reliable)$ ]] || { echo "rig_split_bench: inputs must be best_effort or reliable, got '$inputs'" >&2; exit 2; }
 for v in "$runs" "$seconds" "$loss_pct"; do
   [[ "$v" =~ ^[0-9]+$ ]] || { echo "rig_split_bench: runs, seconds and loss_pct must be integers, got '$v'" >&2; exit 2; }
 done
@@ -75,11 +79,11 @@ slice() {  # NS HOST LOG: that host's slice of the launch file, in its namespace
     '$bin/launcher' '$root/launch/rig_split.yaml' --host $2 --arg domain=9 --arg profile=pmlsm_udp_only \
     --arg config='$root/configs/system.yaml' --arg scenario='$work/long.yaml' \
     --arg profiles='$root/configs/dds/profiles.xml' --arg weights='$root/configs/rnn_weights.yaml' \
-    --arg out='$work' --arg compensator=$compensator" >"$3" 2>&1
+    --arg out='$work' --arg compensator=$compensator --arg realtime_inputs=$inputs" >"$3" 2>&1
 }
 
 failed=0
-echo "rig_split_bench: ${runs} runs of ${seconds} s per condition, compensator ${compensator}, namespaces ${rig_ns} / ${ctrl_ns}"
+echo "rig_split_bench: ${runs} runs of ${seconds} s per condition, compensator ${compensator}, ${inputs} inputs, namespaces ${rig_ns} / ${ctrl_ns}"
 for i in $(seq "$runs"); do
   for condition in clean loss partition; do
     mkdir -p "$work/$condition"

@@ -15,9 +15,12 @@
 // everything asked for was met, 1 otherwise (timeout included), 2 on a usage error.
 
 import { parse } from "@foxglove/rosmsg";
-import { RosNode } from "@foxglove/ros2";
-import { getNetworkInterfaces, UdpSocketNode } from "@foxglove/ros2/nodejs";
+import ros2 from "@foxglove/ros2"; // CommonJS: its names through the default export
+import ros2Nodejs from "@foxglove/ros2/nodejs.js";
 import { PACKAGE, definitionOf, readPackageTexts } from "./ros2_definitions.mjs";
+
+const { RosNode } = ros2;
+const { getNetworkInterfaces, UdpSocketNode } = ros2Nodejs;
 
 function usage(message) {
   console.error(`ros2_listener: ${message}`);

@@ -896,5 +896,38 @@ TEST(Commission, ADriveNotInOperationEnabledEndsTheMeasurementWithNothingWritten
   fs::remove_all(dir);
 }
 
+// An independent ROS 2 node (Foxglove's TypeScript implementation of the protocol, @foxglove/ros2
+// on @foxglove/rtps: no Fast DDS, no ROS 2 installation) built against the generated interface
+// package listens to a lockstep run of separate processes: it sees every topic under its ROS 2
+// name and type, receives every MotorFeedback sample in order, and the launch still ends clean
+// with it attached (its readers neither hold a tick nor the shutdown).
+TEST(Ros2Node, AnIndependentRos2NodeGetsEveryTickAndTheLaunchEndsClean) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "ros2_node");
+  const std::string domain = test_domain(106);
+  std::vector<std::string> listener_args{PMLSM_NODE,    source("tests/node/ros2_listener.mjs"),
+                                         "--package",   PMLSM_ROS2_PACKAGE_DIR,
+                                         "--domain",    domain,
+                                         "--count",     "2000",
+                                         "--timeout-s", "90"};
+  for (const char* topic :
+       {"/pmlsm/motor_feedback", "/pmlsm/force_command", "/pmlsm/plant_truth", "/pmlsm/estimated_state",
+        "/pmlsm/velocity_reference", "/pmlsm/node_status", "/pmlsm/drive_state"}) {
+    listener_args.insert(listener_args.end(), {"--expect-topic", topic});
+  }
+  test::ChildProcess listener(listener_args, (dir / "listener.log").string());
+  ASSERT_TRUE(listener.wait_for_output("ros2_listener: started", kRunTimeout)) << listener.output();
+  // The plant waits for the listener's MotorFeedback reader too: it must see tick 0.
+  test::ChildProcess launch(
+      {bin("launcher"), source("launch/sim.yaml"), "--arg", "domain=" + domain, "--arg",
+       "config=" + source("configs/system.yaml"), "--arg", "scenario=" + source("configs/scenarios/pulse.yaml"),
+       "--arg", "profiles=" + source("configs/dds/profiles.xml"), "--arg", "out=" + dir.string(), "--arg",
+       "feedback_readers=4"},
+      (dir / "launch.log").string());
+  EXPECT_EQ(run_to_end(launch), 0) << launch.output();
+  EXPECT_EQ(run_to_end(listener), 0) << listener.output();
+  EXPECT_NE(listener.output().find("\"received\":2000,\"in_order\":true"), std::string::npos) << listener.output();
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace pmlsm
