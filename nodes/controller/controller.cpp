@@ -218,6 +218,9 @@ bool ControllerNode::compensation_for(std::uint64_t k, Compensation& applied) {
 void ControllerNode::report_freshness(std::uint64_t k, const InputFreshness::Step& fresh) {
   char text[200];
   if (fresh.change == InputFreshness::Change::kFirst) {
+    // Said only when the start went without (a peer on another host, a late match): in lockstep
+    // the first compensation is always there.
+    if (fresh.gap_ticks == 0) return;
     std::printf("controller: tick %llu: compensation on time from here (PI alone for the %llu ticks before)\n",
                 static_cast<unsigned long long>(k), static_cast<unsigned long long>(fresh.gap_ticks));
     return;

@@ -9,6 +9,9 @@ namespace pmlsm::dds {
 
 namespace {
 
+/// Empty passes in a row before the outbox sleeps longer.
+constexpr int kQuietPasses = 20;
+
 void add_counts(OutboxCounts& sum, const OutboxCounts& c) {
   sum.queued += c.queued;
   sum.published += c.published;
@@ -48,15 +51,24 @@ void Outbox::start() {
 void Outbox::loop() {
   std::int64_t next = monotonic_ns();
   const std::int64_t period_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(period_).count();
+  const std::int64_t idle_ns =
+      std::max(period_ns, std::chrono::duration_cast<std::chrono::nanoseconds>(kIdlePeriod).count());
+  std::int64_t sleep_ns = period_ns;
+  int quiet_passes = 0;
   while (!stop_.load(std::memory_order_acquire)) {
+    std::size_t written = 0;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      for (auto& channel : channels_) channel->drain();
+      for (auto& channel : channels_) written += channel->drain();
     }
+    // Traffic (a 1 kHz stream leaves no 20 passes in a row empty): every period. A quiet spell:
+    // twice as long each pass, up to idle_ns; the first sample after it starts the period again.
+    quiet_passes = written > 0 ? 0 : quiet_passes + 1;
+    sleep_ns = quiet_passes <= kQuietPasses ? period_ns : std::min(idle_ns, 2 * sleep_ns);
     // A fixed grid; after a stall, the next slot from now (no burst of catch-up wake-ups).
-    next += period_ns;
+    next += sleep_ns;
     const std::int64_t now = monotonic_ns();
-    if (next < now) next = now + period_ns;
+    if (next < now) next = now + sleep_ns;
     sleep_until_monotonic_ns(next);
   }
 }

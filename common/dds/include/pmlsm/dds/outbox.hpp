@@ -5,7 +5,9 @@
 // Each DDS writer of a component gets a channel: a DropOldestRing the chain thread pushes into
 // (never waits; a full ring drops the oldest sample, counted per topic) and this thread drains,
 // writing each sample to the DDS writer. The thread wakes every `period` (polling: a wake-up
-// signalled by the chain would be a system call on it); the in-process path is not touched.
+// signalled by the chain would be a system call on it), and while nothing comes it wakes less
+// often, up to every kIdlePeriod (a run nobody outside listens to costs no wake-ups a tick); the
+// in-process path is not touched.
 //
 // Lockstep containers do not use it: there a writer paces itself to its outside readers so that
 // they see every tick (local_bus.hpp), and nothing runs against a clock.
@@ -47,8 +49,8 @@ class OutboxChannelBase {
  public:
   OutboxChannelBase(const void* owner, std::string topic) : owner_(owner), topic_(std::move(topic)) {}
   virtual ~OutboxChannelBase() = default;
-  /// Writes everything queued to DDS (the outbox's thread).
-  virtual void drain() = 0;
+  /// Writes everything queued to DDS (the outbox's thread); how many samples it wrote.
+  virtual std::size_t drain() = 0;
   virtual std::uint64_t pending() const = 0;
   /// The channel's counts so far.
   virtual OutboxCounts counts() const = 0;
@@ -67,14 +69,16 @@ class OutboxChannel final : public OutboxChannelBase {
       : OutboxChannelBase(owner, std::move(topic)), ring_(capacity), writer_(writer) {}
   /// The chain thread: never blocks, never calls Fast DDS.
   void push(const Message& sample) { ring_.push(sample); }
-  void drain() override {
-    while (ring_.pop(scratch_)) {
+  std::size_t drain() override {
+    std::size_t n = 0;
+    for (; ring_.pop(scratch_); ++n) {
       if (writer_->write(&scratch_)) {
         published_.fetch_add(1, std::memory_order_relaxed);
       } else {
         refused_.fetch_add(1, std::memory_order_relaxed);
       }
     }
+    return n;
   }
   std::uint64_t pending() const override { return ring_.pending(); }
   OutboxCounts counts() const override {
@@ -101,6 +105,9 @@ class Outbox {
   /// How long closing a writer waits for its queue to go out before counting the rest as
   /// undelivered.
   static constexpr std::chrono::milliseconds kCloseDrain{200};
+  /// The longest sleep while nothing is queued: the first sample after a quiet spell waits at most
+  /// this long, those after it one period.
+  static constexpr std::chrono::milliseconds kIdlePeriod{4};
 
   static constexpr std::chrono::microseconds kDefaultPeriod{250};
   /// A period of 0 turns the outbox off: writers hand samples to DDS on the chain thread, as a
