@@ -8,17 +8,21 @@
 # Per way: chain latency p50 / max (median and range over the runs), watchdog trips, runs that did
 # not end 0, the recording's count of lost samples and the container's count of samples the
 # publisher thread dropped. Prints figures only; exits 1 when a run did not end with exit 0.
-#   bench/outside_readers_bench.sh [runs] [seconds]   (default 5 10)
+# `rt_priority` (root): the container's chain thread at that SCHED_FIFO priority, memory locked.
+#   bench/outside_readers_bench.sh [runs] [seconds] [rt_priority]   (default 5 10 0)
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
 bin="${PMLSM_BIN_DIR:-build/bin}"
 runs="${1:-5}"
 seconds="${2:-10}"
+rt_priority="${3:-0}"
 domain="${PMLSM_DOMAIN:-48}"
 for v in "$runs" "$seconds"; do
   [[ "$v" =~ ^[1-9][0-9]*$ ]] || { echo "outside_readers_bench: runs and seconds must be positive integers, got '$v'" >&2; exit 2; }
 done
+[[ "$rt_priority" =~ ^[0-9]+$ ]] && [ "$rt_priority" -le 99 ] ||
+  { echo "outside_readers_bench: rt_priority must be 0..99, got '$rt_priority'" >&2; exit 2; }
 for program in launcher container pmlsm foxglove_bridge; do
   [ -x "$bin/$program" ] || { echo "outside_readers_bench: no $bin/$program (build it, or set PMLSM_BIN_DIR)" >&2; exit 2; }
 done
@@ -59,7 +63,7 @@ wait_for_line "$work/client.log" "ws_client: subscribed"
 pids+=($!)
 
 failed=0
-echo "[2/3] ${runs} runs of ${seconds} s each way, alternating, each with its own pmlsm record"
+echo "[2/3] ${runs} runs of ${seconds} s each way, alternating, each with its own pmlsm record (rt_priority ${rt_priority})"
 for i in $(seq "$runs"); do
   for way in thread inline; do
     period=250
@@ -71,7 +75,8 @@ for i in $(seq "$runs"); do
     sleep 1  # the recorder's readers discovered before the run starts
     code=0
     "$bin/launcher" launch/sim_rnn.yaml --arg domain="$domain" --arg out="$work" --arg clock=realtime \
-      --arg scenario="$work/long.yaml" --arg publish_period_us="$period" >"$log" 2>&1 || code=$?
+      --arg scenario="$work/long.yaml" --arg publish_period_us="$period" --arg rt_priority="$rt_priority" \
+      >"$log" 2>&1 || code=$?
     kill -INT "$rec"; wait "$rec" || true
     echo "$code" >"$work/$way/code_$i"
     if [ "$code" -ne 0 ]; then failed=1; echo "  ${way} run $i: exit $code"; fi
