@@ -190,8 +190,10 @@ int DeTrainerComponent::run() {
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
     if (weights_writer_.matched_readers() < opt_.weights_readers) {
+      // The weights file is written; what was asked beyond it, the readers, did not all come.
       std::fprintf(stderr, "de_trainer: %zu of %zu NetworkWeights reader(s) matched within %.1f s\n",
                    weights_writer_.matched_readers(), opt_.weights_readers, opt_.wait_workers_s);
+      return kExitPeerMissing;
     }
   }
   weights_writer_.wait_for_acknowledgments(std::chrono::seconds(2));
