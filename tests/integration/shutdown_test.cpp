@@ -10,7 +10,6 @@
 #include <fstream>
 #include <optional>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "child_process.hpp"
@@ -77,11 +76,10 @@ TEST(Shutdown, SeparateNodesStopWithinASecondWhileAReaderNeverAcknowledges) {
   // part in the run before it is frozen.
   test::ChildProcess plant(node_args("plant_sim", domain, scenario, {"--peers", "2"}), (dir / "plant.log").string());
   ASSERT_TRUE(plant.wait_for_output("peers matched", seconds(60))) << plant.output();
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the recorder takes samples
+  // Frozen while matched: every sample from here piles up unacknowledged at it while the lockstep
+  // run goes on, and its lease (3 s, renewed every second until now) is far from running out when
+  // the stop comes.
   recorder.freeze();
-  // Samples pile up unacknowledged at the frozen reader while the lockstep run goes on; its lease
-  // (3 s) is far from running out when the stop comes.
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
   std::optional<int> plant_code;
   const auto plant_ms = time_to_exit(plant, plant_code);
   std::optional<int> controller_code;
@@ -108,9 +106,7 @@ TEST(Shutdown, ARealtimeContainerStopsWithinASecondWhileAReaderNeverAcknowledges
                     test::component_args("controller", "controller", domain, scenario, {"--clock", "realtime"})}),
       (dir / "container.log").string());
   ASSERT_TRUE(container.wait_for_output("peers matched", seconds(60))) << container.output();
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
   recorder.freeze();
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
   std::optional<int> code;
   const auto ms = time_to_exit(container, code);
   ASSERT_TRUE(code.has_value()) << container.output();
