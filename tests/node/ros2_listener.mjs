@@ -60,6 +60,12 @@ async function main() {
   const ros = new RosNode({ name: "pmlsm_ros2_listener", domainId: o.domain, udpSocketCreate: UdpSocketNode.Create,
                             getNetworkInterfaces });
   ros.on("discoveredParticipant", (p) => participants.add(JSON.stringify(p.guidPrefix)));
+  // Every publication seen over the run under its ROS 2 name and type (the library's own demangling;
+  // a participant that left takes its own out of getPublishedTopics(), so they are gathered as
+  // they come).
+  const topics = {};
+  const gather = () => { for (const [name, type] of ros.getPublishedTopics()) topics[name] = type; };
+  ros.on("discoveredPublication", gather);
   await ros.start();
   console.log("ros2_listener: started");
 
@@ -83,12 +89,20 @@ async function main() {
     ++received;
     if (o.count > 0 && firstTick === 0 && lastTick === o.count - 1) resolveDone();
   });
+  const deadline = Date.now() + o.timeoutS * 1000;
   const timer = setTimeout(resolveDone, o.timeoutS * 1000);
   if (o.count > 0) await done;
   else await new Promise((resolve) => setTimeout(resolve, o.timeoutS * 1000));
   clearTimeout(timer);
+  // The samples may be in before every publication was discovered: wait for those expected, up to
+  // the deadline.
+  const missing = () => o.expectTopics.filter((name) => !(name in topics));
+  while (missing().length > 0 && Date.now() < deadline) {
+    gather();
+    await new Promise((resolve) => setTimeout(resolve, 20));
+  }
+  gather();
 
-  const topics = Object.fromEntries(ros.getPublishedTopics());
   for (const name of o.expectTopics) {
     if (!(name in topics)) errors.push(`topic ${name} was not discovered`);
     else if (!topics[name].startsWith(`${PACKAGE}/msg/`)) errors.push(`topic ${name} has type ${topics[name]}`);
