@@ -8,3 +8,16 @@ max_of() { field 's/.*max \([0-9.]*\) us.*/\1/p' "$1"; }
 late_of() { field 's/.*late \([0-9]*\),.*/\1/p' "$1"; }
 miss_of() { field 's/.*deadline misses \([0-9]*\).*/\1/p' "$1"; }
 ppm_of() { field 's/.*nominal [0-9.]* us, \([-+0-9.]*\) ppm.*/\1/p' "$1"; }
+# Polls FILE for a line holding TEXT (the programs print when they are ready); fails after 15 s,
+# naming the caller ($0) and printing the file.
+wait_for_line() {
+  local file="$1" text="$2" deadline=$((SECONDS + 15))
+  until grep -q -- "$text" "$file" 2>/dev/null; do
+    if ((SECONDS >= deadline)); then
+      echo "$(basename "$0"): '$text' not in $file within 15 s:" >&2
+      cat "$file" >&2
+      exit 1
+    fi
+    sleep 0.05
+  done
+}

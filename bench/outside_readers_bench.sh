@@ -37,13 +37,6 @@ cleanup() {
 }
 trap cleanup EXIT
 source bench/bench_lib.sh
-wait_for_line() {  # FILE TEXT: polls the log for a line, fails after 15 s
-  local file="$1" text="$2" deadline=$((SECONDS + 15))
-  until grep -q -- "$text" "$file" 2>/dev/null; do
-    if ((SECONDS >= deadline)); then echo "outside_readers_bench: '$text' not in $file within 15 s" >&2; cat "$file" >&2; exit 1; fi
-    sleep 0.05
-  done
-}
 summary() { sort -g | awk '{ v[NR] = $1 } END { if (NR == 0) { print "n/a"; exit }
   m = (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2; printf "%.4g (%.4g-%.4g)", m, v[1], v[NR] }'; }
 
