@@ -137,7 +137,7 @@ CompensatorLoopResult run_fixed_law(const char* node_name, NodeRuntime& rt, cons
     writer.write(out);
     result.answered = tick + 1;
   }
-  writer.wait_for_acknowledgments(kFlushTimeout);
+  writer.wait_for_acknowledgments(flush_timeout(result.exit_code));
   return result;
 }
 

@@ -126,7 +126,7 @@ int RnnCompensatorComponent::run() {
   const CompensatorCounters& c = rnn_.counters();
   rt_.status.status().rejected(inputs_.rejected() + c.rejected_inputs + gate_.refused());
   rt_.status.publish(msg::NodeStatus_Constants::STATE_STOPPING, answered, rt_.period_s, "done");
-  writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  writer_.wait_for_acknowledgments(node::flush_timeout(exit_code));
   std::printf(
       "rnn_compensator: %llu ticks answered, online learning %s: %llu updates, k_c clamped %llu, dead-band %llu, "
       "reverted %llu; %llu input(s) rejected, %llu skipped; %llu weight set(s) taken, %llu refused\n",

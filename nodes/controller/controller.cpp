@@ -359,9 +359,10 @@ int ControllerNode::finish(int exit_code) {
   rt_.status.status().rejected(rejected_);
   rt_.status.publish(node_state::STATE_STOPPING, next_tick_, period_s_,
                      external_note.empty() ? std::string("done") : "done; " + external_note);
-  command_writer_.wait_for_acknowledgments(node::kFlushTimeout);
-  if (voltage_level_) voltage_writer_.wait_for_acknowledgments(node::kFlushTimeout);
-  reference_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  const auto flush_s = node::flush_timeout(exit_code);
+  command_writer_.wait_for_acknowledgments(flush_s);
+  if (voltage_level_) voltage_writer_.wait_for_acknowledgments(flush_s);
+  reference_writer_.wait_for_acknowledgments(flush_s);
   const InputFreshness::Counters& late = freshness_.counters();
   std::printf(
       "controller: %llu ticks answered, %llu rejected, compensation %s (%llu ticks without; at the start %llu, "

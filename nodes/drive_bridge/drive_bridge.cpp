@@ -105,7 +105,7 @@ class BridgeHooks final : public node::DriveNodeHooks {
     drive_.apply(0.0);
     std::printf("%s: run ended: drive disabled (shutdown) before the last SYNC\n", node.name().c_str());
   }
-  void flush() override {
+  void flush(std::chrono::seconds /*timeout*/) override {
     const canopen::Cia402DriveCounters& c = drive_.counters();
     std::printf(
         "drive_bridge: CAN: %llu SYNCs (%llu resent), %llu RPDO1 resent, %llu ticks without TPDOs in time, "

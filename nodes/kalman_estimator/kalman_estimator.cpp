@@ -112,7 +112,7 @@ int KalmanEstimatorNode::finish(int exit_code) {
   const auto& c = filter_.counters();
   rt_.status.status().rejected(rejected_ + c.rejected_measurements + c.rejected_inputs);
   rt_.status.publish(node_state::STATE_STOPPING, next_tick_, period_s_, "done");
-  estimate_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  estimate_writer_.wait_for_acknowledgments(node::flush_timeout(exit_code));
   std::printf("kalman_estimator: %llu ticks, %llu rejected\n", static_cast<unsigned long long>(next_tick_),
               static_cast<unsigned long long>(rejected_ + c.rejected_measurements + c.rejected_inputs));
   return exit_code;

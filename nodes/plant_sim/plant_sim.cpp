@@ -72,9 +72,9 @@ class PlantSimHooks final : public node::DriveNodeHooks {
     return voltage_level_ && !exchange_voltages(k) ? "no VoltageCommand" : nullptr;
   }
   bool apply_force() override { return !voltage_level_; }
-  void flush() override {
-    truth_writer_.wait_for_acknowledgments(node::kFlushTimeout);
-    if (voltage_level_) current_writer_.wait_for_acknowledgments(node::kFlushTimeout);
+  void flush(std::chrono::seconds timeout) override {
+    truth_writer_.wait_for_acknowledgments(timeout);
+    if (voltage_level_) current_writer_.wait_for_acknowledgments(timeout);
   }
   std::uint64_t extra_late() const override { return stale_voltages_; }
   std::uint64_t extra_rejected() const override { return rejected_voltages_; }

@@ -357,9 +357,10 @@ int DriveNode::finish(std::uint64_t k, int exit_code, double loop_s) {
   s.deadline_misses(loop_.statistics().deadline_misses());
   publish_drive_state(k);
   rt_.status.publish(node_state::STATE_STOPPING, k, period_s_, "done");
-  feedback_writer_.wait_for_acknowledgments(node::kFlushTimeout);
-  state_writer_.wait_for_acknowledgments(node::kFlushTimeout);
-  hooks_.flush();
+  const auto flush_s = node::flush_timeout(exit_code);
+  feedback_writer_.wait_for_acknowledgments(flush_s);
+  state_writer_.wait_for_acknowledgments(flush_s);
+  hooks_.flush(flush_s);
   if (realtime_ && k > 1) {
     const double mean_period = loop_.statistics().mean_period_s();
     std::printf("%s: mean tick period %.3f us (nominal %.3f us, %+.1f ppm)\n", name_.c_str(), mean_period * 1e6,

@@ -72,8 +72,8 @@ class DriveNodeHooks {
   /// backend behind a bus may hand the drive over cleanly (the bridge disables it before its
   /// SYNC stops, so the drive does not fault for the SYNC it no longer gets).
   virtual void at_end(DriveNode& /*node*/) {}
-  /// Waits for the node's own writers at the end.
-  virtual void flush() {}
+  /// Waits for the node's own writers at the end, at most `timeout` each (node::flush_timeout).
+  virtual void flush(std::chrono::seconds /*timeout*/) {}
   /// Added to the summary's late and rejected counts.
   virtual std::uint64_t extra_late() const { return 0; }
   virtual std::uint64_t extra_rejected() const { return 0; }

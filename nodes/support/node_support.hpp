@@ -33,11 +33,19 @@ class App;
 namespace pmlsm::node {
 
 /// How long a node waits at exit for its last samples to be acknowledged: an
-/// observer may be seconds behind a fast lockstep run; a dead reader stops
-/// counting once its lease (3 s, configs/dds/profiles.xml) runs out. (Destroying a
-/// writer whose dead reader is still matched no longer hangs: dds::Participant empties
-/// the histories first, see ~Participant.)
+/// observer may be seconds behind a fast lockstep run. (Destroying a writer whose dead
+/// reader is still matched does not hang: dds::Participant empties the histories first,
+/// see ~Participant.)
 inline constexpr std::chrono::seconds kFlushTimeout{15};
+/// After a lost peer (kExitPeerLost) the lost one's readers stay matched until its
+/// lease (20 s, configs/dds/profiles.xml) runs out and would never acknowledge: the
+/// live readers get this long.
+inline constexpr std::chrono::seconds kFlushAfterLostPeer{1};
+
+/// The exit-time flush's timeout for a run ending with `exit_code`.
+constexpr std::chrono::seconds flush_timeout(int exit_code) {
+  return exit_code == kExitPeerLost ? kFlushAfterLostPeer : kFlushTimeout;
+}
 
 enum class Clock { kLockstep, kRealtime };
 enum class CommandLevel { kForce, kVoltage };

@@ -23,10 +23,10 @@ inline std::string source(const std::string& rel) { return std::string(PMLSM_SOU
 /// 25..29, tests/tools 30..39, drive_safety_test.cpp 40..44, virtual_rig_test.cpp 45, 46, 48, 49, 70, 71 (CAN
 /// ports 62xx), the python CANopen tests 47, 72 and 73, tests/security 50..59, hardening_test.cpp
 /// 60..69, external_reference_test.cpp 74..77, agents_test.cpp 80..85, tests/tools' identify 88, 89,
-/// drive_safety_test.cpp 90, 91, tests/tools 92..103 and 106, shutdown_test.cpp 104, 105, container_test.cpp 120..124,
-/// 127..130, secure_nodes_test.cpp's containers 125, 126, virtual_rig_test.cpp's container 131, tests/tools' topic run
-/// once more 102. PMLSM_TEST_DOMAIN_BASE moves the whole set (default 100), for two test runs on one machine: 0..101
-/// (the largest offset is 131, and a domain id above 232 is refused by every node, so a test there fails).
+/// drive_safety_test.cpp 90, 91, tests/tools 92..103 and 106, shutdown_test.cpp 104, 105, churn_test.cpp 107,
+/// container_test.cpp 120..124, 127..130, secure_nodes_test.cpp's containers 125, 126, virtual_rig_test.cpp's container
+/// 131. PMLSM_TEST_DOMAIN_BASE moves the whole set (default 100), for two test runs on one machine: 0..101 (the largest
+/// offset is 131, and a domain id above 232 is refused by every node, so a test there fails).
 inline std::string test_domain(int offset) {
   const char* base = std::getenv("PMLSM_TEST_DOMAIN_BASE");
   return std::to_string((base != nullptr ? std::atoi(base) : 100) + offset);
@@ -37,6 +37,16 @@ inline std::string read_file(const std::filesystem::path& p) {
   std::ostringstream s;
   s << in.rdbuf();
   return s.str();
+}
+
+/// configs/scenarios/pulse.yaml made 600 s long, written into `dir`: a run that lasts until it is stopped.
+inline std::string long_pulse(const std::filesystem::path& dir) {
+  std::string text = read_file(source("configs/scenarios/pulse.yaml"));
+  const auto at = text.find("duration_s:");
+  text.replace(at, text.find('\n', at) - at, "duration_s: 600.0");
+  const std::filesystem::path path = dir / "long.yaml";
+  std::ofstream(path) << text;
+  return path.string();
 }
 
 /// One column of a trace CSV (header row first) by its name; empty when there is no such column.

@@ -68,8 +68,8 @@ std::map<std::string, TopicRows> read_cyclone_csv(const fs::path& path) {
 // --linger-s: a Cyclone participant that exits as soon as it has its samples leaves the last ones
 // unacknowledged, and Fast DDS 2.9 notices it gone only when its lease expires, so the nodes'
 // final wait for acknowledgments would last that long; lingering until the writers have gone
-// lets the nodes finish at once. The 3 s lease (Cyclone's default is 10 s) bounds that wait when
-// the subscriber fails, as configs/dds/profiles.xml does for our participants.
+// lets the nodes finish at once. The subscriber's 3 s lease (Cyclone's default is 10 s) bounds that
+// wait when it fails.
 std::vector<std::string> cyclone_args(const std::string& domain, const std::vector<std::string>& topics,
                                       std::uint64_t count, const fs::path& csv, std::vector<std::string> extra = {}) {
   std::vector<std::string> a{bin("cyclone_subscriber"),

@@ -395,16 +395,6 @@ TEST(Tool, BadInputIsAClearErrorWithExitCode2) {
 struct TopicToolsRun {
   std::string echo, hz, delay, list, plant, controller;
   int echo_code = -1, hz_code = -1, delay_code = -1, list_code = -1, plant_code = -1, controller_code = -1;
-  /// Debian's Fast DDS 2.9.1 keeps its assertions, and its participant discovery can abort a
-  /// process on a race between a leaving participant's lease and its removal (PDP.cpp,
-  /// check_remote_participant_liveliness); four short-lived tool participants provoke it now and
-  /// then. Such a run says nothing about the tools.
-  bool discovery_aborted() const {
-    for (const std::string* out : {&echo, &hz, &delay, &list, &plant, &controller}) {
-      if (out->find("check_remote_participant_liveliness") != std::string::npos) return true;
-    }
-    return false;
-  }
 };
 
 /// The number after the last `label` in a tool's output; none when the label is missing.
@@ -450,19 +440,9 @@ TopicToolsRun run_topic_tools(const std::string& domain, const fs::path& dir) {
 
 TEST(Topic, ListEchoHzDelayOnARealtimeLoop) {
   const fs::path dir = test::fresh_dir("pmlsm_tool", "topic");
-  TopicToolsRun run = run_topic_tools(test_domain(36), dir);
-  if (run.discovery_aborted()) {
-    // Once more on a domain of its own; twice in a row is reported, not judged.
-    std::printf(
-        "[ topic      ] Fast DDS's discovery aborted a process (PDP::check_remote_participant_liveliness); "
-        "once more\n");
-    run = run_topic_tools(test_domain(102), dir);
-    if (run.discovery_aborted()) {
-      GTEST_SKIP() << "Fast DDS 2.9.1's discovery aborted a process twice (an assertion in "
-                      "PDP::check_remote_participant_liveliness, not this project's code):\n"
-                   << run.plant << run.controller;
-    }
-  }
+  // Four short-lived tool participants beside the loop: the abort the shipped 20 s lease avoids
+  // (docs/hardening.md, "Participants that come and go") is a failure here, not retried.
+  const TopicToolsRun run = run_topic_tools(test_domain(36), dir);
   EXPECT_EQ(run.echo_code, 0) << run.echo;
   EXPECT_NE(run.echo.find("stamp:\n  tick: "), std::string::npos) << run.echo;
   EXPECT_NE(run.echo.find("velocity_mps: "), std::string::npos) << run.echo;
