@@ -30,9 +30,12 @@ class CompensatorInputs {
         estimate_reader_(participant.make_reader(dds::topics::kEstimatedState, wakeup,
                                                  chain_input_profile(cfg, dds::kObserverProfile))),
         reference_reader_(participant.make_reader(dds::topics::kVelocityReference, wakeup,
-                                                  chain_input_profile(cfg, dds::kObserverProfile))) {}
+                                                  chain_input_profile(cfg, dds::kObserverProfile))),
+        end_watch_(scenario_ticks(cfg.scenario, cfg.params.timing.control_period_s), cfg.params.timing.control_period_s,
+                   cfg.clock == Clock::kRealtime) {}
 
-  /// Waits for the next complete tick. False on timeout or stop.
+  /// Waits for the next complete tick. False on timeout, on stop, or when an input's writers left
+  /// after running to the end and the run's last ticks were lost (end_of_wait says which).
   /// The drive run the last estimate followed (stamped on the output, so it follows the same run).
   std::uint64_t run_id() const { return estimate_.stamp().run_id(); }
 
@@ -41,7 +44,13 @@ class CompensatorInputs {
       for (;;) {
         if (!have_estimate_) have_estimate_ = take_from(estimate_reader_, estimate_);
         if (!have_reference_) have_reference_ = take_from(reference_reader_, reference_);
-        if (!have_estimate_ || !have_reference_) return false;
+        if (!have_estimate_ || !have_reference_) {
+          // The input still missing its tick had its writers leave: the run may be over.
+          const std::size_t writers =
+              have_estimate_ ? reference_reader_.matched_writers() : estimate_reader_.matched_writers();
+          tail_lost_ = end_watch_.tail_lost(writers, next_tick_, monotonic_s());
+          return false;
+        }
         const std::uint64_t e = estimate_.feedback_tick();
         const std::uint64_t r = reference_.stamp().tick();
         if (e == r) break;
@@ -61,8 +70,23 @@ class CompensatorInputs {
       view.a_ref_mps2 = reference_.a_ref_mps2();
       have_estimate_ = have_reference_ = false;
       next_tick_ = tick + 1;
+      end_watch_.taken(monotonic_s());
       return true;
     });
+  }
+
+  /// After next() returned false: exit 0 when the inputs ended with the run (the last ticks lost
+  /// on a best-effort link, said on stdout), else end_of_failed_wait's code and line.
+  int end_of_wait(const char* node_name, std::uint64_t answered, double timeout_s) const {
+    if (tail_lost_ && !dds::stop_requested()) {
+      std::printf(
+          "%s: the EstimatedState or VelocityReference writer left after running to the end; the run's last "
+          "%llu tick(s) never arrived (lost on a best-effort input)\n",
+          node_name, static_cast<unsigned long long>(end_watch_.missing(next_tick_)));
+      return kExitOk;
+    }
+    return end_of_failed_wait(node_name, "EstimatedState and VelocityReference", "estimator or controller", answered,
+                              timeout_s);
   }
 
   std::uint64_t rejected() const { return rejected_; }
@@ -82,6 +106,7 @@ class CompensatorInputs {
   }
   static std::uint64_t tick_of(const pmlsm_msgs::msg::EstimatedState& m) { return m.feedback_tick(); }
   static std::uint64_t tick_of(const pmlsm_msgs::msg::VelocityReference& m) { return m.stamp().tick(); }
+  static double monotonic_s() { return static_cast<double>(monotonic_ns()) * 1e-9; }
 
   dds::Wakeup& wakeup_;
   dds::Reader<pmlsm_msgs::msg::EstimatedStatePubSubType> estimate_reader_;
@@ -93,6 +118,8 @@ class CompensatorInputs {
   std::uint64_t next_tick_ = 0;
   std::uint64_t rejected_ = 0;
   std::uint64_t skipped_ = 0;
+  InputEndWatch end_watch_;
+  bool tail_lost_ = false;
 };
 
 /// What run_fixed_law did: the node's exit code and the ticks it answered.
@@ -124,8 +151,7 @@ CompensatorLoopResult run_fixed_law(const char* node_name, NodeRuntime& rt, cons
   CompensatorView view;
   while (result.answered < ticks && !dds::stop_requested()) {
     if (!inputs.next(std::chrono::duration<double>(common.peer_timeout_s), tick, view)) {
-      result.exit_code = end_of_failed_wait(node_name, "EstimatedState and VelocityReference",
-                                            "estimator or controller", result.answered, common.peer_timeout_s);
+      result.exit_code = inputs.end_of_wait(node_name, result.answered, common.peer_timeout_s);
       break;
     }
     if (parameters.serve(tick)) retune(live.params());

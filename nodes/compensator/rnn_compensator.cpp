@@ -93,8 +93,7 @@ int RnnCompensatorComponent::run() {
   int exit_code = kExitOk;
   while (answered < ticks_ && !pdds::stop_requested()) {
     if (!inputs_.next(std::chrono::duration<double>(opt_.common.peer_timeout_s), tick, view)) {
-      exit_code = node::end_of_failed_wait("rnn_compensator", "EstimatedState and VelocityReference",
-                                           "estimator or controller", answered, opt_.common.peer_timeout_s);
+      exit_code = inputs_.end_of_wait("rnn_compensator", answered, opt_.common.peer_timeout_s);
       break;
     }
     // Its online rule's settings (checked by LiveParameters as the file is) and weight swaps

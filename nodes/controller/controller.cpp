@@ -141,7 +141,7 @@ class ControllerNode {
   std::uint64_t reported_lines_ = 0;
   bool guard_reported_ = false;
   std::uint64_t next_tick_ = 0;  // ticks up to here are done
-  node::FeedbackFollower feedback_follower_{"controller", common_, rt_.cfg.clock};
+  node::FeedbackFollower feedback_follower_{"controller", common_, rt_.cfg.clock, ticks_, period_s_};
   std::uint64_t rejected_ = 0;
   double last_velocity_ = 0.0;
 };

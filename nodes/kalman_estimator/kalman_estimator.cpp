@@ -62,7 +62,7 @@ class KalmanEstimatorNode {
   msg::EstimatedState estimate_;
   KalmanInput input_;
   std::uint64_t next_tick_ = 0;  // ticks up to here are done
-  node::FeedbackFollower feedback_follower_{"kalman_estimator", common_, rt_.cfg.clock};
+  node::FeedbackFollower feedback_follower_{"kalman_estimator", common_, rt_.cfg.clock, ticks_, period_s_};
   std::uint64_t rejected_ = 0;
 };
 

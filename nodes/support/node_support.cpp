@@ -131,6 +131,13 @@ int end_of_feedback_wait(const char* node_name, const CommonOptions& o, Clock cl
   return kExitPeerLost;
 }
 
+void FeedbackFollower::report_tail_lost(std::uint64_t next_tick) const {
+  std::printf(
+      "%s: the drive's MotorFeedback writer left after running to the end; the run's last %llu tick(s) "
+      "never arrived (lost on a best-effort input)\n",
+      node_name_, static_cast<unsigned long long>(end_watch_.missing(next_tick)));
+}
+
 void FeedbackFollower::report_new_run(std::uint64_t tick, double control_period_s, StatusPublisher& status) {
   std::printf("%s: the drive restarted (run %016llx -> %016llx) at its tick %llu: following the new run\n", node_name_,
               static_cast<unsigned long long>(run_.previous()), static_cast<unsigned long long>(run_.current()),

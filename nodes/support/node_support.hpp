@@ -22,6 +22,7 @@
 #include "pmlsm/util/clock.hpp"
 #include "pmlsm/util/exit_codes.hpp"
 #include "realtime_setup.hpp"
+#include "input_end.hpp"
 #include "tick_filter.hpp"
 
 // Only declared: <CLI/CLI.hpp> (CLI11 2.1.2, header-only) costs 5-9 s of CPU in every file that
@@ -216,15 +217,21 @@ class FeedbackFollower {
     kEnded,   ///< the wait failed: the reason is printed, end with exit_code()
   };
 
-  FeedbackFollower(const char* node_name, const CommonOptions& options, Clock clock)
-      : node_name_(node_name), options_(options), clock_(clock) {}
+  /// `run_ticks` and `control_period_s`: the run's length, to tell a drive that ran to the end
+  /// from one that stopped early when its writer leaves (InputEndWatch).
+  FeedbackFollower(const char* node_name, const CommonOptions& options, Clock clock, std::uint64_t run_ticks,
+                   double control_period_s)
+      : node_name_(node_name),
+        options_(options),
+        clock_(clock),
+        end_watch_(run_ticks, control_period_s, clock == Clock::kRealtime) {}
 
   /// Waits for the feedback after tick `next_tick` - 1, counting the samples it passes over
   /// (duplicates, out of order, implausible jumps, a run already left) in `rejected`.
   template <typename ReaderT, typename Message>
   Next next(dds::Wakeup& wakeup, ReaderT& reader, Message& sample, std::uint64_t next_tick, double control_period_s,
             StatusPublisher& status, std::uint64_t& rejected) {
-    bool got = false, new_run = false;
+    bool got = false, new_run = false, tail_lost = false;
     const bool ok = wait_until(wakeup, feedback_timeout(options_, clock_, any_feedback_), [&] {
       while (!got && reader.take(sample)) {
         const std::uint64_t run_id = sample.stamp().run_id();
@@ -243,14 +250,21 @@ class FeedbackFollower {
         }
         got = true;
       }
-      return got;
+      if (!got) tail_lost = end_watch_.tail_lost(reader.matched_writers(), next_tick, monotonic_s());
+      return got || tail_lost;
     });
+    if (tail_lost) {
+      report_tail_lost(next_tick);
+      exit_code_ = kExitOk;
+      return Next::kEnded;
+    }
     if (!ok) {
       exit_code_ =
           end_of_feedback_wait(node_name_, options_, clock_, any_feedback_, next_tick, control_period_s, status);
       return Next::kEnded;
     }
     any_feedback_ = true;
+    end_watch_.taken(monotonic_s());
     if (!new_run) return Next::kTick;
     report_new_run(sample.stamp().tick(), control_period_s, status);
     return Next::kNewRun;
@@ -261,12 +275,15 @@ class FeedbackFollower {
 
  private:
   void report_new_run(std::uint64_t tick, double control_period_s, StatusPublisher& status);
+  void report_tail_lost(std::uint64_t next_tick) const;
+  static double monotonic_s() { return static_cast<double>(monotonic_ns()) * 1e-9; }
 
   const char* node_name_;
   const CommonOptions& options_;
   Clock clock_;
   TickFilter ticks_;
   RunFollower run_;
+  InputEndWatch end_watch_;
   bool any_feedback_ = false;
   int exit_code_ = kExitOk;
 };
