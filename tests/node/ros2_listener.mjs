@@ -67,6 +67,13 @@ async function main() {
   const gather = () => { for (const [name, type] of ros.getPublishedTopics()) topics[name] = type; };
   ros.on("discoveredPublication", gather);
   await ros.start();
+  // @foxglove/rtps announces its participant (SPDP DATA(p)) once to multicast, then only once to
+  // each participant it discovers, by unicast. Fast DDS drops what reaches a participant between
+  // its first announcement and the start of its reception (RTPSParticipantImpl::enable), a window
+  // of milliseconds that a loaded host widens: a participant whose one reply fell in it never
+  // learned of this listener and never sent it its endpoints. RTPS has SPDP announce periodically;
+  // this does, every second.
+  const announcer = setInterval(() => void ros._participant.broadcastParticipant(ros._participant.attributes), 1000);
   console.log("ros2_listener: started");
 
   let received = 0;
@@ -114,6 +121,7 @@ async function main() {
   }
   console.log(JSON.stringify({ received, in_order: inOrder, first_tick: firstTick, last_tick: lastTick, topics,
                                participants: participants.size, errors }));
+  clearInterval(announcer);
   await ros.shutdown();
   process.exit(errors.length === 0 ? 0 : 1);
 }

@@ -888,7 +888,7 @@ TEST(Ros2Node, AnIndependentRos2NodeGetsEveryTickAndTheLaunchEndsClean) {
                                          "--package",   PMLSM_ROS2_PACKAGE_DIR,
                                          "--domain",    domain,
                                          "--count",     "2000",
-                                         "--timeout-s", "90"};
+                                         "--timeout-s", "45"};
   for (const char* topic :
        {"/pmlsm/motor_feedback", "/pmlsm/force_command", "/pmlsm/plant_truth", "/pmlsm/estimated_state",
         "/pmlsm/velocity_reference", "/pmlsm/node_status", "/pmlsm/drive_state"}) {
