@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The composed realtime chain (launch/sim_rnn.yaml, clock=realtime: one container) while the world
-# outside the process listens: `pmlsm record` of every topic, `pmlsm topic echo` of motor_feedback
-# and the Foxglove bridge with a client (tests/node/ws_client.mjs) on every topic, all at once.
+# outside the process listens: `pmlsm record` of every topic, `pmlsm topic echo` of motor_feedback,
+# the Foxglove bridge with a client (tests/node/ws_client.mjs) on every topic and an independent
+# ROS 2 node (@foxglove/ros2, tests/node/ros2_listener.mjs) on motor_feedback, all at once.
 # Two ways, alternating run by run so that both see the machine's same mood:
 #   thread: what leaves the process goes out from the container's publisher thread (the default);
 #   inline: the chain thread writes it to DDS itself (--arg publish_period_us=0, as before).
@@ -43,7 +44,7 @@ summary() { sort -g | awk '{ v[NR] = $1 } END { if (NR == 0) { print "n/a"; exit
 sed "s/^duration_s: .*/duration_s: ${seconds}.0/" configs/scenarios/pulse.yaml >"$work/long.yaml"
 dds=(--domain "$domain" --profiles configs/dds/profiles.xml)
 
-echo "[1/3] the outside readers: foxglove_bridge with a client on every topic, pmlsm topic echo"
+echo "[1/3] the outside readers: foxglove_bridge with a client on every topic, pmlsm topic echo, a ROS 2 node"
 "$bin/foxglove_bridge" "${dds[@]}" --address 127.0.0.1 --port 0 >"$work/bridge.log" 2>&1 &
 pids+=($!)
 wait_for_line "$work/bridge.log" "listening on ws://"
@@ -54,6 +55,10 @@ pids+=($!)
 wait_for_line "$work/client.log" "ws_client: subscribed"
 "$bin/pmlsm" "${dds[@]}" topic echo /pmlsm/motor_feedback >"$work/echo.log" 2>&1 &
 pids+=($!)
+nice -n 10 node tests/node/ros2_listener.mjs --package "${PMLSM_ROS2_PACKAGE_DIR:-build/ros2/pmlsm_msgs}" \
+  --domain "$domain" --listen-s 36000 --timeout-s 72000 >"$work/ros2.log" 2>&1 &
+pids+=($!)
+wait_for_line "$work/ros2.log" "ros2_listener: started"
 
 failed=0
 echo "[2/3] ${runs} runs of ${seconds} s each way, alternating, each with its own pmlsm record (rt_priority ${rt_priority})"

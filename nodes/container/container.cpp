@@ -12,6 +12,7 @@
 #include "node_support.hpp"
 #include "pmlsm/dds/fiber_scheduler.hpp"
 #include "pmlsm/dds/local_bus.hpp"
+#include "pmlsm/dds/participant.hpp"
 #include "pmlsm/util/exit_codes.hpp"
 
 namespace pmlsm::container {
@@ -193,10 +194,12 @@ void report_container_run(const ContainerOptions& options, const dds::LocalBus& 
 
 ContainerResult run_container(const ContainerOptions& options, const std::vector<ComponentSpec>& specs) {
   ContainerResult result;
+  // One DDS participant for the process, made by the first component; it outlives them all.
+  dds::SharedParticipant participant(options.name, options.identity.empty() ? options.name : options.identity);
   dds::FiberScheduler scheduler(options.stack_bytes);
   dds::LocalBus bus(scheduler, options.publish_period);
   std::vector<Slot> slots = slots_by_priority(specs);
-  const node::ComponentContext context{&bus};
+  const node::ComponentContext context{&bus, &participant};
   if (!make_components(options, context, slots, result)) return result;
   // The chain thread's real-time setup, now that every participant and its threads exist.
   std::optional<node::RealtimeSetup> realtime;

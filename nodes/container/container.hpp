@@ -56,6 +56,10 @@ struct ContainerResult {
 
 struct ContainerOptions {
   std::string name = "container";
+  /// The keystore identity the container's one participant authenticates as when its components
+  /// are secure (empty: its name); its permissions must be its components' union
+  /// (configs/security/policy.yaml, containers:).
+  std::string identity;
   std::size_t stack_bytes = std::size_t{2} << 20;
   /// For the chain thread alone, applied once every component is made: Fast DDS's threads keep
   /// normal scheduling (in a container they carry nothing of the chain, and a real-time thread

@@ -36,7 +36,13 @@ int main(int argc, char** argv) {
     container::ContainerOptions options;
     node::RealtimeOptions& realtime = options.realtime;
     std::size_t stack_kib = options.stack_bytes >> 10;
-    app.add_option("--name", options.name, "The container's name in its messages")->capture_default_str();
+    app.add_option("--name", options.name,
+                   "The container's name in its messages, and its participant's on the domain (its components are "
+                   "its nodes)")
+        ->capture_default_str();
+    app.add_option("--identity", options.identity,
+                   "Secure components: the keystore identity the container's participant authenticates as, "
+                   "granted its components' union (default: --name; configs/security/policy.yaml, containers:)");
     app.add_option("--stack-kib", stack_kib, "Stack of each component's fiber")
         ->check(CLI::Range(64, 1 << 20))
         ->capture_default_str();

@@ -14,6 +14,7 @@
 // 2 s of CPU per file); the components that use the bus include it through node_support.hpp.
 namespace pmlsm::dds {
 class LocalBus;
+class SharedParticipant;
 }  // namespace pmlsm::dds
 
 namespace pmlsm::node {
@@ -22,6 +23,8 @@ namespace pmlsm::node {
 struct ComponentContext {
   /// The container's in-process path (and through it the chain thread's scheduler).
   dds::LocalBus* local_bus = nullptr;
+  /// The container's one DDS participant, which its components share.
+  dds::SharedParticipant* participant = nullptr;
 };
 
 class Component {

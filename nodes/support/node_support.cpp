@@ -190,6 +190,7 @@ dds::ParticipantOptions runtime_participant(dds::ParticipantOptions options, con
                                             const ComponentContext& context, Clock clock) {
   options = named(std::move(options), node_name);
   options.local_bus = context.local_bus;
+  options.shared = context.participant;
   options.pace_remote_readers = context.local_bus != nullptr && clock == Clock::kLockstep;
   return options;
 }

@@ -24,9 +24,10 @@ inline std::string source(const std::string& rel) { return std::string(PMLSM_SOU
 /// ports 62xx), the python CANopen tests 47, 72 and 73, tests/security 50..59, hardening_test.cpp
 /// 60..69, external_reference_test.cpp 74..77, agents_test.cpp 80..85, tests/tools' identify 88, 89,
 /// drive_safety_test.cpp 90, 91, tests/tools 92..103 and 106, shutdown_test.cpp 104, 105, churn_test.cpp 107,
-/// container_test.cpp 120..124, 127..130, secure_nodes_test.cpp's containers 125, 126, virtual_rig_test.cpp's container
-/// 131. PMLSM_TEST_DOMAIN_BASE moves the whole set (default 100), for two test runs on one machine: 0..101 (the largest
-/// offset is 131, and a domain id above 232 is refused by every node, so a test there fails).
+/// tests/tools 108, container_test.cpp 120..124, 127..130, secure_nodes_test.cpp's containers 125, 126,
+/// virtual_rig_test.cpp's container 131. PMLSM_TEST_DOMAIN_BASE moves the whole set (default 100), for two test runs on
+/// one machine: 0..101 (the largest offset is 131, and a domain id above 232 is refused by every node, so a test there
+/// fails).
 inline std::string test_domain(int offset) {
   const char* base = std::getenv("PMLSM_TEST_DOMAIN_BASE");
   return std::to_string((base != nullptr ? std::atoi(base) : 100) + offset);

@@ -18,7 +18,7 @@ PolicyVocabulary vocabulary() {
                           {"plant_sim", "controller", "kalman_estimator", "pmlsm_topic"}};
 }
 
-const char* kPolicy = R"(governance:
+constexpr char kPolicy[] = R"(governance:
   discovery_protection: sign
   metadata_protection: encrypt
   domains: {min: 3, max: 9}
@@ -57,6 +57,32 @@ TEST(SecurityPolicy, ParsesGrantsProtectionAndDomains) {
   EXPECT_EQ(c->subscribe, std::vector<std::string>{"rt/pmlsm/motor_feedback"});
   EXPECT_EQ(p.find("pmlsm_topic")->subscribe, vocabulary().topics);
   EXPECT_EQ(p.find("evaluator"), nullptr);
+}
+
+// A container's identity (its components share one participant) holds the union of its members'
+// grants, each topic once; a container names identities only, once each, under a name of its own.
+TEST(SecurityPolicy, AContainerIdentityHoldsTheUnionOfItsMembers) {
+  const auto p =
+      parse_policy(std::string("containers:\n  chain: [plant_sim, controller, kalman_estimator]\n") + kPolicy, "p.yaml",
+                   vocabulary());
+  const Grant* chain = p.find("chain");
+  ASSERT_NE(chain, nullptr);
+  EXPECT_EQ(chain->members, (std::vector<std::string>{"plant_sim", "controller", "kalman_estimator"}));
+  EXPECT_EQ(chain->publish, (std::vector<std::string>{"rt/pmlsm/motor_feedback", "rt/pmlsm/force_command"}));
+  EXPECT_EQ(chain->subscribe, (std::vector<std::string>{"rt/pmlsm/force_command", "rt/pmlsm/motor_feedback"}));
+  EXPECT_TRUE(p.find("controller")->members.empty());
+
+  EXPECT_NE(refusal(std::string(kPolicy) + "containers:\n  chain: [plant_sim, intruder]\n")
+                .find("containers.chain[1]: 'intruder' is not an identity of identities:"),
+            std::string::npos);
+  EXPECT_NE(refusal(std::string(kPolicy) + "containers:\n  controller: [plant_sim]\n")
+                .find("containers.controller: 'controller' is already an identity"),
+            std::string::npos);
+  EXPECT_NE(refusal(std::string(kPolicy) + "containers:\n  chain: [plant_sim, plant_sim]\n")
+                .find("containers.chain[1]: 'plant_sim' listed twice"),
+            std::string::npos);
+  EXPECT_NE(refusal(std::string(kPolicy) + "containers:\n  chain: []\n").find("containers.chain: expected a list"),
+            std::string::npos);
 }
 
 TEST(SecurityPolicy, RefusesUnknownOrDuplicatedItemsNamingThem) {
@@ -120,9 +146,18 @@ TEST(SecurityPolicy, DocumentsCarryTheGrantAndDenyTheRest) {
             std::string::npos);
   EXPECT_EQ(perm.find("motor_feedback</topic>\n          </topics>\n        </publish>"), std::string::npos);
   EXPECT_NE(perm.find("<default>DENY</default>"), std::string::npos);
-  // Nothing granted: no allow rule at all, only the default.
-  const Grant none{"kalman_estimator", {}, {}};
-  EXPECT_EQ(permissions_xml(p, none, "CN=kalman_estimator", {"a", "b"}).find("<allow_rule>"), std::string::npos);
+  // Nothing granted: ROS 2's graph topic alone (implicit_topics.hpp), published and read.
+  const Grant none{"kalman_estimator", {}, {}, {}};
+  const std::string only_graph = permissions_xml(p, none, "CN=kalman_estimator", {"a", "b"});
+  EXPECT_NE(only_graph.find("<publish>\n          <topics>\n            <topic>ros_discovery_info</topic>\n"
+                            "          </topics>\n        </publish>"),
+            std::string::npos)
+      << only_graph;
+  EXPECT_NE(only_graph.find("<subscribe>\n          <topics>\n            <topic>ros_discovery_info</topic>\n"
+                            "          </topics>\n        </subscribe>"),
+            std::string::npos)
+      << only_graph;
+  EXPECT_EQ(only_graph.find("rt/pmlsm/"), std::string::npos) << only_graph;
 }
 
 TEST(SecurityPki, SignaturesVerifyOnlyAgainstTheSigner) {

@@ -9,6 +9,8 @@
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <sstream>
 #include <thread>
 
 #include "pmlsm/security/keystore_layout.hpp"
@@ -146,19 +148,46 @@ class Participant::NotifyingListener : public eprosima::fastdds::dds::DataReader
   Wakeup& wakeup_;
 };
 
-Participant::Participant(const ParticipantOptions& options)
-    : node_name_(options.node_name),
-      keystore_(options.keystore),
-      data_sharing_(options.data_sharing),
-      local_bus_(options.local_bus),
-      pace_remote_readers_(options.pace_remote_readers) {
-  if (!keystore_.empty()) {
-    identity_ = options.identity.empty() ? options.node_name : options.identity;
+namespace {
+
+/// What a permissions document (the keystore's permissions.xml of an identity) grants, per
+/// role: the topics under <publish> and under <subscribe> of its allow rules. The document is the
+/// one `pmlsm security` generated (policy.cpp's permissions_xml), so a plain scan suffices.
+std::vector<std::string> granted_topics(const std::string& xml, const std::string& role) {
+  std::vector<std::string> topics;
+  const std::string open = "<" + role + ">";
+  const std::string close = "</" + role + ">";
+  for (auto at = xml.find(open); at != std::string::npos; at = xml.find(open, at)) {
+    const auto end = xml.find(close, at);
+    if (end == std::string::npos) break;
+    for (auto t = xml.find("<topic>", at); t != std::string::npos && t < end; t = xml.find("<topic>", t)) {
+      t += 7;
+      topics.push_back(xml.substr(t, xml.find("</topic>", t) - t));
+    }
+    at = end;
+  }
+  return topics;
+}
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw SecurityConfigError("cannot read '" + path + "': " + std::strerror(errno));
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+}  // namespace
+
+ProcessParticipant::ProcessParticipant(const ParticipantOptions& options, const std::string& identity)
+    : identity_(identity) {
+  const std::string& keystore = options.keystore;
+  if (!keystore.empty()) {
     if (identity_.empty()) throw SecurityConfigError("a secure participant needs an identity (--identity)");
     // Data-sharing hands samples over through shared memory, past the crypto plugin: no payload
     // protection, no access control on the reading side. Fast DDS 2.9 does not refuse it itself.
-    if (data_sharing_) {
-      throw SecurityConfigError("--data-sharing cannot be combined with security (--keystore " + keystore_ +
+    if (options.data_sharing) {
+      throw SecurityConfigError("--data-sharing cannot be combined with security (--keystore " + keystore +
                                 "): data-sharing hands samples over unencrypted and unchecked");
     }
   }
@@ -173,29 +202,126 @@ Participant::Participant(const ParticipantOptions& options)
                              options.profiles_file + "'");
   }
   if (!options.node_name.empty()) qos.name(options.node_name);
-  if (!keystore_.empty()) make_secure(qos, keystore_, identity_);
+  if (!keystore.empty()) make_secure(qos, keystore, identity_);
   participant_ = factory->create_participant(static_cast<eprosima::fastdds::dds::DomainId_t>(options.domain_id), qos,
                                              options.listener);
-  if (participant_ == nullptr && !keystore_.empty()) {
-    throw SecurityConfigError("identity '" + identity_ + "' of keystore '" + keystore_ +
+  if (participant_ == nullptr && !keystore.empty()) {
+    throw SecurityConfigError("identity '" + identity_ + "' of keystore '" + keystore +
                               "' was refused: its certificate, key, governance or permissions did not verify "
                               "(`pmlsm security check " +
-                              keystore_ + " " + identity_ + "` says which)");
+                              keystore + " " + identity_ + "` says which)");
   }
   if (participant_ == nullptr) {
     throw std::runtime_error("cannot create participant with profile '" + options.participant_profile + "' on domain " +
                              std::to_string(options.domain_id));
   }
-  publisher_ = participant_->create_publisher(eprosima::fastdds::dds::PUBLISHER_QOS_DEFAULT);
-  subscriber_ = participant_->create_subscriber(eprosima::fastdds::dds::SUBSCRIBER_QOS_DEFAULT);
-  if (publisher_ == nullptr || subscriber_ == nullptr) {
+  graph_publisher_ = participant_->create_publisher(eprosima::fastdds::dds::PUBLISHER_QOS_DEFAULT);
+  try {
+    if (graph_publisher_ == nullptr) throw std::runtime_error("cannot create a publisher");
+    graph_ = std::make_unique<GraphAnnouncer>(*participant_, *graph_publisher_, !keystore.empty());
+  } catch (...) {
+    participant_->delete_contained_entities();
     factory->delete_participant(participant_);
-    throw std::runtime_error("cannot create publisher/subscriber");
+    throw;
   }
 }
 
+ProcessParticipant::~ProcessParticipant() {
+  // The nodes' publishers and subscribers are gone (each Participant deletes its own); what is
+  // left is the graph's writer and the topics.
+  graph_.reset();
+  participant_->delete_contained_entities();
+  DomainParticipantFactory::get_instance()->delete_participant(participant_);
+}
+
+eprosima::fastdds::dds::Topic* ProcessParticipant::topic(
+    const std::string& name, const std::function<eprosima::fastdds::dds::TypeSupport()>& make_type, bool ros2_name) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto found = topics_.find(name);
+  if (found != topics_.end()) return found->second;
+  eprosima::fastdds::dds::TypeSupport type = make_type();
+  if (ros2_name) type->setName(ros2_type_name(type->getName()).c_str());
+  if (type.register_type(participant_) != ReturnCode::RETCODE_OK) {
+    throw std::runtime_error("cannot register type '" + type.get_type_name() + "'");
+  }
+  auto* topic = participant_->create_topic(name, type.get_type_name(), eprosima::fastdds::dds::TOPIC_QOS_DEFAULT);
+  if (topic == nullptr) throw std::runtime_error("cannot create topic '" + name + "'");
+  topics_[name] = topic;
+  return topic;
+}
+
+std::shared_ptr<ProcessParticipant> SharedParticipant::get(const ParticipantOptions& options) {
+  if (participant_ == nullptr) {
+    first_ = options;
+    first_.node_name = name_;
+    first_.shared = nullptr;
+    first_.local_bus = nullptr;
+    if (options.listener != nullptr) {
+      throw std::invalid_argument("a component in a container cannot take the participant's discovery listener");
+    }
+    participant_ = std::make_shared<ProcessParticipant>(first_, identity_);
+    return participant_;
+  }
+  // A container is one participant: one domain, one profile, one keystore.
+  const auto differs = [&](const char* option, const std::string& mine, const std::string& first) {
+    if (mine != first) {
+      throw std::invalid_argument(std::string("component ") + options.node_name + ": " + option + " '" + mine +
+                                  "' differs from the container's participant's '" + first +
+                                  "' (a container's components share one participant)");
+    }
+  };
+  differs("--domain", std::to_string(options.domain_id), std::to_string(first_.domain_id));
+  differs("--profiles", options.profiles_file, first_.profiles_file);
+  differs("--participant-profile", options.participant_profile, first_.participant_profile);
+  differs("--keystore", options.keystore, first_.keystore);
+  differs("--data-sharing", options.data_sharing ? "on" : "off", first_.data_sharing ? "on" : "off");
+  if (options.listener != nullptr) {
+    throw std::invalid_argument("a component in a container cannot take the participant's discovery listener");
+  }
+  return participant_;
+}
+
+Participant::Participant(const ParticipantOptions& options)
+    : node_name_(options.node_name),
+      keystore_(options.keystore),
+      data_sharing_(options.data_sharing),
+      local_bus_(options.local_bus),
+      pace_remote_readers_(options.pace_remote_readers) {
+  if (!keystore_.empty()) {
+    identity_ = options.identity.empty() ? options.node_name : options.identity;
+    if (identity_.empty()) throw SecurityConfigError("a secure participant needs an identity (--identity)");
+  }
+  if (options.shared == nullptr) {
+    process_ = std::make_shared<ProcessParticipant>(options, identity_);
+  } else {
+    process_ = options.shared->get(options);
+    if (!keystore_.empty()) {
+      // The container authenticated as its own identity; this node is held to its own grant here.
+      const security::KeystoreLayout layout(keystore_);
+      if (::access(layout.identity_dir(identity_).c_str(), F_OK) != 0) {
+        throw SecurityConfigError("keystore '" + keystore_ + "' has no identity '" + identity_ + "' (" +
+                                  layout.identity_dir(identity_) + " is missing): create it with `pmlsm security " +
+                                  "create-identity --keystore " + keystore_ + " " + identity_ + "`");
+      }
+      const std::string permissions = read_text(layout.permissions_xml(identity_));
+      granted_publish_ = granted_topics(permissions, "publish");
+      granted_subscribe_ = granted_topics(permissions, "subscribe");
+      held_to_grant_ = true;
+    }
+  }
+  auto* domain = process_->entity();
+  publisher_ = domain->create_publisher(eprosima::fastdds::dds::PUBLISHER_QOS_DEFAULT);
+  subscriber_ = domain->create_subscriber(eprosima::fastdds::dds::SUBSCRIBER_QOS_DEFAULT);
+  if (publisher_ == nullptr || subscriber_ == nullptr) {
+    if (publisher_ != nullptr) domain->delete_publisher(publisher_);
+    if (subscriber_ != nullptr) domain->delete_subscriber(subscriber_);
+    throw std::runtime_error("cannot create publisher/subscriber");
+  }
+  graph_node_ = process_->graph().add_node(node_name_);
+}
+
 Participant::~Participant() {
-  if (participant_ == nullptr) return;
+  if (process_ == nullptr) return;
   // The publisher thread lets go of this participant's writers first (what it still holds goes
   // out within its close deadline, the rest is counted).
   if (local_bus_ != nullptr) local_bus_->outbox().remove_owner(this, &local_bus_->scheduler());
@@ -213,8 +339,14 @@ Participant::~Participant() {
     std::size_t removed = 0;
     writer->clear_history(&removed);  // RETCODE_ERROR when already empty: nothing to do
   }
-  participant_->delete_contained_entities();
-  DomainParticipantFactory::get_instance()->delete_participant(participant_);
+  process_->graph().remove_node(graph_node_);
+  auto* domain = process_->entity();
+  publisher_->delete_contained_entities();
+  domain->delete_publisher(publisher_);
+  subscriber_->delete_contained_entities();
+  domain->delete_subscriber(subscriber_);
+  // The last node of the process takes the participant along.
+  process_.reset();
   // After the entities: the bus owns the writers' listeners.
   if (local_bus_ != nullptr) local_bus_->remove_owner(this);
 }
@@ -237,34 +369,24 @@ Participant::QueueShape Participant::queue_shape(eprosima::fastdds::dds::DataRea
   return {static_cast<std::size_t>(std::max<std::int32_t>(1, qos.history().depth)), false};
 }
 
-eprosima::fastdds::dds::Topic* Participant::create_topic(const std::string& name,
-                                                         eprosima::fastdds::dds::TypeSupport type, bool ros2_name) {
-  if (ros2_name) type->setName(ros2_type_name(type->getName()).c_str());
-  if (type.register_type(participant_) != ReturnCode::RETCODE_OK) {
-    throw std::runtime_error("cannot register type '" + type.get_type_name() + "'");
-  }
-  auto* topic = participant_->create_topic(name, type.get_type_name(), eprosima::fastdds::dds::TOPIC_QOS_DEFAULT);
-  if (topic == nullptr) throw std::runtime_error("cannot create topic '" + name + "'");
-  topics_[name] = topic;
-  return topic;
-}
-
 Reader<RawPubSubType> Participant::make_raw_reader(const CatalogEntry& entry, Wakeup& wakeup, const char* qos_profile) {
-  auto found = topics_.find(entry.spec.name);
-  auto* topic = found != topics_.end()
-                    ? found->second
-                    : create_topic(entry.spec.name, eprosima::fastdds::dds::TypeSupport(new RawPubSubType(
-                                                        entry.wire_type_name, entry.max_serialized_size)));
+  auto* topic = process_->topic(
+      entry.spec.name,
+      [&] {
+        return eprosima::fastdds::dds::TypeSupport(new RawPubSubType(entry.wire_type_name, entry.max_serialized_size));
+      },
+      /*ros2_name=*/false);
   return Reader<RawPubSubType>(
       create_reader(topic, qos_profile != nullptr ? qos_profile : entry.spec.qos_profile, wakeup));
 }
 
 Writer<RawPubSubType> Participant::make_raw_writer(const CatalogEntry& entry, const char* qos_profile) {
-  auto found = topics_.find(entry.spec.name);
-  auto* topic = found != topics_.end()
-                    ? found->second
-                    : create_topic(entry.spec.name, eprosima::fastdds::dds::TypeSupport(new RawPubSubType(
-                                                        entry.wire_type_name, entry.max_serialized_size)));
+  auto* topic = process_->topic(
+      entry.spec.name,
+      [&] {
+        return eprosima::fastdds::dds::TypeSupport(new RawPubSubType(entry.wire_type_name, entry.max_serialized_size));
+      },
+      /*ros2_name=*/false);
   return Writer<RawPubSubType>(create_writer(topic, qos_profile != nullptr ? qos_profile : entry.spec.qos_profile));
 }
 
@@ -276,11 +398,13 @@ eprosima::fastdds::dds::DataWriter* Participant::create_writer(eprosima::fastdds
     throw std::runtime_error("no data_writer profile '" + profile + "' in the DDS profiles");
   }
   if (!data_sharing_) qos.data_sharing().off();
+  check_grant("publish", topic->get_name());
   auto* writer = publisher_->create_datawriter(topic, qos, listener);
   if (writer == nullptr && !keystore_.empty()) throw SecurityConfigError(refusal_hint("publish", topic->get_name()));
   if (writer == nullptr) {
     throw std::runtime_error("cannot create writer on '" + topic->get_name() + "' with profile '" + profile + "'");
   }
+  process_->graph().add_endpoint(graph_node_, writer->guid(), /*writer=*/true);
   return writer;
 }
 
@@ -292,17 +416,33 @@ eprosima::fastdds::dds::DataReader* Participant::create_reader(eprosima::fastdds
     throw std::runtime_error("no data_reader profile '" + profile + "' in the DDS profiles");
   }
   if (!data_sharing_) qos.data_sharing().off();
+  check_grant("subscribe", topic->get_name());
   auto* reader = subscriber_->create_datareader(topic, qos, listeners_.back().get());
   if (reader == nullptr && !keystore_.empty()) throw SecurityConfigError(refusal_hint("subscribe", topic->get_name()));
   if (reader == nullptr) {
     throw std::runtime_error("cannot create reader on '" + topic->get_name() + "' with profile '" + profile + "'");
   }
+  process_->graph().add_endpoint(graph_node_, reader->guid(), /*writer=*/false);
   return reader;
 }
 
+bool Participant::grants(const char* role, const std::string& topic) const {
+  const auto& granted = std::string(role) == "publish" ? granted_publish_ : granted_subscribe_;
+  return std::find(granted.begin(), granted.end(), topic) != granted.end();
+}
+
+void Participant::check_grant(const char* role, const std::string& topic) const {
+  if (held_to_grant_ && !grants(role, topic)) throw SecurityConfigError(refusal_hint(role, topic));
+}
+
 std::string Participant::refusal_hint(const char* what, const std::string& topic) const {
-  return "identity '" + identity_ + "' may not " + what + " '" + topic + "': its permissions (" +
-         security::KeystoreLayout(keystore_).permissions_xml(identity_) + ") do not grant it";
+  // In a container DDS checks the container's identity: a topic the node's own grant allows was
+  // refused by the container's.
+  const bool container_refused = held_to_grant_ && grants(what, topic);
+  const std::string& identity = container_refused ? process_->identity() : identity_;
+  return "identity '" + identity + "' may not " + what + " '" + topic + "': its permissions (" +
+         security::KeystoreLayout(keystore_).permissions_xml(identity) + ") do not grant it" +
+         (container_refused ? " (the container's identity: configs/security/policy.yaml, containers:)" : "");
 }
 
 void Participant::delete_reader_entity(eprosima::fastdds::dds::DataReader* reader) {
@@ -311,6 +451,7 @@ void Participant::delete_reader_entity(eprosima::fastdds::dds::DataReader* reade
   }
   const auto* listener = reader->get_listener();
   const std::string topic = reader->get_topicdescription()->get_name();
+  process_->graph().remove_endpoint(reader->guid());
   if (subscriber_->delete_datareader(reader) != ReturnCode::RETCODE_OK) {
     throw std::runtime_error("cannot delete the reader of '" + topic + "'");
   }

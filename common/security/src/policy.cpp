@@ -1,5 +1,7 @@
 #include "pmlsm/security/policy.hpp"
 
+#include "pmlsm/security/implicit_topics.hpp"
+
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -134,7 +136,14 @@ Policy parse_policy(const std::string& yaml_text, const std::string& origin, con
   Policy policy;
   bool have_identities = false;
   YAML::Node data_protection_node;
-  for (const auto& [key, node] : at.keys(root, "", {"governance", "identities"})) {
+  YAML::Node containers;
+  bool have_containers = false;
+  for (const auto& [key, node] : at.keys(root, "", {"governance", "identities", "containers"})) {
+    if (key == "containers") {
+      containers = node;
+      have_containers = true;
+      continue;
+    }
     if (key == "governance") {
       for (const auto& [gkey, g] : at.keys(node, "governance",
                                            {"data_protection", "metadata_protection", "discovery_protection",
@@ -180,7 +189,7 @@ Policy parse_policy(const std::string& yaml_text, const std::string& origin, con
           for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
           at.fail(node, path, "unknown node identity (the known ones: " + list + ")");
         }
-        Grant grant{identity, {}, {}};
+        Grant grant{identity, {}, {}, {}};
         for (const auto& [role, topics] : at.keys(spec, path, {"publish", "subscribe"})) {
           const std::string role_path = path + "." + role;
           if (!topics.IsSequence()) at.fail(topics, role_path, "expected a list of topics");
@@ -213,6 +222,38 @@ Policy parse_policy(const std::string& yaml_text, const std::string& origin, con
             "'none' leaves every payload in clear on the wire; it is allowed only with rtps_protection: encrypt");
   }
   if (!have_identities || policy.grants.empty()) at.fail(root, "identities", "the policy grants nothing to anyone");
+  // A container's components share one participant (one a process): it authenticates as the
+  // container's identity, which holds the union of its members' grants.
+  if (have_containers) {
+    for (const auto& [name, members] : at.keys(containers, "containers", {})) {
+      const std::string path = "containers." + name;
+      if (policy.find(name) != nullptr) at.fail(members, path, "'" + name + "' is already an identity");
+      if (!members.IsSequence() || members.size() == 0) at.fail(members, path, "expected a list of identities");
+      Grant grant{name, {}, {}, {}};
+      for (std::size_t i = 0; i < members.size(); ++i) {
+        const std::string item_path = path + "[" + std::to_string(i) + "]";
+        const std::string member = at.scalar(members[i], item_path);
+        const Grant* g = policy.find(member);
+        if (g == nullptr || !g->members.empty()) {
+          at.fail(members[i], item_path, "'" + member + "' is not an identity of identities:");
+        }
+        if (std::find(grant.members.begin(), grant.members.end(), member) != grant.members.end()) {
+          at.fail(members[i], item_path, "'" + member + "' listed twice");
+        }
+        grant.members.push_back(member);
+        for (const auto& t : g->publish) {
+          if (std::find(grant.publish.begin(), grant.publish.end(), t) == grant.publish.end())
+            grant.publish.push_back(t);
+        }
+        for (const auto& t : g->subscribe) {
+          if (std::find(grant.subscribe.begin(), grant.subscribe.end(), t) == grant.subscribe.end()) {
+            grant.subscribe.push_back(t);
+          }
+        }
+      }
+      policy.grants.push_back(std::move(grant));
+    }
+  }
   return policy;
 }
 
@@ -276,13 +317,17 @@ std::string permissions_xml(const Policy& p, const Grant& g, const std::string& 
       << "        <not_before>" << validity.not_before << "</not_before>\n"
       << "        <not_after>" << validity.not_after << "</not_after>\n"
       << "      </validity>\n";
-  if (!g.publish.empty() || !g.subscribe.empty()) {
-    out << "      <allow_rule>\n";
-    domains_xml(out, p, "        ");
-    topics_xml(out, "publish", g.publish);
-    topics_xml(out, "subscribe", g.subscribe);
-    out << "      </allow_rule>\n";
-  }
+  // Every identity may announce its process's nodes to ROS 2 tools and read the others'
+  // (implicit_topics.hpp).
+  std::vector<std::string> publish = g.publish;
+  std::vector<std::string> subscribe = g.subscribe;
+  publish.emplace_back(kRos2GraphTopic);
+  subscribe.emplace_back(kRos2GraphTopic);
+  out << "      <allow_rule>\n";
+  domains_xml(out, p, "        ");
+  topics_xml(out, "publish", publish);
+  topics_xml(out, "subscribe", subscribe);
+  out << "      </allow_rule>\n";
   out << "      <default>DENY</default>\n"
       << "    </grant>\n"
       << "  </permissions>\n"

@@ -23,6 +23,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -36,6 +37,7 @@
 #include "pmlsm/dds/local_bus.hpp"
 #include "pmlsm/dds/outbox.hpp"
 #include "pmlsm/dds/raw_type.hpp"
+#include "pmlsm/dds/ros2_graph.hpp"
 #include "pmlsm/dds/shutdown.hpp"
 #include "pmlsm/dds/topics.hpp"
 
@@ -83,6 +85,8 @@ class Wakeup {
   std::atomic<std::uint64_t> generation_{0};
 };
 
+class SharedParticipant;
+
 struct ParticipantOptions {
   std::string profiles_file = "configs/dds/profiles.xml";
   std::string participant_profile = "pmlsm_default";
@@ -107,6 +111,9 @@ struct ParticipantOptions {
   /// The container's in-process path (local_bus.hpp); nullptr for a node alone in its process.
   /// Must outlive the participant.
   LocalBus* local_bus = nullptr;
+  /// A container's participant, shared by its components (one DDS participant a process, as
+  /// rclcpp has it); nullptr: the participant makes its own. Must outlive the participant.
+  SharedParticipant* shared = nullptr;
   /// In a container running lockstep: a writer with readers outside the process lets them keep
   /// up (see Writer::write). A lockstep chain in one process runs far faster than a reader
   /// behind a socket takes samples, and a reliable writer's KEEP_LAST history would drop what
@@ -131,6 +138,58 @@ inline constexpr const char* kNoKeystore = "none";
 std::string resolve_keystore(const std::string& option_value);
 
 class Participant;
+
+/// A process's one DDS participant: the Fast DDS DomainParticipant made from an XML profile (secure
+/// when a keystore is given), its topics, and its ROS 2 graph announcement. A node alone in its
+/// process has its own (made by its Participant); a container's components share the container's
+/// (SharedParticipant), each with its own publisher, subscriber, writers and readers.
+class ProcessParticipant {
+ public:
+  /// Authenticates as `identity` when options.keystore is set.
+  /// @throws std::runtime_error naming the file or profile that failed; SecurityConfigError.
+  ProcessParticipant(const ParticipantOptions& options, const std::string& identity);
+  ~ProcessParticipant();
+  ProcessParticipant(const ProcessParticipant&) = delete;
+  ProcessParticipant& operator=(const ProcessParticipant&) = delete;
+
+  eprosima::fastdds::dds::DomainParticipant* entity() { return participant_; }
+  GraphAnnouncer& graph() { return *graph_; }
+  /// The topic `name`, made on first use with `type` (registered under ROS 2's name for it when
+  /// ros2_name). Thread-safe: components are made one after the other, tools may read meanwhile.
+  eprosima::fastdds::dds::Topic* topic(const std::string& name,
+                                       const std::function<eprosima::fastdds::dds::TypeSupport()>& type,
+                                       bool ros2_name);
+  const std::string& identity() const { return identity_; }
+
+ private:
+  eprosima::fastdds::dds::DomainParticipant* participant_ = nullptr;
+  eprosima::fastdds::dds::Publisher* graph_publisher_ = nullptr;
+  std::unique_ptr<GraphAnnouncer> graph_;
+  std::string identity_;
+  std::mutex mutex_;
+  std::map<std::string, eprosima::fastdds::dds::Topic*> topics_;
+};
+
+/// A container's participant, made by the first component that asks for one, with its options;
+/// every later component must ask for the same domain, profiles, keystore and data-sharing (a
+/// container is one process on one domain). Secure, it authenticates as the container's identity,
+/// whose permissions are the union of its components' (configs/security/policy.yaml, containers:);
+/// each component is still held to its own identity's grant when it makes an endpoint.
+class SharedParticipant {
+ public:
+  /// `name`: the participant's name on the domain (the container's); `identity`: the keystore
+  /// identity it authenticates as when secure.
+  SharedParticipant(std::string name, std::string identity) : name_(std::move(name)), identity_(std::move(identity)) {}
+  /// The participant for a component with `options`. @throws std::invalid_argument naming the
+  /// option that differs from the first component's; as ProcessParticipant's constructor.
+  std::shared_ptr<ProcessParticipant> get(const ParticipantOptions& options);
+
+ private:
+  std::string name_;
+  std::string identity_;
+  ParticipantOptions first_;
+  std::shared_ptr<ProcessParticipant> participant_;
+};
 
 /// CLOCK_MONOTONIC in ns (pmlsm/util/clock.hpp's, without pulling it into every node).
 std::int64_t monotonic_ns_now();
@@ -318,9 +377,11 @@ class Participant {
     delete_reader_entity(reader.entity());
   }
 
-  eprosima::fastdds::dds::DomainParticipant* entity() { return participant_; }
+  /// The process's DDS participant (shared with the other components in a container).
+  eprosima::fastdds::dds::DomainParticipant* entity() { return process_->entity(); }
   const std::string& node_name() const { return node_name_; }
-  /// The identity it authenticated as; empty for an open participant.
+  /// The node's identity (alone: the one its participant authenticated as; in a container, the
+  /// one whose grant its endpoints are held to); empty for an open participant.
   const std::string& identity() const { return identity_; }
 
  private:
@@ -328,15 +389,14 @@ class Participant {
 
   template <typename PubSubType>
   eprosima::fastdds::dds::Topic* topic_for(const TopicSpec& spec) {
-    auto found = topics_.find(spec.name);
-    if (found != topics_.end()) return found->second;
-    eprosima::fastdds::dds::TypeSupport type(new PubSubType());  // TypeSupport owns it
-    return create_topic(spec.name, type, /*ros2_name=*/true);
+    // TypeSupport owns what it is given.
+    return process_->topic(
+        spec.name, [] { return eprosima::fastdds::dds::TypeSupport(new PubSubType()); }, /*ros2_name=*/true);
   }
-  /// Registers the type (under ROS 2's name for it when ros2_name: a generated type carries its
-  /// IDL name) and creates the topic.
-  eprosima::fastdds::dds::Topic* create_topic(const std::string& name, eprosima::fastdds::dds::TypeSupport type,
-                                              bool ros2_name = false);
+  /// In a secure container: whether the node's own identity grants `role` ("publish",
+  /// "subscribe") on `topic` (its permissions file, read once); alone, DDS itself checks.
+  void check_grant(const char* role, const std::string& topic) const;
+  bool grants(const char* role, const std::string& topic) const;
   eprosima::fastdds::dds::DataWriter* create_writer(eprosima::fastdds::dds::Topic* topic, const std::string& profile,
                                                     eprosima::fastdds::dds::DataWriterListener* listener = nullptr);
   /// TRANSIENT_LOCAL with a history of one: the newest sample is state a late joiner must get.
@@ -360,11 +420,16 @@ class Participant {
   std::string identity_;
   std::string keystore_;
   bool data_sharing_ = false;
-  eprosima::fastdds::dds::DomainParticipant* participant_ = nullptr;
+  std::shared_ptr<ProcessParticipant> process_;
+  /// In a secure container, what the node's own identity grants (DDS topic names).
+  std::vector<std::string> granted_publish_;
+  std::vector<std::string> granted_subscribe_;
+  bool held_to_grant_ = false;
   eprosima::fastdds::dds::Publisher* publisher_ = nullptr;
   eprosima::fastdds::dds::Subscriber* subscriber_ = nullptr;
-  std::map<std::string, eprosima::fastdds::dds::Topic*> topics_;
   std::vector<std::unique_ptr<NotifyingListener>> listeners_;
+  /// This node on the process's ros_discovery_info.
+  int graph_node_ = -1;
   /// The container's in-process path; it owns this participant's local endpoints until the
   /// participant is destroyed.
   LocalBus* local_bus_ = nullptr;

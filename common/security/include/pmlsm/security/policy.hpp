@@ -27,6 +27,9 @@ struct Grant {
   std::string identity;
   std::vector<std::string> publish;
   std::vector<std::string> subscribe;
+  /// A container's identity (policy `containers:`): the identities whose union it holds; empty
+  /// for a node's.
+  std::vector<std::string> members;
 };
 
 struct Policy {
