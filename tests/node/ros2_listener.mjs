@@ -97,8 +97,9 @@ async function main() {
   // its first announcement and the start of its reception (RTPSParticipantImpl::enable), a window
   // of milliseconds that a loaded host widens: a participant whose one reply fell in it never
   // learned of this listener and never sent it its endpoints. RTPS has SPDP announce periodically;
-  // this does, every second.
-  const announcer = setInterval(() => void ros._participant.broadcastParticipant(ros._participant.attributes), 1000);
+  // this does, every 0.2 s: a lockstep run's nodes may leave 2 s after they start, so the node that
+  // missed the reply must find this listener well within that.
+  const announcer = setInterval(() => void ros._participant.broadcastParticipant(ros._participant.attributes), 200);
 
   // ros_discovery_info has no "rt/" prefix, which RosNode.subscribe() would add: its reader is
   // made on the participant underneath, as rclcpp makes its own (reliable, transient local).
