@@ -48,7 +48,7 @@ class CompensatorInputs {
           // The input still missing its tick had its writers leave: the run may be over.
           const std::size_t writers =
               have_estimate_ ? reference_reader_.matched_writers() : estimate_reader_.matched_writers();
-          tail_lost_ = end_watch_.tail_lost(writers, next_tick_, monotonic_s());
+          tail_lost_ = end_watch_.tail_lost(writers, next_tick_, monotonic_ns());
           return false;
         }
         const std::uint64_t e = estimate_.feedback_tick();
@@ -70,7 +70,7 @@ class CompensatorInputs {
       view.a_ref_mps2 = reference_.a_ref_mps2();
       have_estimate_ = have_reference_ = false;
       next_tick_ = tick + 1;
-      end_watch_.taken(monotonic_s());
+      end_watch_.taken(monotonic_ns());
       return true;
     });
   }
@@ -106,7 +106,6 @@ class CompensatorInputs {
   }
   static std::uint64_t tick_of(const pmlsm_msgs::msg::EstimatedState& m) { return m.feedback_tick(); }
   static std::uint64_t tick_of(const pmlsm_msgs::msg::VelocityReference& m) { return m.stamp().tick(); }
-  static double monotonic_s() { return static_cast<double>(monotonic_ns()) * 1e-9; }
 
   dds::Wakeup& wakeup_;
   dds::Reader<pmlsm_msgs::msg::EstimatedStatePubSubType> estimate_reader_;

@@ -35,15 +35,15 @@ inline InputEnd input_end(std::uint64_t next_tick, std::uint64_t run_ticks, doub
 /// input_end() judges the ticks still missing, at the moment the leaving was first seen (later
 /// polls must not turn an early end into a lost tail just because time went by). A writer that
 /// matches again, or a sample taken, starts afresh: a restarted writer is followed as before.
-/// Times are seconds on one monotonic clock.
+/// Times are CLOCK_MONOTONIC nanoseconds (monotonic_ns()).
 class InputEndWatch {
  public:
   InputEndWatch(std::uint64_t run_ticks, double period_s, bool realtime)
       : run_ticks_(run_ticks), period_s_(period_s), realtime_(realtime) {}
 
-  /// A sample was taken at `now_s`.
-  void taken(double now_s) {
-    last_taken_s_ = now_s;
+  /// A sample was taken at `now_ns`.
+  void taken(std::int64_t now_ns) {
+    last_taken_ns_ = now_ns;
     any_taken_ = true;
     left_seen_ = false;
   }
@@ -51,14 +51,15 @@ class InputEndWatch {
   /// Polled while nothing is taken: true once the writers (`matched_writers` of them now) left
   /// after writing to the run's end and the link lost the last samples (end the wait, exit 0).
   /// Before the first sample a reader with no writer has simply not matched yet: false.
-  bool tail_lost(std::size_t matched_writers, std::uint64_t next_tick, double now_s) {
+  bool tail_lost(std::size_t matched_writers, std::uint64_t next_tick, std::int64_t now_ns) {
     if (matched_writers > 0 || !any_taken_) {
       left_seen_ = false;
       return false;
     }
     if (!left_seen_) {
       left_seen_ = true;
-      judged_ = input_end(next_tick, run_ticks_, period_s_, now_s - last_taken_s_, realtime_);
+      judged_ =
+          input_end(next_tick, run_ticks_, period_s_, static_cast<double>(now_ns - last_taken_ns_) * 1e-9, realtime_);
     }
     return judged_ == InputEnd::kTailLost;
   }
@@ -70,7 +71,7 @@ class InputEndWatch {
   std::uint64_t run_ticks_;
   double period_s_;
   bool realtime_;
-  double last_taken_s_ = 0.0;
+  std::int64_t last_taken_ns_ = 0;
   bool any_taken_ = false;
   bool left_seen_ = false;
   InputEnd judged_ = InputEnd::kLeftEarly;

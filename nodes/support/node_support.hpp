@@ -250,7 +250,7 @@ class FeedbackFollower {
         }
         got = true;
       }
-      if (!got) tail_lost = end_watch_.tail_lost(reader.matched_writers(), next_tick, monotonic_s());
+      if (!got) tail_lost = end_watch_.tail_lost(reader.matched_writers(), next_tick, monotonic_ns());
       return got || tail_lost;
     });
     if (tail_lost) {
@@ -264,7 +264,7 @@ class FeedbackFollower {
       return Next::kEnded;
     }
     any_feedback_ = true;
-    end_watch_.taken(monotonic_s());
+    end_watch_.taken(monotonic_ns());
     if (!new_run) return Next::kTick;
     report_new_run(sample.stamp().tick(), control_period_s, status);
     return Next::kNewRun;
@@ -276,7 +276,6 @@ class FeedbackFollower {
  private:
   void report_new_run(std::uint64_t tick, double control_period_s, StatusPublisher& status);
   void report_tail_lost(std::uint64_t next_tick) const;
-  static double monotonic_s() { return static_cast<double>(monotonic_ns()) * 1e-9; }
 
   const char* node_name_;
   const CommonOptions& options_;

@@ -4,10 +4,15 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdint>
+
 namespace pmlsm::node {
 namespace {
 
 constexpr double kPeriodS = 1e-3;
+
+/// `s` seconds as the watch's monotonic nanoseconds.
+constexpr std::int64_t ns(double s) { return static_cast<std::int64_t>(s * 1e9); }
 
 TEST(InputEnd, TheLastTickLostJustBeforeTheWriterLeftIsATailLost) {
   // Tick 2998 taken; the writer ran to 2999 and left 4 ms later.
@@ -32,28 +37,28 @@ TEST(InputEnd, InLockstepAMissingTickIsAlwaysAnEarlyEnd) {
 
 TEST(InputEndWatch, NoWriterBeforeTheFirstSampleIsNotAnEnd) {
   InputEndWatch watch(3000, kPeriodS, true);
-  EXPECT_FALSE(watch.tail_lost(0, 0, 1.0));
-  EXPECT_FALSE(watch.tail_lost(0, 0, 100.0));
+  EXPECT_FALSE(watch.tail_lost(0, 0, ns(1.0)));
+  EXPECT_FALSE(watch.tail_lost(0, 0, ns(100.0)));
 }
 
 TEST(InputEndWatch, TheLeavingIsJudgedWhenFirstSeenNotWhenPolledLater) {
   InputEndWatch watch(3000, kPeriodS, true);
-  watch.taken(10.0);                               // tick 2899 taken at 10 s
-  EXPECT_FALSE(watch.tail_lost(1, 2900, 10.001));  // the writer still matched
+  watch.taken(ns(10.0));                               // tick 2899 taken at 10 s
+  EXPECT_FALSE(watch.tail_lost(1, 2900, ns(10.001)));  // the writer still matched
   // Gone 5 ms after the last sample with 100 ticks missing: an early end, however long the
   // node then waits (the plant-lost timeout decides).
-  EXPECT_FALSE(watch.tail_lost(0, 2900, 10.005));
-  EXPECT_FALSE(watch.tail_lost(0, 2900, 12.0));
+  EXPECT_FALSE(watch.tail_lost(0, 2900, ns(10.005)));
+  EXPECT_FALSE(watch.tail_lost(0, 2900, ns(12.0)));
   EXPECT_EQ(watch.missing(2900), 100u);
 }
 
 TEST(InputEndWatch, AWriterThatMatchesAgainOrASampleStartsAfresh) {
   InputEndWatch watch(3000, kPeriodS, true);
-  watch.taken(10.0);
-  EXPECT_FALSE(watch.tail_lost(0, 1000, 10.002));  // left early
-  EXPECT_FALSE(watch.tail_lost(1, 1000, 10.5));    // a restarted writer matched
-  watch.taken(11.0);                               // and its run goes on to tick 2998
-  EXPECT_TRUE(watch.tail_lost(0, 2999, 11.003));   // then it left at the run's end
+  watch.taken(ns(10.0));
+  EXPECT_FALSE(watch.tail_lost(0, 1000, ns(10.002)));  // left early
+  EXPECT_FALSE(watch.tail_lost(1, 1000, ns(10.5)));    // a restarted writer matched
+  watch.taken(ns(11.0));                               // and its run goes on to tick 2998
+  EXPECT_TRUE(watch.tail_lost(0, 2999, ns(11.003)));   // then it left at the run's end
   EXPECT_EQ(watch.missing(2999), 1u);
 }
 
