@@ -25,7 +25,7 @@ class AccelFeedbackComponent final : public node::Component {
 
   int run() override {
     const node::CompensatorLoopResult result = node::run_fixed_law(
-        "accel_feedback", rt_, common_, inputs_, writer_, params_.force_limit_n, parameters_, live_,
+        "accel_feedback", rt_, common_, inputs_, writer_, params_.force_limit_n, parameters_, live_, nullptr,
         [&](const CompensatorView& view) { return law_.step(accel_feedback_input(view)); },
         [&](const SystemParams& changed) { law_.set_params(changed.accel_feedback_params()); });
     const std::uint64_t answered = result.answered;

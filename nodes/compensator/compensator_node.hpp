@@ -8,6 +8,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <stdexcept>
 
 #include "CompensatorOutputPubSubTypes.h"
 #include "EstimatedStatePubSubTypes.h"
@@ -38,6 +40,8 @@ class CompensatorInputs {
   /// after running to the end and the run's last ticks were lost (end_of_wait says which).
   /// The drive run the last estimate followed (stamped on the output, so it follows the same run).
   std::uint64_t run_id() const { return estimate_.stamp().run_id(); }
+  /// The controller's live-parameter version the last paired tick was computed with.
+  std::uint64_t parameters_version() const { return parameters_version_; }
 
   bool next(std::chrono::duration<double> timeout, std::uint64_t& tick, CompensatorView& view) {
     return wait_until(wakeup_, timeout, [&] {
@@ -68,6 +72,7 @@ class CompensatorInputs {
       view.spring_force_n = estimate_.spring_force_n();
       view.command_mps = reference_.velocity_command_mps();
       view.a_ref_mps2 = reference_.a_ref_mps2();
+      parameters_version_ = reference_.parameters_version();
       have_estimate_ = have_reference_ = false;
       next_tick_ = tick + 1;
       end_watch_.taken(monotonic_ns());
@@ -115,6 +120,7 @@ class CompensatorInputs {
   bool have_estimate_ = false;
   bool have_reference_ = false;
   std::uint64_t next_tick_ = 0;
+  std::uint64_t parameters_version_ = 0;
   std::uint64_t rejected_ = 0;
   std::uint64_t skipped_ = 0;
   InputEndWatch end_watch_;
@@ -134,13 +140,16 @@ using CompensatorWriter = dds::Writer<pmlsm_msgs::msg::CompensatorOutputPubSubTy
 /// CompensatorOutput k (force_of(view), u = force / force_limit_n, the training error
 /// V_ref - v_L) until the scenario's ticks are answered, a stop is requested, or the inputs stop
 /// coming for the peer timeout (end_of_failed_wait's exit code). Before each tick it serves the
-/// parameter requests that arrived (`pmlsm param`); an accepted change reaches the law through
-/// retune(live.params()) before that tick's force. The writer is flushed before it returns.
+/// parameter requests that arrived (`pmlsm param`) and, with a `follower`, takes the controller's
+/// changes the controller computed this tick with; either reaches the law through
+/// retune(its own live parameters with the controller's over them) before that tick's force. A
+/// retune the law refuses keeps the old values and is said; the writer is flushed before it
+/// returns.
 template <typename ForceOf, typename Retune>
 CompensatorLoopResult run_fixed_law(const char* node_name, NodeRuntime& rt, const CommonOptions& common,
                                     CompensatorInputs& inputs, CompensatorWriter& writer, double force_limit_n,
-                                    ParameterService& parameters, const LiveParameters& live, ForceOf&& force_of,
-                                    Retune&& retune) {
+                                    ParameterService& parameters, const LiveParameters& live,
+                                    ParameterFollower* follower, ForceOf&& force_of, Retune&& retune) {
   const std::uint64_t ticks = scenario_ticks(rt.cfg.scenario, rt.period_s);
   rt.status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_RUNNING, 0, rt.period_s, "running");
   pmlsm_msgs::msg::CompensatorOutput out;
@@ -153,7 +162,26 @@ CompensatorLoopResult run_fixed_law(const char* node_name, NodeRuntime& rt, cons
       result.exit_code = inputs.end_of_wait(node_name, result.answered, common.peer_timeout_s);
       break;
     }
-    if (parameters.serve(tick)) retune(live.params());
+    bool changed = parameters.serve(tick);
+    if (follower != nullptr) {
+      const auto followed =
+          follower->at_tick(tick, inputs.parameters_version(), std::chrono::duration<double>(common.peer_timeout_s));
+      if (followed == ParameterFollower::Result::kMissing) {
+        result.exit_code = dds::stop_requested() ? kExitOk : kExitPeerLost;
+        break;
+      }
+      changed = changed || followed == ParameterFollower::Result::kChanged;
+    }
+    if (changed) {
+      SystemParams now = live.params();
+      if (follower != nullptr) follower->overlay(now);
+      try {
+        retune(now);
+      } catch (const std::invalid_argument& e) {
+        std::fprintf(stderr, "%s: tick %llu: parameters not taken, the old ones kept: %s\n", node_name,
+                     static_cast<unsigned long long>(tick), e.what());
+      }
+    }
     step.force_n = force_of(view);
     step.u_n = step.force_n / force_limit_n;
     step.training_error_mps = view.v_ref_mps - view.v_load_mps;

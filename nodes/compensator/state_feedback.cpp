@@ -21,11 +21,12 @@ class StateFeedbackComponent final : public node::Component {
         inputs_(rt_.participant, rt_.wakeup, rt_.cfg),
         writer_(rt_.participant.make_writer(pmlsm::dds::topics::kCompensatorOutput)),
         live_(rt_.cfg.params, state_feedback_live_keys()),
-        parameters_(rt_, "state_feedback", live_) {}
+        parameters_(rt_, "state_feedback", live_),
+        follower_(rt_, "state_feedback", "controller", rt_.cfg.params) {}
 
   int run() override {
     const node::CompensatorLoopResult result = node::run_fixed_law(
-        "state_feedback", rt_, common_, inputs_, writer_, params_.force_limit_n, parameters_, live_,
+        "state_feedback", rt_, common_, inputs_, writer_, params_.force_limit_n, parameters_, live_, &follower_,
         [&](const CompensatorView& view) { return law_.step(state_feedback_input(view)); },
         [&](const SystemParams& changed) { law_.set_params(changed.state_feedback_params()); });
     const std::uint64_t answered = result.answered;
@@ -51,6 +52,8 @@ class StateFeedbackComponent final : public node::Component {
   node::CompensatorWriter writer_;
   LiveParameters live_;
   node::ParameterService parameters_;
+  /// Its model's loop runs on the controller's Kp: a change there reaches it at the same tick.
+  node::ParameterFollower follower_;
 };
 
 }  // namespace

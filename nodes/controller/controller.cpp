@@ -246,7 +246,7 @@ void ControllerNode::publish(std::uint64_t k, const VelocityControllerOutput& ou
   command_writer_.write(command_);
   // After the command: the plant waits for it, the evaluator for this one.
   reference_.stamp(command_.stamp());
-  node::to_msg(out, reference_);
+  node::to_msg(out, live_.version(), reference_);
   reference_writer_.write(reference_);
 }
 

@@ -113,10 +113,11 @@ void from_msg(const msg::MotorFeedback& in, DriveTickStatus& out) {
 
 // ---- VelocityReference, ForceCommand ------------------------------------------------------
 
-void to_msg(const VelocityControllerOutput& control, msg::VelocityReference& out) {
+void to_msg(const VelocityControllerOutput& control, std::uint64_t parameters_version, msg::VelocityReference& out) {
   out.velocity_command_mps(control.command_mps);
   out.v_ref_mps(control.v_ref_mps);
   out.a_ref_mps2(control.a_ref_mps2);
+  out.parameters_version(parameters_version);
 }
 
 void from_msg(const msg::VelocityReference& in, TickRecord& rec) {

@@ -81,8 +81,9 @@ void to_msg(const drive::Drive& drive, const drive::DriveLoop& loop, std::uint64
 
 // ---- VelocityReference, ForceCommand (the controller's output) ----------------------------
 
-/// velocity_command_mps, v_ref_mps, a_ref_mps2.
-void to_msg(const VelocityControllerOutput& control, pmlsm_msgs::msg::VelocityReference& out);
+/// velocity_command_mps, v_ref_mps, a_ref_mps2, and the live-parameter version the tick was computed with.
+void to_msg(const VelocityControllerOutput& control, std::uint64_t parameters_version,
+            pmlsm_msgs::msg::VelocityReference& out);
 /// command_mps, v_ref_mps and a_ref_mps2.
 void from_msg(const pmlsm_msgs::msg::VelocityReference& in, TickRecord& rec);
 

@@ -118,4 +118,84 @@ void ParameterService::answer(std::uint64_t tick) {
   next_answered_ = (next_answered_ + 1) % answered_.size();
 }
 
+ParameterFollower::ParameterFollower(NodeRuntime& rt, std::string node_name, std::string owner,
+                                     const SystemParams& params)
+    : rt_(rt),
+      node_name_(std::move(node_name)),
+      followed_(std::move(owner), params),
+      reader_(rt.participant.make_reader(dds::topics::kParameterEvent, rt.wakeup)) {
+  entries_.reserve(64);
+}
+
+void ParameterFollower::take() {
+  while (reader_.take(event_)) {
+    const bool change = event_.operation() == ops::OPERATION_SET || event_.operation() == ops::OPERATION_SET_MANY;
+    if (!event_.accepted() || !change || event_.node().to_string() != followed_.owner()) continue;
+    entries_.clear();
+    if (event_.operation() == ops::OPERATION_SET) {
+      entries_.emplace_back(event_.key().to_string(), event_.value().to_string());
+    } else {
+      // SET_MANY lists "key: old -> new" per change.
+      for (const auto& entry : event_.entries()) {
+        const std::string text = entry.to_string();
+        const auto colon = text.find(": ");
+        const auto arrow = text.rfind(" -> ");
+        if (colon == std::string::npos || arrow == std::string::npos || arrow < colon) continue;
+        entries_.emplace_back(text.substr(0, colon), text.substr(arrow + 4));
+      }
+    }
+    const std::string refused = followed_.offer(event_.version(), entries_);
+    if (!refused.empty()) {
+      std::fprintf(stderr, "%s: %s's parameter change (version %llu) not followed: %s\n", node_name_.c_str(),
+                   followed_.owner().c_str(), static_cast<unsigned long long>(event_.version()), refused.c_str());
+    }
+  }
+}
+
+ParameterFollower::Result ParameterFollower::at_tick(std::uint64_t tick, std::uint64_t owner_version,
+                                                     std::chrono::duration<double> timeout) {
+  take();
+  if (rt_.cfg.clock == Clock::kLockstep && owner_version > followed_.offered_version()) {
+    // Written before the tick's data: it is on its way.
+    const bool heard = wait_until(rt_.wakeup, timeout, [&] {
+      take();
+      return followed_.offered_version() >= owner_version;
+    });
+    if (!heard) {
+      if (!dds::stop_requested()) {
+        std::fprintf(stderr,
+                     "%s: tick %llu: %s computed it with parameter version %llu; the change was not heard within "
+                     "%.1f s\n",
+                     node_name_.c_str(), static_cast<unsigned long long>(tick), followed_.owner().c_str(),
+                     static_cast<unsigned long long>(owner_version), timeout.count());
+      }
+      return Result::kMissing;
+    }
+  }
+  const FollowedParameters::Step step = followed_.at_tick(owner_version);
+  if (step.missing && !behind_) {
+    behind_ = true;
+    behind_since_tick_ = tick;
+  }
+  const char* late = "";
+  char late_text[64] = "";
+  if (step.changed && behind_) {
+    late_ticks_ += tick - behind_since_tick_;
+    std::snprintf(late_text, sizeof late_text, ", %llu tick(s) after %s",
+                  static_cast<unsigned long long>(tick - behind_since_tick_), followed_.owner().c_str());
+    late = late_text;
+  }
+  if (!step.missing) behind_ = false;
+  if (step.owner_restarted) {
+    std::printf("%s: tick %llu: %s restarted: its values as loaded from here\n", node_name_.c_str(),
+                static_cast<unsigned long long>(tick), followed_.owner().c_str());
+  }
+  for (const LiveChange& c : followed_.applied_now()) {
+    std::printf("%s: tick %llu: follows %s's parameter %s %s -> %s (version %llu%s)\n", node_name_.c_str(),
+                static_cast<unsigned long long>(tick), followed_.owner().c_str(), c.key.c_str(), c.old_value.c_str(),
+                c.new_value.c_str(), static_cast<unsigned long long>(c.version), late);
+  }
+  return step.changed ? Result::kChanged : Result::kSame;
+}
+
 }  // namespace pmlsm::node

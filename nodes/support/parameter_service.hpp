@@ -7,8 +7,11 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "ParameterEventPubSubTypes.h"
 #include "ParameterRequestPubSubTypes.h"
@@ -47,6 +50,40 @@ class ParameterService {
   std::uint64_t requests_ = 0;
   std::uint64_t refused_ = 0;
   bool applied_ = false;
+};
+
+/// Another node's live changes this node derives values from, on DDS (FollowedParameters,
+/// pmlsm/sim/live_parameters.hpp): the owner's accepted changes read from ParameterEvent, applied
+/// at the tick the owner computed with them (VelocityReference.parameters_version). In lockstep a
+/// change the owner made but whose event has not arrived is waited for (the owner wrote the event
+/// before that tick's data, so it is on its way); in realtime the tick goes on with the old values
+/// and the change applies when it arrives, said late.
+class ParameterFollower {
+ public:
+  /// @throws std::runtime_error from DDS.
+  ParameterFollower(NodeRuntime& rt, std::string node_name, std::string owner, const SystemParams& params);
+
+  enum class Result { kSame, kChanged, kMissing };
+  /// At the boundary before `tick`, which the owner computed with `owner_version`. kChanged: the
+  /// followed values changed from this tick (overlay them on the node's own and re-derive);
+  /// kMissing: lockstep only, the owner's change did not arrive within `timeout` (the node ends).
+  Result at_tick(std::uint64_t tick, std::uint64_t owner_version, std::chrono::duration<double> timeout);
+  /// The owner's values applied so far written over `params`.
+  void overlay(SystemParams& params) const { followed_.overlay(params); }
+  std::uint64_t late_ticks() const { return late_ticks_; }
+
+ private:
+  void take();
+
+  NodeRuntime& rt_;
+  std::string node_name_;
+  FollowedParameters followed_;
+  dds::Reader<pmlsm_msgs::msg::ParameterEventPubSubType> reader_;
+  pmlsm_msgs::msg::ParameterEvent event_;
+  std::vector<std::pair<std::string, std::string>> entries_;
+  std::uint64_t behind_since_tick_ = 0;
+  bool behind_ = false;
+  std::uint64_t late_ticks_ = 0;
 };
 
 }  // namespace pmlsm::node

@@ -204,6 +204,7 @@ struct Fields<msg::VelocityReference> {
     v("velocity_command_mps", m.velocity_command_mps()...);
     v("v_ref_mps", m.v_ref_mps()...);
     v("a_ref_mps2", m.a_ref_mps2()...);
+    v("parameters_version", m.parameters_version()...);
   }
 };
 

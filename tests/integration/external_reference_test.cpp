@@ -1,7 +1,8 @@
 // The external reference over DDS: a controller on an external scenario follows
 // `pmlsm setpoint` (lockstep, with the evaluator's trace of the raw command), never jumping
 // (rate limit), back to zero when the source ends or dies, and a run whose source died
-// mid-move ends with exit code 5; `pmlsm param` on the running controller. Domains: offsets 74..77, 96.
+// mid-move ends with exit code 5; `pmlsm param` on the running controller, and a change there
+// followed by state feedback at the same tick. Domains: offsets 74..77, 96, 99..101, 109, 110.
 #include <gtest/gtest.h>
 #include <signal.h>
 
@@ -11,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <memory>
 #include <regex>
 #include <sstream>
 #include <string>
@@ -355,6 +357,80 @@ TEST(LiveParametersDistributed, PmlsmParamLoadsACommissionedFileIntoTheRunningCo
       << controller.output();
   EXPECT_NE(controller.output().find("together with 6)"), std::string::npos) << controller.output();
   fs::remove_all(dir);
+}
+
+/// The tick a `pmlsm param set` answer says a change acts from ("... from tick N (version V)").
+std::uint64_t from_tick(const std::string& text) {
+  std::smatch m;
+  if (!std::regex_search(text, m, std::regex("from tick ([0-9]+)"))) return 0;
+  return std::stoull(m[1].str());
+}
+
+/// Estimator, state feedback, controller and plant in lockstep on an external scenario at rest,
+/// as separate processes or composed in one container: the controller's Kp set live reaches state
+/// feedback's model of the loop at the tick the controller takes it; a Kp that the model refuses
+/// (it needs one above 0) is refused by the controller naming both, the old value kept.
+void expect_kp_followed_at_the_same_tick(bool composed, const std::string& domain) {
+  const fs::path dir = fresh_dir("pmlsm_external", composed ? "follow_composed" : "follow_separate");
+  const std::string scenario = external_scenario(dir, 600.0);
+  const std::vector<std::string> plant_extra{"--peers", "2"};
+  const std::vector<std::string> controller_extra{"--compensation", "topic"};
+  std::vector<std::unique_ptr<ChildProcess>> processes;
+  if (composed) {
+    processes.push_back(std::make_unique<ChildProcess>(
+        container_args("chain", {component_args("kalman_estimator", "kalman_estimator", domain, scenario),
+                                 component_args("state_feedback", "state_feedback", domain, scenario),
+                                 component_args("controller", "controller", domain, scenario, controller_extra),
+                                 component_args("plant_sim", "plant_sim", domain, scenario, plant_extra)}),
+        (dir / "chain.log").string()));
+  } else {
+    processes.push_back(std::make_unique<ChildProcess>(node_args("kalman_estimator", domain, scenario),
+                                                       (dir / "estimator.log").string()));
+    processes.push_back(std::make_unique<ChildProcess>(node_args("state_feedback", domain, scenario),
+                                                       (dir / "state_feedback.log").string()));
+    processes.push_back(std::make_unique<ChildProcess>(node_args("controller", domain, scenario, controller_extra),
+                                                       (dir / "controller.log").string()));
+    processes.push_back(std::make_unique<ChildProcess>(node_args("plant_sim", domain, scenario, plant_extra),
+                                                       (dir / "plant.log").string()));
+  }
+  ChildProcess& plant = *processes.back();
+  ASSERT_TRUE(plant.wait_for_output("lockstep clock", seconds(30))) << plant.output();
+  auto [code, text] = run_param(dir, domain, {"set", "controller", "velocity_loop.kp_n_s_per_m", "12000"}, "set.log");
+  EXPECT_EQ(code, 0) << text;
+  const std::uint64_t tick = from_tick(text);
+  EXPECT_GT(tick, 0U) << text;
+  std::tie(code, text) = run_param(dir, domain, {"set", "controller", "velocity_loop.kp_n_s_per_m", "0"}, "zero.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("velocity_loop.kp_n_s_per_m = 0 refused by a value derived from it: "
+                      "compensator.state_feedback.velocity_gain_n_s_per_m"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("stays 12000"), std::string::npos) << text;
+  std::string out;
+  for (auto& p : processes) {
+    p->signal(SIGINT);
+    EXPECT_TRUE(p->wait_for(seconds(30)).has_value()) << p->output();
+    out += p->output();
+  }
+  const std::string at = "tick " + std::to_string(tick) + ": ";
+  EXPECT_NE(out.find("controller: " + at + "parameter velocity_loop.kp_n_s_per_m 10000 -> 12000 (version 1"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("state_feedback: " + at +
+                     "follows controller's parameter velocity_loop.kp_n_s_per_m 10000 -> 12000 (version 1)\n"),
+            std::string::npos)
+      << out;
+  EXPECT_EQ(out.find("not followed"), std::string::npos) << out;
+  EXPECT_EQ(out.find("parameters not taken"), std::string::npos) << out;
+  fs::remove_all(dir);
+}
+
+TEST(LiveParametersDistributed, AKpChangeReachesStateFeedbacksModelAtTheControllersTick) {
+  expect_kp_followed_at_the_same_tick(false, test_domain(109));
+}
+
+TEST(LiveParametersDistributed, AKpChangeReachesStateFeedbacksModelAtTheControllersTickComposed) {
+  expect_kp_followed_at_the_same_tick(true, test_domain(110));
 }
 
 }  // namespace

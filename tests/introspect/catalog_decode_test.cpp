@@ -234,6 +234,7 @@ msg::VelocityReference velocity_reference(Sampler& s) {
   v.velocity_command_mps(s.real("velocity_command_mps"));
   v.v_ref_mps(s.real("v_ref_mps"));
   v.a_ref_mps2(s.real("a_ref_mps2"));
+  v.parameters_version(s.u64("parameters_version"));
   return v;
 }
 

@@ -93,14 +93,13 @@ void StateFeedback::set_params(const StateFeedbackParams& params) {
   const bool same_base =
       params.model.motor_mass_kg == now.model.motor_mass_kg && params.model.load_mass_kg == now.model.load_mass_kg &&
       params.model.spring_n_per_m == now.model.spring_n_per_m &&
-      params.velocity_gain_n_s_per_m == now.velocity_gain_n_s_per_m &&
       params.reference_natural_frequency_rad_s == now.reference_natural_frequency_rad_s &&
       params.reference_damping_ratio == now.reference_damping_ratio && params.period_s == now.period_s &&
       params.force_limit_n == now.force_limit_n && filter_at_loop_period(params) == filter_at_loop_period(now);
   if (!same_base) {
     throw std::invalid_argument(
-        "state feedback: only the design's ratios and the friction fed forward change live; the model, the "
-        "period, the loop's gain and limit and the output filter need a restart");
+        "state feedback: only the design's ratios, the friction fed forward and the velocity loop's gain "
+        "change live; the model, the period, the loop's limit and the output filter need a restart");
   }
   params_ = params;
   design();

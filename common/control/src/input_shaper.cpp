@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <utility>
 
 #include "pmlsm/util/validate.hpp"
 
@@ -85,21 +86,50 @@ double residual_vibration(const std::vector<ShaperImpulse>& impulses, double fre
   return std::sqrt(c * c + s * s);
 }
 
-InputShaper::InputShaper(const InputShaperParams& params) {
-  const std::vector<ShaperImpulse> impulses = shaper_impulses(params);
-  span_s_ = impulses.back().time_s;
-  const double last_tick = span_s_ / params.period_s;
-  taps_.assign(static_cast<std::size_t>(std::floor(last_tick)) + 2, 0.0);
+namespace {
+
+// Each impulse at t = (n + f) T split into (1 - f) at tick n and f at tick n + 1.
+std::vector<double> tap_weights_of(const std::vector<ShaperImpulse>& impulses, double period_s) {
+  std::vector<double> taps(static_cast<std::size_t>(std::floor(impulses.back().time_s / period_s)) + 2, 0.0);
   for (const ShaperImpulse& i : impulses) {
-    const double at = i.time_s / params.period_s;
+    const double at = i.time_s / period_s;
     const double whole = std::floor(at);
     const double fraction = at - whole;
     const auto n = static_cast<std::size_t>(whole);
-    taps_[n] += i.amplitude * (1.0 - fraction);
-    taps_[n + 1] += i.amplitude * fraction;
+    taps[n] += i.amplitude * (1.0 - fraction);
+    taps[n + 1] += i.amplitude * fraction;
   }
-  while (taps_.size() > 1 && taps_.back() == 0.0) taps_.pop_back();
+  while (taps.size() > 1 && taps.back() == 0.0) taps.pop_back();
+  return taps;
+}
+
+}  // namespace
+
+InputShaper::InputShaper(const InputShaperParams& params) {
+  const std::vector<ShaperImpulse> impulses = shaper_impulses(params);
+  span_s_ = impulses.back().time_s;
+  taps_ = tap_weights_of(impulses, params.period_s);
   history_.assign(taps_.size(), 0.0);
+}
+
+void InputShaper::retune(const InputShaperParams& params) {
+  const std::vector<ShaperImpulse> impulses = shaper_impulses(params);
+  std::vector<double> taps = tap_weights_of(impulses, params.period_s);
+  // The past by age (0: the newest), then laid out with the newest at the last index.
+  std::vector<double> history(taps.size());
+  std::size_t at = newest_;
+  double oldest = history_[newest_];
+  for (std::size_t age = 0; age < history.size(); ++age) {
+    if (age < history_.size()) {
+      oldest = history_[at];
+      at = at == 0 ? history_.size() - 1 : at - 1;
+    }
+    history[history.size() - 1 - age] = oldest;
+  }
+  taps_ = std::move(taps);
+  history_ = std::move(history);
+  newest_ = history_.size() - 1;
+  span_s_ = impulses.back().time_s;
 }
 
 void InputShaper::reset(double command) {

@@ -96,6 +96,15 @@ class EntryAccess {
   std::string value_;
 };
 
+/// Why the system refused a change: the check's own words, and when the check was of a value
+/// derived from the changed one elsewhere (state feedback's model runs on the controller's Kp),
+/// the change named too, so both ends are said.
+std::string refusal(const std::string& key, const std::string& text, const std::invalid_argument& e) {
+  const std::string what = e.what();
+  if (what.compare(0, key.size(), key) == 0) return what;
+  return key + " = " + text + " refused by a value derived from it: " + what;
+}
+
 }  // namespace
 
 std::string parameter_text(const SystemParams& params, const std::string& key_path) {
@@ -140,9 +149,14 @@ LiveAnswer LiveParameters::set(const std::string& key, const std::string& text) 
   SystemParams changed = params_;
   try {
     set_parameter(changed, key, text);
-    changed.validate();  // the file's ranges and the components' checks, with the change in it
   } catch (const std::invalid_argument& e) {
     answer.reason = e.what();
+    return answer;
+  }
+  try {
+    changed.validate();  // the file's ranges and the components' checks, with the change in it
+  } catch (const std::invalid_argument& e) {
+    answer.reason = refusal(key, text, e);
     return answer;
   }
   const std::string new_value = parameter_text(changed, key);
@@ -190,6 +204,11 @@ LiveAnswer LiveParameters::set_many(const std::vector<std::pair<std::string, std
     changed.validate();  // once, with every change in it
   } catch (const std::invalid_argument& e) {
     answer.reason = e.what();
+    const bool own = std::any_of(changes.begin(), changes.end(),
+                                 [&](const auto& c) { return answer.reason.compare(0, c.first.size(), c.first) == 0; });
+    if (!own)
+      answer.reason =
+          "the " + std::to_string(changes.size()) + " changes refused by a value derived from them: " + answer.reason;
     return answer;
   }
   for (std::size_t i = 0; i < changes.size(); ++i) {
@@ -240,6 +259,72 @@ std::vector<std::string> state_feedback_live_keys() {
           "compensator.state_feedback.friction_feedforward.coulomb_n",
           "compensator.state_feedback.friction_feedforward.viscous_n_s_per_m",
           "compensator.state_feedback.friction_feedforward.band_mps"};
+}
+
+FollowedParameters::FollowedParameters(std::string owner, const SystemParams& params)
+    : owner_(std::move(owner)), start_(params) {
+  pending_.reserve(16);
+  values_.reserve(16);
+  applied_now_.reserve(16);
+}
+
+std::string FollowedParameters::offer(std::uint64_t version,
+                                      const std::vector<std::pair<std::string, std::string>>& entries) {
+  if (entries.empty()) return "version " + std::to_string(version) + ": no entries";
+  if (version < entries.size()) {
+    return "version " + std::to_string(version) + " with " + std::to_string(entries.size()) + " entries";
+  }
+  const std::uint64_t first = version - entries.size() + 1;
+  if (version <= offered_version_) return "";  // heard before (a repeated answer)
+  if (first != offered_version_ + 1) {
+    return "versions " + std::to_string(first) + " to " + std::to_string(version) + " after " +
+           std::to_string(offered_version_) + ": a change between them was not heard";
+  }
+  SystemParams check = start_;
+  for (const auto& [key, text] : entries) {
+    try {
+      set_parameter(check, key, text);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+  }
+  std::uint64_t v = first;
+  for (const auto& [key, text] : entries) pending_.push_back({v++, key, "", text});
+  offered_version_ = version;
+  return "";
+}
+
+FollowedParameters::Step FollowedParameters::at_tick(std::uint64_t owner_version) {
+  Step step;
+  applied_now_.clear();
+  if (owner_version < applied_version_) {
+    // Restarted from its file: what it had changed is gone, and so is what it had announced.
+    step.owner_restarted = step.changed = true;
+    values_.clear();
+    pending_.clear();
+    applied_version_ = offered_version_ = 0;
+  }
+  std::size_t taken = 0;
+  for (; taken < pending_.size() && pending_[taken].version <= owner_version; ++taken) {
+    LiveChange change = pending_[taken];
+    auto value = std::find_if(values_.begin(), values_.end(), [&](const auto& v) { return v.first == change.key; });
+    change.old_value = value != values_.end() ? value->second : parameter_text(start_, change.key);
+    if (value != values_.end()) {
+      value->second = change.new_value;
+    } else {
+      values_.emplace_back(change.key, change.new_value);
+    }
+    applied_version_ = change.version;
+    applied_now_.push_back(std::move(change));
+    step.changed = true;
+  }
+  pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(taken));
+  step.missing = owner_version > applied_version_;
+  return step;
+}
+
+void FollowedParameters::overlay(SystemParams& params) const {
+  for (const auto& [key, text] : values_) set_parameter(params, key, text);
 }
 
 }  // namespace pmlsm

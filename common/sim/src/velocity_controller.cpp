@@ -24,6 +24,7 @@ void VelocityController::retune(const SystemParams& params) {
   };
   rebuild(compensation_filters_, params.compensation_filter_params());
   rebuild(force_filters_, params.force_command_filter_params());
+  if (shaper_) shaper_->retune(params.input_shaper_params(scenario_.input_shaper));
 }
 
 ExternalReferenceParams external_reference_params(const Scenario& scenario, double control_period_s) {

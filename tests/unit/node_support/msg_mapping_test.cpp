@@ -296,8 +296,9 @@ VelocityControllerOutput distinct_control(bool saturated) {
 TEST(MsgMapping, VelocityReferenceFromTheControllerOutput) {
   msg::VelocityReference m;
   m.stamp(some_stamp());
-  to_msg(distinct_control(false), m);
+  to_msg(distinct_control(false), 7, m);
   EXPECT_EQ(m.velocity_command_mps(), 4.01);
+  EXPECT_EQ(m.parameters_version(), 7U);
   EXPECT_EQ(m.v_ref_mps(), 4.02);
   EXPECT_EQ(m.a_ref_mps2(), 4.03);
   expect_stamp_untouched(m.stamp());
@@ -458,7 +459,7 @@ TEST(MsgMapping, PerTickMappingsDoNotAllocate) {
   from_msg(feedback, record);
   from_msg(feedback, input);
   from_msg(feedback, status);
-  to_msg(control, reference);
+  to_msg(control, 0, reference);
   from_msg(reference, record);
   to_msg(control, 0.5, 3, command);
   from_msg(command, record);

@@ -224,5 +224,107 @@ TEST(LiveParameters, TheCompensatorsTakeTheirGainsLive) {
   EXPECT_EQ(rnn.params().gain_n, shipped.rnn_compensator_params(true).gain_n);
 }
 
+// A change the controller would take but a value derived from it elsewhere refuses (state
+// feedback's model needs a positive Kp) is refused whole, the old value kept, both named.
+TEST(LiveParameters, AChangeADerivedValueRefusesIsRefusedNamingBoth) {
+  LiveParameters live(test::shipped_params(), velocity_controller_live_keys());
+  expect_live_refused(live, "velocity_loop.kp_n_s_per_m", "0",
+                      "velocity_loop.kp_n_s_per_m = 0 refused by a value derived");
+  const LiveAnswer a = live.set("velocity_loop.kp_n_s_per_m", "0");
+  EXPECT_NE(a.reason.find("compensator.state_feedback.velocity_gain_n_s_per_m"), std::string::npos) << a.reason;
+  const LiveAnswer many = live.set_many({{"velocity_loop.kp_n_s_per_m", "0"}, {"velocity_loop.ki_n_per_m", "1000"}});
+  EXPECT_FALSE(many.accepted);
+  EXPECT_NE(many.reason.find("the 2 changes refused by a value derived from them: compensator.state_feedback."),
+            std::string::npos)
+      << many.reason;
+  EXPECT_EQ(live.get("velocity_loop.ki_n_per_m").value, format_value(test::shipped_params().velocity_loop.ki_n_per_m));
+}
+
+// A Kp change retimes the input shaper to the loop's new mode, its past commands kept: at speed
+// the output does not move, and the taps are the new mode's.
+TEST(LiveParameters, AGainChangeRetimesTheInputShaperWithItsPastKept) {
+  const SystemParams& shipped = test::shipped_params();
+  Scenario scenario = test::shipped_scenario("pulse");
+  scenario.input_shaper = ShaperKind::kZvd;
+  VelocityController controller(shipped, scenario);
+  ASSERT_NE(controller.input_shaper(), nullptr);
+  const std::vector<double> before = controller.input_shaper()->tap_weights();
+  double out = 0;
+  for (int k = 0; k < 500; ++k) out = controller.step_command(0.1, 0.1, {}).command_mps;
+  EXPECT_NEAR(out, 0.1, 1e-12);
+  LiveParameters live(shipped, velocity_controller_live_keys());
+  ASSERT_TRUE(live.set("velocity_loop.kp_n_s_per_m", "14000").accepted);
+  controller.retune(live.params());
+  const std::vector<double> after = controller.input_shaper()->tap_weights();
+  EXPECT_EQ(after, InputShaper(live.params().input_shaper_params(ShaperKind::kZvd)).tap_weights());
+  EXPECT_NE(after, before);
+  EXPECT_NEAR(controller.step_command(0.1, 0.1, {}).command_mps, 0.1, 1e-12);
+
+  // The shaper alone: a step's past is kept across a retune to a longer span.
+  InputShaperParams p = shipped.input_shaper_params(ShaperKind::kZv);
+  InputShaper shaper(p);
+  for (int k = 0; k < 3; ++k) shaper.step(1.0);
+  InputShaper twin(p);
+  p.frequency_hz *= 0.5;
+  twin.retune(p);
+  shaper.retune(p);
+  InputShaper fresh(p);
+  for (int k = 0; k < 3; ++k) fresh.step(1.0);
+  for (int k = 0; k < 400; ++k) EXPECT_DOUBLE_EQ(shaper.step(1.0), fresh.step(1.0)) << k;
+  EXPECT_DOUBLE_EQ(twin.step(0.0), 0.0);
+}
+
+// The owner's changes followed by a dependent (state feedback follows the controller's Kp): taken
+// at the tick the owner computed with them, a version not heard yet said missing, repeats
+// ignored, gaps and bad entries refused, an owner that restarted forgotten.
+TEST(FollowedParameters, TheOwnersChangesApplyAtTheTickItComputedWithThem) {
+  const SystemParams& shipped = test::shipped_params();
+  FollowedParameters followed("controller", shipped);
+  EXPECT_EQ(followed.offer(1, {{"velocity_loop.kp_n_s_per_m", "12000"}}), "");
+  FollowedParameters::Step step = followed.at_tick(0);
+  EXPECT_FALSE(step.changed);
+  EXPECT_FALSE(step.missing);
+  step = followed.at_tick(1);
+  EXPECT_TRUE(step.changed);
+  ASSERT_EQ(followed.applied_now().size(), 1u);
+  EXPECT_EQ(followed.applied_now()[0].old_value, "10000");
+  EXPECT_EQ(followed.applied_now()[0].new_value, "12000");
+  SystemParams mine = shipped;
+  mine.compensator.state_feedback.model_damping_ratio = 0.9;  // the node's own change stays
+  followed.overlay(mine);
+  EXPECT_EQ(mine.state_feedback_params().velocity_gain_n_s_per_m, 12000.0);
+  EXPECT_EQ(mine.compensator.state_feedback.model_damping_ratio, 0.9);
+  EXPECT_FALSE(followed.at_tick(1).changed);
+
+  EXPECT_EQ(followed.offer(1, {{"velocity_loop.kp_n_s_per_m", "12000"}}), "");  // a repeat
+  step = followed.at_tick(3);
+  EXPECT_TRUE(step.missing);
+  EXPECT_FALSE(step.changed);
+  EXPECT_NE(followed.offer(5, {{"velocity_loop.ki_n_per_m", "1"}}).find("was not heard"), std::string::npos);
+  EXPECT_NE(followed.offer(2, {{"velocity_loop.no_such", "1"}}).find("no such parameter"), std::string::npos);
+  EXPECT_NE(followed.offer(2, {{"velocity_loop.ki_n_per_m", "x"}}).find("expected a number"), std::string::npos);
+  EXPECT_EQ(followed.offer(3, {{"velocity_loop.ki_n_per_m", "2000"}, {"velocity_loop.kp_n_s_per_m", "9000"}}), "");
+  EXPECT_EQ(followed.offered_version(), 3u);
+  step = followed.at_tick(3);
+  EXPECT_TRUE(step.changed);
+  EXPECT_FALSE(step.missing);
+  ASSERT_EQ(followed.applied_now().size(), 2u);
+  EXPECT_EQ(followed.applied_now()[1].old_value, "12000");
+  EXPECT_EQ(followed.applied_version(), 3u);
+  mine = shipped;
+  followed.overlay(mine);
+  EXPECT_EQ(mine.velocity_loop.kp_n_s_per_m, 9000.0);
+  EXPECT_EQ(mine.velocity_loop.ki_n_per_m, 2000.0);
+
+  step = followed.at_tick(0);  // the controller restarted from its file
+  EXPECT_TRUE(step.owner_restarted);
+  EXPECT_TRUE(step.changed);
+  mine = shipped;
+  followed.overlay(mine);
+  EXPECT_EQ(mine.velocity_loop.kp_n_s_per_m, shipped.velocity_loop.kp_n_s_per_m);
+  EXPECT_EQ(followed.offer(1, {{"velocity_loop.kp_n_s_per_m", "11000"}}), "");
+  EXPECT_TRUE(followed.at_tick(1).changed);
+}
+
 }  // namespace
 }  // namespace pmlsm

@@ -110,11 +110,11 @@ class StateFeedback {
   const StateFeedbackCounters& counters() const { return counters_; }
   const StateFeedbackParams& params() const { return params_; }
   /// Live parameters at a tick boundary: the design's ratios (r, zeta_d, zeta_c and the
-  /// correction's limit) and the friction fed forward take effect from the next step, the
-  /// internal model's and the output filter's state kept.
+  /// correction's limit), the friction fed forward and the velocity loop's Kp (the controller's,
+  /// which the model's loop runs on and the correction's gain is designed with) take effect from
+  /// the next step, the internal model's and the output filter's state kept.
   /// @throws std::invalid_argument naming the invalid parameter, or any other field changed (the
-  /// model, the period, the gains and limits it was built on, the output filter: a restart); the
-  /// old ones are kept.
+  /// model, the period, the loop's limit, the output filter: a restart); the old ones are kept.
   void set_params(const StateFeedbackParams& params);
   double c0() const { return c0_; }
   double c1_s() const { return c1_s_; }

@@ -67,6 +67,12 @@ class InputShaper {
   double step(double command);
   /// Fills the history with `command`, as if it had been held forever (a start at speed).
   void reset(double command = 0.0);
+  /// New impulses (the loop's mode moved with a live gain change), the commands of the last span
+  /// kept: the next output is what the new shaper gives for the same past. Exact when the command
+  /// was constant over the longer span (at rest, at speed); a command older than the old span is
+  /// taken as the oldest one kept. Allocates: at a tick boundary, not in the tick.
+  /// @throws std::invalid_argument as InputShaperParams::validate (the shaper unchanged).
+  void retune(const InputShaperParams& params);
   const std::vector<double>& tap_weights() const { return taps_; }  ///< w_0, w_1, ... (sum 1)
   /// The delay the shaper adds to a move: its last impulse's time [s].
   double span_s() const { return span_s_; }

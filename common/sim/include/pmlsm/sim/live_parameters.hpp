@@ -72,6 +72,55 @@ class LiveParameters {
   std::vector<LiveChange> history_;
 };
 
+/// Another node's live parameters that this node's own values derive from: state feedback's model
+/// of the velocity loop runs on the controller's Kp, so a change of it at the controller must reach
+/// the model at the same tick. The owner's accepted changes come as events (ParameterEvent: its
+/// version after them and the entries, in order: a SET_MANY of n entries ends at `version`, so
+/// its entries hold the n versions before it); the owner's data for a tick says which version it
+/// computed that tick with (VelocityReference.parameters_version). At the boundary before a tick,
+/// every change up to that version is applied, and the node re-derives its values from
+/// overlay(): the dependent computes the tick with the values its owner used. A version the
+/// owner ran with but whose event has not arrived is `missing` (a lockstep node waits for it; a
+/// realtime one goes on and applies it when it comes, late). An owner whose version went back has
+/// restarted from its file: its changes are dropped. Pure: the node owns the topics.
+class FollowedParameters {
+ public:
+  /// `params`: the system as loaded (the owner's version 0), to check offered entries against.
+  FollowedParameters(std::string owner, const SystemParams& params);
+
+  /// An accepted change of the owner: its version after the change and the (key, new value)
+  /// entries in the order they were taken. Versions already offered are ignored (a repeated
+  /// answer). @return "" or why it was not taken (an entry not of the table or not parsed by its
+  /// kind, a version that leaves a gap below it).
+  std::string offer(std::uint64_t version, const std::vector<std::pair<std::string, std::string>>& entries);
+
+  struct Step {
+    bool changed = false;          ///< followed values changed from this tick: re-derive from overlay()
+    bool missing = false;          ///< the owner computed this tick with a version not offered yet
+    bool owner_restarted = false;  ///< the owner's version went back: its earlier changes dropped
+  };
+  /// At the boundary before a tick the owner computed with `owner_version`. The changes applied
+  /// are in applied_now() until the next call.
+  Step at_tick(std::uint64_t owner_version);
+  /// Writes the owner's values applied so far over `params` (this node's own, with its own changes).
+  void overlay(SystemParams& params) const;
+
+  const std::string& owner() const { return owner_; }
+  std::uint64_t applied_version() const { return applied_version_; }
+  /// The highest version offered without a gap below it.
+  std::uint64_t offered_version() const { return offered_version_; }
+  const std::vector<LiveChange>& applied_now() const { return applied_now_; }
+
+ private:
+  std::string owner_;
+  SystemParams start_;
+  std::vector<LiveChange> pending_;                          ///< offered, not applied yet; versions increasing
+  std::vector<std::pair<std::string, std::string>> values_;  ///< key -> the owner's value applied
+  std::vector<LiveChange> applied_now_;
+  std::uint64_t applied_version_ = 0;
+  std::uint64_t offered_version_ = 0;
+};
+
 /// The keys the velocity controller (the controller node, the in-process loop) takes live: the
 /// PI's gains and every filter slot.
 std::vector<std::string> velocity_controller_live_keys();

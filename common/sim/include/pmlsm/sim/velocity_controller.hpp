@@ -60,12 +60,16 @@ class VelocityController {
   VelocityControllerOutput step_command(double command_mps, double motor_velocity_mps,
                                         const Compensation& compensation);
   /// The live parameters (LiveParameters) at a tick boundary: the PI's gains and limit (its
-  /// integral kept), and each filter chain rebuilt from rest when its slots changed (unchanged
-  /// chains keep their state). The rest of `params` is not looked at.
+  /// integral kept), each filter chain rebuilt from rest when its slots changed (unchanged
+  /// chains keep their state), and the input shaper retimed when the loop's mode moved with the
+  /// gains (SystemParams::input_shaper_params; its past commands kept). The rest of `params` is
+  /// not looked at.
   /// @throws std::invalid_argument from the components (LiveParameters has checked them before).
   void retune(const SystemParams& params);
   const VelocityPi& velocity_pi() const { return velocity_; }
   const ReferenceModel& reference() const { return reference_; }
+  /// The input shaper (nullptr when the scenario has none).
+  const InputShaper* input_shaper() const { return shaper_ ? &*shaper_ : nullptr; }
   /// The guard in the compensation path (nullptr when compensator.guard.enabled is false).
   const VibrationGuard* guard() const { return guard_ ? &*guard_ : nullptr; }
   /// The standstill gate (nullptr when compensator.standstill.enabled is false).
