@@ -258,7 +258,10 @@ class Writer {
   /// Lockstep pacing: every this many samples to DDS, wait until the readers outside acknowledged
   /// all (far below the writers' history of 4096, so none is dropped unacknowledged).
   static constexpr unsigned kPaceEvery = 256;
-  static constexpr std::chrono::seconds kPaceTimeout{10};
+  /// A reader outside that stops acknowledging (a tool gone without its participant being
+  /// removed, held until its lease ends: 10 s for @foxglove/rtps) holds a pace this long at most,
+  /// well below the peers' timeout (10 s by default), which would otherwise end the run first.
+  static constexpr std::chrono::seconds kPaceTimeout{2};
   bool pace_ = false;
   unsigned since_paced_ = 0;
   LocalTopic<Message>* local_ = nullptr;
