@@ -699,6 +699,32 @@ TEST(Commission, RefusesARunBeyondItsLimitsAndWritesNothingFromABadOne) {
   EXPECT_EQ(run_to_end(strict), 6) << strict.output();
   EXPECT_NE(strict.output().find("the verification failed; nothing written"), std::string::npos) << strict.output();
   EXPECT_FALSE(fs::exists(out));
+  // An input that does not load, or nowhere to write: refused before the measurement starts.
+  fs::remove_all(dir / "report");
+  const auto before_measuring = [&](std::vector<std::string> args, const char* log) {
+    std::vector<std::string> a{"commission",
+                               "--simulate",
+                               "--no-plots",
+                               "-c",
+                               source("configs/system.yaml"),
+                               "--report",
+                               (dir / "report").string()};
+    a.insert(a.end(), args.begin(), args.end());
+    test::ChildProcess p(pmlsm_args(test_domain(94), a), (dir / log).string());
+    const int exit_code = run_to_end(p);
+    EXPECT_FALSE(fs::exists(dir / "report")) << "it measured:\n" << p.output();
+    return std::make_pair(exit_code, p.output());
+  };
+  std::tie(code, text) = before_measuring({"--identification", (dir / "none.yaml").string()}, "identification.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("none.yaml"), std::string::npos) << text;
+  std::tie(code, text) = before_measuring({"--verify", (dir / "none.yaml").string()}, "verify.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("none.yaml"), std::string::npos) << text;
+  std::tie(code, text) =
+      before_measuring({"--no-verify", "-o", (dir / "no" / "such" / "out.yaml").string()}, "out.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("no folder"), std::string::npos) << text;
   fs::remove_all(dir);
 }
 

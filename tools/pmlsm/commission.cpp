@@ -935,10 +935,28 @@ int run_family(const CommissionOptions& o, const SystemParams& nominal) {
   return tally.failed == 0 ? kExitOk : kExitVerdictFailed;
 }
 
+/// Every file the commissioning will read, read now, and the folder it will write to: a drive
+/// moves and a measurement takes its seconds only when nothing after them can fail on an input.
+/// @throws ConfigError (a file that does not load) or UsageError (no folder for -o).
+void check_inputs(const CommissionOptions& o, const SystemParams& configured) {
+  if (o.simulate) load_scenario(o.identification, configured.timing.control_period_s);
+  if (!o.verify.empty()) {
+    const SweepFile sweep = load_sweep_file(o.verify, configured);
+    if (!sweep.weights_path.empty()) load_rnn_weights(sweep.weights_path);
+  }
+  if (!o.out.empty()) {
+    const std::filesystem::path folder = std::filesystem::absolute(o.out).parent_path();
+    if (!std::filesystem::is_directory(folder)) {
+      throw UsageError("commission: -o " + o.out + ": no folder " + folder.string() + " to write it in");
+    }
+  }
+}
+
 /// The commissioning; what it prints is kept in `transcript` for the report as well.
 int commission(const CommissionOptions& o, Transcript& transcript) {
   if (!o.simulate && !o.family.empty()) throw UsageError("commission: --family needs --simulate");
   const SystemParams configured = load_system_params(o.config, parse_overrides(o.set));
+  check_inputs(o, configured);
   if (!o.family.empty()) {
     if (!o.out.empty()) throw UsageError("commission: --family measures a family and writes no system file: drop -o");
     return run_family(o, configured);

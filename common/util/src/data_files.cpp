@@ -31,6 +31,9 @@ std::string data_file(const std::string& relative) {
     const fs::path p = fs::path(dir) / relative;
     if (fs::exists(p, ec)) return p.string();
   }
+#ifdef PMLSM_SOURCE_TREE
+  if (const fs::path p = fs::path(PMLSM_SOURCE_TREE) / relative; fs::exists(p, ec)) return p.string();
+#endif
   return relative;
 }
 

@@ -3,7 +3,9 @@
 //   1. an explicit option (the caller's: this is only the default)
 //   2. $PMLSM_DATA_DIR/<relative>
 //   3. <the program's folder>/../share/pmlsm/<relative> (cmake --install, the .deb: /usr/bin -> /usr/share/pmlsm)
-//   4. <relative> itself, from the current folder (the source tree's root)
+//   4. <the source tree the program was built from>/<relative> (a program run from its build tree,
+//      from any folder)
+//   5. <relative> itself, from the current folder
 // The first that exists wins; when none does, <relative> (the error then names it).
 #pragma once
 
