@@ -12,13 +12,15 @@
 #include <optional>
 #include <set>
 #include <sstream>
+#include <string_view>
 
 namespace pmlsm::launch {
 
 namespace {
 
-const std::vector<std::string> kTopKeys = {"name", "hosts", "nodes", "args", "containers"};
-const std::vector<std::string> kNodeKeys = {"name", "executable", "host", "args", "env", "ends_launch", "if"};
+const std::vector<std::string> kTopKeys = {"name", "hosts", "nodes", "args", "common_args", "containers"};
+const std::vector<std::string> kNodeKeys = {"name", "executable", "host",        "common_args",
+                                            "args", "env",        "ends_launch", "if"};
 const std::vector<std::string> kContainerKeys = {"name", "components", "host", "args", "if"};
 /// The program that runs components in one process (nodes/container).
 constexpr const char* kContainerExecutable = "container";
@@ -159,13 +161,22 @@ std::vector<std::string> parse_hosts(const Location& loc, const YAML::Node& node
   return hosts;
 }
 
-std::map<std::string, std::string> parse_args(const Location& loc, const YAML::Node& node) {
+/// An arg's default with a leading $(dirname) made the launch file's own folder: a path in the file
+/// resolves against it, wherever the launcher runs (an override is the user's: from the current folder).
+std::string default_value(const std::string& text, const std::string& source) {
+  constexpr std::string_view kDirname = "$(dirname)";
+  if (text.compare(0, kDirname.size(), kDirname) != 0) return text;
+  const std::string folder = std::filesystem::absolute(source).parent_path().string();
+  return std::filesystem::path(folder + text.substr(kDirname.size())).lexically_normal().string();
+}
+
+std::map<std::string, std::string> parse_args(const Location& loc, const YAML::Node& node, const std::string& source) {
   if (!node.IsMap()) loc.fail(node, "args", "must be a map of arg names to default values, got " + describe(node));
   std::map<std::string, std::string> args;
   for (const auto& [key, value] : checked_fields(loc, node, "args", {})) {
     const std::string path = "args." + key;
     if (!is_identifier(key)) loc.fail(value, path, "'" + key + "' is not an arg name ([A-Za-z_][A-Za-z0-9_]*)");
-    args[key] = string_value(loc, value, path);
+    args[key] = default_value(string_value(loc, value, path), source);
   }
   return args;
 }
@@ -236,7 +247,8 @@ bool evaluate_condition(const std::string& text, const std::string& where) {
 namespace {
 
 NodeSpec parse_node(const Location& loc, const YAML::Node& node, const std::string& path,
-                    const std::vector<std::string>& hosts, const std::map<std::string, std::string>& args) {
+                    const std::vector<std::string>& hosts, const std::map<std::string, std::string>& args,
+                    const std::vector<std::string>& common_args) {
   if (!node.IsMap()) loc.fail(node, path, "must be a map with at least name and executable, got " + describe(node));
   const auto fields = checked_fields(loc, node, path, kNodeKeys);
   NodeSpec spec;
@@ -265,6 +277,10 @@ NodeSpec parse_node(const Location& loc, const YAML::Node& node, const std::stri
     }
   }
 
+  // The file's common_args first (the options every node of it shares), unless the node says
+  // `common_args: false`; then its own.
+  const YAML::Node* takes_common = find(fields, "common_args");
+  if (takes_common == nullptr || bool_value(loc, *takes_common, path + ".common_args")) spec.args = common_args;
   if (const YAML::Node* list = find(fields, "args")) {
     if (!list->IsSequence()) {
       loc.fail(*list, path + ".args", "must be a list of strings, got " + describe(*list));
@@ -480,7 +496,7 @@ LaunchDescription parse_launch(const std::string& text, const std::string& sourc
   launch.source = source;
   launch.name = non_empty_string(loc, require(loc, root, fields, "", "name"), "name");
 
-  if (const YAML::Node* args = find(fields, "args")) launch.args = parse_args(loc, *args);
+  if (const YAML::Node* args = find(fields, "args")) launch.args = parse_args(loc, *args, source);
   for (const auto& [key, value] : overrides) {
     auto it = launch.args.find(key);
     if (it == launch.args.end()) {
@@ -492,6 +508,10 @@ LaunchDescription parse_launch(const std::string& text, const std::string& sourc
 
   launch.hosts = {"local"};
   if (const YAML::Node* hosts = find(fields, "hosts")) launch.hosts = parse_hosts(loc, *hosts);
+  std::vector<std::string> common_args;
+  if (const YAML::Node* common = find(fields, "common_args")) {
+    common_args = string_list(loc, *common, "common_args", launch.args);
+  }
 
   const YAML::Node& nodes = require(loc, root, fields, "", "nodes");
   if (!nodes.IsSequence()) loc.fail(nodes, "nodes", "must be a list of nodes, got " + describe(nodes));
@@ -500,7 +520,7 @@ LaunchDescription parse_launch(const std::string& text, const std::string& sourc
   std::vector<NodeSpec> all_nodes;
   for (std::size_t i = 0; i < nodes.size(); ++i) {
     const std::string path = "nodes[" + std::to_string(i) + "]";
-    NodeSpec spec = parse_node(loc, nodes[i], path, launch.hosts, launch.args);
+    NodeSpec spec = parse_node(loc, nodes[i], path, launch.hosts, launch.args, common_args);
     all_nodes.push_back(spec);
     const auto [it, inserted] = index_of.emplace(spec.name, i);
     if (!inserted) {
@@ -568,7 +588,7 @@ std::string substitute_args(const std::string& text, const std::map<std::string,
     inner >> kind >> name >> extra;
     if (kind != "arg" || name.empty() || !extra.empty()) {
       throw LaunchFileError(where + ": '" + text + "': unknown substitution '" + text.substr(open, close - open + 1) +
-                            "' (only $(arg NAME) exists)");
+                            "' (only $(arg NAME) exists, and $(dirname) at the start of an arg's default)");
     }
     const auto it = args.find(name);
     if (it == args.end()) {

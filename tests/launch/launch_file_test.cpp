@@ -498,6 +498,46 @@ TEST(LaunchFile, AConditionThatIsNoneOfTheFormsIsAnErrorNamingIt) {
             std::string::npos);
 }
 
+// common_args: what every node of a file shares, written once, before each node's own args; a node
+// that does not take them says `common_args: false`.
+TEST(LaunchFile, CommonArgsComeBeforeEachNodesOwn) {
+  const LaunchDescription d = parse(R"yaml(name: x
+args: {domain: "7"}
+common_args: [--domain, $(arg domain)]
+nodes:
+  - {name: a, executable: a, args: [--peers, 3]}
+  - {name: b, executable: b}
+  - {name: c, executable: c, common_args: false, args: [--own]}
+)yaml");
+  ASSERT_EQ(d.nodes.size(), 3u);
+  EXPECT_EQ(d.nodes[0].args, (std::vector<std::string>{"--domain", "7", "--peers", "3"}));
+  EXPECT_EQ(d.nodes[1].args, (std::vector<std::string>{"--domain", "7"}));
+  EXPECT_EQ(d.nodes[2].args, (std::vector<std::string>{"--own"}));
+  EXPECT_NE(error_of("name: x\ncommon_args: --domain\nnodes:\n  - {name: a, executable: a}\n")
+                .find("common_args: must be a list of strings"),
+            std::string::npos);
+  EXPECT_NE(error_of("name: x\nnodes:\n  - {name: a, executable: a, common_args: maybe}\n").find("common_args"),
+            std::string::npos);
+}
+
+// A path default that starts with $(dirname) is the launch file's folder, wherever the launcher
+// runs; an override is taken as given (the user's, from the current folder); $(dirname) anywhere
+// else is refused.
+TEST(LaunchFile, DirnameInAnArgsDefaultIsTheFilesFolder) {
+  const std::string text =
+      "name: x\nargs: {config: $(dirname)/../configs/system.yaml}\n"
+      "nodes:\n  - {name: a, executable: a, args: [--config, $(arg config)]}\n";
+  const LaunchDescription d = parse_launch(text, "/opt/rig/launch/x.yaml");
+  EXPECT_EQ(d.nodes[0].args, (std::vector<std::string>{"--config", "/opt/rig/configs/system.yaml"}));
+  const LaunchDescription relative = parse_launch(text, "launch/x.yaml");
+  EXPECT_EQ(relative.args.at("config"),
+            (std::filesystem::current_path() / "configs" / "system.yaml").lexically_normal().string());
+  EXPECT_EQ(parse_launch(text, "/opt/rig/launch/x.yaml", {{"config", "mine.yaml"}}).args.at("config"), "mine.yaml");
+  EXPECT_NE(error_of("name: x\nnodes:\n  - {name: a, executable: a, args: [$(dirname)/a]}\n")
+                .find("unknown substitution '$(dirname)'"),
+            std::string::npos);
+}
+
 TEST(RepositoryLaunchFiles, AllParse) {
   const std::filesystem::path folder = std::filesystem::path(PMLSM_SOURCE_DIR) / "launch";
   int checked = 0;
@@ -505,6 +545,12 @@ TEST(RepositoryLaunchFiles, AllParse) {
     const auto ext = entry.path().extension();
     if (ext != ".yaml" && ext != ".yml") continue;
     EXPECT_NO_THROW(load_launch_file(entry.path().string())) << entry.path();
+    // Every file a default names (from the file's folder) is there.
+    for (const auto& [name, value] : load_launch_file(entry.path().string()).args) {
+      if (value.rfind('/', 0) == 0) {
+        EXPECT_TRUE(std::filesystem::exists(value)) << entry.path() << ": " << name;
+      }
+    }
     ++checked;
   }
   if (checked == 0) GTEST_SKIP() << "no launch files in " << folder;
