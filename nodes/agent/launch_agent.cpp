@@ -26,11 +26,13 @@
 #include "AgentAnnouncePubSubTypes.h"
 #include "LaunchRequestPubSubTypes.h"
 #include "NodeExitPubSubTypes.h"
+#include "launch_agent.hpp"
 #include "NodeOutputPubSubTypes.h"
 #include "launch_agent_command_line.hpp"
 #include "launch_file.hpp"
 #include "node_support.hpp"
 #include "pmlsm/agent/agent.hpp"
+#include "pmlsm/components/registered_names.hpp"
 #include "pmlsm/util/data_files.hpp"
 #include "supervisor.hpp"
 
@@ -47,7 +49,8 @@ using SteadyClock = std::chrono::steady_clock;
 // The pmlsm programs present in bin_dir, by their resolved paths.
 std::vector<std::string> allowed_programs(const std::string& bin_dir) {
   std::vector<std::string> out;
-  for (const auto& name : agent::node_programs()) {
+  const std::vector<std::string> registered(components::kRegisteredNames.begin(), components::kRegisteredNames.end());
+  for (const auto& name : agent::node_programs(registered)) {
     std::error_code ec;
     const fs::path p = fs::canonical(fs::path(bin_dir) / name, ec);
     if (!ec && ::access(p.c_str(), X_OK) == 0) out.push_back(p.string());

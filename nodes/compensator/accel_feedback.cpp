@@ -57,6 +57,8 @@ class AccelFeedbackComponent final : public node::Component {
 
 namespace pmlsm::node {
 
+PMLSM_COMPONENT(accel_feedback, make_accel_feedback, 1);
+
 MadeComponent make_accel_feedback(const ComponentContext& context, int argc, char** argv) {
   CommonOptions common;
   if (const auto code = parse_accel_feedback_command_line(argc, argv, common)) return {nullptr, *code};

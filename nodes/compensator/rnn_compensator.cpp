@@ -143,6 +143,8 @@ int RnnCompensatorComponent::run() {
 
 namespace pmlsm::node {
 
+PMLSM_COMPONENT(rnn_compensator, make_rnn_compensator, 1);
+
 MadeComponent make_rnn_compensator(const ComponentContext& context, int argc, char** argv) {
   RnnOptions opt;
   if (const auto code = parse_rnn_compensator_command_line(argc, argv, opt)) return {nullptr, *code};

@@ -60,6 +60,8 @@ class StateFeedbackComponent final : public node::Component {
 
 namespace pmlsm::node {
 
+PMLSM_COMPONENT(state_feedback, make_state_feedback, 1);
+
 MadeComponent make_state_feedback(const ComponentContext& context, int argc, char** argv) {
   CommonOptions common;
   if (const auto code = parse_state_feedback_command_line(argc, argv, common)) return {nullptr, *code};

@@ -17,17 +17,26 @@
 
 namespace pmlsm::container {
 
+namespace {
+
+std::vector<ComponentType> containable(const std::vector<node::RegisteredComponent>& registered) {
+  std::vector<ComponentType> types;
+  for (const node::RegisteredComponent& c : registered) {
+    for (const node::RegisteredComponent& other : registered) {
+      if (&other != &c && std::string(other.name) == c.name) {
+        throw ContainerSpecError(std::string("component '") + c.name + "' is registered twice: in " + c.source +
+                                 " and in " + other.source);
+      }
+    }
+    if (c.priority != node::kRunsAlone) types.push_back(c);
+  }
+  return types;
+}
+
+}  // namespace
+
 const std::vector<ComponentType>& component_types() {
-  static const std::vector<ComponentType> kTypes = {
-      {"plant_sim", node::make_plant_sim, 0},
-      {"drive_bridge", node::make_drive_bridge, 0},
-      {"controller", node::make_controller, 0},
-      {"kalman_estimator", node::make_kalman_estimator, 1},
-      {"rnn_compensator", node::make_rnn_compensator, 1},
-      {"accel_feedback", node::make_accel_feedback, 1},
-      {"state_feedback", node::make_state_feedback, 1},
-      {"evaluator", node::make_evaluator, 2},
-  };
+  static const std::vector<ComponentType> kTypes = containable(node::registered_components());
   return kTypes;
 }
 

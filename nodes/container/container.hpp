@@ -18,22 +18,21 @@
 #include <vector>
 
 #include "component.hpp"
+#include "component_registry.hpp"
 #include "container_spec.hpp"
 #include "pmlsm/dds/outbox.hpp"
 #include "realtime_setup.hpp"
 
 namespace pmlsm::container {
 
-/// A component type the container can make, and its priority on the chain thread (lower first:
-/// 0 the chain, drive and controller; 1 the estimator and the compensators, which feed the next
-/// tick; 2 the observers). See pmlsm/dds/fiber_scheduler.hpp.
-struct ComponentType {
-  const char* name;
-  node::ComponentFactory make;
-  int priority;
-};
+/// A component type the container can make: a registered component (component_registry.hpp) with
+/// its priority on the chain thread (lower first: 0 the chain, drive and controller; 1 the
+/// estimator and the compensators, which feed the next tick; 2 the observers). See
+/// pmlsm/dds/fiber_scheduler.hpp.
+using ComponentType = node::RegisteredComponent;
 
-/// Every component type of this project.
+/// Every registered component that may share a chain thread (not those that run alone).
+/// @throws ContainerSpecError naming a name registered twice.
 const std::vector<ComponentType>& component_types();
 std::vector<std::string> component_type_names();
 

@@ -400,6 +400,8 @@ class ControllerComponent final : public node::Component {
 
 namespace pmlsm::node {
 
+PMLSM_COMPONENT(controller, make_controller, 0);
+
 MadeComponent make_controller(const ComponentContext& context, int argc, char** argv) {
   CommonOptions common;
   common.spin_us = 200.0;

@@ -196,6 +196,8 @@ canopen::Cia402DriveConfig DriveBridgeComponent::checked_config() {
 
 namespace pmlsm::node {
 
+PMLSM_COMPONENT(drive_bridge, make_drive_bridge, 0);
+
 MadeComponent make_drive_bridge(const ComponentContext& context, int argc, char** argv) {
   BridgeOptions opt;
   opt.common.spin_us = 200.0;

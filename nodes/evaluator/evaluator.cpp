@@ -281,6 +281,8 @@ class EvaluatorComponent final : public node::Component {
 
 namespace pmlsm::node {
 
+PMLSM_COMPONENT(evaluator, make_evaluator, 2);
+
 MadeComponent make_evaluator(const ComponentContext& context, int argc, char** argv) {
   CommonOptions common;
   common.spin_us = 0.0;

@@ -370,6 +370,8 @@ int FoxgloveBridgeComponent::finish(const PassClock& clock) {
 
 namespace pmlsm::node {
 
+PMLSM_COMPONENT(foxglove_bridge, make_foxglove_bridge, kRunsAlone);
+
 MadeComponent make_foxglove_bridge(const ComponentContext& /*context*/, int argc, char** argv) {
   BridgeOptions opt;
   if (const auto code = parse_foxglove_bridge_command_line(argc, argv, opt)) return {nullptr, *code};

@@ -134,6 +134,8 @@ class KalmanEstimatorComponent final : public node::Component {
 
 namespace pmlsm::node {
 
+PMLSM_COMPONENT(kalman_estimator, make_kalman_estimator, 1);
+
 MadeComponent make_kalman_estimator(const ComponentContext& context, int argc, char** argv) {
   CommonOptions common;
   common.spin_us = 0.0;

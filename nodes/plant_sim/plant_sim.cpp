@@ -161,6 +161,8 @@ class PlantSimComponent final : public node::Component {
 
 namespace pmlsm::node {
 
+PMLSM_COMPONENT(plant_sim, make_plant_sim, 0);
+
 MadeComponent make_plant_sim(const ComponentContext& context, int argc, char** argv) {
   CommonOptions common;
   common.spin_us = 200.0;

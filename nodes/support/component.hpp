@@ -51,21 +51,24 @@ using ComponentFactory = MadeComponent (*)(const ComponentContext& context, int 
 /// exit codes with one line on stderr (run_node).
 int run_standalone(const char* node_name, ComponentFactory make, int argc, char** argv);
 
-// The components of this project (one per node executable; defined with their node).
-MadeComponent make_plant_sim(const ComponentContext& context, int argc, char** argv);
-MadeComponent make_controller(const ComponentContext& context, int argc, char** argv);
-MadeComponent make_kalman_estimator(const ComponentContext& context, int argc, char** argv);
-MadeComponent make_rnn_compensator(const ComponentContext& context, int argc, char** argv);
-MadeComponent make_accel_feedback(const ComponentContext& context, int argc, char** argv);
-MadeComponent make_state_feedback(const ComponentContext& context, int argc, char** argv);
-MadeComponent make_evaluator(const ComponentContext& context, int argc, char** argv);
-MadeComponent make_drive_bridge(const ComponentContext& context, int argc, char** argv);
-MadeComponent make_virtual_drive(const ComponentContext& context, int argc, char** argv);
-MadeComponent make_de_worker(const ComponentContext& context, int argc, char** argv);
-// Components that block their thread (minutes of computing, a network server's batches, child
-// processes): each runs alone in its process, never on a container's chain thread.
-MadeComponent make_de_trainer(const ComponentContext& context, int argc, char** argv);
-MadeComponent make_foxglove_bridge(const ComponentContext& context, int argc, char** argv);
-MadeComponent make_launch_agent(const ComponentContext& context, int argc, char** argv);
+/// The priority of a component that runs alone in its process, never on a container's chain
+/// thread: it blocks its thread (minutes of computing, a network server's batches, a CAN socket).
+inline constexpr int kRunsAlone = -1;
 
 }  // namespace pmlsm::node
+
+/// Registers a component, once, in its own source file, at the start of a line inside
+/// `namespace pmlsm::node` (it declares the factory):
+///
+///   PMLSM_COMPONENT(state_feedback, make_state_feedback, 1);
+///
+/// name: its program's and its container type's; factory: a ComponentFactory; priority: its place
+/// on a container's chain thread (0 the chain's drive and controller, 1 the estimator and the
+/// compensators, which feed the next tick, 2 the observers; pmlsm/dds/fiber_scheduler.hpp) or
+/// kRunsAlone. The build reads these lines (cmake/PmlsmComponents.cmake): it makes the program
+/// from a generated main and the registry (component_registry.hpp) the container, the launch
+/// agent, the security tool and `container --help` list; a name registered twice stops it.
+#define PMLSM_COMPONENT(name, factory, priority)                                  \
+  MadeComponent factory(const ComponentContext& context, int argc, char** argv);  \
+  static_assert((priority) == kRunsAlone || ((priority) >= 0 && (priority) <= 2), \
+                #name ": priority is 0, 1, 2 (its place on the chain thread) or kRunsAlone")

@@ -318,6 +318,8 @@ void DeTrainerComponent::print_summary(const Search& s, double elapsed_s) const 
 
 namespace pmlsm::node {
 
+PMLSM_COMPONENT(de_trainer, make_de_trainer, kRunsAlone);
+
 MadeComponent make_de_trainer(const ComponentContext& /*context*/, int argc, char** argv) {
   TrainerOptions opt;
   if (const auto code = parse_de_trainer_command_line(argc, argv, opt)) return {nullptr, *code};

@@ -206,6 +206,8 @@ int DeWorkerComponent::run() {
 
 namespace pmlsm::node {
 
+PMLSM_COMPONENT(de_worker, make_de_worker, kRunsAlone);
+
 MadeComponent make_de_worker(const ComponentContext& /*context*/, int argc, char** argv) {
   WorkerOptions opt;
   if (const auto code = parse_de_worker_command_line(argc, argv, opt)) return {nullptr, *code};

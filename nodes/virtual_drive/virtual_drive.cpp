@@ -178,6 +178,8 @@ int VirtualDriveComponent::finish() {
 
 namespace pmlsm::node {
 
+PMLSM_COMPONENT(virtual_drive, make_virtual_drive, kRunsAlone);
+
 MadeComponent make_virtual_drive(const ComponentContext& context, int argc, char** argv) {
   Options opt;
   if (const auto code = parse_virtual_drive_command_line(argc, argv, opt)) return {nullptr, *code};

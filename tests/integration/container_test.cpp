@@ -148,6 +148,25 @@ TEST(Container, BadInputIsRefusedWithExit2NamingTheComponentBeforeAnythingRuns) 
   fs::remove_all(dir);
 }
 
+// What a container can make is what registered itself (PMLSM_COMPONENT, one line in each
+// component's file): `container --help` lists every component that may share a chain thread, none
+// that runs alone, and each registered component is a program of its own beside it.
+TEST(Container, ItsHelpListsTheRegisteredComponentsThatShareAChainThread) {
+  const fs::path dir = scratch("help");
+  test::ChildProcess help({bin("container"), "--help"}, (dir / "help.log").string());
+  const auto code = help.wait_for(seconds(30));
+  ASSERT_TRUE(code.has_value()) << help.output();
+  EXPECT_EQ(*code, 0) << help.output();
+  EXPECT_NE(help.output().find("(types: plant_sim, controller, kalman_estimator, evaluator, rnn_compensator, "
+                               "accel_feedback, state_feedback, drive_bridge)"),
+            std::string::npos)
+      << help.output();
+  for (const char* alone : {"de_trainer", "de_worker", "foxglove_bridge", "virtual_drive"}) {
+    EXPECT_TRUE(fs::exists(bin(alone))) << alone;
+  }
+  fs::remove_all(dir);
+}
+
 TEST(Container, AFailingComponentIsNamedAndTheDriveEndsAsWithSeparateProcesses) {
   // The controller waits for a compensator that is not there: it ends with 4 (compensator lost),
   // the drive then misses its commands and ends with 4 (controller lost), as separate processes do.

@@ -10,21 +10,23 @@
 #include <memory>
 
 #include "commands.hpp"
+#include "pmlsm/components/registered_names.hpp"
 #include "pmlsm/dds/catalog.hpp"
 #include "pmlsm/security/keystore.hpp"
 
 namespace pmlsm::tools {
 namespace {
 
-/// Every program that opens a participant, by the identity it uses (its node name; the tool's
-/// command groups): the names a policy may grant to.
-const std::vector<std::string>& node_identities() {
-  static const std::vector<std::string> kNames{
-      "plant_sim",      "drive_bridge",   "virtual_drive",   "controller",   "kalman_estimator",
-      "accel_feedback", "state_feedback", "rnn_compensator", "evaluator",    "foxglove_bridge",
-      "de_trainer",     "de_worker",      "pmlsm_topic",     "pmlsm_record", "pmlsm_play",
-      "pmlsm_drive",    "pmlsm_setpoint", "pmlsm_param",     "launcher",     "launch_agent"};
-  return kNames;
+/// Every program that opens a participant, by the identity it uses: the registered components
+/// (their names), the tool's command groups, the launcher and the agent. The names a policy may
+/// grant to.
+std::vector<std::string> node_identities() {
+  std::vector<std::string> names(components::kRegisteredNames.begin(), components::kRegisteredNames.end());
+  for (const char* tool : {"pmlsm_topic", "pmlsm_record", "pmlsm_play", "pmlsm_drive", "pmlsm_setpoint", "pmlsm_param",
+                           "launcher", "launch_agent"}) {
+    names.emplace_back(tool);
+  }
+  return names;
 }
 
 security::Policy load(const std::string& path) {

@@ -8,12 +8,15 @@
 
 namespace pmlsm::agent {
 
-const std::vector<std::string>& node_programs() {
-  static const std::vector<std::string> kNames{
-      "plant_sim",       "controller",      "kalman_estimator", "evaluator", "accel_feedback",
-      "rnn_compensator", "state_feedback",  "de_trainer",       "de_worker", "virtual_drive",
-      "drive_bridge",    "foxglove_bridge", "closed_loop",      "container"};
-  return kNames;
+std::vector<std::string> node_programs(const std::vector<std::string>& components) {
+  std::vector<std::string> names{"closed_loop", "container"};
+  for (const std::string& name : components) {
+    if (name == "launcher" || name == "launch_agent" || name == "pmlsm") {
+      throw std::invalid_argument("'" + name + "' starts programs itself: never one an agent starts for a launch");
+    }
+    names.push_back(name);
+  }
+  return names;
 }
 
 // ---------------------------------------------------------------------------------------------

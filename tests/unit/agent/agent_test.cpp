@@ -42,11 +42,10 @@ TEST(ExecutablePolicy, OnlyTheAllowedPathsMayRunAndARefusalNamesNodeExecutableAn
 }
 
 TEST(ExecutablePolicy, TheNodeProgramsAreNeitherAShellNorAnythingThatStartsPrograms) {
-  for (const auto& name : node_programs()) {
-    EXPECT_NE(name, "launcher");
-    EXPECT_NE(name, "launch_agent");
-    EXPECT_NE(name, "sh");
-    EXPECT_NE(name, "pmlsm");  // `pmlsm launch` starts anything
+  const std::vector<std::string> programs = node_programs({"plant_sim", "controller"});
+  EXPECT_EQ(programs, (std::vector<std::string>{"closed_loop", "container", "plant_sim", "controller"}));
+  for (const char* starter : {"launcher", "launch_agent", "pmlsm"}) {  // `pmlsm launch` starts anything
+    EXPECT_THROW(node_programs({"plant_sim", starter}), std::invalid_argument) << starter;
   }
 }
 

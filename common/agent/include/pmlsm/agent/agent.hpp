@@ -23,9 +23,11 @@ namespace pmlsm::agent {
 using TimePoint = std::chrono::steady_clock::time_point;
 using Millis = std::chrono::milliseconds;
 
-/// The programs an agent may start: the project's nodes, never a shell, the launcher, the agent
-/// itself or the `pmlsm` tool (each of which could start anything: `pmlsm launch`).
-const std::vector<std::string>& node_programs();
+/// The programs an agent may start: the registered components (`components`), the container and
+/// closed_loop; never a shell, the launcher, the agent itself or the `pmlsm` tool (each of which
+/// could start anything: `pmlsm launch`).
+/// @throws std::invalid_argument when `components` names one of those.
+std::vector<std::string> node_programs(const std::vector<std::string>& components);
 
 /// Peers heard from within `lease` are alive; each that falls silent is reported once.
 class LeaseTracker {
