@@ -534,6 +534,11 @@ TEST(Identify, RefusesWhatCannotBeFittedAndWritesNothing) {
   std::tie(code, text) = identify({(dir / "no_such.mcap").string()}, "missing.log");
   EXPECT_EQ(code, 2) << text;
   EXPECT_NE(text.find("no such file"), std::string::npos) << text;
+  // Nowhere to write: said before the identification runs, not after it.
+  std::tie(code, text) = identify({"--simulate", "-o", (dir / "no" / "out.yaml").string()}, "folder.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("no folder"), std::string::npos) << text;
+  EXPECT_EQ(text.find("innovation rms"), std::string::npos) << "it identified first:\n" << text;
   EXPECT_FALSE(fs::exists(out));
   fs::remove_all(dir);
 }

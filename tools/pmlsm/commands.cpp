@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <cstdlib>
+#include <filesystem>
 #include <sstream>
 
 namespace pmlsm::tools {
@@ -21,6 +22,22 @@ std::vector<const dds::CatalogEntry*> select_topics(const std::vector<std::strin
     out.push_back(entry);
   }
   return out;
+}
+
+void require_output_folder(const std::string& option, const std::string& file) {
+  const std::filesystem::path folder = std::filesystem::absolute(file).parent_path();
+  std::error_code ec;
+  if (!std::filesystem::is_directory(folder, ec)) {
+    throw UsageError(option + " " + file + ": no folder " + folder.string() + " to write it in");
+  }
+}
+
+void make_output_folder(const std::string& option, const std::string& folder) {
+  std::error_code ec;
+  std::filesystem::create_directories(folder, ec);
+  if (ec || !std::filesystem::is_directory(folder)) {
+    throw UsageError(option + " " + folder + ": cannot be made: " + (ec ? ec.message() : "not a folder"));
+  }
 }
 
 std::string writer_key(const eprosima::fastdds::dds::SampleInfo& info) {

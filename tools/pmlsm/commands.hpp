@@ -50,6 +50,13 @@ dds::ParticipantOptions with_node_name(dds::ParticipantOptions options, const st
 /// "user@host" of who runs the command (requests name their requester), else "pmlsm".
 std::string user_at_host();
 
+/// Checked before a measurement or a long run: the folder that will hold `file` (given by
+/// `option`) exists. @throws UsageError "<option> <file>: no folder <folder> to write it in".
+void require_output_folder(const std::string& option, const std::string& file);
+/// Made before a long run: the folder `option` names (and its parents).
+/// @throws UsageError "<option> <folder>: cannot be made: <why>".
+void make_output_folder(const std::string& option, const std::string& folder);
+
 // Each registers its subcommand(s); the callback runs the command and stores its exit code.
 // Option storage lives in the callbacks (shared), so it outlives parsing.
 void add_topic_commands(CLI::App& app, dds::ParticipantOptions& dds_options, int& exit_code);

@@ -944,12 +944,7 @@ void check_inputs(const CommissionOptions& o, const SystemParams& configured) {
     const SweepFile sweep = load_sweep_file(o.verify, configured);
     if (!sweep.weights_path.empty()) load_rnn_weights(sweep.weights_path);
   }
-  if (!o.out.empty()) {
-    const std::filesystem::path folder = std::filesystem::absolute(o.out).parent_path();
-    if (!std::filesystem::is_directory(folder)) {
-      throw UsageError("commission: -o " + o.out + ": no folder " + folder.string() + " to write it in");
-    }
-  }
+  if (!o.out.empty()) require_output_folder("commission: -o", o.out);
 }
 
 /// The commissioning; what it prints is kept in `transcript` for the report as well.

@@ -118,6 +118,7 @@ std::vector<IdentificationSample> recorded_samples(const std::string& path) {
 int run_identify(const IdentifyOptions& o) {
   if (o.simulate == !o.recording.empty()) throw UsageError("give a recording or --simulate (one of them)");
   const SystemParams configured = load_system_params(o.config, parse_overrides(o.set));
+  if (!o.out.empty()) require_output_folder("identify: -o", o.out);  // before the run, not after it
   std::vector<IdentificationSample> samples;
   std::string from;
   if (o.simulate) {

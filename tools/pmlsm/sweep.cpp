@@ -18,6 +18,7 @@
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/config/sweep_file.hpp"
 #include "pmlsm/config/weights_file.hpp"
+#include "pmlsm/util/data_files.hpp"
 #include "pmlsm/sim/sweep.hpp"
 #include "tool_support.hpp"
 
@@ -26,7 +27,7 @@ namespace {
 
 struct SweepOptions {
   std::string file;
-  std::string config = "configs/system.yaml";
+  std::string config = data_file("configs/system.yaml");
   std::vector<std::string> set;        ///< --set on the system config (the nominal system)
   std::vector<std::string> sweep_set;  ///< --sweep-set on the sweep file
   std::string out_dir = "out/sweep";
@@ -218,6 +219,7 @@ int run_sweep_command(const SweepOptions& o) {
     if (!misfit.empty()) throw ConfigError(file.weights_path + ": " + misfit + " (" + o.config + ")");
     weights = w.weights;
   }
+  make_output_folder("sweep: -o", o.out_dir);  // before the runs, not after them
   const std::size_t plants = sample_plants(file.spec).size();
   std::size_t compensators = 1;
   for (CompensatorKind k : file.spec.compensators) compensators += k == CompensatorKind::kNone ? 0 : 1;
@@ -236,7 +238,6 @@ int run_sweep_command(const SweepOptions& o) {
   });
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-  std::filesystem::create_directories(o.out_dir);
   const std::filesystem::path csv = std::filesystem::path(o.out_dir) / "sweep.csv";
   write_csv(csv, file, result);
   const std::size_t failed = print_table(nominal, file, result);

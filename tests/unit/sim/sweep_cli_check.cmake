@@ -1,6 +1,7 @@
 # `pmlsm sweep`'s command-line contract: a sweep whose runs all pass exits 0 with its CSV and
 # heat map; one with a run that fails its verdict exits 6 and says so; a bad sweep file exits 2
-# naming the file, the key, the value and its line, and writes nothing.
+# naming the file, the key, the value and its line, and writes nothing; an output folder that
+# cannot be made exits 2 before any run.
 # Run as: cmake -DPROGRAM=<pmlsm> -DSOURCE_DIR=<repo> -DWORK_DIR=<scratch> -P this_file
 cmake_minimum_required(VERSION 3.22)
 foreach(var PROGRAM SOURCE_DIR WORK_DIR)
@@ -87,4 +88,15 @@ foreach(needle "inverted.yaml" "plants.parameters[0]" "min (8) must be below max
 endforeach()
 if(EXISTS "${WORK_DIR}/inverted")
   message(FATAL_ERROR "inverted: a rejected sweep file still wrote ${WORK_DIR}/inverted")
+endif()
+
+# An output folder that cannot be made (under a file): exit 2 before any run.
+run_sweep("${WORK_DIR}/near.yaml" "${WORK_DIR}/near.yaml/out" 2)
+string(FIND "${stderr}" "cannot be made" pos)
+if(pos EQUAL -1)
+  message(FATAL_ERROR "unwritable: stderr does not say the folder cannot be made:\n${stderr}")
+endif()
+string(FIND "${stderr}" " runs (" pos)
+if(NOT pos EQUAL -1)
+  message(FATAL_ERROR "unwritable: the sweep ran before the folder was checked:\n${stderr}")
 endif()
