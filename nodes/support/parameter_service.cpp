@@ -154,6 +154,9 @@ void ParameterFollower::take() {
 
 ParameterFollower::Result ParameterFollower::at_tick(std::uint64_t tick, std::uint64_t owner_version,
                                                      std::chrono::duration<double> timeout) {
+  // The owner's version says when there is something to take: a tick at the version applied
+  // costs nothing (the reader keeps the newest 8192 events meanwhile, the owner's among them).
+  if (owner_version == followed_.applied_version()) return Result::kSame;
   take();
   if (rt_.cfg.clock == Clock::kLockstep && owner_version > followed_.offered_version()) {
     // Written before the tick's data: it is on its way.
