@@ -20,7 +20,7 @@ class AccelFeedbackComponent final : public node::Component {
         law_(params_),
         inputs_(rt_.participant, rt_.wakeup, rt_.cfg),
         writer_(rt_.participant.make_writer(pmlsm::dds::topics::kCompensatorOutput)),
-        live_(rt_.cfg.params, accel_feedback_live_keys()),
+        live_(rt_.cfg.params, live_keys("accel_feedback")),
         parameters_(rt_, "accel_feedback", live_) {}
 
   int run() override {

@@ -51,7 +51,7 @@ class RnnCompensatorComponent final : public node::Component {
         inputs_(rt_.participant, rt_.wakeup, rt_.cfg),
         weights_reader_(rt_.participant.make_reader(pdds::topics::kNetworkWeights, rt_.wakeup)),
         writer_(rt_.participant.make_writer(pdds::topics::kCompensatorOutput)),
-        live_(rt_.cfg.params, rnn_compensator_live_keys()),
+        live_(rt_.cfg.params, live_keys("rnn_compensator")),
         parameters_(rt_, "rnn_compensator", live_),
         ticks_(scenario_ticks(rt_.cfg.scenario, rt_.period_s)) {
     if (!opt_.weights_path.empty()) {

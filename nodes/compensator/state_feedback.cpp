@@ -20,7 +20,7 @@ class StateFeedbackComponent final : public node::Component {
         law_(params_),
         inputs_(rt_.participant, rt_.wakeup, rt_.cfg),
         writer_(rt_.participant.make_writer(pmlsm::dds::topics::kCompensatorOutput)),
-        live_(rt_.cfg.params, state_feedback_live_keys()),
+        live_(rt_.cfg.params, live_keys("state_feedback")),
         parameters_(rt_, "state_feedback", live_),
         follower_(rt_, "state_feedback", "controller", rt_.cfg.params) {}
 

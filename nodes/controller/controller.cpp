@@ -71,7 +71,7 @@ class ControllerNode {
         compensation_reader_(rt.participant.make_reader(pdds::topics::kCompensatorOutput, rt.wakeup,
                                                         node::chain_input_profile(rt.cfg, pdds::kObserverProfile))),
         controller_(std::in_place, rt.cfg.params, rt.cfg.scenario),
-        live_(rt.cfg.params, velocity_controller_live_keys()),
+        live_(rt.cfg.params, live_keys("controller")),
         parameters_(rt, "controller", live_) {
     if (rt.cfg.scenario.shape == CommandShape::kExternal) {
       external_.emplace(external_reference_params(rt.cfg.scenario, period_s_));

@@ -62,7 +62,8 @@ class TableReader {
   }
 
   template <typename E>
-  void choice(const std::string& path, E& out, E (*from_string)(const std::string&)) {
+  void choice(const std::string& path, E& out, E (*from_string)(const std::string&),
+              const char* /*live_at*/ = nullptr) {
     const YAML::Node v = leaf(path);
     if (!v.IsScalar()) fail(path, "expected a name, got '" + describe(v) + "'");
     try {

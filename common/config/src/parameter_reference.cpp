@@ -63,14 +63,16 @@ struct ReferenceRow {
 // Walks the parameter table and writes down each entry's declaration.
 class DeclarationCollector {
  public:
-  void real(const std::string& path, const double&, const Plausible& r) { add(path, "real in " + range(r), r.reason); }
+  void real(const std::string& path, const double&, const Plausible& r) {
+    add(path, "real in " + range(r) + live(r.live_at), r.reason);
+  }
   template <typename T>
   void integer(const std::string& path, const T&, const Plausible& r) {
-    add(path, "whole number in " + range(r), r.reason);
+    add(path, "whole number in " + range(r) + live(r.live_at), r.reason);
   }
   void flag(const std::string& path, const bool&) { add(path, "true or false", ""); }
   template <typename E, typename F>
-  void choice(const std::string& path, const E&, F from_string) {
+  void choice(const std::string& path, const E&, F from_string, const char* live_at = nullptr) {
     // The set of names is the parser's own: its refusal lists them ("must be one of a, b, got 'x'").
     std::string names = "a name";
     try {
@@ -81,7 +83,7 @@ class DeclarationCollector {
       if (got != std::string::npos) names.resize(got);
       if (names.rfind("must be ", 0) == 0) names.erase(0, 8);
     }
-    add(path, "a name: " + names, "");
+    add(path, "a name: " + names + live(live_at), "");
   }
   void vector3(const std::string& path, const Eigen::Vector3d&, const Plausible& r) {
     add(path, "3 reals, each in " + range(r), r.reason);
@@ -94,6 +96,10 @@ class DeclarationCollector {
 
  private:
   static std::string range(const Plausible& r) { return "[" + format_value(r.min) + ", " + format_value(r.max) + "]"; }
+  /// Who takes it live (`pmlsm param`), said after what is accepted.
+  static std::string live(const char* live_at) {
+    return live_at == nullptr ? std::string() : std::string("; live at `") + live_at + "`";
+  }
   void add(const std::string& path, std::string kind, const std::string& reason) {
     rows.push_back({path, std::move(kind), reason});
   }
@@ -159,7 +165,9 @@ std::string system_parameter_reference(const std::string& yaml_text, const std::
           "by `./build/bin/pmlsm config reference -o docs/configuration-reference.md`; the test\n"
           "`config_reference` fails when this page and either of them disagree. Do not edit it by hand.\n\n"
           "A value outside its range is refused with the range and its reason; the unit is the one the\n"
-          "key's name carries. Where a source needs more than a sentence or two, the rest is in\n"
+          "key's name carries. `live at NODE`: that node takes a change of it while it runs, at a tick\n"
+          "boundary (`pmlsm param`, [commissioning.md](commissioning.md)); the others are read at start.\n"
+          "Where a source needs more than a sentence or two, the rest is in\n"
           "[parameters.md](parameters.md); how the file is read and overridden: [configuration.md](configuration.md).\n"
           "The CANopen rig file: [canopen-reference.md](canopen-reference.md).\n");
 }

@@ -64,7 +64,7 @@ class EntryAccess {
     value_ = value ? "true" : "false";
   }
   template <typename E, typename F>
-  void choice(const std::string& path, E& value, F from_string) {
+  void choice(const std::string& path, E& value, F from_string, const char* /*live_at*/ = nullptr) {
     if (path != key_) return;
     found_ = true;
     if (text_ != nullptr) {
@@ -228,37 +228,41 @@ bool LiveParameters::take_pending() {
   return pending;
 }
 
-std::vector<std::string> velocity_controller_live_keys() {
-  std::vector<std::string> keys{"velocity_loop.kp_n_s_per_m", "velocity_loop.ki_n_per_m"};
-  for (const char* chain : {"filters.force_command", "filters.compensation"}) {
-    for (std::size_t slot = 1; slot <= kFilterSlots; ++slot) {
-      for (std::string& key : filter_slot_keys(std::string(chain) + ".slot_" + std::to_string(slot))) {
-        keys.push_back(std::move(key));
-      }
-    }
+namespace {
+
+// Collects the keys an entry names `node` as taking live.
+class LiveKeyCollector {
+ public:
+  explicit LiveKeyCollector(const std::string& node) : node_(node) {}
+  void real(const std::string& path, const double&, const Plausible& range) { add(path, range.live_at); }
+  template <typename T>
+  void integer(const std::string& path, const T&, const Plausible& range) {
+    add(path, range.live_at);
   }
-  return keys;
-}
+  void flag(const std::string&, const bool&) {}
+  template <typename E, typename F>
+  void choice(const std::string& path, const E&, F, const char* live_at = nullptr) {
+    add(path, live_at);
+  }
+  void vector3(const std::string&, const Eigen::Vector3d&, const Plausible&) {}
+  void integer_list(const std::string&, const std::vector<int>&, const Plausible&) {}
 
-std::vector<std::string> accel_feedback_live_keys() { return {"compensator.acceleration_feedback.gain_kg"}; }
-
-std::vector<std::string> rnn_compensator_live_keys() {
   std::vector<std::string> keys;
-  for (const char* key :
-       {"output_scale", "learning_rate", "momentum", "tolerance_mps", "kc_limit_mps", "du_deadband_per_s"}) {
-    keys.push_back(std::string("compensator.rnn.") + key);
-  }
-  return keys;
-}
 
-std::vector<std::string> state_feedback_live_keys() {
-  return {"compensator.state_feedback.model_frequency_ratio",
-          "compensator.state_feedback.model_damping_ratio",
-          "compensator.state_feedback.correction_damping_ratio",
-          "compensator.state_feedback.max_correction_gain",
-          "compensator.state_feedback.friction_feedforward.coulomb_n",
-          "compensator.state_feedback.friction_feedforward.viscous_n_s_per_m",
-          "compensator.state_feedback.friction_feedforward.band_mps"};
+ private:
+  void add(const std::string& path, const char* live_at) {
+    if (live_at != nullptr && node_ == live_at) keys.push_back(path);
+  }
+  std::string node_;
+};
+
+}  // namespace
+
+std::vector<std::string> live_keys(const std::string& node) {
+  const SystemParams params{};
+  LiveKeyCollector collector(node);
+  visit_parameters(params, collector);
+  return collector.keys;
 }
 
 FollowedParameters::FollowedParameters(std::string owner, const SystemParams& params)

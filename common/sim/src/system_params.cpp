@@ -181,7 +181,7 @@ class RealFinder {
   }
   void flag(const std::string& path, bool&) { other(path); }
   template <typename E, typename F>
-  void choice(const std::string& path, E&, F) {
+  void choice(const std::string& path, E&, F, const char* /*live_at*/ = nullptr) {
     other(path);
   }
   void vector3(const std::string& path, Eigen::Vector3d&, const Plausible&) { other(path); }
@@ -205,7 +205,7 @@ struct KeyCollector {
   std::vector<std::string> keys;
   void real(const std::string& path, double& /*value*/, const Plausible& /*range*/) { keys.push_back(path); }
   template <typename Enum, typename Parse>
-  void choice(const std::string& path, Enum& /*value*/, Parse /*parse*/) {
+  void choice(const std::string& path, Enum& /*value*/, Parse /*parse*/, const char* /*live_at*/ = nullptr) {
     keys.push_back(path);
   }
 };

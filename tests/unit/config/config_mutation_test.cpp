@@ -41,7 +41,7 @@ struct CollectLeaves {
   }
   void flag(const std::string& p, const bool&) { leaves.push_back({p, Kind::kFlag}); }
   template <typename E, typename F>
-  void choice(const std::string& p, const E&, F) {
+  void choice(const std::string& p, const E&, F, const char* /*live_at*/ = nullptr) {
     leaves.push_back({p, Kind::kChoice});
   }
   void vector3(const std::string& p, const Eigen::Vector3d&, const Plausible&) {

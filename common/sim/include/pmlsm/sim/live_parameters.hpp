@@ -121,16 +121,11 @@ class FollowedParameters {
   std::uint64_t offered_version_ = 0;
 };
 
-/// The keys the velocity controller (the controller node, the in-process loop) takes live: the
-/// PI's gains and every filter slot.
-std::vector<std::string> velocity_controller_live_keys();
-/// accel_feedback's: its gain K_a.
-std::vector<std::string> accel_feedback_live_keys();
-/// state_feedback's: the design's ratios and the friction fed forward (SystemParams' model, period,
-/// loop and output filter stay for the run).
-std::vector<std::string> state_feedback_live_keys();
-/// rnn_compensator's: the online rule's settings (the network's shape, scales and weights are not:
-/// its weights come live on /pmlsm/network_weights).
-std::vector<std::string> rnn_compensator_live_keys();
+/// The keys `node` takes live, in the table's order: the entries that name it as theirs
+/// (Plausible::live_at and choice's live_at in visit_parameters, pmlsm/sim/system_params.hpp).
+/// The controller: the PI's gains and every filter slot; accel_feedback: its K_a; state_feedback:
+/// the design's ratios and the friction fed forward; rnn_compensator: its online rule's settings
+/// and output scale (its weights come live on /pmlsm/network_weights). None for another name.
+std::vector<std::string> live_keys(const std::string& node);
 
 }  // namespace pmlsm

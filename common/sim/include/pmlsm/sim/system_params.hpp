@@ -167,19 +167,20 @@ void visit_friction(const std::string& at, Friction& f, Visitor& v) {
 
 // A filter slot (pmlsm/control/biquad.hpp): the kind and the four values each kind may use;
 // which it uses is checked by the slot's validate(). A chain holds four.
+// live_at: the node that takes the slot live (the velocity loop's chains: the controller), or nullptr.
 template <typename Slot, typename Visitor>
-void visit_filter_slot(const std::string& at, Slot& slot, Visitor& v) {
-  v.choice(at + ".kind", slot.kind, &filter_kind_from_string);
-  v.real(at + ".frequency_hz", slot.frequency_hz, {0.0, 1e4, "0 (unused) to 10 kHz"});
-  v.real(at + ".damping", slot.damping, {0.0, 10.0, "0 to overdamped tenfold"});
-  v.real(at + ".second_frequency_hz", slot.second_frequency_hz, {0.0, 1e4, "0 (unused) to 10 kHz"});
-  v.real(at + ".second_damping", slot.second_damping, {0.0, 10.0, "0 to overdamped tenfold"});
+void visit_filter_slot(const std::string& at, Slot& slot, Visitor& v, const char* live_at = nullptr) {
+  v.choice(at + ".kind", slot.kind, &filter_kind_from_string, live_at);
+  v.real(at + ".frequency_hz", slot.frequency_hz, {0.0, 1e4, "0 (unused) to 10 kHz", live_at});
+  v.real(at + ".damping", slot.damping, {0.0, 10.0, "0 to overdamped tenfold", live_at});
+  v.real(at + ".second_frequency_hz", slot.second_frequency_hz, {0.0, 1e4, "0 (unused) to 10 kHz", live_at});
+  v.real(at + ".second_damping", slot.second_damping, {0.0, 10.0, "0 to overdamped tenfold", live_at});
 }
 
 template <typename Chain, typename Visitor>
-void visit_filter_chain(const std::string& at, Chain& chain, Visitor& v) {
+void visit_filter_chain(const std::string& at, Chain& chain, Visitor& v, const char* live_at) {
   for (std::size_t i = 0; i < chain.slots.size(); ++i) {
-    visit_filter_slot(at + ".slot_" + std::to_string(i + 1), chain.slots[i], v);
+    visit_filter_slot(at + ".slot_" + std::to_string(i + 1), chain.slots[i], v, live_at);
   }
 }
 
@@ -203,6 +204,11 @@ void visit_two_mass(const std::string& at, Model& m, Visitor& v) {
 
 template <typename Params, typename Visitor>
 void visit_parameters(Params& p, Visitor& v) {
+  // The nodes that take entries live (Plausible::live_at): each names its own node.
+  constexpr const char* kController = "controller";
+  constexpr const char* kAccelFeedback = "accel_feedback";
+  constexpr const char* kStateFeedback = "state_feedback";
+  constexpr const char* kRnnCompensator = "rnn_compensator";
   v.real("timing.control_period_s", p.timing.control_period_s, {1e-5, 1.0, "a velocity loop between 100 kHz and 1 Hz"});
   v.real("timing.current_loop_period_s", p.timing.current_loop_period_s,
          {1e-7, 1e-3, "a current loop between 10 MHz and 1 kHz"});
@@ -254,8 +260,10 @@ void visit_parameters(Params& p, Visitor& v) {
   v.real("current_loop.current_limit_a", p.current_loop.current_limit_a, {1e-3, 1e4, "1 mA to 10 kA"});
 
   v.real("velocity_loop.kp_n_s_per_m", p.velocity_loop.kp_n_s_per_m,
-         {0.0, 1e6, "above 1e6 N s/m one encoder count per tick (1 mm/s at 1 um, 1 ms) alone would command 1 kN"});
-  v.real("velocity_loop.ki_n_per_m", p.velocity_loop.ki_n_per_m, {0.0, 1e9, "0 to 1 kN per um of accumulated error"});
+         {0.0, 1e6, "above 1e6 N s/m one encoder count per tick (1 mm/s at 1 um, 1 ms) alone would command 1 kN",
+          kController});
+  v.real("velocity_loop.ki_n_per_m", p.velocity_loop.ki_n_per_m,
+         {0.0, 1e9, "0 to 1 kN per um of accumulated error", kController});
   v.real("velocity_loop.force_limit_n", p.velocity_loop.force_limit_n,
          {1e-3, 1e5, "1 mN to 100 kN, beyond the largest linear motors"});
 
@@ -281,8 +289,8 @@ void visit_parameters(Params& p, Visitor& v) {
   v.real(at + "max_velocity_mps", fr.max_velocity_mps, {1e-6, 100.0, "1 um/s to 100 m/s"});
   v.real(at + "min_coherence", fr.min_coherence, {0.0, 1.0, "a coherence: 0 to 1"});
   v.real(at + "max_low_coherence_share", fr.max_low_coherence_share, {0.0, 1.0, "a share of the lines: 0 to 1"});
-  detail::visit_filter_chain("filters.force_command", p.force_command_filters, v);
-  detail::visit_filter_chain("filters.compensation", p.compensation_filters, v);
+  detail::visit_filter_chain("filters.force_command", p.force_command_filters, v, kController);
+  detail::visit_filter_chain("filters.compensation", p.compensation_filters, v, kController);
   auto& tuning = p.commissioning.tuning;
   v.real("commissioning.tuning.min_phase_margin_deg", tuning.min_phase_margin_deg, {1.0, 89.0, "1 to 89 deg"});
   v.real("commissioning.tuning.min_gain_margin_db", tuning.min_gain_margin_db, {0.1, 40.0, "0.1 to 40 dB"});
@@ -321,35 +329,37 @@ void visit_parameters(Params& p, Visitor& v) {
   v.real("compensator.rnn.input_scale_s2_per_m", c.rnn.input_scale_s2_per_m,
          {1e-6, 1e3, "maps accelerations of 1 mm/s^2 to 1000 km/s^2 into tanh's range"});
   v.real("compensator.rnn.gain_n", c.rnn.gain_n, {1e-3, 1e5, "1 mN to 100 kN, the range of the force limit"});
-  v.real("compensator.rnn.output_scale", c.rnn.output_scale, {0.05, 20.0, "a twentieth to twenty times the force"});
+  v.real("compensator.rnn.output_scale", c.rnn.output_scale,
+         {0.05, 20.0, "a twentieth to twenty times the force", kRnnCompensator});
   v.real("compensator.rnn.learning_rate", c.rnn.learning_rate,
-         {0.0, 1.0, "eta of (16): a step larger than the gradient itself diverges"});
-  v.real("compensator.rnn.momentum", c.rnn.momentum, {0.0, 0.999, "alpha of (16): below 1 to contract"});
-  v.real("compensator.rnn.tolerance_mps", c.rnn.tolerance_mps, {0.0, 1.0, "0 to 1 m/s of dead band"});
-  v.real("compensator.rnn.kc_limit_mps", c.rnn.kc_limit_mps, {1e-6, 1e3, "1 um/s to 1 km/s"});
-  v.real("compensator.rnn.du_deadband_per_s", c.rnn.du_deadband_per_s, {1e-6, 1e6, "1e-6 to 1e6 1/s"});
+         {0.0, 1.0, "eta of (16): a step larger than the gradient itself diverges", kRnnCompensator});
+  v.real("compensator.rnn.momentum", c.rnn.momentum,
+         {0.0, 0.999, "alpha of (16): below 1 to contract", kRnnCompensator});
+  v.real("compensator.rnn.tolerance_mps", c.rnn.tolerance_mps, {0.0, 1.0, "0 to 1 m/s of dead band", kRnnCompensator});
+  v.real("compensator.rnn.kc_limit_mps", c.rnn.kc_limit_mps, {1e-6, 1e3, "1 um/s to 1 km/s", kRnnCompensator});
+  v.real("compensator.rnn.du_deadband_per_s", c.rnn.du_deadband_per_s, {1e-6, 1e6, "1e-6 to 1e6 1/s", kRnnCompensator});
   v.flag("compensator.rnn.on_reference_error", c.rnn.on_reference_error);
   v.real("compensator.acceleration_feedback.gain_kg", c.acceleration_feedback.gain_kg,
-         {0.0, 1e5, "0 to 100 t of virtual mass"});
+         {0.0, 1e5, "0 to 100 t of virtual mass", kAccelFeedback});
   v.flag("compensator.acceleration_feedback.on_reference_error", c.acceleration_feedback.on_reference_error);
   v.real("compensator.design_load_mass_kg", c.design_load_mass_kg, {0.01, 1e4, "from a 10 g load to a 10 t one"});
   v.real("compensator.max_gain_scale", c.max_gain_scale, {1.0, 100.0, "1 (never above the tuned gains) to 100"});
   detail::visit_two_mass("compensator.state_feedback.model", c.state_feedback.model, v);
   v.real("compensator.state_feedback.model_frequency_ratio", c.state_feedback.model_frequency_ratio,
-         {1.0, 100.0, "the model's load mode 1 to 100 times the open one sqrt(k / m_L)"});
+         {1.0, 100.0, "the model's load mode 1 to 100 times the open one sqrt(k / m_L)", kStateFeedback});
   v.real("compensator.state_feedback.model_damping_ratio", c.state_feedback.model_damping_ratio,
-         {0.0, 100.0, "from undamped to overdamped a hundred times"});
+         {0.0, 100.0, "from undamped to overdamped a hundred times", kStateFeedback});
   v.real("compensator.state_feedback.correction_damping_ratio", c.state_feedback.correction_damping_ratio,
-         {0.0, 100.0, "from none to overdamped a hundred times"});
+         {0.0, 100.0, "from none to overdamped a hundred times", kStateFeedback});
   v.real("compensator.state_feedback.max_correction_gain", c.state_feedback.max_correction_gain,
-         {1e-3, 1e4, "newtons of correction per newton of spring-force difference"});
+         {1e-3, 1e4, "newtons of correction per newton of spring-force difference", kStateFeedback});
   auto& sf = c.state_feedback;
   v.real("compensator.state_feedback.friction_feedforward.coulomb_n", sf.friction_coulomb_n,
-         {0.0, 1e4, "0 (none) to 10 kN"});
+         {0.0, 1e4, "0 (none) to 10 kN", kStateFeedback});
   v.real("compensator.state_feedback.friction_feedforward.viscous_n_s_per_m", sf.friction_viscous_n_s_per_m,
-         {0.0, 1e5, "0 (none) to 100 kN s/m"});
+         {0.0, 1e5, "0 (none) to 100 kN s/m", kStateFeedback});
   v.real("compensator.state_feedback.friction_feedforward.band_mps", sf.friction_band_mps,
-         {1e-6, 1.0, "1 um/s to 1 m/s"});
+         {1e-6, 1.0, "1 um/s to 1 m/s", kStateFeedback});
   v.flag("compensator.state_feedback.output_filter.enabled", sf.output_filter_enabled);
   detail::visit_filter_slot("compensator.state_feedback.output_filter", sf.output_filter, v);
   v.flag("compensator.guard.enabled", c.guard_enabled);

@@ -4,11 +4,15 @@
 // reader (every key known and present), RangeCheck below (each range checked once, in the
 // component's validate()), the generated configuration reference, the mutation tests.
 //
+// An entry also says who takes it live (Plausible::live_at, choice's live_at): the node that
+// accepts a change of it at a tick boundary (`pmlsm param`), or nobody (read at start). A node's
+// live parameters are the entries that name it (live_keys, pmlsm/sim/live_parameters.hpp).
+//
 // A visitor has:
 //   real(path, double&, Plausible)                          a finite number
 //   integer(path, T&, Plausible)                            a whole number (counts, ids, seeds)
 //   flag(path, bool&)
-//   choice(path, E&, E (*from_string)(const std::string&))  one of a set of names
+//   choice(path, E&, E (*from_string)(const std::string&), live_at)  one of a set of names
 //   vector3(path, Eigen::Vector3d&, Plausible)              three numbers, each in range
 //   integer_list(path, std::vector<int>&, Plausible)        whole numbers, each in range
 #pragma once
@@ -32,6 +36,7 @@ struct Plausible {
   double min;
   double max;
   const char* reason;
+  const char* live_at = nullptr;  ///< the node that takes it live, or nullptr: read at start only
 };
 
 /// Checks each value of a table against its plausible range; throws std::invalid_argument
@@ -49,7 +54,7 @@ class RangeCheck {
   }
   void flag(const std::string&, bool) const {}
   template <typename E, typename F>
-  void choice(const std::string&, E, F) const {}
+  void choice(const std::string&, E, F, const char* /*live_at*/ = nullptr) const {}
   void vector3(const std::string& path, const Eigen::Vector3d& value, const Plausible& range) const {
     for (int i = 0; i < 3; ++i) check(path + "[" + std::to_string(i) + "]", value(i), range);
   }
