@@ -44,6 +44,7 @@ inline RnnCompensatorParams base_params() {
   p.layer_sizes = {3, 6, 6, 3, 1};
   p.input_scale_s2_per_m = 0.02;
   p.gain_n = 300;
+  p.output_scale = 1.0;
   p.period_s = 1e-3;
   p.online_learning = true;
   p.learning_rate = 3.0;

@@ -141,6 +141,37 @@ TEST(ConfigMutations, TableCoversEveryLeafOfTheShippedFile) {
   EXPECT_GE(table.size(), 60u);
 }
 
+// No default lives in two places: a value comes from the file (or --set), never from a literal in
+// a component's struct that the file must be kept equal to. SystemParams made from nothing holds
+// zeros, false and each choice's first name for every entry of the table.
+struct CollectNonZero {
+  std::vector<std::string> found;
+  void real(const std::string& p, const double& value, const Plausible&) { check(p, value != 0.0); }
+  template <typename T>
+  void integer(const std::string& p, const T& value, const Plausible&) {
+    check(p, value != T{});
+  }
+  void flag(const std::string& p, const bool& value) { check(p, value); }
+  template <typename E, typename F>
+  void choice(const std::string& p, const E& value, F, const char* /*live_at*/ = nullptr) {
+    check(p, static_cast<int>(value) != 0);
+  }
+  void vector3(const std::string& p, const Eigen::Vector3d& value, const Plausible&) { check(p, !value.isZero()); }
+  void integer_list(const std::string& p, const std::vector<int>& value, const Plausible&) { check(p, !value.empty()); }
+  void check(const std::string& p, bool literal) {
+    if (literal) found.push_back(p);
+  }
+};
+
+TEST(ConfigMutations, NoEntryHasADefaultBesideTheFile) {
+  const SystemParams nothing{};
+  CollectNonZero collect;
+  visit_parameters(nothing, collect);
+  std::string found;
+  for (const std::string& p : collect.found) found += " " + p;
+  EXPECT_TRUE(collect.found.empty()) << "literal defaults beside configs/system.yaml:" << found;
+}
+
 TEST(ConfigMutations, EveryLeafEveryClassIsRefusedNamingKeyAndValue) {
   std::map<std::string, int> refused_by_class;
   int total = 0;

@@ -102,7 +102,7 @@ class JordanRnn {
 };
 
 struct RnnCompensatorParams {
-  std::vector<int> layer_sizes{3, 6, 6, 3, 1};
+  std::vector<int> layer_sizes;     ///< Table 1's 3-6-6-3-1 in the shipped file; inputs first, output last
   double input_scale_s2_per_m = 0;  ///< x = input_scale * a_L normalises the load acceleration, > 0
   /// The network's signal: false, the paper's a_L; true, the error a_L - dV_ref/dt, so that a
   /// commanded acceleration is no vibration to the network (AccelFeedbackParams says why).
@@ -111,7 +111,7 @@ struct RnnCompensatorParams {
   /// The force is G_n s_o u_n: s_o rescales a set trained on one load for another (the
   /// commissioned compensator.rnn.output_scale times the gain schedule on the model's load mass,
   /// SystemParams::rnn_compensator_params), > 0.
-  double output_scale = 1.0;
+  double output_scale = 0;
   double period_s = 0;  ///< T_s of (18), > 0
   bool online_learning = false;
   double learning_rate = 0;      ///< eta (16), >= 0

@@ -26,16 +26,17 @@
 
 namespace pmlsm {
 
-/// The defaults are the shipped values (configs/system.yaml, compensator.standstill).
+/// Its values come from the system file (compensator.standstill; the period from timing), the
+/// one place they live: none has a default of its own here.
 struct StandstillGateParams {
-  double control_period_s = 1e-3;
-  double rest_velocity_mps = 1e-3;   ///< |c| and |V_ref| at or below this: the reference at rest, >= 0
-  double settle_s = 0.3;             ///< at rest this long before the gate may close, >= 0
-  double window_s = 0.1;             ///< the quiet window, at least 2 periods
-  double quiet_velocity_mps = 3e-3;  ///< rms(v_M) of a window below this: quiet, > 0
-  double wake_velocity_mps = 1e-2;   ///< rms(v_M) of a window above this: pushed, > quiet_velocity_mps
-  double wake_force_n = 10.0;        ///< the request's rms over a window spent closed above this: a swing, > 0
-  double fade_s = 0.1;               ///< >= 0 (0: at once)
+  double control_period_s = 0;
+  double rest_velocity_mps = 0;   ///< |c| and |V_ref| at or below this: the reference at rest, >= 0
+  double settle_s = 0;            ///< at rest this long before the gate may close, >= 0
+  double window_s = 0;            ///< the quiet window, at least 2 periods
+  double quiet_velocity_mps = 0;  ///< rms(v_M) of a window below this: quiet, > 0
+  double wake_velocity_mps = 0;   ///< rms(v_M) of a window above this: pushed, > quiet_velocity_mps
+  double wake_force_n = 0;        ///< the request's rms over a window spent closed above this: a swing, > 0
+  double fade_s = 0;              ///< >= 0 (0: at once)
   /// @throws std::invalid_argument naming the parameter and its value.
   void validate() const;
 };

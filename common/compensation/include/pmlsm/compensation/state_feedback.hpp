@@ -75,7 +75,7 @@ struct StateFeedbackParams {
   // Beyond the loop's model (see above).
   double friction_coulomb_n = 0;          ///< F_c fed forward, >= 0 (0 and F_v 0: none)
   double friction_viscous_n_s_per_m = 0;  ///< F_v fed forward, >= 0
-  double friction_band_mps = 1e-3;        ///< v_band: the sign's smoothed band, > 0
+  double friction_band_mps = 0;           ///< v_band: the sign's smoothed band, > 0
   bool output_filter_enabled = false;     ///< false: output_filter declared, not used
   BiquadParams output_filter;             ///< on the whole force (run at period_s)
   void validate() const;

@@ -42,20 +42,20 @@
 
 namespace pmlsm {
 
-/// The defaults are the shipped values (configs/system.yaml, compensator.guard), checked by
-/// VibrationGuard.TheDefaultsAreTheShippedConfiguration; a loaded system sets every one.
+/// Its values come from the system file (compensator.guard; the period from timing), the one
+/// place they live: none has a default of its own here.
 struct VibrationGuardParams {
-  double control_period_s = 1e-3;
-  double highpass_hz = 5.0;             ///< f_c of the high-pass, > 0, below the Nyquist frequency
-  double window_s = 0.1;                ///< the evaluation window, at least 2 periods
-  double min_oscillation_mps = 4e-3;    ///< A below this is no oscillation to guard against
-  double growth_ratio = 1.25;           ///< A(window) / A(previous) above this is growth, > 1
-  double min_decay = 0.03;              ///< a damped oscillation loses at least this share a window, (0, 1)
-  std::uint32_t windows_to_trip = 3;    ///< >= 1
-  double max_reference_share = 1.5;     ///< a window with A <= this x A_ref is the reference's, > 0
-  double saturated_output_share = 0.9;  ///< |F_c| / F_c,max at or above this: at the limit, (0, 1]
-  double max_saturated_share = 0.5;     ///< above this share of a window at the limit: not judged sustained, (0, 1]
-  double fade_s = 0.05;                 ///< >= 0 (0: off at once)
+  double control_period_s = 0;
+  double highpass_hz = 0;             ///< f_c of the high-pass, > 0, below the Nyquist frequency
+  double window_s = 0;                ///< the evaluation window, at least 2 periods
+  double min_oscillation_mps = 0;     ///< A below this is no oscillation to guard against
+  double growth_ratio = 0;            ///< A(window) / A(previous) above this is growth, > 1
+  double min_decay = 0;               ///< a damped oscillation loses at least this share a window, (0, 1)
+  std::uint32_t windows_to_trip = 0;  ///< >= 1
+  double max_reference_share = 0;     ///< a window with A <= this x A_ref is the reference's, > 0
+  double saturated_output_share = 0;  ///< |F_c| / F_c,max at or above this: at the limit, (0, 1]
+  double max_saturated_share = 0;     ///< above this share of a window at the limit: not judged sustained, (0, 1]
+  double fade_s = 0;                  ///< >= 0 (0: off at once)
   void validate() const;
 };
 

@@ -47,7 +47,7 @@ struct CompensatorTuning {
   /// load mass over this one (compensator_gain_scale).
   double design_load_mass_kg = 0;
   double max_gain_scale = 0;  ///< the schedule's upper limit (the stiff PI's, not the load's)
-  bool guard_enabled = true;
+  bool guard_enabled = false;
   VibrationGuardParams guard;
   bool standstill_enabled = false;
   StandstillGateParams standstill;
