@@ -158,8 +158,9 @@ std::string system_parameter_reference(const std::string& yaml_text, const std::
   visit_parameters(params, collector);
   return reference_page(
       collector.rows, yaml_text, origin,
-      "Generated from the parameter declarations (the table `visit_parameters` in\n"
-      "`common/sim/include/pmlsm/sim/system_params.hpp`) and the values and sources of `" +
+      "Generated from the parameter declarations (each component's `declare`, next to its code, in the\n"
+      "layout `visit_parameters` of `common/sim/include/pmlsm/sim/system_params.hpp` gives them) and the\n"
+      "values and sources of `" +
           origin +
           "`\n"
           "by `./build/bin/pmlsm config reference -o docs/configuration-reference.md`; the test\n"

@@ -215,7 +215,7 @@ struct KeyCollector {
 std::vector<std::string> filter_slot_keys(const std::string& at) {
   KeyCollector collector;
   BiquadParams slot;
-  detail::visit_filter_slot(at, slot, collector);
+  BiquadParams::declare(at, slot, collector);
   return collector.keys;
 }
 

@@ -14,6 +14,9 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
+
+#include "pmlsm/util/parameter_table.hpp"
 
 namespace pmlsm {
 
@@ -23,6 +26,13 @@ struct AccelFeedbackParams {
   /// true: F_c = -K_a (a_L - dV_ref/dt); false: the paper's baseline F_c = -K_a a_L.
   bool on_reference_error = false;
   void validate() const;
+  /// Its own entries under `at` ("compensator.acceleration_feedback"); K_a is taken live by
+  /// `live_at`; the limit comes from the velocity loop. Self: this, const or not.
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& p, Visitor& v, const char* live_at) {
+    v.real(at + ".gain_kg", p.gain_kg, {0.0, 1e5, "0 to 100 t of virtual mass", live_at});
+    v.flag(at + ".on_reference_error", p.on_reference_error);
+  }
 };
 
 struct AccelFeedbackInput {

@@ -11,7 +11,10 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
+
+#include "pmlsm/util/parameter_table.hpp"
 
 namespace pmlsm {
 
@@ -121,6 +124,24 @@ struct RnnCompensatorParams {
   double du_deadband_per_s = 0;  ///< |dU_n| below this: k_c undefined -> no update this tick, > 0
   /// @throws std::invalid_argument naming the first invalid parameter.
   void validate() const;
+  /// Its own entries under `at` ("compensator.rnn"): the network's shape and scales (read at
+  /// start), the online rule's settings and the output scale (taken live by `live_at`); the
+  /// period, the schedule's gain and whether it learns come from the system and the node.
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& p, Visitor& v, const char* live_at) {
+    v.integer_list(at + ".layer_sizes", p.layer_sizes, {1.0, 1000.0, "neurons of a layer: a whole number, 1 to 1000"});
+    v.real(at + ".input_scale_s2_per_m", p.input_scale_s2_per_m,
+           {1e-6, 1e3, "maps accelerations of 1 mm/s^2 to 1000 km/s^2 into tanh's range"});
+    v.real(at + ".gain_n", p.gain_n, {1e-3, 1e5, "1 mN to 100 kN, the range of the force limit"});
+    v.real(at + ".output_scale", p.output_scale, {0.05, 20.0, "a twentieth to twenty times the force", live_at});
+    v.real(at + ".learning_rate", p.learning_rate,
+           {0.0, 1.0, "eta of (16): a step larger than the gradient itself diverges", live_at});
+    v.real(at + ".momentum", p.momentum, {0.0, 0.999, "alpha of (16): below 1 to contract", live_at});
+    v.real(at + ".tolerance_mps", p.tolerance_mps, {0.0, 1.0, "0 to 1 m/s of dead band", live_at});
+    v.real(at + ".kc_limit_mps", p.kc_limit_mps, {1e-6, 1e3, "1 um/s to 1 km/s", live_at});
+    v.real(at + ".du_deadband_per_s", p.du_deadband_per_s, {1e-6, 1e6, "1e-6 to 1e6 1/s", live_at});
+    v.flag(at + ".on_reference_error", p.on_reference_error);
+  }
 };
 
 struct CompensatorInput {

@@ -23,6 +23,9 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
+
+#include "pmlsm/util/parameter_table.hpp"
 
 namespace pmlsm {
 
@@ -39,6 +42,20 @@ struct StandstillGateParams {
   double fade_s = 0;              ///< >= 0 (0: at once)
   /// @throws std::invalid_argument naming the parameter and its value.
   void validate() const;
+  /// Its own entries under `at` ("compensator.standstill"); the period comes from the system.
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& p, Visitor& v) {
+    v.real(at + ".rest_velocity_mps", p.rest_velocity_mps, {0.0, 10.0, "0 (the command exactly zero) to 10 m/s"});
+    v.real(at + ".settle_s", p.settle_s, {0.0, 3600.0, "0 (at once) to an hour at rest"});
+    v.real(at + ".window_s", p.window_s, {1e-3, 100.0, "1 ms to 100 s of quiet window"});
+    v.real(at + ".quiet_velocity_mps", p.quiet_velocity_mps,
+           {1e-6, 10.0, "1 um/s to 10 m/s of motor velocity (rms over the window)"});
+    v.real(at + ".wake_velocity_mps", p.wake_velocity_mps,
+           {1e-6, 10.0, "1 um/s to 10 m/s of motor velocity (rms over the window)"});
+    v.real(at + ".fade_s", p.fade_s, {0.0, 60.0, "0 (at once) to a minute"});
+    v.real(at + ".wake_force_n", p.wake_force_n,
+           {1e-3, 1e5, "1 mN to 100 kN of requested compensation (rms over a window spent closed)"});
+  }
 };
 
 struct StandstillGateInput {

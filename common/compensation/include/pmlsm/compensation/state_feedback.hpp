@@ -52,6 +52,7 @@
 #include <cstdint>
 
 #include "pmlsm/control/biquad.hpp"
+#include "pmlsm/util/parameter_table.hpp"
 #include "pmlsm/util/two_mass_model.hpp"
 
 namespace pmlsm {
@@ -79,6 +80,28 @@ struct StateFeedbackParams {
   bool output_filter_enabled = false;     ///< false: output_filter declared, not used
   BiquadParams output_filter;             ///< on the whole force (run at period_s)
   void validate() const;
+  /// Its own entries under `at` ("compensator.state_feedback"): the model with the plant's ranges,
+  /// the design's ratios and the friction fed forward (taken live by `live_at`), the output
+  /// filter; the loop's gain, the reference model, the period and the limit come from the
+  /// system. Self: this, const or not.
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& p, Visitor& v, const char* live_at) {
+    TwoMassModel::declare(at + ".model", p.model, v);
+    v.real(at + ".model_frequency_ratio", p.model_frequency_ratio,
+           {1.0, 100.0, "the model's load mode 1 to 100 times the open one sqrt(k / m_L)", live_at});
+    v.real(at + ".model_damping_ratio", p.model_damping_ratio,
+           {0.0, 100.0, "from undamped to overdamped a hundred times", live_at});
+    v.real(at + ".correction_damping_ratio", p.correction_damping_ratio,
+           {0.0, 100.0, "from none to overdamped a hundred times", live_at});
+    v.real(at + ".max_correction_gain", p.max_correction_gain,
+           {1e-3, 1e4, "newtons of correction per newton of spring-force difference", live_at});
+    v.real(at + ".friction_feedforward.coulomb_n", p.friction_coulomb_n, {0.0, 1e4, "0 (none) to 10 kN", live_at});
+    v.real(at + ".friction_feedforward.viscous_n_s_per_m", p.friction_viscous_n_s_per_m,
+           {0.0, 1e5, "0 (none) to 100 kN s/m", live_at});
+    v.real(at + ".friction_feedforward.band_mps", p.friction_band_mps, {1e-6, 1.0, "1 um/s to 1 m/s", live_at});
+    v.flag(at + ".output_filter.enabled", p.output_filter_enabled);
+    BiquadParams::declare(at + ".output_filter", p.output_filter, v);
+  }
 };
 
 /// The output filter at the loop's period (its own period_s is not read); kind none when it is

@@ -39,6 +39,9 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <string>
+
+#include "pmlsm/util/parameter_table.hpp"
 
 namespace pmlsm {
 
@@ -57,6 +60,29 @@ struct VibrationGuardParams {
   double max_saturated_share = 0;     ///< above this share of a window at the limit: not judged sustained, (0, 1]
   double fade_s = 0;                  ///< >= 0 (0: off at once)
   void validate() const;
+  /// Its own entries under `at` ("compensator.guard"); the period comes from the system.
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& p, Visitor& v) {
+    v.real(at + ".highpass_hz", p.highpass_hz,
+           {0.01, 1e4, "the corner between tracking motion and vibration: 10 mHz to 10 kHz"});
+    v.real(at + ".window_s", p.window_s, {1e-3, 100.0, "1 ms to 100 s of evaluation window"});
+    v.real(at + ".min_oscillation_mps", p.min_oscillation_mps,
+           {1e-6, 10.0, "1 um/s to 10 m/s: below it there is no oscillation worth guarding against"});
+    v.real(at + ".growth_ratio", p.growth_ratio, {1.0001, 100.0, "more than 1: a growth"});
+    v.real(at + ".min_decay", p.min_decay,
+           {1e-3, 0.999, "a share of the amplitude lost per window: between none and all"});
+    v.integer(at + ".windows_to_trip", p.windows_to_trip,
+              {1.0, 1000.0, "a count of windows in a row: a whole number, 1 to 1000"});
+    v.real(at + ".fade_s", p.fade_s, {0.0, 10.0, "0 (at once) to 10 s"});
+    v.real(at + ".max_reference_share", p.max_reference_share,
+           {1e-3, 1e3, "the error oscillation over the reference's own: a thousandth to a thousand times"});
+    v.real(at + ".max_saturated_share", p.max_saturated_share,
+           {1e-3, 1.0,
+            "a share of a window's ticks: above it a window at the compensation's limit is not judged sustained"});
+    v.real(
+        at + ".saturated_output_share", p.saturated_output_share,
+        {1e-3, 1.0, "a share of the compensator's own output range: at or above it the compensator is at its limit"});
+  }
 };
 
 enum class VibrationGuardTrip : std::uint8_t { kNone, kSustained, kGrowing };

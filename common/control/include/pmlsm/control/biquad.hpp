@@ -22,6 +22,8 @@
 #include <cstdint>
 #include <string>
 
+#include "pmlsm/util/parameter_table.hpp"
+
 namespace pmlsm {
 
 enum class FilterKind : std::uint8_t { kNone, kNotch, kLowPass, kLeadLag, kGeneral };
@@ -45,6 +47,17 @@ struct BiquadParams {
   /// The values the kind uses: frequencies in (0, 0.45 / period_s), dampings in their ranges.
   /// @throws std::invalid_argument naming the first invalid value.
   void validate() const;
+  /// A slot's entries under `at`: the kind and the four values each kind may use (which it uses
+  /// is checked by validate()); taken live by `live_at` (the velocity loop's chains: the
+  /// controller) or nobody. The period comes from the system.
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& slot, Visitor& v, const char* live_at = nullptr) {
+    v.choice(at + ".kind", slot.kind, &filter_kind_from_string, live_at);
+    v.real(at + ".frequency_hz", slot.frequency_hz, {0.0, 1e4, "0 (unused) to 10 kHz", live_at});
+    v.real(at + ".damping", slot.damping, {0.0, 10.0, "0 to overdamped tenfold", live_at});
+    v.real(at + ".second_frequency_hz", slot.second_frequency_hz, {0.0, 1e4, "0 (unused) to 10 kHz", live_at});
+    v.real(at + ".second_damping", slot.second_damping, {0.0, 10.0, "0 to overdamped tenfold", live_at});
+  }
 };
 
 struct BiquadCoefficients {
@@ -78,6 +91,13 @@ inline constexpr std::size_t kFilterSlots = 4;
 /// Up to four biquads in series; the slots of kind none pass their input.
 struct FilterChainParams {
   std::array<BiquadParams, kFilterSlots> slots;
+  /// Its slots' entries under `at`.slot_1 ... slot_4 (BiquadParams::declare).
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& chain, Visitor& v, const char* live_at) {
+    for (std::size_t i = 0; i < chain.slots.size(); ++i) {
+      BiquadParams::declare(at + ".slot_" + std::to_string(i + 1), chain.slots[i], v, live_at);
+    }
+  }
   /// @throws std::invalid_argument naming the slot ("slot 2: frequency_hz: ...").
   void validate() const;
 };

@@ -15,6 +15,9 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
+
+#include "pmlsm/util/parameter_table.hpp"
 
 namespace pmlsm {
 
@@ -31,6 +34,15 @@ struct CurrentControllerParams {
   double armature_q_inductance_h = 0;
   double permanent_magnet_flux_wb = 0;
   void validate() const;
+  /// Its own entries under `at` ("current_loop"); the period, the voltage limit and the motor
+  /// model come from the system (pmlsm/util/parameter_table.hpp). Self: this, const or not.
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& p, Visitor& v) {
+    v.real(at + ".kp_v_per_a", p.kp_v_per_a,
+           {1e-3, 1e5, "1 mV/A to 100 kV/A: L w_c for any motor and a bandwidth up to the sampling"});
+    v.real(at + ".ki_v_per_a_s", p.ki_v_per_a_s, {0.0, 1e9, "0 to R w_c of the stiffest loop"});
+    v.real(at + ".current_limit_a", p.current_limit_a, {1e-3, 1e4, "1 mA to 10 kA"});
+  }
 };
 
 struct CurrentControllerInput {

@@ -11,6 +11,9 @@
 
 #include <Eigen/Dense>
 #include <cstdint>
+#include <string>
+
+#include "pmlsm/util/parameter_table.hpp"
 
 namespace pmlsm {
 
@@ -19,6 +22,13 @@ struct ReferenceModelParams {
   double damping_ratio = 0;
   double period_s = 0;
   void validate() const;
+  /// Its own entries under `at` ("reference_model"); the period comes from the system.
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& p, Visitor& v) {
+    v.real(at + ".natural_frequency_rad_s", p.natural_frequency_rad_s,
+           {0.1, 1e4, "0.1 rad/s to 10 krad/s (the loop's 1 ms sampling resolves far less)"});
+    v.real(at + ".damping_ratio", p.damping_ratio, {0.01, 100.0, "from barely damped to overdamped a hundred times"});
+  }
 };
 
 struct ReferenceSample {

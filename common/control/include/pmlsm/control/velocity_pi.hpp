@@ -8,6 +8,9 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
+
+#include "pmlsm/util/parameter_table.hpp"
 
 namespace pmlsm {
 
@@ -17,6 +20,16 @@ struct VelocityPiParams {
   double period_s = 0;
   double force_limit_n = 0;
   void validate() const;
+  /// Its own entries under `at` ("velocity_loop"); the gains are taken live by the node that runs
+  /// it (`live_at`), the limit at start; the period comes from the system. Self: this, const or not.
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& p, Visitor& v, const char* live_at) {
+    v.real(at + ".kp_n_s_per_m", p.kp_n_s_per_m,
+           {0.0, 1e6, "above 1e6 N s/m one encoder count per tick (1 mm/s at 1 um, 1 ms) alone would command 1 kN",
+            live_at});
+    v.real(at + ".ki_n_per_m", p.ki_n_per_m, {0.0, 1e9, "0 to 1 kN per um of accumulated error", live_at});
+    v.real(at + ".force_limit_n", p.force_limit_n, {1e-3, 1e5, "1 mN to 100 kN, beyond the largest linear motors"});
+  }
 };
 
 struct VelocityPiInput {

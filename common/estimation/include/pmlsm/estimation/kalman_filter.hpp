@@ -110,6 +110,27 @@ struct KalmanParams {
   KalmanStandstillHold standstill_hold;                               ///< off: the paper's filter
   double thrust_lag_s = 0;  ///< tau_i, the current loop's first-order lag; 0: thrust = command (the paper), >= 0
   void validate() const;
+  /// Its own entries under `at` ("kalman"): the model of the mechanics with the plant's ranges,
+  /// the noises and the optional inputs; the period comes from the system. Self: this, const or not.
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& p, Visitor& v) {
+    TwoMassModel::declare(at + ".model", p.model, v);
+    const Plausible noise{0.0, 1e12, "a variance: 0 to 1e12 (a 1 MN or 1 Mm/s standard deviation)"};
+    v.vector3(at + ".process_noise_diag", p.process_noise_diag, noise);
+    v.real(at + ".measurement_noise", p.measurement_noise,
+           {1e-15, 1e6, "a variance: positive (the filter divides by it), up to 1e6"});
+    v.real(at + ".thrust_lag_s", p.thrust_lag_s, {0.0, 1.0, "0 (thrust = command) to 1 s"});
+    v.vector3(at + ".initial_covariance_diag", p.initial_covariance_diag, noise);
+    v.flag(at + ".friction_input.enabled", p.friction_input.enabled);
+    FrictionParams::declare(at + ".friction_input", p.friction_input.model, v);
+    v.flag(at + ".ripple_input.enabled", p.ripple_input.enabled);
+    RippleParams::declare(at + ".ripple_input", p.ripple_input.model, v);
+    v.flag(at + ".standstill_hold.enabled", p.standstill_hold.enabled);
+    v.real(at + ".standstill_hold.max_velocity_mps", p.standstill_hold.max_velocity_mps,
+           {1e-6, 1.0, "1 um/s to 1 m/s: a few encoder counts a period"});
+    v.real(at + ".standstill_hold.min_ring_share", p.standstill_hold.min_ring_share,
+           {0.0, 100.0, "0 (every swing at rest) to 100 times the bearing friction"});
+  }
 };
 
 struct KalmanInput {

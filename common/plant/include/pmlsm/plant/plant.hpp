@@ -58,6 +58,9 @@
 #include <random>
 #include <string>
 
+#include "pmlsm/util/parameter_table.hpp"
+#include "pmlsm/util/two_mass_model.hpp"
+
 namespace pmlsm {
 
 struct MotorElectricalParams {
@@ -87,6 +90,18 @@ struct RippleParams {
   double spatial_freq_1_rad_per_m = 0;  ///< phi_1
   double spatial_freq_2_rad_per_m = 0;  ///< phi_2
   void validate() const;
+  /// Its entries under `at` (the plant's, and the Kalman filter's model of it). Self: RippleParams,
+  /// const or not (pmlsm/util/parameter_table.hpp).
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& r, Visitor& v) {
+    v.real(at + ".scale_n", r.scale_n, {0.0, 1e4, "K_s up to 10 kN, the thrust of the largest linear motors"});
+    v.real(at + ".amplitude_1", r.amplitude_1, {-10.0, 10.0, "normalised harmonic amplitude: K_s carries the newtons"});
+    v.real(at + ".amplitude_2", r.amplitude_2, {-10.0, 10.0, "normalised harmonic amplitude: K_s carries the newtons"});
+    v.real(at + ".spatial_freq_1_rad_per_m", r.spatial_freq_1_rad_per_m,
+           {0.0, 1e5, "wavelengths down to 63 um, finer than any pole pitch or detent"});
+    v.real(at + ".spatial_freq_2_rad_per_m", r.spatial_freq_2_rad_per_m,
+           {0.0, 1e5, "wavelengths down to 63 um, finer than any pole pitch or detent"});
+  }
 };
 
 struct FrictionParams {
@@ -94,6 +109,15 @@ struct FrictionParams {
   double viscous_n_s_per_m = 0;            ///< F_viscous
   double regularisation_velocity_mps = 0;  ///< v_eps: half-width of the smoothed band of s(v)
   void validate() const;
+  /// Its entries under `at` (the plant's, and the Kalman filter's model of it).
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& f, Visitor& v) {
+    v.real(at + ".coulomb_n", f.coulomb_n, {0.0, 1e4, "up to 10 kN, the thrust of the largest linear motors"});
+    v.real(at + ".viscous_n_s_per_m", f.viscous_n_s_per_m,
+           {0.0, 1e5, "up to 10 kN at 0.1 m/s, the largest thrust at a crawl"});
+    v.real(at + ".regularisation_velocity_mps", f.regularisation_velocity_mps,
+           {1e-7, 1.0, "the smoothed band of sign(v): from 0.1 um/s to 1 m/s"});
+  }
 };
 
 /// Ripple force (10): F_ripple(x) = K_s A_r1 sin(phi_1 x) [A_r1 + A_r2 sin(phi_2 x)] [N].
@@ -153,6 +177,47 @@ struct PlantParams {
   /// so that a config's plausible ranges are checked before these combinations.
   /// @throws std::invalid_argument naming the parameter and the rate.
   void check_step() const;
+  /// Its entries under `at` ("plant"): the integrator, the motor's windings, ripple, friction, the
+  /// two-mass mechanics, the inverter and the encoder. Self: PlantParams, const or not.
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& p, Visitor& v) {
+    v.real(at + ".max_step_s", p.max_step_s,
+           {1e-9, 1e-3, "the integrator step: at least one per millisecond, at most a billion per second"});
+    v.choice(at + ".integrator", p.integrator, &integrator_from_string);
+    auto& e = p.electrical;
+    const std::string el = at + ".electrical.";
+    const Plausible resistance{1e-3, 1e3, "winding resistances of real motors: 1 mOhm to 1 kOhm"};
+    const Plausible inductance{1e-6, 10.0, "winding inductances of real motors: 1 uH to 10 H"};
+    v.real(el + "resistance_ohm", e.resistance_ohm, resistance);
+    v.real(el + "armature_d_inductance_h", e.armature_d_inductance_h, inductance);
+    v.real(el + "armature_q_inductance_h", e.armature_q_inductance_h, inductance);
+    v.real(el + "mutual_d_inductance_h", e.mutual_d_inductance_h, {0.0, 10.0, "0 (no damper coupling) to 10 H"});
+    v.real(el + "mutual_q_inductance_h", e.mutual_q_inductance_h, {0.0, 10.0, "0 (no damper coupling) to 10 H"});
+    v.real(el + "damper_d_inductance_h", e.damper_d_inductance_h, inductance);
+    v.real(el + "damper_q_inductance_h", e.damper_q_inductance_h, inductance);
+    v.real(el + "damper_d_resistance_ohm", e.damper_d_resistance_ohm, resistance);
+    v.real(el + "damper_q_resistance_ohm", e.damper_q_resistance_ohm, resistance);
+    v.real(el + "motor_constant_n_per_a", e.motor_constant_n_per_a,
+           {0.1, 1e4, "thrust constants of linear motors: 0.1 N/A to 10 kN/A"});
+    v.real(el + "pole_pitch_m", e.pole_pitch_m, {1e-3, 1.0, "pole pitches of 1 mm to 1 m"});
+    v.integer(el + "pole_pairs", e.pole_pairs, {1.0, 1000.0, "a count of pole pairs: a whole number, 1 to 1000"});
+    RippleParams::declare(at + ".ripple", p.ripple, v);
+    FrictionParams::declare(at + ".friction", p.friction, v);
+    auto& m = p.mechanics;
+    declare_two_mass(at + ".mechanics", m.motor_mass_kg, m.load_mass_kg, m.spring_n_per_m, v);
+    v.real(at + ".mechanics.damping_n_s_per_m", m.damping_n_s_per_m,
+           {0.0, 1e6, "0 (undamped) to a stiff hydraulic damper"});
+    v.real(at + ".inverter.dc_bus_v", p.inverter.dc_bus_v,
+           {1.0, 2000.0, "from 1 V to the 1500 V DC of the largest industrial inverters"});
+    const std::string en = at + ".encoder.";
+    v.real(en + "resolution_m", p.encoder.resolution_m,
+           {1e-10, 1e-2, "from an interferometer's 0.1 nm to a 10 mm coarse scale"});
+    v.real(en + "position_noise_std_m", p.encoder.position_noise_std_m, {0.0, 1e-2, "0 to 10 mm of noise"});
+    v.integer(en + "noise_seed", p.encoder.noise_seed,
+              {0.0, 18446744073709551615.0, "a seed: any whole number of 64 bits"});
+    v.real(en + "mount_frequency_hz", p.encoder.mount_frequency_hz, {0.0, 1e5, "0 (a rigid mount) to 100 kHz"});
+    v.real(en + "mount_damping", p.encoder.mount_damping, {0.0, 2.0, "0 to 2 (at least 1e-4 with a compliant mount)"});
+  }
 };
 
 /// The integrated state; see the class comment for the meaning of each entry.

@@ -33,6 +33,14 @@ struct FilterDesignParams {
   double min_gain_increase = 0;  ///< a notch is kept when the tunable gain grows by this factor, > 1
   /// @throws std::invalid_argument naming the first invalid value.
   void validate() const;
+  /// Its entries under `at` ("commissioning.filter_design"). Self: this, const or not.
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& d, Visitor& v) {
+    v.real(at + ".min_frequency_hz", d.min_frequency_hz,
+           {1e-3, 1e5, "1 mHz to 100 kHz (above it: resonances; below it: the two-mass model)"});
+    v.real(at + ".min_peak_db", d.min_peak_db, {0.1, 60.0, "0.1 to 60 dB"});
+    v.real(at + ".min_gain_increase", d.min_gain_increase, {1.000001, 100.0, "a factor above 1, up to 100"});
+  }
 };
 
 /// A resonance found above the model and what its notch did.

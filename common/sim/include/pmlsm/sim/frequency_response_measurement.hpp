@@ -32,6 +32,7 @@
 #include "pmlsm/control/velocity_pi.hpp"
 #include "pmlsm/drive/drive.hpp"
 #include "pmlsm/sim/frequency_response.hpp"
+#include "pmlsm/util/parameter_table.hpp"
 
 namespace pmlsm {
 
@@ -55,6 +56,26 @@ struct FrequencyResponseMeasurementParams {
   double pole_pitch_m = 0;  ///< tau: the ripple's period in space
   /// @throws std::invalid_argument naming the first invalid value.
   void validate() const;
+  /// Its own entries under `at` ("commissioning.frequency_response"); the period and the pole
+  /// pitch come from the system. Self: this, const or not.
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& fr, Visitor& v) {
+    const std::string a = at + ".";
+    v.real(a + "amplitude_n", fr.amplitude_n, {1e-3, 1e5, "1 mN to 100 kN, the range of the force limit"});
+    v.real(a + "min_frequency_hz", fr.min_frequency_hz, {0.01, 1e4, "0.01 Hz to 10 kHz"});
+    v.real(a + "max_frequency_hz", fr.max_frequency_hz, {0.01, 1e4, "0.01 Hz to 10 kHz, below the Nyquist frequency"});
+    v.real(a + "resolution_hz", fr.resolution_hz, {0.01, 100.0, "a period of 10 ms to 100 s"});
+    v.real(a + "dense_max_frequency_hz", fr.dense_max_frequency_hz, {0.0, 1e4, "0 (every line) to 10 kHz"});
+    v.real(a + "lines_per_decade", fr.lines_per_decade, {0.0, 1000.0, "0 (unused) to 1000"});
+    v.real(a + "offset_velocity_mps", fr.offset_velocity_mps, {-10.0, 10.0, "either direction, up to 10 m/s"});
+    v.integer(a + "settle_periods", fr.settle_periods, {1.0, 100.0, "1 to 100 periods"});
+    v.integer(a + "measure_periods", fr.measure_periods, {4.0, 400.0, "4 to 400 periods, a multiple of 4"});
+    v.real(a + "ramp_s", fr.ramp_s, {1e-3, 60.0, "a tick to a minute"});
+    v.real(a + "max_travel_m", fr.max_travel_m, {1e-6, 100.0, "1 um to 100 m of stroke"});
+    v.real(a + "max_velocity_mps", fr.max_velocity_mps, {1e-6, 100.0, "1 um/s to 100 m/s"});
+    v.real(a + "min_coherence", fr.min_coherence, {0.0, 1.0, "a coherence: 0 to 1"});
+    v.real(a + "max_low_coherence_share", fr.max_low_coherence_share, {0.0, 1.0, "a share of the lines: 0 to 1"});
+  }
 };
 
 enum class MeasurementPhase : std::uint8_t { kRamp, kExcite, kStop, kDone, kAborted };

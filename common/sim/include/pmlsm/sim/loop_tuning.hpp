@@ -21,6 +21,7 @@
 
 #include "pmlsm/control/biquad.hpp"
 #include "pmlsm/sim/frequency_response.hpp"
+#include "pmlsm/util/parameter_table.hpp"
 
 namespace pmlsm {
 
@@ -49,6 +50,16 @@ struct TuningTargets {
   double gain_allowance_db = 0;    ///< [0, 10]
   /// @throws std::invalid_argument naming the first invalid value.
   void validate() const;
+  /// Its entries under `at` ("commissioning.tuning"). Self: this, const or not.
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& t, Visitor& v) {
+    v.real(at + ".min_phase_margin_deg", t.min_phase_margin_deg, {1.0, 89.0, "1 to 89 deg"});
+    v.real(at + ".min_gain_margin_db", t.min_gain_margin_db, {0.1, 40.0, "0.1 to 40 dB"});
+    v.real(at + ".max_gain_scale", t.max_gain_scale,
+           {1.01, 100.0, "the gains may move by 1 % to a hundredfold either way"});
+    v.real(at + ".phase_allowance_deg", t.phase_allowance_deg, {0.0, 30.0, "0 to 30 deg"});
+    v.real(at + ".gain_allowance_db", t.gain_allowance_db, {0.0, 10.0, "0 to 10 dB"});
+  }
 };
 
 struct TunedGains {
