@@ -22,6 +22,7 @@
 #include "node_support.hpp"
 #include "pmlsm/config/weights_file.hpp"
 #include "pmlsm/optim/pagmo_optimisers.hpp"
+#include "pmlsm/util/atomic_file.hpp"
 #include "pmlsm/util/data_files.hpp"
 #include "training_command_lines.hpp"
 #include "training_support.hpp"
@@ -327,6 +328,14 @@ MadeComponent make_de_trainer(const ComponentContext& /*context*/, int argc, cha
   if (opt.history_path.empty()) opt.history_path = opt.out_path + ".history.csv";
   if (opt.resume && !file_exists(opt.checkpoint_path))
     throw ConfigError("--resume: no checkpoint at " + opt.checkpoint_path);
+  // Before the search: it ends by writing these.
+  for (const auto& [option, path] : {std::pair<const char*, const std::string&>{"-o", opt.out_path},
+                                     {"--checkpoint", opt.checkpoint_path},
+                                     {"--history", opt.history_path}}) {
+    if (const std::string missing = missing_folder_of(path); !missing.empty()) {
+      throw ConfigError(std::string(option) + " " + path + ": " + missing);
+    }
+  }
   return {std::make_unique<DeTrainerComponent>(std::move(opt))};
 }
 

@@ -348,6 +348,13 @@ TEST(TrainingDistributed, BadTrainingConfigExits2) {
   ASSERT_TRUE(code.has_value()) << worker.output();
   EXPECT_EQ(*code, 2) << worker.output();
   EXPECT_NE(worker.output().find("--threads"), std::string::npos) << worker.output();
+  // Nowhere to write the result: refused before the search starts, not at its end.
+  test::ChildProcess nowhere(trainer_args(test_domain(19), dir / "no" / "w.yaml", {}), (dir / "nowhere.log").string());
+  const auto nowhere_code = nowhere.wait_for(seconds(30));
+  ASSERT_TRUE(nowhere_code.has_value()) << nowhere.output();
+  EXPECT_EQ(*nowhere_code, 2) << nowhere.output();
+  EXPECT_NE(nowhere.output().find("-o " + (dir / "no" / "w.yaml").string() + ": no folder"), std::string::npos)
+      << nowhere.output();
   EXPECT_FALSE(fs::exists(dir / "w.yaml"));
   if (!HasFailure()) fs::remove_all(dir);
 }

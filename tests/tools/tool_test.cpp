@@ -388,6 +388,11 @@ TEST(Tool, BadInputIsAClearErrorWithExitCode2) {
       pmlsm_args(domain, {"record", "--compression", "gzip", "-o", (dir / "y.mcap").string()}),
       (dir / "compression.log").string());
   EXPECT_EQ(run_to_end(compression), 2) << compression.output();
+
+  test::ChildProcess nowhere(pmlsm_args(domain, {"record", "-o", (dir / "no" / "x.mcap").string()}),
+                             (dir / "nowhere.log").string());
+  EXPECT_EQ(run_to_end(nowhere), 2) << nowhere.output();
+  EXPECT_NE(nowhere.output().find("no folder"), std::string::npos) << nowhere.output();
   fs::remove_all(dir);
 }
 

@@ -6,6 +6,8 @@
 #include <filesystem>
 #include <sstream>
 
+#include "pmlsm/util/atomic_file.hpp"
+
 namespace pmlsm::tools {
 
 std::vector<const dds::CatalogEntry*> select_topics(const std::vector<std::string>& names) {
@@ -25,10 +27,8 @@ std::vector<const dds::CatalogEntry*> select_topics(const std::vector<std::strin
 }
 
 void require_output_folder(const std::string& option, const std::string& file) {
-  const std::filesystem::path folder = std::filesystem::absolute(file).parent_path();
-  std::error_code ec;
-  if (!std::filesystem::is_directory(folder, ec)) {
-    throw UsageError(option + " " + file + ": no folder " + folder.string() + " to write it in");
+  if (const std::string missing = missing_folder_of(file); !missing.empty()) {
+    throw UsageError(option + " " + file + ": " + missing);
   }
 }
 

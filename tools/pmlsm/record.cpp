@@ -223,6 +223,7 @@ int run_record(const dds::ParticipantOptions& dds_options, RecordOptions o) {
     throw UsageError(std::string("--profile: ") + e.what());
   }
   if (o.output.empty()) o.output = default_file_name();
+  require_output_folder("pmlsm record: -o", o.output);
 
   dds::Wakeup wakeup;  // outlives the participant, whose listeners signal it
   dds::Participant participant(with_node_name(dds_options, "pmlsm_record", "pmlsm_record"));

@@ -6,6 +6,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 
 namespace pmlsm {
 namespace {
@@ -61,6 +62,13 @@ void write_file_atomically(const std::string& path, std::string_view contents, u
     (void)::fsync(dir_fd);
     ::close(dir_fd);
   }
+}
+
+std::string missing_folder_of(const std::string& path) {
+  std::error_code ec;
+  const std::filesystem::path folder = std::filesystem::absolute(path, ec).parent_path();
+  if (!ec && std::filesystem::is_directory(folder, ec)) return "";
+  return "no folder " + folder.string() + " to write it in";
 }
 
 }  // namespace pmlsm

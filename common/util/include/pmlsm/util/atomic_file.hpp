@@ -24,4 +24,9 @@ class AtomicWriteError : public std::runtime_error {
 /// @throws AtomicWriteError naming what failed, the file and errno's text.
 void write_file_atomically(const std::string& path, std::string_view contents, unsigned mode = 0644);
 
+/// Checked before a long run or a measurement that ends by writing `path`: "" when its folder is
+/// there, else "no folder <folder> to write it in" (the caller names the option and throws its own
+/// kind of error).
+std::string missing_folder_of(const std::string& path);
+
 }  // namespace pmlsm
