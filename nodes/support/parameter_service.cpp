@@ -183,7 +183,6 @@ ParameterFollower::Result ParameterFollower::at_tick(std::uint64_t tick, std::ui
   const char* late = "";
   char late_text[64] = "";
   if (step.changed && behind_) {
-    late_ticks_ += tick - behind_since_tick_;
     std::snprintf(late_text, sizeof late_text, ", %llu tick(s) after %s",
                   static_cast<unsigned long long>(tick - behind_since_tick_), followed_.owner().c_str());
     late = late_text;

@@ -70,7 +70,6 @@ class ParameterFollower {
   Result at_tick(std::uint64_t tick, std::uint64_t owner_version, std::chrono::duration<double> timeout);
   /// The owner's values applied so far written over `params`.
   void overlay(SystemParams& params) const { followed_.overlay(params); }
-  std::uint64_t late_ticks() const { return late_ticks_; }
 
  private:
   void take();
@@ -83,7 +82,6 @@ class ParameterFollower {
   std::vector<std::pair<std::string, std::string>> entries_;
   std::uint64_t behind_since_tick_ = 0;
   bool behind_ = false;
-  std::uint64_t late_ticks_ = 0;
 };
 
 }  // namespace pmlsm::node
