@@ -9,6 +9,29 @@ namespace pmlsm::node {
 namespace msg = pmlsm_msgs::msg;
 namespace ops = pmlsm_msgs::msg::ParameterRequest_Constants;
 
+namespace {
+
+// A SET_MANY answer lists each change as "key: old -> new" (ParameterEvent.entries); the service
+// writes them and a follower reads them back, both here.
+constexpr const char* kKeySeparator = ": ";
+constexpr const char* kChangeArrow = " -> ";
+
+std::string change_entry(const LiveChange& change) {
+  return change.key + kKeySeparator + change.old_value + kChangeArrow + change.new_value;
+}
+
+/// The key and the new value of an entry change_entry wrote; false for any other text.
+bool parse_change_entry(const std::string& text, std::string& key, std::string& new_value) {
+  const auto colon = text.find(kKeySeparator);
+  const auto arrow = text.rfind(kChangeArrow);
+  if (colon == std::string::npos || arrow == std::string::npos || arrow < colon) return false;
+  key = text.substr(0, colon);
+  new_value = text.substr(arrow + std::char_traits<char>::length(kChangeArrow));
+  return true;
+}
+
+}  // namespace
+
 ParameterService::ParameterService(NodeRuntime& rt, std::string node_name, LiveParameters& live)
     : rt_(rt),
       node_name_(std::move(node_name)),
@@ -56,7 +79,7 @@ LiveAnswer ParameterService::set_many(std::uint64_t tick, const std::string& req
   applied_ = true;
   const auto& history = live_.history();
   for (auto change = history.end() - static_cast<std::ptrdiff_t>(changes.size()); change != history.end(); ++change) {
-    event_.entries().push_back((change->key + ": " + change->old_value + " -> " + change->new_value).substr(0, 192));
+    event_.entries().push_back(change_entry(*change).substr(0, 192));
     std::printf("%s: tick %llu: parameter %s %s -> %s (version %llu, by %s, together with %zu)\n", node_name_.c_str(),
                 static_cast<unsigned long long>(tick), change->key.c_str(), change->old_value.c_str(),
                 change->new_value.c_str(), static_cast<unsigned long long>(change->version), requester.c_str(),
@@ -135,13 +158,9 @@ void ParameterFollower::take() {
     if (event_.operation() == ops::OPERATION_SET) {
       entries_.emplace_back(event_.key().to_string(), event_.value().to_string());
     } else {
-      // SET_MANY lists "key: old -> new" per change.
+      std::string key, value;
       for (const auto& entry : event_.entries()) {
-        const std::string text = entry.to_string();
-        const auto colon = text.find(": ");
-        const auto arrow = text.rfind(" -> ");
-        if (colon == std::string::npos || arrow == std::string::npos || arrow < colon) continue;
-        entries_.emplace_back(text.substr(0, colon), text.substr(arrow + 4));
+        if (parse_change_entry(entry.to_string(), key, value)) entries_.emplace_back(key, value);
       }
     }
     const std::string refused = followed_.offer(event_.version(), entries_);

@@ -408,6 +408,16 @@ void expect_kp_followed_at_the_same_tick(bool composed, const std::string& domai
             std::string::npos)
       << text;
   EXPECT_NE(text.find("stays 12000"), std::string::npos) << text;
+  // A file loaded whole (SET_MANY: one request, its changes listed together) is followed too.
+  const std::string system = read_file(source("configs/system.yaml"));
+  const std::string loaded =
+      std::regex_replace(system, std::regex("kp_n_s_per_m: \\{value: 10000.0"), "kp_n_s_per_m: {value: 13000.0");
+  ASSERT_NE(loaded, system);
+  std::ofstream(dir / "loaded.yaml") << loaded;
+  std::tie(code, text) = run_param(dir, domain, {"load", "controller", (dir / "loaded.yaml").string()}, "load.log");
+  EXPECT_EQ(code, 0) << text;
+  const std::optional<std::uint64_t> load_tick = from_tick(text);
+  ASSERT_TRUE(load_tick.has_value()) << text;
   std::string out;
   for (auto& p : processes) {
     p->signal(SIGINT);
@@ -420,6 +430,10 @@ void expect_kp_followed_at_the_same_tick(bool composed, const std::string& domai
       << out;
   EXPECT_NE(out.find("state_feedback: " + at +
                      "follows controller's parameter velocity_loop.kp_n_s_per_m 10000 -> 12000 (version 1)\n"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("state_feedback: tick " + std::to_string(*load_tick) +
+                     ": follows controller's parameter velocity_loop.kp_n_s_per_m 12000 -> 13000 (version 2)\n"),
             std::string::npos)
       << out;
   EXPECT_EQ(out.find("not followed"), std::string::npos) << out;
