@@ -12,10 +12,11 @@
 
 set_property(GLOBAL PROPERTY PMLSM_COMPONENTS "")
 
-# pmlsm_component(LIBRARY SOURCES...): LIBRARY (a static library made from SOURCES and linked to
-# pmlsm_node_support, plus any LINK libraries) holds one or more registered components.
+# pmlsm_component(LIBRARY SOURCES... [ORIGIN FILE] [LINK...]): LIBRARY (a static library made from
+# SOURCES and linked to pmlsm_node_support, plus any LINK libraries) holds one or more registered
+# components; ORIGIN: the file to name for them when SOURCES are generated.
 function(pmlsm_component library)
-  cmake_parse_arguments(ARG "" "" "SOURCES;LINK" ${ARGN})
+  cmake_parse_arguments(ARG "" "ORIGIN" "SOURCES;LINK" ${ARGN})
   add_library(${library} STATIC ${ARG_SOURCES})
   target_link_libraries(${library} PUBLIC pmlsm_node_support ${ARG_LINK})
   set(found 0)
@@ -29,6 +30,9 @@ function(pmlsm_component library)
       set(name ${CMAKE_MATCH_1})
       set(factory ${CMAKE_MATCH_2})
       set(priority ${CMAKE_MATCH_3})
+      if(ARG_ORIGIN)
+        set(path ${ARG_ORIGIN})
+      endif()
       get_property(registered GLOBAL PROPERTY PMLSM_COMPONENTS)
       foreach(entry IN LISTS registered)
         string(REPLACE "|" ";" fields "${entry}")

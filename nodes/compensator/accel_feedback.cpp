@@ -11,26 +11,18 @@ namespace {
 
 using namespace pmlsm;
 
-class AccelFeedbackComponent final : public node::Component {
+class AccelFeedbackComponent final : public node::FixedLawComponent {
  public:
   AccelFeedbackComponent(const node::ComponentContext& context, node::CommonOptions common)
-      : common_(std::move(common)),
-        rt_("accel_feedback", common_, context),
+      : FixedLawComponent("accel_feedback", context, std::move(common)),
         params_(rt_.cfg.params.accel_feedback_params()),
-        law_(params_),
-        inputs_(rt_.participant, rt_.wakeup, rt_.cfg),
-        writer_(rt_.participant.make_writer(pmlsm::dds::topics::kCompensatorOutput)),
-        live_(rt_.cfg.params, live_keys("accel_feedback")),
-        parameters_(rt_, "accel_feedback", live_) {}
+        law_(params_) {}
 
-  int run() override {
-    const node::CompensatorLoopResult result = node::run_fixed_law(
-        "accel_feedback", rt_, common_, inputs_, writer_, params_.force_limit_n, parameters_, live_, nullptr,
-        [&](const CompensatorView& view) { return law_.step(accel_feedback_input(view)); },
-        [&](const SystemParams& changed) { law_.set_params(changed.accel_feedback_params()); });
-    const std::uint64_t answered = result.answered;
+ private:
+  double force(const CompensatorView& view) override { return law_.step(accel_feedback_input(view)); }
+  void retune(const SystemParams& changed) override { law_.set_params(changed.accel_feedback_params()); }
+  void report(std::uint64_t answered) override {
     rt_.status.status().rejected(inputs_.rejected() + law_.counters().rejected_inputs);
-    rt_.status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_STOPPING, answered, rt_.period_s, "done");
     std::printf(
         "accel_feedback: K_a %.1f kg (x %.3f on the model's load)%s, %llu ticks answered, %llu saturated, "
         "%llu rejected, %llu skipped\n",
@@ -39,18 +31,10 @@ class AccelFeedbackComponent final : public node::Component {
         static_cast<unsigned long long>(law_.counters().saturated),
         static_cast<unsigned long long>(inputs_.rejected() + law_.counters().rejected_inputs),
         static_cast<unsigned long long>(inputs_.skipped()));
-    return result.exit_code;
   }
 
- private:
-  node::CommonOptions common_;
-  node::NodeRuntime rt_;
   AccelFeedbackParams params_;
   AccelFeedback law_;
-  node::CompensatorInputs inputs_;
-  node::CompensatorWriter writer_;
-  LiveParameters live_;
-  node::ParameterService parameters_;
 };
 
 }  // namespace

@@ -25,4 +25,11 @@ std::optional<int> parse_state_feedback_command_line(int argc, char** argv, Comm
   return parse_command_line(app, argc, argv);
 }
 
+std::optional<int> parse_law_compensator_command_line(int argc, char** argv, const char* summary,
+                                                      CommonOptions& common) {
+  CLI::App app{summary};
+  add_common_options(app, common);
+  return parse_command_line(app, argc, argv);
+}
+
 }  // namespace pmlsm::node

@@ -21,5 +21,8 @@ struct RnnOptions {
 std::optional<int> parse_rnn_compensator_command_line(int argc, char** argv, RnnOptions& opt);
 std::optional<int> parse_accel_feedback_command_line(int argc, char** argv, CommonOptions& common);
 std::optional<int> parse_state_feedback_command_line(int argc, char** argv, CommonOptions& common);
+/// A law added in its own folder (law_compensator.hpp): the common options; `summary` heads --help.
+std::optional<int> parse_law_compensator_command_line(int argc, char** argv, const char* summary,
+                                                      CommonOptions& common);
 
 }  // namespace pmlsm::node

@@ -40,7 +40,7 @@ RnnWeightsFile from_message(const msg::NetworkWeights& m, const SystemParams& pa
 
 using node::RnnOptions;
 
-class RnnCompensatorComponent final : public node::Component {
+class RnnCompensatorComponent final : public node::CycleComponent {
  public:
   RnnCompensatorComponent(const node::ComponentContext& context, RnnOptions options)
       : opt_(std::move(options)),
@@ -51,7 +51,7 @@ class RnnCompensatorComponent final : public node::Component {
         inputs_(rt_.participant, rt_.wakeup, rt_.cfg),
         weights_reader_(rt_.participant.make_reader(pdds::topics::kNetworkWeights, rt_.wakeup)),
         writer_(rt_.participant.make_writer(pdds::topics::kCompensatorOutput)),
-        live_(rt_.cfg.params, live_keys("rnn_compensator")),
+        live_(rt_.cfg.params, live_keys(rt_.cfg.params, "rnn_compensator")),
         parameters_(rt_, "rnn_compensator", live_),
         ticks_(scenario_ticks(rt_.cfg.scenario, rt_.period_s)) {
     if (!opt_.weights_path.empty()) {
@@ -64,9 +64,19 @@ class RnnCompensatorComponent final : public node::Component {
     }
   }
 
-  int run() override;
-
  private:
+  void activate() override {
+    rt_.status.publish(msg::NodeStatus_Constants::STATE_RUNNING, 0, rt_.period_s,
+                       have_weights_ ? "running" : "running, no weights yet");
+  }
+  Update update() override;
+  std::chrono::duration<double> input_timeout() const override {
+    return std::chrono::duration<double>(opt_.common.peer_timeout_s);
+  }
+  int inputs_lost() override { return inputs_.end_of_wait("rnn_compensator", answered_, opt_.common.peer_timeout_s); }
+  int finish(int exit_code) override;
+  pdds::Wakeup& wakeup() override { return rt_.wakeup; }
+
   RnnOptions opt_;
   node::NodeRuntime rt_;
   const SystemParams& params_;
@@ -79,57 +89,59 @@ class RnnCompensatorComponent final : public node::Component {
   LiveParameters live_;
   node::ParameterService parameters_;
   std::uint64_t ticks_;
+  std::uint64_t answered_ = 0;
+  CompensatorView view_;
+  msg::CompensatorOutput out_;
+  msg::NetworkWeights incoming_;
 };
 
-int RnnCompensatorComponent::run() {
-  const bool online_learning = opt_.online_learning;
-  rt_.status.publish(msg::NodeStatus_Constants::STATE_RUNNING, 0, rt_.period_s,
-                     have_weights_ ? "running" : "running, no weights yet");
-
-  msg::CompensatorOutput out;
-  msg::NetworkWeights incoming;
-  std::uint64_t tick = 0, answered = 0;
-  CompensatorView view;
-  int exit_code = kExitOk;
-  while (answered < ticks_ && !pdds::stop_requested()) {
-    if (!inputs_.next(std::chrono::duration<double>(opt_.common.peer_timeout_s), tick, view)) {
-      exit_code = inputs_.end_of_wait("rnn_compensator", answered, opt_.common.peer_timeout_s);
-      break;
-    }
-    // Its online rule's settings (checked by LiveParameters as the file is) and weight swaps
-    // happen here, between ticks, never inside a step.
-    if (parameters_.serve(tick)) rnn_.set_learning(live_.params().rnn_compensator_params(online_learning));
-    while (!opt_.ignore_topic && weights_reader_.take(incoming)) {
-      const RnnWeightsFile candidate = from_message(incoming, params_);
-      if (!gate_.offer(candidate, incoming.version(), "the NetworkWeights topic").empty()) {
-        std::fprintf(stderr, "rnn_compensator: %s\n", gate_.last_log().c_str());
-        continue;
-      }
-      std::printf("rnn_compensator: %s (tick %llu)\n", gate_.last_log().c_str(), static_cast<unsigned long long>(tick));
-      rnn_.set_weights(candidate.weights);
-      have_weights_ = true;
-    }
-    CompensatorStep step;  // without weights: no force, the training error alone
-    std::uint32_t mode_flags = 0;
-    if (have_weights_) {
-      step = rnn_.step(rnn_input(view));
-      mode_flags = flags::FLAG_ENABLED | (online_learning ? flags::FLAG_ONLINE_LEARNING : 0u);
-    } else {
-      step.training_error_mps = view.v_ref_mps - view.v_load_mps;
-    }
-    node::to_msg(step, mode_flags, tick, gate_.version(), out);
-    out.stamp(node::make_stamp(tick, rt_.period_s, inputs_.run_id()));
-    writer_.write(out);
-    answered = tick + 1;
+RnnCompensatorComponent::Update RnnCompensatorComponent::update() {
+  if (answered_ >= ticks_) return Update::finished(kExitOk);
+  std::uint64_t tick = 0;
+  switch (inputs_.try_next(tick, view_)) {
+    case node::CompensatorInputs::Take::kNone: return Update::waiting();
+    case node::CompensatorInputs::Take::kEnded:
+      return Update::finished(inputs_.end_of_wait("rnn_compensator", answered_, opt_.common.peer_timeout_s));
+    case node::CompensatorInputs::Take::kTick: break;
   }
+  const bool online_learning = opt_.online_learning;
+  // Its online rule's settings (checked by LiveParameters as the file is) and weight swaps
+  // happen here, between ticks, never inside a step.
+  if (parameters_.serve(tick)) rnn_.set_learning(live_.params().rnn_compensator_params(online_learning));
+  while (!opt_.ignore_topic && weights_reader_.take(incoming_)) {
+    const RnnWeightsFile candidate = from_message(incoming_, params_);
+    if (!gate_.offer(candidate, incoming_.version(), "the NetworkWeights topic").empty()) {
+      std::fprintf(stderr, "rnn_compensator: %s\n", gate_.last_log().c_str());
+      continue;
+    }
+    std::printf("rnn_compensator: %s (tick %llu)\n", gate_.last_log().c_str(), static_cast<unsigned long long>(tick));
+    rnn_.set_weights(candidate.weights);
+    have_weights_ = true;
+  }
+  CompensatorStep step;  // without weights: no force, the training error alone
+  std::uint32_t mode_flags = 0;
+  if (have_weights_) {
+    step = rnn_.step(rnn_input(view_));
+    mode_flags = flags::FLAG_ENABLED | (online_learning ? flags::FLAG_ONLINE_LEARNING : 0u);
+  } else {
+    step.training_error_mps = view_.v_ref_mps - view_.v_load_mps;
+  }
+  node::to_msg(step, mode_flags, tick, gate_.version(), out_);
+  out_.stamp(node::make_stamp(tick, rt_.period_s, inputs_.run_id()));
+  writer_.write(out_);
+  answered_ = tick + 1;
+  return Update::worked();
+}
+
+int RnnCompensatorComponent::finish(int exit_code) {
   const CompensatorCounters& c = rnn_.counters();
   rt_.status.status().rejected(inputs_.rejected() + c.rejected_inputs + gate_.refused());
-  rt_.status.publish(msg::NodeStatus_Constants::STATE_STOPPING, answered, rt_.period_s, "done");
+  rt_.status.publish(msg::NodeStatus_Constants::STATE_STOPPING, answered_, rt_.period_s, "done");
   writer_.wait_for_acknowledgments(node::flush_timeout(exit_code));
   std::printf(
       "rnn_compensator: %llu ticks answered, online learning %s: %llu updates, k_c clamped %llu, dead-band %llu, "
       "reverted %llu; %llu input(s) rejected, %llu skipped; %llu weight set(s) taken, %llu refused\n",
-      static_cast<unsigned long long>(answered), online_learning ? "on" : "off",
+      static_cast<unsigned long long>(answered_), opt_.online_learning ? "on" : "off",
       static_cast<unsigned long long>(c.updates), static_cast<unsigned long long>(c.kc_clamped),
       static_cast<unsigned long long>(c.kc_deadband), static_cast<unsigned long long>(c.reverted_updates),
       static_cast<unsigned long long>(inputs_.rejected() + c.rejected_inputs),

@@ -11,28 +11,21 @@ namespace {
 
 using namespace pmlsm;
 
-class StateFeedbackComponent final : public node::Component {
+class StateFeedbackComponent final : public node::FixedLawComponent {
  public:
+  /// Its model's loop runs on the controller's Kp: it follows the controller's live changes, so a
+  /// change there reaches it at the same tick.
   StateFeedbackComponent(const node::ComponentContext& context, node::CommonOptions common)
-      : common_(std::move(common)),
-        rt_("state_feedback", common_, context),
+      : FixedLawComponent("state_feedback", context, std::move(common), "controller"),
         params_(rt_.cfg.params.state_feedback_params()),
-        law_(params_),
-        inputs_(rt_.participant, rt_.wakeup, rt_.cfg),
-        writer_(rt_.participant.make_writer(pmlsm::dds::topics::kCompensatorOutput)),
-        live_(rt_.cfg.params, live_keys("state_feedback")),
-        parameters_(rt_, "state_feedback", live_),
-        follower_(rt_, "state_feedback", "controller", rt_.cfg.params) {}
+        law_(params_) {}
 
-  int run() override {
-    const node::CompensatorLoopResult result = node::run_fixed_law(
-        "state_feedback", rt_, common_, inputs_, writer_, params_.force_limit_n, parameters_, live_, &follower_,
-        [&](const CompensatorView& view) { return law_.step(state_feedback_input(view)); },
-        [&](const SystemParams& changed) { law_.set_params(changed.state_feedback_params()); });
-    const std::uint64_t answered = result.answered;
+ private:
+  double force(const CompensatorView& view) override { return law_.step(state_feedback_input(view)); }
+  void retune(const SystemParams& changed) override { law_.set_params(changed.state_feedback_params()); }
+  void report(std::uint64_t answered) override {
     const StateFeedbackCounters& counters = law_.counters();
     rt_.status.status().rejected(inputs_.rejected() + counters.rejected_inputs + counters.model_resets);
-    rt_.status.publish(pmlsm_msgs::msg::NodeStatus_Constants::STATE_STOPPING, answered, rt_.period_s, "done");
     std::printf(
         "state_feedback: model %.1f/%.1f kg, %.0f N/m, %llu ticks answered, %llu saturated, %llu rejected, "
         "%llu model restarts, %llu skipped\n",
@@ -40,20 +33,10 @@ class StateFeedbackComponent final : public node::Component {
         static_cast<unsigned long long>(answered), static_cast<unsigned long long>(counters.saturated),
         static_cast<unsigned long long>(inputs_.rejected() + counters.rejected_inputs),
         static_cast<unsigned long long>(counters.model_resets), static_cast<unsigned long long>(inputs_.skipped()));
-    return result.exit_code;
   }
 
- private:
-  node::CommonOptions common_;
-  node::NodeRuntime rt_;
   StateFeedbackParams params_;
   StateFeedback law_;
-  node::CompensatorInputs inputs_;
-  node::CompensatorWriter writer_;
-  LiveParameters live_;
-  node::ParameterService parameters_;
-  /// Its model's loop runs on the controller's Kp: a change there reaches it at the same tick.
-  node::ParameterFollower follower_;
 };
 
 }  // namespace

@@ -171,29 +171,20 @@ void ParameterFollower::take() {
   }
 }
 
-ParameterFollower::Result ParameterFollower::at_tick(std::uint64_t tick, std::uint64_t owner_version,
-                                                     std::chrono::duration<double> timeout) {
+void ParameterFollower::report_not_heard(std::uint64_t tick, std::uint64_t owner_version, double timeout_s) const {
+  std::fprintf(stderr,
+               "%s: tick %llu: %s computed it with parameter version %llu; the change was not heard within %.1f s\n",
+               node_name_.c_str(), static_cast<unsigned long long>(tick), followed_.owner().c_str(),
+               static_cast<unsigned long long>(owner_version), timeout_s);
+}
+
+ParameterFollower::Result ParameterFollower::at_tick(std::uint64_t tick, std::uint64_t owner_version) {
   // The owner's version says when there is something to take: a tick at the version applied
   // costs nothing (the reader keeps the newest 8192 events meanwhile, the owner's among them).
   if (owner_version == followed_.applied_version()) return Result::kSame;
   take();
-  if (rt_.cfg.clock == Clock::kLockstep && owner_version > followed_.offered_version()) {
-    // Written before the tick's data: it is on its way.
-    const bool heard = wait_until(rt_.wakeup, timeout, [&] {
-      take();
-      return followed_.offered_version() >= owner_version;
-    });
-    if (!heard) {
-      if (!dds::stop_requested()) {
-        std::fprintf(stderr,
-                     "%s: tick %llu: %s computed it with parameter version %llu; the change was not heard within "
-                     "%.1f s\n",
-                     node_name_.c_str(), static_cast<unsigned long long>(tick), followed_.owner().c_str(),
-                     static_cast<unsigned long long>(owner_version), timeout.count());
-      }
-      return Result::kMissing;
-    }
-  }
+  // Lockstep: written before the tick's data, it is on its way.
+  if (rt_.cfg.clock == Clock::kLockstep && owner_version > followed_.offered_version()) return Result::kNotYet;
   const FollowedParameters::Step step = followed_.at_tick(owner_version);
   if (step.missing && !behind_) {
     behind_ = true;

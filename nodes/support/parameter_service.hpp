@@ -55,19 +55,22 @@ class ParameterService {
 /// Another node's live changes this node derives values from, on DDS (FollowedParameters,
 /// pmlsm/sim/live_parameters.hpp): the owner's accepted changes read from ParameterEvent, applied
 /// at the tick the owner computed with them (VelocityReference.parameters_version). In lockstep a
-/// change the owner made but whose event has not arrived is waited for (the owner wrote the event
-/// before that tick's data, so it is on its way); in realtime the tick goes on with the old values
-/// and the change applies when it arrives, said late.
+/// change the owner made but whose event has not arrived is not there yet: the tick waits for it
+/// (the owner wrote the event before that tick's data, so it is on its way); in realtime the tick
+/// goes on with the old values and the change applies when it arrives, said late.
 class ParameterFollower {
  public:
   /// @throws std::runtime_error from DDS.
   ParameterFollower(NodeRuntime& rt, std::string node_name, std::string owner, const SystemParams& params);
 
-  enum class Result { kSame, kChanged, kMissing };
-  /// At the boundary before `tick`, which the owner computed with `owner_version`. kChanged: the
-  /// followed values changed from this tick (overlay them on the node's own and re-derive);
-  /// kMissing: lockstep only, the owner's change did not arrive within `timeout` (the node ends).
-  Result at_tick(std::uint64_t tick, std::uint64_t owner_version, std::chrono::duration<double> timeout);
+  enum class Result { kSame, kChanged, kNotYet };
+  /// At the boundary before `tick`, which the owner computed with `owner_version`; never waits.
+  /// kChanged: the followed values changed from this tick (overlay them on the node's own and
+  /// re-derive); kNotYet: lockstep only, the owner's change has not arrived (ask again when the
+  /// inputs move).
+  Result at_tick(std::uint64_t tick, std::uint64_t owner_version);
+  /// After kNotYet for the peer timeout: the line saying which change of the owner's never came.
+  void report_not_heard(std::uint64_t tick, std::uint64_t owner_version, double timeout_s) const;
   /// The owner's values applied so far written over `params`.
   void overlay(SystemParams& params) const { followed_.overlay(params); }
 

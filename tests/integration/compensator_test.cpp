@@ -17,12 +17,14 @@
 #include "integration_support.hpp"
 #include "pmlsm/compensation/accel_feedback.hpp"
 #include "pmlsm/compensation/state_feedback.hpp"
+#include "pmlsm/sim/compensator_law.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/sim/compensated_run.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/sim/rnn_training.hpp"
 #include "pmlsm/config/weights_file.hpp"
+#include "spring_force_feedback/spring_force_feedback.hpp"
 #include "trace_csv.hpp"
 
 namespace pmlsm {
@@ -295,6 +297,37 @@ TEST(CompensatorDistributed, RnnRefusesWrongSizeWeightsFromTopicAndKeepsItsOwn) 
   EXPECT_NE(out.find("from 'de_trainer gen"), std::string::npos) << out;
   EXPECT_NE(out.find("0 weight set(s) taken"), std::string::npos) << out;
   EXPECT_EQ(out.find(" 0 refused"), std::string::npos) << out;
+  if (!::testing::Test::HasFailure()) fs::remove_all(dir);
+}
+
+// The tutorial's compensator (compensators/spring_force_feedback, docs/writing-a-compensator.md),
+// made from its folder alone, launched in a compensator's place in separate processes and composed:
+// both traces equal the in-process loop with its law, byte for byte.
+TEST(CompensatorDistributed, AFolderCompensatorComposedAndSeparateEqualsItsLawInProcess) {
+  const fs::path dir = fresh_dir("folder");
+  const SystemParams params = system_params();
+  write_trace_csv((dir / "in_process.csv").string(),
+                  run_with_law<SpringForceFeedback>(params, scenario(params), "spring_force_feedback"));
+  const std::string expected = read_file(dir / "in_process.csv");
+  ASSERT_GT(nonzero_count(trace_column(expected, "compensation_force_n")), 1000u);
+  for (const bool composed : {false, true}) {
+    const std::string mode = composed ? "composed" : "separate";
+    test::ChildProcess launch(
+        {bin("launcher"), source("launch/sim_compensator.yaml"), "--arg", "compensator=spring_force_feedback", "--arg",
+         "compose=" + std::string(composed ? "true" : "false"), "--arg", "domain=" + test_domain(composed ? 112 : 111),
+         "--arg", "out=" + (dir / mode).string(), "--arg", "keystore=none"},
+        (dir / (mode + ".log")).string());
+    const auto code = launch.wait_for(seconds(120));
+    ASSERT_TRUE(code.has_value()) << launch.output();
+    EXPECT_EQ(*code, 0) << launch.output();
+    const std::string out = launch.output();
+    EXPECT_NE(out.find("spring_force_feedback: 2000 ticks answered, 0 saturated, 0 rejected, 0 skipped"),
+              std::string::npos)
+        << out;
+    EXPECT_EQ(out.find("container") != std::string::npos, composed) << out;
+    EXPECT_TRUE(read_file(dir / mode / (kScenarioName + "_spring_force_feedback.csv")) == expected)
+        << mode << " != in process (" << dir << ")";
+  }
   if (!::testing::Test::HasFailure()) fs::remove_all(dir);
 }
 

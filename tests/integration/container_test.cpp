@@ -158,9 +158,23 @@ TEST(Container, ItsHelpListsTheRegisteredComponentsThatShareAChainThread) {
   ASSERT_TRUE(code.has_value()) << help.output();
   EXPECT_EQ(*code, 0) << help.output();
   EXPECT_NE(help.output().find("(types: plant_sim, controller, kalman_estimator, evaluator, rnn_compensator, "
-                               "accel_feedback, state_feedback, drive_bridge)"),
+                               "accel_feedback, state_feedback, spring_force_feedback, drive_bridge)"),
             std::string::npos)
       << help.output();
+  // A compensator's folder (compensators/<name>/) is all it takes: each is a container type and a
+  // program, with its parameter section in the configuration reference.
+  test::ChildProcess reference({bin("pmlsm"), "config", "reference"}, (dir / "reference.log").string());
+  ASSERT_EQ(reference.wait_for(seconds(30)).value_or(-1), 0) << reference.output();
+  std::size_t folders = 0;
+  for (const auto& entry : fs::directory_iterator(source("compensators"))) {
+    if (!entry.is_directory()) continue;
+    const std::string name = entry.path().filename().string();
+    ++folders;
+    EXPECT_NE(help.output().find(" " + name + ","), std::string::npos) << name << " is no container type";
+    EXPECT_TRUE(fs::exists(bin(name))) << name << " has no program";
+    EXPECT_NE(reference.output().find("## `compensator." + name + "`"), std::string::npos) << name;
+  }
+  EXPECT_GE(folders, 1u);
   for (const char* alone : {"de_trainer", "de_worker", "foxglove_bridge", "virtual_drive"}) {
     EXPECT_TRUE(fs::exists(bin(alone))) << alone;
   }

@@ -95,8 +95,10 @@ int run_param(const dds::ParticipantOptions& dds_options, const ParamOptions& o,
     return kExitPeerMissing;
   }
   if (!event->accepted()) {
-    std::cerr << "pmlsm param: " << o.node << " refused: " << event->reason() << " (" << o.key << " stays "
-              << event->value() << ")\n";
+    // A key the node does not take live has no value to name.
+    std::cerr << "pmlsm param: " << o.node << " refused: " << event->reason();
+    if (event->value().size() > 0) std::cerr << " (" << o.key << " stays " << event->value() << ")";
+    std::cerr << "\n";
     return kExitBadConfig;
   }
   if (operation == ops::OPERATION_LIST) {

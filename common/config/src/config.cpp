@@ -172,13 +172,49 @@ class TableReader {
   std::map<std::string, std::string> lines_;  ///< key path -> " (line N)" of the keys read
 };
 
+// Writes a section's declared defaults into the document for every entry it does not name, so a
+// system file (and --set) may leave a section out or name only some of its entries; what the file
+// holds in a section's place that is not a mapping is left to TableReader to refuse.
+class SectionDefaults final : public SectionVisitor {
+ public:
+  explicit SectionDefaults(YAML::Node root) : root_(std::move(root)) {}
+  void real(const std::string& path, double& value, const Plausible&) override { fill(path, format_value(value)); }
+  void integer(const std::string& path, std::int64_t& value, const Plausible&) override {
+    fill(path, std::to_string(value));
+  }
+  void flag(const std::string& path, bool& value) override { fill(path, value ? "true" : "false"); }
+
+ private:
+  void fill(const std::string& path, const std::string& text) {
+    YAML::Node node = root_;
+    std::stringstream parts(path);
+    std::vector<std::string> keys;
+    for (std::string key; std::getline(parts, key, '.');) keys.push_back(key);
+    for (std::size_t i = 0; i + 1 < keys.size(); ++i) {
+      if (!node.IsMap() && !node.IsNull()) return;
+      if (!node[keys[i]]) node[keys[i]] = YAML::Node(YAML::NodeType::Map);
+      node.reset(node[keys[i]]);
+    }
+    if (!node.IsMap() || node[keys.back()]) return;
+    node[keys.back()] = text;
+  }
+
+  YAML::Node root_;
+};
+
 }  // namespace
 
 SystemParams parse_system_params(const std::string& yaml_text, const std::string& origin,
                                  const std::vector<ConfigOverride>& overrides) {
   YAML::Node root = parse_yaml(yaml_text, origin);
-  apply_overrides(root, overrides, origin);
   SystemParams p;
+  p.sections = registered_parameter_sections();
+  if (root.IsMap()) {
+    SectionDefaults defaults(root);
+    for (const ParameterSection& section : p.sections) section.visit(section, p.section_values, defaults);
+    p.section_values.clear();
+  }
+  apply_overrides(root, overrides, origin);
   TableReader reader(root, origin);
   visit_parameters(p, reader);
   reader.finish();

@@ -58,19 +58,21 @@ struct ReferenceRow {
   std::string key_path;
   std::string kind;  ///< what the reader takes and the range it checks
   std::string reason;
+  std::string value;           ///< as loaded: what the page shows for an entry the file leaves to its declaration
+  std::string default_source;  ///< the source shown then
 };
 
 // Walks the parameter table and writes down each entry's declaration.
 class DeclarationCollector {
  public:
-  void real(const std::string& path, const double&, const Plausible& r) {
-    add(path, "real in " + range(r) + live(r.live_at), r.reason);
+  void real(const std::string& path, const double& value, const Plausible& r) {
+    add(path, "real in " + range(r) + live(r.live_at), r.reason, format_value(value));
   }
   template <typename T>
-  void integer(const std::string& path, const T&, const Plausible& r) {
-    add(path, "whole number in " + range(r) + live(r.live_at), r.reason);
+  void integer(const std::string& path, const T& value, const Plausible& r) {
+    add(path, "whole number in " + range(r) + live(r.live_at), r.reason, std::to_string(value));
   }
-  void flag(const std::string& path, const bool&) { add(path, "true or false", ""); }
+  void flag(const std::string& path, const bool& value) { add(path, "true or false", "", value ? "true" : "false"); }
   template <typename E, typename F>
   void choice(const std::string& path, const E&, F from_string, const char* live_at = nullptr) {
     // The set of names is the parser's own: its refusal lists them ("must be one of a, b, got 'x'").
@@ -100,8 +102,8 @@ class DeclarationCollector {
   static std::string live(const char* live_at) {
     return live_at == nullptr ? std::string() : std::string("; live at `") + live_at + "`";
   }
-  void add(const std::string& path, std::string kind, const std::string& reason) {
-    rows.push_back({path, std::move(kind), reason});
+  void add(const std::string& path, std::string kind, const std::string& reason, std::string value = "") {
+    rows.push_back({path, std::move(kind), reason, std::move(value), ""});
   }
 };
 
@@ -141,8 +143,9 @@ std::string reference_page(const std::vector<ReferenceRow>& rows, const std::str
       const std::size_t dot = row.key_path.rfind('.');
       if (row.key_path.compare(0, dot, section) != 0 || dot != section.size()) continue;
       const auto leaf = leaves.find(row.key_path);
-      const std::string value = leaf != leaves.end() ? leaf->second.value : "";
-      const std::string source = leaf != leaves.end() ? leaf->second.source : "";
+      // An entry the file does not name has its declaration's default (a compensator's section).
+      const std::string value = leaf != leaves.end() ? leaf->second.value : row.value;
+      const std::string source = leaf != leaves.end() ? leaf->second.source : row.default_source;
       out << "| `" << row.key_path.substr(dot + 1) << "` | " << cell(value) << " | " << unit_of_key(row.key_path)
           << " | " << cell(row.kind) << " | " << cell(row.reason) << " | " << cell(source) << " |\n";
     }
@@ -156,6 +159,13 @@ std::string system_parameter_reference(const std::string& yaml_text, const std::
   const SystemParams params = parse_system_params(yaml_text, origin);
   DeclarationCollector collector;
   visit_parameters(params, collector);
+  for (ReferenceRow& row : collector.rows) {
+    for (const ParameterSection& section : params.sections) {
+      if (row.key_path.rfind(std::string(section.at) + ".", 0) == 0) {
+        row.default_source = std::string("the default declared in ") + section.declared_in;
+      }
+    }
+  }
   return reference_page(
       collector.rows, yaml_text, origin,
       "Generated from the parameter declarations (each component's `declare`, next to its code, in the\n"
@@ -168,6 +178,8 @@ std::string system_parameter_reference(const std::string& yaml_text, const std::
           "A value outside its range is refused with the range and its reason; the unit is the one the\n"
           "key's name carries. `live at NODE`: that node takes a change of it while it runs, at a tick\n"
           "boundary (`pmlsm param`, [commissioning.md](commissioning.md)); the others are read at start.\n"
+          "A compensator added in its own folder ([writing-a-compensator.md](writing-a-compensator.md)) has\n"
+          "its section here with its declaration's defaults, which the file may leave out.\n"
           "Where a source needs more than a sentence or two, the rest is in\n"
           "[parameters.md](parameters.md); how the file is read and overridden: [configuration.md](configuration.md).\n"
           "The CANopen rig file: [canopen-reference.md](canopen-reference.md).\n");

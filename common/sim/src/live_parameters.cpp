@@ -258,8 +258,7 @@ class LiveKeyCollector {
 
 }  // namespace
 
-std::vector<std::string> live_keys(const std::string& node) {
-  const SystemParams params{};
+std::vector<std::string> live_keys(const SystemParams& params, const std::string& node) {
   LiveKeyCollector collector(node);
   visit_parameters(params, collector);
   return collector.keys;

@@ -253,6 +253,9 @@ void SystemParams::validate() const {
   validate_section("filters.force_command", [&] { force_command_filter_params().validate(); });
   validate_section("filters.compensation", [&] { compensation_filter_params().validate(); });
   validate_section("plant", [&] { plant.check_step(); });
+  for (const ParameterSection& section : sections) {
+    validate_section(section.at, [&] { section.validate(section, section_values); });
+  }
 }
 
 }  // namespace pmlsm

@@ -32,7 +32,7 @@ void expect_live_refused(LiveParameters& live, const std::string& key, const std
 }
 
 TEST(LiveParameters, AChangeIsCheckedLikeTheFileVersionedAndKept) {
-  LiveParameters live(test::shipped_params(), live_keys("controller"));
+  LiveParameters live(test::shipped_params(), live_keys(SystemParams{}, "controller"));
   EXPECT_EQ(live.keys().size(), 2u + 2u * 4u * 5u);
   EXPECT_EQ(live.get("velocity_loop.kp_n_s_per_m").value, "10000");
   const LiveAnswer a = live.set("velocity_loop.kp_n_s_per_m", "12000");
@@ -70,7 +70,7 @@ TEST(LiveParameters, AChangeIsCheckedLikeTheFileVersionedAndKept) {
 // change at a time refuses (the kind first: a notch at 0 Hz), checked once with all of them in;
 // one refused entry refuses them all and changes nothing.
 TEST(LiveParameters, ChangesTakenTogetherAreAllOrNothing) {
-  LiveParameters live(test::shipped_params(), live_keys("controller"));
+  LiveParameters live(test::shipped_params(), live_keys(SystemParams{}, "controller"));
   const std::string slot = "filters.force_command.slot_1.";
   EXPECT_FALSE(live.set(slot + "kind", "notch").accepted);  // alone: its frequency is still 0
   std::vector<std::pair<std::string, std::string>> notch{{slot + "kind", "notch"},
@@ -127,7 +127,7 @@ TEST(LiveParameters, TextIsReadAndWrittenByTheEntrysKind) {
 // error e, F_k = K_p e + k K_i T e before and K_p' e + k K_i T e after.
 TEST(LiveParameters, TheVelocityControllerTakesThemAtATickBoundaryWithItsIntegral) {
   const SystemParams& shipped = test::shipped_params();
-  LiveParameters live(shipped, live_keys("controller"));
+  LiveParameters live(shipped, live_keys(SystemParams{}, "controller"));
   VelocityController controller(shipped, test::shipped_scenario("pulse"));
   const double e = 0.001, ki = shipped.velocity_loop.ki_n_per_m, t = shipped.timing.control_period_s;
   for (int k = 0; k < 100; ++k) {
@@ -161,7 +161,7 @@ TEST(LiveParameters, TheVelocityControllerTakesThemAtATickBoundaryWithItsIntegra
 // built on.
 TEST(LiveParameters, TheCompensatorsTakeTheirGainsLive) {
   const SystemParams& shipped = test::shipped_params();
-  LiveParameters accel_live(shipped, live_keys("accel_feedback"));
+  LiveParameters accel_live(shipped, live_keys(SystemParams{}, "accel_feedback"));
   ASSERT_TRUE(accel_live.set("compensator.acceleration_feedback.gain_kg", "120").accepted);
   EXPECT_FALSE(accel_live.set("compensator.acceleration_feedback.gain_kg", "-1").accepted);
   EXPECT_FALSE(accel_live.set("velocity_loop.kp_n_s_per_m", "9000").accepted);  // the controller's
@@ -170,7 +170,7 @@ TEST(LiveParameters, TheCompensatorsTakeTheirGainsLive) {
   accel.set_params(accel_live.params().accel_feedback_params());
   EXPECT_DOUBLE_EQ(accel.step({1.0, 0.0}), -120.0 * shipped.compensator_gain_scale());
 
-  LiveParameters state_live(shipped, live_keys("state_feedback"));
+  LiveParameters state_live(shipped, live_keys(SystemParams{}, "state_feedback"));
   ASSERT_TRUE(state_live.set("compensator.state_feedback.correction_damping_ratio", "0.3").accepted);
   StateFeedback state(shipped.state_feedback_params());
   for (int k = 0; k < 50; ++k) state.step({0.2, 0.1, 1.0, 0.1, 5.0});
@@ -188,7 +188,7 @@ TEST(LiveParameters, TheCompensatorsTakeTheirGainsLive) {
 
   // The RNN's online rule: its settings live, its weights and state kept; the momentum's
   // contraction (alpha k_c < 1) checked with the change in it; its network's scales not live.
-  LiveParameters rnn_live(shipped, live_keys("rnn_compensator"));
+  LiveParameters rnn_live(shipped, live_keys(SystemParams{}, "rnn_compensator"));
   ASSERT_TRUE(rnn_live.set("compensator.rnn.learning_rate", "0.002").accepted);
   const LiveAnswer contraction = rnn_live.set("compensator.rnn.kc_limit_mps", "2");
   EXPECT_FALSE(contraction.accepted);
@@ -227,31 +227,32 @@ TEST(LiveParameters, TheCompensatorsTakeTheirGainsLive) {
 // Who takes a parameter live is said once, in its declaration: each node's live keys are the
 // entries that name it, in the table's order, and nobody else gets any.
 TEST(LiveParameters, EachNodesLiveKeysAreTheDeclarationsThatNameIt) {
-  const std::vector<std::string> controller = live_keys("controller");
+  const std::vector<std::string> controller = live_keys(SystemParams{}, "controller");
   ASSERT_EQ(controller.size(), 2u + 2u * 4u * 5u);
   EXPECT_EQ(controller[0], "velocity_loop.kp_n_s_per_m");
   EXPECT_EQ(controller[1], "velocity_loop.ki_n_per_m");
   EXPECT_EQ(controller[2], "filters.force_command.slot_1.kind");
   EXPECT_EQ(controller.back(), "filters.compensation.slot_4.second_damping");
-  EXPECT_EQ(live_keys("accel_feedback"), std::vector<std::string>{"compensator.acceleration_feedback.gain_kg"});
+  EXPECT_EQ(live_keys(SystemParams{}, "accel_feedback"),
+            std::vector<std::string>{"compensator.acceleration_feedback.gain_kg"});
   const std::string sf = "compensator.state_feedback.";
-  EXPECT_EQ(live_keys("state_feedback"),
+  EXPECT_EQ(live_keys(SystemParams{}, "state_feedback"),
             (std::vector<std::string>{
                 sf + "model_frequency_ratio", sf + "model_damping_ratio", sf + "correction_damping_ratio",
                 sf + "max_correction_gain", sf + "friction_feedforward.coulomb_n",
                 sf + "friction_feedforward.viscous_n_s_per_m", sf + "friction_feedforward.band_mps"}));
   const std::string rnn = "compensator.rnn.";
-  EXPECT_EQ(live_keys("rnn_compensator"),
+  EXPECT_EQ(live_keys(SystemParams{}, "rnn_compensator"),
             (std::vector<std::string>{rnn + "output_scale", rnn + "learning_rate", rnn + "momentum",
                                       rnn + "tolerance_mps", rnn + "kc_limit_mps", rnn + "du_deadband_per_s"}));
-  EXPECT_TRUE(live_keys("plant_sim").empty());
-  EXPECT_TRUE(live_keys("").empty());
+  EXPECT_TRUE(live_keys(SystemParams{}, "plant_sim").empty());
+  EXPECT_TRUE(live_keys(SystemParams{}, "").empty());
 }
 
 // A change the controller would take but a value derived from it elsewhere refuses (state
 // feedback's model needs a positive Kp) is refused whole, the old value kept, both named.
 TEST(LiveParameters, AChangeADerivedValueRefusesIsRefusedNamingBoth) {
-  LiveParameters live(test::shipped_params(), live_keys("controller"));
+  LiveParameters live(test::shipped_params(), live_keys(SystemParams{}, "controller"));
   expect_live_refused(live, "velocity_loop.kp_n_s_per_m", "0",
                       "velocity_loop.kp_n_s_per_m = 0 refused by a value derived");
   const LiveAnswer a = live.set("velocity_loop.kp_n_s_per_m", "0");
@@ -276,7 +277,7 @@ TEST(LiveParameters, AGainChangeRetimesTheInputShaperWithItsPastKept) {
   double out = 0;
   for (int k = 0; k < 500; ++k) out = controller.step_command(0.1, 0.1, {}).command_mps;
   EXPECT_NEAR(out, 0.1, 1e-12);
-  LiveParameters live(shipped, live_keys("controller"));
+  LiveParameters live(shipped, live_keys(SystemParams{}, "controller"));
   ASSERT_TRUE(live.set("velocity_loop.kp_n_s_per_m", "14000").accepted);
   controller.retune(live.params());
   const std::vector<double> after = controller.input_shaper()->tap_weights();

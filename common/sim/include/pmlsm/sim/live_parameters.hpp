@@ -125,7 +125,8 @@ class FollowedParameters {
 /// (Plausible::live_at and choice's live_at in visit_parameters, pmlsm/sim/system_params.hpp).
 /// The controller: the PI's gains and every filter slot; accel_feedback: its K_a; state_feedback:
 /// the design's ratios and the friction fed forward; rnn_compensator: its online rule's settings
-/// and output scale (its weights come live on /pmlsm/network_weights). None for another name.
-std::vector<std::string> live_keys(const std::string& node);
+/// and output scale (its weights come live on /pmlsm/network_weights); a component added in its
+/// own folder: the entries its section declares live. None for another name.
+std::vector<std::string> live_keys(const SystemParams& params, const std::string& node);
 
 }  // namespace pmlsm

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "pmlsm/compensation/accel_feedback.hpp"
@@ -20,6 +21,7 @@
 #include "pmlsm/sim/filter_design.hpp"
 #include "pmlsm/sim/frequency_response_measurement.hpp"
 #include "pmlsm/sim/loop_tuning.hpp"
+#include "pmlsm/util/parameter_section.hpp"
 #include "pmlsm/util/parameter_table.hpp"
 #include "pmlsm/control/reference_model.hpp"
 #include "pmlsm/control/velocity_pi.hpp"
@@ -111,6 +113,10 @@ struct SystemParams {
   /// is added to the PI (period_s: timing.control_period_s).
   FilterChainParams force_command_filters;
   FilterChainParams compensation_filters;
+  /// The sections of the components added in their own folders (compensators/<name>/), as the
+  /// system file was read with them (pmlsm/util/parameter_section.hpp), and their values.
+  std::vector<ParameterSection> sections;
+  SectionValues section_values;
 
   /// @throws std::invalid_argument with the section path of the first invalid value.
   void validate() const;
@@ -141,6 +147,11 @@ struct SystemParams {
   FilterChainParams compensation_filter_params() const;
   /// A shaper of `kind` timed to loop_vibration_mode(), at the control period.
   InputShaperParams input_shaper_params(ShaperKind kind) const;
+  /// The Params of the section at `at` (its defaults with the file's values over them).
+  template <typename Params>
+  Params section(const std::string& at) const {
+    return section_params<Params>(section_values, at);
+  }
 };
 
 template <typename Params, typename Visitor>
@@ -177,6 +188,16 @@ void visit_parameters(Params& p, Visitor& v) {
   VibrationGuardParams::declare("compensator.guard", c.guard, v);
   v.flag("compensator.standstill.enabled", c.standstill_enabled);
   StandstillGateParams::declare("compensator.standstill", c.standstill, v);
+  // The sections' entries go through a visitor behind virtual calls; a const walk sees a copy.
+  SectionVisitorOf<Visitor> section_visitor(v);
+  for (const ParameterSection& section : p.sections) {
+    if constexpr (std::is_const_v<Params>) {
+      SectionValues values = p.section_values;
+      section.visit(section, values, section_visitor);
+    } else {
+      section.visit(section, p.section_values, section_visitor);
+    }
+  }
 }
 
 }  // namespace pmlsm

@@ -1,0 +1,44 @@
+// A component with a cycle (pmlsm/util/cycle.hpp): its constructor configures it (parameters,
+// topics, state: anything wrong is found there); then the executor activates it, calls update()
+// until it finishes, a stop is requested or its inputs stop coming, and ends it with finish().
+// The component has no loop and no wait of its own: run() is the executor, the same alone in a
+// process and on a container's chain thread (where the wake-up's wait hands the thread on).
+#pragma once
+
+#include <chrono>
+
+#include "node_support.hpp"
+#include "pmlsm/util/cycle.hpp"
+
+namespace pmlsm::node {
+
+class CycleComponent : public Component {
+ public:
+  /// The executor: activate, update until done, finish; returns finish()'s exit code.
+  int run() final;
+
+ protected:
+  struct Update {
+    Progress progress;
+    int exit_code = kExitOk;  ///< with kFinished
+    static Update worked() { return {Progress::kWorked}; }
+    static Update waiting() { return {Progress::kWaiting}; }
+    static Update finished(int exit_code) { return {Progress::kFinished, exit_code}; }
+  };
+
+  /// Before the first update (NodeStatus running).
+  virtual void activate() {}
+  /// Takes what has arrived and does what it can with it, without waiting.
+  virtual Update update() = 0;
+  /// How long it may wait for its inputs since it last worked (asked again after each work).
+  virtual std::chrono::duration<double> input_timeout() const = 0;
+  /// Its inputs did not come within input_timeout(): says what is missing; returns the exit code.
+  virtual int inputs_lost() = 0;
+  /// After the last update, whatever ended the run (`exit_code`: 0 after a stop request): its
+  /// counters, NodeStatus, the writers' flush. Returns the exit code to end with.
+  virtual int finish(int exit_code) = 0;
+  /// The wake-up its readers signal.
+  virtual dds::Wakeup& wakeup() = 0;
+};
+
+}  // namespace pmlsm::node
