@@ -32,6 +32,7 @@
 #include "VelocitySetpointPubSubTypes.h"
 #include "controller_command_line.hpp"
 #include "msg_mapping.hpp"
+#include "cycle_component.hpp"
 #include "node_support.hpp"
 #include "parameter_service.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
@@ -49,57 +50,86 @@ namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
 
 using node::ControllerOptions;
 
-class ControllerNode {
+class ControllerComponent final : public node::CycleComponent {
  public:
-  ControllerNode(const node::CommonOptions& common, const ControllerOptions& options, node::NodeRuntime& rt)
-      : common_(common),
+  ControllerComponent(const node::ComponentContext& context, node::CommonOptions common,
+                      const ControllerOptions& options)
+      : common_(checked(std::move(common))),
         opt_(options),
-        rt_(rt),
-        period_s_(rt.period_s),
-        ticks_(scenario_ticks(rt.cfg.scenario, period_s_)),
-        voltage_level_(rt.cfg.command_level == node::CommandLevel::kVoltage),
-        lockstep_(rt.cfg.clock == node::Clock::kLockstep),
+        rt_("controller", common_, context),
+        period_s_(rt_.period_s),
+        ticks_(scenario_ticks(rt_.cfg.scenario, period_s_)),
+        voltage_level_(rt_.cfg.command_level == node::CommandLevel::kVoltage),
+        lockstep_(rt_.cfg.clock == node::Clock::kLockstep),
         compensated_(options.compensation != "none"),
-        peer_timeout_(common.peer_timeout_s),
-        feedback_reader_(rt.participant.make_reader(pdds::topics::kMotorFeedback, rt.wakeup)),
-        command_writer_(rt.participant.make_writer(pdds::topics::kForceCommand)),
-        reference_writer_(rt.participant.make_writer(pdds::topics::kVelocityReference)),
-        current_reader_(rt.participant.make_reader(pdds::topics::kCurrentFeedback, rt.wakeup)),
-        voltage_writer_(rt.participant.make_writer(pdds::topics::kVoltageCommand)),
-        current_loop_(rt.cfg.params.current_controller_params()),
-        current_steps_(rt.cfg.params.timing.current_steps_per_tick()),
-        compensation_reader_(rt.participant.make_reader(pdds::topics::kCompensatorOutput, rt.wakeup,
-                                                        node::chain_input_profile(rt.cfg, pdds::kObserverProfile))),
-        controller_(std::in_place, rt.cfg.params, rt.cfg.scenario),
-        live_(rt.cfg.params, live_keys("controller")),
-        parameters_(rt, "controller", live_) {
-    if (rt.cfg.scenario.shape == CommandShape::kExternal) {
-      external_.emplace(external_reference_params(rt.cfg.scenario, period_s_));
-      setpoint_reader_.emplace(rt.participant.make_reader(pdds::topics::kVelocitySetpoint, rt.wakeup));
+        peer_timeout_(common_.peer_timeout_s),
+        feedback_reader_(rt_.participant.make_reader(pdds::topics::kMotorFeedback, rt_.wakeup)),
+        command_writer_(rt_.participant.make_writer(pdds::topics::kForceCommand)),
+        reference_writer_(rt_.participant.make_writer(pdds::topics::kVelocityReference)),
+        current_reader_(rt_.participant.make_reader(pdds::topics::kCurrentFeedback, rt_.wakeup)),
+        voltage_writer_(rt_.participant.make_writer(pdds::topics::kVoltageCommand)),
+        current_loop_(rt_.cfg.params.current_controller_params()),
+        current_steps_(rt_.cfg.params.timing.current_steps_per_tick()),
+        compensation_reader_(rt_.participant.make_reader(pdds::topics::kCompensatorOutput, rt_.wakeup,
+                                                         node::chain_input_profile(rt_.cfg, pdds::kObserverProfile))),
+        controller_(std::in_place, rt_.cfg.params, rt_.cfg.scenario),
+        live_(rt_.cfg.params, live_keys(rt_.cfg.params, "controller")),
+        parameters_(rt_, "controller", live_) {
+    if (rt_.cfg.scenario.shape == CommandShape::kExternal) {
+      external_.emplace(external_reference_params(rt_.cfg.scenario, period_s_));
+      setpoint_reader_.emplace(rt_.participant.make_reader(pdds::topics::kVelocitySetpoint, rt_.wakeup));
     }
   }
 
-  int run();
-
  private:
+  /// Where the tick in hand is: its feedback, then (lockstep, compensated) its compensation, then
+  /// (voltage level) the current loop's exchanges.
+  enum class Phase { kReaders, kFeedback, kCompensation, kCurrentLoop };
+
+  static node::CommonOptions checked(node::CommonOptions common) {
+    if (common.wake_batch_us > 0.0) {
+      throw ConfigError("--wake-batch-us " + std::to_string(common.wake_batch_us) +
+                        ": the controller is on the control chain; batching would pace the loop");
+    }
+    return common;
+  }
+
+  void activate() override;
+  Update update() override;
+  std::chrono::duration<double> input_timeout() const override {
+    return phase_ == Phase::kFeedback ? feedback_follower_.timeout() : peer_timeout_;
+  }
+  int inputs_lost() override;
+  int finish(int exit_code) override;
+  pdds::Wakeup& wakeup() override { return rt_.wakeup; }
+
+  /// The next tick's feedback: the tick in hand, then its compensation or its answer.
+  Update take_feedback();
+  /// Lockstep: waits (kWaiting) for output k-1; realtime: the newest on time, or none.
+  Update compensate();
+  /// The velocity loop's step for the tick in hand with `compensation`, published.
+  Update answer(const Compensation& compensation);
+  /// The voltage command level: the drive's current loop, 32 exchanges per tick.
+  Update current_loop();
+  /// The tick in hand is done.
+  Update tick_done();
+  /// Moving to the next phase of a tick is work: the wait for that phase's input starts there.
+  static Update as_work(const Update& update) {
+    return update.progress == Progress::kWaiting ? Update::worked() : update;
+  }
+
   /// The drive restarted: what this loop integrated belongs to the old run.
   void follow_new_run();
-  /// The compensator's force for tick k and its share of the compensator's range (none: zero),
-  /// into `applied`; false when lockstep waited for it in vain.
-  bool compensation_for(std::uint64_t k, Compensation& applied);
   bool take_compensation(std::uint64_t k);
   void publish(std::uint64_t k, const VelocityControllerOutput& out, double applied_compensation_n);
   /// A late compensation episode's start or end: said on stderr and NodeStatus.
   void report_freshness(std::uint64_t k, const InputFreshness::Step& fresh);
-  /// The voltage command level: the drive's current loop, 32 exchanges per tick.
-  void run_current_loop(std::uint64_t k, double force_n);
-  int finish(int exit_code);
   /// External scenario: takes the setpoints that arrived, steps the policy; reports news.
   double external_command(std::uint64_t k);
 
-  const node::CommonOptions& common_;
+  node::CommonOptions common_;
   ControllerOptions opt_;
-  node::NodeRuntime& rt_;
+  node::NodeRuntime rt_;
   double period_s_;
   std::uint64_t ticks_;
   bool voltage_level_;
@@ -144,9 +174,14 @@ class ControllerNode {
   node::FeedbackFollower feedback_follower_{"controller", common_, rt_.cfg.clock, ticks_, period_s_};
   std::uint64_t rejected_ = 0;
   double last_velocity_ = 0.0;
+  Phase phase_ = Phase::kFeedback;
+  std::uint64_t tick_ = 0;  ///< the tick in hand
+  double velocity_mps_ = 0.0;
+  double force_n_ = 0.0;  ///< the tick's force command, for the current loop
+  int substep_ = 0;
 };
 
-double ControllerNode::external_command(std::uint64_t k) {
+double ControllerComponent::external_command(std::uint64_t k) {
   const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
   while (setpoint_reader_->take(setpoint_)) {
     const Setpoint sp{setpoint_.velocity_mps(), setpoint_.accel_limit_mps2(), setpoint_.session(),
@@ -178,7 +213,7 @@ double ControllerNode::external_command(std::uint64_t k) {
   return out.command_mps;
 }
 
-void ControllerNode::follow_new_run() {
+void ControllerComponent::follow_new_run() {
   controller_.emplace(live_.params(), rt_.cfg.scenario);
   have_compensation_ = false;
   freshness_.reset();
@@ -186,7 +221,7 @@ void ControllerNode::follow_new_run() {
   last_velocity_ = 0.0;
 }
 
-bool ControllerNode::take_compensation(std::uint64_t k) {
+bool ControllerComponent::take_compensation(std::uint64_t k) {
   while (compensation_reader_.take(compensator_output_)) {
     const std::uint64_t t = compensator_output_.stamp().tick();
     if ((have_compensation_ && t <= compensation_tick_) || !std::isfinite(compensator_output_.force_n()) ||
@@ -201,21 +236,16 @@ bool ControllerNode::take_compensation(std::uint64_t k) {
   return have_compensation_ && compensation_tick_ + 1 >= k;
 }
 
-bool ControllerNode::compensation_for(std::uint64_t k, Compensation& applied) {
+ControllerComponent::Update ControllerComponent::compensate() {
   // Output k-1 belongs to tick k; lockstep waits for it, realtime takes what is there.
-  if (lockstep_) {
-    if (!node::wait_until(rt_.wakeup, peer_timeout_, [&] { return take_compensation(k); })) return false;
-  } else {
-    take_compensation(k);
-  }
+  if (!take_compensation(tick_) && lockstep_) return Update::waiting();
   const InputFreshness::Step fresh =
-      freshness_.step(k, have_compensation_ ? std::optional<std::uint64_t>(compensation_tick_) : std::nullopt);
-  if (fresh.on_time) applied = compensation_;
-  if (fresh.change != InputFreshness::Change::kNone) report_freshness(k, fresh);
-  return true;
+      freshness_.step(tick_, have_compensation_ ? std::optional<std::uint64_t>(compensation_tick_) : std::nullopt);
+  if (fresh.change != InputFreshness::Change::kNone) report_freshness(tick_, fresh);
+  return answer(fresh.on_time ? compensation_ : Compensation{});
 }
 
-void ControllerNode::report_freshness(std::uint64_t k, const InputFreshness::Step& fresh) {
+void ControllerComponent::report_freshness(std::uint64_t k, const InputFreshness::Step& fresh) {
   char text[200];
   if (fresh.change == InputFreshness::Change::kFirst) {
     // Said only when the start went without (a peer on another host, a late match): in lockstep
@@ -240,7 +270,7 @@ void ControllerNode::report_freshness(std::uint64_t k, const InputFreshness::Ste
   rt_.status.publish(node_state::STATE_RUNNING, k, period_s_, text);
 }
 
-void ControllerNode::publish(std::uint64_t k, const VelocityControllerOutput& out, double applied_compensation_n) {
+void ControllerComponent::publish(std::uint64_t k, const VelocityControllerOutput& out, double applied_compensation_n) {
   command_.stamp(node::make_stamp(k, period_s_, feedback_follower_.run().current()));
   node::to_msg(out, applied_compensation_n, k, command_);
   command_writer_.write(command_);
@@ -250,23 +280,17 @@ void ControllerNode::publish(std::uint64_t k, const VelocityControllerOutput& ou
   reference_writer_.write(reference_);
 }
 
-void ControllerNode::run_current_loop(std::uint64_t k, double force_n) {
-  for (int sub = 0; sub < current_steps_; ++sub) {
-    bool got_current = false;
-    const bool current_ok = node::wait_until(rt_.wakeup, peer_timeout_, [&] {
-      while (!got_current && current_reader_.take(current_feedback_)) {
-        if (current_feedback_.stamp().tick() == k && current_feedback_.substep() == static_cast<std::uint32_t>(sub)) {
-          got_current = true;
-        } else {
-          ++rejected_;
-        }
-      }
-      return got_current;
-    });
-    if (!current_ok) return;
+ControllerComponent::Update ControllerComponent::current_loop() {
+  bool exchanged = false;
+  while (substep_ < current_steps_ && current_reader_.take(current_feedback_)) {
+    if (current_feedback_.stamp().tick() != tick_ ||
+        current_feedback_.substep() != static_cast<std::uint32_t>(substep_)) {
+      ++rejected_;
+      continue;
+    }
     // The current controller rejects (and counts) non-finite measurements itself.
     const CurrentControllerOutput u = current_loop_.step(
-        {force_n, current_feedback_.i_d_a(), current_feedback_.i_q_a(), current_feedback_.velocity_mps()});
+        {force_n_, current_feedback_.i_d_a(), current_feedback_.i_q_a(), current_feedback_.velocity_mps()});
     voltage_command_.stamp(current_feedback_.stamp());
     voltage_command_.substep(current_feedback_.substep());
     voltage_command_.u_d_v(u.u_d_v);
@@ -275,69 +299,105 @@ void ControllerNode::run_current_loop(std::uint64_t k, double force_n) {
     voltage_command_.i_q_ref_a(u.i_q_ref_a);
     voltage_command_.saturated(u.voltage_limited);
     voltage_writer_.write(voltage_command_);
+    ++substep_;
+    exchanged = true;
   }
+  if (substep_ < current_steps_) return exchanged ? Update::worked() : Update::waiting();
+  return tick_done();
 }
 
-int ControllerNode::run() {
+void ControllerComponent::activate() {
   if (opt_.command_readers > 0 || opt_.reference_readers > 0) {
+    phase_ = Phase::kReaders;
     rt_.status.publish(node_state::STATE_WAITING, 0, period_s_, "waiting for readers");
-    const bool matched = node::wait_until(rt_.wakeup, peer_timeout_, [&] {
-      return command_writer_.matched_readers() >= static_cast<std::size_t>(opt_.command_readers) &&
-             reference_writer_.matched_readers() >= static_cast<std::size_t>(opt_.reference_readers);
-    });
-    if (!matched) {
-      if (pdds::stop_requested()) return finish(kExitOk);
+    return;
+  }
+  rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "running");
+}
+
+ControllerComponent::Update ControllerComponent::update() {
+  switch (phase_) {
+    case Phase::kReaders:
+      if (command_writer_.matched_readers() < static_cast<std::size_t>(opt_.command_readers) ||
+          reference_writer_.matched_readers() < static_cast<std::size_t>(opt_.reference_readers)) {
+        return Update::waiting();
+      }
+      rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "running");
+      phase_ = Phase::kFeedback;
+      return Update::worked();
+    case Phase::kFeedback: return take_feedback();
+    case Phase::kCompensation: return compensate();
+    case Phase::kCurrentLoop: return current_loop();
+  }
+  return Update::finished(kExitError);
+}
+
+ControllerComponent::Update ControllerComponent::take_feedback() {
+  if (next_tick_ >= ticks_) return Update::finished(kExitOk);
+  const auto next =
+      feedback_follower_.try_next(feedback_reader_, feedback_, next_tick_, period_s_, rt_.status, rejected_);
+  if (next == node::FeedbackFollower::Next::kNone) return Update::waiting();
+  if (next == node::FeedbackFollower::Next::kEnded) return Update::finished(feedback_follower_.exit_code());
+  if (next == node::FeedbackFollower::Next::kNewRun) follow_new_run();
+  tick_ = feedback_.stamp().tick();
+  if (parameters_.serve(tick_)) controller_->retune(live_.params());
+  velocity_mps_ = feedback_.velocity_mps();
+  if (!std::isfinite(velocity_mps_)) {
+    ++rejected_;  // answer with the last good measurement rather than pass a NaN on
+    velocity_mps_ = last_velocity_;
+  }
+  last_velocity_ = velocity_mps_;
+  if (!compensated_ || tick_ == 0) return as_work(answer(Compensation{}));
+  phase_ = Phase::kCompensation;
+  return as_work(compensate());
+}
+
+ControllerComponent::Update ControllerComponent::answer(const Compensation& compensation) {
+  const VelocityControllerOutput out =
+      external_ ? controller_->step_command(external_command(tick_), velocity_mps_, compensation)
+                : controller_->step(tick_, velocity_mps_, compensation);
+  if (out.guard.tripped && !guard_reported_) {
+    // Once: the compensation fades out and stays out; the controller goes on as PI alone.
+    guard_reported_ = true;
+    std::fprintf(stderr, "controller: tick %llu: vibration guard: %s; compensation faded out, PI alone from here\n",
+                 static_cast<unsigned long long>(tick_), to_string(out.guard.reason));
+    rt_.status.publish(node_state::STATE_RUNNING, tick_, period_s_,
+                       std::string("vibration guard: compensation out: ") + to_string(out.guard.reason));
+  }
+  publish(tick_, out, out.compensation_applied_n);
+  if (!voltage_level_) return tick_done();
+  phase_ = Phase::kCurrentLoop;
+  substep_ = 0;
+  force_n_ = out.force_n;
+  return as_work(current_loop());
+}
+
+ControllerComponent::Update ControllerComponent::tick_done() {
+  next_tick_ = tick_ + 1;
+  phase_ = Phase::kFeedback;
+  return Update::worked();
+}
+
+int ControllerComponent::inputs_lost() {
+  switch (phase_) {
+    case Phase::kReaders:
       std::fprintf(stderr,
                    "controller: readers missing after %.1f s: %zu of %d ForceCommand readers, %zu of %d "
                    "VelocityReference readers\n",
                    common_.peer_timeout_s, command_writer_.matched_readers(), opt_.command_readers,
                    reference_writer_.matched_readers(), opt_.reference_readers);
-      return finish(kExitPeerMissing);
-    }
+      return kExitPeerMissing;
+    case Phase::kFeedback: return feedback_follower_.lost(next_tick_, period_s_, rt_.status);
+    case Phase::kCompensation:
+      return node::end_of_failed_wait("controller", "CompensatorOutput", "compensator", tick_ - 1,
+                                      common_.peer_timeout_s);
+    case Phase::kCurrentLoop:
+      return node::end_of_failed_wait("controller", "CurrentFeedback", "plant", tick_, common_.peer_timeout_s);
   }
-  rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "running");
-  int exit_code = kExitOk;
-  while (next_tick_ < ticks_ && !pdds::stop_requested()) {
-    const auto next =
-        feedback_follower_.next(rt_.wakeup, feedback_reader_, feedback_, next_tick_, period_s_, rt_.status, rejected_);
-    if (next == node::FeedbackFollower::Next::kEnded) {
-      exit_code = feedback_follower_.exit_code();
-      break;
-    }
-    if (next == node::FeedbackFollower::Next::kNewRun) follow_new_run();
-    const std::uint64_t k = feedback_.stamp().tick();
-    if (parameters_.serve(k)) controller_->retune(live_.params());
-    double velocity = feedback_.velocity_mps();
-    if (!std::isfinite(velocity)) {
-      ++rejected_;  // answer with the last good measurement rather than pass a NaN on
-      velocity = last_velocity_;
-    }
-    last_velocity_ = velocity;
-    Compensation compensation;
-    if (compensated_ && k > 0 && !compensation_for(k, compensation)) {
-      exit_code =
-          node::end_of_failed_wait("controller", "CompensatorOutput", "compensator", k - 1, common_.peer_timeout_s);
-      break;
-    }
-    const VelocityControllerOutput out = external_
-                                             ? controller_->step_command(external_command(k), velocity, compensation)
-                                             : controller_->step(k, velocity, compensation);
-    if (out.guard.tripped && !guard_reported_) {
-      // Once: the compensation fades out and stays out; the controller goes on as PI alone.
-      guard_reported_ = true;
-      std::fprintf(stderr, "controller: tick %llu: vibration guard: %s; compensation faded out, PI alone from here\n",
-                   static_cast<unsigned long long>(k), to_string(out.guard.reason));
-      rt_.status.publish(node_state::STATE_RUNNING, k, period_s_,
-                         std::string("vibration guard: compensation out: ") + to_string(out.guard.reason));
-    }
-    publish(k, out, out.compensation_applied_n);
-    if (voltage_level_) run_current_loop(k, out.force_n);
-    next_tick_ = k + 1;
-  }
-  return finish(exit_code);
+  return kExitError;
 }
 
-int ControllerNode::finish(int exit_code) {
+int ControllerComponent::finish(int exit_code) {
   std::string external_note;
   if (external_) {
     const ExternalReferenceCounters& c = external_->counters();
@@ -375,26 +435,6 @@ int ControllerNode::finish(int exit_code) {
       guard_reported_ ? ", taken out by the vibration guard" : "");
   return exit_code;
 }
-
-class ControllerComponent final : public node::Component {
- public:
-  ControllerComponent(const node::ComponentContext& context, node::CommonOptions common, const ControllerOptions& opt)
-      : common_(std::move(common)), rt_("controller", common_, context), node_(common_, opt, checked(rt_, common_)) {}
-  int run() override { return node_.run(); }
-
- private:
-  static node::NodeRuntime& checked(node::NodeRuntime& rt, const node::CommonOptions& common) {
-    if (common.wake_batch_us > 0.0) {
-      throw ConfigError("--wake-batch-us " + std::to_string(common.wake_batch_us) +
-                        ": the controller is on the control chain; batching would pace the loop");
-    }
-    return rt;
-  }
-
-  node::CommonOptions common_;
-  node::NodeRuntime rt_;
-  ControllerNode node_;
-};
 
 }  // namespace
 

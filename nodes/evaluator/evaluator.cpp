@@ -30,6 +30,7 @@
 #include "VelocityReferencePubSubTypes.h"
 #include "evaluator_command_line.hpp"
 #include "msg_mapping.hpp"
+#include "cycle_component.hpp"
 #include "node_support.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/sim/metrics.hpp"
@@ -58,14 +59,14 @@ void clear_truth(TickRecord& r) {
 
 using node::EvaluatorOptions;
 
-class EvaluatorNode {
+class EvaluatorComponent final : public node::CycleComponent {
  public:
-  EvaluatorNode(const node::CommonOptions& common, const EvaluatorOptions& options, node::NodeRuntime& rt)
-      : common_(common),
+  EvaluatorComponent(const node::ComponentContext& context, node::CommonOptions common, const EvaluatorOptions& options)
+      : common_(std::move(common)),
         opt_(options),
-        rt_(rt),
-        period_s_(rt.period_s),
-        ticks_(scenario_ticks(rt.cfg.scenario, period_s_)),
+        rt_("evaluator", common_, context),
+        period_s_(rt_.period_s),
+        ticks_(scenario_ticks(rt_.cfg.scenario, period_s_)),
         feedback_reader_(observe<msg::MotorFeedbackPubSubType>(pdds::topics::kMotorFeedback)),
         truth_reader_(observe<msg::PlantTruthPubSubType>(pdds::topics::kPlantTruth)),
         reference_reader_(observe<msg::VelocityReferencePubSubType>(pdds::topics::kVelocityReference)),
@@ -74,9 +75,26 @@ class EvaluatorNode {
         trace_(ticks_),
         parts_(ticks_, 0) {}
 
-  int run();
-
  private:
+  void activate() override { rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "collecting"); }
+  /// Takes what arrived: finished when every tick is complete (or the drive restarted); a new
+  /// complete tick is work (no new one for the peer timeout: the peers are silent).
+  Update update() override {
+    if (drain()) return Update::finished(kExitOk);
+    // Progress: ticks complete, or (--truth optional) complete but for PlantTruth.
+    const std::uint64_t progress = complete_ + complete_but_truth_;
+    if (progress == last_progress_) return Update::waiting();
+    last_progress_ = progress;
+    return Update::worked();
+  }
+  std::chrono::duration<double> input_timeout() const override {
+    return std::chrono::duration<double>(common_.peer_timeout_s);
+  }
+  int inputs_lost() override { return kExitOk; }  // finish() says what was missing
+  /// What the run ends with depends on what was collected, not on how the collection ended.
+  int finish(int exit_code) override;
+  pdds::Wakeup& wakeup() override { return rt_.wakeup; }
+
   template <typename PubSubType>
   pdds::Reader<PubSubType> observe(const pdds::Topic<PubSubType>& topic) {
     return rt_.participant.make_reader(topic, rt_.wakeup, pdds::kObserverProfile);
@@ -89,13 +107,12 @@ class EvaluatorNode {
   bool drain();
   /// --truth optional: every other topic complete and no PlantTruth within the grace.
   bool without_truth();
-  void collect();
   int report_incomplete();
   int report_results();
 
-  const node::CommonOptions& common_;
+  node::CommonOptions common_;
   EvaluatorOptions opt_;
-  node::NodeRuntime& rt_;
+  node::NodeRuntime rt_;
   double period_s_;
   std::uint64_t ticks_;
   pdds::Reader<msg::MotorFeedbackPubSubType> feedback_reader_;
@@ -108,6 +125,7 @@ class EvaluatorNode {
   std::vector<unsigned> parts_;
   std::uint64_t complete_ = 0;
   std::uint64_t complete_but_truth_ = 0;  ///< ticks with every topic but PlantTruth in
+  std::uint64_t last_progress_ = 0;
   bool any_truth_ = false;
   std::optional<std::chrono::steady_clock::time_point> truthless_since_;
   std::uint64_t rejected_ = 0;
@@ -122,7 +140,7 @@ class EvaluatorNode {
   msg::EstimatedState estimate_;
 };
 
-TickRecord* EvaluatorNode::mark(std::uint64_t tick, Part part) {
+TickRecord* EvaluatorComponent::mark(std::uint64_t tick, Part part) {
   if (tick >= ticks_ || (parts_[tick] & part) != 0) {
     ++rejected_;  // outside the scenario or a duplicate
     return nullptr;
@@ -138,12 +156,12 @@ TickRecord* EvaluatorNode::mark(std::uint64_t tick, Part part) {
   return &r;
 }
 
-bool EvaluatorNode::same_run(const msg::Stamp& stamp) {
+bool EvaluatorComponent::same_run(const msg::Stamp& stamp) {
   if (!restart_) restart_ = run_.observe(stamp.run_id(), stamp.tick());
   return !restart_;
 }
 
-bool EvaluatorNode::drain() {
+bool EvaluatorComponent::drain() {
   while (!restart_ && feedback_reader_.take(feedback_)) {
     if (!same_run(feedback_.stamp())) break;
     if (TickRecord* r = mark(feedback_.stamp().tick(), kFeedback)) {
@@ -171,34 +189,14 @@ bool EvaluatorNode::drain() {
   return complete_ == ticks_ || restart_.has_value() || without_truth();
 }
 
-bool EvaluatorNode::without_truth() {
+bool EvaluatorComponent::without_truth() {
   if (!opt_.truth_optional || any_truth_ || complete_but_truth_ < ticks_) return false;
   const auto now = std::chrono::steady_clock::now();
   if (!truthless_since_) truthless_since_ = now;
   return now - *truthless_since_ >= kTruthGrace;
 }
 
-void EvaluatorNode::collect() {
-  // Done when every tick is complete; no new complete tick for the peer timeout ends it (checked
-  // every 100 ms, so a stall is reported after the timeout, not up to twice it).
-  std::uint64_t last_complete = 0;
-  auto last_progress = std::chrono::steady_clock::now();
-  const auto stall_limit = std::chrono::duration<double>(common_.peer_timeout_s);
-  while (!pdds::stop_requested()) {
-    if (node::wait_until(rt_.wakeup, std::chrono::milliseconds(100), [this] { return drain(); })) break;
-    const auto now = std::chrono::steady_clock::now();
-    // Progress: ticks complete, or (--truth optional) complete but for PlantTruth.
-    const std::uint64_t progress = complete_ + complete_but_truth_;
-    if (progress != last_complete) {
-      last_complete = progress;
-      last_progress = now;
-    } else if (now - last_progress >= stall_limit) {
-      break;
-    }
-  }
-}
-
-int EvaluatorNode::report_incomplete() {
+int EvaluatorComponent::report_incomplete() {
   std::fprintf(stderr, "evaluator: only %llu of %llu ticks complete (%s); no results\n",
                static_cast<unsigned long long>(complete_), static_cast<unsigned long long>(ticks_),
                pdds::stop_requested() ? "stopped" : "peers silent");
@@ -225,7 +223,7 @@ int EvaluatorNode::report_incomplete() {
   return pdds::stop_requested() ? kExitError : kExitPeerLost;
 }
 
-int EvaluatorNode::report_results() {
+int EvaluatorComponent::report_results() {
   const Scenario& scenario = rt_.cfg.scenario;
   const bool has_truth = any_truth_;
   if (!has_truth) {
@@ -253,9 +251,7 @@ int EvaluatorNode::report_results() {
   return kExitOk;
 }
 
-int EvaluatorNode::run() {
-  rt_.status.publish(node_state::STATE_RUNNING, 0, period_s_, "collecting");
-  collect();
+int EvaluatorComponent::finish(int /*exit_code*/) {
   if (restart_) {
     std::fprintf(stderr, "%s\n", node::restart_message("evaluator", *restart_).c_str());
     rt_.status.publish(node_state::STATE_ERROR, complete_, period_s_, "drive restarted mid-run");
@@ -264,18 +260,6 @@ int EvaluatorNode::run() {
   return complete_ == ticks_ || (without_truth() && complete_but_truth_ == ticks_) ? report_results()
                                                                                    : report_incomplete();
 }
-
-class EvaluatorComponent final : public node::Component {
- public:
-  EvaluatorComponent(const node::ComponentContext& context, node::CommonOptions common, const EvaluatorOptions& opt)
-      : common_(std::move(common)), rt_("evaluator", common_, context), node_(common_, opt, rt_) {}
-  int run() override { return node_.run(); }
-
- private:
-  node::CommonOptions common_;
-  node::NodeRuntime rt_;
-  EvaluatorNode node_;
-};
 
 }  // namespace
 

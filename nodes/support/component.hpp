@@ -5,8 +5,9 @@
 // others in a container process (nodes/container), where its loop is a fiber of the chain
 // thread and its samples to the others go through the in-process path (pmlsm/dds/local_bus.hpp).
 // Nothing in a component knows which: a component alone behaves exactly as the node did.
-// A component with a cycle (CycleComponent, cycle_component.hpp: the compensators) has no loop of
-// its own: its run() is the executor, which calls its update() and owns the waiting.
+// A component with a cycle (CycleComponent, cycle_component.hpp: the controller, the estimator,
+// the evaluator, the compensators) has no loop of its own: its run() is the executor, which calls
+// its update() and owns the waiting.
 #pragma once
 
 #include <memory>

@@ -207,14 +207,15 @@ class StatusPublisher {
 };
 
 /// How a node on the chain (controller, estimator) takes MotorFeedback: in order (TickFilter),
-/// following the drive's run (RunFollower), waiting the peer timeout at the start and in
-/// lockstep and, in realtime once the plant ticks, the plant-lost timeout.
+/// following the drive's run (RunFollower); its cycle waits the peer timeout at the start and in
+/// lockstep and, in realtime once the plant ticks, the plant-lost timeout (timeout()).
 class FeedbackFollower {
  public:
   enum class Next {
     kTick,    ///< the next tick's feedback is in the sample
     kNewRun,  ///< so is the first tick of a restarted drive: reset state (said on stdout and NodeStatus)
-    kEnded,   ///< the wait failed: the reason is printed, end with exit_code()
+    kNone,    ///< not arrived yet
+    kEnded,   ///< the run is over or the wait failed: the reason is printed, end with exit_code()
   };
 
   /// `run_ticks` and `control_period_s`: the run's length, to tell a drive that ran to the end
@@ -226,41 +227,35 @@ class FeedbackFollower {
         clock_(clock),
         end_watch_(run_ticks, control_period_s, clock == Clock::kRealtime) {}
 
-  /// Waits for the feedback after tick `next_tick` - 1, counting the samples it passes over
-  /// (duplicates, out of order, implausible jumps, a run already left) in `rejected`.
+  /// Takes the feedback after tick `next_tick` - 1 if it has arrived, without waiting, counting the
+  /// samples it passes over (duplicates, out of order, implausible jumps, a run already left) in
+  /// `rejected`. kEnded (exit 0): the drive's writer left after running to the end and the last
+  /// ticks were lost.
   template <typename ReaderT, typename Message>
-  Next next(dds::Wakeup& wakeup, ReaderT& reader, Message& sample, std::uint64_t next_tick, double control_period_s,
-            StatusPublisher& status, std::uint64_t& rejected) {
-    bool got = false, new_run = false, tail_lost = false;
-    const bool ok = wait_until(wakeup, feedback_timeout(options_, clock_, any_feedback_), [&] {
-      while (!got && reader.take(sample)) {
-        const std::uint64_t run_id = sample.stamp().run_id();
-        if (run_.is_abandoned(run_id)) {
-          ++rejected;
-          continue;
-        }
-        if (run_.is_new(run_id)) {
-          run_.follow(run_id);
-          ticks_ = TickFilter();
-          new_run = run_.restarts() > 0;
-        }
-        if (!ticks_.accept(sample.stamp().tick())) {
-          ++rejected;
-          continue;
-        }
-        got = true;
+  Next try_next(ReaderT& reader, Message& sample, std::uint64_t next_tick, double control_period_s,
+                StatusPublisher& status, std::uint64_t& rejected) {
+    bool got = false, new_run = false;
+    while (!got && reader.take(sample)) {
+      const std::uint64_t run_id = sample.stamp().run_id();
+      if (run_.is_abandoned(run_id)) {
+        ++rejected;
+        continue;
       }
-      if (!got) tail_lost = end_watch_.tail_lost(reader.matched_writers(), next_tick, monotonic_ns());
-      return got || tail_lost;
-    });
-    if (tail_lost) {
+      if (run_.is_new(run_id)) {
+        run_.follow(run_id);
+        ticks_ = TickFilter();
+        new_run = run_.restarts() > 0;
+      }
+      if (!ticks_.accept(sample.stamp().tick())) {
+        ++rejected;
+        continue;
+      }
+      got = true;
+    }
+    if (!got) {
+      if (!end_watch_.tail_lost(reader.matched_writers(), next_tick, monotonic_ns())) return Next::kNone;
       report_tail_lost(next_tick);
       exit_code_ = kExitOk;
-      return Next::kEnded;
-    }
-    if (!ok) {
-      exit_code_ =
-          end_of_feedback_wait(node_name_, options_, clock_, any_feedback_, next_tick, control_period_s, status);
       return Next::kEnded;
     }
     any_feedback_ = true;
@@ -268,6 +263,16 @@ class FeedbackFollower {
     if (!new_run) return Next::kTick;
     report_new_run(sample.stamp().tick(), control_period_s, status);
     return Next::kNewRun;
+  }
+
+  /// How long the next feedback may take: the peer timeout at the start and in lockstep, realtime
+  /// once the plant ticks the plant-lost timeout.
+  std::chrono::duration<double> timeout() const { return feedback_timeout(options_, clock_, any_feedback_); }
+
+  /// The feedback did not come within timeout(): says so (end_of_feedback_wait) and returns the exit code.
+  int lost(std::uint64_t next_tick, double control_period_s, StatusPublisher& status) {
+    exit_code_ = end_of_feedback_wait(node_name_, options_, clock_, any_feedback_, next_tick, control_period_s, status);
+    return exit_code_;
   }
 
   const RunFollower& run() const { return run_; }
