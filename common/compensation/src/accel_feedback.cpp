@@ -8,8 +8,8 @@
 namespace pmlsm {
 
 void AccelFeedbackParams::validate() const {
-  require_non_negative("gain_kg", gain_kg);
-  require_positive("force_limit_n", force_limit_n);
+  check_declared_ranges(*this);
+  require_positive("force_limit_n", force_limit_n);  // the velocity loop's
 }
 
 AccelFeedback::AccelFeedback(const AccelFeedbackParams& params) : params_(params) { params_.validate(); }

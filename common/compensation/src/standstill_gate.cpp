@@ -9,18 +9,13 @@
 namespace pmlsm {
 
 void StandstillGateParams::validate() const {
+  check_declared_ranges(*this);
   require_positive("control_period_s", control_period_s);
-  require_in_range("rest_velocity_mps", rest_velocity_mps, 0.0, 10.0);
-  require_in_range("settle_s", settle_s, 0.0, 3600.0);
   require_window("window_s", window_s, control_period_s);
-  require_positive("quiet_velocity_mps", quiet_velocity_mps);
-  require_finite("wake_velocity_mps", wake_velocity_mps);
   if (!(wake_velocity_mps > quiet_velocity_mps)) {
     throw std::invalid_argument("wake_velocity_mps: must be above quiet_velocity_mps (" +
                                 format_value(quiet_velocity_mps) + " m/s), got " + format_value(wake_velocity_mps));
   }
-  require_in_range("fade_s", fade_s, 0.0, 60.0);
-  require_positive("wake_force_n", wake_force_n);
 }
 
 StandstillGate::StandstillGate(const StandstillGateParams& params)

@@ -19,27 +19,15 @@ BiquadParams filter_at_loop_period(const StateFeedbackParams& params) {
 }
 
 void StateFeedbackParams::validate() const {
-  model.validate();
+  // Its own entries; model_frequency_ratio >= 1 keeps c0 = r^2 - 1 >= 0: a load mode no slower
+  // than the open one (a negative c0 would feed the load's velocity error forward, along the error).
+  check_declared_ranges(*this);
+  // What the system fills in: the velocity loop's gain and limit, the reference model, the period.
   require_positive("velocity_gain_n_s_per_m", velocity_gain_n_s_per_m);
-  // c0 = r^2 - 1 >= 0: a load mode no slower than the open one (a negative c0 would feed the
-  // load's velocity error forward, along the error).
-  require_finite("model_frequency_ratio", model_frequency_ratio);
-  if (!(model_frequency_ratio >= 1.0)) {
-    throw std::invalid_argument(
-        "model_frequency_ratio: must be >= 1 (the model's load mode no slower than the open "
-        "one), got " +
-        format_value(model_frequency_ratio));
-  }
-  require_non_negative("model_damping_ratio", model_damping_ratio);
-  require_non_negative("correction_damping_ratio", correction_damping_ratio);
-  require_positive("max_correction_gain", max_correction_gain);
   require_positive("reference_natural_frequency_rad_s", reference_natural_frequency_rad_s);
   require_positive("reference_damping_ratio", reference_damping_ratio);
   require_in_range("period_s", period_s, 1e-6, 1.0);
   require_positive("force_limit_n", force_limit_n);
-  require_non_negative("friction_coulomb_n", friction_coulomb_n);
-  require_non_negative("friction_viscous_n_s_per_m", friction_viscous_n_s_per_m);
-  require_positive("friction_band_mps", friction_band_mps);
   try {
     BiquadParams declared = output_filter;  // checked enabled or not: a declared filter is valid
     declared.period_s = period_s;

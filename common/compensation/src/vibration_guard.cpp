@@ -10,34 +10,13 @@
 namespace pmlsm {
 
 void VibrationGuardParams::validate() const {
+  check_declared_ranges(*this);
   require_positive("control_period_s", control_period_s);
-  require_positive("highpass_hz", highpass_hz);
   if (!(highpass_hz < 0.5 / control_period_s)) {
     throw std::invalid_argument("highpass_hz: must be below the Nyquist frequency " +
                                 format_value(0.5 / control_period_s) + " Hz, got " + format_value(highpass_hz));
   }
   require_window("window_s", window_s, control_period_s);
-  require_positive("min_oscillation_mps", min_oscillation_mps);
-  require_finite("growth_ratio", growth_ratio);
-  if (!(growth_ratio > 1.0)) {
-    throw std::invalid_argument("growth_ratio: must be > 1, got " + format_value(growth_ratio));
-  }
-  require_finite("min_decay", min_decay);
-  if (!(min_decay > 0.0 && min_decay < 1.0)) {
-    throw std::invalid_argument("min_decay: must be in (0, 1), got " + format_value(min_decay));
-  }
-  if (windows_to_trip < 1) throw std::invalid_argument("windows_to_trip: must be >= 1, got 0");
-  require_positive("max_reference_share", max_reference_share);
-  require_finite("saturated_output_share", saturated_output_share);
-  if (!(saturated_output_share > 0.0 && saturated_output_share <= 1.0)) {
-    throw std::invalid_argument("saturated_output_share: must be in (0, 1], got " +
-                                format_value(saturated_output_share));
-  }
-  require_finite("max_saturated_share", max_saturated_share);
-  if (!(max_saturated_share > 0.0 && max_saturated_share <= 1.0)) {
-    throw std::invalid_argument("max_saturated_share: must be in (0, 1], got " + format_value(max_saturated_share));
-  }
-  require_non_negative("fade_s", fade_s);
 }
 
 const char* to_string(VibrationGuardTrip trip) noexcept {

@@ -8,10 +8,9 @@
 namespace pmlsm {
 
 void CurrentControllerParams::validate() const {
-  require_positive("kp_v_per_a", kp_v_per_a);
-  require_non_negative("ki_v_per_a_s", ki_v_per_a_s);
+  check_declared_ranges(*this);
+  // The rest comes from the timing and the plant's motor (SystemParams::current_controller_params).
   require_in_range("period_s", period_s, 1e-7, 1e-2);
-  require_positive("current_limit_a", current_limit_a);
   require_positive("voltage_limit_v", voltage_limit_v);
   require_positive("motor_constant_n_per_a", motor_constant_n_per_a);
   require_positive("pole_pitch_m", pole_pitch_m);

@@ -8,8 +8,7 @@
 namespace pmlsm {
 
 void ReferenceModelParams::validate() const {
-  require_positive("natural_frequency_rad_s", natural_frequency_rad_s);
-  require_positive("damping_ratio", damping_ratio);
+  check_declared_ranges(*this);
   require_in_range("period_s", period_s, 1e-6, 1.0);
 }
 

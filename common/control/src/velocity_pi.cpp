@@ -7,10 +7,8 @@
 namespace pmlsm {
 
 void VelocityPiParams::validate() const {
-  require_non_negative("kp_n_s_per_m", kp_n_s_per_m);
-  require_non_negative("ki_n_per_m", ki_n_per_m);
+  check_declared_ranges(*this);
   require_in_range("period_s", period_s, 1e-6, 1.0);
-  require_positive("force_limit_n", force_limit_n);
 }
 
 VelocityPi::VelocityPi(const VelocityPiParams& params) : params_(params) { params_.validate(); }

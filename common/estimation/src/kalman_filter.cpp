@@ -8,25 +8,10 @@
 
 namespace pmlsm {
 
-void KalmanStandstillHold::validate() const {
-  require_positive("max_velocity_mps", max_velocity_mps);
-  require_non_negative("min_ring_share", min_ring_share);
-}
-
 void KalmanParams::validate() const {
-  model.validate();
+  // The model, the noises, the lag, the friction and ripple inputs and the standstill hold.
+  check_declared_ranges(*this);
   require_in_range("period_s", period_s, 1e-6, 1.0);
-  require_in_range("thrust_lag_s", thrust_lag_s, 0.0, 1.0);
-  require_non_negative("process_noise_diag[0]", process_noise_diag(0));
-  require_non_negative("process_noise_diag[1]", process_noise_diag(1));
-  require_non_negative("process_noise_diag[2]", process_noise_diag(2));
-  require_positive("measurement_noise", measurement_noise);
-  require_non_negative("initial_covariance_diag[0]", initial_covariance_diag(0));
-  require_non_negative("initial_covariance_diag[1]", initial_covariance_diag(1));
-  require_non_negative("initial_covariance_diag[2]", initial_covariance_diag(2));
-  validate_section("friction_input", [&] { friction_input.validate(); });
-  validate_section("ripple_input", [&] { ripple_input.validate(); });
-  validate_section("standstill_hold", [&] { standstill_hold.validate(); });
 }
 
 Eigen::Matrix3d KalmanFilter::continuous_a(const KalmanParams& p) {

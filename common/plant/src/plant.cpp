@@ -92,19 +92,9 @@ double MotorElectricalParams::permanent_magnet_flux_wb() const {
   return motor_constant_n_per_a / thrust_factor_per_m();
 }
 
-void RippleParams::validate() const {
-  require_non_negative("scale_n", scale_n);
-  require_finite("amplitude_1", amplitude_1);
-  require_finite("amplitude_2", amplitude_2);
-  require_non_negative("spatial_freq_1_rad_per_m", spatial_freq_1_rad_per_m);
-  require_non_negative("spatial_freq_2_rad_per_m", spatial_freq_2_rad_per_m);
-}
+void RippleParams::validate() const { check_declared_ranges(*this); }
 
-void FrictionParams::validate() const {
-  require_non_negative("coulomb_n", coulomb_n);
-  require_non_negative("viscous_n_s_per_m", viscous_n_s_per_m);
-  require_positive("regularisation_velocity_mps", regularisation_velocity_mps);
-}
+void FrictionParams::validate() const { check_declared_ranges(*this); }
 
 double ripple_force_n(const RippleParams& r, double motor_position_m) {
   return r.scale_n * r.amplitude_1 * std::sin(r.spatial_freq_1_rad_per_m * motor_position_m) *

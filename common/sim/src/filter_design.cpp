@@ -65,11 +65,7 @@ double tunable_scale(const std::vector<FrequencyPoint>& points, const TuningTarg
 
 }  // namespace
 
-void FilterDesignParams::validate() const {
-  require_in_range("min_frequency_hz", min_frequency_hz, 1e-3, 1e5);
-  require_in_range("min_peak_db", min_peak_db, 0.1, 60.0);
-  require_in_range("min_gain_increase", min_gain_increase, 1.0 + 1e-6, 100.0);
-}
+void FilterDesignParams::validate() const { check_declared_ranges(*this); }
 
 std::vector<ResonancePeak> resonance_peaks(const std::vector<FrequencyPoint>& points, const TwoMassFit& fit,
                                            double min_coherence, double period_s, const FilterDesignParams& params) {

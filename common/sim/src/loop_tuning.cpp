@@ -78,13 +78,7 @@ LoopMargins loop_margins(const std::vector<FrequencyPoint>& points, double gain_
   return m;
 }
 
-void TuningTargets::validate() const {
-  require_in_range("min_phase_margin_deg", min_phase_margin_deg, 1.0, 89.0);
-  require_in_range("min_gain_margin_db", min_gain_margin_db, 0.1, 40.0);
-  require_in_range("max_gain_scale", max_gain_scale, 1.01, 100.0);
-  require_in_range("phase_allowance_deg", phase_allowance_deg, 0.0, 30.0);
-  require_in_range("gain_allowance_db", gain_allowance_db, 0.0, 10.0);
-}
+void TuningTargets::validate() const { check_declared_ranges(*this); }
 
 std::optional<TunedGains> tune_velocity_pi(const std::vector<FrequencyPoint>& points, double kp_n_s_per_m,
                                            double ki_n_per_m, const TuningTargets& targets, double min_coherence,

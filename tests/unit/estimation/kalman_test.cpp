@@ -167,19 +167,19 @@ TEST(KalmanDisturbanceInput, BadValuesThrowNamingTheValue) {
     const double inf = std::numeric_limits<double>::infinity();
     const std::vector<Case> cases{
         {[](KalmanParams& p) { p.friction_input.model.coulomb_n = -20; },
-         {"friction_input.coulomb_n: must be >= 0", "got -20"}},
+         {"friction_input.coulomb_n: must be in [0, 10000]", "got -20"}},
         {[](KalmanParams& p) { p.friction_input.model.viscous_n_s_per_m = -0.5; },
-         {"friction_input.viscous_n_s_per_m: must be >= 0", "got -0.5"}},
+         {"friction_input.viscous_n_s_per_m: must be in [0, 100000]", "got -0.5"}},
         {[&](KalmanParams& p) { p.friction_input.model.viscous_n_s_per_m = nan; },
          {"friction_input.viscous_n_s_per_m: must be finite", "nan"}},
         {[](KalmanParams& p) { p.friction_input.model.regularisation_velocity_mps = 0; },
-         {"friction_input.regularisation_velocity_mps: must be > 0", "got 0"}},
+         {"friction_input.regularisation_velocity_mps: must be in [1e-07, 1]", "got 0"}},
         {[](KalmanParams& p) { p.ripple_input.model.scale_n = -10; },
-         {"ripple_input.scale_n: must be >= 0", "got -10"}},
+         {"ripple_input.scale_n: must be in [0, 10000]", "got -10"}},
         {[&](KalmanParams& p) { p.ripple_input.model.amplitude_2 = inf; },
          {"ripple_input.amplitude_2: must be finite", "inf"}},
         {[](KalmanParams& p) { p.ripple_input.model.spatial_freq_1_rad_per_m = -418; },
-         {"ripple_input.spatial_freq_1_rad_per_m: must be >= 0", "got -418"}},
+         {"ripple_input.spatial_freq_1_rad_per_m: must be in [0, 100000]", "got -418"}},
     };
     for (const Case& c : cases) {
       KalmanParams bad = good;
@@ -420,10 +420,10 @@ TEST(KalmanStandstillHold, LeavesSmallSwingsMovingMotorsAndThePapersFilterAlone)
 TEST(KalmanStandstillHold, BadValuesThrowNamingTheValue) {
   KalmanParams p = test::shipped_params().kalman_params();
   p.standstill_hold.max_velocity_mps = 0;
-  EXPECT_NE(construction_error(p).find("standstill_hold.max_velocity_mps: must be > 0"), std::string::npos);
+  EXPECT_NE(construction_error(p).find("standstill_hold.max_velocity_mps: must be in [1e-06, 1]"), std::string::npos);
   p = test::shipped_params().kalman_params();
   p.standstill_hold.min_ring_share = -0.5;
-  EXPECT_NE(construction_error(p).find("standstill_hold.min_ring_share: must be >= 0"), std::string::npos);
+  EXPECT_NE(construction_error(p).find("standstill_hold.min_ring_share: must be in [0, 100]"), std::string::npos);
 }
 
 // In the loop: a heavy, soft load (8 kg, 6,850 N/m, 30 N of bearing friction; the filter's model

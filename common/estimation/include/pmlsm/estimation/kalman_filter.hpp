@@ -73,8 +73,6 @@ namespace pmlsm {
 struct KalmanFrictionInput {
   bool enabled = false;
   FrictionParams model;
-  /// @throws std::invalid_argument naming the first non-finite or out-of-range value.
-  void validate() const { model.validate(); }
   double force_n(double motor_velocity_mps) const { return friction_force_n(model, motor_velocity_mps); }
 };
 
@@ -83,8 +81,6 @@ struct KalmanFrictionInput {
 struct KalmanRippleInput {
   bool enabled = false;
   RippleParams model;
-  /// @throws std::invalid_argument naming the first non-finite or out-of-range value.
-  void validate() const { model.validate(); }
   double force_n(double motor_position_m) const { return ripple_force_n(model, motor_position_m); }
 };
 
@@ -95,8 +91,6 @@ struct KalmanStandstillHold {
   bool enabled = false;
   double max_velocity_mps = 0;  ///< |y_k| at or below this: the motor may be stuck, > 0
   double min_ring_share = 0;    ///< held only while A >= this x F_c, >= 0
-  /// @throws std::invalid_argument naming the first invalid value.
-  void validate() const;
 };
 
 struct KalmanParams {

@@ -1,8 +1,9 @@
 // Parameter tables: a component declares each parameter once, as a visit of its fields with
 // the key its files use, the kind, and the plausible range with the reason (the pattern of
 // Drake's Serialize/Archive). Whatever needs the parameters walks that one table: the YAML
-// reader (every key known and present), RangeCheck below (each range checked once, in the
-// component's validate()), the generated configuration reference, the mutation tests.
+// reader (every key known and present), RangeCheck below (the system's check of every range;
+// a component's own validate() starts with check_declared_ranges, so its ranges are written
+// nowhere else), the generated configuration reference, the mutation tests.
 //
 // An entry also says who takes it live (Plausible::live_at, choice's live_at): the node that
 // accepts a change of it at a tick boundary (`pmlsm param`), or nobody (read at start). A node's
@@ -22,6 +23,8 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "pmlsm/util/validate.hpp"
@@ -77,5 +80,57 @@ class RangeCheck {
     }
   }
 };
+
+namespace table_detail {
+
+// RangeCheck naming each entry by its key inside the Params ("min_decay", "model.load_mass_kg"),
+// as the Params' own validate() names what it checks: the declaration is walked at "" and the
+// leading '.' of each key dropped.
+class OwnRangeCheck {
+ public:
+  void real(const std::string& path, double value, const Plausible& range) const {
+    check_.real(path.substr(1), value, range);
+  }
+  template <typename T>
+  void integer(const std::string& path, T value, const Plausible& range) const {
+    check_.integer(path.substr(1), value, range);
+  }
+  void flag(const std::string&, bool) const {}
+  template <typename E, typename F>
+  void choice(const std::string&, E, F, const char* /*live_at*/ = nullptr) const {}
+  void vector3(const std::string& path, const Eigen::Vector3d& value, const Plausible& range) const {
+    check_.vector3(path.substr(1), value, range);
+  }
+  void integer_list(const std::string& path, const std::vector<int>& value, const Plausible& range) const {
+    check_.integer_list(path.substr(1), value, range);
+  }
+
+ private:
+  RangeCheck check_;
+};
+
+template <typename P, typename = void>
+struct DeclaresLive : std::false_type {};
+template <typename P>
+struct DeclaresLive<
+    P, std::void_t<decltype(P::declare(std::string(), std::declval<const P&>(), std::declval<OwnRangeCheck&>(),
+                                       static_cast<const char*>(nullptr)))>> : std::true_type {};
+
+}  // namespace table_detail
+
+/// A Params' values against its own declaration's ranges: the first step of its validate(), so
+/// each range is written once, in declare(), and validate() adds only what a range cannot say
+/// (values that must agree with each other, the values the system fills in). A refusal names the
+/// key inside the Params ("min_decay: must be in [0.001, 0.999] (...), got 0").
+/// @throws std::invalid_argument at the first value outside its range.
+template <typename Params>
+void check_declared_ranges(const Params& params) {
+  table_detail::OwnRangeCheck check;
+  if constexpr (table_detail::DeclaresLive<Params>::value) {
+    Params::declare(std::string(), params, check, nullptr);
+  } else {
+    Params::declare(std::string(), params, check);
+  }
+}
 
 }  // namespace pmlsm

@@ -27,11 +27,10 @@ struct TwoMassModel {
   double motor_mass_kg = 0;   ///< m_M, > 0
   double load_mass_kg = 0;    ///< m_L, > 0
   double spring_n_per_m = 0;  ///< k, > 0
-  /// @throws std::invalid_argument naming the first value that is not positive (key "model.<field>").
+  /// @throws std::invalid_argument naming the first value out of its range (key "model.<field>").
   void validate() const {
-    require_positive("model.motor_mass_kg", motor_mass_kg);
-    require_positive("model.load_mass_kg", load_mass_kg);
-    require_positive("model.spring_n_per_m", spring_n_per_m);
+    RangeCheck check;
+    declare("model", *this, check);
   }
   /// Its entries under `at` (declare_two_mass). Self: TwoMassModel, const or not.
   template <typename Self, typename Visitor>
