@@ -48,19 +48,10 @@ function(pmlsm_discover_compensators)
     set_property(GLOBAL APPEND PROPERTY PMLSM_COMPENSATOR_LAWS "${name}|${law}|${header}")
   endforeach()
   set(table ${CMAKE_BINARY_DIR}/generated/compensators/parameter_sections.cpp)
-  file(WRITE ${table}.in
-       "// Generated from the PMLSM_COMPENSATOR lines of compensators/*/ (cmake/PmlsmCompensators.cmake).\n"
-       "#include \"pmlsm/util/parameter_section.hpp\"\n"
-       "${includes}\n"
-       "namespace pmlsm {\n\n"
-       "const std::vector<ParameterSection>& registered_parameter_sections() {\n"
-       "  static const std::vector<ParameterSection> kSections = {\n"
-       "${rows}"
-       "  };\n"
-       "  return kSections;\n"
-       "}\n\n"
-       "}  // namespace pmlsm\n")
-  configure_file(${table}.in ${table} COPYONLY)
+  pmlsm_write_table_source(${table}
+    COMMENT "Generated from the PMLSM_COMPENSATOR lines of compensators/*/ (cmake/PmlsmCompensators.cmake)."
+    INCLUDE "#include \"pmlsm/util/parameter_section.hpp\"\n${includes}"
+    NAMESPACE pmlsm TYPE ParameterSection FUNCTION registered_parameter_sections ROWS "${rows}")
   add_library(pmlsm_parameter_sections STATIC ${table})
   target_include_directories(pmlsm_parameter_sections PUBLIC ${CMAKE_CURRENT_SOURCE_DIR})
   target_link_libraries(pmlsm_parameter_sections PUBLIC pmlsm_sim)
@@ -78,7 +69,7 @@ function(pmlsm_compensator_components)
     list(GET fields 2 header)
     file(RELATIVE_PATH relative ${PROJECT_SOURCE_DIR} ${header})
     set(source ${CMAKE_BINARY_DIR}/generated/compensators/component_${name}.cpp)
-    file(WRITE ${source}.in
+    pmlsm_write_generated(${source}
          "// Generated from ${relative}: its law as a component (cmake/PmlsmCompensators.cmake).\n"
          "#include \"${name}/${name}.hpp\"\n"
          "#include \"law_compensator.hpp\"\n\n"
@@ -88,7 +79,6 @@ function(pmlsm_compensator_components)
          "  return make_law_compensator<${law}>(\"${name}\", context, argc, argv);\n"
          "}\n\n"
          "}  // namespace pmlsm::node\n")
-    configure_file(${source}.in ${source} COPYONLY)
     pmlsm_component(pmlsm_component_${name} SOURCES ${source} ORIGIN ${header} LINK pmlsm_parameter_sections)
     target_include_directories(pmlsm_component_${name} PRIVATE ${CMAKE_CURRENT_SOURCE_DIR})
   endforeach()

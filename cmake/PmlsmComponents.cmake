@@ -12,6 +12,37 @@
 
 set_property(GLOBAL PROPERTY PMLSM_COMPONENTS "")
 
+# pmlsm_write_generated(FILE PIECES...): FILE holds the PIECES joined, rewritten only when it
+# changed (so what includes it is not rebuilt at every configuration).
+function(pmlsm_write_generated file)
+  # ARGV, not ARGN: a piece with a ';' (every C++ statement) stays whole.
+  set(text "")
+  math(EXPR last "${ARGC} - 1")
+  foreach(i RANGE 1 ${last})
+    string(APPEND text "${ARGV${i}}")
+  endforeach()
+  file(WRITE ${file}.in "${text}")
+  configure_file(${file}.in ${file} COPYONLY)
+endfunction()
+
+# pmlsm_write_table_source(FILE COMMENT c INCLUDE h NAMESPACE ns TYPE T FUNCTION f [PREAMBLE p] ROWS r):
+# a source defining `const std::vector<T>& f()`, the table of ROWS (each "      {...},\n").
+function(pmlsm_write_table_source file)
+  cmake_parse_arguments(PARSE_ARGV 1 ARG "" "COMMENT;INCLUDE;NAMESPACE;TYPE;FUNCTION;PREAMBLE;ROWS" "")
+  pmlsm_write_generated(${file}
+    "// ${ARG_COMMENT}\n"
+    "${ARG_INCLUDE}\n"
+    "namespace ${ARG_NAMESPACE} {\n\n"
+    "${ARG_PREAMBLE}"
+    "const std::vector<${ARG_TYPE}>& ${ARG_FUNCTION}() {\n"
+    "  static const std::vector<${ARG_TYPE}> kTable = {\n"
+    "${ARG_ROWS}"
+    "  };\n"
+    "  return kTable;\n"
+    "}\n\n"
+    "}  // namespace ${ARG_NAMESPACE}\n")
+endfunction()
+
 # pmlsm_component(LIBRARY SOURCES... [ORIGIN FILE] [LINK...]): LIBRARY (a static library made from
 # SOURCES and linked to pmlsm_node_support, plus any LINK libraries) holds one or more registered
 # components; ORIGIN: the file to name for them when SOURCES are generated.
@@ -45,7 +76,7 @@ function(pmlsm_component library)
       set_property(GLOBAL APPEND PROPERTY PMLSM_COMPONENTS "${name}|${factory}|${priority}|${library}|${path}")
       # Its program: the component alone in its process.
       set(main ${CMAKE_BINARY_DIR}/generated/components/main_${name}.cpp)
-      file(WRITE ${main}.in
+      pmlsm_write_generated(${main}
            "// Generated from ${path}: the component alone in its process.\n"
            "#include \"component.hpp\"\n\n"
            "namespace pmlsm::node {\n"
@@ -54,7 +85,6 @@ function(pmlsm_component library)
            "int main(int argc, char** argv) {\n"
            "  return pmlsm::node::run_standalone(\"${name}\", pmlsm::node::${factory}, argc, argv);\n"
            "}\n")
-      configure_file(${main}.in ${main} COPYONLY)
       add_executable(${name} ${main})
       target_link_libraries(${name} PRIVATE ${library})
       math(EXPR found "${found} + 1")
@@ -86,26 +116,18 @@ function(pmlsm_generate_component_registry)
     list(APPEND libraries ${library})
   endforeach()
   set(registry ${CMAKE_BINARY_DIR}/generated/components/component_registry.cpp)
-  file(WRITE ${registry}.in
-       "// Generated from the PMLSM_COMPONENT lines of the component libraries (cmake/PmlsmComponents.cmake).\n"
-       "#include \"component_registry.hpp\"\n\n"
-       "namespace pmlsm::node {\n\n"
-       "${declarations}\n"
-       "const std::vector<RegisteredComponent>& registered_components() {\n"
-       "  static const std::vector<RegisteredComponent> kRegistered = {\n"
-       "${rows}"
-       "  };\n"
-       "  return kRegistered;\n"
-       "}\n\n"
-       "}  // namespace pmlsm::node\n")
-  configure_file(${registry}.in ${registry} COPYONLY)
+  pmlsm_write_table_source(${registry}
+    COMMENT "Generated from the PMLSM_COMPONENT lines of the component libraries (cmake/PmlsmComponents.cmake)."
+    INCLUDE "#include \"component_registry.hpp\"\n"
+    NAMESPACE pmlsm::node TYPE RegisteredComponent FUNCTION registered_components
+    PREAMBLE "${declarations}\n" ROWS "${rows}")
   add_library(pmlsm_component_registry STATIC ${registry})
   target_link_libraries(pmlsm_component_registry PUBLIC pmlsm_node_support pmlsm_component_names ${libraries})
   # The names alone, for programs that list them without linking the components (the security
   # tool's identities, the launch agent's allowed programs).
   list(LENGTH registered count)
   set(header ${CMAKE_BINARY_DIR}/generated/components/include/pmlsm/components/registered_names.hpp)
-  file(WRITE ${header}.in
+  pmlsm_write_generated(${header}
        "// Generated from the PMLSM_COMPONENT lines of the component libraries (cmake/PmlsmComponents.cmake).\n"
        "#pragma once\n\n"
        "#include <array>\n\n"
@@ -115,7 +137,6 @@ function(pmlsm_generate_component_registry)
        "${names}"
        "};\n\n"
        "}  // namespace pmlsm::components\n")
-  configure_file(${header}.in ${header} COPYONLY)
   add_library(pmlsm_component_names INTERFACE)
   target_include_directories(pmlsm_component_names INTERFACE ${CMAKE_BINARY_DIR}/generated/components/include)
 endfunction()
