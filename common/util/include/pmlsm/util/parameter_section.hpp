@@ -154,7 +154,7 @@ ParameterSection parameter_section(const char* at, const char* live_at, const ch
 }
 
 /// This build's sections: generated into the build tree from the compensators' registration lines
-/// (cmake/PmlsmCompensators.cmake, library pmlsm_parameter_sections), in their folders' order.
+/// (cmake/PmlsmCompensators.cmake, library pmlsm_parameter_sections), in their folders order.
 /// Every reader of a system file reads them (parse_system_params).
 const std::vector<ParameterSection>& registered_parameter_sections();
 
