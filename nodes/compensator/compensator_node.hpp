@@ -154,8 +154,8 @@ class FixedLawComponent : public CycleComponent {
         writer_(rt_.participant.make_writer(dds::topics::kCompensatorOutput)),
         live_(rt_.cfg.params, live_keys(rt_.cfg.params, node_name)),
         parameters_(rt_, node_name, live_),
-        ticks_(scenario_ticks(rt_.cfg.scenario, rt_.period_s)),
-        force_limit_n_(rt_.cfg.params.velocity_loop.force_limit_n) {
+        force_limit_n_(rt_.cfg.params.velocity_loop.force_limit_n),
+        ticks_(scenario_ticks(rt_.cfg.scenario, rt_.period_s)) {
     if (followed_owner != nullptr) follower_.emplace(rt_, node_name, followed_owner, rt_.cfg.params);
   }
 
@@ -174,6 +174,7 @@ class FixedLawComponent : public CycleComponent {
   LiveParameters live_;
   ParameterService parameters_;
   std::optional<ParameterFollower> follower_;
+  const double force_limit_n_;  ///< the velocity loop's: u = force / it
 
  private:
   void activate() final {
@@ -241,7 +242,6 @@ class FixedLawComponent : public CycleComponent {
   dds::Wakeup& wakeup() final { return rt_.wakeup; }
 
   const std::uint64_t ticks_;
-  const double force_limit_n_;
   std::uint64_t answered_ = 0;
   std::uint64_t tick_ = 0;
   CompensatorView view_;

@@ -25,9 +25,7 @@ class LawCompensator final : public FixedLawComponent {
         law_(rt_.cfg.params.section<typename Law::Params>(section_), rt_.period_s) {}
 
  private:
-  double force(const CompensatorView& view) override {
-    return limited_force(law_, view, rt_.cfg.params.velocity_loop.force_limit_n, counters_);
-  }
+  double force(const CompensatorView& view) override { return limited_force(law_, view, force_limit_n_, counters_); }
   void retune(const SystemParams& changed) override {
     law_.set_params(changed.section<typename Law::Params>(section_));
   }

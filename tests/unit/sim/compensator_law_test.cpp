@@ -66,27 +66,23 @@ TEST(ParameterSections, TheFileAndTheCommandLineSetTheirEntries) {
 }
 
 TEST(ParameterSections, TheirEntriesAreCheckedAsTheFilesOwn) {
-  EXPECT_NE(test::error_of([] {
-              parse_system_params(test::system_text(), "system.yaml", parse_overrides({kSectionAt + ".gain=2000"}));
-            }).find("system.yaml: compensator.spring_force_feedback.gain: must be in [0, 1000]"),
-            std::string::npos);
-  EXPECT_NE(test::error_of([] {
-              parse_system_params(with_compensator_section("  spring_force_feedback:\n    gian: 3\n"), "system.yaml");
-            }).find("compensator.spring_force_feedback.gian: unknown key"),
-            std::string::npos);
-  EXPECT_NE(test::error_of([] {
-              parse_system_params(with_compensator_section("  spring_force_feedback:\n    gain: strong\n"),
-                                  "system.yaml");
-            }).find("compensator.spring_force_feedback.gain"),
-            std::string::npos);
-  EXPECT_NE(test::error_of([] {
-              parse_system_params(with_compensator_section("  spring_force_feedback: 3\n"), "system.yaml");
-            }).find("compensator.spring_force_feedback"),
-            std::string::npos);
-  EXPECT_NE(test::error_of([] {
-              parse_system_params(test::system_text(), "system.yaml", parse_overrides({kSectionAt + ".gian=3"}));
-            }).find("no key 'compensator.spring_force_feedback.gian'"),
-            std::string::npos);
+  struct Case {
+    std::string section;           ///< put under `compensator:` ("": the shipped file as it is)
+    std::vector<std::string> set;  ///< --set overrides
+    std::string expected;          ///< in the ConfigError
+  };
+  const std::vector<Case> cases{
+      {"", {kSectionAt + ".gain=2000"}, "system.yaml: compensator.spring_force_feedback.gain: must be in [0, 1000]"},
+      {"  spring_force_feedback:\n    gian: 3\n", {}, "compensator.spring_force_feedback.gian: unknown key"},
+      {"  spring_force_feedback:\n    gain: strong\n", {}, "compensator.spring_force_feedback.gain: expected a number"},
+      {"  spring_force_feedback: 3\n", {}, "compensator.spring_force_feedback: must be a mapping of keys"},
+      {"", {kSectionAt + ".gian=3"}, "no key 'compensator.spring_force_feedback.gian'"},
+  };
+  for (const Case& c : cases) {
+    const std::string text = c.section.empty() ? test::system_text() : with_compensator_section(c.section);
+    const std::string error = test::error_of([&] { parse_system_params(text, "system.yaml", parse_overrides(c.set)); });
+    EXPECT_NE(error.find(c.expected), std::string::npos) << error;
+  }
 }
 
 TEST(ParameterSections, ALiveChangeIsCheckedKeptAndRefusedAsAnyOther) {
