@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "pmlsm/sim/closed_loop.hpp"
-#include "pmlsm/sim/compensated_run.hpp"
+#include "pmlsm/analysis/compensated_run.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/sim/metrics.hpp"
 #include "pmlsm/config/weights_file.hpp"

@@ -37,7 +37,7 @@
 #include "pmlsm/dds/participant.hpp"
 #include "pmlsm/optim/optimiser.hpp"
 #include "pmlsm/optim/thread_pool_evaluator.hpp"
-#include "pmlsm/sim/rnn_training.hpp"
+#include "pmlsm/analysis/rnn_training.hpp"
 
 namespace pmlsm::training {
 

@@ -684,6 +684,14 @@ TEST(Commission, RefusesARunBeyondItsLimitsAndWritesNothingFromABadOne) {
   auto [code, text] = commission("commissioning.frequency_response.max_travel_m=0.2", "stroke.log");
   EXPECT_EQ(code, 2) << text;
   EXPECT_NE(text.find("would leave the stroke"), std::string::npos) << text;
+  // Above the Nyquist frequency: the system's period is known before a tick is measured.
+  std::tie(code, text) = commission("commissioning.frequency_response.max_frequency_hz=600", "nyquist.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("commissioning.frequency_response.max_frequency_hz: must lie above min_frequency_hz (2) and "
+                      "below the Nyquist frequency 500, got 600"),
+            std::string::npos)
+      << text;
+  EXPECT_EQ(text.find("measuring"), std::string::npos) << text;
   std::tie(code, text) = commission("commissioning.frequency_response.amplitude_n=700", "force.log");
   EXPECT_EQ(code, 2) << text;
   EXPECT_NE(text.find("exceed the force limit"), std::string::npos) << text;

@@ -1,5 +1,5 @@
 // `pmlsm identify`: commissioning. The load's mass and spring and the bearing friction fitted
-// (pmlsm/sim/identification.hpp) to what the drive measured while the velocity PI alone ran the
+// (pmlsm/analysis/identification.hpp) to what the drive measured while the velocity PI alone ran the
 // identification scenario, written into a copy of the system file, whose models (the Kalman
 // filter's, state feedback's) and the gains scheduled on them every node then takes with
 // `--config`:
@@ -25,7 +25,7 @@
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/introspect/cdr_schema.hpp"
 #include "pmlsm/mcap/mcap.hpp"
-#include "pmlsm/sim/identification.hpp"
+#include "pmlsm/analysis/identification.hpp"
 #include "pmlsm/util/data_files.hpp"
 #include "run_validity.hpp"
 #include "tool_support.hpp"

@@ -1,4 +1,4 @@
-// `pmlsm sweep FILE`: the robustness sweep (pmlsm/sim/sweep.hpp) in process on every core: a
+// `pmlsm sweep FILE`: the robustness sweep (pmlsm/analysis/sweep.hpp) in process on every core: a
 // family of plants x compensators x scenarios, a verdict per run, a CSV of every run, a table
 // per compensator and scenario, and a heat map per scenario (gnuplot PNG). Exit 0 when every
 // run passed (clean, and a compensator cheaper than PI alone on the same plant), 6 otherwise.
@@ -19,7 +19,7 @@
 #include "pmlsm/config/sweep_file.hpp"
 #include "pmlsm/config/weights_file.hpp"
 #include "pmlsm/util/data_files.hpp"
-#include "pmlsm/sim/sweep.hpp"
+#include "pmlsm/analysis/sweep.hpp"
 #include "tool_support.hpp"
 
 namespace pmlsm::tools {

@@ -1,5 +1,5 @@
 // DeParams::validate: the ranges of a population search, checked once for every optimiser and
-// for the training file (pmlsm/sim/rnn_training.hpp).
+// for the training file (pmlsm/analysis/rnn_training.hpp).
 #include "pmlsm/optim/de_params.hpp"
 
 #include <cmath>

@@ -124,13 +124,6 @@ FilterChainParams SystemParams::compensation_filter_params() const {
   return at_period(compensation_filters, timing.control_period_s);
 }
 
-FrequencyResponseMeasurementParams SystemParams::frequency_response_params() const {
-  FrequencyResponseMeasurementParams p = commissioning.frequency_response;
-  p.period_s = timing.control_period_s;
-  p.pole_pitch_m = plant.electrical.pole_pitch_m;
-  return p;
-}
-
 InputShaperParams SystemParams::input_shaper_params(ShaperKind kind) const {
   const VibrationMode mode = loop_vibration_mode();
   InputShaperParams p;
@@ -247,9 +240,6 @@ void SystemParams::validate() const {
   validate_section("compensator.state_feedback", [&] { state_feedback_params().validate(); });
   validate_section("compensator.guard", [&] { vibration_guard_params().validate(); });
   validate_section("compensator.standstill", [&] { standstill_gate_params().validate(); });
-  validate_section("commissioning.frequency_response", [&] { frequency_response_params().validate(); });
-  validate_section("commissioning.tuning", [&] { commissioning.tuning.validate(); });
-  validate_section("commissioning.filter_design", [&] { commissioning.filter_design.validate(); });
   validate_section("filters.force_command", [&] { force_command_filter_params().validate(); });
   validate_section("filters.compensation", [&] { compensation_filter_params().validate(); });
   validate_section("plant", [&] { plant.check_step(); });

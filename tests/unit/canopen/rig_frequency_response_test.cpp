@@ -14,11 +14,12 @@
 #include <string>
 
 #include "memory_bus.hpp"
+#include "pmlsm/analysis/analysis_params.hpp"
 #include "pmlsm/canopen/cia402_drive.hpp"
 #include "pmlsm/canopen/cia402_slave.hpp"
 #include "pmlsm/config/canopen_config.hpp"
 #include "pmlsm/config/config.hpp"
-#include "pmlsm/sim/frequency_response_measurement.hpp"
+#include "pmlsm/analysis/frequency_response_measurement.hpp"
 #include "pmlsm/sim/simulated_drive.hpp"
 
 namespace {
@@ -109,7 +110,7 @@ TEST(RigFrequencyResponse, FindsTheModesOfThePlantFamilysCornersThroughTheCanope
     p.plant.friction.coulomb_n = coulomb;
     p.plant.friction.viscous_n_s_per_m = viscous;
     SimulatedRig rig(p);
-    FrequencyResponseMeasurement measurement(p.frequency_response_params(), p.velocity_pi_params());
+    FrequencyResponseMeasurement measurement(frequency_response_params(p), p.velocity_pi_params());
     ASSERT_EQ(rig.master->power_state(), drive::PowerState::kOperationEnabled) << rig.master->last_problem();
     while (!measurement.finished()) {
       const std::int64_t tick_start_ns = rig.clock.ns;

@@ -22,7 +22,7 @@
 #include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/config/weights_file.hpp"
-#include "pmlsm/sim/rnn_training.hpp"
+#include "pmlsm/analysis/rnn_training.hpp"
 #include "rnn_test_support.hpp"
 
 namespace pmlsm {

@@ -4,8 +4,8 @@
 // compensators' chatter at rest without touching the free vibration's damping.
 #include "pmlsm/compensation/standstill_gate.hpp"
 #include "pmlsm/config/config.hpp"
-#include "pmlsm/sim/compensated_run.hpp"
-#include "pmlsm/sim/identification.hpp"
+#include "pmlsm/analysis/compensated_run.hpp"
+#include "pmlsm/analysis/identification.hpp"
 #include "pmlsm/sim/metrics.hpp"
 #include "test_support.hpp"
 #include <gtest/gtest.h>

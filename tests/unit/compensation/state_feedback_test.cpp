@@ -11,7 +11,7 @@
 #include "pmlsm/compensation/accel_feedback.hpp"
 #include "pmlsm/compensation/state_feedback.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
-#include "pmlsm/sim/compensated_run.hpp"
+#include "pmlsm/analysis/compensated_run.hpp"
 #include "pmlsm/sim/metrics.hpp"
 #include "test_support.hpp"
 

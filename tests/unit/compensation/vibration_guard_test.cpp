@@ -5,7 +5,7 @@
 
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
-#include "pmlsm/sim/compensated_run.hpp"
+#include "pmlsm/analysis/compensated_run.hpp"
 #include "pmlsm/sim/metrics.hpp"
 #include "test_support.hpp"
 

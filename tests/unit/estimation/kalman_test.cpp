@@ -10,8 +10,8 @@
 
 #include "pmlsm/config/sweep_file.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
-#include "pmlsm/sim/compensated_run.hpp"
-#include "pmlsm/sim/sweep.hpp"
+#include "pmlsm/analysis/compensated_run.hpp"
+#include "pmlsm/analysis/sweep.hpp"
 #include "pmlsm/estimation/kalman_filter.hpp"
 #include "pmlsm/sim/metrics.hpp"
 #include "pmlsm/plant/plant.hpp"

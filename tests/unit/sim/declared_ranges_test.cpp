@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "pmlsm/analysis/analysis_params.hpp"
 #include "pmlsm/sim/system_params.hpp"
 #include "test_support.hpp"
 
@@ -99,9 +100,9 @@ TEST(DeclaredRanges, EachComponentsValidateRefusesWhatItsDeclarationRefuses) {
   expect_validate_refuses_each_declared_range(s.reference_model_params(), "reference model");
   expect_validate_refuses_each_declared_range(s.current_controller_params(), "current loop");
   expect_validate_refuses_each_declared_range(s.kalman_params(), "Kalman filter");
-  expect_validate_refuses_each_declared_range(s.frequency_response_params(), "frequency response");
-  expect_validate_refuses_each_declared_range(s.commissioning.tuning, "tuning targets");
-  expect_validate_refuses_each_declared_range(s.commissioning.filter_design, "filter design");
+  expect_validate_refuses_each_declared_range(frequency_response_params(s), "frequency response");
+  expect_validate_refuses_each_declared_range(tuning_targets(s), "tuning targets");
+  expect_validate_refuses_each_declared_range(filter_design_params(s), "filter design");
   expect_validate_refuses_each_declared_range(s.plant.friction, "friction");
   expect_validate_refuses_each_declared_range(s.plant.ripple, "ripple");
 }

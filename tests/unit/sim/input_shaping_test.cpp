@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "config_edit.hpp"
-#include "pmlsm/sim/compensated_run.hpp"
+#include "pmlsm/analysis/compensated_run.hpp"
 #include "pmlsm/sim/metrics.hpp"
 #include "test_support.hpp"
 

@@ -1,6 +1,7 @@
 // Live parameters (pmlsm/sim/live_parameters.hpp): a change parsed by its entry's kind and checked
 // with the file's ranges and the components' checks, refused with the reason and the old value
 // kept, versioned; and the velocity controller taking it at a tick boundary with its integral kept.
+#include "pmlsm/analysis/analysis_params.hpp"
 #include "pmlsm/sim/live_parameters.hpp"
 
 #include <gtest/gtest.h>
@@ -115,9 +116,11 @@ TEST(LiveParameters, TextIsReadAndWrittenByTheEntrysKind) {
   set_parameter(p, "plant.integrator", "rk4");
   EXPECT_EQ(parameter_text(p, "plant.integrator"), "rk4");
   set_parameter(p, "commissioning.frequency_response.measure_periods", "8");
-  EXPECT_EQ(p.commissioning.frequency_response.measure_periods, 8u);
+  EXPECT_EQ(frequency_response_params(p).measure_periods, 8u);
   EXPECT_THROW(set_parameter(p, "commissioning.frequency_response.measure_periods", "8.5"), std::invalid_argument);
   EXPECT_THROW(set_parameter(p, "commissioning.frequency_response.measure_periods", "-4"), std::invalid_argument);
+  EXPECT_EQ(frequency_response_params(p).measure_periods, 8u);
+  EXPECT_THROW(set_parameter(p, "compensator.guard.windows_to_trip", "-4"), std::invalid_argument);
   EXPECT_THROW(set_parameter(p, "kalman.friction_input.enabled", "yes"), std::invalid_argument);
   EXPECT_THROW(set_parameter(p, "kalman.process_noise_diag", "1"), std::invalid_argument);
   EXPECT_THROW(parameter_text(p, "no.such.key"), std::invalid_argument);

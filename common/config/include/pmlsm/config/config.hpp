@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "pmlsm/sim/rnn_training.hpp"
+#include "pmlsm/analysis/rnn_training.hpp"
 #include "pmlsm/sim/scenario.hpp"
 #include "pmlsm/sim/system_params.hpp"
 

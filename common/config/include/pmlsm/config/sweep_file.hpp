@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "pmlsm/config/config.hpp"
-#include "pmlsm/sim/sweep.hpp"
+#include "pmlsm/analysis/sweep.hpp"
 
 namespace pmlsm {
 

@@ -18,9 +18,6 @@
 #include "pmlsm/compensation/state_feedback.hpp"
 #include "pmlsm/estimation/kalman_filter.hpp"
 #include "pmlsm/plant/plant.hpp"
-#include "pmlsm/sim/filter_design.hpp"
-#include "pmlsm/sim/frequency_response_measurement.hpp"
-#include "pmlsm/sim/loop_tuning.hpp"
 #include "pmlsm/util/parameter_section.hpp"
 #include "pmlsm/util/parameter_table.hpp"
 #include "pmlsm/control/reference_model.hpp"
@@ -59,14 +56,6 @@ struct CompensatorTuning {
 /// velocity loop's own (loop_vibration_mode), so only EI's tolerance is set here.
 struct InputShapingTuning {
   double vibration_tolerance = 0;  ///< EI's residual vibration on the mode
-};
-
-/// Commissioning (`pmlsm commission`): the frequency-response measurement; its control period and
-/// the ripple's pole pitch come from the system (SystemParams::frequency_response_params).
-struct CommissioningTuning {
-  FrequencyResponseMeasurementParams frequency_response;
-  TuningTargets tuning;              ///< the velocity PI's margins `pmlsm commission --tune` sets the gains to
-  FilterDesignParams filter_design;  ///< `pmlsm commission --design-filters`: notches on resonances
 };
 
 /// A lightly damped mode of a linear loop: s = -zeta w_n +- j w_n sqrt(1 - zeta^2).
@@ -108,13 +97,13 @@ struct SystemParams {
   KalmanParams kalman;                   ///< period_s: timing.control_period_s
   CompensatorTuning compensator;
   InputShapingTuning input_shaping;
-  CommissioningTuning commissioning;
   /// Filter slots: on the velocity loop's force command, and on the compensator's force before it
   /// is added to the PI (period_s: timing.control_period_s).
   FilterChainParams force_command_filters;
   FilterChainParams compensation_filters;
-  /// The sections of the components added in their own folders (compensators/<name>/), as the
-  /// system file was read with them (pmlsm/util/parameter_section.hpp), and their values.
+  /// The sections declared outside this library (the commissioning's, in analysis; the compensators
+  /// added in their own folders, compensators/<name>/), as the system file was read with them
+  /// (pmlsm/util/parameter_section.hpp), and their values.
   std::vector<ParameterSection> sections;
   SectionValues section_values;
 
@@ -140,9 +129,6 @@ struct SystemParams {
   /// F = -K_p v_M + K_i integral(-v_M)). It lies between the load's mode on a held motor,
   /// sqrt(k / m_L), and the free two-mass resonance, sqrt(k (1/m_M + 1/m_L)).
   VibrationMode loop_vibration_mode() const;
-  /// The frequency-response measurement at the control period, with the plant's pole pitch (the
-  /// motor's datasheet value: the force ripple's period in space).
-  FrequencyResponseMeasurementParams frequency_response_params() const;
   FilterChainParams force_command_filter_params() const;
   FilterChainParams compensation_filter_params() const;
   /// A shaper of `kind` timed to loop_vibration_mode(), at the control period.
@@ -171,12 +157,8 @@ void visit_parameters(Params& p, Visitor& v) {
   ReferenceModelParams::declare("reference_model", p.reference_model, v);
   v.real("input_shaping.vibration_tolerance", p.input_shaping.vibration_tolerance,
          {1e-6, 0.25, "EI's residual vibration on its mode: above 0, at most a quarter of unshaped"});
-  FrequencyResponseMeasurementParams::declare("commissioning.frequency_response", p.commissioning.frequency_response,
-                                              v);
   FilterChainParams::declare("filters.force_command", p.force_command_filters, v, kController);
   FilterChainParams::declare("filters.compensation", p.compensation_filters, v, kController);
-  TuningTargets::declare("commissioning.tuning", p.commissioning.tuning, v);
-  FilterDesignParams::declare("commissioning.filter_design", p.commissioning.filter_design, v);
   KalmanParams::declare("kalman", p.kalman, v);
   auto& c = p.compensator;
   RnnCompensatorParams::declare("compensator.rnn", c.rnn, v, kRnnCompensator);

@@ -1,5 +1,6 @@
-// A parameter section: the table of a component added in its own folder (compensators/<name>/),
-// joined to the system's table at run time instead of being written into SystemParams. The
+// A parameter section: the table of a component declared outside SystemParams (in a library above
+// it, as the commissioning's, or in its own folder, compensators/<name>/), joined to the system's
+// table at run time instead of being written into SystemParams. The
 // component's Params declares its entries once, as every component does (declare(at, self, v,
 // live_at), pmlsm/util/parameter_table.hpp), with its defaults as the struct's initial values:
 // the system file may set any entry under the section's key path and need not name the section
@@ -13,6 +14,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -70,8 +72,39 @@ template <typename T, typename = void>
 struct HasValidate : std::false_type {};
 template <typename T>
 struct HasValidate<T, std::void_t<decltype(std::declval<const T&>().validate())>> : std::true_type {};
+/// True for a Params whose values the system completes (a period, a pole pitch, not in its
+/// section): its validate_entries() checks what the file's values alone can be checked for, and
+/// is what reading the file runs; its validate() runs where the system completes it.
+template <typename T, typename = void>
+struct HasValidateEntries : std::false_type {};
+template <typename T>
+struct HasValidateEntries<T, std::void_t<decltype(std::declval<const T&>().validate_entries())>> : std::true_type {};
+
+/// Params::declare with the node taking its live entries, or without for a Params with none.
+template <typename Params, typename Self, typename Visitor>
+void declare_section(const std::string& at, Self& p, Visitor& v, const char* live_at) {
+  if constexpr (table_detail::DeclaresLive<Params>::value) {
+    Params::declare(at, p, v, live_at);
+  } else {
+    Params::declare(at, p, v);
+  }
+}
 
 namespace section_detail {
+
+/// A whole number as the Params' own type holds it; one it cannot hold (-4 for a count) is
+/// refused, not wrapped.
+/// @throws std::invalid_argument naming the entry.
+template <typename T>
+T held_as(const std::string& path, double x) {
+  if (!(x >= static_cast<double>(std::numeric_limits<T>::lowest()) &&
+        x <= static_cast<double>(std::numeric_limits<T>::max()))) {
+    throw std::invalid_argument(path + ": expected a whole number in [" +
+                                std::to_string(std::numeric_limits<T>::lowest()) + ", " +
+                                std::to_string(std::numeric_limits<T>::max()) + "], got " + format_value(x));
+  }
+  return static_cast<T>(x);
+}
 
 // Moves a Params' entries into and out of SectionValues by walking its declaration.
 class Load {
@@ -82,7 +115,7 @@ class Load {
   }
   template <typename T>
   void integer(const std::string& path, T& value, const Plausible&) const {
-    if (const auto it = values_.find(path); it != values_.end()) value = static_cast<T>(it->second);
+    if (const auto it = values_.find(path); it != values_.end()) value = held_as<T>(path, it->second);
   }
   void flag(const std::string& path, bool& value) const {
     if (const auto it = values_.find(path); it != values_.end()) value = it->second != 0.0;
@@ -115,7 +148,7 @@ class Erase {
   void integer(const std::string& path, T& value, const Plausible& range) {
     auto whole = static_cast<std::int64_t>(value);
     v_.integer(path, whole, range);
-    value = static_cast<T>(whole);
+    value = held_as<T>(path, static_cast<double>(whole));
   }
   void flag(const std::string& path, bool& value) { v_.flag(path, value); }
 
@@ -130,7 +163,7 @@ template <typename Params>
 Params section_params(const SectionValues& values, const std::string& at) {
   Params p;
   section_detail::Load load(values);
-  Params::declare(at, p, load, nullptr);
+  declare_section<Params>(at, p, load, nullptr);
   return p;
 }
 
@@ -143,18 +176,23 @@ ParameterSection parameter_section(const char* at, const char* live_at, const ch
                           [](const ParameterSection& section, SectionValues& values, SectionVisitor& v) {
                             Params p = section_params<Params>(values, section.at);
                             section_detail::Erase erase(v);
-                            Params::declare(section.at, p, erase, section.live_at);
+                            declare_section<Params>(section.at, p, erase, section.live_at);
                             section_detail::Store store(values);
-                            Params::declare(section.at, static_cast<const Params&>(p), store, nullptr);
+                            declare_section<Params>(section.at, static_cast<const Params&>(p), store, nullptr);
                           },
                           [](const ParameterSection& section, const SectionValues& values) {
-                            if constexpr (HasValidate<Params>::value)
+                            if constexpr (HasValidateEntries<Params>::value) {
+                              section_params<Params>(values, section.at).validate_entries();
+                            } else if constexpr (HasValidate<Params>::value) {
                               section_params<Params>(values, section.at).validate();
+                            }
                           }};
 }
 
-/// This build's sections: generated into the build tree from the compensators' registration lines
-/// (cmake/PmlsmCompensators.cmake, library pmlsm_parameter_sections), in their folders order.
+/// This build's sections: generated into the build tree (cmake/PmlsmCompensators.cmake, library
+/// pmlsm_parameter_sections) from the libraries' pmlsm_parameter_section() calls (the
+/// commissioning's, common/CMakeLists.txt) and the compensators' registration lines, in their
+/// folders' order.
 /// Every reader of a system file reads them (parse_system_params).
 const std::vector<ParameterSection>& registered_parameter_sections();
 

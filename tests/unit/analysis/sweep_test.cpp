@@ -3,7 +3,7 @@
 // sweep file's checks (with the line of the offending value), and whole sweeps: the family's
 // centre at the nominal plant gives closed_loop's own cost, and the result does not depend on
 // the number of threads.
-#include "pmlsm/sim/sweep.hpp"
+#include "pmlsm/analysis/sweep.hpp"
 
 #include <gtest/gtest.h>
 
@@ -14,7 +14,7 @@
 
 #include "pmlsm/config/sweep_file.hpp"
 #include "pmlsm/config/weights_file.hpp"
-#include "pmlsm/sim/compensated_run.hpp"
+#include "pmlsm/analysis/compensated_run.hpp"
 #include "pmlsm/sim/metrics.hpp"
 #include "test_support.hpp"
 

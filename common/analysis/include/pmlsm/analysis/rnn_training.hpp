@@ -4,7 +4,7 @@
 // set has one cost), scored by eq. (23)-(24):
 //   F_Co = sum_{k=1}^{K} |V_ref(k) - V_load(k)|,  K = cost window / T (1000),
 // summed over the training scenarios with their weights. Optionally each run goes on to the
-// scenario's end and is judged as the robustness sweep judges it (pmlsm/sim/sweep.hpp): a run
+// scenario's end and is judged as the robustness sweep judges it (pmlsm/analysis/sweep.hpp): a run
 // with a limit cycle, a saturated tail, the vibration guard tripped, a slow free vibration or a
 // non-finite state pays a penalty, so a weight set cannot buy a low cost in the window with a fault after it.
 #pragma once
@@ -15,11 +15,11 @@
 #include <vector>
 
 #include "pmlsm/sim/closed_loop.hpp"
-#include "pmlsm/sim/identification.hpp"
+#include "pmlsm/analysis/identification.hpp"
 #include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/optim/de_params.hpp"
 #include "pmlsm/sim/scenario.hpp"
-#include "pmlsm/sim/sweep.hpp"
+#include "pmlsm/analysis/sweep.hpp"
 #include "pmlsm/sim/system_params.hpp"
 
 namespace pmlsm {

@@ -1,10 +1,10 @@
-#include "pmlsm/sim/compensated_run.hpp"
+#include "pmlsm/analysis/compensated_run.hpp"
 
 #include <stdexcept>
 
 #include "pmlsm/compensation/accel_feedback.hpp"
 #include "pmlsm/compensation/state_feedback.hpp"
-#include "pmlsm/sim/rnn_training.hpp"
+#include "pmlsm/analysis/rnn_training.hpp"
 
 namespace pmlsm {
 

@@ -1,4 +1,4 @@
-#include "pmlsm/sim/filter_design.hpp"
+#include "pmlsm/analysis/filter_design.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,8 +1,9 @@
 // The velocity loop's margins read from a measured open loop and the PI tuned to targets
-// (pmlsm/sim/loop_tuning.hpp): against a loop whose margins are known in closed form, past a
+// (pmlsm/analysis/loop_tuning.hpp): against a loop whose margins are known in closed form, past a
 // lightly damped mode the lines cannot unwrap, and on the simulated drive, where the loop
 // measured again at the tuned gains must have the margins the tuner predicted.
-#include "pmlsm/sim/loop_tuning.hpp"
+#include "pmlsm/analysis/analysis_params.hpp"
+#include "pmlsm/analysis/loop_tuning.hpp"
 
 #include <gtest/gtest.h>
 
@@ -14,7 +15,7 @@
 #include <utility>
 #include <vector>
 
-#include "pmlsm/sim/frequency_response_measurement.hpp"
+#include "pmlsm/analysis/frequency_response_measurement.hpp"
 #include "pmlsm/sim/simulated_drive.hpp"
 #include "test_support.hpp"
 
@@ -115,17 +116,17 @@ TEST(LoopMargins, ALightlyDampedModeBetweenTwoLinesIsNoGainMargin) {
 // within 1.5 deg and 0.6 dB, and meets the shipped targets (45 deg, 8 dB).
 TEST(LoopTuning, TheLoopMeasuredAgainAtTheTunedGainsHasThePredictedMargins) {
   const auto measure = [](const SystemParams& p) {
-    FrequencyResponseMeasurement m(p.frequency_response_params(), p.velocity_pi_params());
+    FrequencyResponseMeasurement m(frequency_response_params(p), p.velocity_pi_params());
     SimulatedDriveBackend drive(p, PlantInitialCondition{});
     run_measurement(drive, m, [](std::uint64_t, std::uint64_t) {});
     EXPECT_EQ(m.phase(), MeasurementPhase::kDone) << m.abort_reason();
     return evaluate_measurement(m);
   };
   SystemParams p = test::shipped_params();
-  const double min_coherence = p.commissioning.frequency_response.min_coherence;
+  const double min_coherence = frequency_response_params(p).min_coherence;
   std::string why;
   const auto tuned = tune_velocity_pi(measure(p).points, p.velocity_loop.kp_n_s_per_m, p.velocity_loop.ki_n_per_m,
-                                      p.commissioning.tuning, min_coherence, why);
+                                      tuning_targets(p), min_coherence, why);
   ASSERT_TRUE(tuned.has_value()) << why;
   p.velocity_loop.kp_n_s_per_m = tuned->kp_n_s_per_m;
   p.velocity_loop.ki_n_per_m = tuned->ki_n_per_m;

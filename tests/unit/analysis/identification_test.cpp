@@ -1,7 +1,7 @@
-// Commissioning identification (pmlsm/sim/identification.hpp): the load and the bearing friction
+// Commissioning identification (pmlsm/analysis/identification.hpp): the load and the bearing friction
 // fitted to what the drive measured with PI alone, on plants of the family the shipped models do
 // not match; bad samples refused naming the index.
-#include "pmlsm/sim/identification.hpp"
+#include "pmlsm/analysis/identification.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,7 +10,7 @@
 #include <limits>
 
 #include "pmlsm/config/config.hpp"
-#include "pmlsm/sim/compensated_run.hpp"
+#include "pmlsm/analysis/compensated_run.hpp"
 #include "pmlsm/sim/metrics.hpp"
 #include "test_support.hpp"
 

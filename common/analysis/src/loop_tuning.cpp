@@ -1,4 +1,4 @@
-#include "pmlsm/sim/loop_tuning.hpp"
+#include "pmlsm/analysis/loop_tuning.hpp"
 
 #include <cmath>
 #include <stdexcept>

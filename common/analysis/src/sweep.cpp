@@ -1,4 +1,4 @@
-#include "pmlsm/sim/sweep.hpp"
+#include "pmlsm/analysis/sweep.hpp"
 
 #include <algorithm>
 #include <atomic>

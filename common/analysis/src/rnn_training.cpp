@@ -1,4 +1,4 @@
-#include "pmlsm/sim/rnn_training.hpp"
+#include "pmlsm/analysis/rnn_training.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,7 +1,7 @@
-// Frequency-response measurement, the pure part (pmlsm/sim/frequency_response.hpp): the multisine,
+// Frequency-response measurement, the pure part (pmlsm/analysis/frequency_response.hpp): the multisine,
 // the estimates from a recorded run of a linear two-mass plant under a velocity PI, and the
 // two-mass fit, against the plant's own parameters.
-#include "pmlsm/sim/frequency_response.hpp"
+#include "pmlsm/analysis/frequency_response.hpp"
 
 #include <gtest/gtest.h>
 

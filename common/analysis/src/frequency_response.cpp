@@ -1,4 +1,4 @@
-#include "pmlsm/sim/frequency_response.hpp"
+#include "pmlsm/analysis/frequency_response.hpp"
 
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>

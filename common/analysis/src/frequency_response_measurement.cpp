@@ -1,4 +1,4 @@
-#include "pmlsm/sim/frequency_response_measurement.hpp"
+#include "pmlsm/analysis/frequency_response_measurement.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -45,9 +45,12 @@ double ripple_quarter_line_velocity(double velocity_mps, double pole_pitch_m, do
 
 }  // namespace
 
-void FrequencyResponseMeasurementParams::validate() const {
+void FrequencyResponseMeasurementParams::validate_entries() const {
   check_declared_ranges(*this);
-  multisine_params(*this).validate();
+  if (!(max_frequency_hz > min_frequency_hz)) {
+    throw std::invalid_argument("max_frequency_hz: must lie above min_frequency_hz (" + format_value(min_frequency_hz) +
+                                "), got " + format_value(max_frequency_hz));
+  }
   if (offset_velocity_mps == 0.0) {
     throw std::invalid_argument("offset_velocity_mps: must not be 0 (at rest the bearings stick), got 0");
   }
@@ -55,6 +58,11 @@ void FrequencyResponseMeasurementParams::validate() const {
     throw std::invalid_argument("measure_periods: must be a multiple of 4 (the ripple cancels over 4), got " +
                                 std::to_string(measure_periods));
   }
+}
+
+void FrequencyResponseMeasurementParams::validate() const {
+  validate_entries();
+  multisine_params(*this).validate();
   require_in_range("ramp_s", ramp_s, period_s, 60.0);  // at least a tick
   require_positive("pole_pitch_m", pole_pitch_m);      // the plant's
 }

@@ -1,8 +1,9 @@
-// Notches designed from a measured response (pmlsm/sim/filter_design.hpp): on the simulated
+// Notches designed from a measured response (pmlsm/analysis/filter_design.hpp): on the simulated
 // drive's measured response (the two-mass plant, its current loop, the sampling), and on that
 // response with a structural mode multiplied into it, as a motor frame or an encoder mount adds
 // one above the two-mass model's band.
-#include "pmlsm/sim/filter_design.hpp"
+#include "pmlsm/analysis/analysis_params.hpp"
+#include "pmlsm/analysis/filter_design.hpp"
 
 #include <gtest/gtest.h>
 
@@ -12,7 +13,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "pmlsm/sim/frequency_response_measurement.hpp"
+#include "pmlsm/analysis/frequency_response_measurement.hpp"
 #include "pmlsm/sim/simulated_drive.hpp"
 #include "test_support.hpp"
 
@@ -25,7 +26,7 @@ constexpr double kDesignPi = 3.14159265358979323846;
 const FrequencyResponseResult& measured_nominal() {
   static const FrequencyResponseResult result = [] {
     const SystemParams p = test::shipped_params();
-    FrequencyResponseMeasurement m(p.frequency_response_params(), p.velocity_pi_params());
+    FrequencyResponseMeasurement m(frequency_response_params(p), p.velocity_pi_params());
     SimulatedDriveBackend drive(p, PlantInitialCondition{});
     run_measurement(drive, m, [](std::uint64_t, std::uint64_t) {});
     return evaluate_measurement(m);
@@ -51,13 +52,13 @@ std::vector<FrequencyPoint> with_mode(double centre_hz, double numerator_damping
   return points;
 }
 
-FilterDesignParams shipped_design() { return test::shipped_params().commissioning.filter_design; }
+FilterDesignParams shipped_design() { return filter_design_params(test::shipped_params()); }
 
 TEST(FilterDesign, TheTwoMassPlantHasNoResonanceAboveItsModel) {
   const SystemParams p = test::shipped_params();
   const FrequencyResponseResult& r = measured_nominal();
-  const double min_coherence = p.commissioning.frequency_response.min_coherence;
-  const FilterDesign design = design_notches(r.points, r.fit, p.force_command_filter_params(), p.commissioning.tuning,
+  const double min_coherence = frequency_response_params(p).min_coherence;
+  const FilterDesign design = design_notches(r.points, r.fit, p.force_command_filter_params(), tuning_targets(p),
                                              min_coherence, p.timing.control_period_s, shipped_design());
   EXPECT_TRUE(design.peaks.empty()) << design.peaks.front().frequency_hz << " Hz, " << design.peaks.front().height_db
                                     << " dB";
@@ -78,8 +79,8 @@ TEST(FilterDesign, TheTwoMassPlantHasNoResonanceAboveItsModel) {
 // the tuner raise the gain to within 10 % of what the loop without the mode allows.
 TEST(FilterDesign, ANotchOnAStructuralModeGivesTheLoopItsGainBack) {
   const SystemParams p = test::shipped_params();
-  const double min_coherence = p.commissioning.frequency_response.min_coherence;
-  const auto& targets = p.commissioning.tuning;
+  const double min_coherence = frequency_response_params(p).min_coherence;
+  const auto& targets = tuning_targets(p);
   const double period_s = p.timing.control_period_s;
   const std::vector<FrequencyPoint> points = with_mode(250.0, 0.3, 0.02);
   const FilterDesign design = design_notches(points, measured_nominal().fit, p.force_command_filter_params(), targets,
@@ -115,7 +116,7 @@ TEST(FilterDesign, ANotchOnAStructuralModeGivesTheLoopItsGainBack) {
 // crossover's influence, and every peak when no slot is free.
 TEST(FilterDesign, ANotchThatBuysNoGainOrHasNoSlotIsNotPlaced) {
   const SystemParams p = test::shipped_params();
-  const double min_coherence = p.commissioning.frequency_response.min_coherence;
+  const double min_coherence = frequency_response_params(p).min_coherence;
   const double period_s = p.timing.control_period_s;
   const std::vector<FrequencyPoint> points = with_mode(250.0, 0.3, 0.02);
   FilterChainParams full = p.force_command_filter_params();
@@ -123,8 +124,8 @@ TEST(FilterDesign, ANotchThatBuysNoGainOrHasNoSlotIsNotPlaced) {
     slot.kind = FilterKind::kLeadLag;
     slot.frequency_hz = slot.second_frequency_hz = 100.0;
   }
-  const FilterDesign no_slot = design_notches(points, measured_nominal().fit, full, p.commissioning.tuning,
-                                              min_coherence, period_s, shipped_design());
+  const FilterDesign no_slot = design_notches(points, measured_nominal().fit, full, tuning_targets(p), min_coherence,
+                                              period_s, shipped_design());
   ASSERT_FALSE(no_slot.peaks.empty());
   EXPECT_EQ(no_slot.placed, 0u);
   EXPECT_FALSE(no_slot.peaks.front().placed);
@@ -135,7 +136,7 @@ TEST(FilterDesign, ANotchThatBuysNoGainOrHasNoSlotIsNotPlaced) {
   // lines), but its phase lead below it helps the gain margin, which a notch would take away.
   const FilterDesign low =
       design_notches(with_mode(330.0, 0.12, 0.04), measured_nominal().fit, p.force_command_filter_params(),
-                     p.commissioning.tuning, min_coherence, period_s, shipped_design());
+                     tuning_targets(p), min_coherence, period_s, shipped_design());
   ASSERT_FALSE(low.peaks.empty());
   std::printf("[ design     ] 330 Hz mode: found at %.1f Hz (%.1f dB): gain x%.3f -> x%.3f with a notch\n",
               low.peaks.front().frequency_hz, low.peaks.front().height_db, low.peaks.front().gain_scale_before,
@@ -149,7 +150,7 @@ TEST(FilterDesign, ANotchThatBuysNoGainOrHasNoSlotIsNotPlaced) {
   FilterDesignParams any = shipped_design();
   any.min_peak_db = 1.0;
   EXPECT_NO_THROW(design_notches(with_mode(330.0, 0.06, 0.04), measured_nominal().fit, p.force_command_filter_params(),
-                                 p.commissioning.tuning, min_coherence, period_s, any));
+                                 tuning_targets(p), min_coherence, period_s, any));
 }
 
 TEST(FilterDesign, RefusesInvalidSettings) {

@@ -1,9 +1,10 @@
-// The frequency-response measurement on a drive (pmlsm/sim/frequency_response_measurement.hpp):
+// The frequency-response measurement on a drive (pmlsm/analysis/frequency_response_measurement.hpp):
 // through the simulated drive (the nonlinear plant with its friction, ripple, current loop and
 // 1 um encoder) the two-mass fit finds the modes of the plant family's corners; a run that would
 // break a limit is refused before it starts, one that breaks it (or loses the drive) ends at once
 // with zero force; an incoherent response is refused.
-#include "pmlsm/sim/frequency_response_measurement.hpp"
+#include "pmlsm/analysis/analysis_params.hpp"
+#include "pmlsm/analysis/frequency_response_measurement.hpp"
 
 #include <gtest/gtest.h>
 
@@ -52,7 +53,7 @@ TEST(FrequencyResponseMeasurement, FindsTheModesOfThePlantFamilysCornersThroughT
     p.plant.mechanics.spring_n_per_m = spring;
     p.plant.friction.coulomb_n = coulomb;
     p.plant.friction.viscous_n_s_per_m = viscous;
-    FrequencyResponseMeasurement measurement(p.frequency_response_params(), p.velocity_pi_params());
+    FrequencyResponseMeasurement measurement(frequency_response_params(p), p.velocity_pi_params());
     SimulatedDriveBackend drive(p, PlantInitialCondition{});
     run_measurement(drive, measurement, [](std::uint64_t, std::uint64_t) {});
     ASSERT_EQ(measurement.phase(), MeasurementPhase::kDone) << measurement.abort_reason();
@@ -60,8 +61,8 @@ TEST(FrequencyResponseMeasurement, FindsTheModesOfThePlantFamilysCornersThroughT
     const FrequencyResponseResult r = evaluate_measurement(measurement);
     // Every line of the fit's band is coherent; a few of the sparse ones near 450 Hz are not.
     for (const FrequencyPoint& point : r.points) {
-      if (point.frequency_hz <= p.commissioning.frequency_response.dense_max_frequency_hz) {
-        EXPECT_GE(point.coherence, p.commissioning.frequency_response.min_coherence) << point.frequency_hz;
+      if (point.frequency_hz <= frequency_response_params(p).dense_max_frequency_hz) {
+        EXPECT_GE(point.coherence, frequency_response_params(p).min_coherence) << point.frequency_hz;
       }
     }
     EXPECT_LE(r.low_coherence_lines, 5u);
@@ -74,29 +75,29 @@ TEST(FrequencyResponseMeasurement, FindsTheModesOfThePlantFamilysCornersThroughT
     EXPECT_NEAR(r.fit.spring_n_per_m, spring, 0.03 * spring);
     EXPECT_NEAR(r.fit.motor_mass_kg, motor_kg, 0.02 * motor_kg);
     EXPECT_LT(std::fabs(drive.simulated_drive().plant().truth().state.motor_position_m),
-              p.commissioning.frequency_response.max_travel_m);
+              frequency_response_params(p).max_travel_m);
   }
 }
 
 TEST(FrequencyResponseMeasurement, ARunThatWouldBreakALimitIsRefusedBeforeItStarts) {
   const SystemParams& shipped = test::shipped_params();
   const VelocityPiParams pi = shipped.velocity_pi_params();
-  FrequencyResponseMeasurementParams p = shipped.frequency_response_params();
+  FrequencyResponseMeasurementParams p = frequency_response_params(shipped);
   p.max_travel_m = 0.1;
   expect_refused(p, pi, "would leave the stroke: it travels 0.48");
-  p = shipped.frequency_response_params();
+  p = frequency_response_params(shipped);
   p.amplitude_n = 700.0;
   expect_refused(p, pi, "would exceed the force limit (velocity_loop.force_limit_n 675 N)");
-  p = shipped.frequency_response_params();
+  p = frequency_response_params(shipped);
   p.max_velocity_mps = 0.01;
   expect_refused(p, pi, "is not below the measurement's velocity limit max_velocity_mps 0.01");
-  p = shipped.frequency_response_params();
+  p = frequency_response_params(shipped);
   p.measure_periods = 6;
   expect_refused(p, pi, "measure_periods: must be a multiple of 4");
-  p = shipped.frequency_response_params();
+  p = frequency_response_params(shipped);
   p.offset_velocity_mps = 0.0;
   expect_refused(p, pi, "offset_velocity_mps: must not be 0");
-  p = shipped.frequency_response_params();
+  p = frequency_response_params(shipped);
   p.max_frequency_hz = 600.0;
   expect_refused(p, pi, "max_frequency_hz");
 }
@@ -113,7 +114,7 @@ void enable(SimulatedDriveBackend& drive) {
 // response to evaluate. A reading beyond the stroke ends it too. Neither tick allocates.
 TEST(FrequencyResponseMeasurement, ADriveLeavingOperationOrABreachedLimitEndsItWithZeroForce) {
   const SystemParams& p = test::shipped_params();
-  FrequencyResponseMeasurement measurement(p.frequency_response_params(), p.velocity_pi_params());
+  FrequencyResponseMeasurement measurement(frequency_response_params(p), p.velocity_pi_params());
   SimulatedDriveBackend drive(p, PlantInitialCondition{});
   enable(drive);
   double force_n = 0;
@@ -134,7 +135,7 @@ TEST(FrequencyResponseMeasurement, ADriveLeavingOperationOrABreachedLimitEndsItW
       << measurement.abort_reason();
   EXPECT_THROW(measurement.response(), std::invalid_argument);
 
-  FrequencyResponseMeasurement beyond(p.frequency_response_params(), p.velocity_pi_params());
+  FrequencyResponseMeasurement beyond(frequency_response_params(p), p.velocity_pi_params());
   drive::Measurement m;
   beyond.step(m, true);
   m.position_m = 0.7;
@@ -149,7 +150,7 @@ TEST(FrequencyResponseMeasurement, ADriveLeavingOperationOrABreachedLimitEndsItW
 /// in the reading (as MotorFeedback.applied_force_n carries it) or not.
 FrequencyResponseMeasurement measured_with_late_commands(int late_every, bool reported) {
   const SystemParams& p = test::shipped_params();
-  FrequencyResponseMeasurement measurement(p.frequency_response_params(), p.velocity_pi_params());
+  FrequencyResponseMeasurement measurement(frequency_response_params(p), p.velocity_pi_params());
   SimulatedDriveBackend drive(p, PlantInitialCondition{});
   enable(drive);
   double held_n = 0;
@@ -194,7 +195,7 @@ TEST(FrequencyResponseMeasurement, RecordsTheForceTheDriveReportsItHeld) {
 // incoherent lines and the worst one, before anything is fitted.
 TEST(FrequencyResponseMeasurement, AnIncoherentResponseIsRefused) {
   const SystemParams& p = test::shipped_params();
-  FrequencyResponseMeasurement measurement(p.frequency_response_params(), p.velocity_pi_params());
+  FrequencyResponseMeasurement measurement(frequency_response_params(p), p.velocity_pi_params());
   std::mt19937_64 random(7);
   std::normal_distribution<double> noise(0.0, 0.01);
   drive::Measurement m;

@@ -1,4 +1,4 @@
-#include "pmlsm/sim/identification.hpp"
+#include "pmlsm/analysis/identification.hpp"
 
 #include <algorithm>
 #include <array>

@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "pmlsm/sim/closed_loop.hpp"
-#include "pmlsm/sim/compensated_run.hpp"
-#include "pmlsm/sim/identification.hpp"
+#include "pmlsm/analysis/compensated_run.hpp"
+#include "pmlsm/analysis/identification.hpp"
 #include "pmlsm/sim/scenario.hpp"
 #include "pmlsm/sim/system_params.hpp"
 
