@@ -233,4 +233,21 @@ put("can_pycan_wire", "sdo.bin", datagram(0x605, [0x40, 0x41, 0x60, 0, 0, 0, 0, 
 put("can_pycan_wire", "sync.bin", datagram(0x080, []))
 put("can_pycan_wire", "extended.bin", datagram(0x1ABCDE, [1, 2, 3], extended=True))
 put("can_pycan_wire", "remote.bin", datagram(0x705, [0], remote=True))
+
+
+# ---- EtherCAT frames (Ethernet, EtherType 0x88A4): a broadcast read, and an LRW behind an FPRD ----
+def ecat_datagram(cmd, idx, address, data, more, wkc=0):
+    return struct.pack("<BBIHH", cmd, idx, address, len(data) | (0x8000 if more else 0), 0) + bytes(data) + \
+        struct.pack("<H", wkc)
+
+
+def ecat_frame(datagrams):
+    body = b"".join(datagrams)
+    frame = b"\xff" * 6 + b"\x02\x00\x00\x00\x00\x01" + b"\x88\xa4" + struct.pack("<H", len(body) | 0x1000) + body
+    return frame + b"\x00" * max(0, 60 - len(frame))
+
+
+put("ethercat_frames", "brd_al_status.bin", ecat_frame([ecat_datagram(7, 1, 0x01300000, [0, 0], False, 2)]))
+put("ethercat_frames", "fprd_lrw.bin", ecat_frame([ecat_datagram(4, 2, 0x01301001, [8, 0], True, 1),
+                                                   ecat_datagram(12, 3, 0x00010000, range(12), False, 3)]))
 print("seeds written under", corpus)

@@ -32,6 +32,7 @@ packages=(
   clang-format-14                 # the code style (.clang-format; the test code_format)
   clang-tidy-14                   # function size and naming (.clang-tidy; scripts/tidy.sh, run by CI)
   debootstrap                     # a clean Debian root for the package test (scripts/deb_clean_root.sh)
+  tshark                          # Wireshark's EtherCAT dissectors judge our frames in the tests
 )
 # Node.js and npm run the third-party readers in the tests (@mcap/core, @foxglove/* from npm).
 # Debian's packages only where none is installed: a machine may carry its own Node.js with npm.

@@ -1,0 +1,125 @@
+#include "pmlsm/ethercat/link.hpp"
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <system_error>
+
+namespace pmlsm::ethercat {
+
+bool InProcessWire::Queue::push(Bytes frame) {
+  if (frame.size > kMaxEthernetFrameBytes) return false;
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (count_ == kQueuedFrames) return false;
+    const std::size_t slot = (head_ + count_) % kQueuedFrames;
+    std::memcpy(frames_[slot].data(), frame.data, frame.size);
+    sizes_[slot] = frame.size;
+    ++count_;
+  }
+  ready_.notify_one();
+  return true;
+}
+
+std::size_t InProcessWire::Queue::pop(std::uint8_t* buffer, std::int64_t timeout_ns) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  if (!ready_.wait_for(lock, std::chrono::nanoseconds(std::max<std::int64_t>(timeout_ns, 0)),
+                       [&] { return count_ > 0; })) {
+    return 0;
+  }
+  const std::size_t size = sizes_[head_];
+  std::memcpy(buffer, frames_[head_].data(), size);
+  head_ = (head_ + 1) % kQueuedFrames;
+  --count_;
+  return size;
+}
+
+namespace {
+
+sockaddr_in ipv4(const std::string& address, std::uint16_t port) {
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(port);
+  if (inet_pton(AF_INET, address.c_str(), &a.sin_addr) != 1) {
+    throw std::system_error(EINVAL, std::generic_category(),
+                            "EtherCAT over UDP: not an IPv4 address: '" + address + "'");
+  }
+  return a;
+}
+
+}  // namespace
+
+UdpLink::UdpLink(const UdpLinkParams& params) {
+  const sockaddr_in local = ipv4(params.local_address, params.local_port);
+  const sockaddr_in peer = ipv4(params.peer_address, params.peer_port);
+  static_assert(sizeof peer == sizeof peer_);
+  std::memcpy(peer_.data(), &peer, sizeof peer);
+  fd_ = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd_ < 0) throw std::system_error(errno, std::generic_category(), "EtherCAT over UDP: socket");
+  if (::bind(fd_, reinterpret_cast<const sockaddr*>(&local), sizeof local) != 0) {
+    const int error = errno;
+    ::close(fd_);
+    throw std::system_error(
+        error, std::generic_category(),
+        "EtherCAT over UDP: bind " + params.local_address + ":" + std::to_string(params.local_port));
+  }
+  sockaddr_in bound{};
+  socklen_t bound_size = sizeof bound;
+  ::getsockname(fd_, reinterpret_cast<sockaddr*>(&bound), &bound_size);
+  bound_port_ = ntohs(bound.sin_port);
+  answer_sender_ = params.peer_port == 0;
+  peer_known_ = !answer_sender_;
+}
+
+UdpLink::~UdpLink() { ::close(fd_); }
+
+bool UdpLink::send(Bytes ethernet_frame) {
+  if (ethernet_frame.size < kEthernetHeaderBytes + kFrameHeaderBytes) return false;
+  const std::uint8_t* ethercat = ethernet_frame.data + kEthernetHeaderBytes;
+  const std::size_t length = kFrameHeaderBytes + ((ethercat[0] | (ethercat[1] << 8)) & 0x07FF);
+  if (kEthernetHeaderBytes + length > ethernet_frame.size || !peer_known_) return false;
+  const ssize_t sent = ::sendto(fd_, ethercat, length, MSG_DONTWAIT, reinterpret_cast<const sockaddr*>(peer_.data()),
+                                sizeof(sockaddr_in));
+  return sent == static_cast<ssize_t>(length);
+}
+
+std::size_t UdpLink::receive(std::uint8_t* buffer, std::int64_t timeout_ns) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::nanoseconds(timeout_ns);
+  for (;;) {
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    pollfd p{fd_, POLLIN, 0};
+    // poll counts in milliseconds: round up, then read without waiting.
+    const int ready = ::poll(&p, 1, static_cast<int>(std::max<std::int64_t>(0, left.count() + 1)));
+    if (ready <= 0) {
+      if (ready < 0 && errno == EINTR && std::chrono::steady_clock::now() < deadline) continue;
+      return 0;
+    }
+    sockaddr_in sender{};
+    socklen_t sender_size = sizeof sender;
+    const ssize_t n = ::recvfrom(fd_, buffer + kEthernetHeaderBytes, kMaxEthernetFrameBytes - kEthernetHeaderBytes,
+                                 MSG_DONTWAIT, reinterpret_cast<sockaddr*>(&sender), &sender_size);
+    if (n < static_cast<ssize_t>(kFrameHeaderBytes)) {
+      if (n >= 0) ++dropped_;
+      if (std::chrono::steady_clock::now() < deadline) continue;
+      return 0;
+    }
+    if (answer_sender_) {
+      std::memcpy(peer_.data(), &sender, sizeof sender);
+      peer_known_ = true;
+    }
+    std::memset(buffer, 0, kEthernetHeaderBytes - 2);
+    buffer[12] = static_cast<std::uint8_t>(kEtherType >> 8);
+    buffer[13] = static_cast<std::uint8_t>(kEtherType & 0xFFU);
+    return kEthernetHeaderBytes + static_cast<std::size_t>(n);
+  }
+}
+
+}  // namespace pmlsm::ethercat

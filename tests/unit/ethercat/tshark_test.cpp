@@ -1,0 +1,175 @@
+// Wireshark's EtherCAT dissectors (tshark) judge our frames: every command, several datagrams a
+// frame, raw Ethernet and EtherCAT over UDP, written as a pcapng capture (PcapngWriter). tshark
+// must read the capture, find every datagram as we built it (command, index, working counter) and
+// call nothing malformed. Skipped, saying so, where tshark is not installed
+// (scripts/install_deps.sh installs it).
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "pmlsm/ethercat/frame.hpp"
+#include "pmlsm/ethercat/pcapng.hpp"
+
+namespace pmlsm::ethercat {
+namespace {
+
+namespace fs = std::filesystem;
+
+bool have_tshark() { return std::system("tshark --version >/dev/null 2>&1") == 0; }
+
+/// What tshark prints for `fields` of every packet of `capture` matching `filter`, a line a
+/// packet, the fields comma-separated (a field with several values: those joined by ';').
+std::string tshark(const fs::path& capture, const std::string& filter, const std::string& fields) {
+  std::string command = "tshark -n -r '" + capture.string() + "' -T fields -E separator=, -E aggregator=';'";
+  std::istringstream names(fields);
+  for (std::string f; names >> f;) command += " -e " + f;
+  if (!filter.empty()) command += " -Y '" + filter + "'";
+  command += " 2>/dev/null";
+  std::string out;
+  if (FILE* pipe = ::popen(command.c_str(), "r")) {
+    std::array<char, 4096> chunk{};
+    for (std::size_t n; (n = std::fread(chunk.data(), 1, chunk.size(), pipe)) > 0;) out.append(chunk.data(), n);
+    ::pclose(pipe);
+  }
+  return out;
+}
+
+/// IPv4 + UDP headers around an EtherCAT over UDP payload, in an Ethernet frame (the IPv4
+/// header's checksum computed; UDP's 0: none, as IPv4 allows).
+std::vector<std::uint8_t> udp_ethernet_frame(Bytes payload) {
+  const std::array<std::uint8_t, 14> ethernet = {0x02, 0, 0, 0, 0, 2, 0x02, 0, 0, 0, 0, 1, 0x08, 0x00};
+  const auto ip_length = static_cast<std::uint16_t>(20 + 8 + payload.size);
+  std::array<std::uint8_t, 20> ip = {0x45,
+                                     0,
+                                     static_cast<std::uint8_t>(ip_length >> 8),
+                                     static_cast<std::uint8_t>(ip_length & 0xFF),
+                                     0,
+                                     0,
+                                     0x40,
+                                     0,
+                                     64,
+                                     17,
+                                     0,
+                                     0,
+                                     127,
+                                     0,
+                                     0,
+                                     1,
+                                     127,
+                                     0,
+                                     0,
+                                     1};
+  std::uint32_t sum = 0;
+  for (std::size_t i = 0; i < ip.size(); i += 2) sum += static_cast<std::uint32_t>((ip[i] << 8) | ip[i + 1]);
+  while ((sum >> 16) != 0) sum = (sum & 0xFFFF) + (sum >> 16);
+  const auto checksum = static_cast<std::uint16_t>(~sum);
+  ip[10] = static_cast<std::uint8_t>(checksum >> 8);
+  ip[11] = static_cast<std::uint8_t>(checksum & 0xFF);
+  const auto udp_length = static_cast<std::uint16_t>(8 + payload.size);
+  const std::array<std::uint8_t, 8> udp = {0x88,
+                                           0xA4,
+                                           0x88,
+                                           0xA4,  // port 34980 to port 34980
+                                           static_cast<std::uint8_t>(udp_length >> 8),
+                                           static_cast<std::uint8_t>(udp_length & 0xFF),
+                                           0,
+                                           0};
+  std::vector<std::uint8_t> f(ethernet.size() + ip.size() + udp.size() + payload.size);
+  auto at = std::copy(ethernet.begin(), ethernet.end(), f.begin());
+  at = std::copy(ip.begin(), ip.end(), at);
+  at = std::copy(udp.begin(), udp.end(), at);
+  std::copy(payload.data, payload.data + payload.size, at);
+  return f;
+}
+
+struct Expected {
+  std::string commands, indices, working_counters;
+};
+
+/// Each frame's datagrams as tshark writes the fields ecat.cmd, ecat.idx and ecat.cnt.
+void append(Expected& e, const FrameBuilder& frame) {
+  ParsedFrame parsed;
+  const Bytes b = frame.ethernet();
+  ASSERT_EQ(parse_ethernet_frame(b.data, b.size, parsed), FrameError::kNone);
+  std::string cmd, idx, cnt;
+  for (std::size_t i = 0; i < parsed.count; ++i) {
+    const DatagramView& d = parsed.datagrams[i];
+    const char* sep = i == 0 ? "" : ";";
+    char command[8], index[8];
+    std::snprintf(command, sizeof command, "0x%02x", static_cast<unsigned>(d.header.command));
+    std::snprintf(index, sizeof index, "0x%02x", d.header.index);
+    cmd += sep + std::string(command);
+    idx += sep + std::string(index);
+    cnt += sep + std::to_string(d.working_counter);
+  }
+  e.commands += cmd + "\n";
+  e.indices += idx + "\n";
+  e.working_counters += cnt + "\n";
+}
+
+std::string column(const std::string& table, std::size_t n) {
+  std::istringstream lines(table);
+  std::string out;
+  for (std::string line; std::getline(lines, line);) {
+    std::istringstream cells(line);
+    std::string cell;
+    for (std::size_t i = 0; i <= n; ++i) std::getline(cells, cell, ',');
+    out += cell + "\n";
+  }
+  return out;
+}
+
+TEST(EtherCatTshark, DecodesEveryDatagramAsBuiltOnEthernetAndOverUdp) {
+  if (!have_tshark()) GTEST_SKIP() << "tshark is not installed (scripts/install_deps.sh installs it)";
+  const fs::path dir = fs::temp_directory_path() / ("pmlsm_ethercat_tshark_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path capture = dir / "frames.pcapng";
+  Expected raw, over_udp;
+  {
+    PcapngWriter writer(capture.string());
+    std::int64_t t = 1'700'000'000'000'000'000;
+    std::array<std::uint8_t, 64> data{};
+    for (std::uint8_t c = 0; c < kCommandCount; ++c) {
+      FrameBuilder frame;
+      const auto command = static_cast<Command>(c);
+      data.fill(static_cast<std::uint8_t>(c + 1));
+      const std::uint32_t address = is_logical(command) ? 0x00010000U : physical_address(auto_increment_adp(c), 0x0130);
+      ASSERT_TRUE(frame.add(command, static_cast<std::uint8_t>(0x80 + c), address, data.data(), 2,
+                            expected_working_counter(command, 2)));
+      // A second datagram: a configured-address read of the AL status.
+      ASSERT_TRUE(frame.add(Command::kFprd, c, physical_address(0x1000 + c, 0x0130), nullptr, 2, 1));
+      writer.write(frame.ethernet(), t += 1000);
+      append(raw, frame);
+      const std::vector<std::uint8_t> udp = udp_ethernet_frame(frame.udp_payload());
+      writer.write({udp.data(), udp.size()}, t += 1000);
+      append(over_udp, frame);
+    }
+    writer.flush();
+  }
+  const std::string fields = "ecat.cmd ecat.idx ecat.cnt";
+  const std::string on_ethernet = tshark(capture, "eth.type == 0x88a4", fields);
+  const std::string on_udp = tshark(capture, "udp.port == 34980 && ecat", fields);
+  ASSERT_FALSE(on_ethernet.empty()) << "tshark read nothing from " << capture;
+  EXPECT_EQ(column(on_ethernet, 0), raw.commands);
+  EXPECT_EQ(column(on_ethernet, 1), raw.indices);
+  EXPECT_EQ(column(on_ethernet, 2), raw.working_counters);
+  EXPECT_EQ(column(on_udp, 0), over_udp.commands);
+  EXPECT_EQ(column(on_udp, 1), over_udp.indices);
+  EXPECT_EQ(column(on_udp, 2), over_udp.working_counters);
+  // Nothing malformed, no warning from the EtherCAT dissectors.
+  EXPECT_EQ(tshark(capture, "_ws.malformed || _ws.expert.severity >= warning", "frame.number"), "");
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace pmlsm::ethercat
