@@ -250,4 +250,16 @@ def ecat_frame(datagrams):
 put("ethercat_frames", "brd_al_status.bin", ecat_frame([ecat_datagram(7, 1, 0x01300000, [0, 0], False, 2)]))
 put("ethercat_frames", "fprd_lrw.bin", ecat_frame([ecat_datagram(4, 2, 0x01301001, [8, 0], True, 1),
                                                    ecat_datagram(12, 3, 0x00010000, range(12), False, 3)]))
+def framed(*frames):
+    return b"".join(struct.pack("<H", len(f)) + f for f in frames)
+
+
+# A master's start: station address by position, mailbox sync managers, PREOP, an SII read.
+put("ethercat_slave", "bring_up.bin", framed(
+    ecat_frame([ecat_datagram(2, 1, 0x00100000, [0x01, 0x10], False)]),
+    ecat_frame([ecat_datagram(5, 2, 0x08001001, [0x00, 0x10, 0x80, 0, 0x26, 0, 1, 0], True),
+                ecat_datagram(5, 3, 0x08081001, [0x80, 0x10, 0x80, 0, 0x22, 0, 1, 0], False)]),
+    ecat_frame([ecat_datagram(5, 4, 0x01201001, [2, 0], False)]),
+    ecat_frame([ecat_datagram(5, 5, 0x05021001, [0, 1, 8, 0, 0, 0], True),
+                ecat_datagram(4, 6, 0x05081001, [0] * 8, False)])))
 print("seeds written under", corpus)

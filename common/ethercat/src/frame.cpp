@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cstring>
 
+#include "pmlsm/util/little_endian.hpp"
+
 namespace pmlsm::ethercat {
 
 namespace {
@@ -11,19 +13,6 @@ constexpr std::uint16_t kLengthMask = 0x07FF;
 constexpr std::uint16_t kCirculatingBit = 0x4000;
 constexpr std::uint16_t kMoreBit = 0x8000;
 constexpr std::uint16_t kTypeDatagrams = 1;
-
-std::uint16_t get16(const std::uint8_t* p) { return static_cast<std::uint16_t>(p[0] | (p[1] << 8)); }
-std::uint32_t get32(const std::uint8_t* p) {
-  return static_cast<std::uint32_t>(p[0]) | (static_cast<std::uint32_t>(p[1]) << 8) |
-         (static_cast<std::uint32_t>(p[2]) << 16) | (static_cast<std::uint32_t>(p[3]) << 24);
-}
-void put16(std::uint8_t* p, std::uint16_t v) {
-  p[0] = static_cast<std::uint8_t>(v & 0xFFU);
-  p[1] = static_cast<std::uint8_t>(v >> 8);
-}
-void put32(std::uint8_t* p, std::uint32_t v) {
-  for (int i = 0; i < 4; ++i) p[i] = static_cast<std::uint8_t>((v >> (8 * i)) & 0xFFU);
-}
 
 }  // namespace
 
@@ -72,7 +61,7 @@ void FrameBuilder::clear() {
             bytes_.begin() + static_cast<std::ptrdiff_t>(end_), 0);
   count_ = 0;
   end_ = kEthernetHeaderBytes + kFrameHeaderBytes;
-  put16(bytes_.data() + kEthernetHeaderBytes, static_cast<std::uint16_t>(kTypeDatagrams << 12));
+  put_le16(bytes_.data() + kEthernetHeaderBytes, static_cast<std::uint16_t>(kTypeDatagrams << 12));
 }
 
 bool FrameBuilder::fits(std::uint16_t length) const {
@@ -85,25 +74,25 @@ bool FrameBuilder::add(Command command, std::uint8_t index, std::uint32_t addres
   if (length > kMaxDatagramDataBytes || !fits(length)) return false;
   if (count_ > 0) {  // the one before is no longer the last
     std::uint8_t* previous = bytes_.data() + header_at_[count_ - 1] + 6;
-    put16(previous, static_cast<std::uint16_t>(get16(previous) | kMoreBit));
+    put_le16(previous, static_cast<std::uint16_t>(get_le16(previous) | kMoreBit));
   }
   std::uint8_t* h = bytes_.data() + end_;
   h[0] = static_cast<std::uint8_t>(command);
   h[1] = index;
-  put32(h + 2, address);
-  put16(h + 6, length);
-  put16(h + 8, irq);
+  put_le32(h + 2, address);
+  put_le16(h + 6, length);
+  put_le16(h + 8, irq);
   std::uint8_t* d = h + kDatagramHeaderBytes;
   if (data != nullptr) {
     std::memcpy(d, data, length);
   } else {
     std::memset(d, 0, length);
   }
-  put16(d + length, working_counter);
+  put_le16(d + length, working_counter);
   header_at_[count_++] = static_cast<std::uint16_t>(end_);
   end_ += kDatagramHeaderBytes + length + kWorkingCounterBytes;
-  put16(bytes_.data() + kEthernetHeaderBytes,
-        static_cast<std::uint16_t>((kTypeDatagrams << 12) | (datagrams_bytes() & kLengthMask)));
+  put_le16(bytes_.data() + kEthernetHeaderBytes,
+           static_cast<std::uint16_t>((kTypeDatagrams << 12) | (datagrams_bytes() & kLengthMask)));
   return true;
 }
 
@@ -135,7 +124,7 @@ const char* to_string(FrameError error) {
 FrameError parse_ethercat_frame(const std::uint8_t* bytes, std::size_t size, ParsedFrame& out) {
   out.count = 0;
   if (size < kFrameHeaderBytes) return FrameError::kShort;
-  const std::uint16_t header = get16(bytes);
+  const std::uint16_t header = get_le16(bytes);
   if ((header >> 12) != kTypeDatagrams) return FrameError::kNotDatagrams;
   const std::size_t length = header & kLengthMask;
   if (kFrameHeaderBytes + length > size) return FrameError::kLengthBeyondFrame;
@@ -150,16 +139,16 @@ FrameError parse_ethercat_frame(const std::uint8_t* bytes, std::size_t size, Par
     DatagramView& d = out.datagrams[out.count];
     d.header.command = static_cast<Command>(h[0]);
     d.header.index = h[1];
-    d.header.address = get32(h + 2);
-    const std::uint16_t length_field = get16(h + 6);
+    d.header.address = get_le32(h + 2);
+    const std::uint16_t length_field = get_le16(h + 6);
     d.header.length = static_cast<std::uint16_t>(length_field & kLengthMask);
     d.header.circulating = (length_field & kCirculatingBit) != 0;
     d.header.more = (length_field & kMoreBit) != 0;
-    d.header.irq = get16(h + 8);
+    d.header.irq = get_le16(h + 8);
     const std::size_t datagram_bytes = kDatagramHeaderBytes + d.header.length + kWorkingCounterBytes;
     if (datagram_bytes > length - at) return FrameError::kDatagramBeyondFrame;
     d.data = h + kDatagramHeaderBytes;
-    d.working_counter = get16(d.data + d.header.length);
+    d.working_counter = get_le16(d.data + d.header.length);
     ++out.count;
     at += datagram_bytes;
     if (!d.header.more) {

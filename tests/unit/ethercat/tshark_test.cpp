@@ -13,11 +13,14 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/ethercat/frame.hpp"
+#include "pmlsm/ethercat/master.hpp"
 #include "pmlsm/ethercat/pcapng.hpp"
 
 namespace pmlsm::ethercat {
@@ -168,6 +171,54 @@ TEST(EtherCatTshark, DecodesEveryDatagramAsBuiltOnEthernetAndOverUdp) {
   EXPECT_EQ(column(on_udp, 2), over_udp.working_counters);
   // Nothing malformed, no warning from the EtherCAT dissectors.
   EXPECT_EQ(tshark(capture, "_ws.malformed || _ws.expert.severity >= warning", "frame.number"), "");
+  fs::remove_all(dir);
+}
+
+TEST(EtherCatTshark, AMasterSessionWithVirtualSlavesDecodesWithTheWorkingCountersTheMasterSaw) {
+  if (!have_tshark()) GTEST_SKIP() << "tshark is not installed (scripts/install_deps.sh installs it)";
+  const fs::path dir = fs::temp_directory_path() / ("pmlsm_ethercat_session_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path capture = dir / "session.pcapng";
+  std::vector<std::unique_ptr<Esc>> slaves;
+  std::vector<Esc*> line;
+  for (int i = 0; i < 2; ++i) {
+    EscParams p;
+    p.sii.assign(sii::kMinWords, 0);
+    p.sii[sii::kVendorId] = static_cast<std::uint16_t>(0x6A + i);
+    p.sii[sii::kFirstCategory] = 0xFFFF;
+    slaves.push_back(std::make_unique<Esc>(p));
+    line.push_back(slaves.back().get());
+  }
+  VirtualSegment segment(line);
+  VirtualSegmentLink link(segment);
+  std::string expected;  // the working counter of each reply, in order
+  {
+    PcapngWriter writer(capture.string());
+    Master master(link);
+    master.capture_to(&writer);
+    const auto step = [&](Command c, std::uint32_t address, std::uint16_t length, std::uint16_t working_counter,
+                          std::uint16_t value = 0) {
+      std::array<std::uint8_t, 16> data{};
+      data[0] = static_cast<std::uint8_t>(value & 0xFF);
+      data[1] = static_cast<std::uint8_t>(value >> 8);
+      const Reply r = master.exchange(c, address, data.data(), length);
+      ASSERT_TRUE(r.answered) << to_string(c);
+      ASSERT_EQ(r.working_counter, working_counter) << to_string(c);
+      expected += "0\n" + std::to_string(working_counter) + "\n";  // sent with 0, back with it
+    };
+    step(Command::kBrd, physical_address(0, reg::kType), 2, 2);
+    step(Command::kApwr, physical_address(auto_increment_adp(0), reg::kStationAddress), 2, 1, 0x1001);
+    step(Command::kApwr, physical_address(auto_increment_adp(1), reg::kStationAddress), 2, 1, 0x1002);
+    step(Command::kFprd, physical_address(0x1002, reg::kAlStatus), 6, 1);
+    step(Command::kBrw, physical_address(0, reg::kAlControl), 2, 6, 0x0001);  // both: INIT again
+    step(Command::kLrw, 0x10000, 8, 0);                                       // no FMMU mapped: nobody
+    step(Command::kFprd, physical_address(0x7777, reg::kAlStatus), 2, 0);     // no such slave
+    writer.flush();
+  }
+  EXPECT_EQ(tshark(capture, "ecat", "ecat.cnt"), expected);
+  EXPECT_EQ(tshark(capture, "_ws.malformed || _ws.expert.severity >= warning", "frame.number"), "");
+  // Wireshark reads the AL status register the slave answered with: INIT.
+  EXPECT_NE(tshark(capture, "ecat.cmd == 4 && ecat.cnt == 1", "frame.number"), "");
   fs::remove_all(dir);
 }
 

@@ -7,6 +7,7 @@
 #include <cstdint>
 
 #include "pmlsm/canopen/frame.hpp"
+#include "pmlsm/util/little_endian.hpp"
 
 namespace pmlsm::canopen {
 
@@ -26,21 +27,19 @@ inline CanFrame make_frame(std::uint32_t id, std::uint8_t dlc) noexcept {
 }
 
 inline std::uint16_t get_u16_le(const std::array<std::uint8_t, 8>& data, std::size_t at) noexcept {
-  return static_cast<std::uint16_t>(data[at] | (data[at + 1] << 8));
+  return get_le16(data.data() + at);
 }
 
 inline std::uint32_t get_u32_le(const std::array<std::uint8_t, 8>& data, std::size_t at) noexcept {
-  return static_cast<std::uint32_t>(data[at]) | (static_cast<std::uint32_t>(data[at + 1]) << 8) |
-         (static_cast<std::uint32_t>(data[at + 2]) << 16) | (static_cast<std::uint32_t>(data[at + 3]) << 24);
+  return get_le32(data.data() + at);
 }
 
 inline void put_u16_le(std::array<std::uint8_t, 8>& data, std::size_t at, std::uint16_t value) noexcept {
-  data[at] = static_cast<std::uint8_t>(value & 0xFFU);
-  data[at + 1] = static_cast<std::uint8_t>(value >> 8);
+  put_le16(data.data() + at, value);
 }
 
 inline void put_u32_le(std::array<std::uint8_t, 8>& data, std::size_t at, std::uint32_t value) noexcept {
-  for (std::size_t i = 0; i < 4; ++i) data[at + i] = static_cast<std::uint8_t>((value >> (8 * i)) & 0xFFU);
+  put_le32(data.data() + at, value);
 }
 
 }  // namespace pmlsm::canopen

@@ -1,0 +1,185 @@
+// A virtual EtherCAT slave controller (ESC): the memory a slave's ESC holds, registers at
+// 0x0000-0x0FFF and process-data RAM from 0x1000 (the register map of ETG.1000.4 and of the
+// ET1100 and LAN9252 chips), and what it does to each datagram that passes it on the ring. A real
+// ESC works in hardware as the frame goes through; this one does the same to a frame in memory:
+//
+//   - it answers a datagram addressed to it: by position (auto increment: the ADP it sees is 0;
+//     it counts the ADP up either way), by its station address (0x0010), by broadcast, or through
+//     its FMMUs for a logical address;
+//   - a read copies its memory into the datagram's data (a broadcast read ORs it in), a write
+//     copies the data into its writable registers and RAM, and each adds to the working counter
+//     (1 read, 1 write, 3 read-write);
+//   - writing AL control (0x0120) asks for an AL state: the state machine below answers in AL
+//     status (0x0130) and, refused, with the error indicator and an AL status code (0x0134);
+//   - the SII EEPROM interface (0x0502-0x050F) reads its SII image 8 bytes at a time.
+//
+// The AL state machine (ETG.1000.6): INIT -> PREOP needs the mailbox sync managers (SM0, SM1) set
+// as the SII declares them; PREOP -> SAFEOP needs the process-data sync managers (SM2 outputs, SM3
+// inputs) active with the lengths the slave's mapping has; SAFEOP -> OP; any state -> INIT;
+// OP -> SAFEOP and SAFEOP or OP -> PREOP back down. Anything else is refused with code 0x0011;
+// BOOT is not supported (0x0013). A refusal sets the error indicator, which stays until the
+// master acknowledges it (AL control's bit 4).
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "pmlsm/ethercat/frame.hpp"
+#include "pmlsm/ethercat/link.hpp"
+
+namespace pmlsm::ethercat {
+
+/// Register addresses of an ESC.
+namespace reg {
+inline constexpr std::uint16_t kType = 0x0000;
+inline constexpr std::uint16_t kRevision = 0x0001;
+inline constexpr std::uint16_t kBuild = 0x0002;
+inline constexpr std::uint16_t kFmmuCount = 0x0004;
+inline constexpr std::uint16_t kSyncManagerCount = 0x0005;
+inline constexpr std::uint16_t kRamSizeKib = 0x0006;
+inline constexpr std::uint16_t kStationAddress = 0x0010;
+inline constexpr std::uint16_t kStationAlias = 0x0012;
+inline constexpr std::uint16_t kDlStatus = 0x0110;
+inline constexpr std::uint16_t kAlControl = 0x0120;
+inline constexpr std::uint16_t kAlStatus = 0x0130;
+inline constexpr std::uint16_t kAlStatusCode = 0x0134;
+inline constexpr std::uint16_t kSiiControl = 0x0502;
+inline constexpr std::uint16_t kSiiAddress = 0x0504;
+inline constexpr std::uint16_t kSiiData = 0x0508;
+inline constexpr std::uint16_t kFmmu0 = 0x0600;
+inline constexpr std::uint16_t kSyncManager0 = 0x0800;
+inline constexpr std::uint16_t kProcessRam = 0x1000;
+}  // namespace reg
+
+inline constexpr std::size_t kFmmuBytes = 16;
+inline constexpr std::size_t kSyncManagerBytes = 8;
+inline constexpr std::uint8_t kAlErrorIndicator = 0x10;  ///< in AL status; in AL control: acknowledge
+/// SII EEPROM interface: control/status bits at 0x0502.
+inline constexpr std::uint16_t kSiiReadCommand = 0x0100;
+inline constexpr std::uint16_t kSiiCommandMask = 0x0700;
+inline constexpr std::uint16_t kSiiRead8Bytes = 0x0040;  ///< status: a read fetches 8 bytes
+inline constexpr std::uint16_t kSiiBusy = 0x8000;
+
+enum class AlState : std::uint8_t { kInit = 1, kPreOp = 2, kBoot = 3, kSafeOp = 4, kOp = 8 };
+/// "INIT", "PREOP", "BOOT", "SAFEOP", "OP"; "?" for another value.
+const char* to_string(AlState state);
+/// The AL status code's name (ETG.1000.6, ETG.1020): "invalid mailbox configuration" for 0x0016;
+/// "unknown AL status code" for one not in the table.
+const char* al_status_code_name(std::uint16_t code);
+
+/// AL status codes the virtual ESC answers with.
+namespace al_code {
+inline constexpr std::uint16_t kNoError = 0x0000;
+inline constexpr std::uint16_t kInvalidStateChange = 0x0011;
+inline constexpr std::uint16_t kUnknownState = 0x0012;
+inline constexpr std::uint16_t kBootstrapNotSupported = 0x0013;
+inline constexpr std::uint16_t kInvalidMailboxConfiguration = 0x0016;
+inline constexpr std::uint16_t kInvalidOutputConfiguration = 0x001D;
+inline constexpr std::uint16_t kInvalidInputConfiguration = 0x001E;
+}  // namespace al_code
+
+/// SII word addresses (ETG.1000.6 Table 17, ETG.2010).
+namespace sii {
+inline constexpr std::uint16_t kStationAlias = 0x0004;
+inline constexpr std::uint16_t kVendorId = 0x0008;
+inline constexpr std::uint16_t kProductCode = 0x000A;
+inline constexpr std::uint16_t kRevision = 0x000C;
+inline constexpr std::uint16_t kSerial = 0x000E;
+inline constexpr std::uint16_t kMailboxReceiveOffset = 0x0018;  ///< the master's writes: SM0
+inline constexpr std::uint16_t kMailboxReceiveSize = 0x0019;
+inline constexpr std::uint16_t kMailboxSendOffset = 0x001A;  ///< the slave's answers: SM1
+inline constexpr std::uint16_t kMailboxSendSize = 0x001B;
+inline constexpr std::uint16_t kMailboxProtocols = 0x001C;
+inline constexpr std::uint16_t kFirstCategory = 0x0040;
+inline constexpr std::uint16_t kMinWords = 0x0042;  ///< the fixed part and an end category
+}  // namespace sii
+
+struct EscParams {
+  std::uint8_t type = 0x11;  ///< register 0x0000 (ET1100's)
+  std::uint8_t fmmus = 8;
+  std::uint8_t sync_managers = 8;
+  std::vector<std::uint16_t> sii;  ///< the SII EEPROM image in words (at least sii::kMinWords)
+  /// The process data the slave's mapping has (0: none): SM2's and SM3's lengths for SAFEOP.
+  std::uint16_t output_bytes = 0;
+  std::uint16_t input_bytes = 0;
+  /// @throws std::invalid_argument naming what is wrong.
+  void validate() const;
+};
+
+class Esc {
+ public:
+  static constexpr std::size_t kMemoryBytes = 0x10000;
+
+  /// @throws std::invalid_argument from the params.
+  explicit Esc(EscParams params);
+
+  /// A datagram passes this slave: done if it is addressed, the working counter and (auto
+  /// increment) the ADP in `header` counted on. `data` holds header.length bytes.
+  void pass(DatagramHeader& header, std::uint8_t* data, std::uint16_t& working_counter);
+
+  AlState al_state() const;
+  std::uint16_t al_status_code() const;
+  std::uint16_t station_address() const;
+  /// A byte, word or long of its memory, little-endian (the application's view, as its PDI).
+  std::uint8_t byte_at(std::uint16_t address) const { return memory_[address]; }
+  std::uint16_t word_at(std::uint16_t address) const;
+  std::uint32_t long_at(std::uint16_t address) const;
+  /// The application writes process RAM (inputs) or a register it owns.
+  void write_memory(std::uint16_t address, const std::uint8_t* bytes, std::size_t size);
+
+ private:
+  bool addressed(const DatagramHeader& header) const;
+  void physical(const DatagramHeader& header, std::uint8_t* data, std::uint16_t& working_counter);
+  void logical(const DatagramHeader& header, std::uint8_t* data, std::uint16_t& working_counter);
+  void read_into(std::uint16_t address, std::uint8_t* out, std::size_t size, bool or_in) const;
+  void write_from(std::uint16_t address, const std::uint8_t* in, std::size_t size);
+  void after_write(std::uint16_t address, std::size_t size);
+  void request_state(std::uint8_t control);
+  void refuse(std::uint16_t code);
+  void sii_command();
+  /// Whether SM `index` is active with `start`, `length` and the control byte `control`.
+  bool sync_manager_is(std::size_t index, std::uint16_t start, std::uint16_t length, std::uint8_t control) const;
+  bool sync_manager_active_with(std::size_t index, std::uint16_t length) const;
+
+  EscParams params_;
+  std::vector<std::uint8_t> memory_;
+};
+
+/// A line of virtual slaves in one process: a frame passes each in order and comes back, as on a
+/// ring of real ones.
+class VirtualSegment {
+ public:
+  /// `slaves` outlive the segment.
+  explicit VirtualSegment(std::vector<Esc*> slaves) : slaves_(std::move(slaves)) {}
+  /// The frame in `bytes` (an Ethernet frame of `size` bytes) through every slave, in place.
+  /// Returns what the parser said of it; a refused frame is left as it was (a real slave drops it).
+  FrameError pass(std::uint8_t* bytes, std::size_t size);
+  /// Frames received from `link`, passed and sent back, until none comes within `timeout_ns`.
+  /// @return the frames answered.
+  std::size_t serve(Link& link, std::int64_t timeout_ns);
+
+ private:
+  std::vector<Esc*> slaves_;
+  std::array<std::uint8_t, kMaxEthernetFrameBytes> buffer_{};
+};
+
+/// A link to a virtual segment in the same thread: a frame sent passes the slaves at once and is
+/// what the next receive() returns. Deterministic, for tests and in-process rigs.
+class VirtualSegmentLink final : public Link {
+ public:
+  explicit VirtualSegmentLink(VirtualSegment& segment) : segment_(segment) {}
+  bool send(Bytes ethernet_frame) override;
+  std::size_t receive(std::uint8_t* buffer, std::int64_t timeout_ns) override;
+
+ private:
+  VirtualSegment& segment_;
+  std::array<std::uint8_t, kMaxEthernetFrameBytes> buffer_{};
+  std::size_t size_ = 0;
+  bool pending_ = false;
+};
+
+}  // namespace pmlsm::ethercat

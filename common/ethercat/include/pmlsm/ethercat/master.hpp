@@ -1,0 +1,115 @@
+// An EtherCAT master in user space, over any Link: one datagram there and back at a time, its
+// working counter checked; on top of that the bus scan (how many slaves answer, station addresses
+// by position), the SII read through each slave's EEPROM interface (its identity and mailbox
+// layout), sync manager set-up and the AL state walk, each refusal read and named.
+//
+// exchange() never throws (a cycle may call it); the set-up steps throw std::runtime_error naming
+// the slave, the register and what came back, since nothing can go on after them.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "pmlsm/ethercat/esc.hpp"
+#include "pmlsm/ethercat/frame.hpp"
+#include "pmlsm/ethercat/link.hpp"
+#include "pmlsm/ethercat/pcapng.hpp"
+
+namespace pmlsm::ethercat {
+
+struct MasterParams {
+  std::int64_t reply_timeout_ns = 20'000'000;  ///< how long a datagram may take there and back
+  int retries = 2;                             ///< sent again this many times when no reply came
+  std::uint16_t first_station_address = 0x1001;
+  std::int64_t state_timeout_ns = 2'000'000'000;  ///< how long a slave may take to reach an AL state
+  /// @throws std::invalid_argument naming the value.
+  void validate() const;
+};
+
+struct Reply {
+  bool answered = false;
+  std::uint16_t working_counter = 0;
+};
+
+/// A slave as its SII describes it.
+struct SlaveInfo {
+  std::uint16_t station_address = 0;
+  std::uint32_t vendor_id = 0;
+  std::uint32_t product_code = 0;
+  std::uint32_t revision = 0;
+  std::uint32_t serial = 0;
+  std::uint16_t mailbox_receive_offset = 0;  ///< SM0
+  std::uint16_t mailbox_receive_size = 0;
+  std::uint16_t mailbox_send_offset = 0;  ///< SM1
+  std::uint16_t mailbox_send_size = 0;
+  std::uint16_t mailbox_protocols = 0;  ///< bit 2: CoE
+};
+
+struct StateResult {
+  bool reached = false;
+  AlState state = AlState::kInit;  ///< the state the slave is in
+  std::uint16_t code = 0;          ///< the AL status code when it refused
+  std::string describe() const;    ///< "PREOP" or "INIT, refused: 0x0016 invalid mailbox configuration"
+};
+
+class Master {
+ public:
+  /// `link` outlives the master. @throws std::invalid_argument from the params.
+  explicit Master(Link& link, MasterParams params = {});
+
+  /// Every frame sent and received from now on also into `capture` (nullptr: none).
+  void capture_to(PcapngWriter* capture) { capture_ = capture; }
+
+  /// One datagram there and back: `data` (length bytes) goes out and is replaced by what came
+  /// back. Not answered after the retries: answered false, `data` as it was. Never throws.
+  Reply exchange(Command command, std::uint32_t address, std::uint8_t* data, std::uint16_t length);
+
+  /// The slaves on the bus: the working counter of a broadcast read.
+  std::uint16_t count_slaves();
+  /// Station addresses first_station_address + position for `slaves` slaves, by position.
+  /// @throws std::runtime_error naming the position that did not take it.
+  std::vector<std::uint16_t> assign_station_addresses(std::uint16_t slaves);
+  /// `words` words of a slave's SII from `word_address`, 4 words a read.
+  /// @throws std::runtime_error naming the slave when it does not answer or stays busy.
+  std::vector<std::uint16_t> read_sii(std::uint16_t station, std::uint16_t word_address, std::uint16_t words);
+  /// Its identity and mailbox layout from its SII. @throws std::runtime_error as read_sii.
+  SlaveInfo read_slave_info(std::uint16_t station);
+  /// Sync manager `index` of a slave: start, length, control byte, enabled.
+  /// @throws std::runtime_error when the slave does not take it.
+  void configure_sync_manager(std::uint16_t station, std::uint8_t index, std::uint16_t start, std::uint16_t length,
+                              std::uint8_t control);
+  /// FMMU `index` of a slave: `length` bytes at `logical` onto its memory at `physical`, read
+  /// (the slave's inputs into the frame) or write (the frame's outputs into the slave).
+  /// @throws std::runtime_error when the slave does not take it.
+  void configure_fmmu(std::uint16_t station, std::uint8_t index, std::uint32_t logical, std::uint16_t length,
+                      std::uint16_t physical, bool write);
+  /// Asks a slave for `state` and reads its AL status until it is there, refuses (the error
+  /// indicator: its code read, then acknowledged) or state_timeout_ns passes.
+  /// @throws std::runtime_error when the slave does not answer at all.
+  StateResult request_state(std::uint16_t station, AlState state);
+  /// A slave's AL state and status code. @throws std::runtime_error when it does not answer.
+  StateResult read_state(std::uint16_t station);
+
+  std::uint64_t frames_sent() const { return frames_sent_; }
+  std::uint64_t frames_lost() const { return frames_lost_; }
+
+ private:
+  /// An FPRD/FPWR of a register that must come back with working counter 1.
+  void write_register(std::uint16_t station, std::uint16_t address, const std::uint8_t* data, std::uint16_t length,
+                      const char* what);
+  void read_register(std::uint16_t station, std::uint16_t address, std::uint8_t* data, std::uint16_t length,
+                     const char* what);
+  void record(Bytes frame);
+
+  Link& link_;
+  MasterParams params_;
+  FrameBuilder frame_;
+  std::array<std::uint8_t, kMaxEthernetFrameBytes> received_{};
+  std::uint8_t next_index_ = 0;
+  PcapngWriter* capture_ = nullptr;
+  std::uint64_t frames_sent_ = 0;
+  std::uint64_t frames_lost_ = 0;
+};
+
+}  // namespace pmlsm::ethercat

@@ -1,0 +1,403 @@
+#include "pmlsm/ethercat/esc.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace pmlsm::ethercat {
+
+namespace {
+
+constexpr std::uint8_t kSmModeMask = 0x03;
+constexpr std::uint8_t kSmModeMailbox = 0x02;
+constexpr std::uint8_t kSmDirectionMask = 0x0C;
+constexpr std::uint8_t kSmDirectionWrite = 0x04;  ///< the master writes (ECAT write, PDI read)
+constexpr std::uint8_t kSmEnable = 0x01;
+constexpr std::uint8_t kFmmuRead = 0x01;
+constexpr std::uint8_t kFmmuWrite = 0x02;
+constexpr std::uint8_t kRamSizeKib = 8;
+
+/// Registers the master may write (the others, status and identity, keep their value).
+bool writable(std::uint32_t address) {
+  if (address >= reg::kProcessRam) return true;
+  if (address >= reg::kSyncManager0 && address < reg::kSyncManager0 + 16 * kSyncManagerBytes) {
+    const std::uint32_t byte = (address - reg::kSyncManager0) % kSyncManagerBytes;
+    return byte != 5 && byte != 7;  // SM status and PDI control are the slave's
+  }
+  return (address >= reg::kStationAddress && address < reg::kStationAddress + 2) ||
+         (address >= 0x0100 && address < 0x0104) ||                              // DL control
+         (address >= reg::kAlControl && address < reg::kAlControl + 2) ||        //
+         (address >= 0x0200 && address < 0x0206) ||                              // event masks
+         (address >= 0x0300 && address < 0x0314) ||                              // error counters
+         (address >= 0x0400 && address < 0x0444) ||                              // watchdogs
+         (address >= reg::kSiiControl && address < 0x0510) ||                    // SII interface
+         (address >= reg::kFmmu0 && address < reg::kFmmu0 + 16 * kFmmuBytes) ||  //
+         (address >= 0x0900 && address < 0x0A00);                                // distributed clocks
+}
+
+bool is_read(Command c) { return c == Command::kAprd || c == Command::kFprd || c == Command::kBrd; }
+bool is_write(Command c) { return c == Command::kApwr || c == Command::kFpwr || c == Command::kBwr; }
+bool is_read_write(Command c) { return c == Command::kAprw || c == Command::kFprw || c == Command::kBrw; }
+
+}  // namespace
+
+const char* to_string(AlState state) {
+  switch (state) {
+    case AlState::kInit: return "INIT";
+    case AlState::kPreOp: return "PREOP";
+    case AlState::kBoot: return "BOOT";
+    case AlState::kSafeOp: return "SAFEOP";
+    case AlState::kOp: return "OP";
+  }
+  return "?";
+}
+
+const char* al_status_code_name(std::uint16_t code) {
+  switch (code) {
+    case 0x0000: return "no error";
+    case 0x0001: return "unspecified error";
+    case 0x0002: return "no memory";
+    case 0x0011: return "invalid requested state change";
+    case 0x0012: return "unknown requested state";
+    case 0x0013: return "bootstrap not supported";
+    case 0x0014: return "no valid firmware";
+    case 0x0015: return "invalid mailbox configuration (BOOT)";
+    case 0x0016: return "invalid mailbox configuration";
+    case 0x0017: return "invalid sync manager configuration";
+    case 0x0018: return "no valid inputs available";
+    case 0x0019: return "no valid outputs";
+    case 0x001A: return "synchronization error";
+    case 0x001B: return "sync manager watchdog";
+    case 0x001C: return "invalid sync manager types";
+    case 0x001D: return "invalid output configuration";
+    case 0x001E: return "invalid input configuration";
+    case 0x001F: return "invalid watchdog configuration";
+    case 0x0020: return "slave needs cold start";
+    case 0x0021: return "slave needs INIT";
+    case 0x0022: return "slave needs PREOP";
+    case 0x0023: return "slave needs SAFEOP";
+    case 0x0024: return "invalid input mapping";
+    case 0x0025: return "invalid output mapping";
+    case 0x0026: return "inconsistent settings";
+    case 0x0027: return "free run not supported";
+    case 0x0028: return "synchronization not supported";
+    case 0x002C: return "fatal sync error";
+    case 0x0030: return "invalid DC SYNC configuration";
+    case 0x0035: return "invalid DC sync cycle time";
+    case 0x0043: return "CoE mailbox error";
+    case 0x0050: return "EEPROM no access";
+    case 0x0051: return "EEPROM error";
+    default: return "unknown AL status code";
+  }
+}
+
+void EscParams::validate() const {
+  if (sii.size() < sii::kMinWords) {
+    throw std::invalid_argument("sii: at least " + std::to_string(sii::kMinWords) + " words (the fixed part and " +
+                                "an end category), got " + std::to_string(sii.size()));
+  }
+  if (fmmus == 0 || fmmus > 16) throw std::invalid_argument("fmmus: 1 to 16, got " + std::to_string(fmmus));
+  if (sync_managers < 4 || sync_managers > 16) {
+    throw std::invalid_argument("sync_managers: 4 to 16, got " + std::to_string(sync_managers));
+  }
+}
+
+Esc::Esc(EscParams params) : params_((params.validate(), std::move(params))), memory_(kMemoryBytes, 0) {
+  memory_[reg::kType] = params_.type;
+  memory_[reg::kRevision] = 1;
+  memory_[reg::kFmmuCount] = params_.fmmus;
+  memory_[reg::kSyncManagerCount] = params_.sync_managers;
+  memory_[reg::kRamSizeKib] = kRamSizeKib;
+  const std::uint16_t alias = params_.sii[sii::kStationAlias];
+  memory_[reg::kStationAlias] = static_cast<std::uint8_t>(alias & 0xFFU);
+  memory_[reg::kStationAlias + 1] = static_cast<std::uint8_t>(alias >> 8);
+  memory_[reg::kDlStatus] = 0x10;  // port 0: link up
+  memory_[reg::kAlControl] = static_cast<std::uint8_t>(AlState::kInit);
+  memory_[reg::kAlStatus] = static_cast<std::uint8_t>(AlState::kInit);
+  memory_[reg::kSiiControl] = kSiiRead8Bytes;
+}
+
+std::uint16_t Esc::word_at(std::uint16_t address) const {
+  return static_cast<std::uint16_t>(memory_[address] | (memory_[(address + 1U) & 0xFFFFU] << 8));
+}
+
+std::uint32_t Esc::long_at(std::uint16_t address) const {
+  return static_cast<std::uint32_t>(word_at(address)) |
+         (static_cast<std::uint32_t>(word_at(static_cast<std::uint16_t>(address + 2))) << 16);
+}
+
+AlState Esc::al_state() const { return static_cast<AlState>(memory_[reg::kAlStatus] & 0x0F); }
+std::uint16_t Esc::al_status_code() const { return word_at(reg::kAlStatusCode); }
+std::uint16_t Esc::station_address() const { return word_at(reg::kStationAddress); }
+
+void Esc::write_memory(std::uint16_t address, const std::uint8_t* bytes, std::size_t size) {
+  const std::size_t n = std::min<std::size_t>(size, kMemoryBytes - address);
+  std::copy(bytes, bytes + n, memory_.begin() + address);
+}
+
+void Esc::pass(DatagramHeader& header, std::uint8_t* data, std::uint16_t& working_counter) {
+  const Command c = header.command;
+  if (c == Command::kNop) return;
+  if (is_logical(c)) {
+    logical(header, data, working_counter);
+    return;
+  }
+  physical(header, data, working_counter);
+  if (is_auto_increment(c)) {
+    header.address = physical_address(static_cast<std::uint16_t>(header.adp() + 1), header.ado());
+  }
+}
+
+bool Esc::addressed(const DatagramHeader& header) const {
+  switch (header.command) {
+    case Command::kBrd:
+    case Command::kBwr:
+    case Command::kBrw: return true;
+    case Command::kFprd:
+    case Command::kFpwr:
+    case Command::kFprw:
+    case Command::kFrmw: return header.adp() == station_address();
+    default: return header.adp() == 0;  // auto increment: this slave's position
+  }
+}
+
+void Esc::physical(const DatagramHeader& header, std::uint8_t* data, std::uint16_t& working_counter) {
+  const Command c = header.command;
+  const std::uint16_t offset = header.ado();
+  if (static_cast<std::size_t>(offset) + header.length > kMemoryBytes) return;  // past its memory: not done
+  const bool is_addressed = addressed(header);
+  if (c == Command::kArmw || c == Command::kFrmw) {
+    // The addressed slave's value read into the datagram, written into every other slave.
+    if (is_addressed) {
+      read_into(offset, data, header.length, false);
+    } else {
+      write_from(offset, data, header.length);
+    }
+    ++working_counter;
+    return;
+  }
+  if (!is_addressed) return;
+  const bool broadcast = c == Command::kBrd || c == Command::kBrw;
+  if (is_read(c)) {
+    read_into(offset, data, header.length, broadcast);
+    working_counter = static_cast<std::uint16_t>(working_counter + 1);
+  } else if (is_write(c)) {
+    write_from(offset, data, header.length);
+    working_counter = static_cast<std::uint16_t>(working_counter + 1);
+  } else if (is_read_write(c)) {
+    std::array<std::uint8_t, kMaxDatagramDataBytes> before{};
+    read_into(offset, before.data(), header.length, false);
+    write_from(offset, data, header.length);
+    for (std::uint16_t i = 0; i < header.length; ++i) {
+      data[i] = broadcast ? static_cast<std::uint8_t>(data[i] | before[i]) : before[i];
+    }
+    working_counter = static_cast<std::uint16_t>(working_counter + 3);
+  }
+}
+
+void Esc::logical(const DatagramHeader& header, std::uint8_t* data, std::uint16_t& working_counter) {
+  const Command c = header.command;
+  bool read_hit = false;
+  bool write_hit = false;
+  const std::uint64_t first = header.address;
+  const std::uint64_t end = first + header.length;
+  for (std::size_t i = 0; i < params_.fmmus; ++i) {
+    const auto at = static_cast<std::uint16_t>(reg::kFmmu0 + i * kFmmuBytes);
+    if ((memory_[at + 12] & 0x01) == 0) continue;
+    const std::uint64_t start = long_at(at);
+    const std::uint64_t stop = start + word_at(static_cast<std::uint16_t>(at + 4));
+    const std::uint16_t physical_start = word_at(static_cast<std::uint16_t>(at + 8));
+    const std::uint8_t type = memory_[at + 11];
+    const std::uint64_t from = std::max(first, start);
+    const std::uint64_t to = std::min(end, stop);
+    if (from >= to) continue;
+    for (std::uint64_t l = from; l < to; ++l) {
+      const std::size_t phys = physical_start + (l - start);
+      if (phys >= kMemoryBytes) break;
+      std::uint8_t& byte = data[l - first];
+      if ((type & kFmmuWrite) != 0 && (c == Command::kLwr || c == Command::kLrw)) {
+        write_from(static_cast<std::uint16_t>(phys), &byte, 1);
+        write_hit = true;
+      }
+      if ((type & kFmmuRead) != 0 && (c == Command::kLrd || c == Command::kLrw)) {
+        byte = memory_[phys];
+        read_hit = true;
+      }
+    }
+  }
+  // LRD and LWR: 1 for the read or the write; LRW: 1 read + 2 written.
+  std::uint16_t add = 0;
+  if (c == Command::kLrw) {
+    add = static_cast<std::uint16_t>((read_hit ? 1 : 0) + (write_hit ? 2 : 0));
+  } else {
+    add = (read_hit || write_hit) ? 1 : 0;
+  }
+  working_counter = static_cast<std::uint16_t>(working_counter + add);
+}
+
+void Esc::read_into(std::uint16_t address, std::uint8_t* out, std::size_t size, bool or_in) const {
+  for (std::size_t i = 0; i < size; ++i) {
+    out[i] = or_in ? static_cast<std::uint8_t>(out[i] | memory_[address + i]) : memory_[address + i];
+  }
+}
+
+void Esc::write_from(std::uint16_t address, const std::uint8_t* in, std::size_t size) {
+  bool any = false;
+  for (std::size_t i = 0; i < size; ++i) {
+    if (!writable(address + i)) continue;
+    memory_[address + i] = in[i];
+    any = true;
+  }
+  if (any) after_write(address, size);
+}
+
+void Esc::after_write(std::uint16_t address, std::size_t size) {
+  const auto covers = [&](std::uint16_t reg_address) { return address <= reg_address && reg_address < address + size; };
+  if (covers(reg::kAlControl)) request_state(memory_[reg::kAlControl]);
+  if (covers(reg::kSiiControl) || covers(reg::kSiiControl + 1)) sii_command();
+}
+
+void Esc::refuse(std::uint16_t code) {
+  memory_[reg::kAlStatus] = static_cast<std::uint8_t>(memory_[reg::kAlStatus] | kAlErrorIndicator);
+  memory_[reg::kAlStatusCode] = static_cast<std::uint8_t>(code & 0xFFU);
+  memory_[reg::kAlStatusCode + 1] = static_cast<std::uint8_t>(code >> 8);
+}
+
+bool Esc::sync_manager_is(std::size_t index, std::uint16_t start, std::uint16_t length, std::uint8_t control) const {
+  const auto at = static_cast<std::uint16_t>(reg::kSyncManager0 + index * kSyncManagerBytes);
+  const std::uint8_t c = memory_[at + 4];
+  return word_at(at) == start && word_at(static_cast<std::uint16_t>(at + 2)) == length &&
+         (c & (kSmModeMask | kSmDirectionMask)) == control && (memory_[at + 6] & kSmEnable) != 0;
+}
+
+bool Esc::sync_manager_active_with(std::size_t index, std::uint16_t length) const {
+  const auto at = static_cast<std::uint16_t>(reg::kSyncManager0 + index * kSyncManagerBytes);
+  return length == 0 || (word_at(static_cast<std::uint16_t>(at + 2)) == length && (memory_[at + 6] & kSmEnable) != 0);
+}
+
+void Esc::request_state(std::uint8_t control) {
+  if ((control & kAlErrorIndicator) != 0) {  // the master acknowledges the error
+    memory_[reg::kAlStatus] = static_cast<std::uint8_t>(memory_[reg::kAlStatus] & ~kAlErrorIndicator);
+    memory_[reg::kAlStatusCode] = 0;
+    memory_[reg::kAlStatusCode + 1] = 0;
+  }
+  const std::uint8_t requested = control & 0x0F;
+  const AlState now = al_state();
+  if (requested == static_cast<std::uint8_t>(now)) return;
+  const auto go = [&](AlState s) {
+    memory_[reg::kAlStatus] =
+        static_cast<std::uint8_t>((memory_[reg::kAlStatus] & kAlErrorIndicator) | static_cast<std::uint8_t>(s));
+  };
+  switch (requested) {
+    case static_cast<std::uint8_t>(AlState::kInit): go(AlState::kInit); return;
+    case static_cast<std::uint8_t>(AlState::kBoot): refuse(al_code::kBootstrapNotSupported); return;
+    case static_cast<std::uint8_t>(AlState::kPreOp): {
+      if (now != AlState::kInit) {
+        go(AlState::kPreOp);  // down from SAFEOP or OP
+        return;
+      }
+      const std::vector<std::uint16_t>& s = params_.sii;
+      const bool mailbox = s[sii::kMailboxReceiveSize] != 0;
+      if (mailbox && !(sync_manager_is(0, s[sii::kMailboxReceiveOffset], s[sii::kMailboxReceiveSize],
+                                       kSmModeMailbox | kSmDirectionWrite) &&
+                       sync_manager_is(1, s[sii::kMailboxSendOffset], s[sii::kMailboxSendSize], kSmModeMailbox))) {
+        refuse(al_code::kInvalidMailboxConfiguration);
+        return;
+      }
+      go(AlState::kPreOp);
+      return;
+    }
+    case static_cast<std::uint8_t>(AlState::kSafeOp): {
+      if (now == AlState::kOp) {
+        go(AlState::kSafeOp);
+        return;
+      }
+      if (now != AlState::kPreOp) {
+        refuse(al_code::kInvalidStateChange);
+        return;
+      }
+      if (!sync_manager_active_with(2, params_.output_bytes)) {
+        refuse(al_code::kInvalidOutputConfiguration);
+        return;
+      }
+      if (!sync_manager_active_with(3, params_.input_bytes)) {
+        refuse(al_code::kInvalidInputConfiguration);
+        return;
+      }
+      go(AlState::kSafeOp);
+      return;
+    }
+    case static_cast<std::uint8_t>(AlState::kOp):
+      if (now != AlState::kSafeOp) {
+        refuse(al_code::kInvalidStateChange);
+        return;
+      }
+      go(AlState::kOp);
+      return;
+    default: refuse(al_code::kUnknownState); return;
+  }
+}
+
+void Esc::sii_command() {
+  const std::uint16_t control = word_at(reg::kSiiControl);
+  if ((control & kSiiCommandMask) == kSiiReadCommand) {
+    const std::uint32_t word = long_at(reg::kSiiAddress);
+    for (std::uint32_t i = 0; i < 4; ++i) {
+      const std::uint16_t value = word + i < params_.sii.size() ? params_.sii[word + i] : 0xFFFF;  // erased
+      memory_[reg::kSiiData + 2 * i] = static_cast<std::uint8_t>(value & 0xFFU);
+      memory_[reg::kSiiData + 2 * i + 1] = static_cast<std::uint8_t>(value >> 8);
+    }
+  }
+  // Done at once: no command pending, not busy, reads of 8 bytes.
+  const auto status = static_cast<std::uint16_t>((control & ~(kSiiCommandMask | kSiiBusy)) | kSiiRead8Bytes);
+  memory_[reg::kSiiControl] = static_cast<std::uint8_t>(status & 0xFFU);
+  memory_[reg::kSiiControl + 1] = static_cast<std::uint8_t>(status >> 8);
+}
+
+FrameError VirtualSegment::pass(std::uint8_t* bytes, std::size_t size) {
+  ParsedFrame parsed;
+  const FrameError error = parse_ethernet_frame(bytes, size, parsed);
+  if (error != FrameError::kNone) return error;
+  // An ESC sets the locally administered bit of the source address on the way (ETG.1000.4): a
+  // master tells the frames coming back from its own.
+  bytes[6] = static_cast<std::uint8_t>(bytes[6] | 0x02U);
+  for (std::size_t i = 0; i < parsed.count; ++i) {
+    const DatagramView& view = parsed.datagrams[i];
+    // The views point into `bytes`: the same datagram, writable.
+    std::uint8_t* data = bytes + (view.data - bytes);
+    std::uint8_t* header_bytes = data - kDatagramHeaderBytes;
+    DatagramHeader header = view.header;
+    std::uint16_t working_counter = view.working_counter;
+    for (Esc* slave : slaves_) slave->pass(header, data, working_counter);
+    for (int b = 0; b < 4; ++b) header_bytes[2 + b] = static_cast<std::uint8_t>((header.address >> (8 * b)) & 0xFFU);
+    data[header.length] = static_cast<std::uint8_t>(working_counter & 0xFFU);
+    data[header.length + 1] = static_cast<std::uint8_t>(working_counter >> 8);
+  }
+  return FrameError::kNone;
+}
+
+bool VirtualSegmentLink::send(Bytes ethernet_frame) {
+  if (pending_ || ethernet_frame.size > buffer_.size()) return false;
+  std::copy(ethernet_frame.data, ethernet_frame.data + ethernet_frame.size, buffer_.begin());
+  size_ = ethernet_frame.size;
+  pending_ = segment_.pass(buffer_.data(), size_) == FrameError::kNone;  // a refused frame is lost
+  return true;
+}
+
+std::size_t VirtualSegmentLink::receive(std::uint8_t* buffer, std::int64_t /*timeout_ns*/) {
+  if (!pending_) return 0;
+  pending_ = false;
+  std::copy(buffer_.begin(), buffer_.begin() + static_cast<std::ptrdiff_t>(size_), buffer);
+  return size_;
+}
+
+std::size_t VirtualSegment::serve(Link& link, std::int64_t timeout_ns) {
+  std::size_t answered = 0;
+  for (;;) {
+    const std::size_t size = link.receive(buffer_.data(), timeout_ns);
+    if (size == 0) return answered;
+    if (pass(buffer_.data(), size) != FrameError::kNone) continue;  // dropped, as a slave drops it
+    if (link.send({buffer_.data(), size})) ++answered;
+  }
+}
+
+}  // namespace pmlsm::ethercat

@@ -1,0 +1,227 @@
+#include "pmlsm/ethercat/master.hpp"
+
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <stdexcept>
+
+#include "pmlsm/util/little_endian.hpp"
+
+namespace pmlsm::ethercat {
+
+namespace {
+
+std::int64_t now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+std::string hex(std::uint32_t value, int digits) {
+  char text[16];
+  std::snprintf(text, sizeof text, "0x%0*X", digits, value);
+  return text;
+}
+
+std::string slave_name(std::uint16_t station) { return "slave " + hex(station, 4); }
+
+std::uint32_t long_of(const std::vector<std::uint16_t>& words, std::size_t at) {
+  return static_cast<std::uint32_t>(words[at]) | (static_cast<std::uint32_t>(words[at + 1]) << 16);
+}
+
+}  // namespace
+
+void MasterParams::validate() const {
+  if (reply_timeout_ns <= 0)
+    throw std::invalid_argument("reply_timeout_ns: must be > 0, got " + std::to_string(reply_timeout_ns));
+  if (retries < 0 || retries > 100) throw std::invalid_argument("retries: 0 to 100, got " + std::to_string(retries));
+  if (first_station_address == 0) throw std::invalid_argument("first_station_address: must not be 0 (no address)");
+  if (state_timeout_ns <= 0)
+    throw std::invalid_argument("state_timeout_ns: must be > 0, got " + std::to_string(state_timeout_ns));
+}
+
+std::string StateResult::describe() const {
+  std::string text = to_string(state);
+  if (code != 0) text += ", refused: " + hex(code, 4) + " " + al_status_code_name(code);
+  return text;
+}
+
+Master::Master(Link& link, MasterParams params) : link_(link), params_((params.validate(), params)) {}
+
+void Master::record(Bytes frame) {
+  if (capture_ != nullptr) capture_->write(frame, now_ns());
+}
+
+Reply Master::exchange(Command command, std::uint32_t address, std::uint8_t* data, std::uint16_t length) {
+  const std::uint8_t index = next_index_++;
+  frame_.clear();
+  if (!frame_.add(command, index, address, data, length)) return {};
+  for (int attempt = 0; attempt <= params_.retries; ++attempt) {
+    const Bytes sent = frame_.ethernet();
+    ++frames_sent_;
+    if (!link_.send(sent)) {
+      ++frames_lost_;
+      continue;
+    }
+    record(sent);
+    const std::int64_t deadline = now_ns() + params_.reply_timeout_ns;
+    for (std::int64_t left = params_.reply_timeout_ns; left > 0; left = deadline - now_ns()) {
+      const std::size_t size = link_.receive(received_.data(), left);
+      if (size == 0) break;
+      ParsedFrame parsed;
+      if (parse_ethernet_frame(received_.data(), size, parsed) != FrameError::kNone || parsed.count != 1) continue;
+      const DatagramView& d = parsed.datagrams[0];
+      // A frame of ours coming back: the same command, index and length (a slave counts an
+      // auto-increment ADP on, so the address is not compared).
+      if (d.header.command != command || d.header.index != index || d.header.length != length) continue;
+      record({received_.data(), size});
+      std::memcpy(data, d.data, length);
+      return {true, d.working_counter};
+    }
+    ++frames_lost_;
+  }
+  return {};
+}
+
+std::uint16_t Master::count_slaves() {
+  std::array<std::uint8_t, 2> type{};
+  const Reply r = exchange(Command::kBrd, physical_address(0, reg::kType), type.data(), 2);
+  return r.answered ? r.working_counter : 0;
+}
+
+std::vector<std::uint16_t> Master::assign_station_addresses(std::uint16_t slaves) {
+  std::vector<std::uint16_t> addresses;
+  for (std::uint16_t position = 0; position < slaves; ++position) {
+    const auto station = static_cast<std::uint16_t>(params_.first_station_address + position);
+    std::array<std::uint8_t, 2> value{};
+    put_le16(value.data(), station);
+    const Reply r =
+        exchange(Command::kApwr, physical_address(auto_increment_adp(position), reg::kStationAddress), value.data(), 2);
+    if (!r.answered || r.working_counter != 1) {
+      throw std::runtime_error(
+          "the slave at position " + std::to_string(position) + " did not take station address " + hex(station, 4) +
+          (r.answered ? " (working counter " + std::to_string(r.working_counter) + ")" : " (no answer)"));
+    }
+    addresses.push_back(station);
+  }
+  return addresses;
+}
+
+void Master::write_register(std::uint16_t station, std::uint16_t address, const std::uint8_t* data,
+                            std::uint16_t length, const char* what) {
+  std::array<std::uint8_t, kMaxDatagramDataBytes> copy{};
+  std::memcpy(copy.data(), data, length);
+  const Reply r = exchange(Command::kFpwr, physical_address(station, address), copy.data(), length);
+  if (!r.answered || r.working_counter != 1) {
+    throw std::runtime_error(
+        slave_name(station) + ": " + what + " (" + hex(address, 4) + ") not written: " +
+        (r.answered ? "working counter " + std::to_string(r.working_counter) + ", expected 1" : "no answer"));
+  }
+}
+
+void Master::read_register(std::uint16_t station, std::uint16_t address, std::uint8_t* data, std::uint16_t length,
+                           const char* what) {
+  const Reply r = exchange(Command::kFprd, physical_address(station, address), data, length);
+  if (!r.answered || r.working_counter != 1) {
+    throw std::runtime_error(
+        slave_name(station) + ": " + what + " (" + hex(address, 4) + ") not read: " +
+        (r.answered ? "working counter " + std::to_string(r.working_counter) + ", expected 1" : "no answer"));
+  }
+}
+
+std::vector<std::uint16_t> Master::read_sii(std::uint16_t station, std::uint16_t word_address, std::uint16_t words) {
+  std::vector<std::uint16_t> out;
+  out.reserve(words);
+  while (out.size() < words) {
+    // The command and the word address in one write (0x0502-0x0507), then the data when not busy.
+    std::array<std::uint8_t, 6> command{};
+    put_le16(command.data(), kSiiReadCommand);
+    put_le32(command.data() + 2, static_cast<std::uint32_t>(word_address + out.size()));
+    write_register(station, reg::kSiiControl, command.data(), 6, "SII read command");
+    std::array<std::uint8_t, 2> status{};
+    const std::int64_t deadline = now_ns() + params_.state_timeout_ns;
+    do {
+      read_register(station, reg::kSiiControl, status.data(), 2, "SII status");
+    } while ((status[1] & 0x87) != 0 && now_ns() < deadline);  // busy or a command pending
+    if ((status[1] & 0x87) != 0) throw std::runtime_error(slave_name(station) + ": SII read stays busy");
+    const std::uint16_t chunk = (status[0] & kSiiRead8Bytes) != 0 ? 4 : 2;
+    std::array<std::uint8_t, 8> data{};
+    read_register(station, reg::kSiiData, data.data(), static_cast<std::uint16_t>(2 * chunk), "SII data");
+    for (std::uint16_t i = 0; i < chunk && out.size() < words; ++i) {
+      out.push_back(static_cast<std::uint16_t>(data[2 * i] | (data[2 * i + 1] << 8)));
+    }
+  }
+  return out;
+}
+
+SlaveInfo Master::read_slave_info(std::uint16_t station) {
+  const std::vector<std::uint16_t> w = read_sii(station, 0, sii::kMailboxProtocols + 1);
+  SlaveInfo info;
+  info.station_address = station;
+  info.vendor_id = long_of(w, sii::kVendorId);
+  info.product_code = long_of(w, sii::kProductCode);
+  info.revision = long_of(w, sii::kRevision);
+  info.serial = long_of(w, sii::kSerial);
+  info.mailbox_receive_offset = w[sii::kMailboxReceiveOffset];
+  info.mailbox_receive_size = w[sii::kMailboxReceiveSize];
+  info.mailbox_send_offset = w[sii::kMailboxSendOffset];
+  info.mailbox_send_size = w[sii::kMailboxSendSize];
+  info.mailbox_protocols = w[sii::kMailboxProtocols];
+  return info;
+}
+
+void Master::configure_sync_manager(std::uint16_t station, std::uint8_t index, std::uint16_t start,
+                                    std::uint16_t length, std::uint8_t control) {
+  std::array<std::uint8_t, kSyncManagerBytes> sm{};
+  put_le16(sm.data(), start);
+  put_le16(sm.data() + 2, length);
+  sm[4] = control;
+  sm[6] = 0x01;  // enabled
+  write_register(station, static_cast<std::uint16_t>(reg::kSyncManager0 + index * kSyncManagerBytes), sm.data(),
+                 kSyncManagerBytes, "sync manager");
+}
+
+void Master::configure_fmmu(std::uint16_t station, std::uint8_t index, std::uint32_t logical, std::uint16_t length,
+                            std::uint16_t physical, bool write) {
+  std::array<std::uint8_t, kFmmuBytes> fmmu{};
+  put_le32(fmmu.data(), logical);
+  put_le16(fmmu.data() + 4, length);
+  fmmu[7] = 7;  // the logical end bit: whole bytes
+  put_le16(fmmu.data() + 8, physical);
+  fmmu[11] = write ? 0x02 : 0x01;
+  fmmu[12] = 0x01;  // active
+  write_register(station, static_cast<std::uint16_t>(reg::kFmmu0 + index * kFmmuBytes), fmmu.data(), kFmmuBytes,
+                 "FMMU");
+}
+
+StateResult Master::read_state(std::uint16_t station) {
+  std::array<std::uint8_t, 6> status{};  // AL status, reserved, AL status code
+  read_register(station, reg::kAlStatus, status.data(), 6, "AL status");
+  StateResult r;
+  r.state = static_cast<AlState>(status[0] & 0x0F);
+  r.code = (status[0] & kAlErrorIndicator) != 0 ? static_cast<std::uint16_t>(status[4] | (status[5] << 8)) : 0;
+  return r;
+}
+
+StateResult Master::request_state(std::uint16_t station, AlState state) {
+  std::array<std::uint8_t, 2> control{static_cast<std::uint8_t>(state), 0};
+  write_register(station, reg::kAlControl, control.data(), 2, "AL control");
+  const std::int64_t deadline = now_ns() + params_.state_timeout_ns;
+  for (;;) {
+    StateResult r = read_state(station);
+    if (r.code != 0) {
+      // Refused: acknowledge the error in the state it stayed in, so the next request is heard.
+      std::array<std::uint8_t, 2> ack{static_cast<std::uint8_t>(static_cast<std::uint8_t>(r.state) | kAlErrorIndicator),
+                                      0};
+      write_register(station, reg::kAlControl, ack.data(), 2, "AL control (acknowledge)");
+      return r;
+    }
+    if (r.state == state) {
+      r.reached = true;
+      return r;
+    }
+    if (now_ns() >= deadline) return r;
+  }
+}
+
+}  // namespace pmlsm::ethercat

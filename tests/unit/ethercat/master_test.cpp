@@ -1,0 +1,194 @@
+// Our master against virtual slave controllers (pmlsm/ethercat/master.hpp, esc.hpp) on a virtual
+// segment in this thread: the bus scanned and addressed by position, each slave's identity read
+// from its SII through the EEPROM interface, the AL state walk with every refusal the standard
+// names, logical process data through FMMUs with its working counter, and, where the shared
+// captures are there, a real Kollmorgen AKD's SII image read as the AKD reports itself.
+#include "pmlsm/ethercat/master.hpp"
+
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pmlsm/ethercat/esc.hpp"
+
+namespace pmlsm::ethercat {
+namespace {
+
+constexpr std::uint8_t kMailboxWrite = 0x26;  ///< SM0 as masters set it: mailbox, the master writes, IRQ
+constexpr std::uint8_t kMailboxRead = 0x22;   ///< SM1: mailbox, the master reads, IRQ
+constexpr std::uint8_t kOutputs = 0x64;       ///< SM2: buffered, the master writes, watchdog
+constexpr std::uint8_t kInputs = 0x20;        ///< SM3: buffered, the master reads
+
+/// An SII image: identity, a standard mailbox at 0x1000 and 0x1080 (128 bytes each, CoE), and
+/// the end of the categories.
+std::vector<std::uint16_t> sii_image(std::uint32_t vendor, std::uint32_t product, std::uint32_t serial) {
+  std::vector<std::uint16_t> w(sii::kMinWords, 0);
+  const auto put = [&](std::uint16_t at, std::uint32_t v) {
+    w[at] = static_cast<std::uint16_t>(v & 0xFFFF);
+    w[at + 1] = static_cast<std::uint16_t>(v >> 16);
+  };
+  put(sii::kVendorId, vendor);
+  put(sii::kProductCode, product);
+  put(sii::kRevision, 0x00020001);
+  put(sii::kSerial, serial);
+  w[sii::kMailboxReceiveOffset] = 0x1000;
+  w[sii::kMailboxReceiveSize] = 128;
+  w[sii::kMailboxSendOffset] = 0x1080;
+  w[sii::kMailboxSendSize] = 128;
+  w[sii::kMailboxProtocols] = 0x0004;
+  w[sii::kFirstCategory] = 0xFFFF;
+  return w;
+}
+
+/// Three slaves on a segment the master reaches in this thread.
+struct Bus {
+  std::vector<std::unique_ptr<Esc>> slaves;
+  std::unique_ptr<VirtualSegment> segment;
+  std::unique_ptr<VirtualSegmentLink> link;
+  Bus() {
+    std::vector<Esc*> line;
+    for (std::uint32_t i = 0; i < 3; ++i) {
+      EscParams p;
+      p.sii = sii_image(0x0000006A + i, 0x00414B44 + i, 1000 + i);
+      p.output_bytes = 4;
+      p.input_bytes = 6;
+      slaves.push_back(std::make_unique<Esc>(p));
+      line.push_back(slaves.back().get());
+    }
+    segment = std::make_unique<VirtualSegment>(line);
+    link = std::make_unique<VirtualSegmentLink>(*segment);
+  }
+};
+
+TEST(EtherCatMaster, ScansTheBusAddressesItByPositionAndReadsEachSlavesIdentity) {
+  Bus bus;
+  Master master(*bus.link);
+  ASSERT_EQ(master.count_slaves(), 3);
+  const std::vector<std::uint16_t> stations = master.assign_station_addresses(3);
+  ASSERT_EQ(stations, (std::vector<std::uint16_t>{0x1001, 0x1002, 0x1003}));
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(bus.slaves[i]->station_address(), stations[i]);
+    const SlaveInfo info = master.read_slave_info(stations[i]);
+    EXPECT_EQ(info.vendor_id, 0x0000006AU + i);
+    EXPECT_EQ(info.product_code, 0x00414B44U + i);
+    EXPECT_EQ(info.revision, 0x00020001U);
+    EXPECT_EQ(info.serial, 1000U + i);
+    EXPECT_EQ(info.mailbox_receive_offset, 0x1000);
+    EXPECT_EQ(info.mailbox_send_size, 128);
+    EXPECT_EQ(info.mailbox_protocols, 0x0004);
+  }
+  // An odd number of words from the end category (type 0xFFFF, size 0) on, past the image (an
+  // erased EEPROM reads 0xFFFF).
+  const std::vector<std::uint16_t> tail = master.read_sii(0x1002, sii::kFirstCategory, 5);
+  EXPECT_EQ(tail, (std::vector<std::uint16_t>{0xFFFF, 0, 0xFFFF, 0xFFFF, 0xFFFF}));
+  EXPECT_EQ(master.frames_lost(), 0u);
+}
+
+TEST(EtherCatMaster, WalksTheAlStatesAndReadsEachRefusalByName) {
+  Bus bus;
+  Master master(*bus.link);
+  master.assign_station_addresses(3);
+  const std::uint16_t s = 0x1001;
+  // Without its mailbox sync managers a slave stays in INIT.
+  StateResult r = master.request_state(s, AlState::kPreOp);
+  EXPECT_FALSE(r.reached);
+  EXPECT_EQ(r.state, AlState::kInit);
+  EXPECT_EQ(r.code, al_code::kInvalidMailboxConfiguration);
+  EXPECT_EQ(r.describe(), "INIT, refused: 0x0016 invalid mailbox configuration");
+  // A mailbox of the wrong size is refused too.
+  master.configure_sync_manager(s, 0, 0x1000, 64, kMailboxWrite);
+  master.configure_sync_manager(s, 1, 0x1080, 128, kMailboxRead);
+  EXPECT_EQ(master.request_state(s, AlState::kPreOp).code, al_code::kInvalidMailboxConfiguration);
+  master.configure_sync_manager(s, 0, 0x1000, 128, kMailboxWrite);
+  r = master.request_state(s, AlState::kPreOp);
+  EXPECT_TRUE(r.reached) << r.describe();
+  EXPECT_EQ(bus.slaves[0]->al_state(), AlState::kPreOp);
+  // OP straight from PREOP: an invalid change.
+  EXPECT_EQ(master.request_state(s, AlState::kOp).code, al_code::kInvalidStateChange);
+  // SAFEOP needs the process data's sync managers at the mapping's lengths: outputs, then inputs.
+  EXPECT_EQ(master.request_state(s, AlState::kSafeOp).code, al_code::kInvalidOutputConfiguration);
+  master.configure_sync_manager(s, 2, 0x1100, 4, kOutputs);
+  EXPECT_EQ(master.request_state(s, AlState::kSafeOp).code, al_code::kInvalidInputConfiguration);
+  master.configure_sync_manager(s, 3, 0x1180, 6, kInputs);
+  EXPECT_TRUE(master.request_state(s, AlState::kSafeOp).reached);
+  EXPECT_TRUE(master.request_state(s, AlState::kOp).reached);
+  EXPECT_EQ(bus.slaves[0]->al_state(), AlState::kOp);
+  EXPECT_EQ(bus.slaves[0]->al_status_code(), 0) << "every refusal was acknowledged";
+  EXPECT_EQ(master.request_state(s, AlState::kBoot).code, al_code::kBootstrapNotSupported);
+  EXPECT_TRUE(master.request_state(s, AlState::kInit).reached);
+  // The other slaves were not touched.
+  EXPECT_EQ(bus.slaves[1]->al_state(), AlState::kInit);
+  EXPECT_STREQ(al_status_code_name(0x001B), "sync manager watchdog");
+  EXPECT_STREQ(al_status_code_name(0x7777), "unknown AL status code");
+}
+
+TEST(EtherCatMaster, ProcessDataCrossesTheFmmusWithTheWorkingCounterOfEverySlave) {
+  Bus bus;
+  Master master(*bus.link);
+  master.assign_station_addresses(3);
+  // One logical image: each slave's 4 output bytes at 0x10000 + 10 i, its 6 input bytes after them.
+  for (std::uint16_t i = 0; i < 3; ++i) {
+    const auto station = static_cast<std::uint16_t>(0x1001 + i);
+    master.configure_fmmu(station, 0, 0x10000U + 10U * i, 4, 0x1100, true);
+    master.configure_fmmu(station, 1, 0x10000U + 10U * i + 4, 6, 0x1180, false);
+    const std::array<std::uint8_t, 6> inputs{static_cast<std::uint8_t>(0xA0 + i), 1, 2, 3, 4, 5};
+    bus.slaves[i]->write_memory(0x1180, inputs.data(), inputs.size());
+  }
+  std::array<std::uint8_t, 30> image{};
+  for (std::size_t i = 0; i < 3; ++i) image[10 * i] = static_cast<std::uint8_t>(0x10 + i);
+  const Reply r = master.exchange(Command::kLrw, 0x10000, image.data(), image.size());
+  ASSERT_TRUE(r.answered);
+  EXPECT_EQ(r.working_counter, expected_working_counter(Command::kLrw, 3));
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(bus.slaves[i]->byte_at(0x1100), 0x10 + i) << "slave " << i << "'s outputs";
+    EXPECT_EQ(image[10 * i + 4], 0xA0 + i) << "slave " << i << "'s inputs";
+    EXPECT_EQ(image[10 * i + 9], 5);
+  }
+  // A logical read of outputs only: nobody maps a read there.
+  std::array<std::uint8_t, 4> outputs{};
+  EXPECT_EQ(master.exchange(Command::kLrd, 0x10000, outputs.data(), 4).working_counter, 0);
+  // A slave past the bus: no answer, no throw from exchange; the set-up step names it.
+  EXPECT_EQ(master.count_slaves(), 3);
+  EXPECT_THROW(master.read_state(0x1009), std::runtime_error);
+}
+
+TEST(EtherCatMaster, ReadsARealAkdsSiiImageAsTheDriveReportsItself) {
+  const std::filesystem::path image =
+      std::filesystem::path(PMLSM_SOURCE_DIR) / ".." / "shared" / "ethercat" / "captures" / "akd.hex";
+  if (!std::filesystem::exists(image)) GTEST_SKIP() << "no " << image << " (the shared EtherCAT captures)";
+  std::ifstream in(image, std::ios::binary);
+  const std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_EQ(bytes.size() % 2, 0u);
+  EscParams p;
+  for (std::size_t i = 0; i + 1 < bytes.size(); i += 2) {
+    p.sii.push_back(static_cast<std::uint16_t>(static_cast<std::uint8_t>(bytes[i]) |
+                                               (static_cast<std::uint8_t>(bytes[i + 1]) << 8)));
+  }
+  Esc akd(p);
+  VirtualSegment segment({&akd});
+  VirtualSegmentLink link(segment);
+  Master master(link);
+  ASSERT_EQ(master.count_slaves(), 1);
+  master.assign_station_addresses(1);
+  const SlaveInfo info = master.read_slave_info(0x1001);
+  // Kollmorgen's vendor ID and the AKD's product code ("AKD" in ASCII), as its SII holds them.
+  EXPECT_EQ(info.vendor_id, 0x0000006AU);
+  EXPECT_EQ(info.product_code, 0x00414B44U);
+  EXPECT_EQ(info.revision, 2U);
+  EXPECT_EQ(info.mailbox_receive_offset, 0x1800);
+  EXPECT_EQ(info.mailbox_receive_size, 0x0400);
+  EXPECT_EQ(info.mailbox_send_offset, 0x1C00);
+  EXPECT_EQ(info.mailbox_protocols & 0x0004, 0x0004) << "CoE";
+}
+
+}  // namespace
+}  // namespace pmlsm::ethercat
