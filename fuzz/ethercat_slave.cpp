@@ -1,6 +1,7 @@
-// A virtual EtherCAT slave (Esc on a VirtualSegment) fed frames as a master on the wire may send
-// them: any datagram at any register, SII commands, AL requests and logical addresses through
-// whatever FMMUs earlier datagrams of the same input set up. The slave never reads or writes past
+// A virtual EtherCAT slave (Esc on a VirtualSegment, CoE answered from a CiA 402 dictionary) fed
+// frames as a master on the wire may send them: any datagram at any register, SII commands, AL
+// requests, mailbox messages, and logical addresses through whatever FMMUs and sync managers
+// earlier datagrams of the same input set up. The slave never reads or writes past
 // its memory or the frame, and its AL state stays one of the standard's.
 #include <array>
 #include <cstdlib>
@@ -8,7 +9,9 @@
 #include <vector>
 
 #include "fuzz_support.hpp"
+#include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/ethercat/esc.hpp"
+#include "pmlsm/ethercat/mailbox.hpp"
 
 namespace pmlsm::fuzz::ethercat_slave {
 
@@ -21,6 +24,9 @@ int fuzz_one(const std::uint8_t* data, std::size_t size) {
   params.output_bytes = 4;
   params.input_bytes = 4;
   Esc slave(params);
+  static canopen::ObjectDictionary dictionary = canopen::make_cia402_dictionary(canopen::NodeId(1));
+  CoeSdoServer coe(dictionary, canopen::NodeId(1));
+  slave.set_mailbox_handler(&coe);
   VirtualSegment segment({&slave});
   // The input as a series of frames: a 2-byte length, then that many bytes.
   std::array<std::uint8_t, kMaxEthernetFrameBytes> frame{};

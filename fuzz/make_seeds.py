@@ -261,5 +261,10 @@ put("ethercat_slave", "bring_up.bin", framed(
                 ecat_datagram(5, 3, 0x08081001, [0x80, 0x10, 0x80, 0, 0x22, 0, 1, 0], False)]),
     ecat_frame([ecat_datagram(5, 4, 0x01201001, [2, 0], False)]),
     ecat_frame([ecat_datagram(5, 5, 0x05021001, [0, 1, 8, 0, 0, 0], True),
-                ecat_datagram(4, 6, 0x05081001, [0] * 8, False)])))
+                ecat_datagram(4, 6, 0x05081001, [0] * 8, False)]),
+    # An SDO upload of 0x1000 over CoE into the receive mailbox, then the send mailbox read.
+    ecat_frame([ecat_datagram(5, 7, 0x10001001, list(struct.pack("<HHBB", 10, 0, 0, 0x13)) +
+                              list(struct.pack("<H", 0x2000)) + [0x40, 0x00, 0x10, 0, 0, 0, 0, 0] + [0] * 112,
+                              False)]),
+    ecat_frame([ecat_datagram(4, 8, 0x10801001, [0] * 128, False)])))
 print("seeds written under", corpus)

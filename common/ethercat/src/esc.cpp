@@ -178,7 +178,9 @@ void Esc::physical(const DatagramHeader& header, std::uint8_t* data, std::uint16
   if (!is_addressed) return;
   const bool broadcast = c == Command::kBrd || c == Command::kBrw;
   if (is_read(c)) {
+    if (send_mailbox_empty_for(offset, header.length)) return;
     read_into(offset, data, header.length, broadcast);
+    after_read(offset, header.length);
     working_counter = static_cast<std::uint16_t>(working_counter + 1);
   } else if (is_write(c)) {
     write_from(offset, data, header.length);
@@ -254,6 +256,54 @@ void Esc::after_write(std::uint16_t address, std::size_t size) {
   const auto covers = [&](std::uint16_t reg_address) { return address <= reg_address && reg_address < address + size; };
   if (covers(reg::kAlControl)) request_state(memory_[reg::kAlControl]);
   if (covers(reg::kSiiControl) || covers(reg::kSiiControl + 1)) sii_command();
+  const MailboxArea receive = mailbox_area(0);
+  if (receive.active && covers(static_cast<std::uint16_t>(receive.start + receive.length - 1))) mailbox_received();
+}
+
+Esc::MailboxArea Esc::mailbox_area(std::size_t index) const {
+  const auto at = static_cast<std::uint16_t>(reg::kSyncManager0 + index * kSyncManagerBytes);
+  MailboxArea area;
+  area.start = word_at(at);
+  area.length = word_at(static_cast<std::uint16_t>(at + 2));
+  // A mailbox lies in process RAM: one set over the registers is no mailbox.
+  area.active = (memory_[at + 4] & kSmModeMask) == kSmModeMailbox && (memory_[at + 6] & kSmEnable) != 0 &&
+                area.length > 0 && area.start >= reg::kProcessRam &&
+                static_cast<std::size_t>(area.start) + area.length <= kMemoryBytes;
+  return area;
+}
+
+void Esc::set_sync_manager_full(std::size_t index, bool full) {
+  constexpr std::uint8_t kMailboxFull = 0x08;  // SM status bit 3
+  std::uint8_t& status = memory_[reg::kSyncManager0 + index * kSyncManagerBytes + 5];
+  status = static_cast<std::uint8_t>(full ? (status | kMailboxFull) : (status & ~kMailboxFull));
+}
+
+bool Esc::send_mailbox_empty_for(std::uint16_t address, std::uint16_t length) const {
+  const MailboxArea send = mailbox_area(1);
+  const bool overlaps = send.active && address < send.start + send.length && send.start < address + length;
+  return overlaps && (memory_[reg::kSyncManager0 + kSyncManagerBytes + 5] & 0x08) == 0;
+}
+
+void Esc::after_read(std::uint16_t address, std::uint16_t length) {
+  const MailboxArea send = mailbox_area(1);
+  const std::uint32_t last = send.start + send.length - 1U;
+  if (send.active && address <= last && last < static_cast<std::uint32_t>(address) + length) {
+    set_sync_manager_full(1, false);
+  }
+}
+
+void Esc::mailbox_received() {
+  const MailboxArea receive = mailbox_area(0);
+  const MailboxArea send = mailbox_area(1);
+  if (mailbox_handler_ == nullptr || !send.active) return;  // taken, nothing to answer with
+  std::array<std::uint8_t, kMaxDatagramDataBytes> answer{};
+  const std::size_t size =
+      mailbox_handler_->handle(memory_.data() + receive.start, receive.length, answer.data(), send.length);
+  if (size == 0) return;
+  std::fill(memory_.begin() + send.start, memory_.begin() + send.start + send.length, 0);
+  std::copy(answer.begin(), answer.begin() + static_cast<std::ptrdiff_t>(std::min<std::size_t>(size, send.length)),
+            memory_.begin() + send.start);
+  set_sync_manager_full(1, true);
 }
 
 void Esc::refuse(std::uint16_t code) {

@@ -6,6 +6,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "pmlsm/canopen/sdo.hpp"
+#include "pmlsm/ethercat/mailbox.hpp"
 #include "pmlsm/util/little_endian.hpp"
 
 namespace pmlsm::ethercat {
@@ -38,6 +40,11 @@ void MasterParams::validate() const {
   if (first_station_address == 0) throw std::invalid_argument("first_station_address: must not be 0 (no address)");
   if (state_timeout_ns <= 0)
     throw std::invalid_argument("state_timeout_ns: must be > 0, got " + std::to_string(state_timeout_ns));
+}
+
+std::string SdoResult::describe() const {
+  if (done) return hex(value, 2 * (size == 0 ? 4 : size));
+  return "aborted: " + hex(abort_code, 8) + " " + canopen::describe(abort_code);
 }
 
 std::string StateResult::describe() const {
@@ -222,6 +229,71 @@ StateResult Master::request_state(std::uint16_t station, AlState state) {
     }
     if (now_ns() >= deadline) return r;
   }
+}
+
+SdoResult Master::sdo_transfer(const SlaveInfo& slave, const std::array<std::uint8_t, 8>& request) {
+  const std::uint16_t station = slave.station_address;
+  if (slave.mailbox_receive_size < kMailboxHeaderBytes + kCoeHeaderBytes + kSdoBytes ||
+      slave.mailbox_receive_size > kMaxDatagramDataBytes || slave.mailbox_send_size > kMaxDatagramDataBytes) {
+    throw std::runtime_error(slave_name(station) + ": no mailbox for CoE (receive " +
+                             std::to_string(slave.mailbox_receive_size) + " bytes, send " +
+                             std::to_string(slave.mailbox_send_size) + ")");
+  }
+  std::array<std::uint8_t, kMaxDatagramDataBytes> mailbox{};
+  mailbox_counter_ = static_cast<std::uint8_t>(mailbox_counter_ % 7 + 1);
+  write_coe_sdo(mailbox.data(), mailbox_counter_, kCoeServiceSdoRequest, request);
+  // The whole receive mailbox: the slave takes a message when its last byte is written.
+  write_register(station, slave.mailbox_receive_offset, mailbox.data(), slave.mailbox_receive_size, "receive mailbox");
+  // The answer: SM1's status says when the send mailbox is full; then the whole of it is read.
+  const auto sm1_status = static_cast<std::uint16_t>(reg::kSyncManager0 + kSyncManagerBytes + 5);
+  const std::int64_t deadline = now_ns() + params_.state_timeout_ns;
+  for (std::array<std::uint8_t, 1> status{};;) {
+    read_register(station, sm1_status, status.data(), 1, "send mailbox status");
+    if ((status[0] & 0x08) != 0) break;
+    if (now_ns() >= deadline) throw std::runtime_error(slave_name(station) + ": no answer in the send mailbox");
+  }
+  read_register(station, slave.mailbox_send_offset, mailbox.data(), slave.mailbox_send_size, "send mailbox");
+  MailboxHeader header;
+  std::uint8_t service = 0;
+  SdoBytes answer{};
+  const MailboxError error = parse_coe_sdo(mailbox.data(), slave.mailbox_send_size, header, service, answer);
+  if (error != MailboxError::kNone || service != kCoeServiceSdoResponse) {
+    throw std::runtime_error(slave_name(station) + ": the send mailbox held no SDO response (" +
+                             (error != MailboxError::kNone ? to_string(error) : "another service") + ")");
+  }
+  canopen::CanFrame frame{};
+  frame.id = canopen::sdo_tx_cob_id(canopen::NodeId(1));
+  frame.dlc = 8;
+  std::copy(answer.begin(), answer.end(), frame.data.begin());
+  const canopen::Result<canopen::SdoResponse> parsed = canopen::parse_sdo_response(frame);
+  if (!parsed) {
+    throw std::runtime_error(slave_name(station) + ": an SDO response not understood: " +
+                             canopen::to_string(parsed.error) + " (" + parsed.detail + ")");
+  }
+  SdoResult r;
+  const canopen::SdoResponse& response = parsed.value;
+  r.done = response.kind != canopen::SdoResponseKind::kAbort;
+  r.abort_code = response.abort_code;
+  r.value = response.data.data;
+  r.size = response.data.size;
+  return r;
+}
+
+SdoResult Master::sdo_upload(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex) {
+  const canopen::CanFrame request = canopen::sdo_upload_request(canopen::NodeId(1), index, subindex);
+  std::array<std::uint8_t, 8> bytes{};
+  std::copy(request.data.begin(), request.data.end(), bytes.begin());
+  return sdo_transfer(slave, bytes);
+}
+
+SdoResult Master::sdo_download(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex, std::uint32_t value,
+                               std::uint8_t size) {
+  const canopen::Result<canopen::CanFrame> request =
+      canopen::sdo_download_request(canopen::NodeId(1), index, subindex, value, size);
+  if (!request) throw std::invalid_argument("sdo_download: size must be 1 to 4, got " + std::to_string(size));
+  std::array<std::uint8_t, 8> bytes{};
+  std::copy(request.value.data.begin(), request.value.data.end(), bytes.begin());
+  return sdo_transfer(slave, bytes);
 }
 
 }  // namespace pmlsm::ethercat

@@ -18,7 +18,9 @@
 #include <string>
 #include <vector>
 
+#include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/ethercat/esc.hpp"
+#include "pmlsm/ethercat/mailbox.hpp"
 
 namespace pmlsm::ethercat {
 namespace {
@@ -159,6 +161,52 @@ TEST(EtherCatMaster, ProcessDataCrossesTheFmmusWithTheWorkingCounterOfEverySlave
   // A slave past the bus: no answer, no throw from exchange; the set-up step names it.
   EXPECT_EQ(master.count_slaves(), 3);
   EXPECT_THROW(master.read_state(0x1009), std::runtime_error);
+}
+
+TEST(EtherCatMaster, ReadsAndWritesTheCia402DictionaryOverCoeAsCanopenServesIt) {
+  EscParams p;
+  p.sii = sii_image(0x0000006A, 0x00414B44, 77);
+  Esc slave(p);
+  canopen::Cia402DictionaryConfig config;
+  config.vendor_id = 0x0000006A;
+  canopen::ObjectDictionary dictionary = canopen::make_cia402_dictionary(canopen::NodeId(1), config);
+  CoeSdoServer coe(dictionary, canopen::NodeId(1));
+  slave.set_mailbox_handler(&coe);
+  VirtualSegment segment({&slave});
+  VirtualSegmentLink link(segment);
+  Master master(link);
+  master.assign_station_addresses(1);
+  const SlaveInfo info = master.read_slave_info(0x1001);
+  master.configure_sync_manager(0x1001, 0, info.mailbox_receive_offset, info.mailbox_receive_size, kMailboxWrite);
+  master.configure_sync_manager(0x1001, 1, info.mailbox_send_offset, info.mailbox_send_size, kMailboxRead);
+  ASSERT_TRUE(master.request_state(0x1001, AlState::kPreOp).reached);
+  // An empty send mailbox is not read: working counter 0.
+  std::array<std::uint8_t, 128> empty{};
+  EXPECT_EQ(master.exchange(Command::kFprd, physical_address(0x1001, 0x1080), empty.data(), 128).working_counter, 0);
+
+  SdoResult r = master.sdo_upload(info, canopen::kObjectDeviceType, 0);
+  ASSERT_TRUE(r.done) << r.describe();
+  EXPECT_EQ(r.value, canopen::kDeviceTypeCia402Servo);
+  EXPECT_EQ(r.describe(), "0x00020192");
+  r = master.sdo_upload(info, canopen::kObjectIdentity, 1);
+  EXPECT_EQ(r.value, 0x0000006AU);
+  // Cyclic synchronous torque chosen over CoE, read back, and seen by the drive's own dictionary.
+  r = master.sdo_download(info, 0x6060, 0, static_cast<std::uint8_t>(canopen::kModeCyclicSynchronousTorque), 1);
+  ASSERT_TRUE(r.done) << r.describe();
+  EXPECT_EQ(master.sdo_upload(info, 0x6060, 0).value, 10u);
+  // CiA 301's aborts, named.
+  r = master.sdo_upload(info, 0x7777, 0);
+  EXPECT_FALSE(r.done);
+  EXPECT_EQ(r.abort_code, 0x06020000u);
+  EXPECT_NE(r.describe().find("aborted: 0x06020000"), std::string::npos) << r.describe();
+  r = master.sdo_download(info, canopen::kObjectDeviceType, 0, 1, 4);
+  EXPECT_EQ(r.abort_code, 0x06010002u) << r.describe();  // read only
+  EXPECT_EQ(coe.requests(), 6u);
+  EXPECT_THROW(master.sdo_download(info, 0x6060, 0, 1, 5), std::invalid_argument);
+  // A slave without a mailbox has no CoE.
+  SlaveInfo no_mailbox = info;
+  no_mailbox.mailbox_receive_size = 0;
+  EXPECT_THROW(master.sdo_upload(no_mailbox, 0x1000, 0), std::runtime_error);
 }
 
 TEST(EtherCatMaster, ReadsARealAkdsSiiImageAsTheDriveReportsItself) {

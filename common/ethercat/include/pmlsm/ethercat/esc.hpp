@@ -11,7 +11,10 @@
 //     (1 read, 1 write, 3 read-write);
 //   - writing AL control (0x0120) asks for an AL state: the state machine below answers in AL
 //     status (0x0130) and, refused, with the error indicator and an AL status code (0x0134);
-//   - the SII EEPROM interface (0x0502-0x050F) reads its SII image 8 bytes at a time.
+//   - the SII EEPROM interface (0x0502-0x050F) reads its SII image 8 bytes at a time;
+//   - a message written to the end of its receive mailbox (SM0) goes to its mailbox handler, and
+//     the answer waits in its send mailbox (SM1, status "full") until the master has read it to its
+//     last byte; reading an empty send mailbox is not done (working counter unchanged).
 //
 // The AL state machine (ETG.1000.6): INIT -> PREOP needs the mailbox sync managers (SM0, SM1) set
 // as the SII declares them; PREOP -> SAFEOP needs the process-data sync managers (SM2 outputs, SM3
@@ -30,6 +33,7 @@
 
 #include "pmlsm/ethercat/frame.hpp"
 #include "pmlsm/ethercat/link.hpp"
+#include "pmlsm/ethercat/mailbox.hpp"
 
 namespace pmlsm::ethercat {
 
@@ -130,6 +134,10 @@ class Esc {
   std::uint32_t long_at(std::uint16_t address) const;
   /// The application writes process RAM (inputs) or a register it owns.
   void write_memory(std::uint16_t address, const std::uint8_t* bytes, std::size_t size);
+  /// What answers the messages the master writes into its receive mailbox (SM0), into its send
+  /// mailbox (SM1); nullptr: none (a message is taken and nothing answered). `handler` outlives
+  /// the ESC.
+  void set_mailbox_handler(MailboxHandler* handler) { mailbox_handler_ = handler; }
 
  private:
   bool addressed(const DatagramHeader& header) const;
@@ -145,8 +153,23 @@ class Esc {
   bool sync_manager_is(std::size_t index, std::uint16_t start, std::uint16_t length, std::uint8_t control) const;
   bool sync_manager_active_with(std::size_t index, std::uint16_t length) const;
 
+  /// Sync manager `index` as a mailbox: its area, whether it is one and enabled.
+  struct MailboxArea {
+    bool active = false;
+    std::uint16_t start = 0;
+    std::uint16_t length = 0;
+  };
+  MailboxArea mailbox_area(std::size_t index) const;
+  /// A read of `length` bytes at `address` that the send mailbox holds back (empty): not done.
+  bool send_mailbox_empty_for(std::uint16_t address, std::uint16_t length) const;
+  /// After a read: the send mailbox read to its last byte is empty again.
+  void after_read(std::uint16_t address, std::uint16_t length);
+  void mailbox_received();
+  void set_sync_manager_full(std::size_t index, bool full);
+
   EscParams params_;
   std::vector<std::uint8_t> memory_;
+  MailboxHandler* mailbox_handler_ = nullptr;
 };
 
 /// A line of virtual slaves in one process: a frame passes each in order and comes back, as on a
