@@ -10,6 +10,10 @@
 #include <iterator>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <csignal>
+
+#include <unistd.h>
 #include <map>
 #include <optional>
 #include <sstream>
@@ -974,6 +978,171 @@ TEST(Ros2Node, AnIndependentRos2NodeGetsEveryTickAndNodeOfSeparateProcesses) {
 // only the first of its five participants and got no sample).
 TEST(Ros2Node, AnIndependentRos2NodeGetsEveryTickAndNodeOfAComposedChain) {
   expect_a_ros2_node_gets_every_tick_and_node(test_domain(108), "true");
+}
+
+}  // namespace
+}  // namespace pmlsm
+
+namespace pmlsm {
+namespace {
+
+// `pmlsm ethercat` against `pmlsm ethercat serve`, two processes: over UDP on loopback always, and
+// on raw Ethernet across a veth pair between two network namespaces the test makes (root only).
+
+/// The port `serve` printed ("... on UDP port N"), 0 when it printed none.
+int served_port(const std::string& output) {
+  const std::size_t at = output.find("UDP port ");
+  return at == std::string::npos ? 0 : std::atoi(output.c_str() + at + 9);
+}
+
+TEST(Ethercat, AVirtualSlaveOverUdpIsScannedWalkedAndReadOverCoe) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "ethercat_udp");
+  test::ChildProcess slave({bin("pmlsm"), "ethercat", "serve", "--udp-port", "0", "--seconds", "120"},
+                           (dir / "serve.log").string());
+  ASSERT_TRUE(slave.wait_for_output("UDP port", kRunTimeout)) << slave.output();
+  const std::string peer = "127.0.0.1:" + std::to_string(served_port(slave.output()));
+  const auto ethercat = [&](std::vector<std::string> args, const std::string& log) {
+    args.insert(args.begin(), {bin("pmlsm"), "ethercat", "--udp", peer});
+    test::ChildProcess p(args, (dir / log).string());
+    const int code = run_to_end(p);
+    return std::make_pair(code, p.output());
+  };
+  const std::string capture = (dir / "scan.pcapng").string();
+  auto [code, text] = ethercat({"--capture", capture, "scan"}, "scan.log");
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("1 slaves"), std::string::npos) << text;
+  EXPECT_NE(text.find("0x1001  0x00000000 0x00005001"), std::string::npos) << text;
+  EXPECT_NE(text.find("INIT    128/128 bytes, CoE"), std::string::npos) << text;
+  std::tie(code, text) = ethercat({"sdo", "read", "0x1001", "0x1000", "0"}, "device_type.log");
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("0x1001 0x1000:0 0x00020192"), std::string::npos) << text;
+  std::tie(code, text) = ethercat({"sdo", "write", "0x1001", "0x6060", "0", "10", "--size", "1"}, "mode.log");
+  EXPECT_EQ(code, 0) << text;
+  std::tie(code, text) = ethercat({"sdo", "read", "0x1001", "0x6060", "0"}, "mode_back.log");
+  EXPECT_NE(text.find("0x6060:0 0x0A"), std::string::npos) << text;
+  std::tie(code, text) = ethercat({"sdo", "read", "0x1001", "0x7777", "0"}, "absent.log");
+  EXPECT_EQ(code, 1) << text;
+  EXPECT_NE(text.find("aborted: 0x06020000"), std::string::npos) << text;
+  std::tie(code, text) = ethercat({"state", "0x1001", "op"}, "op.log");
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("0x1001: OP"), std::string::npos) << text;
+  std::tie(code, text) = ethercat({"state", "0x1009", "op"}, "no_such.log");
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find("the bus has 1 slaves"), std::string::npos) << text;
+  std::tie(code, text) = ethercat({"state", "0x1001", "operational"}, "bad_state.log");
+  EXPECT_EQ(code, 2) << text;
+  // The capture opens in tshark with every frame an EtherCAT one (where tshark is installed).
+  if (std::system("tshark --version >/dev/null 2>&1") == 0) {
+    const std::string count = "tshark -r '" + capture + "' -Y 'ecat && !_ws.malformed' 2>/dev/null | wc -l";
+    FILE* pipe = ::popen(count.c_str(), "r");
+    ASSERT_NE(pipe, nullptr);
+    int frames = 0;
+    EXPECT_EQ(std::fscanf(pipe, "%d", &frames), 1);
+    ::pclose(pipe);
+    EXPECT_GT(frames, 10);
+  }
+  slave.signal(SIGINT);
+  const auto served = slave.wait_for(kRunTimeout);
+  ASSERT_TRUE(served.has_value());
+  EXPECT_EQ(*served, 0) << slave.output();
+  EXPECT_NE(slave.output().find("AL state OP; 4 SDO requests"), std::string::npos) << slave.output();
+  // Nobody there: exit 3, said.
+  test::ChildProcess nobody({bin("pmlsm"), "ethercat", "--udp", "127.0.0.1:9", "scan"}, (dir / "nobody.log").string());
+  EXPECT_EQ(run_to_end(nobody), 3) << nobody.output();
+  EXPECT_NE(nobody.output().find("no slave answered"), std::string::npos) << nobody.output();
+}
+
+int quiet_sh(const std::string& command) { return std::system((command + " >/dev/null 2>&1").c_str()); }
+
+/// Two network namespaces joined by a veth pair, removed again at the end.
+class VethPair {
+ public:
+  VethPair() : master_ns_("ecm" + std::to_string(getpid())), slave_ns_("ecs" + std::to_string(getpid())) {
+    ok_ = quiet_sh("ip netns add " + master_ns_) == 0 && quiet_sh("ip netns add " + slave_ns_) == 0 &&
+          quiet_sh("ip link add " + master_if() + " type veth peer name " + slave_if()) == 0 &&
+          quiet_sh("ip link set " + master_if() + " netns " + master_ns_) == 0 &&
+          quiet_sh("ip link set " + slave_if() + " netns " + slave_ns_) == 0 &&
+          quiet_sh("ip netns exec " + master_ns_ + " ip link set " + master_if() + " up") == 0 &&
+          quiet_sh("ip netns exec " + slave_ns_ + " ip link set " + slave_if() + " up") == 0;
+  }
+  ~VethPair() {
+    quiet_sh("ip netns del " + master_ns_);
+    quiet_sh("ip netns del " + slave_ns_);
+  }
+  VethPair(const VethPair&) = delete;
+  VethPair& operator=(const VethPair&) = delete;
+  bool ok() const { return ok_; }
+  std::string master_if() const { return "ecm" + std::to_string(getpid() % 100000); }
+  std::string slave_if() const { return "ecs" + std::to_string(getpid() % 100000); }
+  std::vector<std::string> in(const std::string& ns, std::vector<std::string> argv) const {
+    argv.insert(argv.begin(), {"/usr/sbin/ip", "netns", "exec", ns});
+    return argv;
+  }
+  const std::string& master_ns() const { return master_ns_; }
+  const std::string& slave_ns() const { return slave_ns_; }
+
+ private:
+  std::string master_ns_, slave_ns_;
+  bool ok_ = false;
+};
+
+TEST(Ethercat, OnRawEthernetAcrossAVethPairTheVirtualSlaveIsScannedAndTakenToOp) {
+  if (geteuid() != 0) GTEST_SKIP() << "raw sockets and network namespaces need root; not run";
+  if (quiet_sh("command -v ip") != 0) GTEST_SKIP() << "no iproute2 (ip); not run";
+  const VethPair pair;
+  if (!pair.ok()) GTEST_SKIP() << "this machine does not allow network namespaces and veth pairs; not run";
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "ethercat_raw");
+  test::ChildProcess slave(
+      pair.in(pair.slave_ns(), {bin("pmlsm"), "ethercat", "serve", "--interface", pair.slave_if(), "--seconds", "120"}),
+      (dir / "serve.log").string());
+  ASSERT_TRUE(slave.wait_for_output("serving a virtual EtherCAT slave on", kRunTimeout)) << slave.output();
+  const std::string capture = (dir / "raw.pcapng").string();
+  test::ChildProcess scan(pair.in(pair.master_ns(), {bin("pmlsm"), "ethercat", "--interface", pair.master_if(),
+                                                     "--capture", capture, "scan"}),
+                          (dir / "scan.log").string());
+  EXPECT_EQ(run_to_end(scan), 0) << scan.output();
+  EXPECT_NE(scan.output().find("0x1001  0x00000000 0x00005001"), std::string::npos) << scan.output();
+  test::ChildProcess op(
+      pair.in(pair.master_ns(), {bin("pmlsm"), "ethercat", "--interface", pair.master_if(), "state", "0x1001", "op"}),
+      (dir / "op.log").string());
+  EXPECT_EQ(run_to_end(op), 0) << op.output();
+  EXPECT_NE(op.output().find("0x1001: OP"), std::string::npos) << op.output();
+  slave.signal(SIGINT);
+  ASSERT_TRUE(slave.wait_for(kRunTimeout).has_value());
+  EXPECT_NE(slave.output().find("AL state OP"), std::string::npos) << slave.output();
+}
+
+TEST(Ethercat, SoemAnIndependentMasterFindsTheVirtualSlaveReadsItOverCoeAndTakesItToOp) {
+  if (geteuid() != 0) GTEST_SKIP() << "raw sockets and network namespaces need root; not run";
+  if (quiet_sh("command -v node") != 0) GTEST_SKIP() << "no node (scripts/install_deps.sh installs it); not run";
+  if (!fs::exists(source("tests/node/node_modules/soem-node/build/Release/soem_addon.node"))) {
+    GTEST_SKIP() << "no soem-node in tests/node (scripts/install_deps.sh installs it from npm); not run";
+  }
+  const VethPair pair;
+  if (!pair.ok()) GTEST_SKIP() << "this machine does not allow network namespaces and veth pairs; not run";
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "ethercat_soem");
+  test::ChildProcess slave(
+      pair.in(pair.slave_ns(), {bin("pmlsm"), "ethercat", "serve", "--interface", pair.slave_if(), "--seconds", "120"}),
+      (dir / "serve.log").string());
+  ASSERT_TRUE(slave.wait_for_output("serving a virtual EtherCAT slave on", kRunTimeout)) << slave.output();
+  test::ChildProcess soem(pair.in(pair.master_ns(), {"/usr/bin/env", "node", source("tests/node/soem_master.mjs"),
+                                                     pair.master_if(), "--read", "1000:0", "--read", "1018:2"}),
+                          (dir / "soem.log").string());
+  EXPECT_EQ(run_to_end(soem), 0) << soem.output();
+  const std::string out = soem.output();
+  EXPECT_NE(out.find("\"slaves\":1"), std::string::npos) << out;
+  // SOEM names a slave without a name string by its SII identity: our vendor and product code.
+  EXPECT_NE(out.find("M:00000000 I:00005001"), std::string::npos) << out;
+  EXPECT_NE(out.find("\"address\":4097"), std::string::npos) << out;  // SOEM's own station address, 0x1001
+  EXPECT_NE(out.find("\"preop\":2"), std::string::npos) << out;
+  // The CiA 402 device type and the product code, over CoE, little-endian as on the wire.
+  EXPECT_NE(out.find("\"1000:0\":\"92010200\""), std::string::npos) << out;
+  EXPECT_NE(out.find("\"1018:2\":\"01500000\""), std::string::npos) << out;
+  EXPECT_NE(out.find("\"safeop\":4"), std::string::npos) << out;
+  EXPECT_NE(out.find("\"op\":8"), std::string::npos) << out;
+  slave.signal(SIGINT);
+  ASSERT_TRUE(slave.wait_for(kRunTimeout).has_value());
+  EXPECT_NE(slave.output().find("AL state OP;"), std::string::npos) << slave.output();
 }
 
 }  // namespace

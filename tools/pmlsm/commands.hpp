@@ -81,5 +81,7 @@ void add_commission_command(CLI::App& app, dds::ParticipantOptions& dds_options,
 
 /// `pmlsm config reference|check`: the generated configuration reference, the file's checks (config_command.cpp).
 void add_config_command(CLI::App& app, int& exit_code);
+/// `pmlsm ethercat scan|state|sdo|serve` (ethercat.cpp).
+void add_ethercat_command(CLI::App& app, int& exit_code);
 
 }  // namespace pmlsm::tools

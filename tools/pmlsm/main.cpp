@@ -86,6 +86,7 @@ int main(int argc, char** argv) {
   pmlsm::tools::add_identify_command(app, exit_code);
   pmlsm::tools::add_commission_command(app, dds_options, exit_code);
   pmlsm::tools::add_config_command(app, exit_code);
+  pmlsm::tools::add_ethercat_command(app, exit_code);
 
   pmlsm::dds::install_shutdown_handlers();
   try {

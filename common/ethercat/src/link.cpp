@@ -1,7 +1,11 @@
 #include "pmlsm/ethercat/link.hpp"
 
 #include <arpa/inet.h>
+#include <linux/if_packet.h>
+#include <net/ethernet.h>
+#include <net/if.h>
 #include <netinet/in.h>
+#include <sys/ioctl.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -58,9 +62,11 @@ sockaddr_in ipv4(const std::string& address, std::uint16_t port) {
 
 UdpLink::UdpLink(const UdpLinkParams& params) {
   const sockaddr_in local = ipv4(params.local_address, params.local_port);
-  const sockaddr_in peer = ipv4(params.peer_address, params.peer_port);
-  static_assert(sizeof peer == sizeof peer_);
-  std::memcpy(peer_.data(), &peer, sizeof peer);
+  if (params.peer_port != 0) {  // else: whoever sent the last frame
+    const sockaddr_in peer = ipv4(params.peer_address, params.peer_port);
+    static_assert(sizeof peer == sizeof peer_);
+    std::memcpy(peer_.data(), &peer, sizeof peer);
+  }
   fd_ = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
   if (fd_ < 0) throw std::system_error(errno, std::generic_category(), "EtherCAT over UDP: socket");
   if (::bind(fd_, reinterpret_cast<const sockaddr*>(&local), sizeof local) != 0) {
@@ -119,6 +125,60 @@ std::size_t UdpLink::receive(std::uint8_t* buffer, std::int64_t timeout_ns) {
     buffer[12] = static_cast<std::uint8_t>(kEtherType >> 8);
     buffer[13] = static_cast<std::uint8_t>(kEtherType & 0xFFU);
     return kEthernetHeaderBytes + static_cast<std::size_t>(n);
+  }
+}
+
+RawSocketLink::RawSocketLink(const std::string& interface) {
+  const auto fail = [&](const std::string& what) {
+    const int error = errno;
+    if (fd_ >= 0) ::close(fd_);
+    throw std::system_error(error, std::generic_category(), "EtherCAT on " + interface + ": " + what);
+  };
+  if (interface.empty() || interface.size() >= IFNAMSIZ) {
+    throw std::system_error(EINVAL, std::generic_category(), "EtherCAT: not an interface name: '" + interface + "'");
+  }
+  fd_ = ::socket(AF_PACKET, SOCK_RAW | SOCK_CLOEXEC, htons(kEtherType));
+  if (fd_ < 0) fail("raw socket (needs CAP_NET_RAW)");
+  interface_index_ = static_cast<int>(::if_nametoindex(interface.c_str()));
+  if (interface_index_ == 0) fail("no such interface");
+  ifreq request{};
+  std::memcpy(request.ifr_name, interface.c_str(), interface.size());
+  if (::ioctl(fd_, SIOCGIFHWADDR, &request) != 0) fail("its address");
+  std::memcpy(mac_.data(), request.ifr_hwaddr.sa_data, mac_.size());
+  sockaddr_ll address{};
+  address.sll_family = AF_PACKET;
+  address.sll_protocol = htons(kEtherType);
+  address.sll_ifindex = interface_index_;
+  if (::bind(fd_, reinterpret_cast<const sockaddr*>(&address), sizeof address) != 0) fail("bind");
+  const int ignore = 1;  // our own frames are not the bus's answer (Linux 4.20 and later)
+  ::setsockopt(fd_, SOL_PACKET, PACKET_IGNORE_OUTGOING, &ignore, sizeof ignore);
+}
+
+RawSocketLink::~RawSocketLink() { ::close(fd_); }
+
+bool RawSocketLink::send(Bytes ethernet_frame) {
+  const ssize_t sent = ::send(fd_, ethernet_frame.data, ethernet_frame.size, MSG_DONTWAIT);
+  return sent == static_cast<ssize_t>(ethernet_frame.size);
+}
+
+std::size_t RawSocketLink::receive(std::uint8_t* buffer, std::int64_t timeout_ns) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::nanoseconds(timeout_ns);
+  for (;;) {
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    pollfd p{fd_, POLLIN, 0};
+    const int ready = ::poll(&p, 1, static_cast<int>(std::max<std::int64_t>(0, left.count() + 1)));
+    if (ready <= 0) {
+      if (ready < 0 && errno == EINTR && std::chrono::steady_clock::now() < deadline) continue;
+      return 0;
+    }
+    sockaddr_ll from{};
+    socklen_t from_size = sizeof from;
+    const ssize_t n = ::recvfrom(fd_, buffer, kMaxEthernetFrameBytes, MSG_DONTWAIT | MSG_TRUNC,
+                                 reinterpret_cast<sockaddr*>(&from), &from_size);
+    const bool ours = from.sll_pkttype == PACKET_OUTGOING;  // where PACKET_IGNORE_OUTGOING is not there
+    if (n > 0 && n <= static_cast<ssize_t>(kMaxEthernetFrameBytes) && !ours) return static_cast<std::size_t>(n);
+    if (std::chrono::steady_clock::now() >= deadline) return 0;
   }
 }
 

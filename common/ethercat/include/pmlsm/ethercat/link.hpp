@@ -102,4 +102,25 @@ class UdpLink final : public Link {
   std::uint64_t dropped_ = 0;
 };
 
+/// Raw Ethernet on an interface (Linux AF_PACKET, EtherType 0x88A4 only): the real bus. Needs
+/// CAP_NET_RAW (root, or the capability on the program: docs/ethercat.md). Frames this socket
+/// sent are not received back.
+class RawSocketLink final : public Link {
+ public:
+  /// @throws std::system_error naming the interface when it is not there or the rights are not.
+  explicit RawSocketLink(const std::string& interface);
+  ~RawSocketLink() override;
+  RawSocketLink(const RawSocketLink&) = delete;
+  RawSocketLink& operator=(const RawSocketLink&) = delete;
+  bool send(Bytes ethernet_frame) override;
+  std::size_t receive(std::uint8_t* buffer, std::int64_t timeout_ns) override;
+  /// The interface's own MAC address (a master sends from it).
+  const MacAddress& mac() const { return mac_; }
+
+ private:
+  int fd_ = -1;
+  int interface_index_ = 0;
+  MacAddress mac_{};
+};
+
 }  // namespace pmlsm::ethercat

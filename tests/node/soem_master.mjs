@@ -1,0 +1,64 @@
+#!/usr/bin/env node
+// An independent EtherCAT master judges our virtual slave: SOEM 2.0 (Simple Open EtherCAT Master,
+// through npm's soem-node; GPL, so only run here as a separate program, never linked) scans the
+// interface, reads each slave's identity from its SII, takes the bus to PREOP, reads objects
+// over CoE, maps the process data, and walks to SAFEOP and OP.
+//
+//   node soem_master.mjs INTERFACE [--read INDEX:SUB ...]
+//
+// Prints one JSON line: {"slaves":N,"identity":[{"name","vendor","product","address"}],
+// "preop":STATE,"reads":{"0x1000:0":"hex bytes" or null},"safeop":STATE,"op":STATE}. Exits 1 when
+// SOEM cannot open the interface or finds no slave; 2 on a usage error.
+
+import { createRequire } from "node:module";
+
+const require = createRequire(import.meta.url);
+const { SoemMaster } = require("soem-node");
+
+const EC_STATE_PRE_OP = 2;
+const EC_STATE_SAFE_OP = 4;
+const EC_STATE_OPERATIONAL = 8;
+const STATE_TIMEOUT_US = 2_000_000;
+
+const args = process.argv.slice(2);
+if (args.length < 1) {
+  console.error("usage: node soem_master.mjs INTERFACE [--read INDEX:SUB ...]");
+  process.exit(2);
+}
+const ifname = args[0];
+const reads = [];
+for (let i = 1; i < args.length; i += 2) {
+  if (args[i] !== "--read" || i + 1 >= args.length) {
+    console.error(`soem_master: unexpected argument ${args[i]}`);
+    process.exit(2);
+  }
+  reads.push(args[i + 1]);
+}
+
+const master = new SoemMaster(ifname);
+if (!master.init()) {
+  console.error(`soem_master: SOEM cannot open ${ifname}`);
+  process.exit(1);
+}
+const result = { slaves: master.configInit() };
+if (result.slaves <= 0) {
+  console.log(JSON.stringify(result));
+  master.close();
+  process.exit(1);
+}
+result.identity = master.getSlaves().map((s) => ({ name: s.name, address: s.configadr }));
+// SOEM sends mailbox messages only to slaves it has seen in PREOP: wait for it, read it back.
+result.preop = master.stateCheck(0, EC_STATE_PRE_OP, STATE_TIMEOUT_US);
+master.readState();
+result.reads = {};
+for (const what of reads) {
+  const [index, sub] = what.split(":").map((x) => Number.parseInt(x, 16));
+  const data = master.sdoRead(1, index, sub);
+  result.reads[what] = data ? data.toString("hex") : null;
+}
+master.configMapPDO();
+result.safeop = master.stateCheck(0, EC_STATE_SAFE_OP, STATE_TIMEOUT_US);
+master.writeState(0, EC_STATE_OPERATIONAL);
+result.op = master.stateCheck(1, EC_STATE_OPERATIONAL, STATE_TIMEOUT_US);
+master.close();
+console.log(JSON.stringify(result));

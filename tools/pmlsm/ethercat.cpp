@@ -1,0 +1,351 @@
+// `pmlsm ethercat`: our EtherCAT master on an interface (raw Ethernet) or over UDP (EtherCAT over
+// UDP, port 34980), and a virtual CiA 402 slave to try it (or another master) against:
+//   pmlsm ethercat --interface eth1 scan                    # the slaves: identity, state, mailbox
+//   pmlsm ethercat --interface eth1 state 0x1001 preop      # walk a slave's AL state
+//   pmlsm ethercat --interface eth1 sdo read 0x1001 0x6061 0
+//   pmlsm ethercat --interface eth1 sdo write 0x1001 0x6060 0 10 --size 1
+//   pmlsm ethercat serve --udp-port 34980                   # a virtual slave (or --interface)
+// Station addresses are assigned by position (0x1001 first) on every run, as a scan does.
+// --capture FILE writes every frame the master sent and got back as pcapng (Wireshark reads it).
+// Exit 0 done; 1 the bus or a slave did not answer, or refused (its AL status code named); 2 bad
+// command line; 3 no slave on the bus.
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+#include <thread>
+#include <vector>
+
+#include "commands.hpp"
+#include "pmlsm/canopen/cia402_dictionary.hpp"
+#include "pmlsm/dds/shutdown.hpp"
+#include "pmlsm/ethercat/esc.hpp"
+#include "pmlsm/ethercat/link.hpp"
+#include "pmlsm/ethercat/mailbox.hpp"
+#include "pmlsm/ethercat/master.hpp"
+#include "pmlsm/ethercat/pcapng.hpp"
+
+namespace pmlsm::tools {
+namespace {
+
+using namespace pmlsm::ethercat;
+
+constexpr std::uint8_t kMailboxWriteControl = 0x26;  ///< SM0: mailbox, the master writes, IRQ
+constexpr std::uint8_t kMailboxReadControl = 0x22;   ///< SM1: mailbox, the master reads, IRQ
+/// The virtual slave's identity: no vendor ID of ETG's list (0), the product code 0x5001.
+constexpr std::uint32_t kVirtualVendorId = 0;
+constexpr std::uint32_t kVirtualProductCode = 0x00005001;
+
+struct EthercatOptions {
+  std::string interface;
+  std::string udp;  ///< HOST:PORT
+  std::string capture;
+  std::string station;
+  std::string state;
+  std::string index;
+  std::string subindex;
+  std::string value;
+  int size = 4;
+  int udp_port = -1;  ///< serve: the UDP port (0: one the kernel picks)
+  double seconds = 0;
+  std::string sii;
+};
+
+std::uint32_t parse_number(const std::string& text, const char* what, std::uint32_t max) {
+  try {
+    std::size_t used = 0;
+    const unsigned long value = std::stoul(text, &used, 0);
+    if (used != text.size() || value > max) throw std::out_of_range(text);
+    return static_cast<std::uint32_t>(value);
+  } catch (const std::logic_error&) {
+    throw UsageError(std::string("ethercat: ") + what + ": expected a number up to " + std::to_string(max) +
+                     " (0x... for hex), got '" + text + "'");
+  }
+}
+
+AlState parse_state(const std::string& text) {
+  for (const AlState s : {AlState::kInit, AlState::kPreOp, AlState::kSafeOp, AlState::kOp}) {
+    std::string name = to_string(s);
+    for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (text == name || text == to_string(s)) return s;
+  }
+  throw UsageError("ethercat: state: expected init, preop, safeop or op, got '" + text + "'");
+}
+
+std::unique_ptr<Link> open_link(const EthercatOptions& o) {
+  if (o.interface.empty() == o.udp.empty()) {
+    throw UsageError("ethercat: give one of --interface IF (raw Ethernet) and --udp HOST:PORT (EtherCAT over UDP)");
+  }
+  try {
+    if (!o.interface.empty()) return std::make_unique<RawSocketLink>(o.interface);
+    const std::size_t colon = o.udp.rfind(':');
+    if (colon == std::string::npos) throw UsageError("ethercat: --udp: expected HOST:PORT, got '" + o.udp + "'");
+    UdpLinkParams p;
+    p.local_address = "0.0.0.0";
+    p.local_port = 0;
+    p.peer_address = o.udp.substr(0, colon);
+    p.peer_port = static_cast<std::uint16_t>(parse_number(o.udp.substr(colon + 1), "--udp port", 65535));
+    return std::make_unique<UdpLink>(p);
+  } catch (const std::system_error& e) {
+    throw UsageError(e.what());
+  }
+}
+
+/// The master on the link, capturing when asked, with the bus addressed by position.
+struct Session {
+  std::unique_ptr<Link> link;
+  std::unique_ptr<PcapngWriter> capture;
+  std::unique_ptr<Master> master;
+  std::uint16_t slaves = 0;
+
+  explicit Session(const EthercatOptions& o) : link(open_link(o)) {
+    MasterParams params;
+    params.state_timeout_ns = 2'000'000'000;
+    master = std::make_unique<Master>(*link, params);
+    if (!o.capture.empty()) {
+      try {
+        capture = std::make_unique<PcapngWriter>(o.capture);
+      } catch (const std::runtime_error& e) {
+        throw UsageError(std::string("ethercat: --capture: ") + e.what());
+      }
+      master->capture_to(capture.get());
+    }
+    slaves = master->count_slaves();
+    if (slaves > 0) master->assign_station_addresses(slaves);
+  }
+  ~Session() {
+    if (capture) capture->flush();
+  }
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+};
+
+int no_slaves() {
+  std::fprintf(stderr, "ethercat: no slave answered on the bus\n");
+  return kExitPeerMissing;
+}
+
+std::uint16_t station_of(const EthercatOptions& o, const Session& s) {
+  const auto station = static_cast<std::uint16_t>(parse_number(o.station, "station", 0xFFFF));
+  const auto first = MasterParams{}.first_station_address;
+  if (station < first || station >= first + s.slaves) {
+    throw UsageError("ethercat: station " + o.station + ": the bus has " + std::to_string(s.slaves) +
+                     " slaves, addressed 0x1001 to 0x" + [&] {
+                       char hex[8];
+                       std::snprintf(hex, sizeof hex, "%04X", static_cast<unsigned>(first + s.slaves - 1));
+                       return std::string(hex);
+                     }());
+  }
+  return station;
+}
+
+int run_scan(const EthercatOptions& o) {
+  Session s(o);
+  if (s.slaves == 0) return no_slaves();
+  std::printf("%u slaves\n", s.slaves);
+  std::printf("%-8s %-7s %-10s %-10s %-10s %-10s %-7s %s\n", "position", "station", "vendor", "product", "revision",
+              "serial", "state", "mailbox");
+  for (std::uint16_t position = 0; position < s.slaves; ++position) {
+    const auto station = static_cast<std::uint16_t>(MasterParams{}.first_station_address + position);
+    const SlaveInfo info = s.master->read_slave_info(station);
+    const StateResult state = s.master->read_state(station);
+    char mailbox[64] = "none";
+    if (info.mailbox_receive_size > 0) {
+      std::snprintf(mailbox, sizeof mailbox, "%u/%u bytes%s", info.mailbox_receive_size, info.mailbox_send_size,
+                    (info.mailbox_protocols & 0x0004) != 0 ? ", CoE" : "");
+    }
+    std::printf("%-8u 0x%04X  0x%08X 0x%08X 0x%08X 0x%08X %-7s %s\n", position, station, info.vendor_id,
+                info.product_code, info.revision, info.serial, state.describe().c_str(), mailbox);
+  }
+  return kExitOk;
+}
+
+int run_state(const EthercatOptions& o) {
+  Session s(o);
+  if (s.slaves == 0) return no_slaves();
+  const std::uint16_t station = station_of(o, s);
+  const AlState target = parse_state(o.state);
+  const SlaveInfo info = s.master->read_slave_info(station);
+  if (target != AlState::kInit && info.mailbox_receive_size > 0) {
+    // The mailbox as its SII lays it out: PREOP needs it.
+    s.master->configure_sync_manager(station, 0, info.mailbox_receive_offset, info.mailbox_receive_size,
+                                     kMailboxWriteControl);
+    s.master->configure_sync_manager(station, 1, info.mailbox_send_offset, info.mailbox_send_size, kMailboxReadControl);
+  }
+  // The standard's walk, one state at a time: INIT, PREOP, SAFEOP, OP (or down at once).
+  const AlState order[] = {AlState::kInit, AlState::kPreOp, AlState::kSafeOp, AlState::kOp};
+  StateResult r = s.master->read_state(station);
+  for (const AlState step : order) {
+    if (static_cast<int>(step) > static_cast<int>(target) && target != AlState::kInit) break;
+    if (target == AlState::kInit && step != AlState::kInit) break;
+    if (static_cast<int>(step) <= static_cast<int>(r.state) && step != target) continue;
+    r = s.master->request_state(station, step);
+    std::printf("0x%04X: %s\n", station, r.describe().c_str());
+    if (!r.reached) return kExitError;
+  }
+  return kExitOk;
+}
+
+int run_sdo(const EthercatOptions& o, bool write) {
+  Session s(o);
+  if (s.slaves == 0) return no_slaves();
+  const std::uint16_t station = station_of(o, s);
+  const auto index = static_cast<std::uint16_t>(parse_number(o.index, "index", 0xFFFF));
+  const auto subindex = static_cast<std::uint8_t>(parse_number(o.subindex, "subindex", 0xFF));
+  const SlaveInfo info = s.master->read_slave_info(station);
+  if (info.mailbox_receive_size == 0) throw UsageError("ethercat: slave " + o.station + " has no mailbox (no CoE)");
+  if (s.master->read_state(station).state == AlState::kInit) {
+    s.master->configure_sync_manager(station, 0, info.mailbox_receive_offset, info.mailbox_receive_size,
+                                     kMailboxWriteControl);
+    s.master->configure_sync_manager(station, 1, info.mailbox_send_offset, info.mailbox_send_size, kMailboxReadControl);
+    const StateResult preop = s.master->request_state(station, AlState::kPreOp);
+    if (!preop.reached) {
+      std::fprintf(stderr, "ethercat: 0x%04X: PREOP for the mailbox: %s\n", station, preop.describe().c_str());
+      return kExitError;
+    }
+  }
+  SdoResult r;
+  if (write) {
+    if (o.size < 1 || o.size > 4) throw UsageError("ethercat: --size: 1 to 4 bytes, got " + std::to_string(o.size));
+    const std::uint32_t value = parse_number(o.value, "value", 0xFFFFFFFFU);
+    r = s.master->sdo_download(info, index, subindex, value, static_cast<std::uint8_t>(o.size));
+  } else {
+    r = s.master->sdo_upload(info, index, subindex);
+  }
+  std::printf("0x%04X 0x%04X:%u %s\n", station, index, subindex, write && r.done ? "written" : r.describe().c_str());
+  return r.done ? kExitOk : kExitError;
+}
+
+std::vector<std::uint16_t> sii_from_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw UsageError("ethercat: --sii: cannot open " + path);
+  const std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (bytes.size() % 2 != 0 || bytes.size() < 2 * sii::kMinWords) {
+    throw UsageError("ethercat: --sii " + path + ": an SII image is whole words, at least " +
+                     std::to_string(2 * sii::kMinWords) + " bytes; got " + std::to_string(bytes.size()));
+  }
+  std::vector<std::uint16_t> words;
+  for (std::size_t i = 0; i < bytes.size(); i += 2) {
+    words.push_back(static_cast<std::uint16_t>(static_cast<std::uint8_t>(bytes[i]) |
+                                               (static_cast<std::uint8_t>(bytes[i + 1]) << 8)));
+  }
+  return words;
+}
+
+/// The virtual slave's own SII: its identity and a 128-byte CoE mailbox at 0x1000 and 0x1080.
+std::vector<std::uint16_t> virtual_sii() {
+  std::vector<std::uint16_t> w(sii::kMinWords, 0);
+  w[sii::kVendorId] = kVirtualVendorId & 0xFFFF;
+  w[sii::kVendorId + 1] = kVirtualVendorId >> 16;
+  w[sii::kProductCode] = kVirtualProductCode & 0xFFFF;
+  w[sii::kProductCode + 1] = kVirtualProductCode >> 16;
+  w[sii::kRevision] = 1;
+  w[sii::kMailboxReceiveOffset] = 0x1000;
+  w[sii::kMailboxReceiveSize] = 128;
+  w[sii::kMailboxSendOffset] = 0x1080;
+  w[sii::kMailboxSendSize] = 128;
+  w[sii::kMailboxProtocols] = 0x0004;  // CoE
+  w[sii::kFirstCategory] = 0xFFFF;
+  return w;
+}
+
+int run_serve(const EthercatOptions& o) {
+  EscParams params;
+  params.sii = o.sii.empty() ? virtual_sii() : sii_from_file(o.sii);
+  Esc slave(params);
+  canopen::Cia402DictionaryConfig config;
+  config.vendor_id = static_cast<std::uint32_t>(params.sii[sii::kVendorId] | (params.sii[sii::kVendorId + 1] << 16));
+  config.product_code =
+      static_cast<std::uint32_t>(params.sii[sii::kProductCode] | (params.sii[sii::kProductCode + 1] << 16));
+  canopen::ObjectDictionary dictionary = canopen::make_cia402_dictionary(canopen::NodeId(1), config);
+  CoeSdoServer coe(dictionary, canopen::NodeId(1));
+  slave.set_mailbox_handler(&coe);
+  VirtualSegment segment({&slave});
+  std::unique_ptr<Link> link;
+  try {
+    if (!o.interface.empty()) {
+      link = std::make_unique<RawSocketLink>(o.interface);
+      std::printf("serving a virtual EtherCAT slave on %s\n", o.interface.c_str());
+    } else if (o.udp_port >= 0) {
+      auto udp = std::make_unique<UdpLink>(UdpLinkParams{"0.0.0.0", static_cast<std::uint16_t>(o.udp_port), "", 0});
+      std::printf("serving a virtual EtherCAT slave on UDP port %u\n", udp->bound_port());
+      link = std::move(udp);
+    } else {
+      throw UsageError("ethercat serve: give --interface IF or --udp-port PORT");
+    }
+  } catch (const std::system_error& e) {
+    throw UsageError(e.what());
+  }
+  std::fflush(stdout);
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(o.seconds);
+  std::size_t answered = 0;
+  while (!dds::stop_requested() && (o.seconds <= 0 || std::chrono::steady_clock::now() < end)) {
+    answered += segment.serve(*link, 50'000'000);
+  }
+  std::printf("answered %zu frames; AL state %s; %llu SDO requests\n", answered, to_string(slave.al_state()),
+              static_cast<unsigned long long>(coe.requests()));
+  return kExitOk;
+}
+
+/// A set-up step's failure (no answer, a wrong working counter) as exit 1 with its message.
+int guarded(int (*run)(const EthercatOptions&), const EthercatOptions& o) {
+  try {
+    return run(o);
+  } catch (const std::runtime_error& e) {
+    if (dynamic_cast<const UsageError*>(&e) != nullptr) throw;
+    std::fprintf(stderr, "ethercat: %s\n", e.what());
+    return kExitError;
+  }
+}
+
+}  // namespace
+
+void add_ethercat_command(CLI::App& app, int& exit_code) {
+  CLI::App* cmd = app.add_subcommand("ethercat",
+                                     "EtherCAT: scan the bus, walk a slave's state, read and write "
+                                     "objects over CoE; serve a virtual CiA 402 slave");
+  cmd->require_subcommand(1);
+  auto o = std::make_shared<EthercatOptions>();
+  cmd->add_option("--interface", o->interface, "Raw Ethernet on this interface (needs CAP_NET_RAW)");
+  cmd->add_option("--udp", o->udp, "EtherCAT over UDP to HOST:PORT (a slave or `pmlsm ethercat serve`)");
+  cmd->add_option("--capture", o->capture, "Write every frame sent and received to this pcapng file");
+  const auto run = [o, &exit_code](int (*f)(const EthercatOptions&)) {
+    return [o, f, &exit_code] { exit_code = guarded(f, *o); };
+  };
+  CLI::App* scan = cmd->add_subcommand("scan", "The slaves: position, station address, identity, AL state, mailbox");
+  scan->callback(run(&run_scan));
+  CLI::App* state = cmd->add_subcommand("state", "Walk a slave to an AL state: init, preop, safeop, op");
+  state->add_option("station", o->station, "Its station address (0x1001 is the first slave)")->required();
+  state->add_option("state", o->state, "init, preop, safeop or op")->required();
+  state->callback(run(&run_state));
+  CLI::App* sdo = cmd->add_subcommand("sdo", "An object of a slave's dictionary over CoE");
+  sdo->require_subcommand(1);
+  CLI::App* read = sdo->add_subcommand("read", "Read (SDO upload)");
+  CLI::App* write = sdo->add_subcommand("write", "Write (SDO download)");
+  for (CLI::App* sub : {read, write}) {
+    sub->add_option("station", o->station, "Its station address (0x1001 is the first slave)")->required();
+    sub->add_option("index", o->index, "The object's index (0x6060)")->required();
+    sub->add_option("subindex", o->subindex, "Its sub-index")->required();
+  }
+  write->add_option("value", o->value, "The value")->required();
+  write->add_option("--size", o->size, "Its size in bytes, 1 to 4")->capture_default_str();
+  read->callback(run([](const EthercatOptions& opt) { return run_sdo(opt, false); }));
+  write->callback(run([](const EthercatOptions& opt) { return run_sdo(opt, true); }));
+  CLI::App* serve = cmd->add_subcommand(
+      "serve", "A virtual EtherCAT slave (its registers, AL states, SII and a CiA 402 dictionary over CoE)");
+  serve->add_option("--interface", o->interface, "Answer raw EtherCAT frames on this interface (CAP_NET_RAW)");
+  serve->add_option("--udp-port", o->udp_port, "Answer EtherCAT over UDP on this port (0: any, printed)");
+  serve->add_option("--seconds", o->seconds, "Stop after this long (default: at a stop signal)");
+  serve->add_option("--sii", o->sii, "An SII EEPROM image to answer with (raw words, as a drive's dump)")
+      ->check(CLI::ExistingFile);
+  serve->callback(run(&run_serve));
+}
+
+}  // namespace pmlsm::tools
