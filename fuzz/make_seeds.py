@@ -267,4 +267,12 @@ put("ethercat_slave", "bring_up.bin", framed(
                               list(struct.pack("<H", 0x2000)) + [0x40, 0x00, 0x10, 0, 0, 0, 0, 0] + [0] * 112,
                               False)]),
     ecat_frame([ecat_datagram(4, 8, 0x10801001, [0] * 128, False)])))
+# An SII image: the fixed part, a strings category (three strings) and a general category.
+fixed = bytearray(128)
+struct.pack_into("<IIII", fixed, 16, 0x6A, 0x414B44, 2, 7)
+strings = bytes([3, 5]) + b"Drive" + bytes([3]) + b"D-1" + bytes([7]) + b"a drive"
+strings += b"\0" * (len(strings) % 2)
+general = bytes([1, 0, 2, 3]) + bytes(28)
+put("ethercat_sii", "small.bin", bytes(fixed) + struct.pack("<HH", 10, len(strings) // 2) + strings +
+    struct.pack("<HH", 30, len(general) // 2) + general + struct.pack("<HH", 0xFFFF, 0xFFFF))
 print("seeds written under", corpus)

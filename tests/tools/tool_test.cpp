@@ -1012,7 +1012,7 @@ TEST(Ethercat, AVirtualSlaveOverUdpIsScannedWalkedAndReadOverCoe) {
   EXPECT_EQ(code, 0) << text;
   EXPECT_NE(text.find("1 slaves"), std::string::npos) << text;
   EXPECT_NE(text.find("0x1001  0x00000000 0x00005001"), std::string::npos) << text;
-  EXPECT_NE(text.find("INIT    128/128 bytes, CoE"), std::string::npos) << text;
+  EXPECT_NE(text.find("INIT    128/128 bytes, CoE PMLSM virtual drive"), std::string::npos) << text;
   std::tie(code, text) = ethercat({"sdo", "read", "0x1001", "0x1000", "0"}, "device_type.log");
   EXPECT_EQ(code, 0) << text;
   EXPECT_NE(text.find("0x1001 0x1000:0 0x00020192"), std::string::npos) << text;
@@ -1131,8 +1131,8 @@ TEST(Ethercat, SoemAnIndependentMasterFindsTheVirtualSlaveReadsItOverCoeAndTakes
   EXPECT_EQ(run_to_end(soem), 0) << soem.output();
   const std::string out = soem.output();
   EXPECT_NE(out.find("\"slaves\":1"), std::string::npos) << out;
-  // SOEM names a slave without a name string by its SII identity: our vendor and product code.
-  EXPECT_NE(out.find("M:00000000 I:00005001"), std::string::npos) << out;
+  // SOEM names a slave by the name string its SII's general category points to.
+  EXPECT_NE(out.find("\"name\":\"PMLSM virtual drive\""), std::string::npos) << out;
   EXPECT_NE(out.find("\"address\":4097"), std::string::npos) << out;  // SOEM's own station address, 0x1001
   EXPECT_NE(out.find("\"preop\":2"), std::string::npos) << out;
   // The CiA 402 device type and the product code, over CoE, little-endian as on the wire.

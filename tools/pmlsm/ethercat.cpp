@@ -11,6 +11,7 @@
 // command line; 3 no slave on the bus.
 #include <CLI/CLI.hpp>
 
+#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
@@ -31,6 +32,7 @@
 #include "pmlsm/ethercat/mailbox.hpp"
 #include "pmlsm/ethercat/master.hpp"
 #include "pmlsm/ethercat/pcapng.hpp"
+#include "pmlsm/ethercat/sii.hpp"
 
 namespace pmlsm::tools {
 namespace {
@@ -150,8 +152,8 @@ int run_scan(const EthercatOptions& o) {
   Session s(o);
   if (s.slaves == 0) return no_slaves();
   std::printf("%u slaves\n", s.slaves);
-  std::printf("%-8s %-7s %-10s %-10s %-10s %-10s %-7s %s\n", "position", "station", "vendor", "product", "revision",
-              "serial", "state", "mailbox");
+  std::printf("%-8s %-7s %-10s %-10s %-10s %-10s %-7s %-18s %s\n", "position", "station", "vendor", "product",
+              "revision", "serial", "state", "mailbox", "name");
   for (std::uint16_t position = 0; position < s.slaves; ++position) {
     const auto station = static_cast<std::uint16_t>(MasterParams{}.first_station_address + position);
     const SlaveInfo info = s.master->read_slave_info(station);
@@ -161,8 +163,9 @@ int run_scan(const EthercatOptions& o) {
       std::snprintf(mailbox, sizeof mailbox, "%u/%u bytes%s", info.mailbox_receive_size, info.mailbox_send_size,
                     (info.mailbox_protocols & 0x0004) != 0 ? ", CoE" : "");
     }
-    std::printf("%-8u 0x%04X  0x%08X 0x%08X 0x%08X 0x%08X %-7s %s\n", position, station, info.vendor_id,
-                info.product_code, info.revision, info.serial, state.describe().c_str(), mailbox);
+    std::printf("%-8u 0x%04X  0x%08X 0x%08X 0x%08X 0x%08X %-7s %-18s %s\n", position, station, info.vendor_id,
+                info.product_code, info.revision, info.serial, state.describe().c_str(), mailbox,
+                info.name.empty() ? "-" : info.name.c_str());
   }
   return kExitOk;
 }
@@ -239,21 +242,26 @@ std::vector<std::uint16_t> sii_from_file(const std::string& path) {
   return words;
 }
 
-/// The virtual slave's own SII: its identity and a 128-byte CoE mailbox at 0x1000 and 0x1080.
+/// The virtual slave's own SII: its identity, its name, a 128-byte CoE mailbox at 0x1000 and
+/// 0x1080, and its sync managers (the process data's without a mapping yet: length 0).
 std::vector<std::uint16_t> virtual_sii() {
-  std::vector<std::uint16_t> w(sii::kMinWords, 0);
-  w[sii::kVendorId] = kVirtualVendorId & 0xFFFF;
-  w[sii::kVendorId + 1] = kVirtualVendorId >> 16;
-  w[sii::kProductCode] = kVirtualProductCode & 0xFFFF;
-  w[sii::kProductCode + 1] = kVirtualProductCode >> 16;
-  w[sii::kRevision] = 1;
-  w[sii::kMailboxReceiveOffset] = 0x1000;
-  w[sii::kMailboxReceiveSize] = 128;
-  w[sii::kMailboxSendOffset] = 0x1080;
-  w[sii::kMailboxSendSize] = 128;
-  w[sii::kMailboxProtocols] = 0x0004;  // CoE
-  w[sii::kFirstCategory] = 0xFFFF;
-  return w;
+  SiiInfo info;
+  info.vendor_id = kVirtualVendorId;
+  info.product_code = kVirtualProductCode;
+  info.revision = 1;
+  info.mailbox_receive_offset = 0x1000;
+  info.mailbox_receive_size = 128;
+  info.mailbox_send_offset = 0x1080;
+  info.mailbox_send_size = 128;
+  info.mailbox_protocols = 0x0004;  // CoE
+  info.group = "Drive";
+  info.order = "pmlsm-virtual-drive";
+  info.name = "PMLSM virtual drive";
+  info.sync_managers = {{0x1000, 128, kMailboxWriteControl, 1, 1},
+                        {0x1080, 128, kMailboxReadControl, 1, 2},
+                        {0x1100, 0, 0x64, 1, 3},
+                        {0x1180, 0, 0x20, 1, 4}};
+  return build_sii(info);
 }
 
 int run_serve(const EthercatOptions& o) {

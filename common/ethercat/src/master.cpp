@@ -27,10 +27,6 @@ std::string hex(std::uint32_t value, int digits) {
 
 std::string slave_name(std::uint16_t station) { return "slave " + hex(station, 4); }
 
-std::uint32_t long_of(const std::vector<std::uint16_t>& words, std::size_t at) {
-  return static_cast<std::uint32_t>(words[at]) | (static_cast<std::uint32_t>(words[at + 1]) << 16);
-}
-
 }  // namespace
 
 void MasterParams::validate() const {
@@ -162,18 +158,29 @@ std::vector<std::uint16_t> Master::read_sii(std::uint16_t station, std::uint16_t
 }
 
 SlaveInfo Master::read_slave_info(std::uint16_t station) {
-  const std::vector<std::uint16_t> w = read_sii(station, 0, sii::kMailboxProtocols + 1);
+  std::vector<std::uint16_t> words = read_sii(station, 0, sii::kFirstCategory);
+  for (std::size_t at = sii::kFirstCategory; at + 2 <= kSiiMaxWords;) {
+    const std::vector<std::uint16_t> header = read_sii(station, static_cast<std::uint16_t>(at), 2);
+    words.insert(words.end(), header.begin(), header.end());
+    if (header[0] == sii_category::kEnd) break;
+    const std::size_t size = header[1];
+    if (at + 2 + size > kSiiMaxWords) {
+      throw std::runtime_error(slave_name(station) + ": SII category " + std::to_string(header[0]) + " at word " +
+                               hex(static_cast<std::uint32_t>(at), 4) + " runs past " + std::to_string(kSiiMaxWords) +
+                               " words");
+    }
+    const std::vector<std::uint16_t> data =
+        read_sii(station, static_cast<std::uint16_t>(at + 2), static_cast<std::uint16_t>(size));
+    words.insert(words.end(), data.begin(), data.end());
+    at += 2 + size;
+  }
   SlaveInfo info;
+  try {
+    static_cast<SiiInfo&>(info) = parse_sii(words);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(slave_name(station) + ": " + e.what());
+  }
   info.station_address = station;
-  info.vendor_id = long_of(w, sii::kVendorId);
-  info.product_code = long_of(w, sii::kProductCode);
-  info.revision = long_of(w, sii::kRevision);
-  info.serial = long_of(w, sii::kSerial);
-  info.mailbox_receive_offset = w[sii::kMailboxReceiveOffset];
-  info.mailbox_receive_size = w[sii::kMailboxReceiveSize];
-  info.mailbox_send_offset = w[sii::kMailboxSendOffset];
-  info.mailbox_send_size = w[sii::kMailboxSendSize];
-  info.mailbox_protocols = w[sii::kMailboxProtocols];
   return info;
 }
 

@@ -21,6 +21,7 @@
 #include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/ethercat/mailbox.hpp"
+#include "pmlsm/ethercat/sii.hpp"
 
 namespace pmlsm::ethercat {
 namespace {
@@ -209,6 +210,41 @@ TEST(EtherCatMaster, ReadsAndWritesTheCia402DictionaryOverCoeAsCanopenServesIt) 
   EXPECT_THROW(master.sdo_upload(no_mailbox, 0x1000, 0), std::runtime_error);
 }
 
+TEST(EtherCatSii, AnImageBuiltIsReadBackAndAMalformedOneIsRefusedByName) {
+  SiiInfo info;
+  info.vendor_id = 0x6A;
+  info.product_code = 0x414B44;
+  info.serial = 9;
+  info.mailbox_receive_offset = 0x1000;
+  info.mailbox_receive_size = 128;
+  info.mailbox_protocols = 0x0004;
+  info.name = "a drive";
+  info.order = "D-1";
+  info.group = "Drive";
+  info.sync_managers = {{0x1000, 128, 0x26, 1, 1}, {0x1100, 4, 0x64, 1, 3}};
+  std::vector<std::uint16_t> image = build_sii(info);
+  const SiiInfo back = parse_sii(image);
+  EXPECT_EQ(back.vendor_id, 0x6AU);
+  EXPECT_EQ(back.product_code, 0x414B44U);
+  EXPECT_EQ(back.serial, 9U);
+  EXPECT_EQ(back.name, "a drive");
+  EXPECT_EQ(back.order, "D-1");
+  EXPECT_EQ(back.group, "Drive");
+  EXPECT_EQ(back.sync_managers, info.sync_managers);
+  // A category longer than the image.
+  std::vector<std::uint16_t> cut(image.begin(), image.begin() + sii::kFirstCategory + 4);
+  try {
+    parse_sii(cut);
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("category 10 at word 0x0040"), std::string::npos) << e.what();
+  }
+  // A name pointing past the strings.
+  image[sii::kFirstCategory + 2] = 1;  // one string left of three
+  EXPECT_THROW(parse_sii(image), std::invalid_argument);
+  EXPECT_THROW(parse_sii(std::vector<std::uint16_t>(10, 0)), std::invalid_argument);
+}
+
 TEST(EtherCatMaster, ReadsARealAkdsSiiImageAsTheDriveReportsItself) {
   const std::filesystem::path image =
       std::filesystem::path(PMLSM_SOURCE_DIR) / ".." / "shared" / "ethercat" / "captures" / "akd.hex";
@@ -236,6 +272,15 @@ TEST(EtherCatMaster, ReadsARealAkdsSiiImageAsTheDriveReportsItself) {
   EXPECT_EQ(info.mailbox_receive_size, 0x0400);
   EXPECT_EQ(info.mailbox_send_offset, 0x1C00);
   EXPECT_EQ(info.mailbox_protocols & 0x0004, 0x0004) << "CoE";
+  // Its categories: the name its general category points to, and its four sync managers.
+  EXPECT_EQ(info.name, "AKD EtherCAT Drive (CoE)");
+  EXPECT_EQ(info.order, "AKD");
+  EXPECT_EQ(info.group, "Drive");
+  ASSERT_EQ(info.sync_managers.size(), 4u);
+  EXPECT_EQ(info.sync_managers[0], (SiiSyncManager{0x1800, 0x0400, 0x26, 1, 1}));
+  EXPECT_EQ(info.sync_managers[1], (SiiSyncManager{0x1C00, 0x0400, 0x22, 1, 2}));
+  EXPECT_EQ(info.sync_managers[2].start, 0x1100);
+  EXPECT_EQ(info.sync_managers[3].type, 4);
 }
 
 }  // namespace

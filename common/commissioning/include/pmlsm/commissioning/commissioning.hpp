@@ -41,9 +41,10 @@ struct Transcript {
 
 /// What a commissioning is asked to do, as `pmlsm commission` takes it.
 struct CommissioningChoices {
-  bool simulate = false;  ///< measured on the simulated plant; else on a drive (the verification then simulates the
-                          ///< identified plant)
-  bool tune = false;      ///< write the tuned velocity PI gains (and try the compensators' gains)
+  /// Measured on the simulated plant; else on a drive, and the verification then simulates the
+  /// plant identified.
+  bool simulate = false;
+  bool tune = false;            ///< write the tuned velocity PI gains (and try the compensators' gains)
   bool design_filters = false;  ///< notches on the resonances that limit the loop, in free slots
   /// The sweep file whose scenarios, compensators, weights and verdict verify the commissioned
   /// system ("": no verification).
@@ -67,7 +68,7 @@ struct Verification {
   double worst_cost_ratio = 0;
 };
 
-constexpr const char* kVerificationColumns =
+inline constexpr const char* kVerificationColumns =
     "scenario,compensator,cost,cost_ratio_to_pi,faults,tail_force_rms_n,tail_compensation_rms_n";
 
 /// The verification file, its RNN weights and PI alone's judged run of each of its scenarios on

@@ -34,6 +34,7 @@
 #include "pmlsm/ethercat/frame.hpp"
 #include "pmlsm/ethercat/link.hpp"
 #include "pmlsm/ethercat/mailbox.hpp"
+#include "pmlsm/ethercat/sii.hpp"
 
 namespace pmlsm::ethercat {
 
@@ -85,22 +86,6 @@ inline constexpr std::uint16_t kInvalidMailboxConfiguration = 0x0016;
 inline constexpr std::uint16_t kInvalidOutputConfiguration = 0x001D;
 inline constexpr std::uint16_t kInvalidInputConfiguration = 0x001E;
 }  // namespace al_code
-
-/// SII word addresses (ETG.1000.6 Table 17, ETG.2010).
-namespace sii {
-inline constexpr std::uint16_t kStationAlias = 0x0004;
-inline constexpr std::uint16_t kVendorId = 0x0008;
-inline constexpr std::uint16_t kProductCode = 0x000A;
-inline constexpr std::uint16_t kRevision = 0x000C;
-inline constexpr std::uint16_t kSerial = 0x000E;
-inline constexpr std::uint16_t kMailboxReceiveOffset = 0x0018;  ///< the master's writes: SM0
-inline constexpr std::uint16_t kMailboxReceiveSize = 0x0019;
-inline constexpr std::uint16_t kMailboxSendOffset = 0x001A;  ///< the slave's answers: SM1
-inline constexpr std::uint16_t kMailboxSendSize = 0x001B;
-inline constexpr std::uint16_t kMailboxProtocols = 0x001C;
-inline constexpr std::uint16_t kFirstCategory = 0x0040;
-inline constexpr std::uint16_t kMinWords = 0x0042;  ///< the fixed part and an end category
-}  // namespace sii
 
 struct EscParams {
   std::uint8_t type = 0x11;  ///< register 0x0000 (ET1100's)

@@ -16,6 +16,7 @@
 #include "pmlsm/ethercat/frame.hpp"
 #include "pmlsm/ethercat/link.hpp"
 #include "pmlsm/ethercat/pcapng.hpp"
+#include "pmlsm/ethercat/sii.hpp"
 
 namespace pmlsm::ethercat {
 
@@ -33,18 +34,9 @@ struct Reply {
   std::uint16_t working_counter = 0;
 };
 
-/// A slave as its SII describes it.
-struct SlaveInfo {
+/// A slave as its SII describes it: identity, mailbox layout, name, sync managers.
+struct SlaveInfo : SiiInfo {
   std::uint16_t station_address = 0;
-  std::uint32_t vendor_id = 0;
-  std::uint32_t product_code = 0;
-  std::uint32_t revision = 0;
-  std::uint32_t serial = 0;
-  std::uint16_t mailbox_receive_offset = 0;  ///< SM0
-  std::uint16_t mailbox_receive_size = 0;
-  std::uint16_t mailbox_send_offset = 0;  ///< SM1
-  std::uint16_t mailbox_send_size = 0;
-  std::uint16_t mailbox_protocols = 0;  ///< bit 2: CoE
 };
 
 /// An SDO transfer's outcome: done (the value read, its size), or aborted by the slave.
@@ -83,7 +75,8 @@ class Master {
   /// `words` words of a slave's SII from `word_address`, 4 words a read.
   /// @throws std::runtime_error naming the slave when it does not answer or stays busy.
   std::vector<std::uint16_t> read_sii(std::uint16_t station, std::uint16_t word_address, std::uint16_t words);
-  /// Its identity and mailbox layout from its SII. @throws std::runtime_error as read_sii.
+  /// Its SII read whole (the fixed part, then category by category to the end) and parsed.
+  /// @throws std::runtime_error as read_sii, or naming what is wrong with the image.
   SlaveInfo read_slave_info(std::uint16_t station);
   /// Sync manager `index` of a slave: start, length, control byte, enabled.
   /// @throws std::runtime_error when the slave does not take it.

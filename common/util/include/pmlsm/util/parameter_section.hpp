@@ -13,6 +13,7 @@
 // (section_params).
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <map>
@@ -97,8 +98,9 @@ namespace section_detail {
 /// @throws std::invalid_argument naming the entry.
 template <typename T>
 T held_as(const std::string& path, double x) {
-  if (!(x >= static_cast<double>(std::numeric_limits<T>::lowest()) &&
-        x <= static_cast<double>(std::numeric_limits<T>::max()))) {
+  // 2^digits is one past the largest and, unlike a 64-bit max, exact as a double.
+  const double past_max = std::ldexp(1.0, std::numeric_limits<T>::digits);
+  if (!(x >= static_cast<double>(std::numeric_limits<T>::lowest()) && x < past_max)) {
     throw std::invalid_argument(path + ": expected a whole number in [" +
                                 std::to_string(std::numeric_limits<T>::lowest()) + ", " +
                                 std::to_string(std::numeric_limits<T>::max()) + "], got " + format_value(x));
