@@ -10,6 +10,7 @@
 
 #include "fuzz_support.hpp"
 #include "pmlsm/canopen/cia402_dictionary.hpp"
+#include "pmlsm/ethercat/coe_drive.hpp"
 #include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/ethercat/mailbox.hpp"
 
@@ -21,10 +22,13 @@ int fuzz_one(const std::uint8_t* data, std::size_t size) {
   params.sii.assign(sii::kMinWords, 0x1234);
   params.sii[sii::kMailboxReceiveSize] = 128;
   params.sii[sii::kFirstCategory] = 0xFFFF;
-  params.output_bytes = 4;
-  params.input_bytes = 4;
+  // A fresh dictionary each input: what a previous input wrote does not carry over.
+  canopen::ObjectDictionary dictionary = canopen::make_cia402_dictionary(canopen::NodeId(1));
+  add_coe_sync_manager_objects(dictionary);
+  CoeProcessImage process(dictionary, 0x1100, 0x1180);
+  params.output_bytes = process.output_bytes();
+  params.input_bytes = process.input_bytes();
   Esc slave(params);
-  static canopen::ObjectDictionary dictionary = canopen::make_cia402_dictionary(canopen::NodeId(1));
   CoeSdoServer coe(dictionary, canopen::NodeId(1));
   slave.set_mailbox_handler(&coe);
   VirtualSegment segment({&slave});
@@ -35,6 +39,7 @@ int fuzz_one(const std::uint8_t* data, std::size_t size) {
         static_cast<std::size_t>(data[at] | (data[at + 1] << 8)) % (kMaxEthernetFrameBytes + 1), size - at - 2);
     std::memcpy(frame.data(), data + at + 2, length);
     segment.pass(frame.data(), length);
+    process.exchange(slave);  // the application between frames
     at += 2 + length;
     const auto state = static_cast<std::uint8_t>(slave.al_state());
     if (state != 1 && state != 2 && state != 4 && state != 8) std::abort();

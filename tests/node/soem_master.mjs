@@ -2,12 +2,13 @@
 // An independent EtherCAT master judges our virtual slave: SOEM 2.0 (Simple Open EtherCAT Master,
 // through npm's soem-node; GPL, so only run here as a separate program, never linked) scans the
 // interface, reads each slave's identity from its SII, takes the bus to PREOP, reads objects
-// over CoE, maps the process data, and walks to SAFEOP and OP.
+// over CoE, maps the process data, walks to SAFEOP and OP, and exchanges process data.
 //
 //   node soem_master.mjs INTERFACE [--read INDEX:SUB ...]
 //
 // Prints one JSON line: {"slaves":N,"identity":[{"name","vendor","product","address"}],
-// "preop":STATE,"reads":{"0x1000:0":"hex bytes" or null},"safeop":STATE,"op":STATE}. Exits 1 when
+// "preop":STATE,"reads":{"0x1000:0":"hex bytes" or null},"safeop":STATE,"op":STATE,
+// "output_bytes":N,"input_bytes":N,"process_wkc":[...],"inputs":"hex"}. Exits 1 when
 // SOEM cannot open the interface or finds no slave; 2 on a usage error.
 
 import { createRequire } from "node:module";
@@ -60,5 +61,18 @@ master.configMapPDO();
 result.safeop = master.stateCheck(0, EC_STATE_SAFE_OP, STATE_TIMEOUT_US);
 master.writeState(0, EC_STATE_OPERATIONAL);
 result.op = master.stateCheck(1, EC_STATE_OPERATIONAL, STATE_TIMEOUT_US);
+// Process data: the outputs SOEM mapped from the slave's PDO assignment (controlword 0x0006,
+// target torque 100 per mille when they are the CiA 402 RxPDO), a few cycles, their working
+// counters and the inputs that came back.
+const slave = master.getSlaves()[0];
+result.output_bytes = slave.Obytes;
+result.input_bytes = slave.Ibytes;
+if (slave.Obytes >= 4) new Uint8Array(slave.outputs).set([0x06, 0x00, 100, 0x00]);
+result.process_wkc = [];
+for (let cycle = 0; cycle < 5; ++cycle) {
+  master.sendProcessdata();
+  result.process_wkc.push(master.receiveProcessdata());
+}
+result.inputs = Buffer.from(new Uint8Array(master.getSlaves()[0].inputs)).toString("hex");
 master.close();
 console.log(JSON.stringify(result));

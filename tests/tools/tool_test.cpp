@@ -1026,6 +1026,8 @@ TEST(Ethercat, AVirtualSlaveOverUdpIsScannedWalkedAndReadOverCoe) {
   std::tie(code, text) = ethercat({"state", "0x1001", "op"}, "op.log");
   EXPECT_EQ(code, 0) << text;
   EXPECT_NE(text.find("0x1001: OP"), std::string::npos) << text;
+  // Mapped from its CoE objects: the CiA 402 RxPDO and TxPDO.
+  EXPECT_NE(text.find("0x1001: process data 4 bytes out, 8 bytes in"), std::string::npos) << text;
   std::tie(code, text) = ethercat({"state", "0x1009", "op"}, "no_such.log");
   EXPECT_EQ(code, 2) << text;
   EXPECT_NE(text.find("the bus has 1 slaves"), std::string::npos) << text;
@@ -1045,7 +1047,8 @@ TEST(Ethercat, AVirtualSlaveOverUdpIsScannedWalkedAndReadOverCoe) {
   const auto served = slave.wait_for(kRunTimeout);
   ASSERT_TRUE(served.has_value());
   EXPECT_EQ(*served, 0) << slave.output();
-  EXPECT_NE(slave.output().find("AL state OP; 4 SDO requests"), std::string::npos) << slave.output();
+  // 4 SDO requests of the commands above and 11 of the mapping: 0x1C12 and 0x1C13 with their PDOs'.
+  EXPECT_NE(slave.output().find("AL state OP; 15 SDO requests"), std::string::npos) << slave.output();
   // Nobody there: exit 3, said.
   test::ChildProcess nobody({bin("pmlsm"), "ethercat", "--udp", "127.0.0.1:9", "scan"}, (dir / "nobody.log").string());
   EXPECT_EQ(run_to_end(nobody), 3) << nobody.output();
@@ -1112,7 +1115,7 @@ TEST(Ethercat, OnRawEthernetAcrossAVethPairTheVirtualSlaveIsScannedAndTakenToOp)
   EXPECT_NE(slave.output().find("AL state OP"), std::string::npos) << slave.output();
 }
 
-TEST(Ethercat, SoemAnIndependentMasterFindsTheVirtualSlaveReadsItOverCoeAndTakesItToOp) {
+TEST(Ethercat, SoemAnIndependentMasterFindsTheVirtualSlaveReadsItOverCoeTakesItToOpAndExchangesProcessData) {
   if (geteuid() != 0) GTEST_SKIP() << "raw sockets and network namespaces need root; not run";
   if (quiet_sh("command -v node") != 0) GTEST_SKIP() << "no node (scripts/install_deps.sh installs it); not run";
   if (!fs::exists(source("tests/node/node_modules/soem-node/build/Release/soem_addon.node"))) {
@@ -1140,9 +1143,18 @@ TEST(Ethercat, SoemAnIndependentMasterFindsTheVirtualSlaveReadsItOverCoeAndTakes
   EXPECT_NE(out.find("\"1018:2\":\"01500000\""), std::string::npos) << out;
   EXPECT_NE(out.find("\"safeop\":4"), std::string::npos) << out;
   EXPECT_NE(out.find("\"op\":8"), std::string::npos) << out;
+  // The process data SOEM mapped from 0x1C12 / 0x1C13: the CiA 402 RxPDO (controlword, target
+  // torque: 4 bytes) and TxPDO (statusword, torque actual, position actual: 8 bytes), exchanged by
+  // LRW with working counter 3 (read 1, written 2), the outputs reaching the slave's dictionary.
+  EXPECT_NE(out.find("\"output_bytes\":4,\"input_bytes\":8"), std::string::npos) << out;
+  EXPECT_NE(out.find("\"process_wkc\":[3,3,3,3,3]"), std::string::npos) << out;
+  EXPECT_NE(out.find("\"inputs\":\"0000000000000000\""), std::string::npos) << out;
   slave.signal(SIGINT);
   ASSERT_TRUE(slave.wait_for(kRunTimeout).has_value());
   EXPECT_NE(slave.output().find("AL state OP;"), std::string::npos) << slave.output();
+  EXPECT_NE(slave.output().find("outputs: controlword 0x0006, target torque 100 per mille (0 refused)"),
+            std::string::npos)
+      << slave.output();
 }
 
 }  // namespace

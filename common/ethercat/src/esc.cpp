@@ -440,13 +440,14 @@ std::size_t VirtualSegmentLink::receive(std::uint8_t* buffer, std::int64_t /*tim
   return size_;
 }
 
-std::size_t VirtualSegment::serve(Link& link, std::int64_t timeout_ns) {
+std::size_t VirtualSegment::serve(Link& link, std::int64_t timeout_ns, const std::function<void()>& between_frames) {
   std::size_t answered = 0;
   for (;;) {
     const std::size_t size = link.receive(buffer_.data(), timeout_ns);
     if (size == 0) return answered;
     if (pass(buffer_.data(), size) != FrameError::kNone) continue;  // dropped, as a slave drops it
     if (link.send({buffer_.data(), size})) ++answered;
+    if (between_frames) between_frames();
   }
 }
 

@@ -303,4 +303,51 @@ SdoResult Master::sdo_download(const SlaveInfo& slave, std::uint16_t index, std:
   return sdo_transfer(slave, bytes);
 }
 
+std::uint32_t Master::assigned_bits(const SlaveInfo& slave, std::uint16_t assign_index) {
+  const auto checked = [&](std::uint16_t index, std::uint8_t sub) {
+    const SdoResult r = sdo_upload(slave, index, sub);
+    if (!r.done) {
+      throw std::runtime_error(slave_name(slave.station_address) + ": " + hex(index, 4) + ":" + std::to_string(sub) +
+                               " " + r.describe());
+    }
+    return r.value;
+  };
+  std::uint32_t bits = 0;
+  const std::uint32_t pdos = checked(assign_index, 0);
+  for (std::uint32_t i = 1; i <= pdos; ++i) {
+    const auto pdo = static_cast<std::uint16_t>(checked(assign_index, static_cast<std::uint8_t>(i)));
+    const std::uint32_t entries = checked(pdo, 0);
+    for (std::uint32_t e = 1; e <= entries; ++e) bits += checked(pdo, static_cast<std::uint8_t>(e)) & 0xFFU;
+  }
+  return bits;
+}
+
+ProcessDataLayout Master::map_process_data(const SlaveInfo& slave, std::uint32_t logical) {
+  const std::uint16_t station = slave.station_address;
+  const SiiSyncManager* outputs = nullptr;
+  const SiiSyncManager* inputs = nullptr;
+  for (const SiiSyncManager& sm : slave.sync_managers) {
+    if (sm.type == 3 && outputs == nullptr) outputs = &sm;
+    if (sm.type == 4 && inputs == nullptr) inputs = &sm;
+  }
+  if (outputs == nullptr || inputs == nullptr) {
+    throw std::runtime_error(slave_name(station) + ": its SII has no sync manager for the process data");
+  }
+  ProcessDataLayout layout;
+  // Whole bytes: a PDO of a CiA 402 drive is bytes.
+  layout.output_bytes = static_cast<std::uint16_t>((assigned_bits(slave, 0x1C12) + 7) / 8);
+  layout.input_bytes = static_cast<std::uint16_t>((assigned_bits(slave, 0x1C13) + 7) / 8);
+  layout.outputs_logical = logical;
+  layout.inputs_logical = logical + layout.output_bytes;
+  if (layout.output_bytes > 0) {
+    configure_sync_manager(station, 2, outputs->start, layout.output_bytes, outputs->control);
+    configure_fmmu(station, 0, layout.outputs_logical, layout.output_bytes, outputs->start, true);
+  }
+  if (layout.input_bytes > 0) {
+    configure_sync_manager(station, 3, inputs->start, layout.input_bytes, inputs->control);
+    configure_fmmu(station, 1, layout.inputs_logical, layout.input_bytes, inputs->start, false);
+  }
+  return layout;
+}
+
 }  // namespace pmlsm::ethercat

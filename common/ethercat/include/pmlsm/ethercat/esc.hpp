@@ -27,6 +27,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -166,9 +167,10 @@ class VirtualSegment {
   /// The frame in `bytes` (an Ethernet frame of `size` bytes) through every slave, in place.
   /// Returns what the parser said of it; a refused frame is left as it was (a real slave drops it).
   FrameError pass(std::uint8_t* bytes, std::size_t size);
-  /// Frames received from `link`, passed and sent back, until none comes within `timeout_ns`.
+  /// Frames received from `link`, passed and sent back, until none comes within `timeout_ns`;
+  /// `between_frames` (may be empty) after each: the slaves' applications (their process data).
   /// @return the frames answered.
-  std::size_t serve(Link& link, std::int64_t timeout_ns);
+  std::size_t serve(Link& link, std::int64_t timeout_ns, const std::function<void()>& between_frames = {});
 
  private:
   std::vector<Esc*> slaves_;

@@ -48,6 +48,15 @@ struct SdoResult {
   std::string describe() const;  ///< "0x00020192" or "aborted: 0x06020000 object does not exist ..."
 };
 
+/// A slave's process data as mapped: its bytes, where they sit in the slave and in the logical
+/// image.
+struct ProcessDataLayout {
+  std::uint16_t output_bytes = 0;  ///< SM2: the master writes
+  std::uint16_t input_bytes = 0;   ///< SM3: the master reads
+  std::uint32_t outputs_logical = 0;
+  std::uint32_t inputs_logical = 0;  ///< outputs_logical + output_bytes
+};
+
 struct StateResult {
   bool reached = false;
   AlState state = AlState::kInit;  ///< the state the slave is in
@@ -103,6 +112,13 @@ class Master {
   SdoResult sdo_download(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex, std::uint32_t value,
                          std::uint8_t size);
 
+  /// The slave's process data mapped as its CoE objects say (0x1C12 / 0x1C13: the assigned PDOs,
+  /// their mapping objects' entries), SM2 and SM3 set at the SII's addresses with those lengths,
+  /// and FMMU 0 (outputs) and 1 (inputs) onto the logical image from `logical` on. The slave in
+  /// PREOP. @throws std::runtime_error naming the object when an SDO is refused or the SII has no
+  /// sync manager for the process data.
+  ProcessDataLayout map_process_data(const SlaveInfo& slave, std::uint32_t logical);
+
   std::uint64_t frames_sent() const { return frames_sent_; }
   std::uint64_t frames_lost() const { return frames_lost_; }
 
@@ -113,6 +129,8 @@ class Master {
   void read_register(std::uint16_t station, std::uint16_t address, std::uint8_t* data, std::uint16_t length,
                      const char* what);
   void record(Bytes frame);
+  /// The bits the PDOs assigned in `assign_index` (0x1C12, 0x1C13) map.
+  std::uint32_t assigned_bits(const SlaveInfo& slave, std::uint16_t assign_index);
   /// One SDO request through the mailboxes and its response's 8 bytes.
   SdoResult sdo_transfer(const SlaveInfo& slave, const std::array<std::uint8_t, 8>& request);
 

@@ -1,0 +1,70 @@
+#include "pmlsm/ethercat/coe_drive.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <stdexcept>
+#include <string>
+
+namespace pmlsm::ethercat {
+
+namespace {
+
+canopen::Entry entry(std::uint16_t index, std::uint8_t subindex, const char* name, canopen::DataType type,
+                     std::int64_t value) {
+  canopen::Entry e;
+  e.index = index;
+  e.subindex = subindex;
+  e.name = name;
+  e.type = type;
+  e.access = canopen::Access::kConst;
+  e.value = value;
+  return e;
+}
+
+canopen::PdoMap map_of(const canopen::ObjectDictionary& dictionary, std::uint16_t index) {
+  const canopen::Result<canopen::PdoMap> map = canopen::read_pdo_map(dictionary, index);
+  if (!map) {
+    char hex[8];
+    std::snprintf(hex, sizeof hex, "0x%04X", index);
+    throw std::invalid_argument(std::string("PDO mapping ") + hex + ": " + canopen::to_string(map.error) + " (" +
+                                map.detail + ")");
+  }
+  return map.value;
+}
+
+}  // namespace
+
+void add_coe_sync_manager_objects(canopen::ObjectDictionary& d) {
+  using T = canopen::DataType;
+  d.add(entry(kObjectSyncManagerTypes, 0, "sync manager types: count", T::kU8, 4));
+  d.add(entry(kObjectSyncManagerTypes, 1, "SM0: mailbox out", T::kU8, 1));
+  d.add(entry(kObjectSyncManagerTypes, 2, "SM1: mailbox in", T::kU8, 2));
+  d.add(entry(kObjectSyncManagerTypes, 3, "SM2: outputs", T::kU8, 3));
+  d.add(entry(kObjectSyncManagerTypes, 4, "SM3: inputs", T::kU8, 4));
+  d.add(entry(kObjectRxPdoAssign, 0, "SM2 PDO assignment: count", T::kU8, 1));
+  d.add(entry(kObjectRxPdoAssign, 1, "SM2 PDO assignment: RxPDO 1", T::kU16, kRxPdoMapping));
+  d.add(entry(kObjectTxPdoAssign, 0, "SM3 PDO assignment: count", T::kU8, 1));
+  d.add(entry(kObjectTxPdoAssign, 1, "SM3 PDO assignment: TxPDO 1", T::kU16, kTxPdoMapping));
+}
+
+CoeProcessImage::CoeProcessImage(canopen::ObjectDictionary& dictionary, std::uint16_t outputs_at,
+                                 std::uint16_t inputs_at)
+    : dictionary_(dictionary),
+      rx_(map_of(dictionary, kRxPdoMapping)),
+      tx_(map_of(dictionary, kTxPdoMapping)),
+      outputs_at_(outputs_at),
+      inputs_at_(inputs_at) {}
+
+void CoeProcessImage::exchange(Esc& esc) {
+  // The PDO codec works on CAN frames: the same bytes, an id it does not check.
+  canopen::CanFrame outputs{};
+  outputs.id = 0x200;
+  outputs.dlc = rx_.byte_length();
+  for (std::uint8_t i = 0; i < outputs.dlc; ++i)
+    outputs.data[i] = esc.byte_at(static_cast<std::uint16_t>(outputs_at_ + i));
+  if (!canopen::unpack_pdo(rx_, dictionary_, outputs)) ++refused_outputs_;
+  const canopen::Result<canopen::CanFrame> inputs = canopen::pack_pdo(tx_, dictionary_, 0x180);
+  if (inputs) esc.write_memory(inputs_at_, inputs.value.data.data(), inputs.value.dlc);
+}
+
+}  // namespace pmlsm::ethercat
