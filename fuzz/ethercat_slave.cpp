@@ -9,29 +9,15 @@
 #include <vector>
 
 #include "fuzz_support.hpp"
-#include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/ethercat/coe_drive.hpp"
 #include "pmlsm/ethercat/esc.hpp"
-#include "pmlsm/ethercat/mailbox.hpp"
 
 namespace pmlsm::fuzz::ethercat_slave {
 
 int fuzz_one(const std::uint8_t* data, std::size_t size) {
   using namespace pmlsm::ethercat;
-  EscParams params;
-  params.sii.assign(sii::kMinWords, 0x1234);
-  params.sii[sii::kMailboxReceiveSize] = 128;
-  params.sii[sii::kFirstCategory] = 0xFFFF;
-  // A fresh dictionary each input: what a previous input wrote does not carry over.
-  canopen::ObjectDictionary dictionary = canopen::make_cia402_dictionary(canopen::NodeId(1));
-  add_coe_sync_manager_objects(dictionary);
-  CoeProcessImage process(dictionary, 0x1100, 0x1180);
-  params.output_bytes = process.output_bytes();
-  params.input_bytes = process.input_bytes();
-  Esc slave(params);
-  CoeSdoServer coe(dictionary, canopen::NodeId(1));
-  slave.set_mailbox_handler(&coe);
-  VirtualSegment segment({&slave});
+  VirtualCia402Slave slave;  // fresh each input: what one wrote does not carry over
+  VirtualSegment segment({&slave.esc()});
   // The input as a series of frames: a 2-byte length, then that many bytes.
   std::array<std::uint8_t, kMaxEthernetFrameBytes> frame{};
   for (std::size_t at = 0; at + 2 <= size;) {
@@ -39,9 +25,9 @@ int fuzz_one(const std::uint8_t* data, std::size_t size) {
         static_cast<std::size_t>(data[at] | (data[at + 1] << 8)) % (kMaxEthernetFrameBytes + 1), size - at - 2);
     std::memcpy(frame.data(), data + at + 2, length);
     segment.pass(frame.data(), length);
-    process.exchange(slave);  // the application between frames
+    slave.exchange();  // the application between frames
     at += 2 + length;
-    const auto state = static_cast<std::uint8_t>(slave.al_state());
+    const auto state = static_cast<std::uint8_t>(slave.esc().al_state());
     if (state != 1 && state != 2 && state != 4 && state != 8) std::abort();
   }
   return 0;

@@ -25,7 +25,6 @@
 #include <vector>
 
 #include "commands.hpp"
-#include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/dds/shutdown.hpp"
 #include "pmlsm/ethercat/coe_drive.hpp"
 #include "pmlsm/ethercat/esc.hpp"
@@ -42,12 +41,6 @@ using namespace pmlsm::ethercat;
 
 constexpr std::uint8_t kMailboxWriteControl = 0x26;  ///< SM0: mailbox, the master writes, IRQ
 constexpr std::uint8_t kMailboxReadControl = 0x22;   ///< SM1: mailbox, the master reads, IRQ
-/// The virtual slave's identity: no vendor ID of ETG's list (0), the product code 0x5001.
-constexpr std::uint32_t kVirtualVendorId = 0;
-constexpr std::uint32_t kVirtualProductCode = 0x00005001;
-/// Where its process data sits: SM2 (outputs) and SM3 (inputs).
-constexpr std::uint16_t kOutputsAt = 0x1100;
-constexpr std::uint16_t kInputsAt = 0x1180;
 
 struct EthercatOptions {
   std::string interface;
@@ -251,46 +244,9 @@ std::vector<std::uint16_t> sii_from_file(const std::string& path) {
   return words;
 }
 
-/// The virtual slave's own SII: its identity, its name, a 128-byte CoE mailbox at 0x1000 and
-/// 0x1080, and its sync managers (the process data's at its mapping's lengths).
-std::vector<std::uint16_t> virtual_sii(std::uint16_t output_bytes, std::uint16_t input_bytes) {
-  SiiInfo info;
-  info.vendor_id = kVirtualVendorId;
-  info.product_code = kVirtualProductCode;
-  info.revision = 1;
-  info.mailbox_receive_offset = 0x1000;
-  info.mailbox_receive_size = 128;
-  info.mailbox_send_offset = 0x1080;
-  info.mailbox_send_size = 128;
-  info.mailbox_protocols = 0x0004;  // CoE
-  info.group = "Drive";
-  info.order = "pmlsm-virtual-drive";
-  info.name = "PMLSM virtual drive";
-  info.sync_managers = {{0x1000, 128, kMailboxWriteControl, 1, 1},
-                        {0x1080, 128, kMailboxReadControl, 1, 2},
-                        {kOutputsAt, output_bytes, 0x64, 1, 3},
-                        {kInputsAt, input_bytes, 0x20, 1, 4}};
-  return build_sii(info);
-}
-
 int run_serve(const EthercatOptions& o) {
-  // The CiA 402 dictionary with the sync manager objects, its process image through SM2 and SM3.
-  std::vector<std::uint16_t> image = o.sii.empty() ? virtual_sii(0, 0) : sii_from_file(o.sii);
-  canopen::Cia402DictionaryConfig config;
-  config.vendor_id = static_cast<std::uint32_t>(image[sii::kVendorId] | (image[sii::kVendorId + 1] << 16));
-  config.product_code = static_cast<std::uint32_t>(image[sii::kProductCode] | (image[sii::kProductCode + 1] << 16));
-  canopen::ObjectDictionary dictionary = canopen::make_cia402_dictionary(canopen::NodeId(1), config);
-  add_coe_sync_manager_objects(dictionary);
-  CoeProcessImage process(dictionary, kOutputsAt, kInputsAt);
-  if (o.sii.empty()) image = virtual_sii(process.output_bytes(), process.input_bytes());
-  EscParams params;
-  params.sii = image;
-  params.output_bytes = process.output_bytes();
-  params.input_bytes = process.input_bytes();
-  Esc slave(params);
-  CoeSdoServer coe(dictionary, canopen::NodeId(1));
-  slave.set_mailbox_handler(&coe);
-  VirtualSegment segment({&slave});
+  VirtualCia402Slave slave(o.sii.empty() ? std::vector<std::uint16_t>{} : sii_from_file(o.sii));
+  VirtualSegment segment({&slave.esc()});
   std::unique_ptr<Link> link;
   try {
     if (!o.interface.empty()) {
@@ -310,14 +266,14 @@ int run_serve(const EthercatOptions& o) {
   const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(o.seconds);
   std::size_t answered = 0;
   while (!dds::stop_requested() && (o.seconds <= 0 || std::chrono::steady_clock::now() < end)) {
-    answered += segment.serve(*link, 50'000'000, [&] { process.exchange(slave); });
+    answered += segment.serve(*link, 50'000'000, [&] { slave.exchange(); });
   }
-  std::printf("answered %zu frames; AL state %s; %llu SDO requests\n", answered, to_string(slave.al_state()),
-              static_cast<unsigned long long>(coe.requests()));
+  std::printf("answered %zu frames; AL state %s; %llu SDO requests\n", answered, to_string(slave.esc().al_state()),
+              static_cast<unsigned long long>(slave.coe().requests()));
   std::printf("outputs: controlword 0x%04llX, target torque %lld per mille (%llu refused)\n",
-              static_cast<unsigned long long>(dictionary.get_or(0x6040, 0, 0)),
-              static_cast<long long>(dictionary.get_or(0x6071, 0, 0)),
-              static_cast<unsigned long long>(process.refused_outputs()));
+              static_cast<unsigned long long>(slave.dictionary().get_or(0x6040, 0, 0)),
+              static_cast<long long>(slave.dictionary().get_or(0x6071, 0, 0)),
+              static_cast<unsigned long long>(slave.process().refused_outputs()));
   return kExitOk;
 }
 

@@ -1,5 +1,7 @@
 #include "pmlsm/ethercat/coe_drive.hpp"
 
+#include "pmlsm/canopen/cia402_dictionary.hpp"
+
 #include <algorithm>
 #include <cstdio>
 #include <stdexcept>
@@ -65,6 +67,61 @@ void CoeProcessImage::exchange(Esc& esc) {
   if (!canopen::unpack_pdo(rx_, dictionary_, outputs)) ++refused_outputs_;
   const canopen::Result<canopen::CanFrame> inputs = canopen::pack_pdo(tx_, dictionary_, 0x180);
   if (inputs) esc.write_memory(inputs_at_, inputs.value.data.data(), inputs.value.dlc);
+}
+
+std::vector<std::uint16_t> VirtualCia402Slave::virtual_sii(std::uint16_t output_bytes, std::uint16_t input_bytes) {
+  constexpr std::uint8_t kMailboxWrite = 0x26;  // SM0: mailbox, the master writes, IRQ
+  constexpr std::uint8_t kMailboxRead = 0x22;   // SM1: mailbox, the master reads, IRQ
+  constexpr std::uint8_t kOutputs = 0x64;       // SM2: buffered, the master writes, watchdog
+  constexpr std::uint8_t kInputs = 0x20;        // SM3: buffered, the master reads
+  SiiInfo info;
+  info.vendor_id = kVendorId;
+  info.product_code = kProductCode;
+  info.revision = 1;
+  info.mailbox_receive_offset = kMailboxReceiveAt;
+  info.mailbox_receive_size = kMailboxBytes;
+  info.mailbox_send_offset = kMailboxSendAt;
+  info.mailbox_send_size = kMailboxBytes;
+  info.mailbox_protocols = 0x0004;  // CoE
+  info.group = "Drive";
+  info.order = "pmlsm-virtual-drive";
+  info.name = "PMLSM virtual drive";
+  info.sync_managers = {{kMailboxReceiveAt, kMailboxBytes, kMailboxWrite, 1, 1},
+                        {kMailboxSendAt, kMailboxBytes, kMailboxRead, 1, 2},
+                        {kOutputsAt, output_bytes, kOutputs, 1, 3},
+                        {kInputsAt, input_bytes, kInputs, 1, 4}};
+  return build_sii(info);
+}
+
+canopen::ObjectDictionary VirtualCia402Slave::make_dictionary(const std::vector<std::uint16_t>& sii) {
+  canopen::Cia402DictionaryConfig config;
+  if (sii.size() >= sii::kMinWords) {
+    config.vendor_id = static_cast<std::uint32_t>(sii[sii::kVendorId] | (sii[sii::kVendorId + 1] << 16));
+    config.product_code = static_cast<std::uint32_t>(sii[sii::kProductCode] | (sii[sii::kProductCode + 1] << 16));
+  } else {
+    config.vendor_id = kVendorId;
+    config.product_code = kProductCode;
+  }
+  canopen::ObjectDictionary dictionary = canopen::make_cia402_dictionary(canopen::NodeId(1), config);
+  add_coe_sync_manager_objects(dictionary);
+  return dictionary;
+}
+
+EscParams VirtualCia402Slave::esc_params(std::vector<std::uint16_t> sii, const CoeProcessImage& process) {
+  EscParams params;
+  params.sii = sii.empty() ? virtual_sii(process.output_bytes(), process.input_bytes()) : std::move(sii);
+  params.output_bytes = process.output_bytes();
+  params.input_bytes = process.input_bytes();
+  return params;
+}
+
+VirtualCia402Slave::VirtualCia402Slave(std::vector<std::uint16_t> sii)
+    : sii_(std::move(sii)),
+      dictionary_(make_dictionary(sii_)),
+      process_(dictionary_, kOutputsAt, kInputsAt),
+      esc_(esc_params(sii_, process_)),
+      coe_(dictionary_, canopen::NodeId(1)) {
+  esc_.set_mailbox_handler(&coe_);
 }
 
 }  // namespace pmlsm::ethercat

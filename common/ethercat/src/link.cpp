@@ -47,6 +47,20 @@ std::size_t InProcessWire::Queue::pop(std::uint8_t* buffer, std::int64_t timeout
 
 namespace {
 
+/// Whether `fd` has something to read before `deadline` (an interrupted wait goes on).
+bool readable_before(int fd, std::chrono::steady_clock::time_point deadline) {
+  for (;;) {
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    pollfd p{fd, POLLIN, 0};
+    // poll counts in milliseconds: rounded up; the caller then reads without waiting.
+    const int ready = ::poll(&p, 1, static_cast<int>(std::max<std::int64_t>(0, left.count() + 1)));
+    if (ready > 0) return true;
+    if (ready < 0 && errno == EINTR && std::chrono::steady_clock::now() < deadline) continue;
+    return false;
+  }
+}
+
 sockaddr_in ipv4(const std::string& address, std::uint16_t port) {
   sockaddr_in a{};
   a.sin_family = AF_INET;
@@ -99,15 +113,7 @@ bool UdpLink::send(Bytes ethernet_frame) {
 std::size_t UdpLink::receive(std::uint8_t* buffer, std::int64_t timeout_ns) {
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::nanoseconds(timeout_ns);
   for (;;) {
-    const auto left =
-        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-    pollfd p{fd_, POLLIN, 0};
-    // poll counts in milliseconds: round up, then read without waiting.
-    const int ready = ::poll(&p, 1, static_cast<int>(std::max<std::int64_t>(0, left.count() + 1)));
-    if (ready <= 0) {
-      if (ready < 0 && errno == EINTR && std::chrono::steady_clock::now() < deadline) continue;
-      return 0;
-    }
+    if (!readable_before(fd_, deadline)) return 0;
     sockaddr_in sender{};
     socklen_t sender_size = sizeof sender;
     const ssize_t n = ::recvfrom(fd_, buffer + kEthernetHeaderBytes, kMaxEthernetFrameBytes - kEthernetHeaderBytes,
@@ -164,14 +170,7 @@ bool RawSocketLink::send(Bytes ethernet_frame) {
 std::size_t RawSocketLink::receive(std::uint8_t* buffer, std::int64_t timeout_ns) {
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::nanoseconds(timeout_ns);
   for (;;) {
-    const auto left =
-        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-    pollfd p{fd_, POLLIN, 0};
-    const int ready = ::poll(&p, 1, static_cast<int>(std::max<std::int64_t>(0, left.count() + 1)));
-    if (ready <= 0) {
-      if (ready < 0 && errno == EINTR && std::chrono::steady_clock::now() < deadline) continue;
-      return 0;
-    }
+    if (!readable_before(fd_, deadline)) return 0;
     sockaddr_ll from{};
     socklen_t from_size = sizeof from;
     const ssize_t n = ::recvfrom(fd_, buffer, kMaxEthernetFrameBytes, MSG_DONTWAIT | MSG_TRUNC,

@@ -212,37 +212,19 @@ TEST(EtherCatMaster, ReadsAndWritesTheCia402DictionaryOverCoeAsCanopenServesIt) 
 }
 
 TEST(EtherCatMaster, MapsTheCia402PdosFromCoeAndExchangesThemWithTheSlavesDictionary) {
-  canopen::ObjectDictionary dictionary = canopen::make_cia402_dictionary(canopen::NodeId(1));
-  add_coe_sync_manager_objects(dictionary);
-  CoeProcessImage process(dictionary, 0x1100, 0x1180);
-  ASSERT_EQ(process.output_bytes(), 4);  // controlword, target torque
-  ASSERT_EQ(process.input_bytes(), 8);   // statusword, torque actual, position actual
-  SiiInfo sii;
-  sii.mailbox_receive_offset = 0x1000;
-  sii.mailbox_receive_size = 128;
-  sii.mailbox_send_offset = 0x1080;
-  sii.mailbox_send_size = 128;
-  sii.mailbox_protocols = 0x0004;
-  sii.name = "drive";
-  sii.sync_managers = {{0x1000, 128, kMailboxWrite, 1, 1},
-                       {0x1080, 128, kMailboxRead, 1, 2},
-                       {0x1100, 0, kOutputs, 1, 3},
-                       {0x1180, 0, kInputs, 1, 4}};
-  EscParams p;
-  p.sii = build_sii(sii);
-  p.output_bytes = process.output_bytes();
-  p.input_bytes = process.input_bytes();
-  Esc slave(p);
-  CoeSdoServer coe(dictionary, canopen::NodeId(1));
-  slave.set_mailbox_handler(&coe);
-  VirtualSegment segment({&slave});
+  VirtualCia402Slave drive;
+  canopen::ObjectDictionary& dictionary = drive.dictionary();
+  ASSERT_EQ(drive.process().output_bytes(), 4);  // controlword, target torque
+  ASSERT_EQ(drive.process().input_bytes(), 8);   // statusword, torque actual, position actual
+  VirtualSegment segment({&drive.esc()});
   VirtualSegmentLink link(segment);
   Master master(link);
   master.assign_station_addresses(1);
   const SlaveInfo info = master.read_slave_info(0x1001);
-  EXPECT_EQ(info.name, "drive");
-  master.configure_sync_manager(0x1001, 0, 0x1000, 128, kMailboxWrite);
-  master.configure_sync_manager(0x1001, 1, 0x1080, 128, kMailboxRead);
+  EXPECT_EQ(info.name, "PMLSM virtual drive");
+  EXPECT_EQ(info.product_code, VirtualCia402Slave::kProductCode);
+  master.configure_sync_manager(0x1001, 0, info.mailbox_receive_offset, info.mailbox_receive_size, kMailboxWrite);
+  master.configure_sync_manager(0x1001, 1, info.mailbox_send_offset, info.mailbox_send_size, kMailboxRead);
   ASSERT_TRUE(master.request_state(0x1001, AlState::kPreOp).reached);
   // SAFEOP before the process data is mapped: refused for its outputs.
   EXPECT_EQ(master.request_state(0x1001, AlState::kSafeOp).code, al_code::kInvalidOutputConfiguration);
@@ -258,7 +240,7 @@ TEST(EtherCatMaster, MapsTheCia402PdosFromCoeAndExchangesThemWithTheSlavesDictio
   std::array<std::uint8_t, 12> image{0x0F, 0x00, 0x2C, 0x01};  // controlword 0x000F, 300 per mille
   Reply r = master.exchange(Command::kLrw, 0x20000, image.data(), image.size());
   EXPECT_EQ(r.working_counter, 3);
-  process.exchange(slave);
+  drive.exchange();
   EXPECT_EQ(dictionary.get_or(0x6040, 0, -1), 0x000F);
   EXPECT_EQ(dictionary.get_or(0x6071, 0, -1), 300);
   r = master.exchange(Command::kLrw, 0x20000, image.data(), image.size());
@@ -267,7 +249,7 @@ TEST(EtherCatMaster, MapsTheCia402PdosFromCoeAndExchangesThemWithTheSlavesDictio
   const auto position = static_cast<std::int32_t>(static_cast<std::uint32_t>(image[8]) | (image[9] << 8) |
                                                   (image[10] << 16) | (static_cast<std::uint32_t>(image[11]) << 24));
   EXPECT_EQ(position, -123456);
-  EXPECT_EQ(process.refused_outputs(), 0u);
+  EXPECT_EQ(drive.process().refused_outputs(), 0u);
 }
 
 TEST(EtherCatSii, AnImageBuiltIsReadBackAndAMalformedOneIsRefusedByName) {

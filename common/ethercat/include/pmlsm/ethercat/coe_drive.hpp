@@ -7,10 +7,12 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include "pmlsm/canopen/object_dictionary.hpp"
 #include "pmlsm/canopen/pdo.hpp"
 #include "pmlsm/ethercat/esc.hpp"
+#include "pmlsm/ethercat/mailbox.hpp"
 
 namespace pmlsm::ethercat {
 
@@ -46,6 +48,47 @@ class CoeProcessImage {
   std::uint16_t outputs_at_;
   std::uint16_t inputs_at_;
   std::uint64_t refused_outputs_ = 0;
+};
+
+/// A virtual CiA 402 slave on EtherCAT: its ESC, the CiA 402 dictionary of common/canopen with the
+/// sync manager objects, SDO over CoE on it, and its process image. `pmlsm ethercat serve` runs
+/// one; tests and the fuzz target build one the same way.
+class VirtualCia402Slave {
+ public:
+  static constexpr std::uint16_t kMailboxReceiveAt = 0x1000;
+  static constexpr std::uint16_t kMailboxSendAt = 0x1080;
+  static constexpr std::uint16_t kMailboxBytes = 128;
+  static constexpr std::uint16_t kOutputsAt = 0x1100;  ///< SM2
+  static constexpr std::uint16_t kInputsAt = 0x1180;   ///< SM3
+  static constexpr std::uint32_t kVendorId = 0;        ///< none of ETG's list
+  static constexpr std::uint32_t kProductCode = 0x00005001;
+
+  /// `sii`: the image to answer with (a drive's dump: its identity goes into 0x1018 too); empty:
+  /// its own (virtual_sii()). @throws std::invalid_argument from the image or the dictionary.
+  explicit VirtualCia402Slave(std::vector<std::uint16_t> sii = {});
+  VirtualCia402Slave(const VirtualCia402Slave&) = delete;
+  VirtualCia402Slave& operator=(const VirtualCia402Slave&) = delete;
+
+  Esc& esc() { return esc_; }
+  canopen::ObjectDictionary& dictionary() { return dictionary_; }
+  const CoeProcessImage& process() const { return process_; }
+  const CoeSdoServer& coe() const { return coe_; }
+  /// The application between frames: the process image (CoeProcessImage::exchange).
+  void exchange() { process_.exchange(esc_); }
+
+  /// Its own SII: identity, the name "PMLSM virtual drive", a 128-byte CoE mailbox at 0x1000 and
+  /// 0x1080, and its sync managers with the process data's lengths.
+  static std::vector<std::uint16_t> virtual_sii(std::uint16_t output_bytes, std::uint16_t input_bytes);
+
+ private:
+  static canopen::ObjectDictionary make_dictionary(const std::vector<std::uint16_t>& sii);
+  static EscParams esc_params(std::vector<std::uint16_t> sii, const CoeProcessImage& process);
+
+  std::vector<std::uint16_t> sii_;
+  canopen::ObjectDictionary dictionary_;
+  CoeProcessImage process_;
+  Esc esc_;
+  CoeSdoServer coe_;
 };
 
 }  // namespace pmlsm::ethercat
