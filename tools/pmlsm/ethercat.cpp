@@ -39,9 +39,6 @@ namespace {
 
 using namespace pmlsm::ethercat;
 
-constexpr std::uint8_t kMailboxWriteControl = 0x26;  ///< SM0: mailbox, the master writes, IRQ
-constexpr std::uint8_t kMailboxReadControl = 0x22;   ///< SM1: mailbox, the master reads, IRQ
-
 struct EthercatOptions {
   std::string interface;
   std::string udp;  ///< HOST:PORT
@@ -173,12 +170,7 @@ int run_state(const EthercatOptions& o) {
   const std::uint16_t station = station_of(o, s);
   const AlState target = parse_state(o.state);
   const SlaveInfo info = s.master->read_slave_info(station);
-  if (target != AlState::kInit && info.mailbox_receive_size > 0) {
-    // The mailbox as its SII lays it out: PREOP needs it.
-    s.master->configure_sync_manager(station, 0, info.mailbox_receive_offset, info.mailbox_receive_size,
-                                     kMailboxWriteControl);
-    s.master->configure_sync_manager(station, 1, info.mailbox_send_offset, info.mailbox_send_size, kMailboxReadControl);
-  }
+  if (target != AlState::kInit && info.mailbox_receive_size > 0) s.master->configure_mailbox(info);
   // The standard's walk, one state at a time: INIT, PREOP, SAFEOP, OP (or down at once). Before
   // SAFEOP, the process data mapped as the slave's CoE objects say.
   const AlState order[] = {AlState::kInit, AlState::kPreOp, AlState::kSafeOp, AlState::kOp};
@@ -207,9 +199,7 @@ int run_sdo(const EthercatOptions& o, bool write) {
   const SlaveInfo info = s.master->read_slave_info(station);
   if (info.mailbox_receive_size == 0) throw UsageError("ethercat: slave " + o.station + " has no mailbox (no CoE)");
   if (s.master->read_state(station).state == AlState::kInit) {
-    s.master->configure_sync_manager(station, 0, info.mailbox_receive_offset, info.mailbox_receive_size,
-                                     kMailboxWriteControl);
-    s.master->configure_sync_manager(station, 1, info.mailbox_send_offset, info.mailbox_send_size, kMailboxReadControl);
+    s.master->configure_mailbox(info);
     const StateResult preop = s.master->request_state(station, AlState::kPreOp);
     if (!preop.reached) {
       std::fprintf(stderr, "ethercat: 0x%04X: PREOP for the mailbox: %s\n", station, preop.describe().c_str());

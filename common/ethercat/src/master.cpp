@@ -195,6 +195,21 @@ void Master::configure_sync_manager(std::uint16_t station, std::uint8_t index, s
                  kSyncManagerBytes, "sync manager");
 }
 
+void Master::configure_mailbox(const SlaveInfo& slave) {
+  const std::uint16_t station = slave.station_address;
+  if (slave.mailbox_receive_size == 0 || slave.mailbox_send_size == 0) {
+    throw std::runtime_error(slave_name(station) + ": its SII declares no mailbox");
+  }
+  SiiSyncManager receive{slave.mailbox_receive_offset, slave.mailbox_receive_size, 0x26, 1, 1};
+  SiiSyncManager send{slave.mailbox_send_offset, slave.mailbox_send_size, 0x22, 1, 2};
+  for (const SiiSyncManager& sm : slave.sync_managers) {
+    if (sm.type == receive.type && sm.start == receive.start) receive.control = sm.control;
+    if (sm.type == send.type && sm.start == send.start) send.control = sm.control;
+  }
+  configure_sync_manager(station, 0, receive.start, receive.length, receive.control);
+  configure_sync_manager(station, 1, send.start, send.length, send.control);
+}
+
 void Master::configure_fmmu(std::uint16_t station, std::uint8_t index, std::uint32_t logical, std::uint16_t length,
                             std::uint16_t physical, bool write) {
   std::array<std::uint8_t, kFmmuBytes> fmmu{};

@@ -179,8 +179,7 @@ TEST(EtherCatMaster, ReadsAndWritesTheCia402DictionaryOverCoeAsCanopenServesIt) 
   Master master(link);
   master.assign_station_addresses(1);
   const SlaveInfo info = master.read_slave_info(0x1001);
-  master.configure_sync_manager(0x1001, 0, info.mailbox_receive_offset, info.mailbox_receive_size, kMailboxWrite);
-  master.configure_sync_manager(0x1001, 1, info.mailbox_send_offset, info.mailbox_send_size, kMailboxRead);
+  master.configure_mailbox(info);
   ASSERT_TRUE(master.request_state(0x1001, AlState::kPreOp).reached);
   // An empty send mailbox is not read: working counter 0.
   std::array<std::uint8_t, 128> empty{};
@@ -205,10 +204,11 @@ TEST(EtherCatMaster, ReadsAndWritesTheCia402DictionaryOverCoeAsCanopenServesIt) 
   EXPECT_EQ(r.abort_code, 0x06010002u) << r.describe();  // read only
   EXPECT_EQ(coe.requests(), 6u);
   EXPECT_THROW(master.sdo_download(info, 0x6060, 0, 1, 5), std::invalid_argument);
-  // A slave without a mailbox has no CoE.
+  // A slave without a mailbox has no CoE, and no mailbox to set.
   SlaveInfo no_mailbox = info;
   no_mailbox.mailbox_receive_size = 0;
   EXPECT_THROW(master.sdo_upload(no_mailbox, 0x1000, 0), std::runtime_error);
+  EXPECT_THROW(master.configure_mailbox(no_mailbox), std::runtime_error);
 }
 
 TEST(EtherCatMaster, MapsTheCia402PdosFromCoeAndExchangesThemWithTheSlavesDictionary) {
@@ -223,8 +223,7 @@ TEST(EtherCatMaster, MapsTheCia402PdosFromCoeAndExchangesThemWithTheSlavesDictio
   const SlaveInfo info = master.read_slave_info(0x1001);
   EXPECT_EQ(info.name, "PMLSM virtual drive");
   EXPECT_EQ(info.product_code, VirtualCia402Slave::kProductCode);
-  master.configure_sync_manager(0x1001, 0, info.mailbox_receive_offset, info.mailbox_receive_size, kMailboxWrite);
-  master.configure_sync_manager(0x1001, 1, info.mailbox_send_offset, info.mailbox_send_size, kMailboxRead);
+  master.configure_mailbox(info);
   ASSERT_TRUE(master.request_state(0x1001, AlState::kPreOp).reached);
   // SAFEOP before the process data is mapped: refused for its outputs.
   EXPECT_EQ(master.request_state(0x1001, AlState::kSafeOp).code, al_code::kInvalidOutputConfiguration);

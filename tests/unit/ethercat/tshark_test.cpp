@@ -248,8 +248,7 @@ TEST(EtherCatTshark, DecodesOurCoeSdoRequestsAndTheSlavesAnswers) {
     Master master(link);
     master.assign_station_addresses(1);
     const SlaveInfo info = master.read_slave_info(0x1001);
-    master.configure_sync_manager(0x1001, 0, 0x1000, 128, 0x26);
-    master.configure_sync_manager(0x1001, 1, 0x1080, 128, 0x22);
+    master.configure_mailbox(info);
     ASSERT_TRUE(master.request_state(0x1001, AlState::kPreOp).reached);
     master.capture_to(&writer);
     ASSERT_TRUE(master.sdo_upload(info, 0x1000, 0).done);

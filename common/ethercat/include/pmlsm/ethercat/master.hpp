@@ -91,6 +91,11 @@ class Master {
   /// @throws std::runtime_error when the slave does not take it.
   void configure_sync_manager(std::uint16_t station, std::uint8_t index, std::uint16_t start, std::uint16_t length,
                               std::uint8_t control);
+  /// SM0 and SM1 as the slave's mailbox: where and how its SII's sync manager category says
+  /// (types 1 and 2), else at its fixed part's offsets and sizes with the usual control bytes
+  /// (0x26: the master writes; 0x22: it reads). PREOP needs them.
+  /// @throws std::runtime_error when the slave has no mailbox or does not take them.
+  void configure_mailbox(const SlaveInfo& slave);
   /// FMMU `index` of a slave: `length` bytes at `logical` onto its memory at `physical`, read
   /// (the slave's inputs into the frame) or write (the frame's outputs into the slave).
   /// @throws std::runtime_error when the slave does not take it.
