@@ -33,6 +33,7 @@
 #include "pmlsm/ethercat/master.hpp"
 #include "pmlsm/ethercat/pcapng.hpp"
 #include "pmlsm/ethercat/sii.hpp"
+#include "pmlsm/util/validate.hpp"
 
 namespace pmlsm::tools {
 namespace {
@@ -117,7 +118,14 @@ struct Session {
     if (slaves > 0) master->assign_station_addresses(slaves);
   }
   ~Session() {
-    if (capture) capture->flush();
+    if (!capture) return;
+    try {
+      capture->flush();
+    } catch (const std::runtime_error& e) {
+      std::fprintf(stderr, "ethercat: --capture: %s\n", e.what());
+    }
+    if (master->capture_failed())
+      std::fprintf(stderr, "ethercat: --capture: a write failed; the capture stops there\n");
   }
   Session(const Session&) = delete;
   Session& operator=(const Session&) = delete;
@@ -133,11 +141,7 @@ std::uint16_t station_of(const EthercatOptions& o, const Session& s) {
   const auto first = MasterParams{}.first_station_address;
   if (station < first || station >= first + s.slaves) {
     throw UsageError("ethercat: station " + o.station + ": the bus has " + std::to_string(s.slaves) +
-                     " slaves, addressed 0x1001 to 0x" + [&] {
-                       char hex[8];
-                       std::snprintf(hex, sizeof hex, "%04X", static_cast<unsigned>(first + s.slaves - 1));
-                       return std::string(hex);
-                     }());
+                     " slaves, addressed " + format_hex(first, 4) + " to " + format_hex(first + s.slaves - 1U, 4));
   }
   return station;
 }

@@ -1,9 +1,9 @@
 #include "pmlsm/ethercat/coe_drive.hpp"
 
 #include "pmlsm/canopen/cia402_dictionary.hpp"
+#include "pmlsm/util/validate.hpp"
 
 #include <algorithm>
-#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -26,9 +26,7 @@ canopen::Entry entry(std::uint16_t index, std::uint8_t subindex, const char* nam
 canopen::PdoMap map_of(const canopen::ObjectDictionary& dictionary, std::uint16_t index) {
   const canopen::Result<canopen::PdoMap> map = canopen::read_pdo_map(dictionary, index);
   if (!map) {
-    char hex[8];
-    std::snprintf(hex, sizeof hex, "0x%04X", index);
-    throw std::invalid_argument(std::string("PDO mapping ") + hex + ": " + canopen::to_string(map.error) + " (" +
+    throw std::invalid_argument("PDO mapping " + format_hex(index, 4) + ": " + canopen::to_string(map.error) + " (" +
                                 map.detail + ")");
   }
   return map.value;
@@ -70,10 +68,6 @@ void CoeProcessImage::exchange(Esc& esc) {
 }
 
 std::vector<std::uint16_t> VirtualCia402Slave::virtual_sii(std::uint16_t output_bytes, std::uint16_t input_bytes) {
-  constexpr std::uint8_t kMailboxWrite = 0x26;  // SM0: mailbox, the master writes, IRQ
-  constexpr std::uint8_t kMailboxRead = 0x22;   // SM1: mailbox, the master reads, IRQ
-  constexpr std::uint8_t kOutputs = 0x64;       // SM2: buffered, the master writes, watchdog
-  constexpr std::uint8_t kInputs = 0x20;        // SM3: buffered, the master reads
   SiiInfo info;
   info.vendor_id = kVendorId;
   info.product_code = kProductCode;
@@ -86,10 +80,10 @@ std::vector<std::uint16_t> VirtualCia402Slave::virtual_sii(std::uint16_t output_
   info.group = "Drive";
   info.order = "pmlsm-virtual-drive";
   info.name = "PMLSM virtual drive";
-  info.sync_managers = {{kMailboxReceiveAt, kMailboxBytes, kMailboxWrite, 1, 1},
-                        {kMailboxSendAt, kMailboxBytes, kMailboxRead, 1, 2},
-                        {kOutputsAt, output_bytes, kOutputs, 1, 3},
-                        {kInputsAt, input_bytes, kInputs, 1, 4}};
+  info.sync_managers = {{kMailboxReceiveAt, kMailboxBytes, kSmControlMailboxWrite, 1, 1},
+                        {kMailboxSendAt, kMailboxBytes, kSmControlMailboxRead, 1, 2},
+                        {kOutputsAt, output_bytes, kSmControlOutputs, 1, 3},
+                        {kInputsAt, input_bytes, kSmControlInputs, 1, 4}};
   return build_sii(info);
 }
 
@@ -116,10 +110,9 @@ EscParams VirtualCia402Slave::esc_params(std::vector<std::uint16_t> sii, const C
 }
 
 VirtualCia402Slave::VirtualCia402Slave(std::vector<std::uint16_t> sii)
-    : sii_(std::move(sii)),
-      dictionary_(make_dictionary(sii_)),
+    : dictionary_(make_dictionary(sii)),
       process_(dictionary_, kOutputsAt, kInputsAt),
-      esc_(esc_params(sii_, process_)),
+      esc_(esc_params(std::move(sii), process_)),
       coe_(dictionary_, canopen::NodeId(1)) {
   esc_.set_mailbox_handler(&coe_);
 }

@@ -96,10 +96,6 @@ bool FrameBuilder::add(Command command, std::uint8_t index, std::uint32_t addres
   return true;
 }
 
-std::uint8_t* FrameBuilder::data(std::size_t i) {
-  return i < count_ ? bytes_.data() + header_at_[i] + kDatagramHeaderBytes : nullptr;
-}
-
 Bytes FrameBuilder::ethernet() const { return {bytes_.data(), std::max(end_, kMinEthernetFrameBytes)}; }
 
 Bytes FrameBuilder::udp_payload() const { return {bytes_.data() + kEthernetHeaderBytes, end_ - kEthernetHeaderBytes}; }

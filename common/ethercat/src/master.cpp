@@ -9,6 +9,7 @@
 #include "pmlsm/canopen/sdo.hpp"
 #include "pmlsm/ethercat/mailbox.hpp"
 #include "pmlsm/util/little_endian.hpp"
+#include "pmlsm/util/validate.hpp"
 
 namespace pmlsm::ethercat {
 
@@ -19,13 +20,7 @@ std::int64_t now_ns() {
       .count();
 }
 
-std::string hex(std::uint32_t value, int digits) {
-  char text[16];
-  std::snprintf(text, sizeof text, "0x%0*X", digits, value);
-  return text;
-}
-
-std::string slave_name(std::uint16_t station) { return "slave " + hex(station, 4); }
+std::string slave_name(std::uint16_t station) { return "slave " + format_hex(station, 4); }
 
 }  // namespace
 
@@ -39,20 +34,27 @@ void MasterParams::validate() const {
 }
 
 std::string SdoResult::describe() const {
-  if (done) return hex(value, 2 * (size == 0 ? 4 : size));
-  return "aborted: " + hex(abort_code, 8) + " " + canopen::describe(abort_code);
+  if (done) return format_hex(value, 2 * (size == 0 ? 4 : size));
+  return "aborted: " + format_hex(abort_code, 8) + " " + canopen::describe(abort_code);
 }
 
 std::string StateResult::describe() const {
   std::string text = to_string(state);
-  if (code != 0) text += ", refused: " + hex(code, 4) + " " + al_status_code_name(code);
+  if (code != 0) text += ", refused: " + format_hex(code, 4) + " " + al_status_code_name(code);
   return text;
 }
 
 Master::Master(Link& link, MasterParams params) : link_(link), params_((params.validate(), params)) {}
 
 void Master::record(Bytes frame) {
-  if (capture_ != nullptr) capture_->write(frame, now_ns());
+  if (capture_ == nullptr) return;
+  try {
+    capture_->write(frame, now_ns());
+  } catch (const std::runtime_error&) {
+    // exchange() never throws: a capture that cannot be written stops, and says so.
+    capture_ = nullptr;
+    capture_failed_ = true;
+  }
 }
 
 Reply Master::exchange(Command command, std::uint32_t address, std::uint8_t* data, std::uint16_t length) {
@@ -102,7 +104,8 @@ std::vector<std::uint16_t> Master::assign_station_addresses(std::uint16_t slaves
         exchange(Command::kApwr, physical_address(auto_increment_adp(position), reg::kStationAddress), value.data(), 2);
     if (!r.answered || r.working_counter != 1) {
       throw std::runtime_error(
-          "the slave at position " + std::to_string(position) + " did not take station address " + hex(station, 4) +
+          "the slave at position " + std::to_string(position) + " did not take station address " +
+          format_hex(station, 4) +
           (r.answered ? " (working counter " + std::to_string(r.working_counter) + ")" : " (no answer)"));
     }
     addresses.push_back(station);
@@ -117,7 +120,7 @@ void Master::write_register(std::uint16_t station, std::uint16_t address, const 
   const Reply r = exchange(Command::kFpwr, physical_address(station, address), copy.data(), length);
   if (!r.answered || r.working_counter != 1) {
     throw std::runtime_error(
-        slave_name(station) + ": " + what + " (" + hex(address, 4) + ") not written: " +
+        slave_name(station) + ": " + what + " (" + format_hex(address, 4) + ") not written: " +
         (r.answered ? "working counter " + std::to_string(r.working_counter) + ", expected 1" : "no answer"));
   }
 }
@@ -127,7 +130,7 @@ void Master::read_register(std::uint16_t station, std::uint16_t address, std::ui
   const Reply r = exchange(Command::kFprd, physical_address(station, address), data, length);
   if (!r.answered || r.working_counter != 1) {
     throw std::runtime_error(
-        slave_name(station) + ": " + what + " (" + hex(address, 4) + ") not read: " +
+        slave_name(station) + ": " + what + " (" + format_hex(address, 4) + ") not read: " +
         (r.answered ? "working counter " + std::to_string(r.working_counter) + ", expected 1" : "no answer"));
   }
 }
@@ -166,8 +169,8 @@ SlaveInfo Master::read_slave_info(std::uint16_t station) {
     const std::size_t size = header[1];
     if (at + 2 + size > kSiiMaxWords) {
       throw std::runtime_error(slave_name(station) + ": SII category " + std::to_string(header[0]) + " at word " +
-                               hex(static_cast<std::uint32_t>(at), 4) + " runs past " + std::to_string(kSiiMaxWords) +
-                               " words");
+                               format_hex(static_cast<std::uint32_t>(at), 4) + " runs past " +
+                               std::to_string(kSiiMaxWords) + " words");
     }
     const std::vector<std::uint16_t> data =
         read_sii(station, static_cast<std::uint16_t>(at + 2), static_cast<std::uint16_t>(size));
@@ -200,8 +203,8 @@ void Master::configure_mailbox(const SlaveInfo& slave) {
   if (slave.mailbox_receive_size == 0 || slave.mailbox_send_size == 0) {
     throw std::runtime_error(slave_name(station) + ": its SII declares no mailbox");
   }
-  SiiSyncManager receive{slave.mailbox_receive_offset, slave.mailbox_receive_size, 0x26, 1, 1};
-  SiiSyncManager send{slave.mailbox_send_offset, slave.mailbox_send_size, 0x22, 1, 2};
+  SiiSyncManager receive{slave.mailbox_receive_offset, slave.mailbox_receive_size, kSmControlMailboxWrite, 1, 1};
+  SiiSyncManager send{slave.mailbox_send_offset, slave.mailbox_send_size, kSmControlMailboxRead, 1, 2};
   for (const SiiSyncManager& sm : slave.sync_managers) {
     if (sm.type == receive.type && sm.start == receive.start) receive.control = sm.control;
     if (sm.type == send.type && sm.start == send.start) send.control = sm.control;
@@ -322,8 +325,8 @@ std::uint32_t Master::assigned_bits(const SlaveInfo& slave, std::uint16_t assign
   const auto checked = [&](std::uint16_t index, std::uint8_t sub) {
     const SdoResult r = sdo_upload(slave, index, sub);
     if (!r.done) {
-      throw std::runtime_error(slave_name(slave.station_address) + ": " + hex(index, 4) + ":" + std::to_string(sub) +
-                               " " + r.describe());
+      throw std::runtime_error(slave_name(slave.station_address) + ": " + format_hex(index, 4) + ":" +
+                               std::to_string(sub) + " " + r.describe());
     }
     return r.value;
   };

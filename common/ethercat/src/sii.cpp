@@ -1,7 +1,8 @@
 #include "pmlsm/ethercat/sii.hpp"
 
-#include <cstdio>
 #include <stdexcept>
+
+#include "pmlsm/util/validate.hpp"
 
 namespace pmlsm::ethercat {
 
@@ -9,12 +10,6 @@ namespace {
 
 std::uint32_t long_at(const std::vector<std::uint16_t>& w, std::size_t at) {
   return static_cast<std::uint32_t>(w[at]) | (static_cast<std::uint32_t>(w[at + 1]) << 16);
-}
-
-std::string hex4(std::size_t v) {
-  char text[8];
-  std::snprintf(text, sizeof text, "0x%04zX", v);
-  return text;
 }
 
 /// The category's data as bytes (words little-endian).
@@ -34,8 +29,8 @@ std::vector<std::string> parse_strings(const std::vector<std::uint8_t>& b, std::
   std::size_t p = 1;
   for (std::size_t i = 0; i < b[0]; ++i) {
     if (p >= b.size() || p + 1 + b[p] > b.size()) {
-      throw std::invalid_argument("SII strings category at word " + hex4(at_word) + ": string " +
-                                  std::to_string(i + 1) + " runs past the category");
+      throw std::invalid_argument("SII strings category at word " + format_hex(static_cast<std::uint32_t>(at_word), 4) +
+                                  ": string " + std::to_string(i + 1) + " runs past the category");
     }
     strings.emplace_back(reinterpret_cast<const char*>(b.data() + p + 1), b[p]);
     p += 1 + b[p];
@@ -89,8 +84,9 @@ SiiInfo parse_sii(const std::vector<std::uint16_t>& w) {
     if (type == sii_category::kEnd) break;
     const std::size_t size = w[at + 1];
     if (at + 2 + size > w.size()) {
-      throw std::invalid_argument("SII category " + std::to_string(type) + " at word " + hex4(at) + ": " +
-                                  std::to_string(size) + " words run past the image's " + std::to_string(w.size()));
+      throw std::invalid_argument("SII category " + std::to_string(type) + " at word " +
+                                  format_hex(static_cast<std::uint32_t>(at), 4) + ": " + std::to_string(size) +
+                                  " words run past the image's " + std::to_string(w.size()));
     }
     const std::vector<std::uint8_t> data = bytes_of(w, at + 2, size);
     if (type == sii_category::kStrings) info.strings = parse_strings(data, at);

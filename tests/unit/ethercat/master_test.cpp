@@ -27,11 +27,6 @@
 namespace pmlsm::ethercat {
 namespace {
 
-constexpr std::uint8_t kMailboxWrite = 0x26;  ///< SM0 as masters set it: mailbox, the master writes, IRQ
-constexpr std::uint8_t kMailboxRead = 0x22;   ///< SM1: mailbox, the master reads, IRQ
-constexpr std::uint8_t kOutputs = 0x64;       ///< SM2: buffered, the master writes, watchdog
-constexpr std::uint8_t kInputs = 0x20;        ///< SM3: buffered, the master reads
-
 /// An SII image: identity, a standard mailbox at 0x1000 and 0x1080 (128 bytes each, CoE), and
 /// the end of the categories.
 std::vector<std::uint16_t> sii_image(std::uint32_t vendor, std::uint32_t product, std::uint32_t serial) {
@@ -109,10 +104,10 @@ TEST(EtherCatMaster, WalksTheAlStatesAndReadsEachRefusalByName) {
   EXPECT_EQ(r.code, al_code::kInvalidMailboxConfiguration);
   EXPECT_EQ(r.describe(), "INIT, refused: 0x0016 invalid mailbox configuration");
   // A mailbox of the wrong size is refused too.
-  master.configure_sync_manager(s, 0, 0x1000, 64, kMailboxWrite);
-  master.configure_sync_manager(s, 1, 0x1080, 128, kMailboxRead);
+  master.configure_sync_manager(s, 0, 0x1000, 64, kSmControlMailboxWrite);
+  master.configure_sync_manager(s, 1, 0x1080, 128, kSmControlMailboxRead);
   EXPECT_EQ(master.request_state(s, AlState::kPreOp).code, al_code::kInvalidMailboxConfiguration);
-  master.configure_sync_manager(s, 0, 0x1000, 128, kMailboxWrite);
+  master.configure_sync_manager(s, 0, 0x1000, 128, kSmControlMailboxWrite);
   r = master.request_state(s, AlState::kPreOp);
   EXPECT_TRUE(r.reached) << r.describe();
   EXPECT_EQ(bus.slaves[0]->al_state(), AlState::kPreOp);
@@ -120,9 +115,9 @@ TEST(EtherCatMaster, WalksTheAlStatesAndReadsEachRefusalByName) {
   EXPECT_EQ(master.request_state(s, AlState::kOp).code, al_code::kInvalidStateChange);
   // SAFEOP needs the process data's sync managers at the mapping's lengths: outputs, then inputs.
   EXPECT_EQ(master.request_state(s, AlState::kSafeOp).code, al_code::kInvalidOutputConfiguration);
-  master.configure_sync_manager(s, 2, 0x1100, 4, kOutputs);
+  master.configure_sync_manager(s, 2, 0x1100, 4, kSmControlOutputs);
   EXPECT_EQ(master.request_state(s, AlState::kSafeOp).code, al_code::kInvalidInputConfiguration);
-  master.configure_sync_manager(s, 3, 0x1180, 6, kInputs);
+  master.configure_sync_manager(s, 3, 0x1180, 6, kSmControlInputs);
   EXPECT_TRUE(master.request_state(s, AlState::kSafeOp).reached);
   EXPECT_TRUE(master.request_state(s, AlState::kOp).reached);
   EXPECT_EQ(bus.slaves[0]->al_state(), AlState::kOp);

@@ -84,7 +84,6 @@ class VirtualCia402Slave {
   static canopen::ObjectDictionary make_dictionary(const std::vector<std::uint16_t>& sii);
   static EscParams esc_params(std::vector<std::uint16_t> sii, const CoeProcessImage& process);
 
-  std::vector<std::uint16_t> sii_;
   canopen::ObjectDictionary dictionary_;
   CoeProcessImage process_;
   Esc esc_;

@@ -63,6 +63,12 @@ inline constexpr std::uint16_t kProcessRam = 0x1000;
 
 inline constexpr std::size_t kFmmuBytes = 16;
 inline constexpr std::size_t kSyncManagerBytes = 8;
+/// A sync manager's control byte as masters set it for each use (mode, direction, interrupt,
+/// watchdog): SM0 the mailbox the master writes, SM1 the one it reads, SM2 outputs, SM3 inputs.
+inline constexpr std::uint8_t kSmControlMailboxWrite = 0x26;
+inline constexpr std::uint8_t kSmControlMailboxRead = 0x22;
+inline constexpr std::uint8_t kSmControlOutputs = 0x64;
+inline constexpr std::uint8_t kSmControlInputs = 0x20;
 inline constexpr std::uint8_t kAlErrorIndicator = 0x10;  ///< in AL status; in AL control: acknowledge
 /// SII EEPROM interface: control/status bits at 0x0502.
 inline constexpr std::uint16_t kSiiReadCommand = 0x0100;

@@ -117,8 +117,6 @@ class FrameBuilder {
   std::size_t datagrams_bytes() const { return end_ - kEthernetHeaderBytes - kFrameHeaderBytes; }
   /// Whether a datagram of `length` data bytes still fits.
   bool fits(std::uint16_t length) const;
-  /// The data of datagram `i` (to be written after add, before sending).
-  std::uint8_t* data(std::size_t i);
   /// The Ethernet frame, padded to kMinEthernetFrameBytes: for a raw socket and a capture.
   Bytes ethernet() const;
   /// The EtherCAT frame alone (its header and the datagrams): EtherCAT over UDP's payload.

@@ -69,8 +69,10 @@ class Master {
   /// `link` outlives the master. @throws std::invalid_argument from the params.
   explicit Master(Link& link, MasterParams params = {});
 
-  /// Every frame sent and received from now on also into `capture` (nullptr: none).
+  /// Every frame sent and received from now on also into `capture` (nullptr: none). A write that
+  /// fails ends the capture (capture_failed()); the exchanges go on.
   void capture_to(PcapngWriter* capture) { capture_ = capture; }
+  bool capture_failed() const { return capture_failed_; }
 
   /// One datagram there and back: `data` (length bytes) goes out and is replaced by what came
   /// back. Not answered after the retries: answered false, `data` as it was. Never throws.
@@ -93,7 +95,7 @@ class Master {
                               std::uint8_t control);
   /// SM0 and SM1 as the slave's mailbox: where and how its SII's sync manager category says
   /// (types 1 and 2), else at its fixed part's offsets and sizes with the usual control bytes
-  /// (0x26: the master writes; 0x22: it reads). PREOP needs them.
+  /// (kSmControlMailboxWrite, kSmControlMailboxRead). PREOP needs them.
   /// @throws std::runtime_error when the slave has no mailbox or does not take them.
   void configure_mailbox(const SlaveInfo& slave);
   /// FMMU `index` of a slave: `length` bytes at `logical` onto its memory at `physical`, read
@@ -146,6 +148,7 @@ class Master {
   std::uint8_t next_index_ = 0;
   std::uint8_t mailbox_counter_ = 0;
   PcapngWriter* capture_ = nullptr;
+  bool capture_failed_ = false;
   std::uint64_t frames_sent_ = 0;
   std::uint64_t frames_lost_ = 0;
 };

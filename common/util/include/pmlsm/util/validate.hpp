@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <cstdint>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -23,6 +24,16 @@ inline std::string format_value(double value) {
     if (digits == 17 || std::strtod(out.str().c_str(), nullptr) == value) return out.str();
   }
   return {};
+}
+
+/// `value` in hexadecimal with at least `digits` digits, upper case: "0x0016" for (0x16, 4).
+inline std::string format_hex(std::uint32_t value, int digits) {
+  std::ostringstream out;
+  out << "0x" << std::uppercase << std::hex;
+  out.width(digits);
+  out.fill('0');
+  out << value;
+  return out.str();
 }
 
 inline void require_finite(const char* name, double value) {
