@@ -4,11 +4,13 @@
 
 #include <algorithm>
 #include <chrono>
+#include <map>
 #include <cstdio>
 #include <memory>
 #include <optional>
 #include <string>
 
+#include "cycle_executor.hpp"
 #include "node_support.hpp"
 #include "pmlsm/dds/fiber_scheduler.hpp"
 #include "pmlsm/dds/local_bus.hpp"
@@ -127,25 +129,53 @@ int set_up_chain_realtime(const ContainerOptions& options, std::optional<node::R
   return code;
 }
 
-/// Each component's loop as a fiber; one that ends is destroyed at once and its exit recorded.
+/// A component that ended: destroyed at once (its participant leaves the domain now, as a process
+/// that exits) and its exit recorded.
+void component_ended(Slot& slot, int code, ContainerResult& result, const ContainerOptions& options) {
+  node::run_node(slot.spec.type, [&] {
+    slot.component.reset();
+    return 0;
+  });
+  result.exits.push_back({slot.spec.name, slot.spec.type, code});
+  if (code != kExitOk && result.exit_code == kExitOk) result.exit_code = code;
+  std::printf("container %s: component %s (%s) exited %d (%s)\n", options.name.c_str(), slot.spec.name.c_str(),
+              slot.spec.type.c_str(), code, exit_code_meaning(code));
+}
+
+/// The components with a cycle of one priority on one fiber: an executor calls their updates in
+/// the slots' order. Each priority has its fiber: a component that blocks its thread inside an
+/// update (a lockstep writer waiting for readers outside to acknowledge, which may need what a
+/// later priority writes) hands the thread to the next priority's fiber. Any other component's
+/// own loop is a fiber of its own.
 void spawn_components(dds::FiberScheduler& scheduler, std::vector<Slot>& slots, ContainerResult& result,
                       const ContainerOptions& options) {
+  std::map<int, std::vector<Slot*>> cycle_slots;  // by priority
   for (auto& slot : slots) {
+    if (dynamic_cast<node::CycleComponent*>(slot.component.get()) != nullptr) {
+      cycle_slots[slot.type->priority].push_back(&slot);
+      continue;
+    }
     scheduler.spawn(
         slot.spec.name,
         [&slot, &result, &options] {
           const int code = node::run_node(slot.spec.type, [&] { return slot.component->run(); });
-          // Gone as a process that exits: its participant leaves the domain now.
-          node::run_node(slot.spec.type, [&] {
-            slot.component.reset();
-            return 0;
-          });
-          result.exits.push_back({slot.spec.name, slot.spec.type, code});
-          if (code != kExitOk && result.exit_code == kExitOk) result.exit_code = code;
-          std::printf("container %s: component %s (%s) exited %d (%s)\n", options.name.c_str(), slot.spec.name.c_str(),
-                      slot.spec.type.c_str(), code, exit_code_meaning(code));
+          component_ended(slot, code, result, options);
         },
         slot.type->priority);
+  }
+  for (auto& [priority, level] : cycle_slots) {
+    std::vector<node::CycleComponent*> cycles;
+    for (Slot* slot : level) cycles.push_back(dynamic_cast<node::CycleComponent*>(slot->component.get()));
+    scheduler.spawn(
+        "cycles of priority " + std::to_string(priority),
+        [level = level, cycles, &result, &options] {
+          node::run_cycles(
+              cycles, [&](std::size_t index, int code) { component_ended(*level[index], code, result, options); },
+              [&](std::size_t index, std::exception_ptr error) {
+                return node::run_node(level[index]->spec.type, [&]() -> int { std::rethrow_exception(error); });
+              });
+        },
+        priority);
   }
 }
 

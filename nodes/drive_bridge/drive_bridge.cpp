@@ -131,7 +131,7 @@ class BridgeHooks final : public node::DriveNodeHooks {
 
 using BridgeOptions = node::DriveBridgeOptions;
 
-class DriveBridgeComponent final : public node::Component {
+class DriveBridgeComponent final : public node::DriveComponent {
  public:
   DriveBridgeComponent(const node::ComponentContext& context, BridgeOptions options)
       : opt_(std::move(options)),
@@ -141,8 +141,9 @@ class DriveBridgeComponent final : public node::Component {
         bus_(node::open_can_bus(opt_.can)),
         drive_(drive_config_, *bus_, [] { return monotonic_ns(); }),
         hooks_(drive_, *bus_),
-        node_("drive_bridge", opt_.common, opt_.drive, rt_, drive_, hooks_) {}
-  int run() override { return node_.run(); }
+        node_("drive_bridge", opt_.common, opt_.drive, rt_, drive_, hooks_) {
+    drive_with(node_);
+  }
 
  private:
   /// The master's configuration after the checks against the runtime. @throws ConfigError

@@ -46,10 +46,8 @@ namespace msg = pmlsm_msgs::msg;
 /// voltage command level.
 class PlantSimHooks final : public node::DriveNodeHooks {
  public:
-  PlantSimHooks(node::NodeRuntime& rt, const node::CommonOptions& common)
-      : rt_(rt),
-        common_(common),
-        voltage_level_(rt.cfg.command_level == node::CommandLevel::kVoltage),
+  explicit PlantSimHooks(node::NodeRuntime& rt)
+      : voltage_level_(rt.cfg.command_level == node::CommandLevel::kVoltage),
         truth_writer_(rt.participant.make_writer(pdds::topics::kPlantTruth)),
         current_writer_(rt.participant.make_writer(pdds::topics::kCurrentFeedback)),
         voltage_reader_(rt.participant.make_reader(pdds::topics::kVoltageCommand, rt.wakeup)),
@@ -68,9 +66,8 @@ class PlantSimHooks final : public node::DriveNodeHooks {
     truth_.stamp(node_->feedback().stamp());
   }
   void after_publish(std::uint64_t /*k*/) override { truth_writer_.write(truth_); }
-  const char* during_tick(std::uint64_t k) override {
-    return voltage_level_ && !exchange_voltages(k) ? "no VoltageCommand" : nullptr;
-  }
+  Progress exchange(std::uint64_t k) override { return voltage_level_ ? exchange_voltages(k) : Progress::kFinished; }
+  const char* awaited() const override { return "VoltageCommand"; }
   bool apply_force() override { return !voltage_level_; }
   void flush(std::chrono::seconds timeout) override {
     truth_writer_.wait_for_acknowledgments(timeout);
@@ -80,45 +77,55 @@ class PlantSimHooks final : public node::DriveNodeHooks {
   std::uint64_t extra_rejected() const override { return rejected_voltages_; }
 
  private:
-  bool exchange_voltages(std::uint64_t k) {
-    // 32 exchanges per tick: currents out, the controller's voltage back.
+  /// The voltage level: 32 exchanges per tick, each the currents out and the controller's voltage
+  /// for that substep back; kWaiting while a voltage is due.
+  Progress exchange_voltages(std::uint64_t k) {
     SimulatedDrive& drive = backend_.simulated_drive();
-    const bool enabled = backend_.power_state() == drive::PowerState::kOperationEnabled;
-    for (int sub = 0; sub < drive.current_steps_per_tick(); ++sub) {
-      const PlantMeasurement& m = drive.measurement();
-      current_feedback_.stamp(node_->feedback().stamp());
-      current_feedback_.substep(static_cast<std::uint32_t>(sub));
-      current_feedback_.i_d_a(m.i_d_a);
-      current_feedback_.i_q_a(m.i_q_a);
-      current_feedback_.velocity_mps(drive.tick_velocity_mps());
-      current_feedback_.position_m(m.encoder_position_m);
-      current_writer_.write(current_feedback_);
-      bool answered = false;
-      const bool ok = node::wait_until(rt_.wakeup, std::chrono::duration<double>(common_.peer_timeout_s), [&] {
-        while (!answered && voltage_reader_.take(voltage_command_)) {
-          if (voltage_command_.stamp().tick() != k || voltage_command_.substep() != static_cast<std::uint32_t>(sub)) {
-            ++stale_voltages_;
-          } else {
-            if (std::isfinite(voltage_command_.u_d_v()) && std::isfinite(voltage_command_.u_q_v())) {
-              u_d_v_ = voltage_command_.u_d_v();
-              u_q_v_ = voltage_command_.u_q_v();
-            } else {
-              ++rejected_voltages_;  // the last finite voltage is held
-            }
-            answered = true;
-          }
-        }
-        return answered;
-      });
-      if (!ok) return false;
+    bool moved = false;
+    while (substep_ < drive.current_steps_per_tick()) {
+      if (!currents_sent_) {
+        const PlantMeasurement& m = drive.measurement();
+        current_feedback_.stamp(node_->feedback().stamp());
+        current_feedback_.substep(static_cast<std::uint32_t>(substep_));
+        current_feedback_.i_d_a(m.i_d_a);
+        current_feedback_.i_q_a(m.i_q_a);
+        current_feedback_.velocity_mps(drive.tick_velocity_mps());
+        current_feedback_.position_m(m.encoder_position_m);
+        current_writer_.write(current_feedback_);
+        currents_sent_ = true;
+        moved = true;
+      }
+      if (!take_voltage(k)) return moved ? Progress::kWorked : Progress::kWaiting;
       // Force off outside operation enabled: no voltage either.
+      const bool enabled = backend_.power_state() == drive::PowerState::kOperationEnabled;
       drive.apply_voltage(enabled ? u_d_v_ : 0.0, enabled ? u_q_v_ : 0.0);
+      ++substep_;
+      currents_sent_ = false;
+      moved = true;
     }
-    return true;
+    substep_ = 0;
+    return Progress::kFinished;
   }
 
-  node::NodeRuntime& rt_;
-  const node::CommonOptions& common_;
+  /// The voltage of tick k's substep in hand, when it came (a stale one counted, a non-finite one
+  /// rejected: the last finite voltage is held).
+  bool take_voltage(std::uint64_t k) {
+    while (voltage_reader_.take(voltage_command_)) {
+      if (voltage_command_.stamp().tick() != k || voltage_command_.substep() != static_cast<std::uint32_t>(substep_)) {
+        ++stale_voltages_;
+        continue;
+      }
+      if (std::isfinite(voltage_command_.u_d_v()) && std::isfinite(voltage_command_.u_q_v())) {
+        u_d_v_ = voltage_command_.u_d_v();
+        u_q_v_ = voltage_command_.u_q_v();
+      } else {
+        ++rejected_voltages_;
+      }
+      return true;
+    }
+    return false;
+  }
+
   bool voltage_level_;
   pdds::Writer<msg::PlantTruthPubSubType> truth_writer_;
   pdds::Writer<msg::CurrentFeedbackPubSubType> current_writer_;
@@ -129,20 +136,22 @@ class PlantSimHooks final : public node::DriveNodeHooks {
   msg::CurrentFeedback current_feedback_;
   msg::VoltageCommand voltage_command_;
   double u_d_v_ = 0.0, u_q_v_ = 0.0;  // held voltage at the voltage command level
+  int substep_ = 0;                   // the voltage level's exchange in hand within the tick
+  bool currents_sent_ = false;        // its currents are out
   std::uint64_t stale_voltages_ = 0, rejected_voltages_ = 0;
 };
 
-class PlantSimComponent final : public node::Component {
+class PlantSimComponent final : public node::DriveComponent {
  public:
   PlantSimComponent(const node::ComponentContext& context, node::CommonOptions common,
                     const node::DriveNodeOptions& opt)
       : common_(std::move(common)),
         rt_("plant_sim", common_, context),
-        hooks_(checked(rt_, opt, common_), common_),
+        hooks_(checked(rt_, opt, common_)),
         node_("plant_sim", common_, opt, rt_, hooks_.backend(), hooks_) {
     hooks_.attach(node_);
+    drive_with(node_);
   }
-  int run() override { return node_.run(); }
 
  private:
   static node::NodeRuntime& checked(node::NodeRuntime& rt, const node::DriveNodeOptions& opt,

@@ -2,12 +2,11 @@
 // and config (parse, load, create its participant, endpoints and state: anything wrong is
 // found here, before anything runs), then run once, which returns its exit code. A component
 // runs alone in its process (the node's executable is a thin main: run_standalone), or beside
-// others in a container process (nodes/container), where its loop is a fiber of the chain
-// thread and its samples to the others go through the in-process path (pmlsm/dds/local_bus.hpp).
-// Nothing in a component knows which: a component alone behaves exactly as the node did.
-// A component with a cycle (CycleComponent, cycle_component.hpp: the controller, the estimator,
-// the evaluator, the compensators) has no loop of its own: its run() is the executor, which calls
-// its update() and owns the waiting.
+// others in a container process (nodes/container), on the chain thread, where its samples to the
+// others go through the in-process path (pmlsm/dds/local_bus.hpp). Nothing in a component knows
+// which: a component alone behaves exactly as the node did. A component with a cycle
+// (CycleComponent, cycle_component.hpp: every component of the chain and its observers) has no
+// loop of its own: an executor (cycle_executor.hpp) calls its update() and owns the waiting.
 #pragma once
 
 #include <memory>

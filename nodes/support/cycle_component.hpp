@@ -1,8 +1,9 @@
 // A component with a cycle (pmlsm/util/cycle.hpp): its constructor configures it (parameters,
-// topics, state: anything wrong is found there); then the executor activates it, calls update()
-// until it finishes, a stop is requested or its inputs stop coming, and ends it with finish().
-// The component has no loop and no wait of its own: run() is the executor, the same alone in a
-// process and on a container's chain thread (where the wake-up's wait hands the thread on).
+// topics, state: anything wrong is found there); then an executor (cycle_executor.hpp) activates
+// it, calls update() until it finishes, a stop is requested or its inputs stop coming, and ends
+// it with finish(). The component has no loop and no wait of its own: alone in its process, run()
+// is the executor with this one component; in a container one executor runs all of them on the
+// chain thread.
 #pragma once
 
 #include <chrono>
@@ -14,17 +15,10 @@ namespace pmlsm::node {
 
 class CycleComponent : public Component {
  public:
-  /// The executor: activate, update until done, finish; returns finish()'s exit code.
-  int run() final;
+  using Update = CycleStep;
 
- protected:
-  struct Update {
-    Progress progress;
-    int exit_code = kExitOk;  ///< with kFinished
-    static Update worked() { return {Progress::kWorked}; }
-    static Update waiting() { return {Progress::kWaiting}; }
-    static Update finished(int exit_code) { return {Progress::kFinished, exit_code}; }
-  };
+  /// Alone: the executor with this component; returns finish()'s exit code.
+  int run() final;
 
   /// Before the first update (NodeStatus running).
   virtual void activate() {}

@@ -8,7 +8,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <optional>
 #include <string>
 #include <utility>
 
@@ -95,10 +94,6 @@ DriveNode::DriveNode(std::string name, const CommonOptions& common, const DriveN
              static_cast<std::int64_t>(std::llround(options.wake_early_us * 1e3))),
       run_id_(new_run_id()) {
   loop_.set_run_id(run_id_);
-  // Alone: clock_nanosleep; in a container: the other components run meanwhile.
-  clock_.set_sleeper(
-      [](void* wakeup, std::int64_t until_ns) { static_cast<dds::Wakeup*>(wakeup)->sleep_until_ns(until_ns); },
-      &rt_.wakeup);
   drive_state_.drive_name(name_);
 }
 
@@ -114,13 +109,9 @@ drive::DriveLoopParams DriveNode::loop_params() const {
   return p;
 }
 
-bool DriveNode::wait_for_peers() {
-  rt_.status.publish(node_state::STATE_WAITING, 0, period_s_, "waiting for peers");
-  const auto timeout = std::chrono::duration<double>(common_.peer_timeout_s);
-  return node::wait_until(rt_.wakeup, timeout, [&] {
-    return feedback_writer_.matched_readers() >= static_cast<std::size_t>(opt_.peers) &&
-           command_reader_.matched_writers() >= 1 && hooks_.peers_ready();
-  });
+bool DriveNode::peers_ready() {
+  return feedback_writer_.matched_readers() >= static_cast<std::size_t>(opt_.peers) &&
+         command_reader_.matched_writers() >= 1 && hooks_.peers_ready();
 }
 
 void DriveNodeHooks::enable_at_start(DriveNode& node) {
@@ -172,31 +163,21 @@ void DriveNode::serve_drive_control() {
   }
 }
 
-void DriveNode::take_commands(std::uint64_t k) {
-  const auto offer_all = [&] {
-    while (!(loop_.answered() && !realtime_) && command_reader_.take(command_, info_)) {
-      std::int64_t received_ns = info_.reception_timestamp.to_ns();
-      if (received_ns <= 0) received_ns = wall_time_ns();
-      loop_.offer(node::from_msg(command_, node::writer_id(info_), received_ns));
-    }
-    std::uint64_t foreign = 0;
-    if (loop_.take_new_foreign_writer(foreign)) {
-      std::fprintf(stderr, "%s: a second ForceCommand writer (%016llx) at tick %llu: refused; following %016llx\n",
-                   name_.c_str(), static_cast<unsigned long long>(foreign), static_cast<unsigned long long>(k),
-                   static_cast<unsigned long long>(loop_.owner_writer_id()));
-      rt_.status.publish(node_state::STATE_RUNNING, k, period_s_, "second ForceCommand writer refused");
-    }
-    serve_drive_control();
-    return loop_.answered();
-  };
-  if (!realtime_) {
-    node::wait_until(rt_.wakeup, std::chrono::duration<double>(common_.peer_timeout_s), offer_all);
-    return;
+bool DriveNode::take_commands() {
+  while (!(loop_.answered() && !realtime_) && command_reader_.take(command_, info_)) {
+    std::int64_t received_ns = info_.reception_timestamp.to_ns();
+    if (received_ns <= 0) received_ns = wall_time_ns();
+    loop_.offer(node::from_msg(command_, node::writer_id(info_), received_ns));
   }
-  const std::int64_t deadline = clock_.tick_start_ns() + static_cast<std::int64_t>(opt_.command_deadline_us * 1e3);
-  const double wait_s = std::max(0.0, static_cast<double>(deadline - monotonic_ns()) * 1e-9);
-  node::wait_until(rt_.wakeup, std::chrono::duration<double>(wait_s), offer_all);
-  offer_all();
+  std::uint64_t foreign = 0;
+  if (loop_.take_new_foreign_writer(foreign)) {
+    std::fprintf(stderr, "%s: a second ForceCommand writer (%016llx) at tick %llu: refused; following %016llx\n",
+                 name_.c_str(), static_cast<unsigned long long>(foreign), static_cast<unsigned long long>(k_),
+                 static_cast<unsigned long long>(loop_.owner_writer_id()));
+    rt_.status.publish(node_state::STATE_RUNNING, k_, period_s_, "second ForceCommand writer refused");
+  }
+  serve_drive_control();
+  return loop_.answered();
 }
 
 int DriveNode::report_missing_peers() {
@@ -229,22 +210,6 @@ void DriveNode::publish_feedback(std::uint64_t k) {
   loop_.published(wall_time_ns(), monotonic_ns());
   feedback_writer_.write(feedback_);
   hooks_.after_publish(k);
-}
-
-std::optional<int> DriveNode::missing_command_exit(std::uint64_t k) {
-  if (!realtime_ && !loop_.answered()) {
-    if (pdds::stop_requested()) return kExitOk;
-    std::fprintf(stderr, "%s: no ForceCommand for tick %llu within %.1f s: controller lost; safe state\n",
-                 name_.c_str(), static_cast<unsigned long long>(k), common_.peer_timeout_s);
-  } else if (const char* missing = hooks_.during_tick(k)) {
-    if (pdds::stop_requested()) return kExitOk;
-    std::fprintf(stderr, "%s: %s in tick %llu within %.1f s: controller lost; safe state\n", name_.c_str(), missing,
-                 static_cast<unsigned long long>(k), common_.peer_timeout_s);
-  } else {
-    return std::nullopt;
-  }
-  rt_.status.publish(node_state::STATE_SAFE, k, period_s_, "controller lost");
-  return kExitPeerLost;
 }
 
 void DriveNode::report_watchdog_trip(std::uint64_t k, const drive::TickEvents& events) {
@@ -305,51 +270,98 @@ void DriveNode::publish_periodic_status(std::uint64_t k) {
   publish_drive_state(k);
 }
 
-int DriveNode::run() {
-  if (!wait_for_peers()) return report_missing_peers();
-  start_run();
+void DriveNode::activate() { rt_.status.publish(node_state::STATE_WAITING, 0, period_s_, "waiting for peers"); }
 
-  int exit_code = kExitOk;
-  faults_at_start_ = backend_.fault_count();
-  std::uint64_t faults_seen = faults_at_start_;
-  cpu_at_start_s_ = process_cpu_s();
-  const auto loop_start = std::chrono::steady_clock::now();
-  clock_.start();
-  std::uint64_t k = 0;
-  bool ended_in_order = false;  ///< at_end ran on the last tick
-  for (; k < ticks_ && !pdds::stop_requested(); ++k) {
-    publish_feedback(k);
-    take_commands(k);
-    if (const std::optional<int> end_code = missing_command_exit(k)) {
-      exit_code = *end_code;
-      break;
-    }
-    const drive::TickEvents events = loop_.end_tick(monotonic_ns(), hooks_.apply_force());
-    report_tick_events(k, events, faults_seen);
-    if (events.controller_lost && controller_lost_ends_run(k)) {
-      exit_code = kExitPeerLost;
-      ++k;  // this tick was done
-      break;
-    }
-    hooks_.after_tick(*this, k);
-    if (backend_.power_state() != published_state_) publish_drive_state(k);
-    if (k + 1 == ticks_) {
-      // The last tick's command is out: end in order now, not after a wait for a tick that will
-      // not come. A drive on its own clock watches SYNC while enabled, and whatever holds this
-      // thread next (peers ending, in a container their participants leaving) may take longer
-      // than that watch.
-      hooks_.at_end(*this);
-      ended_in_order = true;
-    }
-    if (clock_.wait_next_tick()) loop_.statistics().record_deadline_miss();
-    if (k % 1000 == 999) publish_periodic_status(k);
-  }
-  const double loop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - loop_start).count();
-  if (exit_code == kExitOk && !ended_in_order) hooks_.at_end(*this);
-  return finish(k, exit_code, loop_s);
+std::chrono::duration<double> DriveNode::input_timeout() const {
+  return std::chrono::duration<double>(common_.peer_timeout_s);
 }
 
-int DriveNode::finish(std::uint64_t k, int exit_code, double loop_s) {
+CycleStep DriveNode::update() {
+  switch (phase_) {
+    case Phase::kPeers:
+      if (!peers_ready()) return CycleStep::waiting();
+      start_run();
+      faults_at_start_ = backend_.fault_count();
+      faults_seen_ = faults_at_start_;
+      cpu_at_start_s_ = process_cpu_s();
+      loop_start_ns_ = monotonic_ns();
+      clock_.start();
+      phase_ = Phase::kFeedback;
+      [[fallthrough]];
+    case Phase::kFeedback:
+      if (k_ == ticks_) return CycleStep::finished(kExitOk);
+      publish_feedback(k_);
+      command_deadline_ns_ = clock_.tick_start_ns() + static_cast<std::int64_t>(opt_.command_deadline_us * 1e3);
+      phase_ = Phase::kCommand;
+      [[fallthrough]];
+    case Phase::kCommand:
+      // Lockstep: the tick waits for its command (a lost controller is the input timeout);
+      // realtime: until the command deadline, then it goes on without (the loop holds or goes safe).
+      if (!take_commands()) {
+        if (!realtime_) return CycleStep::waiting();
+        if (monotonic_ns() < command_deadline_ns_) return CycleStep::waiting_until(command_deadline_ns_);
+      }
+      phase_ = Phase::kExchange;
+      [[fallthrough]];
+    case Phase::kExchange:
+      switch (hooks_.exchange(k_)) {
+        case Progress::kWaiting: return CycleStep::waiting();
+        case Progress::kFinished: break;
+        default: return CycleStep::worked();
+      }
+      return end_tick();
+  }
+  return CycleStep::finished(kExitError);
+}
+
+CycleStep DriveNode::end_tick() {
+  const std::uint64_t k = k_;
+  const drive::TickEvents events = loop_.end_tick(monotonic_ns(), hooks_.apply_force());
+  report_tick_events(k, events, faults_seen_);
+  ++k_;  // this tick is done
+  phase_ = Phase::kFeedback;
+  if (events.controller_lost && controller_lost_ends_run(k)) return CycleStep::finished(kExitPeerLost);
+  hooks_.after_tick(*this, k);
+  if (backend_.power_state() != published_state_) publish_drive_state(k);
+  if (k_ == ticks_) {
+    // The last tick's command is out: end in order now, not after a wait for a tick that will
+    // not come. A drive on its own clock watches SYNC while enabled, and whatever holds this
+    // thread next (peers ending, in a container their participants leaving) may take longer
+    // than that watch.
+    hooks_.at_end(*this);
+    ended_in_order_ = true;
+  }
+  if (k % 1000 == 999) publish_periodic_status(k);
+  if (clock_.advance()) loop_.statistics().record_deadline_miss();
+  if (!realtime_ || k_ == ticks_) return CycleStep::worked();
+  return CycleStep::sleeping_until(clock_.tick_start_ns(), clock_.wake_early_ns());
+}
+
+int DriveNode::inputs_lost() {
+  switch (phase_) {
+    case Phase::kPeers: return report_missing_peers();
+    case Phase::kCommand:
+      std::fprintf(stderr, "%s: no ForceCommand for tick %llu within %.1f s: controller lost; safe state\n",
+                   name_.c_str(), static_cast<unsigned long long>(k_), common_.peer_timeout_s);
+      break;
+    default:
+      std::fprintf(stderr, "%s: no %s in tick %llu within %.1f s: controller lost; safe state\n", name_.c_str(),
+                   hooks_.awaited(), static_cast<unsigned long long>(k_), common_.peer_timeout_s);
+      break;
+  }
+  rt_.status.publish(node_state::STATE_SAFE, k_, period_s_, "controller lost");
+  return kExitPeerLost;
+}
+
+int DriveNode::finish(int exit_code) {
+  if (phase_ == Phase::kPeers) return exit_code;  // nothing ran
+  const double loop_s = static_cast<double>(monotonic_ns() - loop_start_ns_) * 1e-9;
+  if (exit_code == kExitOk && !ended_in_order_) hooks_.at_end(*this);
+  return summary(exit_code, loop_s);
+}
+
+int DriveNode::summary(int exit_code, double loop_s) {
+  const std::uint64_t k = k_;
   const drive::DriveCounters& c = loop_.counters();
   auto& s = rt_.status.status();
   s.late(c.late);

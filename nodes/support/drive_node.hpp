@@ -1,9 +1,10 @@
 // What every drive node (plant_sim, drive_bridge) does on DDS around the drive loop
 // (common/drive/drive_loop.hpp), whatever its backend: waits for its peers, publishes
-// MotorFeedback and DriveState, applies ForceCommand, serves DriveControl, runs the tick loop
-// (lockstep or realtime), reports the watchdog and a lost controller, prints the summary and
-// decides the exit code. A node adds its own parts through DriveNodeHooks (plant_sim: PlantTruth
-// and the voltage level; drive_bridge: the CANopen boot and enable walk).
+// MotorFeedback and DriveState, applies ForceCommand, serves DriveControl, steps the tick
+// (lockstep or realtime) as a cycle (cycle_component.hpp: the executor owns the waits and the
+// clock's sleep), reports the watchdog and a lost controller, prints the summary and decides the
+// exit code. A node adds its own parts through DriveNodeHooks (plant_sim: PlantTruth and the
+// voltage level; drive_bridge: the CANopen boot and enable walk).
 //
 // Exit codes: 0 the scenario ran with force on throughout; 4 the controller was lost (lockstep
 // timeout; realtime with --on-controller-lost exit); 5 the drive spent ticks with force off
@@ -12,13 +13,13 @@
 #pragma once
 
 #include <cstdint>
-#include <optional>
 #include <string>
 
 #include "DriveControlPubSubTypes.h"
 #include "DriveStatePubSubTypes.h"
 #include "ForceCommandPubSubTypes.h"
 #include "MotorFeedbackPubSubTypes.h"
+#include "cycle_component.hpp"
 #include "node_support.hpp"
 #include "pmlsm/drive/drive_loop.hpp"
 #include "pmlsm/drive/tick_clock.hpp"
@@ -60,9 +61,12 @@ class DriveNodeHooks {
   virtual void before_publish(std::uint64_t /*k*/, const drive::TickReport& /*report*/) {}
   /// Tick k's feedback was written.
   virtual void after_publish(std::uint64_t /*k*/) {}
-  /// After tick k's command is in: nullptr, or what is missing ("no VoltageCommand"), which
-  /// ends the run as a lost controller.
-  virtual const char* during_tick(std::uint64_t /*k*/) { return nullptr; }
+  /// After tick k's command is in, the node's own exchange within the tick, without waiting:
+  /// kFinished when it is done, kWorked when it moved on, kWaiting for an input (named by
+  /// awaited(); not coming within the peer timeout, it ends the run as a lost controller).
+  virtual Progress exchange(std::uint64_t /*k*/) { return Progress::kFinished; }
+  /// What exchange() waits for ("VoltageCommand").
+  virtual const char* awaited() const { return ""; }
   /// Whether end_tick applies the force (false: the node drove the period itself).
   virtual bool apply_force() { return true; }
   /// After end_tick and the loop's own reports.
@@ -85,8 +89,14 @@ class DriveNode {
   DriveNode(std::string name, const CommonOptions& common, const DriveNodeOptions& options, NodeRuntime& rt,
             drive::Drive& backend, DriveNodeHooks& hooks);
 
-  /// The whole run; returns the exit code.
-  int run();
+  // Its cycle (CycleComponent's, forwarded by DriveComponent): waits for its peers, then a tick is
+  // its feedback out, its command in (lockstep: waiting for it; realtime: until the command
+  // deadline), the node's exchange, the drive stepped; realtime, then asleep to the next tick.
+  void activate();
+  CycleStep update();
+  std::chrono::duration<double> input_timeout() const;
+  int inputs_lost();
+  int finish(int exit_code);
 
   const std::string& name() const { return name_; }
   drive::DriveLoop& loop() { return loop_; }
@@ -102,20 +112,27 @@ class DriveNode {
   void publish_drive_state(std::uint64_t tick);
 
  private:
+  enum class Phase {
+    kPeers,     ///< waiting for its peers (before tick 0)
+    kFeedback,  ///< tick k_ is due: its feedback goes out
+    kCommand,   ///< tick k_'s command
+    kExchange,  ///< the node's own exchange (the voltage level's)
+  };
+
   drive::DriveLoopParams loop_params() const;
-  bool wait_for_peers();
+  bool peers_ready();
   /// Takes DriveControl requests addressed to this drive and answers each on DriveState.
   void serve_drive_control();
-  void take_commands(std::uint64_t k);
+  /// Offers what ForceCommands arrived to the loop; true when tick k_ is answered.
+  bool take_commands();
+  /// Tick k_ after its command and exchange: the drive stepped, reports; then the next tick.
+  CycleStep end_tick();
   /// Peers missing before tick 0: says which; kExitPeerMissing (kExitOk when stopped meanwhile).
   int report_missing_peers();
   /// What runs, then the hooks' start (boot, enable) and DriveState and NodeStatus of tick 0.
   void start_run();
   /// Tick k's MotorFeedback out.
   void publish_feedback(std::uint64_t k);
-  /// After tick k's commands: nullopt when the tick goes on; else the run ends with this code
-  /// (kExitPeerLost: lockstep without a ForceCommand, or what a hook misses; kExitOk when stopped).
-  std::optional<int> missing_command_exit(std::uint64_t k);
   /// The watchdog's arming and trip and a new drive fault, on stdout/stderr and NodeStatus.
   void report_tick_events(std::uint64_t k, const drive::TickEvents& events, std::uint64_t& faults_seen);
   void report_watchdog_trip(std::uint64_t k, const drive::TickEvents& events);
@@ -123,7 +140,8 @@ class DriveNode {
   bool controller_lost_ends_run(std::uint64_t k);
   /// NodeStatus with the counts, and DriveState (every 1000 ticks).
   void publish_periodic_status(std::uint64_t k);
-  int finish(std::uint64_t ticks_done, int exit_code, double loop_s);
+  /// The run's summary; the exit code.
+  int summary(int exit_code, double loop_s);
 
   std::string name_;
   const CommonOptions& common_;
@@ -152,7 +170,31 @@ class DriveNode {
   std::uint64_t refused_requests_ = 0;
   bool watchdog_armed_ = false;
   std::uint64_t faults_at_start_ = 0;  ///< backend faults before tick 0: later ones make the run not valid
-  double cpu_at_start_s_ = 0.0;        ///< the process's CPU time when the loop started
+  std::uint64_t faults_seen_ = 0;
+  double cpu_at_start_s_ = 0.0;  ///< the process's CPU time when the loop started
+  std::int64_t loop_start_ns_ = 0;
+  Phase phase_ = Phase::kPeers;
+  std::uint64_t k_ = 0;  ///< the tick in hand; at the end, the ticks done
+  std::int64_t command_deadline_ns_ = 0;
+  bool ended_in_order_ = false;  ///< at_end ran on the last tick
+};
+
+/// A drive node's component: the subclass makes its runtime, hooks and DriveNode and hands the
+/// node over in its constructor (drive_with); this hands the cycle to the node.
+class DriveComponent : public CycleComponent {
+ public:
+  void activate() override { node_->activate(); }
+  Update update() override { return node_->update(); }
+  std::chrono::duration<double> input_timeout() const override { return node_->input_timeout(); }
+  int inputs_lost() override { return node_->inputs_lost(); }
+  int finish(int exit_code) override { return node_->finish(exit_code); }
+  dds::Wakeup& wakeup() override { return node_->runtime().wakeup; }
+
+ protected:
+  void drive_with(DriveNode& node) { node_ = &node; }
+
+ private:
+  DriveNode* node_ = nullptr;
 };
 
 }  // namespace pmlsm::node

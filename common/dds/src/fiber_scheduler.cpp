@@ -27,8 +27,20 @@ struct FiberScheduler::Fiber {
   // CLOCK_MONOTONIC to reach `deadline_ns`.
   const std::atomic<std::uint64_t>* generation = nullptr;
   std::uint64_t seen = 0;
+  // Or any of several (wait_any).
+  const GenerationWatch* watches = nullptr;
+  std::size_t watch_count = 0;
   std::int64_t deadline_ns = 0;
 };
+
+namespace {
+bool moved(const GenerationWatch* watches, std::size_t count) {
+  for (std::size_t i = 0; i < count; ++i) {
+    if (watches[i].generation->load(std::memory_order_acquire) != watches[i].seen) return true;
+  }
+  return false;
+}
+}  // namespace
 
 FiberScheduler::FiberScheduler(std::size_t stack_bytes) : stack_bytes_(stack_bytes) {
   if (stack_bytes < (std::size_t{64} << 10)) {
@@ -56,6 +68,7 @@ bool FiberScheduler::runnable(const Fiber& fiber, std::int64_t now_ns) const {
   if (fiber.done) return false;
   if (!fiber.started) return true;
   if (fiber.generation != nullptr && fiber.generation->load(std::memory_order_acquire) != fiber.seen) return true;
+  if (moved(fiber.watches, fiber.watch_count)) return true;
   return now_ns >= fiber.deadline_ns;
 }
 
@@ -120,6 +133,19 @@ bool FiberScheduler::wait(const std::atomic<std::uint64_t>& generation, std::uin
   suspend();
   f.generation = nullptr;
   return generation.load(std::memory_order_acquire) != seen;
+}
+
+bool FiberScheduler::wait_any(const GenerationWatch* watches, std::size_t count, std::int64_t deadline_ns) {
+  if (current_ == nullptr) throw std::logic_error("FiberScheduler::wait_any: not called from a fiber");
+  Fiber& f = *current_;
+  f.generation = nullptr;
+  f.watches = watches;
+  f.watch_count = count;
+  f.deadline_ns = deadline_ns;
+  suspend();
+  f.watches = nullptr;
+  f.watch_count = 0;
+  return moved(watches, count);
 }
 
 void FiberScheduler::sleep_until(std::int64_t deadline_ns) {

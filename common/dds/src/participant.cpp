@@ -67,6 +67,17 @@ bool Wakeup::wait_for(std::uint64_t seen, std::chrono::nanoseconds timeout) {
   return cv_.wait_until(lock, now + timeout, [&] { return generation_.load(std::memory_order_acquire) != seen; });
 }
 
+bool Wakeup::wait_any(const GenerationWatch* watches, std::size_t count, std::chrono::nanoseconds timeout) {
+  if (count == 1 && watches[0].generation == &generation_) return wait_for(watches[0].seen, timeout);
+  if (cooperative()) return scheduler_->wait_any(watches, count, monotonic_ns() + timeout.count());
+  if (count == 0) {
+    if (timeout.count() > 0) sleep_until_monotonic_ns(monotonic_ns() + timeout.count());
+    return false;
+  }
+  throw std::logic_error("Wakeup::wait_any: " + std::to_string(count) +
+                         " watches of other wakeups outside a container's fiber: nothing would wake this thread");
+}
+
 void Wakeup::notify() {
   if (scheduler_ != nullptr && scheduler_->on_scheduler_thread()) {
     // A component of the container wrote: its readers' fibers look at the generation.

@@ -18,22 +18,10 @@ TickClock::TickClock(std::int64_t period_ns, bool realtime, std::int64_t wake_ea
 
 void TickClock::start() { next_ns_ = monotonic_ns(); }
 
-bool TickClock::wait_next_tick() {
+bool TickClock::advance() {
   if (!realtime_) return false;
   next_ns_ += period_ns_;
-  std::int64_t now = monotonic_ns();
-  const bool missed = now > next_ns_;
-  if (sleeper_ != nullptr) {
-    sleeper_(sleeper_context_, next_ns_ - wake_early_ns_);
-  } else {
-    sleep_until_monotonic_ns(next_ns_ - wake_early_ns_);
-  }
-  // No yield while polling: the poll is short, and at SCHED_FIFO a yield would hand the core
-  // to this node's own threads just when the tick must start.
-  if (wake_early_ns_ > 0) {
-    while (now < next_ns_) now = monotonic_ns();
-  }
-  return missed;
+  return monotonic_ns() > next_ns_;
 }
 
 }  // namespace pmlsm::drive

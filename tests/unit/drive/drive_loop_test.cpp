@@ -13,6 +13,7 @@
 #include "pmlsm/drive/tick_clock.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/sim/simulated_drive.hpp"
+#include "pmlsm/util/clock.hpp"
 
 namespace pmlsm::drive {
 namespace {
@@ -333,6 +334,24 @@ TEST(DriveLoop, ParametersAreValidatedWithTheValue) {
   EXPECT_THROW(DriveLoop(p, drive), std::invalid_argument);
   EXPECT_THROW(TickClock(0, true), std::invalid_argument);
   EXPECT_THROW(TickClock(1000000, true, 1000000), std::invalid_argument);
+}
+
+TEST(TickClock, RealtimeTicksOnAbsoluteTimesAndNamesAnOverrunLockstepDoesNotPace) {
+  TickClock realtime(1'000'000'000, true, 200'000);
+  realtime.start();
+  const std::int64_t t0 = realtime.tick_start_ns();
+  EXPECT_FALSE(realtime.advance()) << "a second-long tick just started cannot have overrun";
+  EXPECT_EQ(realtime.tick_start_ns(), t0 + 1'000'000'000) << "t_k = t_0 + k T: no drift from the time spent";
+  EXPECT_EQ(realtime.wake_early_ns(), 200'000);
+  TickClock fast(1'000, true);  // a 1 us tick: the time to advance overruns it
+  fast.start();
+  const std::int64_t start = monotonic_ns();
+  while (monotonic_ns() - start < 10'000) {
+  }
+  EXPECT_TRUE(fast.advance());
+  TickClock lockstep(1'000, false);
+  lockstep.start();
+  EXPECT_FALSE(lockstep.advance());
 }
 
 TEST(LoopStatistics, PeriodFitAndPercentiles) {

@@ -22,11 +22,39 @@ TEST(CycleWait, WorkResetsTheWaitAndTheTimeoutCountsFromTheLastWork) {
 
 TEST(CycleWait, SleepsInSlicesAndNeverPastTheDeadline) {
   CycleWait wait(120 * kMs, 0);
+  ASSERT_EQ(wait.after(Progress::kWaiting, 0), CycleWait::Next::kSleep);
   EXPECT_EQ(wait.sleep_ns(0), kCycleSliceNs) << "a stop request is seen within a slice";
+  ASSERT_EQ(wait.after(Progress::kWaiting, 100 * kMs), CycleWait::Next::kSleep);
   EXPECT_EQ(wait.sleep_ns(100 * kMs), 20 * kMs);
-  EXPECT_EQ(wait.sleep_ns(130 * kMs), 0);
+  EXPECT_EQ(wait.wake_ns(), 120 * kMs);
+  EXPECT_EQ(wait.after(Progress::kWaiting, 130 * kMs), CycleWait::Next::kInputsLost);
   wait.set_timeout_ns(10 * kMs);
-  EXPECT_EQ(wait.after(Progress::kWaiting, 11 * kMs), CycleWait::Next::kInputsLost);
+  EXPECT_EQ(wait.after(Progress::kWaiting, 131 * kMs), CycleWait::Next::kInputsLost);
+}
+
+TEST(CycleWait, AWaitWithADeadlineEndsAtTheDeadlineAndTheInputTimeoutStillRuns) {
+  CycleWait wait(1000 * kMs, 0);
+  // A realtime drive waiting for its tick's command until the deadline 0.5 ms into the tick.
+  ASSERT_EQ(wait.after(CycleStep::waiting_until(3 * kMs / 2), kMs), CycleWait::Next::kSleep);
+  EXPECT_EQ(wait.wake_ns(), 3 * kMs / 2);
+  // A deadline already past: update again at once, not later.
+  ASSERT_EQ(wait.after(CycleStep::waiting_until(kMs), 2 * kMs), CycleWait::Next::kSleep);
+  EXPECT_EQ(wait.sleep_ns(2 * kMs), 0);
+  // A deadline past the input timeout does not stretch it.
+  ASSERT_EQ(wait.after(CycleStep::waiting_until(5000 * kMs), 990 * kMs), CycleWait::Next::kSleep);
+  EXPECT_EQ(wait.wake_ns(), 1000 * kMs);
+  EXPECT_EQ(wait.after(CycleStep::waiting_until(5000 * kMs), 1000 * kMs), CycleWait::Next::kInputsLost);
+}
+
+TEST(CycleWait, ASleepToATimeIsTheComponentsOwnAndTheInputTimeoutCountsFromItsEnd) {
+  CycleWait wait(10 * kMs, 0);
+  // A drive's next tick 50 ms away (a slow clock): no input is lost while it sleeps.
+  const CycleStep tick = CycleStep::sleeping_until(50 * kMs, 20'000);
+  ASSERT_EQ(wait.after(tick, 9 * kMs), CycleWait::Next::kSleepUntil);
+  EXPECT_EQ(wait.wake_ns(), 50 * kMs);
+  EXPECT_EQ(tick.spin_ns, 20'000);
+  EXPECT_EQ(wait.after(Progress::kWaiting, 59 * kMs), CycleWait::Next::kSleep);
+  EXPECT_EQ(wait.after(Progress::kWaiting, 60 * kMs), CycleWait::Next::kInputsLost);
 }
 
 }  // namespace

@@ -1,11 +1,11 @@
 // Cooperative scheduling of a container's components on one thread (the chain thread).
 //
-// Every component runs its own loop, as it does alone in its process; in a container each loop
-// is a fiber (Boost.Context: a stack of its own, switched without a system call) and waits
-// through its Wakeup, which hands the thread to the next component instead of blocking it. A
-// hop from one component to the next is then a function-call-sized switch, not a thread
-// wake-up (tens of microseconds of kernel time on a virtual machine), and a lockstep run is
-// stepped in one fixed order: deterministic and fast.
+// A container runs its components' executors (one per priority; a component with a loop of its
+// own, one for it) each as a fiber (Boost.Context: a stack of its own, switched without a system
+// call) that waits through the Wakeup, which hands the thread to the next fiber instead of
+// blocking it. A hop from one fiber to the next is then a function-call-sized switch, not a
+// thread wake-up (tens of microseconds of kernel time on a virtual machine), and a lockstep run
+// is stepped in one fixed order: deterministic and fast.
 //
 // Order: every fiber has a priority (lower goes first). Among the fibers that can go, one of
 // the lowest priority runs; among equals, round robin in the order they were spawned. A
@@ -31,6 +31,12 @@
 
 namespace pmlsm::dds {
 
+/// A generation counter a fiber may wait on, and the value it saw.
+struct GenerationWatch {
+  const std::atomic<std::uint64_t>* generation = nullptr;
+  std::uint64_t seen = 0;
+};
+
 class FiberScheduler {
  public:
   /// @throws std::invalid_argument for a stack under 64 KiB.
@@ -53,6 +59,10 @@ class FiberScheduler {
   /// From a fiber: suspends it until `*generation` differs from `seen` or CLOCK_MONOTONIC reaches
   /// `deadline_ns`, whichever is first. Returns true when the generation moved.
   bool wait(const std::atomic<std::uint64_t>& generation, std::uint64_t seen, std::int64_t deadline_ns);
+  /// From a fiber: suspends it until any of `count` watched generations moves past what it saw
+  /// or CLOCK_MONOTONIC reaches `deadline_ns` (an executor of several components waits once for
+  /// all their inputs). `watches` must stay valid until it returns. True when one moved.
+  bool wait_any(const GenerationWatch* watches, std::size_t count, std::int64_t deadline_ns);
   /// From a fiber: suspends it until CLOCK_MONOTONIC reaches `deadline_ns`.
   void sleep_until(std::int64_t deadline_ns);
 

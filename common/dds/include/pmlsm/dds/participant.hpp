@@ -73,6 +73,17 @@ class Wakeup {
   /// Sleeps until the CLOCK_MONOTONIC time `ns` (in a container: lets the other components run).
   void sleep_until_ns(std::int64_t ns);
 
+  /// This wakeup's generation and the value `seen` of it, for wait_any.
+  GenerationWatch watch(std::uint64_t seen) const { return {&generation_, seen}; }
+  /// Waits until any watched generation moves or the timeout passes (an executor waiting for the
+  /// inputs of several components at once); false on timeout. One watch of this wakeup: as
+  /// wait_for (its spin and batch). In a container's fiber: one suspension for all (batches are
+  /// the caller's to apply). @throws std::logic_error for watches of other wakeups outside a
+  /// container, where nothing would wake this thread for them.
+  bool wait_any(const GenerationWatch* watches, std::size_t count, std::chrono::nanoseconds timeout);
+  /// How long wait_for() sleeps whatever arrives (0: it wakes on arrival).
+  std::chrono::nanoseconds batch() const { return batch_; }
+
  private:
   /// In a fiber of the container's scheduler (false before the container runs).
   bool cooperative() const { return scheduler_ != nullptr && scheduler_->on_scheduler_thread(); }

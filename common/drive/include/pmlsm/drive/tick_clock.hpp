@@ -1,8 +1,8 @@
 // The drive loop's clock. Realtime: ticks on absolute CLOCK_MONOTONIC time, t_k = t_0 + k T,
-// so time spent computing never accumulates into drift; optionally sleeps to `wake_early`
+// so time spent computing never accumulates into drift; the executor sleeps to `wake_early`
 // before the tick and polls the clock to its start (a sleeping thread may wake tens of
 // microseconds late). Lockstep: no pacing; the plant is the clock and the loop moves on as
-// soon as the tick's command is in.
+// soon as the tick's command is in. Pure but for reading the clock: nothing sleeps here.
 #pragma once
 
 #include <cstdint>
@@ -18,22 +18,14 @@ class TickClock {
   void start();
   /// The CLOCK_MONOTONIC time tick k is due.
   std::int64_t tick_start_ns() const { return next_ns_; }
-  /// Realtime: advances to the next tick's start time and waits for it; true when the tick
-  /// just ended overran it (a deadline miss). Lockstep: returns false at once.
-  bool wait_next_tick();
+  /// Realtime: advances to the next tick's start time (tick_start_ns()); true when the tick just
+  /// ended overran it (a deadline miss). Lockstep: returns false.
+  bool advance();
   bool realtime() const { return realtime_; }
-
-  /// How the clock sleeps until a CLOCK_MONOTONIC time: by default clock_nanosleep; a node in
-  /// a container hands the thread to the other components instead (its Wakeup).
-  using Sleeper = void (*)(void* context, std::int64_t until_ns);
-  void set_sleeper(Sleeper sleeper, void* context) {
-    sleeper_ = sleeper;
-    sleeper_context_ = context;
-  }
+  /// How long before a tick's start the executor stops sleeping and polls the clock.
+  std::int64_t wake_early_ns() const { return wake_early_ns_; }
 
  private:
-  Sleeper sleeper_ = nullptr;
-  void* sleeper_context_ = nullptr;
   std::int64_t period_ns_;
   bool realtime_;
   std::int64_t wake_early_ns_;
