@@ -168,12 +168,25 @@ void spawn_components(dds::FiberScheduler& scheduler, std::vector<Slot>& slots, 
     for (Slot* slot : level) cycles.push_back(dynamic_cast<node::CycleComponent*>(slot->component.get()));
     scheduler.spawn(
         "cycles of priority " + std::to_string(priority),
-        [level = level, cycles, &result, &options] {
-          node::run_cycles(
-              cycles, [&](std::size_t index, int code) { component_ended(*level[index], code, result, options); },
-              [&](std::size_t index, std::exception_ptr error) {
-                return node::run_node(level[index]->spec.type, [&]() -> int { std::rethrow_exception(error); });
-              });
+        [&scheduler, level = level, cycles, &result, &options, priority = priority] {
+          const auto ended = [&](std::size_t index, int code) {
+            component_ended(*level[index], code, result, options);
+          };
+          const auto failed = [&](std::size_t index, std::exception_ptr error) {
+            return node::run_node(level[index]->spec.type, [&]() -> int { std::rethrow_exception(error); });
+          };
+          // A component's finish waits for its readers' acknowledgments: on a fiber of its own, so
+          // the drive is not held by the controller's last flush.
+          const auto finisher = [&](std::size_t index, int code) {
+            scheduler.spawn(
+                level[index]->spec.name + " (finishing)",
+                [slot = level[index], cycle = cycles[index], code, &result, &options] {
+                  const int final_code = node::run_node(slot->spec.type, [&] { return cycle->finish(code); });
+                  component_ended(*slot, final_code, result, options);
+                },
+                priority);
+          };
+          node::run_cycles(cycles, ended, failed, finisher);
         },
         priority);
   }

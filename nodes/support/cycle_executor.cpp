@@ -41,8 +41,9 @@ bool can_go(const Entry& e, std::int64_t now_ns) {
 
 class Executor {
  public:
-  Executor(const std::vector<CycleComponent*>& cycles, const CycleEnded& ended, const CycleFailed& failed)
-      : ended_(ended), failed_(failed), running_(cycles.size()) {
+  Executor(const std::vector<CycleComponent*>& cycles, const CycleEnded& ended, const CycleFailed& failed,
+           const CycleFinisher& finisher)
+      : ended_(ended), failed_(failed), finisher_(finisher), running_(cycles.size()) {
     entries_.reserve(cycles.size());
     watches_.reserve(cycles.size());
     for (CycleComponent* c : cycles) {
@@ -171,6 +172,13 @@ class Executor {
 
   void end(std::size_t index, int exit_code) {
     Entry& e = entries_[index];
+    if (finisher_) {
+      // Its finish may wait (for acknowledgments): elsewhere, while the others go on.
+      e.done = true;
+      --running_;
+      finisher_(index, exit_code);
+      return;
+    }
     int code = exit_code;
     try {
       code = e.component->finish(exit_code);
@@ -190,6 +198,7 @@ class Executor {
 
   const CycleEnded& ended_;
   const CycleFailed& failed_;
+  const CycleFinisher& finisher_;
   std::vector<Entry> entries_;
   std::vector<dds::GenerationWatch> watches_;
   std::size_t running_;
@@ -197,8 +206,9 @@ class Executor {
 
 }  // namespace
 
-void run_cycles(const std::vector<CycleComponent*>& cycles, const CycleEnded& ended, const CycleFailed& failed) {
-  Executor(cycles, ended, failed).run();
+void run_cycles(const std::vector<CycleComponent*>& cycles, const CycleEnded& ended, const CycleFailed& failed,
+                const CycleFinisher& finisher) {
+  Executor(cycles, ended, failed, finisher).run();
 }
 
 int CycleComponent::run() {

@@ -25,9 +25,15 @@ using CycleEnded = std::function<void(std::size_t index, int exit_code)>;
 /// `ended` follows with that code.
 using CycleFailed = std::function<int(std::size_t index, std::exception_ptr error)>;
 
+/// Ends a component whose run is over with `exit_code`: its finish() (which may wait for its
+/// writers' readers to acknowledge), then what `ended` does. A container hands that to a fiber
+/// of its own, so the others go on meanwhile; none given: the executor does it in place.
+using CycleFinisher = std::function<void(std::size_t index, int exit_code)>;
+
 /// Runs `cycles` (in their order of precedence) until each has ended; a stop request ends every
 /// one still running with finish(kExitOk). In a container's fiber their waits are one suspension;
 /// outside a container there may be only one (Wakeup::wait_any).
-void run_cycles(const std::vector<CycleComponent*>& cycles, const CycleEnded& ended, const CycleFailed& failed);
+void run_cycles(const std::vector<CycleComponent*>& cycles, const CycleEnded& ended, const CycleFailed& failed,
+                const CycleFinisher& finisher = nullptr);
 
 }  // namespace pmlsm::node

@@ -169,25 +169,15 @@ void JordanRnn::gradient(double* g) const {
 // ----------------------------------------------------------- RnnCompensator
 
 void RnnCompensatorParams::validate() const {
-  JordanRnn::parameter_count(layer_sizes);  // throws "layer_sizes[i]: ..."
-  require_positive("input_scale_s2_per_m", input_scale_s2_per_m);
-  require_positive("gain_n", gain_n);
-  require_positive("output_scale", output_scale);
-  require_positive("period_s", period_s);
-  require_non_negative("learning_rate", learning_rate);
-  require_finite("momentum", momentum);
-  if (!(momentum >= 0.0 && momentum < 1.0)) {
-    throw std::invalid_argument("momentum: must be in [0, 1), got " + format_value(momentum));
-  }
-  require_non_negative("tolerance_mps", tolerance_mps);
-  require_positive("kc_limit_mps", kc_limit_mps);
+  JordanRnn::parameter_count(layer_sizes);  // throws "layer_sizes[i]: ..." (the shape, beyond each size's range)
+  check_declared_ranges(*this);
+  require_positive("period_s", period_s);  // the system's, not declared here
   if (!(momentum * kc_limit_mps < 1.0)) {
     throw std::invalid_argument(
         "kc_limit_mps: momentum * kc_limit_mps must be < 1 so that the momentum term of (19) "
         "contracts, got " +
         format_value(momentum) + " * " + format_value(kc_limit_mps) + " = " + format_value(momentum * kc_limit_mps));
   }
-  require_positive("du_deadband_per_s", du_deadband_per_s);
 }
 
 RnnCompensator::RnnCompensator(const RnnCompensatorParams& params)

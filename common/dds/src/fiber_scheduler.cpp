@@ -52,7 +52,9 @@ FiberScheduler::FiberScheduler(std::size_t stack_bytes) : stack_bytes_(stack_byt
 FiberScheduler::~FiberScheduler() = default;
 
 void FiberScheduler::spawn(std::string name, std::function<void()> body, int priority) {
-  if (running_) throw std::logic_error("FiberScheduler::spawn(" + name + "): the scheduler is running");
+  if (running_ && !on_scheduler_thread()) {
+    throw std::logic_error("FiberScheduler::spawn(" + name + "): the scheduler is running on another thread");
+  }
   auto fiber = std::make_unique<Fiber>();
   fiber->name = std::move(name);
   fiber->body = std::move(body);
@@ -76,8 +78,10 @@ void FiberScheduler::run() {
   thread_ = std::this_thread::get_id();
   running_.store(true, std::memory_order_release);
   std::size_t next = 0;  // round robin among equals: where the next look for work starts
-  const std::size_t n = fibers_.size();
   for (;;) {
+    const std::size_t n = fibers_.size();  // a fiber may have spawned another
+    if (n == 0) break;
+    next %= n;
     bool all_done = true;
     std::int64_t earliest = std::numeric_limits<std::int64_t>::max();
     const std::int64_t now = monotonic_ns();
@@ -114,7 +118,7 @@ void FiberScheduler::run() {
     f.context = std::move(f.context).resume();
     current_ = nullptr;
     // Its equals that can go get the thread before it runs again.
-    next = (chosen + 1) % n;
+    next = (chosen + 1) % fibers_.size();
   }
   running_.store(false, std::memory_order_release);
 }

@@ -63,18 +63,7 @@ constexpr double kMaxExpansionRad = 0.05;
 }  // namespace
 
 void MotorElectricalParams::validate() const {
-  require_positive("resistance_ohm", resistance_ohm);
-  require_positive("armature_d_inductance_h", armature_d_inductance_h);
-  require_positive("armature_q_inductance_h", armature_q_inductance_h);
-  require_non_negative("mutual_d_inductance_h", mutual_d_inductance_h);
-  require_non_negative("mutual_q_inductance_h", mutual_q_inductance_h);
-  require_positive("damper_d_inductance_h", damper_d_inductance_h);
-  require_positive("damper_q_inductance_h", damper_q_inductance_h);
-  require_positive("damper_d_resistance_ohm", damper_d_resistance_ohm);
-  require_positive("damper_q_resistance_ohm", damper_q_resistance_ohm);
-  require_positive("motor_constant_n_per_a", motor_constant_n_per_a);
-  require_positive("pole_pitch_m", pole_pitch_m);
-  require_in_range("pole_pairs", pole_pairs, 1.0, 1000.0);
+  check_declared_ranges(*this);
   // The flux-current maps (5)-(8) must be invertible and passive (positive definite).
   if (!(mutual_d_inductance_h * mutual_d_inductance_h < armature_d_inductance_h * damper_d_inductance_h)) {
     throw std::invalid_argument("mutual_d_inductance_h: must satisfy L_md^2 < L_ad L_D, got " +
@@ -106,21 +95,14 @@ double friction_force_n(const FrictionParams& f, double motor_velocity_mps) {
   return -(f.coulomb_n * w * (1.5 - 0.5 * w * w) + f.viscous_n_s_per_m * motor_velocity_mps);
 }
 
-void MechanicsParams::validate() const {
-  require_positive("motor_mass_kg", motor_mass_kg);
-  require_positive("load_mass_kg", load_mass_kg);
-  require_positive("spring_n_per_m", spring_n_per_m);
-  require_non_negative("damping_n_s_per_m", damping_n_s_per_m);
-}
+void MechanicsParams::validate() const { check_declared_ranges(*this); }
 
-void InverterParams::validate() const { require_positive("dc_bus_v", dc_bus_v); }
+void InverterParams::validate() const { check_declared_ranges(*this); }
 
 double InverterParams::voltage_limit_v() const { return dc_bus_v / std::sqrt(3.0); }
 
 void EncoderParams::validate() const {
-  require_positive("resolution_m", resolution_m);
-  require_non_negative("position_noise_std_m", position_noise_std_m);
-  require_non_negative("mount_frequency_hz", mount_frequency_hz);
+  check_declared_ranges(*this);
   if (mount_frequency_hz > 0.0) require_in_range("mount_damping", mount_damping, 1e-4, 2.0);
 }
 
@@ -131,7 +113,7 @@ void PlantParams::validate() const {
   validate_section("mechanics", [&] { mechanics.validate(); });
   validate_section("inverter", [&] { inverter.validate(); });
   validate_section("encoder", [&] { encoder.validate(); });
-  require_in_range("max_step_s", max_step_s, 1e-9, 1e-3);
+  check_declared_ranges(*this);  // max_step_s, its one entry besides the sections (checked above, by name)
 }
 
 namespace {

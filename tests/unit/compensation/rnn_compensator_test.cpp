@@ -41,14 +41,17 @@ TEST(RnnCompensator, ParamsValidationNamesTheField) {
   };
   expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.layer_sizes = {3, 6, 2}; })); }, {"layer_sizes[2]"});
   expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.input_scale_s2_per_m = 0; })); },
-                 {"input_scale_s2_per_m: must be > 0, got 0"});
+                 {"input_scale_s2_per_m: must be in [", "got 0"});
   expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.gain_n = -300; })); }, {"gain_n", "-300"});
   expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.period_s = kNan; })); }, {"period_s", "nan"});
   expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.learning_rate = -1; })); }, {"learning_rate", "-1"});
+  expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.learning_rate = 300; })); },
+                 {"learning_rate: must be in [0, 100]", "got 300"});
   expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.momentum = 1.0; })); },
-                 {"momentum: must be in [0, 1), got 1"});
+                 {"momentum: must be in [0, 0.999]", "got 1"});
   expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.tolerance_mps = -1e-3; })); }, {"tolerance_mps"});
-  expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.kc_limit_mps = 0; })); }, {"kc_limit_mps: must be > 0"});
+  expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.kc_limit_mps = 0; })); },
+                 {"kc_limit_mps: must be in [", "got 0"});
   expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.kc_limit_mps = 2.0; })); },
                  {"kc_limit_mps", "momentum * kc_limit_mps must be < 1", "0.5 * 2 = 1"});
   expect_invalid([&] { RnnCompensator c(with([](auto& p) { p.du_deadband_per_s = 0; })); }, {"du_deadband_per_s"});
@@ -258,12 +261,12 @@ TEST(RnnCompensator, RejectsNonFiniteInputLeavingStateAndWeights) {
 
 TEST(RnnCompensator, RevertsAnUpdateThatWouldMakeWeightsNonFinite) {
   RnnCompensatorParams p = base_params();
-  p.learning_rate = 1e300;
+  p.learning_rate = 100.0;  // the largest declared
   RnnCompensator comp(p);
   comp.set_weights(random_weights(91, 0.5, 10));
   comp.step({1.0, 0.0, 0.0});  // |e| = 0: no update, the output moves from 0
   const std::vector<double> before = comp.weights();
-  const CompensatorStep out = comp.step({2.0, 1e10, 0.0});  // eta * e overflows
+  const CompensatorStep out = comp.step({2.0, 1e308, -1e308});  // finite inputs, e = V_ref - V_load overflows
   EXPECT_FALSE(out.weights_updated);
   EXPECT_EQ(comp.counters().reverted_updates, 1u);
   EXPECT_EQ(comp.counters().updates, 0u);

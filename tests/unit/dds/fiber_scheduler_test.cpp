@@ -22,6 +22,23 @@ using pmlsm::dds::Guid;
 using pmlsm::dds::LocalQueue;
 using pmlsm::dds::Wakeup;
 
+TEST(FiberScheduler, AFiberSpawnedByARunningOneRunsBesideIt) {
+  // A container's executor hands a component's finish (a wait for acknowledgments) to a fiber of
+  // its own while it goes on.
+  FiberScheduler scheduler;
+  std::vector<std::string> trace;
+  scheduler.spawn("executor", [&] {
+    scheduler.spawn("finishing", [&] { trace.push_back("finished"); });
+    trace.push_back("spawned");
+    scheduler.sleep_until(monotonic_ns());  // hands the thread on
+    trace.push_back("went on");
+  });
+  scheduler.run();
+  EXPECT_EQ(trace, (std::vector<std::string>{"spawned", "finished", "went on"}));
+  std::thread other([&] { EXPECT_NO_THROW(scheduler.spawn("after the run", [] {})); });
+  other.join();
+}
+
 TEST(FiberScheduler, TwoFibersHandTheThreadToEachOtherInLockstep) {
   // A plant and a controller over two generations: the plant writes tick k and waits for the
   // answer; the controller answers. The trace is the same interleaving every time.
@@ -166,16 +183,20 @@ TEST(FiberScheduler, AWakeupOutsideAFiberStillBlocksItsThread) {
   EXPECT_GE(std::chrono::steady_clock::now() - start, std::chrono::milliseconds(10));
 }
 
-TEST(FiberScheduler, RefusesATinyStackAndASpawnWhileRunning) {
+TEST(FiberScheduler, RefusesATinyStackAndASpawnFromAnotherThreadWhileRunning) {
   EXPECT_THROW(FiberScheduler(1024), std::invalid_argument);
   FiberScheduler scheduler;
   bool refused = false;
   scheduler.spawn("a", [&] {
-    try {
-      scheduler.spawn("b", [] {});
-    } catch (const std::logic_error&) {
-      refused = true;
-    }
+    // The scheduler runs (this fiber holds its thread) while another thread tries.
+    std::thread other([&] {
+      try {
+        scheduler.spawn("b", [] {});
+      } catch (const std::logic_error&) {
+        refused = true;
+      }
+    });
+    other.join();
   });
   scheduler.run();
   EXPECT_TRUE(refused);

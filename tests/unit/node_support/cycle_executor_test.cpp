@@ -187,6 +187,40 @@ TEST(CycleExecutor, LostInputsAndAnExceptionEndOnlyTheirOwnComponent) {
   })) << "a component that threw is not finished";
 }
 
+TEST(CycleExecutor, AFinishThatWaitsHoldsNoneOfTheOthersInAContainer) {
+  // The controller ends first and its finish waits (as a writer's flush waits for readers outside
+  // to acknowledge); the drive's last ticks go on meanwhile, as the container hands that finish
+  // to a fiber of its own.
+  dds::FiberScheduler scheduler;
+  dds::Wakeup controller_wakeup(std::chrono::nanoseconds(0), std::chrono::nanoseconds(0), &scheduler);
+  dds::Wakeup drive_wakeup(std::chrono::nanoseconds(0), std::chrono::nanoseconds(0), &scheduler);
+  Trace trace;
+  Scripted controller("controller", trace, controller_wakeup, [](int) { return CycleStep::finished(kExitOk); });
+  Scripted drive("drive", trace, drive_wakeup, [](int call) {
+    return call < 3 ? CycleStep::sleeping_until(monotonic_ns() + 1'000'000) : CycleStep::finished(kExitOk);
+  });
+  std::vector<Ended> ended;
+  scheduler.spawn("cycles", [&] {
+    const std::vector<CycleComponent*> cycles{&controller, &drive};
+    run_cycles(
+        cycles,
+        [&](std::size_t index, int code) {
+          ended.push_back({index, code});
+        },
+        [](std::size_t, std::exception_ptr error) -> int { std::rethrow_exception(error); },
+        [&](std::size_t index, int code) {
+          scheduler.spawn("finishing", [&, cycle = cycles[index], index, code] {
+            if (index == 0) controller_wakeup.sleep_until_ns(monotonic_ns() + 20'000'000);  // its flush
+            ended.push_back({index, cycle->finish(code)});
+          });
+        });
+  });
+  scheduler.run();
+  ASSERT_EQ(ended.size(), 2u);
+  EXPECT_EQ(ended[0].index, 1u) << "the drive ended within its 3 ms while the controller's finish waited 20 ms";
+  EXPECT_EQ(ended[1].index, 0u);
+}
+
 TEST(CycleExecutor, OutsideAContainerOnlyOneComponentWaits) {
   dds::Wakeup a_wakeup;
   dds::Wakeup b_wakeup;

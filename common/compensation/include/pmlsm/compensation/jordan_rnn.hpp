@@ -135,7 +135,10 @@ struct RnnCompensatorParams {
     v.real(at + ".gain_n", p.gain_n, {1e-3, 1e5, "1 mN to 100 kN, the range of the force limit"});
     v.real(at + ".output_scale", p.output_scale, {0.05, 20.0, "a twentieth to twenty times the force", live_at});
     v.real(at + ".learning_rate", p.learning_rate,
-           {0.0, 1.0, "eta of (16): a step larger than the gradient itself diverges", live_at});
+           {0.0, 100.0,
+            "eta of (16), in (m/s)^-2 (the step is eta e k_c dU_n/dw): at 100, errors of 0.1 m/s move a weight by 1 "
+            "a tick",
+            live_at});
     v.real(at + ".momentum", p.momentum, {0.0, 0.999, "alpha of (16): below 1 to contract", live_at});
     v.real(at + ".tolerance_mps", p.tolerance_mps, {0.0, 1.0, "0 to 1 m/s of dead band", live_at});
     v.real(at + ".kc_limit_mps", p.kc_limit_mps, {1e-6, 1e3, "1 um/s to 1 km/s", live_at});

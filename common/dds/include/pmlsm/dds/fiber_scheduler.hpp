@@ -45,9 +45,10 @@ class FiberScheduler {
   FiberScheduler(const FiberScheduler&) = delete;
   FiberScheduler& operator=(const FiberScheduler&) = delete;
 
-  /// Adds a fiber that runs `body` once run() starts, with `priority` (lower goes first). `body`
-  /// must not throw (a fiber's exception cannot cross the switch: catch inside and report).
-  /// Not while running. @throws std::logic_error when called from a running fiber.
+  /// Adds a fiber that runs `body` once run() starts (from a running fiber: at once, among the
+  /// others), with `priority` (lower goes first). `body` must not throw (a fiber's exception
+  /// cannot cross the switch: catch inside and report). @throws std::logic_error when called
+  /// from another thread while running.
   void spawn(std::string name, std::function<void()> body, int priority = 0);
 
   /// Runs every fiber until each has returned, on the calling thread.

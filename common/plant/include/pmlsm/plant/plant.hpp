@@ -76,7 +76,28 @@ struct MotorElectricalParams {
   double motor_constant_n_per_a = 0;   ///< K_m, thrust per q-axis (peak) ampere
   double pole_pitch_m = 0;             ///< tau
   double pole_pairs = 0;               ///< p in (9)
+  /// The declared ranges, then what they cannot say: the flux-current maps invertible.
   void validate() const;
+  /// Its entries under `at` ("plant.electrical"). Self: MotorElectricalParams, const or not.
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& e, Visitor& v) {
+    const std::string el = at + ".";
+    const Plausible resistance{1e-3, 1e3, "winding resistances of real motors: 1 mOhm to 1 kOhm"};
+    const Plausible inductance{1e-6, 10.0, "winding inductances of real motors: 1 uH to 10 H"};
+    v.real(el + "resistance_ohm", e.resistance_ohm, resistance);
+    v.real(el + "armature_d_inductance_h", e.armature_d_inductance_h, inductance);
+    v.real(el + "armature_q_inductance_h", e.armature_q_inductance_h, inductance);
+    v.real(el + "mutual_d_inductance_h", e.mutual_d_inductance_h, {0.0, 10.0, "0 (no damper coupling) to 10 H"});
+    v.real(el + "mutual_q_inductance_h", e.mutual_q_inductance_h, {0.0, 10.0, "0 (no damper coupling) to 10 H"});
+    v.real(el + "damper_d_inductance_h", e.damper_d_inductance_h, inductance);
+    v.real(el + "damper_q_inductance_h", e.damper_q_inductance_h, inductance);
+    v.real(el + "damper_d_resistance_ohm", e.damper_d_resistance_ohm, resistance);
+    v.real(el + "damper_q_resistance_ohm", e.damper_q_resistance_ohm, resistance);
+    v.real(el + "motor_constant_n_per_a", e.motor_constant_n_per_a,
+           {0.1, 1e4, "thrust constants of linear motors: 0.1 N/A to 10 kN/A"});
+    v.real(el + "pole_pitch_m", e.pole_pitch_m, {1e-3, 1.0, "pole pitches of 1 mm to 1 m"});
+    v.integer(el + "pole_pairs", e.pole_pairs, {1.0, 1000.0, "a count of pole pairs: a whole number, 1 to 1000"});
+  }
   /// psi_pm = K_m / ((3p/2)(pi/tau)).
   double permanent_magnet_flux_wb() const;
   /// (3p/2)(pi/tau): thrust per (flux * current).
@@ -135,11 +156,23 @@ struct MechanicsParams {
   double spring_n_per_m = 0;     ///< k
   double damping_n_s_per_m = 0;  ///< b
   void validate() const;
+  /// Its entries under `at` ("plant.mechanics").
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& m, Visitor& v) {
+    declare_two_mass(at, m.motor_mass_kg, m.load_mass_kg, m.spring_n_per_m, v);
+    v.real(at + ".damping_n_s_per_m", m.damping_n_s_per_m, {0.0, 1e6, "0 (undamped) to a stiff hydraulic damper"});
+  }
 };
 
 struct InverterParams {
   double dc_bus_v = 0;
   void validate() const;
+  /// Its entries under `at` ("plant.inverter").
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& i, Visitor& v) {
+    v.real(at + ".dc_bus_v", i.dc_bus_v,
+           {1.0, 2000.0, "from 1 V to the 1500 V DC of the largest industrial inverters"});
+  }
   double voltage_limit_v() const;  ///< V_dc / sqrt(3)
 };
 
@@ -152,7 +185,19 @@ struct EncoderParams {
   /// instead of x_m; the head is light, so nothing acts back on the motor. 0: a rigid mount.
   double mount_frequency_hz = 0;  ///< w_e / (2 pi)
   double mount_damping = 0;       ///< zeta_e, used when mount_frequency_hz > 0
+  /// The declared ranges, then a compliant mount's least damping.
   void validate() const;
+  /// Its entries under `at` ("plant.encoder").
+  template <typename Self, typename Visitor>
+  static void declare(const std::string& at, Self& e, Visitor& v) {
+    const std::string en = at + ".";
+    v.real(en + "resolution_m", e.resolution_m,
+           {1e-10, 1e-2, "from an interferometer's 0.1 nm to a 10 mm coarse scale"});
+    v.real(en + "position_noise_std_m", e.position_noise_std_m, {0.0, 1e-2, "0 to 10 mm of noise"});
+    v.integer(en + "noise_seed", e.noise_seed, {0.0, 18446744073709551615.0, "a seed: any whole number of 64 bits"});
+    v.real(en + "mount_frequency_hz", e.mount_frequency_hz, {0.0, 1e5, "0 (a rigid mount) to 100 kHz"});
+    v.real(en + "mount_damping", e.mount_damping, {0.0, 2.0, "0 to 2 (at least 1e-4 with a compliant mount)"});
+  }
 };
 
 /// Fixed-step explicit integrators; tests/unit/plant/plant_test.cpp measures their order and error.
@@ -184,39 +229,12 @@ struct PlantParams {
     v.real(at + ".max_step_s", p.max_step_s,
            {1e-9, 1e-3, "the integrator step: at least one per millisecond, at most a billion per second"});
     v.choice(at + ".integrator", p.integrator, &integrator_from_string);
-    auto& e = p.electrical;
-    const std::string el = at + ".electrical.";
-    const Plausible resistance{1e-3, 1e3, "winding resistances of real motors: 1 mOhm to 1 kOhm"};
-    const Plausible inductance{1e-6, 10.0, "winding inductances of real motors: 1 uH to 10 H"};
-    v.real(el + "resistance_ohm", e.resistance_ohm, resistance);
-    v.real(el + "armature_d_inductance_h", e.armature_d_inductance_h, inductance);
-    v.real(el + "armature_q_inductance_h", e.armature_q_inductance_h, inductance);
-    v.real(el + "mutual_d_inductance_h", e.mutual_d_inductance_h, {0.0, 10.0, "0 (no damper coupling) to 10 H"});
-    v.real(el + "mutual_q_inductance_h", e.mutual_q_inductance_h, {0.0, 10.0, "0 (no damper coupling) to 10 H"});
-    v.real(el + "damper_d_inductance_h", e.damper_d_inductance_h, inductance);
-    v.real(el + "damper_q_inductance_h", e.damper_q_inductance_h, inductance);
-    v.real(el + "damper_d_resistance_ohm", e.damper_d_resistance_ohm, resistance);
-    v.real(el + "damper_q_resistance_ohm", e.damper_q_resistance_ohm, resistance);
-    v.real(el + "motor_constant_n_per_a", e.motor_constant_n_per_a,
-           {0.1, 1e4, "thrust constants of linear motors: 0.1 N/A to 10 kN/A"});
-    v.real(el + "pole_pitch_m", e.pole_pitch_m, {1e-3, 1.0, "pole pitches of 1 mm to 1 m"});
-    v.integer(el + "pole_pairs", e.pole_pairs, {1.0, 1000.0, "a count of pole pairs: a whole number, 1 to 1000"});
+    MotorElectricalParams::declare(at + ".electrical", p.electrical, v);
     RippleParams::declare(at + ".ripple", p.ripple, v);
     FrictionParams::declare(at + ".friction", p.friction, v);
-    auto& m = p.mechanics;
-    declare_two_mass(at + ".mechanics", m.motor_mass_kg, m.load_mass_kg, m.spring_n_per_m, v);
-    v.real(at + ".mechanics.damping_n_s_per_m", m.damping_n_s_per_m,
-           {0.0, 1e6, "0 (undamped) to a stiff hydraulic damper"});
-    v.real(at + ".inverter.dc_bus_v", p.inverter.dc_bus_v,
-           {1.0, 2000.0, "from 1 V to the 1500 V DC of the largest industrial inverters"});
-    const std::string en = at + ".encoder.";
-    v.real(en + "resolution_m", p.encoder.resolution_m,
-           {1e-10, 1e-2, "from an interferometer's 0.1 nm to a 10 mm coarse scale"});
-    v.real(en + "position_noise_std_m", p.encoder.position_noise_std_m, {0.0, 1e-2, "0 to 10 mm of noise"});
-    v.integer(en + "noise_seed", p.encoder.noise_seed,
-              {0.0, 18446744073709551615.0, "a seed: any whole number of 64 bits"});
-    v.real(en + "mount_frequency_hz", p.encoder.mount_frequency_hz, {0.0, 1e5, "0 (a rigid mount) to 100 kHz"});
-    v.real(en + "mount_damping", p.encoder.mount_damping, {0.0, 2.0, "0 to 2 (at least 1e-4 with a compliant mount)"});
+    MechanicsParams::declare(at + ".mechanics", p.mechanics, v);
+    InverterParams::declare(at + ".inverter", p.inverter, v);
+    EncoderParams::declare(at + ".encoder", p.encoder, v);
   }
 };
 
