@@ -275,4 +275,22 @@ strings += b"\0" * (len(strings) % 2)
 general = bytes([1, 0, 2, 3]) + bytes(28)
 put("ethercat_sii", "small.bin", bytes(fixed) + struct.pack("<HH", 10, len(strings) // 2) + strings +
     struct.pack("<HH", 30, len(general) // 2) + general + struct.pack("<HH", 0xFFFF, 0xFFFF))
+# A capture: section header, an Ethernet interface in nanoseconds, two packets (the SDO upload
+# request above, and an EtherCAT frame over UDP to port 34980).
+def pcapng_block(kind, body):
+    body = body + b"\0" * (-len(body) % 4)
+    return struct.pack("<II", kind, len(body) + 12) + body + struct.pack("<I", len(body) + 12)
+def packet(frame, time_ns):
+    return pcapng_block(6, struct.pack("<IIIII", 0, time_ns >> 32, time_ns & 0xFFFFFFFF, len(frame), len(frame)) +
+                        frame)
+sdo_request = ecat_frame([ecat_datagram(5, 7, 0x10001001, list(struct.pack("<HHBB", 10, 0, 0, 0x13)) +
+                                        list(struct.pack("<H", 0x2000)) + [0x40, 0x00, 0x10, 0, 0, 0, 0, 0], False, 1)])
+payload = sdo_request[14:]
+ip = struct.pack(">BBHHHBBH4s4s", 0x45, 0, 28 + len(payload), 0, 0, 64, 17, 0, bytes(4), bytes([255] * 4))
+udp = struct.pack(">HHHH", 34980, 34980, 8 + len(payload), 0)
+over_udp = bytes([0xFF] * 6 + [0] * 6 + [0x08, 0x00]) + ip + udp + payload
+put("ethercat_pcapng", "two_frames.pcapng",
+    pcapng_block(0x0A0D0D0A, struct.pack("<IHHq", 0x1A2B3C4D, 1, 0, -1)) +
+    pcapng_block(1, struct.pack("<HHIHH", 1, 0, 0, 9, 1) + bytes([9, 0, 0, 0]) + bytes(4)) +
+    packet(bytes(sdo_request), 1_700_000_000_000_000_000) + packet(over_udp, 1_700_000_000_000_001_000))
 print("seeds written under", corpus)

@@ -1013,9 +1013,24 @@ TEST(Ethercat, AVirtualSlaveOverUdpIsScannedWalkedAndReadOverCoe) {
   EXPECT_NE(text.find("1 slaves"), std::string::npos) << text;
   EXPECT_NE(text.find("0x1001  0x00000000 0x00005001"), std::string::npos) << text;
   EXPECT_NE(text.find("INIT    128/128 bytes, CoE PMLSM virtual drive"), std::string::npos) << text;
-  std::tie(code, text) = ethercat({"sdo", "read", "0x1001", "0x1000", "0"}, "device_type.log");
+  const std::string sdo_capture = (dir / "sdo.pcapng").string();
+  std::tie(code, text) =
+      ethercat({"--capture", sdo_capture, "sdo", "read", "0x1001", "0x1000", "0"}, "device_type.log");
   EXPECT_EQ(code, 0) << text;
   EXPECT_NE(text.find("0x1001 0x1000:0 0x00020192"), std::string::npos) << text;
+  // That capture decoded by `pmlsm ethercat pcap`: the request and the answer, as the master saw them.
+  {
+    test::ChildProcess pcap({bin("pmlsm"), "ethercat", "pcap", sdo_capture, "--sdo"}, (dir / "pcap.log").string());
+    EXPECT_EQ(run_to_end(pcap), 0) << pcap.output();
+    EXPECT_NE(pcap.output().find("0 malformed"), std::string::npos) << pcap.output();
+    EXPECT_NE(pcap.output().find("station 0x1001  upload request 0x1000:00"), std::string::npos) << pcap.output();
+    EXPECT_NE(pcap.output().find("station 0x1001  upload response 0x1000:00 = 0x20192 (4 bytes)"), std::string::npos)
+        << pcap.output();
+    test::ChildProcess not_a_capture({bin("pmlsm"), "ethercat", "pcap", (dir / "serve.log").string()},
+                                     (dir / "not_a_capture.log").string());
+    EXPECT_EQ(run_to_end(not_a_capture), 2) << not_a_capture.output();
+    EXPECT_NE(not_a_capture.output().find("not a pcapng capture"), std::string::npos) << not_a_capture.output();
+  }
   std::tie(code, text) = ethercat({"sdo", "write", "0x1001", "0x6060", "0", "10", "--size", "1"}, "mode.log");
   EXPECT_EQ(code, 0) << text;
   std::tie(code, text) = ethercat({"sdo", "read", "0x1001", "0x6060", "0"}, "mode_back.log");

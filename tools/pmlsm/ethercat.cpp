@@ -5,6 +5,7 @@
 //   pmlsm ethercat --interface eth1 sdo read 0x1001 0x6061 0
 //   pmlsm ethercat --interface eth1 sdo write 0x1001 0x6060 0 10 --size 1
 //   pmlsm ethercat serve --udp-port 34980                   # a virtual slave (or --interface)
+//   pmlsm ethercat pcap bus.pcapng --sdo                    # a capture decoded by our parsers
 // Station addresses are assigned by position (0x1001 first) on every run, as a scan does.
 // --capture FILE writes every frame the master sent and got back as pcapng (Wireshark reads it).
 // Exit 0 done; 1 the bus or a slave did not answer, or refused (its AL status code named); 2 bad
@@ -26,6 +27,7 @@
 
 #include "commands.hpp"
 #include "pmlsm/dds/shutdown.hpp"
+#include "pmlsm/ethercat/capture.hpp"
 #include "pmlsm/ethercat/coe_drive.hpp"
 #include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/ethercat/link.hpp"
@@ -53,6 +55,8 @@ struct EthercatOptions {
   int udp_port = -1;  ///< serve: the UDP port (0: one the kernel picks)
   double seconds = 0;
   std::string sii;
+  std::string file;       ///< pcap: the capture
+  bool sdo_list = false;  ///< pcap --sdo
 };
 
 std::uint32_t parse_number(const std::string& text, const char* what, std::uint32_t max) {
@@ -271,6 +275,45 @@ int run_serve(const EthercatOptions& o) {
   return kExitOk;
 }
 
+/// A capture decoded by our parsers: what it holds, and (--sdo) each CoE SDO message. A malformed
+/// file: exit 2, said; a malformed EtherCAT frame in it: counted and named, exit 1.
+int run_pcap(const EthercatOptions& o) {
+  std::optional<PcapngReader> reader;
+  CaptureDecode d;
+  try {
+    reader.emplace(o.file);
+    d = decode_capture(*reader);
+  } catch (const std::runtime_error& e) {
+    throw UsageError(std::string("ethercat pcap: ") + e.what());
+  }
+  std::printf(
+      "%s: %llu frames: %llu EtherCAT (%llu over UDP, %llu of another type than datagrams), %llu other; %llu "
+      "malformed\n",
+      o.file.c_str(), static_cast<unsigned long long>(d.frames), static_cast<unsigned long long>(d.ethercat_frames),
+      static_cast<unsigned long long>(d.over_udp), static_cast<unsigned long long>(d.other_types),
+      static_cast<unsigned long long>(d.other_frames), static_cast<unsigned long long>(d.malformed_frames));
+  std::printf("datagrams:");
+  for (std::size_t c = 0; c < d.datagrams.size(); ++c) {
+    if (d.datagrams[c] > 0) {
+      std::printf(" %s %llu", to_string(static_cast<Command>(c)), static_cast<unsigned long long>(d.datagrams[c]));
+    }
+  }
+  std::printf("\nCoE SDO messages: %zu\n", d.sdos.size());
+  if (o.sdo_list) {
+    for (const CaptureDecode::Sdo& s : d.sdos) {
+      std::printf("  frame %llu  station 0x%04X  %s\n", static_cast<unsigned long long>(s.frame), s.seen.station,
+                  describe(s.seen).c_str());
+    }
+  }
+  if (d.malformed_frames > 0) {
+    std::fprintf(stderr, "ethercat pcap: %llu malformed EtherCAT frames, the first frame %llu: %s\n",
+                 static_cast<unsigned long long>(d.malformed_frames),
+                 static_cast<unsigned long long>(d.first_malformed), to_string(d.first_error));
+    return kExitError;
+  }
+  return kExitOk;
+}
+
 /// A set-up step's failure (no answer, a wrong working counter) as exit 1 with its message.
 int guarded(int (*run)(const EthercatOptions&), const EthercatOptions& o) {
   try {
@@ -287,7 +330,7 @@ int guarded(int (*run)(const EthercatOptions&), const EthercatOptions& o) {
 void add_ethercat_command(CLI::App& app, int& exit_code) {
   CLI::App* cmd = app.add_subcommand("ethercat",
                                      "EtherCAT: scan the bus, walk a slave's state, read and write "
-                                     "objects over CoE; serve a virtual CiA 402 slave");
+                                     "objects over CoE; serve a virtual CiA 402 slave; decode a capture");
   cmd->require_subcommand(1);
   auto o = std::make_shared<EthercatOptions>();
   cmd->add_option("--interface", o->interface, "Raw Ethernet on this interface (needs CAP_NET_RAW)");
@@ -323,6 +366,13 @@ void add_ethercat_command(CLI::App& app, int& exit_code) {
   serve->add_option("--sii", o->sii, "An SII EEPROM image to answer with (raw words, as a drive's dump)")
       ->check(CLI::ExistingFile);
   serve->callback(run(&run_serve));
+  CLI::App* pcap = cmd->add_subcommand(
+      "pcap", "Decode a pcapng capture with our parsers: its frames, datagrams, and the CoE SDO messages (--sdo)");
+  pcap->add_option("file", o->file, "The capture (pcapng, as Wireshark, tshark or --capture write it)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  pcap->add_flag("--sdo", o->sdo_list, "List each CoE SDO message: frame, station, what it asks or answers");
+  pcap->callback(run(&run_pcap));
 }
 
 }  // namespace pmlsm::tools

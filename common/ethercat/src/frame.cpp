@@ -148,7 +148,11 @@ FrameError parse_ethercat_frame(const std::uint8_t* bytes, std::size_t size, Par
     ++out.count;
     at += datagram_bytes;
     if (!d.header.more) {
-      return at == length ? FrameError::kNone : FrameError::kBytesAfterLast;
+      // TwinCAT rounds the header's length up to an even count: one byte of padding after an odd
+      // last datagram (a real drive's capture, twincat-akd-nc-mode.pcapng, has such frames;
+      // tshark reads them as pad bytes). More than that is refused.
+      const bool rounded_to_even = at + 1 == length && length % 2 == 0;
+      return at == length || rounded_to_even ? FrameError::kNone : FrameError::kBytesAfterLast;
     }
   }
   return FrameError::kMoreWithoutNext;

@@ -145,6 +145,19 @@ TEST(EtherCatFrame, EveryMalformedFrameIsRefusedByName) {
   f = two_datagrams();
   f[23] &= 0x7F;  // the first datagram says it is the last; the second follows
   EXPECT_EQ(parse(f), FrameError::kBytesAfterLast);
+  {
+    // One odd datagram (BWR of 1 byte: 13 bytes) in a length rounded up to 14, as TwinCAT sends:
+    // read, the pad byte ignored; rounded to 15 or 16 it is refused.
+    FrameBuilder b;
+    const std::uint8_t one = 0;
+    b.add(Command::kBwr, 0x40, physical_address(0, 0x0101), &one, 1);
+    std::vector<std::uint8_t> odd = as_vector(b.ethernet());  // padded to 60 bytes
+    ASSERT_EQ(odd[14], 13);
+    odd[14] = 14;
+    EXPECT_EQ(parse(odd), FrameError::kNone);
+    odd[14] = 16;
+    EXPECT_EQ(parse(odd), FrameError::kBytesAfterLast);
+  }
   f = two_datagrams();
   f[14] = 14;  // the length ends after the first datagram, whose more bit is set
   EXPECT_EQ(parse(f), FrameError::kMoreWithoutNext);

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "pmlsm/canopen/cia402_dictionary.hpp"
+#include "pmlsm/ethercat/capture.hpp"
 #include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/ethercat/mailbox.hpp"
 #include "pmlsm/ethercat/frame.hpp"
@@ -265,6 +266,53 @@ TEST(EtherCatTshark, DecodesOurCoeSdoRequestsAndTheSlavesAnswers) {
       << "three SDO responses, the slave's mailbox counter counting 1, 2, 3";
   EXPECT_EQ(tshark(capture, "_ws.malformed || _ws.expert.severity >= warning", "frame.number"), "");
   if (!HasFailure()) fs::remove_all(dir);  // kept for a look when something failed
+}
+
+/// ../shared/ethercat/captures/NAME, or empty when the shared captures are not there.
+fs::path shared_capture(const std::string& name) {
+  const fs::path path = fs::path(PMLSM_SOURCE_DIR) / ".." / "shared" / "ethercat" / "captures" / name;
+  return fs::exists(path) ? path : fs::path();
+}
+
+TEST(EtherCatTshark, ARealDrivesCapturesParseAsTsharkReadsThemAndTheAkdsSdoAnswersAreTsharks) {
+  if (!have_tshark()) GTEST_SKIP() << "tshark is not installed (scripts/install_deps.sh installs it)";
+  const fs::path akd = shared_capture("soem-sdinfo-akd.pcapng");
+  if (akd.empty()) GTEST_SKIP() << "no ../shared/ethercat/captures (real devices' captures); not run";
+  // Every EtherCAT frame of the four captures (SOEM with an AKD, an EK1100 and a LAN9252;
+  // TwinCAT with the AKD) parsed without complaint, as many as tshark's EtherCAT frames.
+  for (const char* name : {"soem-sdinfo-akd.pcapng", "soem-sdinfo-ek1100-el1004.pcapng", "soem-single-lan9252.pcapng",
+                           "twincat-akd-nc-mode.pcapng"}) {
+    PcapngReader reader(shared_capture(name).string());
+    const CaptureDecode d = decode_capture(reader);
+    EXPECT_EQ(d.malformed_frames, 0u) << name << ": frame " << d.first_malformed << ": " << to_string(d.first_error);
+    const std::string tshark_frames = tshark(shared_capture(name), "ecatf", "frame.number");
+    EXPECT_EQ(d.ethercat_frames,
+              static_cast<std::uint64_t>(std::count(tshark_frames.begin(), tshark_frames.end(), '\n')))
+        << name;
+  }
+  // The AKD's expedited SDO answers, as our parsers read them and as tshark does: frame, index,
+  // sub-index and value, in order (the answers its slave counted, working counter 1).
+  PcapngReader reader(akd.string());
+  const CaptureDecode d = decode_capture(reader);
+  std::ostringstream ours;
+  for (const CaptureDecode::Sdo& s : d.sdos) {
+    std::uint16_t index = 0;
+    std::uint8_t subindex = 0;
+    std::uint32_t value = 0;
+    std::uint8_t size = 0;
+    if (!upload_value(s.seen, index, subindex, value, size)) continue;
+    char row[64];
+    std::snprintf(row, sizeof row, "%llu,0x%04x,0x%02x,0x%0*x\n", static_cast<unsigned long long>(s.frame), index,
+                  subindex, 2 * size, value);
+    ours << row;
+  }
+  const std::string theirs =
+      tshark(akd, "ecat_mailbox.coe.sdores && ecat.cmd == 4 && ecat.cnt == 1",
+             "frame.number ecat_mailbox.coe.sdoidx ecat_mailbox.coe.sdosub ecat_mailbox.coe.sdodata");
+  EXPECT_EQ(ours.str(), theirs);
+  EXPECT_EQ(std::count(theirs.begin(), theirs.end(), '\n'), 35) << "SOEM's 35 reads of the AKD's PDO objects";
+  EXPECT_NE(ours.str().find("0x1a03,0x02,0x606c0020"), std::string::npos)
+      << "the AKD's TxPDO 4 maps velocity actual (0x606C, 32 bits)";
 }
 
 }  // namespace
