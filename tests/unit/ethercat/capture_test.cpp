@@ -12,12 +12,11 @@
 #include <string>
 #include <vector>
 
-#include "pmlsm/canopen/cia402_dictionary.hpp"
+#include "coe_slave.hpp"
 #include "pmlsm/ethercat/capture.hpp"
 #include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/ethercat/master.hpp"
 #include "pmlsm/ethercat/pcapng.hpp"
-#include "pmlsm/ethercat/sii.hpp"
 
 namespace pmlsm::ethercat {
 namespace {
@@ -147,19 +146,8 @@ TEST(Pcapng, EveryMalformedFileIsRefusedNamingWhereAndWhy) {
 TEST(CaptureDecode, OurMastersSdoSessionIsDecodedAsTheMasterSawIt) {
   // The master reads and writes objects of the virtual CiA 402 slave through its mailboxes, with
   // a capture on; the capture, decoded, holds each request and each answer in turn.
-  EscParams p;  // a slave with its mailboxes in its SII (at 0x1000 and 0x1080), CoE only
-  p.sii.assign(sii::kMinWords, 0);
-  p.sii[sii::kMailboxReceiveOffset] = 0x1000;
-  p.sii[sii::kMailboxReceiveSize] = 128;
-  p.sii[sii::kMailboxSendOffset] = 0x1080;
-  p.sii[sii::kMailboxSendSize] = 128;
-  p.sii[sii::kMailboxProtocols] = 0x0004;
-  p.sii[sii::kFirstCategory] = 0xFFFF;
-  Esc slave(p);
-  canopen::ObjectDictionary dictionary = canopen::make_cia402_dictionary(canopen::NodeId(1));
-  CoeSdoServer coe(dictionary, canopen::NodeId(1));
-  slave.set_mailbox_handler(&coe);
-  VirtualSegment segment({&slave});
+  test::CoeSlave slave;
+  VirtualSegment segment({&slave.esc});
   VirtualSegmentLink link(segment);
   const fs::path path = scratch("session.pcapng");
   {

@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "pmlsm/canopen/cia402_dictionary.hpp"
+#include "coe_slave.hpp"
 #include "pmlsm/ethercat/capture.hpp"
 #include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/ethercat/mailbox.hpp"
@@ -230,19 +230,8 @@ TEST(EtherCatTshark, DecodesOurCoeSdoRequestsAndTheSlavesAnswers) {
   const fs::path dir = fs::temp_directory_path() / ("pmlsm_ethercat_coe_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   const fs::path capture = dir / "coe.pcapng";
-  EscParams p;
-  p.sii.assign(sii::kMinWords, 0);
-  p.sii[sii::kMailboxReceiveOffset] = 0x1000;
-  p.sii[sii::kMailboxReceiveSize] = 128;
-  p.sii[sii::kMailboxSendOffset] = 0x1080;
-  p.sii[sii::kMailboxSendSize] = 128;
-  p.sii[sii::kMailboxProtocols] = 0x0004;
-  p.sii[sii::kFirstCategory] = 0xFFFF;
-  Esc slave(p);
-  canopen::ObjectDictionary dictionary = canopen::make_cia402_dictionary(canopen::NodeId(1));
-  CoeSdoServer coe(dictionary, canopen::NodeId(1));
-  slave.set_mailbox_handler(&coe);
-  VirtualSegment segment({&slave});
+  test::CoeSlave slave;
+  VirtualSegment segment({&slave.esc});
   VirtualSegmentLink link(segment);
   {
     PcapngWriter writer(capture.string());

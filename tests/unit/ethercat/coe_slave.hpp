@@ -1,0 +1,34 @@
+// A virtual slave for the EtherCAT tests that talk CoE: its mailboxes in its SII (receive at
+// 0x1000, send at 0x1080, 128 bytes each, CoE only) and a CiA 402 dictionary answering over them.
+#pragma once
+
+#include "pmlsm/canopen/cia402_dictionary.hpp"
+#include "pmlsm/ethercat/esc.hpp"
+#include "pmlsm/ethercat/mailbox.hpp"
+#include "pmlsm/ethercat/sii.hpp"
+
+namespace pmlsm::ethercat::test {
+
+inline EscParams coe_slave_params() {
+  EscParams p;
+  p.sii.assign(sii::kMinWords, 0);
+  p.sii[sii::kMailboxReceiveOffset] = 0x1000;
+  p.sii[sii::kMailboxReceiveSize] = 128;
+  p.sii[sii::kMailboxSendOffset] = 0x1080;
+  p.sii[sii::kMailboxSendSize] = 128;
+  p.sii[sii::kMailboxProtocols] = 0x0004;
+  p.sii[sii::kFirstCategory] = 0xFFFF;
+  return p;
+}
+
+/// The slave, its dictionary and the CoE server answering from it, wired together.
+struct CoeSlave {
+  Esc esc{coe_slave_params()};
+  canopen::ObjectDictionary dictionary = canopen::make_cia402_dictionary(canopen::NodeId(1));
+  CoeSdoServer coe{dictionary, canopen::NodeId(1)};
+  CoeSlave() { esc.set_mailbox_handler(&coe); }
+  CoeSlave(const CoeSlave&) = delete;
+  CoeSlave& operator=(const CoeSlave&) = delete;
+};
+
+}  // namespace pmlsm::ethercat::test
