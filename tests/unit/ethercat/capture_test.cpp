@@ -5,6 +5,7 @@
 
 #include <unistd.h>
 
+#include <array>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -14,6 +15,7 @@
 
 #include "coe_slave.hpp"
 #include "pmlsm/ethercat/capture.hpp"
+#include "pmlsm/ethercat/coe_drive.hpp"
 #include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/ethercat/master.hpp"
 #include "pmlsm/ethercat/pcapng.hpp"
@@ -187,6 +189,65 @@ TEST(CaptureDecode, OurMastersSdoSessionIsDecodedAsTheMasterSawIt) {
   EXPECT_EQ(size, 4);
   EXPECT_FALSE(upload_value(d.sdos[0].seen, index, subindex, value, size)) << "a request holds no value";
   fs::remove_all(path.parent_path());
+}
+
+TEST(CaptureReplay, SoemsSiiReadsOfARealAkdAreAnsweredAsTheAkdAnsweredThem) {
+  // SOEM's frames to a Kollmorgen AKD, as captured, sent again to a virtual slave holding the
+  // AKD's SII image: every EEPROM read the AKD answered (its data register, 0x0508, counted) is
+  // answered with the same bytes and working counter, and the drive ends in the AL status the AKD
+  // reported last.
+  const fs::path dir = fs::path(PMLSM_SOURCE_DIR) / ".." / "shared" / "ethercat" / "captures";
+  if (!fs::exists(dir / "akd.hex")) GTEST_SKIP() << "no " << dir << " (the shared EtherCAT captures)";
+  const std::vector<std::uint8_t> image = read_bytes(dir / "akd.hex");
+  std::vector<std::uint16_t> sii;
+  for (std::size_t i = 0; i + 1 < image.size(); i += 2) {
+    sii.push_back(static_cast<std::uint16_t>(image[i] | (image[i + 1] << 8)));
+  }
+  VirtualCia402Slave drive(sii);
+  Esc& akd = drive.esc();
+  VirtualSegment segment({&akd});
+  VirtualSegmentLink link(segment);
+  PcapngReader reader((dir / "soem-sdinfo-akd.pcapng").string());
+  CapturedFrame frame;
+  std::array<std::uint8_t, kMaxEthernetFrameBytes> ours{};
+  std::size_t ours_size = 0;
+  ParsedFrame theirs_parsed;
+  ParsedFrame ours_parsed;
+  int compared = 0;
+  std::uint8_t last_al_status = 0;
+  std::uint8_t our_last_al_status = 0;
+  while (reader.next(frame)) {
+    if (parse_ethernet_frame(frame.data.data, frame.data.size, theirs_parsed) != FrameError::kNone) continue;
+    // The slaves set bit 1 of the source address on a frame's way back (SOEM sends from 01:01:...).
+    if ((frame.data.data[6] & 0x02U) == 0) {
+      ASSERT_TRUE(link.send(frame.data));
+      ours_size = link.receive(ours.data(), 0);
+      continue;
+    }
+    ASSERT_EQ(parse_ethernet_frame(ours.data(), ours_size, ours_parsed), FrameError::kNone) << "frame " << frame.number;
+    ASSERT_EQ(ours_parsed.count, theirs_parsed.count) << "frame " << frame.number;
+    for (std::size_t i = 0; i < theirs_parsed.count; ++i) {
+      const DatagramView& theirs = theirs_parsed.datagrams[i];
+      const DatagramView& mine = ours_parsed.datagrams[i];
+      if (theirs.header.ado() == reg::kAlStatus && theirs.header.command == Command::kFprd &&
+          theirs.working_counter == 1) {
+        // The drive's own pace (it takes a while for PREOP): compared at the end.
+        last_al_status = theirs.data[0];
+        our_last_al_status = mine.data[0];
+      }
+      if (theirs.header.ado() != 0x0508 || theirs.working_counter != 1) continue;
+      ++compared;
+      EXPECT_EQ(mine.working_counter, theirs.working_counter) << "frame " << frame.number;
+      EXPECT_EQ(std::vector<std::uint8_t>(mine.data, mine.data + mine.header.length),
+                std::vector<std::uint8_t>(theirs.data, theirs.data + theirs.header.length))
+          << "frame " << frame.number;
+    }
+  }
+  EXPECT_GT(compared, 20) << "SOEM read the AKD's SII: its identity, mailboxes and categories";
+  // SOEM's set-up replayed takes the virtual drive where it took the AKD: PREOP, SAFEOP refused
+  // (the error indicator set: no process data was configured).
+  EXPECT_EQ(our_last_al_status, last_al_status);
+  EXPECT_EQ(last_al_status, static_cast<int>(AlState::kPreOp) | 0x10);
 }
 
 }  // namespace
