@@ -149,10 +149,16 @@ void component_ended(Slot& slot, int code, ContainerResult& result, const Contai
 /// own loop is a fiber of its own.
 void spawn_components(dds::FiberScheduler& scheduler, std::vector<Slot>& slots, ContainerResult& result,
                       const ContainerOptions& options) {
-  std::map<int, std::vector<Slot*>> cycle_slots;  // by priority
+  struct Level {
+    std::vector<Slot*> slots;
+    std::vector<node::CycleComponent*> cycles;
+  };
+  std::map<int, Level> levels;  // by priority
   for (auto& slot : slots) {
-    if (dynamic_cast<node::CycleComponent*>(slot.component.get()) != nullptr) {
-      cycle_slots[slot.type->priority].push_back(&slot);
+    if (auto* cycle = dynamic_cast<node::CycleComponent*>(slot.component.get())) {
+      Level& level = levels[slot.type->priority];
+      level.slots.push_back(&slot);
+      level.cycles.push_back(cycle);
       continue;
     }
     scheduler.spawn(
@@ -163,12 +169,10 @@ void spawn_components(dds::FiberScheduler& scheduler, std::vector<Slot>& slots, 
         },
         slot.type->priority);
   }
-  for (auto& [priority, level] : cycle_slots) {
-    std::vector<node::CycleComponent*> cycles;
-    for (Slot* slot : level) cycles.push_back(dynamic_cast<node::CycleComponent*>(slot->component.get()));
+  for (auto& [priority, found] : levels) {
     scheduler.spawn(
         "cycles of priority " + std::to_string(priority),
-        [&scheduler, level = level, cycles, &result, &options, priority = priority] {
+        [&scheduler, level = found.slots, cycles = found.cycles, &result, &options, priority = priority] {
           const auto ended = [&](std::size_t index, int code) {
             component_ended(*level[index], code, result, options);
           };

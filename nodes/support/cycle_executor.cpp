@@ -99,14 +99,17 @@ class Executor {
     return entries_.size();
   }
 
-  /// In a container's fiber: hands the thread to whichever other fiber can go, and back.
-  void pass_turn() {
+  /// The wakeup the executor waits through: a running component's (in a container all of them
+  /// share the scheduler). Called only while one runs.
+  dds::Wakeup& home() {
     for (Entry& e : entries_) {
-      if (e.done) continue;
-      e.component->wakeup().wait_any(nullptr, 0, std::chrono::nanoseconds(0));
-      return;
+      if (!e.done) return e.component->wakeup();
     }
+    return entries_.front().component->wakeup();  // unreachable: running_ > 0
   }
+
+  /// In a container's fiber: hands the thread to whichever other fiber can go, and back.
+  void pass_turn() { home().wait_any(nullptr, 0, std::chrono::nanoseconds(0)); }
 
   /// `now`: read just before (one clock read an update: the input timeout counts from the start of
   /// the update that worked, microseconds early on a timeout of seconds).
@@ -142,11 +145,9 @@ class Executor {
   void sleep(std::int64_t now) {
     std::int64_t earliest = std::numeric_limits<std::int64_t>::max();
     std::int64_t spin_ns = 0;
-    dds::Wakeup* home = nullptr;
     watches_.clear();
     for (Entry& e : entries_) {
       if (e.done) continue;
-      if (home == nullptr) home = &e.component->wakeup();
       if (e.wake_ns < earliest) {
         earliest = e.wake_ns;
         spin_ns = e.next == CycleWait::Next::kSleepUntil ? e.spin_ns : 0;
@@ -155,7 +156,7 @@ class Executor {
     }
     const std::int64_t sleep_until = earliest - spin_ns;
     if (sleep_until > now &&
-        home->wait_any(watches_.data(), watches_.size(), std::chrono::nanoseconds(sleep_until - now))) {
+        home().wait_any(watches_.data(), watches_.size(), std::chrono::nanoseconds(sleep_until - now))) {
       return;
     }
     // No yield while polling: the poll is short, and at SCHED_FIFO a yield would hand the core to

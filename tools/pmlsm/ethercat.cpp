@@ -15,8 +15,6 @@
 #include <cctype>
 #include <chrono>
 #include <cstdio>
-#include <fstream>
-#include <iterator>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -227,19 +225,11 @@ int run_sdo(const EthercatOptions& o, bool write) {
 }
 
 std::vector<std::uint16_t> sii_from_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw UsageError("ethercat: --sii: cannot open " + path);
-  const std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (bytes.size() % 2 != 0 || bytes.size() < 2 * sii::kMinWords) {
-    throw UsageError("ethercat: --sii " + path + ": an SII image is whole words, at least " +
-                     std::to_string(2 * sii::kMinWords) + " bytes; got " + std::to_string(bytes.size()));
+  try {
+    return read_sii_image(path);
+  } catch (const std::runtime_error& e) {
+    throw UsageError(std::string("ethercat: --sii ") + e.what());
   }
-  std::vector<std::uint16_t> words;
-  for (std::size_t i = 0; i < bytes.size(); i += 2) {
-    words.push_back(static_cast<std::uint16_t>(static_cast<std::uint8_t>(bytes[i]) |
-                                               (static_cast<std::uint8_t>(bytes[i + 1]) << 8)));
-  }
-  return words;
 }
 
 int run_serve(const EthercatOptions& o) {

@@ -26,6 +26,20 @@ std::string multiplexer(std::uint16_t index, std::uint8_t subindex) {
   return text;
 }
 
+/// " = 0xA (1 byte)"
+std::string value_text(const canopen::SdoData& data) {
+  char text[48];
+  std::snprintf(text, sizeof text, " = 0x%X (%u byte%s)", data.data, data.size, data.size == 1 ? "" : "s");
+  return text;
+}
+
+/// ": 0x06020000 (object does not exist)"
+std::string abort_text(std::uint32_t abort_code) {
+  char code[16];
+  std::snprintf(code, sizeof code, "0x%08X", abort_code);
+  return std::string(": ") + code + " (" + canopen::describe(abort_code) + ")";
+}
+
 /// EtherCAT over UDP (ETG.1000.4, 5.3.3): an untagged IPv4 frame to UDP port 34980; its payload,
 /// or none.
 Bytes udp_payload(Bytes ethernet) {
@@ -81,34 +95,20 @@ std::string describe(const SeenSdo& sdo) {
     const std::string at = multiplexer(r.value.index, r.value.subindex);
     switch (r.value.kind) {
       case canopen::SdoRequestKind::kUpload: return "upload request " + at;
-      case canopen::SdoRequestKind::kDownload: {
-        char value[48];
-        std::snprintf(value, sizeof value, " = 0x%X (%u byte%s)", r.value.data.data, r.value.data.size,
-                      r.value.data.size == 1 ? "" : "s");
-        return "download request " + at + value;
-      }
+      case canopen::SdoRequestKind::kDownload: return "download request " + at + value_text(r.value.data);
       case canopen::SdoRequestKind::kAbort: break;
     }
-    char code[16];
-    std::snprintf(code, sizeof code, "0x%08X", r.value.abort_code);
-    return "abort by the master " + at + ": " + code + " (" + canopen::describe(r.value.abort_code) + ")";
+    return "abort by the master " + at + abort_text(r.value.abort_code);
   }
   const canopen::Result<canopen::SdoResponse> r = canopen::parse_sdo_response(frame);
   if (!r) return std::string("response not decoded: ") + r.detail;
   const std::string at = multiplexer(r.value.index, r.value.subindex);
   switch (r.value.kind) {
-    case canopen::SdoResponseKind::kUpload: {
-      char value[48];
-      std::snprintf(value, sizeof value, " = 0x%X (%u byte%s)", r.value.data.data, r.value.data.size,
-                    r.value.data.size == 1 ? "" : "s");
-      return "upload response " + at + value;
-    }
+    case canopen::SdoResponseKind::kUpload: return "upload response " + at + value_text(r.value.data);
     case canopen::SdoResponseKind::kDownload: return "download response " + at;
     case canopen::SdoResponseKind::kAbort: break;
   }
-  char code[16];
-  std::snprintf(code, sizeof code, "0x%08X", r.value.abort_code);
-  return "abort " + at + ": " + code + " (" + canopen::describe(r.value.abort_code) + ")";
+  return "abort " + at + abort_text(r.value.abort_code);
 }
 
 CaptureDecode decode_capture(PcapngReader& reader) {

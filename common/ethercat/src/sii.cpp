@@ -1,5 +1,7 @@
 #include "pmlsm/ethercat/sii.hpp"
 
+#include <fstream>
+#include <iterator>
 #include <stdexcept>
 
 #include "pmlsm/util/validate.hpp"
@@ -152,6 +154,23 @@ std::vector<std::uint16_t> build_sii(const SiiInfo& info) {
   w.push_back(sii_category::kEnd);
   w.push_back(0xFFFF);
   return w;
+}
+
+std::vector<std::uint16_t> read_sii_image(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot open " + path);
+  const std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (bytes.size() % 2 != 0 || bytes.size() < 2 * sii::kMinWords) {
+    throw std::runtime_error(path + ": an SII image is whole words, at least " + std::to_string(2 * sii::kMinWords) +
+                             " bytes; got " + std::to_string(bytes.size()));
+  }
+  std::vector<std::uint16_t> words;
+  words.reserve(bytes.size() / 2);
+  for (std::size_t i = 0; i < bytes.size(); i += 2) {
+    words.push_back(static_cast<std::uint16_t>(static_cast<std::uint8_t>(bytes[i]) |
+                                               (static_cast<std::uint8_t>(bytes[i + 1]) << 8)));
+  }
+  return words;
 }
 
 }  // namespace pmlsm::ethercat

@@ -19,6 +19,7 @@
 #include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/ethercat/master.hpp"
 #include "pmlsm/ethercat/pcapng.hpp"
+#include "pmlsm/ethercat/sii.hpp"
 
 namespace pmlsm::ethercat {
 namespace {
@@ -198,12 +199,7 @@ TEST(CaptureReplay, SoemsSiiReadsOfARealAkdAreAnsweredAsTheAkdAnsweredThem) {
   // reported last.
   const fs::path dir = fs::path(PMLSM_SOURCE_DIR) / ".." / "shared" / "ethercat" / "captures";
   if (!fs::exists(dir / "akd.hex")) GTEST_SKIP() << "no " << dir << " (the shared EtherCAT captures)";
-  const std::vector<std::uint8_t> image = read_bytes(dir / "akd.hex");
-  std::vector<std::uint16_t> sii;
-  for (std::size_t i = 0; i + 1 < image.size(); i += 2) {
-    sii.push_back(static_cast<std::uint16_t>(image[i] | (image[i + 1] << 8)));
-  }
-  VirtualCia402Slave drive(sii);
+  VirtualCia402Slave drive(read_sii_image((dir / "akd.hex").string()));
   Esc& akd = drive.esc();
   VirtualSegment segment({&akd});
   VirtualSegmentLink link(segment);
@@ -235,7 +231,7 @@ TEST(CaptureReplay, SoemsSiiReadsOfARealAkdAreAnsweredAsTheAkdAnsweredThem) {
         last_al_status = theirs.data[0];
         our_last_al_status = mine.data[0];
       }
-      if (theirs.header.ado() != 0x0508 || theirs.working_counter != 1) continue;
+      if (theirs.header.ado() != reg::kSiiData || theirs.working_counter != 1) continue;
       ++compared;
       EXPECT_EQ(mine.working_counter, theirs.working_counter) << "frame " << frame.number;
       EXPECT_EQ(std::vector<std::uint8_t>(mine.data, mine.data + mine.header.length),

@@ -12,8 +12,6 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <memory>
 #include <string>
 #include <vector>
@@ -285,14 +283,8 @@ TEST(EtherCatMaster, ReadsARealAkdsSiiImageAsTheDriveReportsItself) {
   const std::filesystem::path image =
       std::filesystem::path(PMLSM_SOURCE_DIR) / ".." / "shared" / "ethercat" / "captures" / "akd.hex";
   if (!std::filesystem::exists(image)) GTEST_SKIP() << "no " << image << " (the shared EtherCAT captures)";
-  std::ifstream in(image, std::ios::binary);
-  const std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  ASSERT_EQ(bytes.size() % 2, 0u);
   EscParams p;
-  for (std::size_t i = 0; i + 1 < bytes.size(); i += 2) {
-    p.sii.push_back(static_cast<std::uint16_t>(static_cast<std::uint8_t>(bytes[i]) |
-                                               (static_cast<std::uint8_t>(bytes[i + 1]) << 8)));
-  }
+  p.sii = read_sii_image(image.string());
   Esc akd(p);
   VirtualSegment segment({&akd});
   VirtualSegmentLink link(segment);

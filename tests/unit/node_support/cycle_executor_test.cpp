@@ -189,15 +189,21 @@ TEST(CycleExecutor, LostInputsAndAnExceptionEndOnlyTheirOwnComponent) {
 
 TEST(CycleExecutor, AFinishThatWaitsHoldsNoneOfTheOthersInAContainer) {
   // The controller ends first and its finish waits (as a writer's flush waits for readers outside
-  // to acknowledge); the drive's last ticks go on meanwhile, as the container hands that finish
-  // to a fiber of its own.
+  // to acknowledge) for what only the drive's last tick gives: the drive must go on meanwhile, as
+  // the container hands that finish to a fiber of its own. Were the finish run in place, the drive
+  // would never get there and the wait would end at its 10 s deadline without it.
   dds::FiberScheduler scheduler;
   dds::Wakeup controller_wakeup(std::chrono::nanoseconds(0), std::chrono::nanoseconds(0), &scheduler);
   dds::Wakeup drive_wakeup(std::chrono::nanoseconds(0), std::chrono::nanoseconds(0), &scheduler);
   Trace trace;
+  bool last_tick_done = false;
+  bool finish_saw_the_last_tick = false;
   Scripted controller("controller", trace, controller_wakeup, [](int) { return CycleStep::finished(kExitOk); });
-  Scripted drive("drive", trace, drive_wakeup, [](int call) {
-    return call < 3 ? CycleStep::sleeping_until(monotonic_ns() + 1'000'000) : CycleStep::finished(kExitOk);
+  Scripted drive("drive", trace, drive_wakeup, [&](int call) {
+    if (call < 3) return CycleStep::sleeping_until(monotonic_ns() + 1'000'000);
+    last_tick_done = true;
+    controller_wakeup.notify();
+    return CycleStep::finished(kExitOk);
   });
   std::vector<Ended> ended;
   scheduler.spawn("cycles", [&] {
@@ -210,15 +216,20 @@ TEST(CycleExecutor, AFinishThatWaitsHoldsNoneOfTheOthersInAContainer) {
         [](std::size_t, std::exception_ptr error) -> int { std::rethrow_exception(error); },
         [&](std::size_t index, int code) {
           scheduler.spawn("finishing", [&, cycle = cycles[index], index, code] {
-            if (index == 0) controller_wakeup.sleep_until_ns(monotonic_ns() + 20'000'000);  // its flush
+            const std::int64_t deadline = monotonic_ns() + 10'000'000'000;
+            while (index == 0 && !last_tick_done && monotonic_ns() < deadline) {  // its flush
+              controller_wakeup.wait_for(controller_wakeup.generation(), std::chrono::milliseconds(50));
+            }
+            if (index == 0) finish_saw_the_last_tick = last_tick_done;
             ended.push_back({index, cycle->finish(code)});
           });
         });
   });
   scheduler.run();
   ASSERT_EQ(ended.size(), 2u);
-  EXPECT_EQ(ended[0].index, 1u) << "the drive ended within its 3 ms while the controller's finish waited 20 ms";
-  EXPECT_EQ(ended[1].index, 0u);
+  EXPECT_TRUE(finish_saw_the_last_tick) << "the drive's last tick came while the controller's finish waited";
+  EXPECT_EQ(std::count(trace.begin(), trace.end(), "controller finish 0"), 1);
+  EXPECT_EQ(std::count(trace.begin(), trace.end(), "drive finish 0"), 1);
 }
 
 TEST(CycleExecutor, OutsideAContainerOnlyOneComponentWaits) {

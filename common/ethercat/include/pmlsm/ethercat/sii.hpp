@@ -83,4 +83,9 @@ SiiInfo parse_sii(const std::vector<std::uint16_t>& words);
 /// managers, with the end category.
 std::vector<std::uint16_t> build_sii(const SiiInfo& info);
 
+/// An image from a file of its raw words, little-endian, as a drive's EEPROM dump holds it.
+/// @throws std::runtime_error naming the path when it cannot be read, is not whole words or is
+/// shorter than the fixed part and an end category (kMinWords).
+std::vector<std::uint16_t> read_sii_image(const std::string& path);
+
 }  // namespace pmlsm::ethercat

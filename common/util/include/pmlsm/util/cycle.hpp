@@ -80,8 +80,6 @@ class CycleWait {
 
   /// After kSleep or kSleepUntil: when to update it again (kSleep: at the latest).
   std::int64_t wake_ns() const { return wake_ns_; }
-  /// After kSleep at `now_ns`: the longest to sleep before updating again.
-  std::int64_t sleep_ns(std::int64_t now_ns) const { return std::max<std::int64_t>(0, wake_ns_ - now_ns); }
 
   /// A new input timeout from now on (realtime: the plant-lost timeout once the plant ticks).
   void set_timeout_ns(std::int64_t input_timeout_ns) { timeout_ns_ = input_timeout_ns; }
