@@ -3,7 +3,9 @@
 # on this machine (launch/sim_rnn.yaml: plant_sim, controller, kalman_estimator,
 # rnn_compensator, evaluator):
 #   - lockstep, composed and separate, each run `repeats` times: real-time factor (median and
-#     range) and their ratio; the voltage level (32 exchanges a tick) composed;
+#     range) and their ratio, and the composed chain's against the in-process closed loop's in
+#     the same runs (pmlsm_bench BM_ClosedLoopTick, ab2: the same loop in one function); the
+#     voltage level (32 exchanges a tick) composed;
 #   - realtime, composed, untuned, `runs` runs of `seconds` s: the container's CPU (cores),
 #     chain latency, watchdog trips, deadline misses; the same with one recorder outside
 #     (`pmlsm record`), and one separate-process run for comparison;
@@ -50,6 +52,8 @@ echo "[1/7] lockstep, sim_rnn, composed and separate, ${repeats} runs each (alte
 for i in $(seq "$repeats"); do
   run "$work/lock_comp_$i.log" --arg compose=true
   run "$work/lock_sep_$i.log" --arg compose=false
+  "$bin/pmlsm_bench" --benchmark_filter='BM_ClosedLoopTick/integrator:2$' --benchmark_format=json \
+    >"$work/inproc_$i.json" 2>/dev/null || { echo "  pmlsm_bench failed"; failed=1; }
 done
 echo "[2/7] lockstep, voltage level (32 exchanges a tick), composed and separate"
 "$bin/launcher" launch/sim.yaml --arg domain="$domain" --arg out="$work" --arg compose=true \
@@ -97,6 +101,7 @@ done
 
 ratio() { awk -v a="$1" -v b="$2" 'BEGIN { if (a == "" || b == "" || b + 0 == 0) print "n/a"; else printf "%.3g", a / b }'; }
 each() { for f in "$work"/$1; do "$2" "$f"; done; }
+inproc_rtf_of() { field 's/.*"x_realtime": \([0-9.e+]*\).*/\1/p' "$1"; }
 echo
 printf '%-56s %s\n' "figure" "value"
 if [ -z "$only" ]; then
@@ -104,6 +109,9 @@ comp_rtf=$(each 'lock_comp_*.log' rtf_of | median); sep_rtf=$(each 'lock_sep_*.l
 printf '%-56s %sx\n' "lockstep, composed, real-time factor" "$(each 'lock_comp_*.log' rtf_of | summary)"
 printf '%-56s %sx\n' "lockstep, separate processes, real-time factor" "$(each 'lock_sep_*.log' rtf_of | summary)"
 printf '%-56s %s\n' "  composed / separate (medians)" "$(ratio "$comp_rtf" "$sep_rtf")"
+inproc_rtf=$(each 'inproc_*.json' inproc_rtf_of | median)
+printf '%-56s %sx\n' "in-process closed loop (ab2), real-time factor" "$(each 'inproc_*.json' inproc_rtf_of | summary)"
+printf '%-56s %s\n' "  composed / in-process (medians)" "$(ratio "$comp_rtf" "$inproc_rtf")"
 printf '%-56s %s us composed, %s us separate (plant process only)\n' "  process CPU a tick (medians)" \
   "$(each 'lock_comp_*.log' cpu_tick_of | median)" "$(each 'lock_sep_*.log' cpu_tick_of | median)"
 printf '%-56s %sx composed, %sx separate\n' "lockstep voltage level, real-time factor" \

@@ -20,9 +20,9 @@
 // of the writer's history when a viewer subscribes): the built-in profile below. A live plot
 // does not need a sample it missed; --reader-profile picks another one for those who do.
 //
-// A component (made from its command line: topics chosen, participant, server bound; then run
-// once). It sleeps between batches and lowers its thread's priority, so it runs alone in its
-// process, never on a container's chain thread.
+// A component with a cycle (made from its command line: topics chosen, participant, server bound;
+// then updated by its executor, one pass an update). It sleeps between batches and lowers its
+// thread's priority, so it runs alone in its process, never on a container's chain thread.
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -36,13 +36,12 @@
 #include <cstring>
 #include <optional>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "NodeStatusPubSubTypes.h"
 #include "foxglove_bridge_command_line.hpp"
 #include "foxglove_server.hpp"
-#include "node_support.hpp"
+#include "cycle_component.hpp"
 #include "pmlsm/dds/catalog.hpp"
 
 namespace {
@@ -226,7 +225,7 @@ struct PassClock {
   std::uint64_t passes = 0;
 };
 
-class FoxgloveBridgeComponent final : public node::Component {
+class FoxgloveBridgeComponent final : public node::CycleComponent {
  public:
   FoxgloveBridgeComponent(BridgeOptions options, std::vector<BridgedTopic> topics)
       : opt_(std::move(options)),
@@ -254,7 +253,13 @@ class FoxgloveBridgeComponent final : public node::Component {
                 static_cast<unsigned>(server_.port()), topics_.size(), opt_.dds.domain_id);
   }
 
-  int run() override;
+  void activate() override;
+  Update update() override;
+  /// A bridge serves its clients as long as it runs.
+  std::chrono::duration<double> input_timeout() const override { return node::kNoInputTimeout; }
+  int inputs_lost() override { return kExitPeerMissing; }
+  int finish(int exit_code) override;
+  pdds::Wakeup& wakeup() override { return wakeup_; }
 
  private:
   static foxglove::ServerOptions server_options(const BridgeOptions& opt) {
@@ -272,8 +277,7 @@ class FoxgloveBridgeComponent final : public node::Component {
     return static_cast<std::size_t>(
         std::count_if(topics_.begin(), topics_.end(), [](const BridgedTopic& t) { return t.reader.has_value(); }));
   }
-  void publish_status(PassClock& clock, std::chrono::steady_clock::time_point now);
-  int finish(const PassClock& clock);
+  void publish_status(std::chrono::steady_clock::time_point now);
 
   BridgeOptions opt_;
   std::vector<BridgedTopic> topics_;
@@ -282,55 +286,60 @@ class FoxgloveBridgeComponent final : public node::Component {
   RawStatusPublisher status_;
   foxglove::Server server_;
   std::uint64_t heartbeats_ = 0;
+  PassClock clock_{};
+  pdds::RawSample sample_;
+  eprosima::fastdds::dds::SampleInfo info_;
 };
 
-int FoxgloveBridgeComponent::run() {
-  const char* reader_profile = opt_.reader_profile.c_str();
-  pdds::RawSample sample;
-  eprosima::fastdds::dds::SampleInfo info;
-  PassClock clock;
-  clock.status_period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-      std::chrono::duration<double>(opt_.status_period_s));
-  clock.batch_period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-      std::chrono::duration<double, std::milli>(opt_.batch_ms));
-  clock.next_status = std::chrono::steady_clock::now();
-  while (!pdds::stop_requested() && !server_.failed()) {
-    const std::uint64_t seen = wakeup_.generation();
-    match_readers_to_subscriptions(topics_, server_, participant_, wakeup_, reader_profile);
-    bool more_waiting = false;
-    std::size_t taken_this_pass = 0;
-    const auto pass_start = std::chrono::steady_clock::now();
-    for (auto& t : topics_) {
-      if (!t.reader) continue;
-      const std::size_t taken = forward_samples(t, server_, sample, info);
-      taken_this_pass += taken;
-      more_waiting = more_waiting || taken == kMaxSamplesPerPass;
-    }
-    const auto now = std::chrono::steady_clock::now();
-    if (taken_this_pass > 0) {
-      clock.samples_taken += taken_this_pass;
-      const double pass_us = std::chrono::duration<double, std::micro>(now - pass_start).count();
-      clock.pass_time_sum_us += pass_us;
-      clock.pass_time_max_us = std::max(clock.pass_time_max_us, pass_us);
-      ++clock.passes;
-    }
-    if (now >= clock.next_status) publish_status(clock, now);
-    if (more_waiting) continue;
-    if (taken_this_pass > 0 && clock.batch_period.count() > 0) {
-      // Samples are flowing: let the next batch gather instead of waking for each sample. The
-      // readers' history (256 per topic) holds a batch even of a lockstep run.
-      std::this_thread::sleep_until(pass_start + clock.batch_period);
-      continue;
-    }
-    // Bounded waits, so a stop request is seen within 50 ms.
-    const auto until_status = std::chrono::duration_cast<std::chrono::nanoseconds>(clock.next_status - now);
-    wakeup_.wait_for(seen, std::clamp<std::chrono::nanoseconds>(until_status, std::chrono::nanoseconds(0),
-                                                                std::chrono::milliseconds(50)));
-  }
-  return finish(clock);
+/// CLOCK_MONOTONIC ns of a steady_clock time (the executor's clock).
+std::int64_t monotonic_ns_of(std::chrono::steady_clock::time_point t) {
+  return monotonic_ns() +
+         std::chrono::duration_cast<std::chrono::nanoseconds>(t - std::chrono::steady_clock::now()).count();
 }
 
-void FoxgloveBridgeComponent::publish_status(PassClock& clock, std::chrono::steady_clock::time_point now) {
+void FoxgloveBridgeComponent::activate() {
+  clock_.status_period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(opt_.status_period_s));
+  clock_.batch_period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double, std::milli>(opt_.batch_ms));
+  clock_.next_status = std::chrono::steady_clock::now();
+}
+
+// One pass: readers opened and closed to follow the subscriptions, a batch of every topic read
+// handed to the server, the heartbeat when due. Then it sleeps out the batch period while samples
+// flow, or waits for the next sample or heartbeat.
+node::CycleComponent::Update FoxgloveBridgeComponent::update() {
+  if (server_.failed()) return Update::finished(kExitError);
+  match_readers_to_subscriptions(topics_, server_, participant_, wakeup_, opt_.reader_profile.c_str());
+  bool more_waiting = false;
+  std::size_t taken_this_pass = 0;
+  const auto pass_start = std::chrono::steady_clock::now();
+  for (auto& t : topics_) {
+    if (!t.reader) continue;
+    const std::size_t taken = forward_samples(t, server_, sample_, info_);
+    taken_this_pass += taken;
+    more_waiting = more_waiting || taken == kMaxSamplesPerPass;
+  }
+  const auto now = std::chrono::steady_clock::now();
+  if (taken_this_pass > 0) {
+    clock_.samples_taken += taken_this_pass;
+    const double pass_us = std::chrono::duration<double, std::micro>(now - pass_start).count();
+    clock_.pass_time_sum_us += pass_us;
+    clock_.pass_time_max_us = std::max(clock_.pass_time_max_us, pass_us);
+    ++clock_.passes;
+  }
+  if (now >= clock_.next_status) publish_status(now);
+  if (more_waiting) return Update::worked();
+  if (taken_this_pass > 0 && clock_.batch_period.count() > 0) {
+    // Samples are flowing: let the next batch gather instead of waking for each sample. The
+    // readers' history (256 per topic) holds a batch even of a lockstep run.
+    return Update::sleeping_until(monotonic_ns_of(pass_start + clock_.batch_period));
+  }
+  return Update::waiting_until(monotonic_ns_of(clock_.next_status));
+}
+
+void FoxgloveBridgeComponent::publish_status(std::chrono::steady_clock::time_point now) {
+  PassClock& clock = clock_;
   const auto c = server_.counters();
   const std::size_t read = topics_read();
   auto& s = status_.status();
@@ -345,7 +354,8 @@ void FoxgloveBridgeComponent::publish_status(PassClock& clock, std::chrono::stea
   if (clock.next_status < now) clock.next_status = now + clock.status_period;  // after a stall: no burst
 }
 
-int FoxgloveBridgeComponent::finish(const PassClock& clock) {
+int FoxgloveBridgeComponent::finish(int exit_code) {
+  const PassClock& clock = clock_;
   const bool network_failed = server_.failed();
   server_.stop();
   const auto c = server_.counters();
@@ -363,7 +373,7 @@ int FoxgloveBridgeComponent::finish(const PassClock& clock) {
       static_cast<unsigned long long>(c.frames_dropped), static_cast<unsigned long long>(c.bad_requests),
       static_cast<unsigned long long>(c.closed_for_bad_input), static_cast<unsigned long long>(c.handshakes_failed),
       static_cast<unsigned long long>(c.connections_total));
-  return network_failed ? kExitError : kExitOk;
+  return network_failed ? kExitError : exit_code;
 }
 
 }  // namespace

@@ -54,7 +54,8 @@ using ComponentFactory = MadeComponent (*)(const ComponentContext& context, int 
 int run_standalone(const char* node_name, ComponentFactory make, int argc, char** argv);
 
 /// The priority of a component that runs alone in its process, never on a container's chain
-/// thread: it blocks its thread (minutes of computing, a network server's batches, a CAN socket).
+/// thread: it blocks its thread (minutes of computing, a network server's batches, a CAN socket
+/// its executor sleeps on).
 inline constexpr int kRunsAlone = -1;
 
 }  // namespace pmlsm::node

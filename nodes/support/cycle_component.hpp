@@ -33,6 +33,14 @@ class CycleComponent : public Component {
   virtual int finish(int exit_code) = 0;
   /// The wake-up its readers signal.
   virtual dds::Wakeup& wakeup() = 0;
+  /// A descriptor that becomes readable when an input arrives outside DDS (a CAN socket), or -1.
+  /// Only a component alone in its process may have one: its executor then sleeps on the
+  /// descriptor instead of the wakeup, so its DDS inputs are seen by the wake time it names.
+  virtual int input_fd() const { return -1; }
 };
+
+/// The input timeout of a component that may wait on its inputs as long as it runs (a device on a
+/// bus, a server for clients): its own rules end it, not the executor's.
+inline constexpr std::chrono::hours kNoInputTimeout{24 * 365};
 
 }  // namespace pmlsm::node

@@ -4,6 +4,10 @@
 #include <chrono>
 #include <cstdint>
 #include <limits>
+#include <stdexcept>
+#include <string>
+
+#include <poll.h>
 
 namespace pmlsm::node {
 
@@ -48,7 +52,13 @@ class Executor {
     watches_.reserve(cycles.size());
     for (CycleComponent* c : cycles) {
       entries_.push_back({c, CycleWait(0, 0), c->wakeup().batch().count()});
+      if (c->input_fd() >= 0 && cycles.size() > 1) {
+        throw std::logic_error("run_cycles: a component waiting on descriptor " + std::to_string(c->input_fd()) +
+                               " runs alone in its process, not beside " + std::to_string(cycles.size() - 1) +
+                               " other(s)");
+      }
     }
+    if (cycles.size() == 1) input_fd_ = cycles.front()->input_fd();
   }
 
   void run() {
@@ -155,14 +165,27 @@ class Executor {
       if (e.next == CycleWait::Next::kSleep && e.batch_ns == 0) watches_.push_back(e.component->wakeup().watch(e.seen));
     }
     const std::int64_t sleep_until = earliest - spin_ns;
-    if (sleep_until > now &&
-        home().wait_any(watches_.data(), watches_.size(), std::chrono::nanoseconds(sleep_until - now))) {
+    if (input_fd_ >= 0 && entries_.front().next == CycleWait::Next::kSleep) {
+      if (sleep_until > now && wait_fd(sleep_until - now)) return;
+    } else if (sleep_until > now &&
+               home().wait_any(watches_.data(), watches_.size(), std::chrono::nanoseconds(sleep_until - now))) {
       return;
     }
     // No yield while polling: the poll is short, and at SCHED_FIFO a yield would hand the core to
     // this process's own threads just when the tick must start.
     while (monotonic_ns() < earliest && !input_moved()) {
     }
+  }
+
+  /// Alone with a descriptor: sleeps on it (to the nanosecond, unlike poll's milliseconds). True
+  /// when it became readable (the component then goes at once).
+  bool wait_fd(std::int64_t timeout_ns) {
+    pollfd fds{input_fd_, POLLIN, 0};
+    const timespec timeout{static_cast<time_t>(timeout_ns / 1'000'000'000),
+                           static_cast<long>(timeout_ns % 1'000'000'000)};
+    if (::ppoll(&fds, 1, &timeout, nullptr) <= 0) return false;  // a signal (EINTR) or the time
+    entries_.front().next = CycleWait::Next::kUpdate;
+    return true;
   }
 
   bool input_moved() const {
@@ -203,6 +226,7 @@ class Executor {
   std::vector<Entry> entries_;
   std::vector<dds::GenerationWatch> watches_;
   std::size_t running_;
+  int input_fd_ = -1;  ///< the lone component's descriptor, if it waits on one
 };
 
 }  // namespace

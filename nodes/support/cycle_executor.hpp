@@ -5,7 +5,8 @@
 // a drive's clock, polled to the nanosecond when the drive asks), applies each one's input
 // timeout (pmlsm/util/cycle.hpp) and ends each with finish(). A component that worked is updated
 // again at once; one waiting is updated again when its wakeup moved or its time came; one with a
-// batched wakeup (an observer off the chain) at most once per batch.
+// batched wakeup (an observer off the chain) at most once per batch. A component alone that waits
+// on a descriptor (a device's CAN socket: CycleComponent::input_fd) is slept on that instead.
 #pragma once
 
 #include <cstddef>

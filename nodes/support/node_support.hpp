@@ -167,26 +167,6 @@ void add_security_options(CLI::App& app, dds::ParticipantOptions& options);
 /// A stamp for tick `tick` of the run `run_id` (the drive's run this node follows; 0: none yet).
 pmlsm_msgs::msg::Stamp make_stamp(std::uint64_t tick, double control_period_s, std::uint64_t run_id = 0);
 
-/// Polls `ready` until it holds, waking on DDS activity; false after the timeout
-/// or on a stop request. A template, not std::function: it runs every tick and
-/// must not allocate.
-template <typename Ready>
-bool wait_until(dds::Wakeup& wakeup, std::chrono::duration<double> timeout, Ready&& ready) {
-  const auto deadline =
-      std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(timeout);
-  while (!dds::stop_requested()) {
-    const std::uint64_t seen = wakeup.generation();
-    if (ready()) return true;
-    const auto now = std::chrono::steady_clock::now();
-    if (now >= deadline) return false;
-    // Bounded waits, so a stop request is seen within 50 ms.
-    wakeup.wait_for(
-        seen, std::min<std::chrono::nanoseconds>(std::chrono::duration_cast<std::chrono::nanoseconds>(deadline - now),
-                                                 std::chrono::milliseconds(50)));
-  }
-  return false;
-}
-
 /// A new run id: non-zero, different for every start of a drive node (wall time, pid and a
 /// monotonic reading mixed by splitmix64), so a restarted drive is told from the old one.
 std::uint64_t new_run_id();

@@ -12,7 +12,7 @@
 #include <mutex>
 #include <thread>
 
-#include "node_support.hpp"
+#include "cycle_component.hpp"
 #include "training_command_lines.hpp"
 #include "training_support.hpp"
 
@@ -24,7 +24,7 @@ namespace msg = pmlsm_msgs::msg;
 
 using node::WorkerOptions;
 
-class DeWorkerComponent final : public node::Component {
+class DeWorkerComponent final : public node::CycleComponent {
  public:
   explicit DeWorkerComponent(WorkerOptions options)
       : opt_(std::move(options)),
@@ -33,8 +33,15 @@ class DeWorkerComponent final : public node::Component {
         request_reader_(participant_.make_reader(pdds::topics::kEvaluationRequest, wakeup_)),
         result_writer_(participant_.make_writer(pdds::topics::kEvaluationResult)),
         status_writer_(participant_.make_writer(pdds::topics::kWorkerStatus)) {}
+  ~DeWorkerComponent() override { stop_pool(); }
 
-  int run() override;
+  void activate() override;
+  Update update() override;
+  /// A worker waits for trainers as long as it runs (--idle-exit-s ends it).
+  std::chrono::duration<double> input_timeout() const override { return node::kNoInputTimeout; }
+  int inputs_lost() override { return kExitPeerMissing; }
+  int finish(int exit_code) override;
+  pdds::Wakeup& wakeup() override { return wakeup_; }
 
  private:
   using SteadyClock = std::chrono::steady_clock;
@@ -49,7 +56,8 @@ class DeWorkerComponent final : public node::Component {
   /// Queues the requests addressed to this worker; returns how many wait.
   std::size_t queue_requests();
   void publish_status(SteadyClock::time_point now, std::size_t queued);
-  void stop_pool(std::vector<std::thread>& pool);
+  /// Stops and joins the pool threads (none left: nothing).
+  void stop_pool();
 
   WorkerOptions opt_;
   pdds::Wakeup wakeup_;  // outlives the participant, whose listeners signal it
@@ -77,6 +85,7 @@ class DeWorkerComponent final : public node::Component {
   SteadyClock::time_point next_heartbeat_;
   SteadyClock::time_point last_request_;
   bool have_setup_ = false;
+  std::vector<std::thread> pool_;
 };
 
 void DeWorkerComponent::serve_requests() {
@@ -168,38 +177,44 @@ void DeWorkerComponent::publish_status(SteadyClock::time_point now, std::size_t 
   next_heartbeat_ = now + std::chrono::milliseconds(200);
 }
 
-void DeWorkerComponent::stop_pool(std::vector<std::thread>& pool) {
+void DeWorkerComponent::stop_pool() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     stopping_ = true;
   }
   work_ready_.notify_all();
-  for (auto& t : pool) t.join();
+  for (auto& t : pool_) t.join();
+  pool_.clear();
 }
 
-int DeWorkerComponent::run() {
-  std::vector<std::thread> pool;
-  for (unsigned t = 0; t < opt_.threads; ++t) pool.emplace_back([this] { serve_requests(); });
+void DeWorkerComponent::activate() {
+  for (unsigned t = 0; t < opt_.threads; ++t) pool_.emplace_back([this] { serve_requests(); });
   status_.worker_id(opt_.worker_id);
   status_.slots(opt_.threads);
   next_heartbeat_ = SteadyClock::now();
   last_request_ = SteadyClock::now();
   std::printf("de_worker %s: %u thread(s), waiting for a trainer\n", opt_.worker_id.c_str(), opt_.threads);
-  while (!pdds::stop_requested()) {
-    const std::uint64_t seen = wakeup_.generation();
-    take_setups();
-    const std::size_t queued = queue_requests();
-    const auto now = SteadyClock::now();
-    if (now >= next_heartbeat_) publish_status(now, queued);
-    if (opt_.idle_exit_s > 0 && have_setup_ && now - last_request_ > std::chrono::duration<double>(opt_.idle_exit_s))
-      break;
-    wakeup_.wait_for(seen, std::chrono::milliseconds(50));
+}
+
+// Setups and requests taken and handed to the pool; the heartbeat when due. The pool threads score.
+node::CycleComponent::Update DeWorkerComponent::update() {
+  take_setups();
+  const std::size_t queued = queue_requests();
+  const auto now = SteadyClock::now();
+  if (now >= next_heartbeat_) publish_status(now, queued);
+  if (opt_.idle_exit_s > 0 && have_setup_ && now - last_request_ > std::chrono::duration<double>(opt_.idle_exit_s)) {
+    return Update::finished(kExitOk);
   }
-  stop_pool(pool);
+  return Update::waiting_until(monotonic_ns() +
+                               std::chrono::duration_cast<std::chrono::nanoseconds>(next_heartbeat_ - now).count());
+}
+
+int DeWorkerComponent::finish(int exit_code) {
+  stop_pool();
   result_writer_.wait_for_acknowledgments(std::chrono::seconds(2));
   std::printf("de_worker %s: %llu evaluations\n", opt_.worker_id.c_str(),
               static_cast<unsigned long long>(evaluated_.load()));
-  return kExitOk;
+  return exit_code;
 }
 
 }  // namespace

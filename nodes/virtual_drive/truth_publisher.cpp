@@ -38,11 +38,8 @@ void TruthPublisher::flush() {
   }
 }
 
-void TruthPublisher::finish(std::chrono::duration<double> timeout) {
-  wait_until(rt_.wakeup, timeout, [&] {
-    flush();
-    return queued_ == 0;
-  });
+void TruthPublisher::finish() {
+  flush();
   if (queued_ > 0) {
     std::fprintf(stderr, "virtual_drive: %llu PlantTruth samples never sent (%s)\n",
                  static_cast<unsigned long long>(queued_),

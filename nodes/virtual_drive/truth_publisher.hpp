@@ -2,7 +2,6 @@
 // controller), stamped with the bridge's run (its latched DriveState).
 #pragma once
 
-#include <chrono>
 #include <cstdint>
 #include <vector>
 
@@ -24,8 +23,10 @@ class TruthPublisher {
   void add(std::uint64_t tick, const SimulatedDrive& drive, double applied_force_n);
   /// Sends what is held once it can be stamped and heard.
   void flush();
-  /// At the end: waits up to `timeout` for what is held to go out, then for its acknowledgments.
-  void finish(std::chrono::duration<double> timeout);
+  /// Ticks added and not yet sent (no run id or no reader yet).
+  std::uint64_t held() const { return queued_; }
+  /// At the end: says what was never sent, then waits for the acknowledgments of what was.
+  void finish();
 
   std::uint64_t published() const { return published_; }
   std::uint64_t dropped() const { return dropped_; }

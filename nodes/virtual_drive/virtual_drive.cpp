@@ -5,6 +5,7 @@
 // configs/canopen/drive.yaml (shared with drive_bridge) and --dictionary (the device's part).
 // Lockstep: the SYNC is the clock, the run ends after the scenario's ticks; realtime: its own
 // clock with the latest torque, until SIGINT. Exit 0 ok, 2 bad input, 1 socket, 5 it faulted.
+#include <algorithm>
 #include <cinttypes>
 #include <cstdio>
 #include <memory>
@@ -12,7 +13,7 @@
 #include <string>
 
 #include "can_options.hpp"
-#include "node_support.hpp"
+#include "cycle_component.hpp"
 #include "pmlsm/canopen/cia402_slave.hpp"
 #include "pmlsm/config/canopen_config.hpp"
 #include "pmlsm/sim/closed_loop.hpp"
@@ -29,7 +30,7 @@ namespace node_state = pmlsm_msgs::msg::NodeStatus_Constants;
 
 using Options = node::VirtualDriveOptions;
 
-class VirtualDriveComponent final : public node::Component, co::Cia402SlaveEvents {
+class VirtualDriveComponent final : public node::CycleComponent, co::Cia402SlaveEvents {
  public:
   VirtualDriveComponent(const node::ComponentContext& context, Options options)
       : opt_(std::move(options)),
@@ -46,7 +47,13 @@ class VirtualDriveComponent final : public node::Component, co::Cia402SlaveEvent
             slave_params(), [this] { return build_device_dictionary(canopen_, device_, rt_.period_s); }, drive_, *bus_,
             *this) {}
 
-  int run() override;
+  void activate() override;
+  Update update() override;
+  std::chrono::duration<double> input_timeout() const override { return node::kNoInputTimeout; }
+  int inputs_lost() override { return kExitPeerMissing; }  // never: its slave's SYNC timeout ends it
+  int finish(int exit_code) override;
+  pdds::Wakeup& wakeup() override { return rt_.wakeup; }
+  int input_fd() const override { return bus_->fd(); }
 
  private:
   co::Cia402SlaveParams slave_params() const {
@@ -80,10 +87,9 @@ class VirtualDriveComponent final : public node::Component, co::Cia402SlaveEvent
     std::fprintf(error ? stderr : stdout, "virtual_drive: %s, %.3f s after start [wall %.6f s]\n", line.c_str(),
                  static_cast<double>(now_ns - start_ns_) * 1e-9, static_cast<double>(wall_time_ns()) * 1e-9);
   }
-  /// Realtime: tick k is due at start + k T; a late loop catches up, a very late one (over 100
+  /// Realtime: tick k is due at start + k T; a late update catches up, a very late one (over 100
   /// periods) skips ahead and counts it.
-  void keep_realtime(std::int64_t now, std::int64_t& next_tick_ns);
-  int finish();
+  void keep_realtime(std::int64_t now);
 
   Options opt_;
   CanopenRigConfig canopen_;
@@ -97,10 +103,13 @@ class VirtualDriveComponent final : public node::Component, co::Cia402SlaveEvent
   SimulatedDriveBackend drive_;
   co::Cia402Slave slave_;
   std::int64_t start_ns_ = 0;
+  std::int64_t next_tick_ns_ = 0;
+  /// Once the slave finished: until when PlantTruth still held may wait for its reader.
+  std::int64_t truth_deadline_ns_ = 0;
   std::uint64_t deadline_misses_ = 0;
 };
 
-int VirtualDriveComponent::run() {
+void VirtualDriveComponent::activate() {
   start_ns_ = monotonic_ns();
   std::printf("virtual_drive: node %u on %s, %s clock, %s%" PRIu64
               " ticks of %.3g ms (scenario), rated force %.6g N, "
@@ -110,41 +119,57 @@ int VirtualDriveComponent::run() {
               rt_.period_s * 1e3, canopen_.master.scaling.rated_force_n, canopen_.master.scaling.increments_per_metre);
   rt_.status.publish(node_state::STATE_RUNNING, 0, rt_.period_s, "on the CAN bus");
   slave_.start(start_ns_);
-  std::int64_t next_tick_ns = start_ns_ + period_ns_;
-  co::CanFrame frame{};
-  while (!pdds::stop_requested() && !slave_.finished()) {
-    std::int64_t now = monotonic_ns();
-    std::int64_t wait_ns = 2000000;  // lockstep: bounded, for heartbeats and signals
-    if (realtime_) wait_ns = std::max<std::int64_t>(0, std::min<std::int64_t>(next_tick_ns - now, 1000000));
-    if (bus_->receive(frame, std::chrono::nanoseconds(wait_ns))) {
-      slave_.on_frame(frame, monotonic_ns());
-      if (slave_.finished()) break;
-    }
-    now = monotonic_ns();
-    if (realtime_ && now >= next_tick_ns) keep_realtime(now, next_tick_ns);
-    slave_.poll(now);
-    if (truth_) truth_->flush();
-  }
-  return finish();
+  next_tick_ns_ = start_ns_ + period_ns_;
 }
 
-void VirtualDriveComponent::keep_realtime(std::int64_t now, std::int64_t& next_tick_ns) {
+// Frames that queued are taken (bounded, so a flooded bus cannot hold the update), the periods that
+// came due stepped, the slave's timers polled. Lockstep waits for the next frame (the SYNC is the
+// clock) at most 2 ms, for heartbeats and PlantTruth's reader; realtime until the next tick.
+node::CycleComponent::Update VirtualDriveComponent::update() {
+  constexpr int kMaxFramesPerUpdate = 64;
+  constexpr std::int64_t kLockstepPollNs = 2'000'000;
+  std::int64_t now = monotonic_ns();
+  if (slave_.finished()) {
+    // The run is over: what PlantTruth still holds waits for the bridge's run id and the evaluator.
+    if (truth_) truth_->flush();
+    if (!truth_ || truth_->held() == 0 || now >= truth_deadline_ns_) return Update::finished(kExitOk);
+    return Update::waiting_until(std::min(truth_deadline_ns_, now + kLockstepPollNs));
+  }
+  co::CanFrame frame{};
+  int frames = 0;
+  while (frames < kMaxFramesPerUpdate && !slave_.finished() && bus_->receive(frame, std::chrono::nanoseconds(0))) {
+    slave_.on_frame(frame, monotonic_ns());
+    ++frames;
+  }
+  now = monotonic_ns();
+  if (realtime_ && now >= next_tick_ns_) keep_realtime(now);
+  slave_.poll(now);
+  if (truth_) truth_->flush();
+  if (slave_.finished()) {
+    truth_deadline_ns_ = now + std::llround(opt_.common.peer_timeout_s * 1e9);
+    return Update::worked();
+  }
+  if (frames > 0) return Update::worked();
+  return Update::waiting_until(realtime_ ? next_tick_ns_ : now + kLockstepPollNs);
+}
+
+void VirtualDriveComponent::keep_realtime(std::int64_t now) {
   int steps = 0;
-  while (now >= next_tick_ns && steps < 100) {
+  while (now >= next_tick_ns_ && steps < 100) {
     slave_.step_period(now);
     slave_.check_timeouts(now);
-    next_tick_ns += period_ns_;
+    next_tick_ns_ += period_ns_;
     ++steps;
   }
   if (steps > 1) deadline_misses_ += static_cast<std::uint64_t>(steps - 1);
-  if (now >= next_tick_ns) {
-    const std::int64_t behind = (now - next_tick_ns) / period_ns_ + 1;
+  if (now >= next_tick_ns_) {
+    const std::int64_t behind = (now - next_tick_ns_) / period_ns_ + 1;
     deadline_misses_ += static_cast<std::uint64_t>(behind);
-    next_tick_ns += behind * period_ns_;
+    next_tick_ns_ += behind * period_ns_;
   }
 }
 
-int VirtualDriveComponent::finish() {
+int VirtualDriveComponent::finish(int /*exit_code*/) {
   std::printf("virtual_drive: summary: periods stepped %" PRIu64 " of %" PRIu64 ", %s, bus-level malformed %" PRIu64
               ", faults %" PRIu64 " (last error 0x%04X), deadline misses %" PRIu64 ", power state %s, NMT %s%s\n",
               slave_.run_periods(), realtime_ ? ticks_ : ticks_ - 1, co::describe(slave_.counters()).c_str(),
@@ -159,7 +184,7 @@ int VirtualDriveComponent::finish() {
         static_cast<unsigned long long>(sync.count()), sync.mean_us(), sync.std_us(), sync.p99_us(), sync.max_us());
   }
   if (truth_) {
-    truth_->finish(std::chrono::duration<double>(opt_.common.peer_timeout_s));
+    truth_->finish();
     std::printf("virtual_drive: PlantTruth: %llu ticks published, %llu repeated answers not published\n",
                 static_cast<unsigned long long>(truth_->published()),
                 static_cast<unsigned long long>(truth_->dropped()));

@@ -8,11 +8,14 @@
 
 #include <algorithm>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include <unistd.h>
 
 #include "pmlsm/dds/fiber_scheduler.hpp"
 #include "pmlsm/util/clock.hpp"
@@ -49,6 +52,8 @@ class Scripted final : public CycleComponent {
     return exit_code;
   }
   dds::Wakeup& wakeup() override { return wakeup_; }
+  int input_fd() const override { return input_fd_; }
+  void set_input_fd(int fd) { input_fd_ = fd; }
 
  private:
   std::string name_;
@@ -57,6 +62,7 @@ class Scripted final : public CycleComponent {
   Script script_;
   double input_timeout_s_;
   int calls_ = 0;
+  int input_fd_ = -1;
 };
 
 struct Ended {
@@ -242,6 +248,44 @@ TEST(CycleExecutor, OutsideAContainerOnlyOneComponentWaits) {
                    {&a, &b}, [](std::size_t, int) {},
                    [](std::size_t, std::exception_ptr error) -> int { std::rethrow_exception(error); }),
                std::logic_error);
+}
+
+TEST(CycleExecutor, AComponentAloneWithADescriptorIsWokenByItAndNeverComposed) {
+  // A device on a bus (the virtual drive's CAN socket): its executor sleeps on the descriptor, so a
+  // frame wakes it long before the wake time it named. Here each update writes the byte itself
+  // before it asks to wait 10 s. Without the descriptor the executor could not update again before
+  // its slice (kCycleSliceNs, 50 ms) ends; with it, at once: the quickest of three wakes shows which.
+  int pipe_fds[2];
+  ASSERT_EQ(::pipe(pipe_fds), 0);
+  dds::Wakeup wakeup;
+  Trace trace;
+  std::int64_t asked_ns = 0;
+  std::int64_t quickest_ns = std::numeric_limits<std::int64_t>::max();
+  Scripted device("device", trace, wakeup, [&](int call) {
+    char byte = 0;
+    if (call > 0) {
+      quickest_ns = std::min(quickest_ns, monotonic_ns() - asked_ns);
+      EXPECT_EQ(::read(pipe_fds[0], &byte, 1), 1);
+    }
+    if (call == 3) return CycleStep::finished(kExitOk);
+    EXPECT_EQ(::write(pipe_fds[1], "x", 1), 1);
+    asked_ns = monotonic_ns();
+    return CycleStep::waiting_until(asked_ns + 10'000'000'000);
+  });
+  device.set_input_fd(pipe_fds[0]);
+  EXPECT_EQ(device.run(), kExitOk);
+  EXPECT_LT(quickest_ns, kCycleSliceNs);
+  EXPECT_EQ(trace, (Trace{"device 0", "device 1", "device 2", "device 3", "device finish 0"}));
+
+  // Beside another component (a container's thread) it could hold them all: refused.
+  dds::Wakeup other_wakeup;
+  Scripted other("other", trace, other_wakeup, [](int) { return CycleStep::waiting(); });
+  EXPECT_THROW(run_cycles(
+                   {&other, &device}, [](std::size_t, int) {},
+                   [](std::size_t, std::exception_ptr error) -> int { std::rethrow_exception(error); }),
+               std::logic_error);
+  ::close(pipe_fds[0]);
+  ::close(pipe_fds[1]);
 }
 
 }  // namespace
