@@ -59,17 +59,15 @@ double IntervalStatistics::p99_us() const {
 Cia402Slave::Cia402Slave(const Cia402SlaveParams& params, DictionaryFactory make_dictionary, drive::Drive& drive,
                          can::CanBus& bus, Cia402SlaveEvents& events)
     : params_(params),
-      scaling_(params.scaling),
       make_dictionary_(std::move(make_dictionary)),
       drive_(drive),
       bus_(bus),
       events_(events),
       od_(make_dictionary_()),
+      application_({params.scaling, params.inject_fault_at_period}, od_, drive, *this),
       sdo_(od_, params_.node),
       nmt_(params_.node) {
-  measurement_ = drive_.sample();
   reload_pdos();
-  update_objects();
 }
 
 Cia402Slave::PdoChannel Cia402Slave::load_pdo(const ObjectDictionary& od, std::uint16_t communication_index) {
@@ -85,7 +83,8 @@ Cia402Slave::PdoChannel Cia402Slave::load_pdo(const ObjectDictionary& od, std::u
 }
 
 void Cia402Slave::start(std::int64_t now_ns) {
-  last_sync_ns_ = last_master_heartbeat_ns_ = enabled_since_ns_ = now_ns;
+  last_sync_ns_ = last_master_heartbeat_ns_ = now_ns;
+  application_.set_enabled_since_ns(now_ns);
   if (const auto boot = nmt_.boot()) send(*boot);
 }
 
@@ -121,27 +120,7 @@ std::optional<ConsumerHeartbeat> Cia402Slave::consumer() const {
   return c.value;
 }
 
-double Cia402Slave::commanded_force() const {
-  const auto per_mille = static_cast<std::int16_t>(od_.get_or(kObjectTargetTorque, 0, 0));
-  return scaling_.per_mille_to_force(per_mille);
-}
-
-void Cia402Slave::update_objects() {
-  const drive::PowerState s = drive_.power_state();
-  const bool faulted = s == drive::PowerState::kFault || s == drive::PowerState::kFaultReactionActive;
-  const UnitScaling& scaling = scaling_;
-  od_.set(kObjectStatusword, 0, drive::statusword_of(s));
-  od_.set(kObjectErrorCode, 0, drive_.error_code());
-  od_.set(kObjectErrorRegister, 0, faulted ? kErrorRegisterGeneric : 0);
-  od_.set(kObjectModesOfOperationDisplay, 0, od_.get_or(kObjectModesOfOperation, 0, 0));
-  od_.set(kObjectPositionActual, 0, scaling.metres_to_increments(measurement_.position_m).value);
-  od_.set(kObjectVelocityActual, 0, scaling.velocity_to_increments(measurement_.velocity_mps).value);
-  // Torque actual, as a drive measures it: the force its current loop produces, K_f i_q.
-  od_.set(kObjectTorqueActual, 0, scaling.force_to_per_mille(measurement_.thrust_force_n).value);
-  od_.set(kObjectPeriodsStepped, 0, static_cast<std::int64_t>(periods_ & 0xFFFFFFFFULL));
-}
-
-void Cia402Slave::send_emcy(std::uint16_t code) {
+void Cia402Slave::emergency(std::uint16_t code) {
   if (!sync_emcy_allowed(nmt_.state())) return;
   EmcyMessage m;
   m.error_code = code;
@@ -150,54 +129,7 @@ void Cia402Slave::send_emcy(std::uint16_t code) {
   ++counters_.emcys;
 }
 
-void Cia402Slave::raise_fault(std::uint16_t code, const std::string& why, std::int64_t now_ns) {
-  const std::uint64_t before = drive_.fault_count();
-  drive_.fault(code);
-  if (drive_.fault_count() == before) return;  // already faulted: the first cause is kept
-  update_objects();
-  send_emcy(code);
-  char line[320];
-  std::snprintf(line, sizeof line, "FAULT 0x%04X (%s): %s at period %" PRIu64 "; force off, EMCY sent",
-                static_cast<unsigned>(code), describe_emcy(code), why.c_str(), periods_);
-  events_.log(true, line, now_ns);
-}
-
-void Cia402Slave::apply_controlword(std::int64_t now_ns) {
-  const auto cw = static_cast<std::uint16_t>(od_.get_or(kObjectControlword, 0, 0));
-  const std::optional<drive::DriveCommand> command = drive::decode_controlword(cw, previous_controlword_);
-  const bool changed = cw != previous_controlword_;
-  previous_controlword_ = cw;
-  if (!command) return;
-  const drive::TransitionResult r = drive_.request(*command);
-  char line[256];
-  if (r.accepted && r.to != r.from) {
-    std::snprintf(line, sizeof line, "controlword 0x%04X (%s): %s -> %s%s", static_cast<unsigned>(cw),
-                  drive::to_string(*command), drive::to_string(r.from), drive::to_string(r.to),
-                  r.to == drive::PowerState::kOperationEnabled ? "" : ", zero force");
-    events_.log(false, line, now_ns);
-    if (r.to == drive::PowerState::kOperationEnabled) enabled_since_ns_ = now_ns;
-  } else if (!r.accepted && changed) {
-    std::snprintf(line, sizeof line, "controlword 0x%04X (%s) refused in %s: %s", static_cast<unsigned>(cw),
-                  drive::to_string(*command), drive::to_string(r.from), r.reason);
-    events_.log(false, line, now_ns);
-  }
-  const bool was_fault = r.from == drive::PowerState::kFault;
-  update_objects();
-  if (was_fault && r.accepted && r.to != r.from) send_emcy(kEmcyNoError);  // errors gone
-}
-
-void Cia402Slave::step_period(std::int64_t now_ns) {
-  if (params_.inject_fault_at_period && periods_ == *params_.inject_fault_at_period && !injected_) {
-    injected_ = true;
-    raise_fault(kEmcyDeviceHardware, "injected (--inject-fault-at-tick)", now_ns);
-  }
-  const double commanded_n = commanded_force();
-  applied_force_n_ = drive_.power_state() == drive::PowerState::kOperationEnabled ? commanded_n : 0.0;
-  drive_.apply(commanded_n);  // the backend applies it in operation enabled only
-  ++periods_;
-  measurement_ = drive_.sample();
-  update_objects();
-}
+void Cia402Slave::step_period(std::int64_t now_ns) { application_.step_period(now_ns); }
 
 void Cia402Slave::send_tpdos() {
   ++tpdo_syncs_;
@@ -222,19 +154,19 @@ void Cia402Slave::on_sync(std::int64_t now_ns) {
     const auto tick = static_cast<std::uint64_t>(od_.get_or(kObjectCommandTick, 0, 0));
     if (!first_answered_) {
       first_answered_ = true;  // tick 0's feedback: the initial state; the run's base
-      run_base_ = periods_;
-      events_.run_tick(0, applied_force_n_);
-    } else if (command_pending_ && tick == (periods_ & 0xFFFFFFFFULL)) {
+      run_base_ = application_.periods();
+      events_.run_tick(0, application_.applied_force_n());
+    } else if (command_pending_ && tick == (application_.periods() & 0xFFFFFFFFULL)) {
       command_pending_ = false;
       step_period(now_ns);
-      events_.run_tick(periods_ - run_base_, applied_force_n_);
+      events_.run_tick(application_.periods() - run_base_, application_.applied_force_n());
     } else {
       ++counters_.unstepped_syncs;
     }
   }
   send_tpdos();
   // Tick 0 is the initial state: a run of N ticks steps N - 1 periods.
-  if (params_.lockstep && params_.ticks > 0 && first_answered_ && periods_ - run_base_ + 1 >= params_.ticks) {
+  if (params_.lockstep && params_.ticks > 0 && first_answered_ && run_periods() + 1 >= params_.ticks) {
     finished_ = true;
   }
 }
@@ -257,7 +189,7 @@ void Cia402Slave::on_rpdo1(const CanFrame& f, std::int64_t now_ns) {
     if (e.index == kObjectControlword) controlword = true;
     if (e.index == kObjectCommandTick) command_pending_ = true;
   }
-  if (controlword) apply_controlword(now_ns);
+  if (controlword) application_.apply_controlword(now_ns);
 }
 
 void Cia402Slave::on_sdo(const CanFrame& f, std::int64_t now_ns) {
@@ -266,10 +198,10 @@ void Cia402Slave::on_sdo(const CanFrame& f, std::int64_t now_ns) {
   ++counters_.sdo_requests;
   if (!r.status || r.request.kind != SdoRequestKind::kDownload) return;
   const std::uint16_t index = r.request.index;
-  if (index == kObjectControlword) apply_controlword(now_ns);
+  if (index == kObjectControlword) application_.apply_controlword(now_ns);
   if (index == kObjectCommandTick) command_pending_ = true;
   if (index >= kRpdoCommunicationFirst && index <= 0x1BFF) reload_pdos();
-  if (index == kObjectModesOfOperation) update_objects();
+  if (index == kObjectModesOfOperation) application_.update_objects();
 }
 
 void Cia402Slave::on_nmt(const CanFrame& f, std::int64_t now_ns) {
@@ -294,10 +226,10 @@ void Cia402Slave::reset(NmtReset kind, std::int64_t now_ns) {
   }
   if (kind == NmtReset::kNode) {
     command_pending_ = false;
-    previous_controlword_ = 0;
+    application_.forget_controlword();
   }
   reload_pdos();
-  update_objects();  // the live values (statusword, actuals, periods stepped) stay what they are
+  application_.update_objects();  // the live values (statusword, actuals, periods stepped) stay what they are
   events_.log(
       false,
       std::string(kind == NmtReset::kNode ? "reset node" : "reset communication") + ": dictionary reset, boot-up",
@@ -366,19 +298,19 @@ void Cia402Slave::on_frame(const CanFrame& f, std::int64_t now_ns) {
 
 void Cia402Slave::check_timeouts(std::int64_t now_ns) {
   if (drive_.power_state() != drive::PowerState::kOperationEnabled) return;
-  const std::int64_t sync_ref = std::max(last_sync_ns_, enabled_since_ns_);
+  const std::int64_t sync_ref = std::max(last_sync_ns_, application_.enabled_since_ns());
   const std::int64_t sync_timeout_ns = static_cast<std::int64_t>(params_.sync_timeout_ms) * 1000000;
   if (now_ns - sync_ref > sync_timeout_ns) {
-    raise_fault(kEmcySyncLost, "no SYNC for " + std::to_string(params_.sync_timeout_ms) + " ms", now_ns);
+    application_.raise_fault(kEmcySyncLost, "no SYNC for " + std::to_string(params_.sync_timeout_ms) + " ms", now_ns);
     return;
   }
   if (const auto watched = consumer()) {
-    const std::int64_t hb_ref = std::max(last_master_heartbeat_ns_, enabled_since_ns_);
+    const std::int64_t hb_ref = std::max(last_master_heartbeat_ns_, application_.enabled_since_ns());
     if (now_ns - hb_ref > static_cast<std::int64_t>(watched->time_ms) * 1000000) {
-      raise_fault(kEmcyHeartbeatError,
-                  "no heartbeat of master node " + std::to_string(watched->node_id) + " for " +
-                      std::to_string(watched->time_ms) + " ms",
-                  now_ns);
+      application_.raise_fault(kEmcyHeartbeatError,
+                               "no heartbeat of master node " + std::to_string(watched->node_id) + " for " +
+                                   std::to_string(watched->time_ms) + " ms",
+                               now_ns);
     }
   }
 }

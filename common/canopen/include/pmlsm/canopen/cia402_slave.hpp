@@ -36,6 +36,7 @@
 #include <string>
 
 #include "pmlsm/can/can_bus.hpp"
+#include "pmlsm/canopen/cia402_application.hpp"
 #include "pmlsm/canopen/frame.hpp"
 #include "pmlsm/canopen/nmt.hpp"
 #include "pmlsm/canopen/object_dictionary.hpp"
@@ -110,7 +111,7 @@ class IntervalStatistics {
   double sum_us_ = 0, sum_sq_us_ = 0, max_us_ = 0;
 };
 
-class Cia402Slave {
+class Cia402Slave : Cia402ApplicationEvents {
  public:
   /// The dictionary as the device starts (and as an NMT reset restores it).
   using DictionaryFactory = std::function<ObjectDictionary()>;
@@ -119,6 +120,8 @@ class Cia402Slave {
   /// @throws std::invalid_argument for a scaling UnitScaling refuses; what the factory throws.
   Cia402Slave(const Cia402SlaveParams& params, DictionaryFactory make_dictionary, drive::Drive& drive, can::CanBus& bus,
               Cia402SlaveEvents& events);
+  Cia402Slave(const Cia402Slave&) = delete;
+  Cia402Slave& operator=(const Cia402Slave&) = delete;
 
   /// Sends the boot-up (pre-operational) and takes `now_ns` as the start of every time-out.
   void start(std::int64_t now_ns);
@@ -133,8 +136,8 @@ class Cia402Slave {
 
   bool finished() const { return finished_; }
   /// Periods stepped since the run began (lockstep: the first SYNC answered after NMT start).
-  std::uint64_t run_periods() const { return periods_ - run_base_; }
-  std::uint64_t periods() const { return periods_; }
+  std::uint64_t run_periods() const { return application_.periods() - run_base_; }
+  std::uint64_t periods() const { return application_.periods(); }
   NmtState nmt_state() const { return nmt_.state(); }
   const Cia402SlaveCounters& counters() const { return counters_; }
   const IntervalStatistics& sync_intervals() const { return sync_intervals_; }
@@ -153,11 +156,9 @@ class Cia402Slave {
   void malformed(const CanFrame& f, const char* why, std::int64_t now_ns);
   void reload_pdos();
   std::optional<ConsumerHeartbeat> consumer() const;
-  double commanded_force() const;
-  void update_objects();
-  void send_emcy(std::uint16_t code);
-  void raise_fault(std::uint16_t code, const std::string& why, std::int64_t now_ns);
-  void apply_controlword(std::int64_t now_ns);
+  // Cia402ApplicationEvents: the owner's log; the emergency as an EMCY frame.
+  void log(bool error, const std::string& line, std::int64_t now_ns) override { events_.log(error, line, now_ns); }
+  void emergency(std::uint16_t code) override;
   void send_tpdos();
   void on_sync(std::int64_t now_ns);
   void on_rpdo1(const CanFrame& f, std::int64_t now_ns);
@@ -166,31 +167,25 @@ class Cia402Slave {
   void reset(NmtReset kind, std::int64_t now_ns);
 
   Cia402SlaveParams params_;
-  UnitScaling scaling_;
   DictionaryFactory make_dictionary_;
   drive::Drive& drive_;
   can::CanBus& bus_;
   Cia402SlaveEvents& events_;
   ObjectDictionary od_;
+  Cia402Application application_;
   SdoServer sdo_;
   NmtSlave nmt_;
-  drive::Measurement measurement_;
   PdoChannel rpdo1_, tpdo1_, tpdo2_;
   IntervalStatistics sync_intervals_;
   Cia402SlaveCounters counters_;
 
-  double applied_force_n_ = 0.0;
-  std::uint64_t periods_ = 0;
   std::uint64_t run_base_ = 0;
   std::uint64_t tpdo_syncs_ = 0;
-  std::uint16_t previous_controlword_ = 0;
   bool command_pending_ = false;
   bool first_answered_ = false;
-  bool injected_ = false;
   bool finished_ = false;
   std::int64_t last_sync_ns_ = 0;
   std::int64_t last_master_heartbeat_ns_ = 0;
-  std::int64_t enabled_since_ns_ = 0;
 };
 
 }  // namespace pmlsm::canopen

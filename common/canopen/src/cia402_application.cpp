@@ -1,0 +1,87 @@
+#include "pmlsm/canopen/cia402_application.hpp"
+
+#include <cinttypes>
+#include <cstdio>
+
+#include "pmlsm/canopen/cia402_dictionary.hpp"
+#include "pmlsm/canopen/cia402_slave.hpp"
+#include "pmlsm/canopen/emcy.hpp"
+
+namespace pmlsm::canopen {
+
+Cia402Application::Cia402Application(const Cia402ApplicationParams& params, ObjectDictionary& dictionary,
+                                     drive::Drive& drive, Cia402ApplicationEvents& events)
+    : params_(params), scaling_(params.scaling), od_(dictionary), drive_(drive), events_(events) {
+  measurement_ = drive_.sample();
+  update_objects();
+}
+
+double Cia402Application::commanded_force() const {
+  const auto per_mille = static_cast<std::int16_t>(od_.get_or(kObjectTargetTorque, 0, 0));
+  return scaling_.per_mille_to_force(per_mille);
+}
+
+void Cia402Application::update_objects() {
+  const drive::PowerState s = drive_.power_state();
+  const bool faulted = s == drive::PowerState::kFault || s == drive::PowerState::kFaultReactionActive;
+  od_.set(kObjectStatusword, 0, drive::statusword_of(s));
+  od_.set(kObjectErrorCode, 0, drive_.error_code());
+  od_.set(kObjectErrorRegister, 0, faulted ? kErrorRegisterGeneric : 0);
+  od_.set(kObjectModesOfOperationDisplay, 0, od_.get_or(kObjectModesOfOperation, 0, 0));
+  od_.set(kObjectPositionActual, 0, scaling_.metres_to_increments(measurement_.position_m).value);
+  od_.set(kObjectVelocityActual, 0, scaling_.velocity_to_increments(measurement_.velocity_mps).value);
+  // Torque actual, as a drive measures it: the force its current loop produces, K_f i_q.
+  od_.set(kObjectTorqueActual, 0, scaling_.force_to_per_mille(measurement_.thrust_force_n).value);
+  od_.set(kObjectPeriodsStepped, 0, static_cast<std::int64_t>(periods_ & 0xFFFFFFFFULL));
+}
+
+void Cia402Application::raise_fault(std::uint16_t code, const std::string& why, std::int64_t now_ns) {
+  const std::uint64_t before = drive_.fault_count();
+  drive_.fault(code);
+  if (drive_.fault_count() == before) return;  // already faulted: the first cause is kept
+  update_objects();
+  events_.emergency(code);
+  char line[320];
+  std::snprintf(line, sizeof line, "FAULT 0x%04X (%s): %s at period %" PRIu64 "; force off, emergency sent",
+                static_cast<unsigned>(code), describe_emcy(code), why.c_str(), periods_);
+  events_.log(true, line, now_ns);
+}
+
+void Cia402Application::apply_controlword(std::int64_t now_ns) {
+  const auto cw = static_cast<std::uint16_t>(od_.get_or(kObjectControlword, 0, 0));
+  const std::optional<drive::DriveCommand> command = drive::decode_controlword(cw, previous_controlword_);
+  const bool changed = cw != previous_controlword_;
+  previous_controlword_ = cw;
+  if (!command) return;
+  const drive::TransitionResult r = drive_.request(*command);
+  char line[256];
+  if (r.accepted && r.to != r.from) {
+    std::snprintf(line, sizeof line, "controlword 0x%04X (%s): %s -> %s%s", static_cast<unsigned>(cw),
+                  drive::to_string(*command), drive::to_string(r.from), drive::to_string(r.to),
+                  r.to == drive::PowerState::kOperationEnabled ? "" : ", zero force");
+    events_.log(false, line, now_ns);
+    if (r.to == drive::PowerState::kOperationEnabled) enabled_since_ns_ = now_ns;
+  } else if (!r.accepted && changed) {
+    std::snprintf(line, sizeof line, "controlword 0x%04X (%s) refused in %s: %s", static_cast<unsigned>(cw),
+                  drive::to_string(*command), drive::to_string(r.from), r.reason);
+    events_.log(false, line, now_ns);
+  }
+  const bool was_fault = r.from == drive::PowerState::kFault;
+  update_objects();
+  if (was_fault && r.accepted && r.to != r.from) events_.emergency(kEmcyNoError);  // errors gone
+}
+
+void Cia402Application::step_period(std::int64_t now_ns) {
+  if (params_.inject_fault_at_period && periods_ == *params_.inject_fault_at_period && !injected_) {
+    injected_ = true;
+    raise_fault(kEmcyDeviceHardware, "injected (--inject-fault-at-tick)", now_ns);
+  }
+  const double commanded_n = commanded_force();
+  applied_force_n_ = drive_.power_state() == drive::PowerState::kOperationEnabled ? commanded_n : 0.0;
+  drive_.apply(commanded_n);  // the backend applies it in operation enabled only
+  ++periods_;
+  measurement_ = drive_.sample();
+  update_objects();
+}
+
+}  // namespace pmlsm::canopen
