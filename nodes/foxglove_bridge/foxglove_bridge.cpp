@@ -32,6 +32,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <optional>
@@ -216,10 +217,11 @@ std::string counters_text(const foxglove::ServerCounters& c, std::size_t topics_
          ", closed for bad input " + std::to_string(c.closed_for_bad_input);
 }
 
-/// When to hand the batch over and publish the heartbeat, and what the passes cost.
+/// When to hand the batch over and publish the heartbeat (CLOCK_MONOTONIC ns, the executor's
+/// clock), and what the passes cost.
 struct PassClock {
-  std::chrono::steady_clock::duration status_period, batch_period;
-  std::chrono::steady_clock::time_point next_status;
+  std::int64_t status_period_ns = 0, batch_period_ns = 0;
+  std::int64_t next_status_ns = 0;
   std::uint64_t samples_taken = 0;
   double pass_time_sum_us = 0.0, pass_time_max_us = 0.0;
   std::uint64_t passes = 0;
@@ -277,7 +279,7 @@ class FoxgloveBridgeComponent final : public node::CycleComponent {
     return static_cast<std::size_t>(
         std::count_if(topics_.begin(), topics_.end(), [](const BridgedTopic& t) { return t.reader.has_value(); }));
   }
-  void publish_status(std::chrono::steady_clock::time_point now);
+  void publish_status(std::int64_t now_ns);
 
   BridgeOptions opt_;
   std::vector<BridgedTopic> topics_;
@@ -291,18 +293,10 @@ class FoxgloveBridgeComponent final : public node::CycleComponent {
   eprosima::fastdds::dds::SampleInfo info_;
 };
 
-/// CLOCK_MONOTONIC ns of a steady_clock time (the executor's clock).
-std::int64_t monotonic_ns_of(std::chrono::steady_clock::time_point t) {
-  return monotonic_ns() +
-         std::chrono::duration_cast<std::chrono::nanoseconds>(t - std::chrono::steady_clock::now()).count();
-}
-
 void FoxgloveBridgeComponent::activate() {
-  clock_.status_period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-      std::chrono::duration<double>(opt_.status_period_s));
-  clock_.batch_period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-      std::chrono::duration<double, std::milli>(opt_.batch_ms));
-  clock_.next_status = std::chrono::steady_clock::now();
+  clock_.status_period_ns = std::llround(opt_.status_period_s * 1e9);
+  clock_.batch_period_ns = std::llround(opt_.batch_ms * 1e6);
+  clock_.next_status_ns = monotonic_ns();
 }
 
 // One pass: readers opened and closed to follow the subscriptions, a batch of every topic read
@@ -313,32 +307,32 @@ node::CycleComponent::Update FoxgloveBridgeComponent::update() {
   match_readers_to_subscriptions(topics_, server_, participant_, wakeup_, opt_.reader_profile.c_str());
   bool more_waiting = false;
   std::size_t taken_this_pass = 0;
-  const auto pass_start = std::chrono::steady_clock::now();
+  const std::int64_t pass_start_ns = monotonic_ns();
   for (auto& t : topics_) {
     if (!t.reader) continue;
     const std::size_t taken = forward_samples(t, server_, sample_, info_);
     taken_this_pass += taken;
     more_waiting = more_waiting || taken == kMaxSamplesPerPass;
   }
-  const auto now = std::chrono::steady_clock::now();
+  const std::int64_t now_ns = monotonic_ns();
   if (taken_this_pass > 0) {
     clock_.samples_taken += taken_this_pass;
-    const double pass_us = std::chrono::duration<double, std::micro>(now - pass_start).count();
+    const double pass_us = static_cast<double>(now_ns - pass_start_ns) * 1e-3;
     clock_.pass_time_sum_us += pass_us;
     clock_.pass_time_max_us = std::max(clock_.pass_time_max_us, pass_us);
     ++clock_.passes;
   }
-  if (now >= clock_.next_status) publish_status(now);
+  if (now_ns >= clock_.next_status_ns) publish_status(now_ns);
   if (more_waiting) return Update::worked();
-  if (taken_this_pass > 0 && clock_.batch_period.count() > 0) {
+  if (taken_this_pass > 0 && clock_.batch_period_ns > 0) {
     // Samples are flowing: let the next batch gather instead of waking for each sample. The
     // readers' history (256 per topic) holds a batch even of a lockstep run.
-    return Update::sleeping_until(monotonic_ns_of(pass_start + clock_.batch_period));
+    return Update::sleeping_until(pass_start_ns + clock_.batch_period_ns);
   }
-  return Update::waiting_until(monotonic_ns_of(clock_.next_status));
+  return Update::waiting_until(clock_.next_status_ns);
 }
 
-void FoxgloveBridgeComponent::publish_status(std::chrono::steady_clock::time_point now) {
+void FoxgloveBridgeComponent::publish_status(std::int64_t now_ns) {
   PassClock& clock = clock_;
   const auto c = server_.counters();
   const std::size_t read = topics_read();
@@ -350,8 +344,8 @@ void FoxgloveBridgeComponent::publish_status(std::chrono::steady_clock::time_poi
   s.mean_loop_time_us(clock.passes > 0 ? clock.pass_time_sum_us / static_cast<double>(clock.passes) : 0.0);
   status_.publish(read > 0 ? node_state::STATE_RUNNING : node_state::STATE_WAITING, heartbeats_++, opt_.status_period_s,
                   counters_text(c, read, topics_.size()));
-  clock.next_status += clock.status_period;
-  if (clock.next_status < now) clock.next_status = now + clock.status_period;  // after a stall: no burst
+  clock.next_status_ns += clock.status_period_ns;
+  if (clock.next_status_ns < now_ns) clock.next_status_ns = now_ns + clock.status_period_ns;  // after a stall: no burst
 }
 
 int FoxgloveBridgeComponent::finish(int exit_code) {

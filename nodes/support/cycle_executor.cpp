@@ -181,8 +181,7 @@ class Executor {
   /// when it became readable (the component then goes at once).
   bool wait_fd(std::int64_t timeout_ns) {
     pollfd fds{input_fd_, POLLIN, 0};
-    const timespec timeout{static_cast<time_t>(timeout_ns / 1'000'000'000),
-                           static_cast<long>(timeout_ns % 1'000'000'000)};
+    const timespec timeout = to_timespec(timeout_ns);
     if (::ppoll(&fds, 1, &timeout, nullptr) <= 0) return false;  // a signal (EINTR) or the time
     entries_.front().next = CycleWait::Next::kUpdate;
     return true;

@@ -4,7 +4,6 @@
 #include <cstdio>
 
 #include "pmlsm/canopen/cia402_dictionary.hpp"
-#include "pmlsm/canopen/cia402_slave.hpp"
 #include "pmlsm/canopen/emcy.hpp"
 
 namespace pmlsm::canopen {

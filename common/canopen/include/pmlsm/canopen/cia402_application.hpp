@@ -19,6 +19,11 @@
 
 namespace pmlsm::canopen {
 
+// The lockstep contract's manufacturer objects, whatever the bus (configs/canopen/virtual_drive_od.yaml
+// declares them): the periods the drive stepped, and the tick of the command written for the next.
+inline constexpr std::uint16_t kObjectPeriodsStepped = 0x2001;
+inline constexpr std::uint16_t kObjectCommandTick = 0x2002;
+
 struct Cia402ApplicationParams {
   /// Target torque per mille -> newtons, metres and m/s -> increments.
   ScalingConfig scaling;

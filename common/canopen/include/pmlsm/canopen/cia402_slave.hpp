@@ -47,10 +47,8 @@
 
 namespace pmlsm::canopen {
 
-// The lockstep contract's manufacturer objects (configs/canopen/virtual_drive_od.yaml declares
-// them) and TPDO2's entries, which make_cia402_dictionary leaves out.
-inline constexpr std::uint16_t kObjectPeriodsStepped = 0x2001;
-inline constexpr std::uint16_t kObjectCommandTick = 0x2002;
+// TPDO2's entries, which make_cia402_dictionary leaves out (the lockstep contract's objects are
+// the application's: cia402_application.hpp).
 inline constexpr std::uint16_t kObjectTpdo2Communication = 0x1801;
 inline constexpr std::uint16_t kObjectTpdo2Mapping = 0x1A01;
 /// CiA 301 monitoring: SYNC lost.
