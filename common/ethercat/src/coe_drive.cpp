@@ -55,14 +55,17 @@ CoeProcessImage::CoeProcessImage(canopen::ObjectDictionary& dictionary, std::uin
       outputs_at_(outputs_at),
       inputs_at_(inputs_at) {}
 
-void CoeProcessImage::exchange(Esc& esc) {
-  // The PDO codec works on CAN frames: the same bytes, an id it does not check.
+// The PDO codec works on CAN frames: the same bytes, an id it does not check.
+void CoeProcessImage::take_outputs(Esc& esc) {
   canopen::CanFrame outputs{};
   outputs.id = 0x200;
   outputs.dlc = rx_.byte_length();
   for (std::uint8_t i = 0; i < outputs.dlc; ++i)
     outputs.data[i] = esc.byte_at(static_cast<std::uint16_t>(outputs_at_ + i));
   if (!canopen::unpack_pdo(rx_, dictionary_, outputs)) ++refused_outputs_;
+}
+
+void CoeProcessImage::give_inputs(Esc& esc) {
   const canopen::Result<canopen::CanFrame> inputs = canopen::pack_pdo(tx_, dictionary_, 0x180);
   if (inputs) esc.write_memory(inputs_at_, inputs.value.data.data(), inputs.value.dlc);
 }
@@ -115,6 +118,31 @@ VirtualCia402Slave::VirtualCia402Slave(std::vector<std::uint16_t> sii)
       esc_(esc_params(std::move(sii), process_)),
       coe_(dictionary_, canopen::NodeId(1)) {
   esc_.set_mailbox_handler(&coe_);
+}
+
+VirtualEthercatDrive::VirtualEthercatDrive(const canopen::Cia402ApplicationParams& params, drive::Drive& drive, Log log,
+                                           std::vector<std::uint16_t> sii)
+    : slave_(std::move(sii)), application_(params, slave_.dictionary(), drive, *this), log_(std::move(log)) {}
+
+void VirtualEthercatDrive::after_frame(std::int64_t now_ns) {
+  Esc& esc = slave_.esc();
+  const AlState state = esc.al_state();
+  const std::uint64_t written = esc.outputs_written();
+  const std::uint64_t cycles = written - outputs_seen_;
+  outputs_seen_ = written;
+  if (state != AlState::kOp) {
+    cycles_outside_op_ += cycles;
+    if (state == AlState::kSafeOp) slave_.process().give_inputs(esc);
+    return;
+  }
+  // Called between frames, so one cycle at most; should the owner fall behind, each cycle missed is
+  // still a period (the master's cycles are the drive's clock), with the outputs SM2 holds now.
+  for (std::uint64_t i = 0; i < cycles; ++i) {
+    slave_.process().take_outputs(esc);
+    application_.apply_controlword(now_ns);
+    application_.step_period(now_ns);
+  }
+  slave_.process().give_inputs(esc);
 }
 
 }  // namespace pmlsm::ethercat

@@ -258,6 +258,13 @@ void Esc::after_write(std::uint16_t address, std::size_t size) {
   if (covers(reg::kSiiControl) || covers(reg::kSiiControl + 1)) sii_command();
   const MailboxArea receive = mailbox_area(0);
   if (receive.active && covers(static_cast<std::uint16_t>(receive.start + receive.length - 1))) mailbox_received();
+  constexpr auto kOutputs = static_cast<std::uint16_t>(reg::kSyncManager0 + 2 * kSyncManagerBytes);
+  const std::uint16_t outputs_length = word_at(static_cast<std::uint16_t>(kOutputs + 2));
+  const bool outputs_buffer = (memory_[kOutputs + 4] & kSmModeMask) == 0 && (memory_[kOutputs + 6] & kSmEnable) != 0;
+  if (outputs_buffer && outputs_length > 0 &&
+      covers(static_cast<std::uint16_t>(word_at(kOutputs) + outputs_length - 1))) {
+    ++outputs_written_;
+  }
 }
 
 Esc::MailboxArea Esc::mailbox_area(std::size_t index) const {

@@ -7,10 +7,14 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <string>
 #include <vector>
 
+#include "pmlsm/canopen/cia402_application.hpp"
 #include "pmlsm/canopen/object_dictionary.hpp"
 #include "pmlsm/canopen/pdo.hpp"
+#include "pmlsm/drive/drive.hpp"
 #include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/ethercat/mailbox.hpp"
 
@@ -35,10 +39,16 @@ class CoeProcessImage {
   CoeProcessImage(canopen::ObjectDictionary& dictionary, std::uint16_t outputs_at, std::uint16_t inputs_at);
   std::uint16_t output_bytes() const { return rx_.byte_length(); }
   std::uint16_t input_bytes() const { return tx_.byte_length(); }
-  /// The outputs the master wrote into SM2 into the dictionary's mapped objects, and the mapped
-  /// TxPDO objects into SM3 for the master's next read. Never throws; outputs the dictionary
-  /// refuses (out of range) are counted and not written.
-  void exchange(Esc& esc);
+  /// The outputs the master wrote into SM2 into the dictionary's mapped objects. Never throws;
+  /// outputs the dictionary refuses (out of range) are counted and not written.
+  void take_outputs(Esc& esc);
+  /// The mapped TxPDO objects into SM3 for the master's next read. Never throws.
+  void give_inputs(Esc& esc);
+  /// Both, in that order.
+  void exchange(Esc& esc) {
+    take_outputs(esc);
+    give_inputs(esc);
+  }
   std::uint64_t refused_outputs() const { return refused_outputs_; }
 
  private:
@@ -72,6 +82,7 @@ class VirtualCia402Slave {
   Esc& esc() { return esc_; }
   canopen::ObjectDictionary& dictionary() { return dictionary_; }
   const CoeProcessImage& process() const { return process_; }
+  CoeProcessImage& process() { return process_; }
   const CoeSdoServer& coe() const { return coe_; }
   /// The application between frames: the process image (CoeProcessImage::exchange).
   void exchange() { process_.exchange(esc_); }
@@ -88,6 +99,57 @@ class VirtualCia402Slave {
   CoeProcessImage process_;
   Esc esc_;
   CoeSdoServer coe_;
+};
+
+/// A virtual CiA 402 drive on EtherCAT: VirtualCia402Slave's ESC, dictionary and CoE server with
+/// the drive application of common/canopen (Cia402Application) over a drive backend, in cyclic
+/// synchronous torque, synchronous to SM2 (as a drive runs without distributed clocks): in OP,
+/// every process-data cycle whose outputs the master completed is one period, the controlword
+/// applied (the power-state walk), the target torque applied for the period, the actual values
+/// written back for the master's next read (so the master reads the period before, as on a real
+/// ring). In SAFEOP the inputs are kept current and the outputs are not applied (ETG.1000.6:
+/// outputs in a safe state). The drive's faults go out as counted emergencies.
+class VirtualEthercatDrive : canopen::Cia402ApplicationEvents {
+ public:
+  /// A line for the owner's log (error false: a state change; true: a fault or a refusal).
+  using Log = std::function<void(bool error, const std::string& line, std::int64_t now_ns)>;
+
+  /// `drive` outlives it; `sii` as VirtualCia402Slave's. @throws std::invalid_argument from the
+  /// image, the dictionary or the scaling.
+  VirtualEthercatDrive(const canopen::Cia402ApplicationParams& params, drive::Drive& drive, Log log = {},
+                       std::vector<std::uint16_t> sii = {});
+
+  Esc& esc() { return slave_.esc(); }
+  canopen::ObjectDictionary& dictionary() { return slave_.dictionary(); }
+  const VirtualCia402Slave& slave() const { return slave_; }
+
+  /// Between frames (VirtualSegment::serve's between_frames): the cycles the master completed
+  /// since, as above. Never throws.
+  void after_frame(std::int64_t now_ns);
+
+  std::uint64_t periods() const { return application_.periods(); }
+  double applied_force_n() const { return application_.applied_force_n(); }
+  /// Process-data cycles whose outputs came while not in OP (not applied).
+  std::uint64_t cycles_outside_op() const { return cycles_outside_op_; }
+  std::uint64_t emergencies() const { return emergencies_; }
+  std::uint16_t last_emergency() const { return last_emergency_; }
+
+ private:
+  void log(bool error, const std::string& line, std::int64_t now_ns) override {
+    if (log_) log_(error, line, now_ns);
+  }
+  void emergency(std::uint16_t code) override {
+    ++emergencies_;
+    last_emergency_ = code;
+  }
+
+  VirtualCia402Slave slave_;  // declared first: the application holds its dictionary
+  canopen::Cia402Application application_;
+  Log log_;
+  std::uint64_t outputs_seen_ = 0;
+  std::uint64_t cycles_outside_op_ = 0;
+  std::uint64_t emergencies_ = 0;
+  std::uint16_t last_emergency_ = 0;
 };
 
 }  // namespace pmlsm::ethercat

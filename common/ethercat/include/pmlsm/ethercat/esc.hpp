@@ -126,6 +126,10 @@ class Esc {
   std::uint32_t long_at(std::uint16_t address) const;
   /// The application writes process RAM (inputs) or a register it owns.
   void write_memory(std::uint16_t address, const std::uint8_t* bytes, std::size_t size);
+  /// How many times the master completed SM2's buffer (wrote its last byte) while SM2 is enabled
+  /// as a buffer: the outputs of a process-data cycle, what an application synchronous to SM2
+  /// (the ESC's SM2 event, a drive run without distributed clocks) runs a cycle on.
+  std::uint64_t outputs_written() const { return outputs_written_; }
   /// What answers the messages the master writes into its receive mailbox (SM0), into its send
   /// mailbox (SM1); nullptr: none (a message is taken and nothing answered). `handler` outlives
   /// the ESC.
@@ -162,6 +166,7 @@ class Esc {
   EscParams params_;
   std::vector<std::uint8_t> memory_;
   MailboxHandler* mailbox_handler_ = nullptr;
+  std::uint64_t outputs_written_ = 0;
 };
 
 /// A line of virtual slaves in one process: a frame passes each in order and comes back, as on a
