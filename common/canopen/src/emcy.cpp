@@ -20,6 +20,7 @@ const char* describe_emcy(std::uint16_t error_code) noexcept {
     case kEmcyPdoLength: return "PDO not processed due to length error";
     case kEmcyPdoLengthExceeded: return "PDO length exceeded";
     case kEmcyFollowingError: return "following error";
+    case kEmcySyncLost: return "sync lost (SYNC or process data)";
     default: break;
   }
   if (error_code >= kEmcyManufacturerFirst) return "device specific";

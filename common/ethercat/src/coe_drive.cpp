@@ -1,9 +1,11 @@
 #include "pmlsm/ethercat/coe_drive.hpp"
 
 #include "pmlsm/canopen/cia402_dictionary.hpp"
+#include "pmlsm/canopen/emcy.hpp"
 #include "pmlsm/util/validate.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -124,12 +126,32 @@ VirtualEthercatDrive::VirtualEthercatDrive(const canopen::Cia402ApplicationParam
                                            std::vector<std::uint16_t> sii)
     : slave_(std::move(sii)), application_(params, slave_.dictionary(), drive, *this), log_(std::move(log)) {}
 
+void VirtualEthercatDrive::check_watchdog(std::int64_t now_ns) {
+  Esc& esc = slave_.esc();
+  const bool op = esc.al_state() == AlState::kOp;
+  if (op && !in_op_) outputs_ns_ = now_ns;  // the watch starts at the entry into OP
+  in_op_ = op;
+  const std::int64_t watchdog_ns = esc.process_data_watchdog_ns();
+  if (!op || watchdog_ns == 0 || now_ns - outputs_ns_ <= watchdog_ns) return;
+  esc.process_data_watchdog_expired();
+  in_op_ = false;
+  if (application_.enabled()) {
+    char why[96];
+    std::snprintf(why, sizeof why, "no process data for %.1f ms (SM watchdog %.1f ms)",
+                  static_cast<double>(now_ns - outputs_ns_) * 1e-6, static_cast<double>(watchdog_ns) * 1e-6);
+    application_.raise_fault(canopen::kEmcySyncLost, why, now_ns);
+  }
+  log(true, "process-data watchdog expired: OP -> SAFEOP (AL status code 0x001B)", now_ns);
+}
+
 void VirtualEthercatDrive::after_frame(std::int64_t now_ns) {
+  check_watchdog(now_ns);
   Esc& esc = slave_.esc();
   const AlState state = esc.al_state();
   const std::uint64_t written = esc.outputs_written();
   const std::uint64_t cycles = written - outputs_seen_;
   outputs_seen_ = written;
+  if (cycles > 0) outputs_ns_ = now_ns;
   if (state != AlState::kOp) {
     cycles_outside_op_ += cycles;
     if (state == AlState::kSafeOp) slave_.process().give_inputs(esc);

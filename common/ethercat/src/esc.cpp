@@ -114,6 +114,25 @@ Esc::Esc(EscParams params) : params_((params.validate(), std::move(params))), me
   memory_[reg::kAlControl] = static_cast<std::uint8_t>(AlState::kInit);
   memory_[reg::kAlStatus] = static_cast<std::uint8_t>(AlState::kInit);
   memory_[reg::kSiiControl] = kSiiRead8Bytes;
+  constexpr std::uint16_t kDefaultDivider = 2498;  // 100 us a unit
+  constexpr std::uint16_t kDefaultTime = 1000;     // 100 ms
+  memory_[reg::kWatchdogDivider] = static_cast<std::uint8_t>(kDefaultDivider & 0xFFU);
+  memory_[reg::kWatchdogDivider + 1] = static_cast<std::uint8_t>(kDefaultDivider >> 8);
+  memory_[reg::kWatchdogTimeProcessData] = static_cast<std::uint8_t>(kDefaultTime & 0xFFU);
+  memory_[reg::kWatchdogTimeProcessData + 1] = static_cast<std::uint8_t>(kDefaultTime >> 8);
+  memory_[reg::kWatchdogStatusProcessData] = 0x01;
+}
+
+std::int64_t Esc::process_data_watchdog_ns() const {
+  const std::int64_t unit_ns = (static_cast<std::int64_t>(word_at(reg::kWatchdogDivider)) + 2) * 40;
+  return unit_ns * word_at(reg::kWatchdogTimeProcessData);
+}
+
+void Esc::process_data_watchdog_expired() {
+  memory_[reg::kWatchdogStatusProcessData] = 0x00;
+  if (al_state() != AlState::kOp) return;
+  memory_[reg::kAlStatus] = static_cast<std::uint8_t>(kAlErrorIndicator | static_cast<std::uint8_t>(AlState::kSafeOp));
+  refuse(al_code::kSyncManagerWatchdog);
 }
 
 std::uint16_t Esc::word_at(std::uint16_t address) const {
@@ -264,6 +283,7 @@ void Esc::after_write(std::uint16_t address, std::size_t size) {
   if (outputs_buffer && outputs_length > 0 &&
       covers(static_cast<std::uint16_t>(word_at(kOutputs) + outputs_length - 1))) {
     ++outputs_written_;
+    memory_[reg::kWatchdogStatusProcessData] = 0x01;
   }
 }
 

@@ -226,6 +226,21 @@ void Master::configure_fmmu(std::uint16_t station, std::uint8_t index, std::uint
                  "FMMU");
 }
 
+void Master::configure_process_data_watchdog(std::uint16_t station, std::int64_t timeout_ns) {
+  std::array<std::uint8_t, 2> divider{};
+  read_register(station, reg::kWatchdogDivider, divider.data(), 2, "watchdog divider");
+  const std::int64_t unit_ns = (static_cast<std::int64_t>(divider[0] | (divider[1] << 8)) + 2) * 40;
+  const std::int64_t units = timeout_ns <= 0 ? 0 : (timeout_ns + unit_ns - 1) / unit_ns;
+  if (timeout_ns < 0 || units > 0xFFFF) {
+    throw std::invalid_argument(slave_name(station) + ": a process-data watchdog of " + std::to_string(timeout_ns) +
+                                " ns needs " + std::to_string(units) + " units of " + std::to_string(unit_ns) +
+                                " ns; 0x0420 holds 0 to 65535");
+  }
+  const std::array<std::uint8_t, 2> time{static_cast<std::uint8_t>(units & 0xFF),
+                                         static_cast<std::uint8_t>(units >> 8)};
+  write_register(station, reg::kWatchdogTimeProcessData, time.data(), 2, "process-data watchdog time");
+}
+
 StateResult Master::read_state(std::uint16_t station) {
   std::array<std::uint8_t, 6> status{};  // AL status, reserved, AL status code
   read_register(station, reg::kAlStatus, status.data(), 6, "AL status");

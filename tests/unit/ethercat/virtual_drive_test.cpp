@@ -9,6 +9,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <stdexcept>
 #include <string>
 
 #include "pmlsm/canopen/cia402_dictionary.hpp"
@@ -175,6 +176,39 @@ TEST(VirtualEthercatDrive, OutsideOpTheOutputsAreHeldAndAFaultStopsTheForceWithI
   EXPECT_EQ(rig.behind.power_state(), drive::PowerState::kOperationEnabled);
   rig.cycle(0x000F, -250);
   EXPECT_DOUBLE_EQ(rig.drive.applied_force_n(), -50.0);
+}
+
+TEST(VirtualEthercatDrive, TheProcessDataWatchdogDropsItToSafeopAndStopsTheForceWhenTheCyclesStop) {
+  Rig rig(application_params());
+  rig.start(true);
+  EXPECT_EQ(rig.drive.esc().process_data_watchdog_ns(), 100'000'000) << "the ESC's default: 100 ms";
+  rig.master.configure_process_data_watchdog(kStation, 10'000'000);
+  EXPECT_EQ(rig.drive.esc().process_data_watchdog_ns(), 10'000'000);
+  EXPECT_THROW(rig.master.configure_process_data_watchdog(kStation, 7'000'000'000), std::invalid_argument);
+  for (const std::uint16_t controlword : {0x0006, 0x0007, 0x000F}) rig.cycle(controlword, 0);
+  rig.cycle(0x000F, 500);
+  ASSERT_DOUBLE_EQ(rig.drive.applied_force_n(), 100.0);
+  // The master stops cycling: at 10 ms after the last outputs the slave is still in OP, past it not.
+  const std::int64_t last_outputs_ns = rig.now_ns;
+  rig.drive.check_watchdog(last_outputs_ns + 10'000'000);
+  EXPECT_EQ(rig.master.read_state(kStation).state, AlState::kOp);
+  EXPECT_EQ(rig.drive.emergencies(), 0u);
+  rig.drive.check_watchdog(last_outputs_ns + 10'000'001);
+  const StateResult state = rig.master.read_state(kStation);
+  EXPECT_EQ(state.state, AlState::kSafeOp);
+  EXPECT_EQ(state.code, al_code::kSyncManagerWatchdog);
+  const drive::PowerState power = rig.behind.power_state();
+  EXPECT_TRUE(power == drive::PowerState::kFaultReactionActive || power == drive::PowerState::kFault)
+      << drive::to_string(power);
+  EXPECT_NE(rig.drive.dictionary().get_or(canopen::kObjectStatusword, 0, 0) & 0x0008, 0) << "fault bit";
+  EXPECT_EQ(rig.drive.last_emergency(), canopen::kEmcySyncLost);
+  EXPECT_EQ(rig.drive.esc().byte_at(reg::kWatchdogStatusProcessData) & 0x01, 0) << "0x0440: expired";
+  // Cycles that come again in SAFEOP move nothing; 0x0440 runs again with them.
+  const std::uint64_t periods = rig.drive.periods();
+  rig.now_ns = last_outputs_ns + 20'000'000;
+  rig.cycle(0x000F, 500);
+  EXPECT_EQ(rig.drive.periods(), periods);
+  EXPECT_EQ(rig.drive.esc().byte_at(reg::kWatchdogStatusProcessData) & 0x01, 1);
 }
 
 }  // namespace

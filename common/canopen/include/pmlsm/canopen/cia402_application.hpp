@@ -60,6 +60,7 @@ class Cia402Application {
   void forget_controlword() { previous_controlword_ = 0; }
 
   std::uint64_t periods() const { return periods_; }
+  bool enabled() const { return drive_.power_state() == drive::PowerState::kOperationEnabled; }
   double applied_force_n() const { return applied_force_n_; }
   /// When the drive last entered operation enabled (the start of its watchdogs).
   std::int64_t enabled_since_ns() const { return enabled_since_ns_; }

@@ -51,8 +51,6 @@ namespace pmlsm::canopen {
 // the application's: cia402_application.hpp).
 inline constexpr std::uint16_t kObjectTpdo2Communication = 0x1801;
 inline constexpr std::uint16_t kObjectTpdo2Mapping = 0x1A01;
-/// CiA 301 monitoring: SYNC lost.
-inline constexpr std::uint16_t kEmcySyncLost = 0x8700;
 
 struct Cia402SlaveParams {
   NodeId node{1};

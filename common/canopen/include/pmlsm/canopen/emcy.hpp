@@ -29,7 +29,8 @@ inline constexpr std::uint16_t kEmcyHeartbeatError = 0x8130;         // life gua
 inline constexpr std::uint16_t kEmcyPdoLength = 0x8210;              // PDO not processed: length error
 inline constexpr std::uint16_t kEmcyPdoLengthExceeded = 0x8220;      // PDO length exceeded
 inline constexpr std::uint16_t kEmcyFollowingError = 0x8611;         // CiA 402: following error
-inline constexpr std::uint16_t kEmcyManufacturerFirst = 0xFF00;      // 0xFF00..0xFFFF: device specific
+inline constexpr std::uint16_t kEmcySyncLost = 0x8700;  // monitoring: the cycle's clock lost (SYNC, process data)
+inline constexpr std::uint16_t kEmcyManufacturerFirst = 0xFF00;  // 0xFF00..0xFFFF: device specific
 
 // ---- error register (object 0x1001) bits -----------------------------------------------------
 

@@ -108,7 +108,10 @@ class VirtualCia402Slave {
 /// applied (the power-state walk), the target torque applied for the period, the actual values
 /// written back for the master's next read (so the master reads the period before, as on a real
 /// ring). In SAFEOP the inputs are kept current and the outputs are not applied (ETG.1000.6:
-/// outputs in a safe state). The drive's faults go out as counted emergencies.
+/// outputs in a safe state). The process-data watchdog (the ESC's 0x0420, 100 ms unless the
+/// master sets it): in OP, no outputs for longer than it since the last ones (or the entry into
+/// OP) drops the slave to SAFEOP with AL status code 0x001B and faults an enabled drive with
+/// 0x8700 (force off). The drive's faults go out as counted emergencies.
 class VirtualEthercatDrive : canopen::Cia402ApplicationEvents {
  public:
   /// A line for the owner's log (error false: a state change; true: a fault or a refusal).
@@ -123,9 +126,12 @@ class VirtualEthercatDrive : canopen::Cia402ApplicationEvents {
   canopen::ObjectDictionary& dictionary() { return slave_.dictionary(); }
   const VirtualCia402Slave& slave() const { return slave_; }
 
-  /// Between frames (VirtualSegment::serve's between_frames): the cycles the master completed
-  /// since, as above. Never throws.
+  /// Between frames (VirtualSegment::serve's between_frames): the watchdog, then the cycles the
+  /// master completed since, as above. Never throws.
   void after_frame(std::int64_t now_ns);
+  /// The process-data watchdog at `now_ns`, also when no frame comes (the owner calls it between
+  /// its waits). Never throws.
+  void check_watchdog(std::int64_t now_ns);
 
   std::uint64_t periods() const { return application_.periods(); }
   double applied_force_n() const { return application_.applied_force_n(); }
@@ -147,6 +153,8 @@ class VirtualEthercatDrive : canopen::Cia402ApplicationEvents {
   canopen::Cia402Application application_;
   Log log_;
   std::uint64_t outputs_seen_ = 0;
+  std::int64_t outputs_ns_ = 0;  ///< when the last outputs came, or OP was entered if later
+  bool in_op_ = false;
   std::uint64_t cycles_outside_op_ = 0;
   std::uint64_t emergencies_ = 0;
   std::uint16_t last_emergency_ = 0;

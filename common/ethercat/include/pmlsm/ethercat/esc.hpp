@@ -53,6 +53,9 @@ inline constexpr std::uint16_t kDlStatus = 0x0110;
 inline constexpr std::uint16_t kAlControl = 0x0120;
 inline constexpr std::uint16_t kAlStatus = 0x0130;
 inline constexpr std::uint16_t kAlStatusCode = 0x0134;
+inline constexpr std::uint16_t kWatchdogDivider = 0x0400;            ///< u16: (value + 2) x 40 ns a unit
+inline constexpr std::uint16_t kWatchdogTimeProcessData = 0x0420;    ///< u16 units; 0: off
+inline constexpr std::uint16_t kWatchdogStatusProcessData = 0x0440;  ///< bit 0: 1 running or off, 0 expired
 inline constexpr std::uint16_t kSiiControl = 0x0502;
 inline constexpr std::uint16_t kSiiAddress = 0x0504;
 inline constexpr std::uint16_t kSiiData = 0x0508;
@@ -90,6 +93,7 @@ inline constexpr std::uint16_t kInvalidStateChange = 0x0011;
 inline constexpr std::uint16_t kUnknownState = 0x0012;
 inline constexpr std::uint16_t kBootstrapNotSupported = 0x0013;
 inline constexpr std::uint16_t kInvalidMailboxConfiguration = 0x0016;
+inline constexpr std::uint16_t kSyncManagerWatchdog = 0x001B;
 inline constexpr std::uint16_t kInvalidOutputConfiguration = 0x001D;
 inline constexpr std::uint16_t kInvalidInputConfiguration = 0x001E;
 }  // namespace al_code
@@ -126,6 +130,13 @@ class Esc {
   std::uint32_t long_at(std::uint16_t address) const;
   /// The application writes process RAM (inputs) or a register it owns.
   void write_memory(std::uint16_t address, const std::uint8_t* bytes, std::size_t size);
+  /// The process-data watchdog's time (0x0420 units of the divider 0x0400; ETG.1000.4 and the
+  /// ET1100's defaults: 2498 and 1000, 100 ms) in ns; 0: off.
+  std::int64_t process_data_watchdog_ns() const;
+  /// The application found the process data late by the watchdog: 0x0440 says expired, and it
+  /// drops from OP to SAFEOP with the error indicator and code 0x001B until the master
+  /// acknowledges. The next outputs completed set 0x0440 running again.
+  void process_data_watchdog_expired();
   /// How many times the master completed SM2's buffer (wrote its last byte) while SM2 is enabled
   /// as a buffer: the outputs of a process-data cycle, what an application synchronous to SM2
   /// (the ESC's SM2 event, a drive run without distributed clocks) runs a cycle on.

@@ -103,6 +103,11 @@ class Master {
   /// @throws std::runtime_error when the slave does not take it.
   void configure_fmmu(std::uint16_t station, std::uint8_t index, std::uint32_t logical, std::uint16_t length,
                       std::uint16_t physical, bool write);
+  /// A slave's process-data watchdog (the ESC's SM watchdog the ESI asks for): `timeout_ns` in
+  /// units of its divider (read from 0x0400), rounded up, into 0x0420; 0 turns it off.
+  /// @throws std::invalid_argument when the time needs more than 65535 units or is negative,
+  /// std::runtime_error when the slave does not take it.
+  void configure_process_data_watchdog(std::uint16_t station, std::int64_t timeout_ns);
   /// Asks a slave for `state` and reads its AL status until it is there, refuses (the error
   /// indicator: its code read, then acknowledged) or state_timeout_ns passes.
   /// @throws std::runtime_error when the slave does not answer at all.
