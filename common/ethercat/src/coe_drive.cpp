@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 
 namespace pmlsm::ethercat {
 
@@ -43,33 +44,74 @@ void add_coe_sync_manager_objects(canopen::ObjectDictionary& d) {
   d.add(entry(kObjectSyncManagerTypes, 2, "SM1: mailbox in", T::kU8, 2));
   d.add(entry(kObjectSyncManagerTypes, 3, "SM2: outputs", T::kU8, 3));
   d.add(entry(kObjectSyncManagerTypes, 4, "SM3: inputs", T::kU8, 4));
-  d.add(entry(kObjectRxPdoAssign, 0, "SM2 PDO assignment: count", T::kU8, 1));
-  d.add(entry(kObjectRxPdoAssign, 1, "SM2 PDO assignment: RxPDO 1", T::kU16, kRxPdoMapping));
-  d.add(entry(kObjectTxPdoAssign, 0, "SM3 PDO assignment: count", T::kU8, 1));
-  d.add(entry(kObjectTxPdoAssign, 1, "SM3 PDO assignment: TxPDO 1", T::kU16, kTxPdoMapping));
+  for (const auto& [assign, first, name] :
+       {std::tuple{kObjectRxPdoAssign, kRxPdoMapping, "SM2 PDO assignment: RxPDO"},
+        std::tuple{kObjectTxPdoAssign, kTxPdoMapping, "SM3 PDO assignment: TxPDO"}}) {
+    std::uint8_t count = 0;
+    for (std::uint8_t i = 0; i < kMaxAssignedPdos; ++i) {
+      const auto pdo = static_cast<std::uint16_t>(first + i);
+      const canopen::Result<canopen::PdoMap> map = canopen::read_pdo_map(d, pdo);
+      if (!map || map.value.empty()) continue;
+      ++count;
+      const std::string entry_name = std::string(name) + " " + std::to_string(count);
+      d.add(entry(assign, count, entry_name.c_str(), T::kU16, pdo));
+    }
+    d.add(entry(assign, 0, (std::string(name) + ": count").c_str(), T::kU8, count));
+  }
+}
+
+std::vector<canopen::PdoMap> CoeProcessImage::assigned(const canopen::ObjectDictionary& dictionary,
+                                                       std::uint16_t assign) {
+  const auto count = static_cast<std::uint8_t>(dictionary.get_or(assign, 0, 0));
+  std::vector<canopen::PdoMap> maps;
+  for (std::uint8_t i = 1; i <= count; ++i) {
+    const auto pdo = static_cast<std::uint16_t>(dictionary.get_or(assign, i, 0));
+    maps.push_back(map_of(dictionary, pdo));
+  }
+  return maps;
+}
+
+std::uint16_t CoeProcessImage::bytes_of(const std::vector<canopen::PdoMap>& maps) {
+  std::uint16_t bytes = 0;
+  for (const canopen::PdoMap& m : maps) bytes = static_cast<std::uint16_t>(bytes + m.byte_length());
+  return bytes;
 }
 
 CoeProcessImage::CoeProcessImage(canopen::ObjectDictionary& dictionary, std::uint16_t outputs_at,
                                  std::uint16_t inputs_at)
     : dictionary_(dictionary),
-      rx_(map_of(dictionary, kRxPdoMapping)),
-      tx_(map_of(dictionary, kTxPdoMapping)),
+      rx_(assigned(dictionary, kObjectRxPdoAssign)),
+      tx_(assigned(dictionary, kObjectTxPdoAssign)),
       outputs_at_(outputs_at),
       inputs_at_(inputs_at) {}
 
-// The PDO codec works on CAN frames: the same bytes, an id it does not check.
+bool CoeProcessImage::outputs_map(std::uint16_t index) const {
+  return std::any_of(rx_.begin(), rx_.end(), [&](const canopen::PdoMap& m) {
+    return std::any_of(m.begin(), m.end(), [&](const canopen::PdoMapEntry& e) { return e.index == index; });
+  });
+}
+
+// The PDO codec works on CAN frames: the same bytes, an id it does not check. Each PDO follows
+// the one before in the sync manager's memory.
 void CoeProcessImage::take_outputs(Esc& esc) {
-  canopen::CanFrame outputs{};
-  outputs.id = 0x200;
-  outputs.dlc = rx_.byte_length();
-  for (std::uint8_t i = 0; i < outputs.dlc; ++i)
-    outputs.data[i] = esc.byte_at(static_cast<std::uint16_t>(outputs_at_ + i));
-  if (!canopen::unpack_pdo(rx_, dictionary_, outputs)) ++refused_outputs_;
+  auto at = outputs_at_;
+  for (const canopen::PdoMap& map : rx_) {
+    canopen::CanFrame outputs{};
+    outputs.id = 0x200;
+    outputs.dlc = map.byte_length();
+    for (std::uint8_t i = 0; i < outputs.dlc; ++i) outputs.data[i] = esc.byte_at(static_cast<std::uint16_t>(at + i));
+    if (!canopen::unpack_pdo(map, dictionary_, outputs)) ++refused_outputs_;
+    at = static_cast<std::uint16_t>(at + outputs.dlc);
+  }
 }
 
 void CoeProcessImage::give_inputs(Esc& esc) {
-  const canopen::Result<canopen::CanFrame> inputs = canopen::pack_pdo(tx_, dictionary_, 0x180);
-  if (inputs) esc.write_memory(inputs_at_, inputs.value.data.data(), inputs.value.dlc);
+  auto at = inputs_at_;
+  for (const canopen::PdoMap& map : tx_) {
+    const canopen::Result<canopen::CanFrame> inputs = canopen::pack_pdo(map, dictionary_, 0x180);
+    if (inputs) esc.write_memory(at, inputs.value.data.data(), inputs.value.dlc);
+    at = static_cast<std::uint16_t>(at + map.byte_length());
+  }
 }
 
 std::vector<std::uint16_t> VirtualCia402Slave::virtual_sii(std::uint16_t output_bytes, std::uint16_t input_bytes) {
@@ -101,7 +143,10 @@ canopen::ObjectDictionary VirtualCia402Slave::make_dictionary(const std::vector<
     config.vendor_id = kVendorId;
     config.product_code = kProductCode;
   }
-  canopen::ObjectDictionary dictionary = canopen::make_cia402_dictionary(canopen::NodeId(1), config);
+  return canopen::make_cia402_dictionary(canopen::NodeId(1), config);
+}
+
+canopen::ObjectDictionary VirtualCia402Slave::with_sync_manager_objects(canopen::ObjectDictionary dictionary) {
   add_coe_sync_manager_objects(dictionary);
   return dictionary;
 }
@@ -115,7 +160,10 @@ EscParams VirtualCia402Slave::esc_params(std::vector<std::uint16_t> sii, const C
 }
 
 VirtualCia402Slave::VirtualCia402Slave(std::vector<std::uint16_t> sii)
-    : dictionary_(make_dictionary(sii)),
+    : VirtualCia402Slave(make_dictionary(sii), sii) {}
+
+VirtualCia402Slave::VirtualCia402Slave(canopen::ObjectDictionary dictionary, std::vector<std::uint16_t> sii)
+    : dictionary_(with_sync_manager_objects(std::move(dictionary))),
       process_(dictionary_, kOutputsAt, kInputsAt),
       esc_(esc_params(std::move(sii), process_)),
       coe_(dictionary_, canopen::NodeId(1)) {
@@ -125,6 +173,14 @@ VirtualCia402Slave::VirtualCia402Slave(std::vector<std::uint16_t> sii)
 VirtualEthercatDrive::VirtualEthercatDrive(const canopen::Cia402ApplicationParams& params, drive::Drive& drive, Log log,
                                            std::vector<std::uint16_t> sii)
     : slave_(std::move(sii)), application_(params, slave_.dictionary(), drive, *this), log_(std::move(log)) {}
+
+VirtualEthercatDrive::VirtualEthercatDrive(const canopen::Cia402ApplicationParams& params, drive::Drive& drive,
+                                           canopen::ObjectDictionary dictionary, Log log,
+                                           std::vector<std::uint16_t> sii)
+    : slave_(std::move(dictionary), std::move(sii)),
+      application_(params, slave_.dictionary(), drive, *this),
+      log_(std::move(log)),
+      lockstep_(slave_.process().outputs_map(canopen::kObjectCommandTick)) {}
 
 void VirtualEthercatDrive::check_watchdog(std::int64_t now_ns) {
   Esc& esc = slave_.esc();
@@ -162,6 +218,11 @@ void VirtualEthercatDrive::after_frame(std::int64_t now_ns) {
   for (std::uint64_t i = 0; i < cycles; ++i) {
     slave_.process().take_outputs(esc);
     application_.apply_controlword(now_ns);
+    const auto command_tick = static_cast<std::uint64_t>(slave_.dictionary().get_or(canopen::kObjectCommandTick, 0, 0));
+    if (lockstep_ && command_tick != (application_.periods() & 0xFFFFFFFFULL)) {
+      ++unstepped_cycles_;  // a frame sent again, or a walk's cycle before the run: no period
+      continue;
+    }
     application_.step_period(now_ns);
   }
   slave_.process().give_inputs(esc);

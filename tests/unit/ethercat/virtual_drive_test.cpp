@@ -15,6 +15,7 @@
 #include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/canopen/emcy.hpp"
 #include "pmlsm/canopen/scaling.hpp"
+#include "pmlsm/config/canopen_config.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/ethercat/coe_drive.hpp"
 #include "pmlsm/ethercat/esc.hpp"
@@ -209,6 +210,84 @@ TEST(VirtualEthercatDrive, TheProcessDataWatchdogDropsItToSafeopAndStopsTheForce
   rig.cycle(0x000F, 500);
   EXPECT_EQ(rig.drive.periods(), periods);
   EXPECT_EQ(rig.drive.esc().byte_at(reg::kWatchdogStatusProcessData) & 0x01, 1);
+}
+
+std::int32_t s32_at(const std::uint8_t* p) {
+  return static_cast<std::int32_t>(static_cast<std::uint32_t>(p[0]) | (static_cast<std::uint32_t>(p[1]) << 8) |
+                                   (static_cast<std::uint32_t>(p[2]) << 16) | (static_cast<std::uint32_t>(p[3]) << 24));
+}
+
+TEST(VirtualEthercatDrive, TheCanopenDevicesDictionaryCarriesTheLockstepContractAndARepeatedFrameIsNoSecondPeriod) {
+  // The dictionary the CANopen virtual drive runs (configs/canopen): on EtherCAT its RPDO1 is the
+  // outputs (controlword, target torque, command tick) and its TPDO1 + TPDO2 the inputs
+  // (statusword, torque actual, velocity actual; position actual, periods stepped).
+  const std::string root = std::string(PMLSM_SOURCE_DIR) + "/";
+  const SystemParams system = load_system_params(root + "configs/system.yaml");
+  const CanopenRigConfig rig = load_canopen_config(root + "configs/canopen/drive.yaml");
+  const DeviceDictionary device = load_device_dictionary(root + "configs/canopen/virtual_drive_od.yaml");
+  canopen::Cia402ApplicationParams params;
+  params.scaling = rig.master.scaling;
+  SimulatedDriveBackend behind(system, PlantInitialCondition{});
+  VirtualEthercatDrive drive(params, behind, build_device_dictionary(rig, device, system.timing.control_period_s));
+  VirtualSegment segment({&drive.esc()});
+  VirtualSegmentLink link(segment);
+  Master master(link);
+  master.assign_station_addresses(1);
+  const SlaveInfo info = master.read_slave_info(kStation);
+  master.configure_mailbox(info);
+  ASSERT_TRUE(master.request_state(kStation, AlState::kPreOp).reached);
+  ASSERT_TRUE(master.sdo_download(info, canopen::kObjectModesOfOperation, 0, 10, 1).done);
+  const ProcessDataLayout layout = master.map_process_data(info, kLogical);
+  ASSERT_EQ(layout.output_bytes, 8);
+  ASSERT_EQ(layout.input_bytes, 16);
+  ASSERT_TRUE(master.request_state(kStation, AlState::kSafeOp).reached);
+  ASSERT_TRUE(master.request_state(kStation, AlState::kOp).reached);
+
+  std::int64_t now_ns = 0;
+  std::array<std::uint8_t, 24> image{};
+  const auto cycle = [&](std::uint16_t controlword, std::int16_t per_mille, std::uint32_t command_tick) {
+    image.fill(0);
+    image[0] = static_cast<std::uint8_t>(controlword & 0xFF);
+    image[1] = static_cast<std::uint8_t>(controlword >> 8);
+    image[2] = static_cast<std::uint8_t>(static_cast<std::uint16_t>(per_mille) & 0xFF);
+    image[3] = static_cast<std::uint8_t>(static_cast<std::uint16_t>(per_mille) >> 8);
+    for (int i = 0; i < 4; ++i) image[4 + i] = static_cast<std::uint8_t>(command_tick >> (8 * i));
+    const Reply r = master.exchange(Command::kLrw, kLogical, image.data(), image.size());
+    EXPECT_EQ(r.working_counter, 3);
+    now_ns += kPeriodNs;
+    drive.after_frame(now_ns);
+  };
+  SimulatedDriveBackend reference(system, PlantInitialCondition{});
+  const canopen::UnitScaling scaling(params.scaling);
+  drive::Measurement before = reference.sample();
+
+  // The walk before the run: the command tick is one behind the periods stepped, so no period.
+  for (const auto& [controlword, command] : std::array<std::pair<std::uint16_t, drive::DriveCommand>, 3>{
+           {{0x0006, drive::DriveCommand::kShutdown},
+            {0x0007, drive::DriveCommand::kSwitchOn},
+            {0x000F, drive::DriveCommand::kEnableOperation}}}) {
+    cycle(controlword, 0, 0xFFFFFFFFU);
+    ASSERT_TRUE(reference.request(command).accepted);
+  }
+  EXPECT_EQ(drive.periods(), 0u);
+  EXPECT_EQ(drive.unstepped_cycles(), 3u);
+  ASSERT_EQ(behind.power_state(), drive::PowerState::kOperationEnabled);
+
+  // The run: tick k's frame steps period k; every tenth frame is sent twice (a reply lost, the
+  // master repeats it) and the repeat steps nothing.
+  for (std::uint32_t k = 0; k < 300; ++k) {
+    const auto per_mille = static_cast<std::int16_t>(std::lround(200.0 * std::sin(2.0 * M_PI * k / 100.0)));
+    cycle(0x000F, per_mille, k);
+    ASSERT_EQ(static_cast<std::uint32_t>(s32_at(&image[20])), k) << "periods stepped read, the period before";
+    ASSERT_EQ(s32_at(&image[16]), scaling.metres_to_increments(before.position_m).value) << "tick " << k;
+    ASSERT_EQ(s32_at(&image[12]), scaling.velocity_to_increments(before.velocity_mps).value) << "tick " << k;
+    if (k % 10 == 9) cycle(0x000F, per_mille, k);
+    reference.apply(scaling.per_mille_to_force(per_mille));
+    before = reference.sample();
+  }
+  EXPECT_EQ(drive.periods(), 300u);
+  EXPECT_EQ(drive.unstepped_cycles(), 3u + 30u);
+  EXPECT_EQ(drive.slave().process().refused_outputs(), 0u);
 }
 
 }  // namespace

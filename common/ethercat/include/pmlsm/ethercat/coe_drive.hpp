@@ -23,22 +23,28 @@ namespace pmlsm::ethercat {
 inline constexpr std::uint16_t kObjectSyncManagerTypes = 0x1C00;
 inline constexpr std::uint16_t kObjectRxPdoAssign = 0x1C12;  ///< SM2, outputs
 inline constexpr std::uint16_t kObjectTxPdoAssign = 0x1C13;  ///< SM3, inputs
-inline constexpr std::uint16_t kRxPdoMapping = 0x1600;
-inline constexpr std::uint16_t kTxPdoMapping = 0x1A00;
+inline constexpr std::uint16_t kRxPdoMapping = 0x1600;       ///< the first RxPDO; 0x1600-0x1603 looked at
+inline constexpr std::uint16_t kTxPdoMapping = 0x1A00;       ///< the first TxPDO; 0x1A00-0x1A03 looked at
+inline constexpr std::uint8_t kMaxAssignedPdos = 4;
 
-/// Adds 0x1C00 (4 sync managers: mailbox out, mailbox in, outputs, inputs) and 0x1C12 / 0x1C13
-/// (one PDO each: 0x1600, 0x1A00). @throws std::invalid_argument from the dictionary (full, or
-/// an object already there).
+/// Adds 0x1C00 (4 sync managers: mailbox out, mailbox in, outputs, inputs) and 0x1C12 / 0x1C13:
+/// every RxPDO (0x1600-0x1603) and TxPDO (0x1A00-0x1A03) whose mapping the dictionary has with
+/// entries, in order. The CiA 402 dictionary alone gives 0x1600 and 0x1A00; a CANopen device's
+/// (configs/canopen) its RPDO1 and TPDO1 + TPDO2, the same objects on EtherCAT.
+/// @throws std::invalid_argument from the dictionary (full, or an object already there).
 void add_coe_sync_manager_objects(canopen::ObjectDictionary& dictionary);
 
 /// The slave application's side of the process data, between frames.
 class CoeProcessImage {
  public:
-  /// The PDO maps of 0x1600 and 0x1A00; SM2's memory at `outputs_at`, SM3's at `inputs_at`.
-  /// @throws std::invalid_argument when a map is not valid against the dictionary.
+  /// The PDOs 0x1C12 and 0x1C13 assign, in order, each map after the one before; SM2's memory
+  /// at `outputs_at`, SM3's at `inputs_at`.
+  /// @throws std::invalid_argument when an assignment or a map is not valid against the dictionary.
   CoeProcessImage(canopen::ObjectDictionary& dictionary, std::uint16_t outputs_at, std::uint16_t inputs_at);
-  std::uint16_t output_bytes() const { return rx_.byte_length(); }
-  std::uint16_t input_bytes() const { return tx_.byte_length(); }
+  std::uint16_t output_bytes() const { return bytes_of(rx_); }
+  std::uint16_t input_bytes() const { return bytes_of(tx_); }
+  /// Whether the outputs carry object `index` (the lockstep contract's command tick).
+  bool outputs_map(std::uint16_t index) const;
   /// The outputs the master wrote into SM2 into the dictionary's mapped objects. Never throws;
   /// outputs the dictionary refuses (out of range) are counted and not written.
   void take_outputs(Esc& esc);
@@ -52,9 +58,12 @@ class CoeProcessImage {
   std::uint64_t refused_outputs() const { return refused_outputs_; }
 
  private:
+  static std::vector<canopen::PdoMap> assigned(const canopen::ObjectDictionary& dictionary, std::uint16_t assign);
+  static std::uint16_t bytes_of(const std::vector<canopen::PdoMap>& maps);
+
   canopen::ObjectDictionary& dictionary_;
-  canopen::PdoMap rx_;
-  canopen::PdoMap tx_;
+  std::vector<canopen::PdoMap> rx_;
+  std::vector<canopen::PdoMap> tx_;
   std::uint16_t outputs_at_;
   std::uint16_t inputs_at_;
   std::uint64_t refused_outputs_ = 0;
@@ -76,6 +85,9 @@ class VirtualCia402Slave {
   /// `sii`: the image to answer with (a drive's dump: its identity goes into 0x1018 too); empty:
   /// its own (virtual_sii()). @throws std::invalid_argument from the image or the dictionary.
   explicit VirtualCia402Slave(std::vector<std::uint16_t> sii = {});
+  /// With a CiA 402 dictionary of the caller's (a CANopen device's, configs/canopen), the sync
+  /// manager objects added. @throws std::invalid_argument as above.
+  VirtualCia402Slave(canopen::ObjectDictionary dictionary, std::vector<std::uint16_t> sii);
   VirtualCia402Slave(const VirtualCia402Slave&) = delete;
   VirtualCia402Slave& operator=(const VirtualCia402Slave&) = delete;
 
@@ -93,6 +105,7 @@ class VirtualCia402Slave {
 
  private:
   static canopen::ObjectDictionary make_dictionary(const std::vector<std::uint16_t>& sii);
+  static canopen::ObjectDictionary with_sync_manager_objects(canopen::ObjectDictionary dictionary);
   static EscParams esc_params(std::vector<std::uint16_t> sii, const CoeProcessImage& process);
 
   canopen::ObjectDictionary dictionary_;
@@ -121,6 +134,12 @@ class VirtualEthercatDrive : canopen::Cia402ApplicationEvents {
   /// image, the dictionary or the scaling.
   VirtualEthercatDrive(const canopen::Cia402ApplicationParams& params, drive::Drive& drive, Log log = {},
                        std::vector<std::uint16_t> sii = {});
+  /// With the CiA 402 dictionary `dictionary` (VirtualCia402Slave's second form). When its
+  /// outputs carry the command tick (0x2002, the lockstep contract of a CANopen device's
+  /// dictionary), a cycle steps a period only when the command tick equals the periods stepped
+  /// (0x2001): a frame the master sends again after a lost reply is not a second period.
+  VirtualEthercatDrive(const canopen::Cia402ApplicationParams& params, drive::Drive& drive,
+                       canopen::ObjectDictionary dictionary, Log log = {}, std::vector<std::uint16_t> sii = {});
 
   Esc& esc() { return slave_.esc(); }
   canopen::ObjectDictionary& dictionary() { return slave_.dictionary(); }
@@ -137,6 +156,8 @@ class VirtualEthercatDrive : canopen::Cia402ApplicationEvents {
   double applied_force_n() const { return application_.applied_force_n(); }
   /// Process-data cycles whose outputs came while not in OP (not applied).
   std::uint64_t cycles_outside_op() const { return cycles_outside_op_; }
+  /// Lockstep: cycles in OP whose command tick was not the next period (a repeated frame).
+  std::uint64_t unstepped_cycles() const { return unstepped_cycles_; }
   std::uint64_t emergencies() const { return emergencies_; }
   std::uint16_t last_emergency() const { return last_emergency_; }
 
@@ -153,9 +174,11 @@ class VirtualEthercatDrive : canopen::Cia402ApplicationEvents {
   canopen::Cia402Application application_;
   Log log_;
   std::uint64_t outputs_seen_ = 0;
+  bool lockstep_ = false;        ///< the outputs carry the command tick
   std::int64_t outputs_ns_ = 0;  ///< when the last outputs came, or OP was entered if later
   bool in_op_ = false;
   std::uint64_t cycles_outside_op_ = 0;
+  std::uint64_t unstepped_cycles_ = 0;
   std::uint64_t emergencies_ = 0;
   std::uint16_t last_emergency_ = 0;
 };
