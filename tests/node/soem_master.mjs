@@ -4,7 +4,13 @@
 // interface, reads each slave's identity from its SII, takes the bus to PREOP, reads objects
 // over CoE, maps the process data, walks to SAFEOP and OP, and exchanges process data.
 //
-//   node soem_master.mjs INTERFACE [--read INDEX:SUB ...]
+//   node soem_master.mjs INTERFACE [--read INDEX:SUB ...] [--walk]
+//
+// --walk (a CiA 402 drive behind the slave, `pmlsm ethercat serve --drive`): after the cycles
+// above, the power-state walk by controlword in the process data (shutdown, switch on, enable
+// operation; 0x0006, 0x0007, 0x000F, three cycles each), then 200 cycles of 100 per mille target
+// torque; adds {"statusword_enabled":"hex","position_start":N,"position_end":N} (position actual,
+// increments, as the inputs carried it).
 //
 // Prints one JSON line: {"slaves":N,"identity":[{"name","vendor","product","address"}],
 // "preop":STATE,"reads":{"0x1000:0":"hex bytes" or null},"safeop":STATE,"op":STATE,
@@ -29,12 +35,16 @@ if (args.length < 1) {
 }
 const ifname = args[0];
 const reads = [];
-for (let i = 1; i < args.length; i += 2) {
-  if (args[i] !== "--read" || i + 1 >= args.length) {
+let walk = false;
+for (let i = 1; i < args.length; ++i) {
+  if (args[i] === "--walk") {
+    walk = true;
+  } else if (args[i] === "--read" && i + 1 < args.length) {
+    reads.push(args[++i]);
+  } else {
     console.error(`soem_master: unexpected argument ${args[i]}`);
     process.exit(2);
   }
-  reads.push(args[i + 1]);
 }
 
 const master = new SoemMaster(ifname);
@@ -84,5 +94,25 @@ for (let cycle = 0; cycle < 50 && result.process_wkc.length < 5; ++cycle) {
   }
 }
 result.inputs = Buffer.from(new Uint8Array(master.getSlaves()[0].inputs)).toString("hex");
+if (walk && slave.Obytes >= 4 && slave.Ibytes >= 8) {
+  const outputs = new DataView(slave.outputs);
+  const inputs = () => new DataView(master.getSlaves()[0].inputs);
+  // One answered cycle (a frame the host held past SOEM's 2 ms is sent again, up to 20 times).
+  const cycle = (controlword, torque) => {
+    outputs.setUint16(0, controlword, true);
+    outputs.setInt16(2, torque, true);
+    for (let attempt = 0; attempt < 20; ++attempt) {
+      master.sendProcessdata();
+      if (master.receiveProcessdata() !== -1) return;
+    }
+  };
+  for (const controlword of [0x0006, 0x0007, 0x000f]) {
+    for (let i = 0; i < 3; ++i) cycle(controlword, 0);
+  }
+  result.statusword_enabled = inputs().getUint16(0, true).toString(16);
+  result.position_start = inputs().getInt32(4, true);
+  for (let i = 0; i < 200; ++i) cycle(0x000f, 100);
+  result.position_end = inputs().getInt32(4, true);
+}
 master.close();
 console.log(JSON.stringify(result));

@@ -1172,5 +1172,48 @@ TEST(Ethercat, SoemAnIndependentMasterFindsTheVirtualSlaveReadsItOverCoeTakesItT
       << slave.output();
 }
 
+/// The integer after `"key":` in a JSON line; nullopt when it is not there.
+std::optional<long long> json_integer(const std::string& text, const std::string& key) {
+  const std::string tag = "\"" + key + "\":";
+  const std::size_t at = text.find(tag);
+  if (at == std::string::npos) return std::nullopt;
+  return std::stoll(text.substr(at + tag.size()));
+}
+
+TEST(Ethercat, SoemWalksTheVirtualDriveToOperationEnabledAndItsTorqueMovesTheSimulatedMotor) {
+  if (geteuid() != 0) GTEST_SKIP() << "raw sockets and network namespaces need root; not run";
+  if (quiet_sh("command -v node") != 0) GTEST_SKIP() << "no node (scripts/install_deps.sh installs it); not run";
+  if (!fs::exists(source("tests/node/node_modules/soem-node/build/Release/soem_addon.node"))) {
+    GTEST_SKIP() << "no soem-node in tests/node (scripts/install_deps.sh installs it from npm); not run";
+  }
+  const VethPair pair;
+  if (!pair.ok()) GTEST_SKIP() << "this machine does not allow network namespaces and veth pairs; not run";
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "ethercat_soem_drive");
+  test::ChildProcess slave(pair.in(pair.slave_ns(), {bin("pmlsm"), "ethercat", "serve", "--drive", "--interface",
+                                                     pair.slave_if(), "--seconds", "120"}),
+                           (dir / "serve.log").string());
+  ASSERT_TRUE(slave.wait_for_output("serving a virtual EtherCAT CiA 402 drive", kRunTimeout)) << slave.output();
+  test::ChildProcess soem(pair.in(pair.master_ns(), {"/usr/bin/env", "node", source("tests/node/soem_master.mjs"),
+                                                     pair.master_if(), "--walk"}),
+                          (dir / "soem.log").string());
+  EXPECT_EQ(run_to_end(soem), 0) << soem.output();
+  const std::string out = soem.output();
+  EXPECT_NE(out.find("\"op\":8"), std::string::npos) << out;
+  // SOEM's controlwords walked the simulated drive to operation enabled (statusword 0x0237), and
+  // its 100 per mille (67.5 N of configs/canopen/drive.yaml's 675 N) moved the motor forward.
+  EXPECT_NE(out.find("\"statusword_enabled\":\"237\""), std::string::npos) << out;
+  const std::optional<long long> start = json_integer(out, "position_start");
+  const std::optional<long long> end = json_integer(out, "position_end");
+  ASSERT_TRUE(start && end) << out;
+  EXPECT_GT(*end - *start, 100) << "increments of 1 um over 200 cycles at 67.5 N; " << out;
+  // SOEM stopped cycling without leaving OP: the process-data watchdog (100 ms) took the slave to
+  // SAFEOP and faulted the enabled drive, force off.
+  ASSERT_TRUE(slave.wait_for_output("process-data watchdog expired", kRunTimeout)) << slave.output();
+  slave.signal(SIGINT);
+  ASSERT_TRUE(slave.wait_for(kRunTimeout).has_value());
+  EXPECT_NE(slave.output().find("AL state SAFEOP;"), std::string::npos) << slave.output();
+  EXPECT_NE(slave.output().find("(last 0x8700)"), std::string::npos) << slave.output();
+}
+
 }  // namespace
 }  // namespace pmlsm

@@ -5,6 +5,7 @@
 //   pmlsm ethercat --interface eth1 sdo read 0x1001 0x6061 0
 //   pmlsm ethercat --interface eth1 sdo write 0x1001 0x6060 0 10 --size 1
 //   pmlsm ethercat serve --udp-port 34980                   # a virtual slave (or --interface)
+//   pmlsm ethercat serve --udp-port 34980 --drive           # ... driving the simulated motor
 //   pmlsm ethercat pcap bus.pcapng --sdo                    # a capture decoded by our parsers
 // Station addresses are assigned by position (0x1001 first) on every run, as a scan does.
 // --capture FILE writes every frame the master sent and got back as pcapng (Wireshark reads it).
@@ -15,6 +16,7 @@
 #include <cctype>
 #include <chrono>
 #include <cstdio>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -33,6 +35,11 @@
 #include "pmlsm/ethercat/master.hpp"
 #include "pmlsm/ethercat/pcapng.hpp"
 #include "pmlsm/ethercat/sii.hpp"
+#include "pmlsm/config/canopen_config.hpp"
+#include "pmlsm/config/config.hpp"
+#include "pmlsm/sim/simulated_drive.hpp"
+#include "pmlsm/util/clock.hpp"
+#include "pmlsm/util/data_files.hpp"
 #include "pmlsm/util/validate.hpp"
 
 namespace pmlsm::tools {
@@ -53,6 +60,9 @@ struct EthercatOptions {
   int udp_port = -1;  ///< serve: the UDP port (0: one the kernel picks)
   double seconds = 0;
   std::string sii;
+  bool drive = false;     ///< serve: the CiA 402 drive over the simulated plant behind the slave
+  std::string config;     ///< serve --drive: the system file
+  std::string rig;        ///< serve --drive: the CANopen rig file whose scaling the drive takes
   std::string file;       ///< pcap: the capture
   bool sdo_list = false;  ///< pcap --sdo
 };
@@ -232,30 +242,73 @@ std::vector<std::uint16_t> sii_from_file(const std::string& path) {
   }
 }
 
-int run_serve(const EthercatOptions& o) {
-  VirtualCia402Slave slave(o.sii.empty() ? std::vector<std::uint16_t>{} : sii_from_file(o.sii));
-  VirtualSegment segment({&slave.esc()});
-  std::unique_ptr<Link> link;
+/// The link `serve` answers on. @throws UsageError
+std::unique_ptr<Link> serve_link(const EthercatOptions& o, const char* what) {
   try {
     if (!o.interface.empty()) {
-      link = std::make_unique<RawSocketLink>(o.interface);
-      std::printf("serving a virtual EtherCAT slave on %s\n", o.interface.c_str());
-    } else if (o.udp_port >= 0) {
+      auto link = std::make_unique<RawSocketLink>(o.interface);
+      std::printf("serving %s on %s\n", what, o.interface.c_str());
+      return link;
+    }
+    if (o.udp_port >= 0) {
       auto udp = std::make_unique<UdpLink>(UdpLinkParams{"0.0.0.0", static_cast<std::uint16_t>(o.udp_port), "", 0});
-      std::printf("serving a virtual EtherCAT slave on UDP port %u\n", udp->bound_port());
-      link = std::move(udp);
-    } else {
-      throw UsageError("ethercat serve: give --interface IF or --udp-port PORT");
+      std::printf("serving %s on UDP port %u\n", what, udp->bound_port());
+      return udp;
     }
   } catch (const std::system_error& e) {
     throw UsageError(e.what());
   }
+  throw UsageError("ethercat serve: give --interface IF or --udp-port PORT");
+}
+
+/// Answers frames until a stop signal or --seconds; `between` after each frame and after each
+/// wait without one. Returns the frames answered.
+std::size_t serve_frames(const EthercatOptions& o, VirtualSegment& segment, Link& link,
+                         const std::function<void()>& between) {
   std::fflush(stdout);
   const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(o.seconds);
   std::size_t answered = 0;
   while (!dds::stop_requested() && (o.seconds <= 0 || std::chrono::steady_clock::now() < end)) {
-    answered += segment.serve(*link, 50'000'000, [&] { slave.exchange(); });
+    answered += segment.serve(link, 50'000'000, between);
+    between();
   }
+  return answered;
+}
+
+int run_serve_drive(const EthercatOptions& o) {
+  const std::vector<std::uint16_t> sii = o.sii.empty() ? std::vector<std::uint16_t>{} : sii_from_file(o.sii);
+  const SystemParams system = load_system_params(o.config.empty() ? data_file("configs/system.yaml") : o.config);
+  canopen::Cia402ApplicationParams params;
+  params.scaling = load_canopen_config(o.rig.empty() ? data_file("configs/canopen/drive.yaml") : o.rig).master.scaling;
+  SimulatedDriveBackend simulated(system, PlantInitialCondition{});
+  const std::int64_t start_ns = monotonic_ns();
+  VirtualEthercatDrive drive(
+      params, simulated,
+      [&](bool error, const std::string& line, std::int64_t now_ns) {
+        std::fprintf(error ? stderr : stdout, "drive: %s, %.3f s after start\n", line.c_str(),
+                     static_cast<double>(now_ns - start_ns) * 1e-9);
+      },
+      sii);
+  VirtualSegment segment({&drive.esc()});
+  const std::unique_ptr<Link> link = serve_link(o, "a virtual EtherCAT CiA 402 drive over the simulated motor");
+  const std::size_t answered = serve_frames(o, segment, *link, [&] { drive.after_frame(monotonic_ns()); });
+  const drive::Measurement m = simulated.sample();
+  std::printf(
+      "answered %zu frames; AL state %s; %llu periods stepped, %llu cycles outside OP; power state %s; "
+      "%llu emergencies (last 0x%04X); motor at %.6f m\n",
+      answered, to_string(drive.esc().al_state()), static_cast<unsigned long long>(drive.periods()),
+      static_cast<unsigned long long>(drive.cycles_outside_op()), drive::to_string(simulated.power_state()),
+      static_cast<unsigned long long>(drive.emergencies()), static_cast<unsigned>(drive.last_emergency()),
+      m.position_m);
+  return kExitOk;
+}
+
+int run_serve(const EthercatOptions& o) {
+  if (o.drive) return run_serve_drive(o);
+  VirtualCia402Slave slave(o.sii.empty() ? std::vector<std::uint16_t>{} : sii_from_file(o.sii));
+  VirtualSegment segment({&slave.esc()});
+  const std::unique_ptr<Link> link = serve_link(o, "a virtual EtherCAT slave");
+  const std::size_t answered = serve_frames(o, segment, *link, [&] { slave.exchange(); });
   std::printf("answered %zu frames; AL state %s; %llu SDO requests\n", answered, to_string(slave.esc().al_state()),
               static_cast<unsigned long long>(slave.coe().requests()));
   std::printf("outputs: controlword 0x%04llX, target torque %lld per mille (%llu refused)\n",
@@ -353,6 +406,13 @@ void add_ethercat_command(CLI::App& app, int& exit_code) {
   serve->add_option("--interface", o->interface, "Answer raw EtherCAT frames on this interface (CAP_NET_RAW)");
   serve->add_option("--udp-port", o->udp_port, "Answer EtherCAT over UDP on this port (0: any, printed)");
   serve->add_option("--seconds", o->seconds, "Stop after this long (default: at a stop signal)");
+  serve->add_flag("--drive", o->drive,
+                  "Behind the slave, the CiA 402 drive over the simulated motor (cyclic synchronous torque, one "
+                  "period a process-data cycle in OP, the process-data watchdog)");
+  serve->add_option("-c,--config", o->config, "--drive: the system file (default: the shipped one)");
+  serve->add_option("--rig", o->rig,
+                    "--drive: the rig file whose scaling (rated force, increments per metre) the drive takes "
+                    "(default: the shipped configs/canopen/drive.yaml, as the CANopen drive)");
   serve->add_option("--sii", o->sii, "An SII EEPROM image to answer with (raw words, as a drive's dump)")
       ->check(CLI::ExistingFile);
   serve->callback(run(&run_serve));
