@@ -21,6 +21,7 @@
 
 #include "child_process.hpp"
 #include "integration_support.hpp"
+#include "pmlsm/util/exit_codes.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/dds/catalog.hpp"
 #include "pmlsm/introspect/cdr_schema.hpp"
@@ -1210,7 +1211,9 @@ TEST(Ethercat, SoemWalksTheVirtualDriveToOperationEnabledAndItsTorqueMovesTheSim
   // SAFEOP and faulted the enabled drive, force off.
   ASSERT_TRUE(slave.wait_for_output("process-data watchdog expired", kRunTimeout)) << slave.output();
   slave.signal(SIGINT);
-  ASSERT_TRUE(slave.wait_for(kRunTimeout).has_value());
+  const std::optional<int> code = slave.wait_for(kRunTimeout);
+  ASSERT_TRUE(code.has_value());
+  EXPECT_EQ(*code, kExitSafeState) << "a drive that faulted while served is no clean run; " << slave.output();
   EXPECT_NE(slave.output().find("AL state SAFEOP;"), std::string::npos) << slave.output();
   EXPECT_NE(slave.output().find("(last 0x8700)"), std::string::npos) << slave.output();
 }

@@ -10,7 +10,7 @@
 // Station addresses are assigned by position (0x1001 first) on every run, as a scan does.
 // --capture FILE writes every frame the master sent and got back as pcapng (Wireshark reads it).
 // Exit 0 done; 1 the bus or a slave did not answer, or refused (its AL status code named); 2 bad
-// command line; 3 no slave on the bus.
+// command line; 3 no slave on the bus; 5 serve --drive: the drive faulted while served.
 #include <CLI/CLI.hpp>
 
 #include <cctype>
@@ -300,6 +300,11 @@ int run_serve_drive(const EthercatOptions& o) {
       static_cast<unsigned long long>(drive.cycles_outside_op()), drive::to_string(simulated.power_state()),
       static_cast<unsigned long long>(drive.emergencies()), static_cast<unsigned>(drive.last_emergency()),
       m.position_m);
+  if (simulated.fault_count() > 0) {
+    std::fprintf(stderr, "ethercat serve: the drive faulted %llu time(s) while served: exit %d\n",
+                 static_cast<unsigned long long>(simulated.fault_count()), kExitSafeState);
+    return kExitSafeState;
+  }
   return kExitOk;
 }
 
