@@ -56,15 +56,13 @@ Cia402Drive::Cia402Drive(const Cia402DriveConfig& config, can::CanBus& bus, Cloc
       node_(config.node_id),
       master_node_(config.master_node_id),
       scaling_(config.scaling),
-      master_(Cia402MasterParams{config.enable_timeout_cycles}),
+      remote_(config.enable_timeout_cycles),
       sdo_(node_, config.sdo_timeout_ms),
       sync_(config.sync_overflow) {
   if (!clock_) throw std::invalid_argument("clock: must be set");
   if (config_.drive_heartbeat_ms > 0) heartbeat_.emplace(node_, config_.drive_heartbeat_timeout_ms);
   next_master_heartbeat_ns_ = now_ns();
 }
-
-void Cia402Drive::set_problem(const char* text) noexcept { std::snprintf(problem_, sizeof problem_, "%s", text); }
 
 void Cia402Drive::send(const can::CanFrame& frame) { bus_.send(frame); }
 
@@ -131,17 +129,10 @@ void Cia402Drive::handle(const can::CanFrame& frame) {
         ++counters_.malformed;
         return;
       }
-      statusword_ = get_u16_le(frame.data, 0);
-      statusword_valid_ = true;
+      remote_.on_statusword(get_u16_le(frame.data, 0));
       torque_actual_ = static_cast<std::int16_t>(get_u16_le(frame.data, 2));
       velocity_actual_ = static_cast<std::int32_t>(get_u32_le(frame.data, 4));
       tpdo1_generation_ = generation_;
-      {
-        const std::optional<drive::PowerState> state = drive::decode_statusword(statusword_);
-        const bool faulted = state == drive::PowerState::kFaultReactionActive || state == drive::PowerState::kFault;
-        if (faulted && !drive_faulted_ && !local_fault_) ++fault_count_;
-        drive_faulted_ = faulted;
-      }
       break;
     case FunctionCode::kTpdo2:
       if (frame.dlc != 8) {
@@ -158,11 +149,10 @@ void Cia402Drive::handle(const can::CanFrame& frame) {
       if (!emcy) return;
       ++counters_.emcys;
       if (emcy.value.error_code != kEmcyNoError) {
-        error_code_ = emcy.value.error_code;
         char text[96];
         std::snprintf(text, sizeof text, "EMCY 0x%04X (%s)", emcy.value.error_code,
                       describe_emcy(emcy.value.error_code));
-        set_problem(text);
+        remote_.on_drive_error(emcy.value.error_code, text);
       }
       break;
     }
@@ -175,7 +165,7 @@ void Cia402Drive::handle(const can::CanFrame& frame) {
       }
       if (hb.value.boot_up()) boot_up_ = true;
       if (heartbeat_) heartbeat_->on_frame(frame, now_ms());
-      if (started_ && hb.value.state != NmtState::kOperational && !lost_) {
+      if (started_ && hb.value.state != NmtState::kOperational && !remote_.lost()) {
         char text[96];
         std::snprintf(text, sizeof text, "the drive left NMT operational (heartbeat: %s)", to_string(hb.value.state));
         lose(text);
@@ -217,17 +207,11 @@ bool Cia402Drive::wait_answer(std::optional<std::uint32_t> expected, std::int64_
     const std::int64_t left = deadline_ns - now_ns();
     if (left <= 0) return false;
     service(left);
-    if (lost_) return false;
+    if (remote_.lost()) return false;
   }
 }
 
-void Cia402Drive::lose(const char* what) {
-  if (!lost_) {
-    lost_ = true;
-    set_problem(what);
-  }
-  fault(drive::kErrorCommandTimeout);
-}
+void Cia402Drive::lose(const char* what) { remote_.lose(what); }
 
 std::uint32_t Cia402Drive::sdo(bool write, std::uint16_t index, std::uint8_t sub, std::uint32_t value,
                                std::uint8_t size, const char* name) {
@@ -310,7 +294,7 @@ bool Cia402Drive::idle_exchange(std::uint16_t controlword) {
   for (std::uint32_t attempt = 0; attempt <= config_.sync_retries; ++attempt) {
     send_sync(attempt > 0);
     if (wait_answer(std::nullopt, now_ns() + config_.sync_timeout_ms * kNsPerMs)) return true;
-    if (lost_) return false;
+    if (remote_.lost()) return false;
   }
   return false;
 }
@@ -321,17 +305,16 @@ void Cia402Drive::start() {
   for (std::uint32_t attempt = 0; attempt <= config_.sync_retries && !answered; ++attempt) {
     if (attempt > 0) send_sync(true);
     answered = wait_answer(std::nullopt, now_ns() + config_.sync_timeout_ms * kNsPerMs);
-    if (lost_) break;
+    if (remote_.lost()) break;
   }
   if (!answered) {
     throw Cia402DriveError("drive node " + std::to_string(node_.value()) + ": no TPDO1 + TPDO2 (COB-IDs " +
                            hex(tpdo_cob_id(1, node_), 3) + ", " + hex(tpdo_cob_id(2, node_), 3) + ") after " +
                            std::to_string(config_.sync_retries + 1) + " SYNCs" +
-                           (lost_ ? std::string(": ") + problem_ : std::string()));
+                           (remote_.lost() ? std::string(": ") + remote_.problem() : std::string()));
   }
   // Hold the drive where it is: an RPDO1 it does not step on, with the master's word.
-  const Cia402MasterOutput out = master_.update(statusword_, enable_);
-  send_rpdo(out.controlword, 0, periods_ - 1U);
+  send_rpdo(remote_.next_controlword(), 0, periods_ - 1U);
   base_ = periods_;
   started_ = true;
   tick_ = 0;
@@ -340,26 +323,24 @@ void Cia402Drive::start() {
 
 void Cia402Drive::enable_and_wait() {
   if (!started_) start();
-  enable_ = true;
-  master_.quick_stop(false);
   for (;;) {
-    const Cia402MasterOutput out = master_.update(statusword_, true);
+    const Cia402MasterOutput out = remote_.walk();
     if (out.status == Cia402MasterStatus::kOperationEnabled) break;
     if (out.status == Cia402MasterStatus::kFaultResetNeeded) {
       throw Cia402DriveError("drive node " + std::to_string(node_.value()) + " is in fault (error code " +
-                             hex(error_code_, 4) + "): fault reset first");
+                             hex(remote_.error_code(), 4) + "): fault reset first");
     }
     if (out.timed_out) {
       throw Cia402DriveError("drive node " + std::to_string(node_.value()) +
                              " never reached operation enabled: stuck in " +
                              (out.stuck_in ? drive::to_string(*out.stuck_in) : "an invalid statusword") +
-                             " (statusword " + hex(statusword_, 4) + ", controlword " + hex(out.controlword, 4) +
+                             " (statusword " + hex(remote_.statusword(), 4) + ", controlword " + hex(out.controlword, 4) +
                              ") for " + std::to_string(config_.enable_timeout_cycles) + " cycles");
     }
     if (!idle_exchange(out.controlword)) {
       throw Cia402DriveError("drive node " + std::to_string(node_.value()) +
                              " stopped answering during the enable walk" +
-                             (lost_ ? std::string(": ") + problem_ : std::string()));
+                             (remote_.lost() ? std::string(": ") + remote_.problem() : std::string()));
     }
   }
   base_ = periods_;
@@ -380,7 +361,7 @@ drive::Measurement Cia402Drive::sample() {
     started_ = true;
   }
   const std::uint64_t k = tick_++;
-  if (lost_) {
+  if (remote_.lost()) {
     while (service(0)) {
     }
     return last_measurement_;
@@ -404,7 +385,7 @@ drive::Measurement Cia402Drive::sample() {
   send_sync(false);
   for (std::uint32_t attempt = 0;; ++attempt) {
     if (wait_answer(expected, now_ns() + config_.sync_timeout_ms * kNsPerMs)) break;
-    if (lost_) return last_measurement_;
+    if (remote_.lost()) return last_measurement_;
     if (attempt >= config_.sync_retries) {
       char text[160];
       std::snprintf(text, sizeof text, "no answer to the SYNC of tick %llu after %u resends: drive lost",
@@ -427,113 +408,17 @@ drive::Measurement Cia402Drive::sample() {
 
 void Cia402Drive::apply(double force_n) {
   const bool enabled = power_state() == drive::PowerState::kOperationEnabled;
-  const Cia402MasterOutput out = master_.update(statusword_, enable_ && !local_fault_ && !lost_);
-  stuck_in_.reset();
-  if (out.timed_out && !lost_) {
-    stuck_in_ = out.stuck_in ? *out.stuck_in : drive::PowerState::kNotReadyToSwitchOn;
-  }
-  std::uint16_t controlword = out.controlword;
-  // An operator's walk one state at a time (shutdown, switch on): the word for that state.
-  if (partial_target_ && !local_fault_ && !lost_ && !master_.quick_stop_active()) {
-    const std::optional<drive::PowerState> state = drive::decode_statusword(statusword_);
-    if (state && *state != drive::PowerState::kFault && *state != drive::PowerState::kFaultReactionActive) {
-      const bool to_switched_on = *partial_target_ == drive::DriveCommand::kSwitchOn &&
-                                  *state != drive::PowerState::kSwitchOnDisabled &&
-                                  *state != drive::PowerState::kQuickStopActive;
-      controlword =
-          drive::controlword_of(to_switched_on ? drive::DriveCommand::kSwitchOn : drive::DriveCommand::kShutdown);
-      if (*state == drive::PowerState::kQuickStopActive)
-        controlword = drive::controlword_of(drive::DriveCommand::kDisableVoltage);
-    }
-  }
+  const std::uint16_t controlword = remote_.next_controlword();
   const std::int16_t torque = enabled ? scaling_.force_to_per_mille(force_n).value : std::int16_t{0};
   const std::uint64_t k = tick_ == 0 ? 0 : tick_ - 1;  // the tick sampled last
   const std::uint32_t command_tick = config_.realtime ? periods_ : base_ + static_cast<std::uint32_t>(k);
   send_rpdo(controlword, torque, command_tick);
 }
 
-drive::TransitionResult Cia402Drive::request(drive::DriveCommand command) {
-  drive::TransitionResult r;
-  r.from = power_state();
-  r.to = r.from;
-  r.accepted = true;
-  partial_target_.reset();
-  switch (command) {
-    case drive::DriveCommand::kEnableOperation:
-      if (local_fault_ || r.from == drive::PowerState::kFault || r.from == drive::PowerState::kFaultReactionActive) {
-        r.accepted = false;
-        r.reason = "the drive is in fault: fault reset first";
-        return r;
-      }
-      if (lost_) {
-        r.accepted = false;
-        r.reason = "the drive is lost (no answer on the bus)";
-        return r;
-      }
-      enable_ = true;
-      master_.quick_stop(false);
-      r.reason = "sent: the drive walks to operation enabled over the next cycles";
-      break;
-    case drive::DriveCommand::kQuickStop:
-      enable_ = false;
-      master_.quick_stop(true);
-      r.reason = "sent: quick stop";
-      break;
-    case drive::DriveCommand::kFaultReset:
-      local_fault_ = false;
-      if (r.from == drive::PowerState::kFault || drive::decode_statusword(statusword_) == drive::PowerState::kFault) {
-        master_.request_fault_reset();
-      }
-      master_.quick_stop(false);
-      enable_ = false;
-      r.to = power_state();
-      r.reason = "sent: fault reset";
-      break;
-    case drive::DriveCommand::kShutdown:
-    case drive::DriveCommand::kSwitchOn:
-    case drive::DriveCommand::kDisableOperation:
-      if (local_fault_ || lost_ || r.from == drive::PowerState::kFault) {
-        r.accepted = false;
-        r.reason = "the drive is in fault: fault reset first";
-        return r;
-      }
-      enable_ = false;
-      master_.quick_stop(false);
-      partial_target_ = command == drive::DriveCommand::kShutdown ? command : drive::DriveCommand::kSwitchOn;
-      r.reason = command == drive::DriveCommand::kShutdown ? "sent: shutdown" : "sent: switch on";
-      break;
-    case drive::DriveCommand::kDisableVoltage:
-      enable_ = false;
-      master_.quick_stop(false);
-      r.reason = "sent: disable voltage";
-      break;
-  }
-  return r;
-}
+drive::TransitionResult Cia402Drive::request(drive::DriveCommand command) { return remote_.request(command); }
 
-void Cia402Drive::fault(std::uint16_t error_code) {
-  if (local_fault_) return;  // the first cause is kept
-  local_fault_ = true;
-  ++fault_count_;
-  error_code_ = error_code == 0 ? drive::kErrorCodeGeneric : error_code;
-  enable_ = false;
-  master_.quick_stop(true);
-  if (problem_[0] == '\0') {
-    char text[64];
-    std::snprintf(text, sizeof text, "fault 0x%04X raised by the drive loop", error_code_);
-    set_problem(text);
-  }
-}
+void Cia402Drive::fault(std::uint16_t error_code) { remote_.fault(error_code); }
 
-drive::PowerState Cia402Drive::power_state() const {
-  drive::PowerState decoded = drive::PowerState::kNotReadyToSwitchOn;
-  if (statusword_valid_) {
-    if (const auto state = drive::decode_statusword(statusword_)) decoded = *state;
-  }
-  if (local_fault_ || lost_) {
-    return decoded == drive::PowerState::kFaultReactionActive ? decoded : drive::PowerState::kFault;
-  }
-  return decoded;
-}
+drive::PowerState Cia402Drive::power_state() const { return remote_.power_state(); }
 
 }  // namespace pmlsm::canopen

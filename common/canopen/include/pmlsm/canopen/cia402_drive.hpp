@@ -41,6 +41,7 @@
 #include "pmlsm/can/can_bus.hpp"
 #include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/canopen/cia402_master.hpp"
+#include "pmlsm/canopen/cia402_remote_state.hpp"
 #include "pmlsm/canopen/cob_id.hpp"
 #include "pmlsm/canopen/nmt.hpp"
 #include "pmlsm/canopen/scaling.hpp"
@@ -160,18 +161,18 @@ class Cia402Drive final : public drive::Drive {
   drive::TransitionResult request(drive::DriveCommand command) override;
   void fault(std::uint16_t error_code) override;
   drive::PowerState power_state() const override;
-  std::uint16_t error_code() const override { return error_code_; }
-  std::uint64_t fault_count() const override { return fault_count_; }
+  std::uint16_t error_code() const override { return remote_.error_code(); }
+  std::uint64_t fault_count() const override { return remote_.fault_count(); }
   bool simulated() const override { return false; }
 
   /// Lost: no answer after the retries, or the drive's heartbeat timed out.
-  bool lost() const noexcept { return lost_; }
+  bool lost() const noexcept { return remote_.lost(); }
   /// Why the drive was lost or faulted locally, the EMCY, a stuck walk ("" when none).
-  const char* last_problem() const noexcept { return problem_; }
+  const char* last_problem() const noexcept { return remote_.problem(); }
   /// The walk has been stuck in one state for enable_timeout_cycles (during the run).
-  std::optional<drive::PowerState> stuck_in() const noexcept { return stuck_in_; }
-  std::uint16_t statusword() const noexcept { return statusword_; }
-  std::uint16_t controlword() const noexcept { return master_.last_controlword(); }
+  std::optional<drive::PowerState> stuck_in() const noexcept { return remote_.stuck_in(); }
+  std::uint16_t statusword() const noexcept { return remote_.statusword(); }
+  std::uint16_t controlword() const noexcept { return remote_.last_controlword(); }
   std::uint32_t periods_stepped() const noexcept { return periods_; }
   std::uint64_t ticks() const noexcept { return tick_; }
   const Cia402DriveCounters& counters() const noexcept { return counters_; }
@@ -196,7 +197,6 @@ class Cia402Drive final : public drive::Drive {
   std::uint32_t sdo(bool write, std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t size,
                     const char* name);
   void lose(const char* what);
-  void set_problem(const char* text) noexcept;
   drive::Measurement measurement() const;
 
   Cia402DriveConfig config_;
@@ -205,7 +205,7 @@ class Cia402Drive final : public drive::Drive {
   NodeId node_;
   NodeId master_node_;
   UnitScaling scaling_;
-  Cia402Master master_;
+  Cia402RemoteState remote_;
   SdoClient sdo_;
   SyncProducer sync_;
   std::optional<HeartbeatConsumer> heartbeat_;
@@ -217,8 +217,6 @@ class Cia402Drive final : public drive::Drive {
   // the drive as last heard
   bool seen_ = false;  // boot-up or heartbeat
   bool boot_up_ = false;
-  std::uint16_t statusword_ = 0;
-  bool statusword_valid_ = false;
   std::int16_t torque_actual_ = 0;
   std::int32_t velocity_actual_ = 0;
   std::int32_t position_actual_ = 0;
@@ -231,17 +229,6 @@ class Cia402Drive final : public drive::Drive {
   // SDO transfer outcome
   std::optional<SdoClientEvent> sdo_event_;
 
-  // the master's intent and local state
-  bool enable_ = false;
-  /// shutdown / switch on requested: held in that state (nullopt: enable_ decides).
-  std::optional<drive::DriveCommand> partial_target_;
-  bool local_fault_ = false;
-  bool drive_faulted_ = false;  // the statusword shows fault reaction active or fault
-  bool lost_ = false;
-  std::uint16_t error_code_ = 0;
-  std::uint64_t fault_count_ = 0;
-  std::optional<drive::PowerState> stuck_in_;
-  char problem_[192] = {};
   std::uint32_t base_ = 0;
   bool started_ = false;
   std::uint32_t missed_in_row_ = 0;  // realtime: ticks in a row without the TPDOs
