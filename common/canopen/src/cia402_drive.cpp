@@ -331,11 +331,11 @@ void Cia402Drive::enable_and_wait() {
                              hex(remote_.error_code(), 4) + "): fault reset first");
     }
     if (out.timed_out) {
-      throw Cia402DriveError("drive node " + std::to_string(node_.value()) +
-                             " never reached operation enabled: stuck in " +
-                             (out.stuck_in ? drive::to_string(*out.stuck_in) : "an invalid statusword") +
-                             " (statusword " + hex(remote_.statusword(), 4) + ", controlword " + hex(out.controlword, 4) +
-                             ") for " + std::to_string(config_.enable_timeout_cycles) + " cycles");
+      throw Cia402DriveError(
+          "drive node " + std::to_string(node_.value()) + " never reached operation enabled: stuck in " +
+          (out.stuck_in ? drive::to_string(*out.stuck_in) : "an invalid statusword") + " (statusword " +
+          hex(remote_.statusword(), 4) + ", controlword " + hex(out.controlword, 4) + ") for " +
+          std::to_string(config_.enable_timeout_cycles) + " cycles");
     }
     if (!idle_exchange(out.controlword)) {
       throw Cia402DriveError("drive node " + std::to_string(node_.value()) +

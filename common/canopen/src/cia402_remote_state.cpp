@@ -7,9 +7,7 @@ namespace pmlsm::canopen {
 Cia402RemoteState::Cia402RemoteState(std::uint32_t enable_timeout_cycles)
     : master_(Cia402MasterParams{enable_timeout_cycles}) {}
 
-void Cia402RemoteState::set_problem(const char* text) noexcept {
-  std::snprintf(problem_, sizeof problem_, "%s", text);
-}
+void Cia402RemoteState::set_problem(const char* text) noexcept { std::snprintf(problem_, sizeof problem_, "%s", text); }
 
 void Cia402RemoteState::on_statusword(std::uint16_t statusword) noexcept {
   statusword_ = statusword;

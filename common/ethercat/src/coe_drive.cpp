@@ -209,6 +209,8 @@ void VirtualEthercatDrive::after_frame(std::int64_t now_ns) {
   outputs_seen_ = written;
   if (cycles > 0) outputs_ns_ = now_ns;
   if (state != AlState::kOp) {
+    // Objects written by SDO show in the live ones (0x6060 in 0x6061) before any period.
+    application_.update_objects();
     cycles_outside_op_ += cycles;
     if (state == AlState::kSafeOp) slave_.process().give_inputs(esc);
     return;

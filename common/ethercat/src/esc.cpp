@@ -457,6 +457,7 @@ bool VirtualSegmentLink::send(Bytes ethernet_frame) {
   std::copy(ethernet_frame.data, ethernet_frame.data + ethernet_frame.size, buffer_.begin());
   size_ = ethernet_frame.size;
   pending_ = segment_.pass(buffer_.data(), size_) == FrameError::kNone;  // a refused frame is lost
+  if (pending_ && after_frame_) after_frame_();
   return true;
 }
 

@@ -58,10 +58,15 @@ void Master::record(Bytes frame) {
 }
 
 Reply Master::exchange(Command command, std::uint32_t address, std::uint8_t* data, std::uint16_t length) {
+  return exchange(command, address, data, length, params_.reply_timeout_ns, params_.retries);
+}
+
+Reply Master::exchange(Command command, std::uint32_t address, std::uint8_t* data, std::uint16_t length,
+                       std::int64_t reply_timeout_ns, int retries) {
   const std::uint8_t index = next_index_++;
   frame_.clear();
   if (!frame_.add(command, index, address, data, length)) return {};
-  for (int attempt = 0; attempt <= params_.retries; ++attempt) {
+  for (int attempt = 0; attempt <= retries; ++attempt) {
     const Bytes sent = frame_.ethernet();
     ++frames_sent_;
     if (!link_.send(sent)) {
@@ -69,8 +74,8 @@ Reply Master::exchange(Command command, std::uint32_t address, std::uint8_t* dat
       continue;
     }
     record(sent);
-    const std::int64_t deadline = now_ns() + params_.reply_timeout_ns;
-    for (std::int64_t left = params_.reply_timeout_ns; left > 0; left = deadline - now_ns()) {
+    const std::int64_t deadline = now_ns() + reply_timeout_ns;
+    for (std::int64_t left = reply_timeout_ns; left > 0; left = deadline - now_ns()) {
       const std::size_t size = link_.receive(received_.data(), left);
       if (size == 0) break;
       ParsedFrame parsed;
@@ -336,7 +341,17 @@ SdoResult Master::sdo_download(const SlaveInfo& slave, std::uint16_t index, std:
   return sdo_transfer(slave, bytes);
 }
 
-std::uint32_t Master::assigned_bits(const SlaveInfo& slave, std::uint16_t assign_index) {
+int ProcessDataLayout::offset_in(const std::vector<canopen::PdoMapEntry>& entries, std::uint16_t index,
+                                 std::uint8_t subindex) {
+  int bits = 0;
+  for (const canopen::PdoMapEntry& e : entries) {
+    if (e.index == index && e.subindex == subindex) return bits / 8;
+    bits += e.bit_length;
+  }
+  return -1;
+}
+
+std::vector<canopen::PdoMapEntry> Master::assigned_entries(const SlaveInfo& slave, std::uint16_t assign_index) {
   const auto checked = [&](std::uint16_t index, std::uint8_t sub) {
     const SdoResult r = sdo_upload(slave, index, sub);
     if (!r.done) {
@@ -345,14 +360,16 @@ std::uint32_t Master::assigned_bits(const SlaveInfo& slave, std::uint16_t assign
     }
     return r.value;
   };
-  std::uint32_t bits = 0;
+  std::vector<canopen::PdoMapEntry> out;
   const std::uint32_t pdos = checked(assign_index, 0);
   for (std::uint32_t i = 1; i <= pdos; ++i) {
     const auto pdo = static_cast<std::uint16_t>(checked(assign_index, static_cast<std::uint8_t>(i)));
     const std::uint32_t entries = checked(pdo, 0);
-    for (std::uint32_t e = 1; e <= entries; ++e) bits += checked(pdo, static_cast<std::uint8_t>(e)) & 0xFFU;
+    for (std::uint32_t e = 1; e <= entries; ++e) {
+      out.push_back(canopen::decode_pdo_mapping(checked(pdo, static_cast<std::uint8_t>(e))));
+    }
   }
-  return bits;
+  return out;
 }
 
 ProcessDataLayout Master::map_process_data(const SlaveInfo& slave, std::uint32_t logical) {
@@ -368,8 +385,15 @@ ProcessDataLayout Master::map_process_data(const SlaveInfo& slave, std::uint32_t
   }
   ProcessDataLayout layout;
   // Whole bytes: a PDO of a CiA 402 drive is bytes.
-  layout.output_bytes = static_cast<std::uint16_t>((assigned_bits(slave, 0x1C12) + 7) / 8);
-  layout.input_bytes = static_cast<std::uint16_t>((assigned_bits(slave, 0x1C13) + 7) / 8);
+  layout.outputs = assigned_entries(slave, 0x1C12);
+  layout.inputs = assigned_entries(slave, 0x1C13);
+  const auto bytes_of = [](const std::vector<canopen::PdoMapEntry>& entries) {
+    std::uint32_t bits = 0;
+    for (const canopen::PdoMapEntry& e : entries) bits += e.bit_length;
+    return static_cast<std::uint16_t>((bits + 7) / 8);
+  };
+  layout.output_bytes = bytes_of(layout.outputs);
+  layout.input_bytes = bytes_of(layout.inputs);
   layout.outputs_logical = logical;
   layout.inputs_logical = logical + layout.output_bytes;
   if (layout.output_bytes > 0) {

@@ -200,15 +200,19 @@ class VirtualSegment {
 };
 
 /// A link to a virtual segment in the same thread: a frame sent passes the slaves at once and is
-/// what the next receive() returns. Deterministic, for tests and in-process rigs.
+/// what the next receive() returns; `after_frame` (may be empty) runs after each frame passed, as
+/// VirtualSegment::serve's between_frames (the slaves' applications). Deterministic, for tests and
+/// in-process rigs.
 class VirtualSegmentLink final : public Link {
  public:
-  explicit VirtualSegmentLink(VirtualSegment& segment) : segment_(segment) {}
+  explicit VirtualSegmentLink(VirtualSegment& segment, std::function<void()> after_frame = {})
+      : segment_(segment), after_frame_(std::move(after_frame)) {}
   bool send(Bytes ethernet_frame) override;
   std::size_t receive(std::uint8_t* buffer, std::int64_t timeout_ns) override;
 
  private:
   VirtualSegment& segment_;
+  std::function<void()> after_frame_;
   std::array<std::uint8_t, kMaxEthernetFrameBytes> buffer_{};
   std::size_t size_ = 0;
   bool pending_ = false;

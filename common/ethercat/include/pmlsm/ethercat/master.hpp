@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "pmlsm/canopen/pdo.hpp"
 #include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/ethercat/frame.hpp"
 #include "pmlsm/ethercat/link.hpp"
@@ -55,6 +56,19 @@ struct ProcessDataLayout {
   std::uint16_t input_bytes = 0;   ///< SM3: the master reads
   std::uint32_t outputs_logical = 0;
   std::uint32_t inputs_logical = 0;  ///< outputs_logical + output_bytes
+  /// The objects in the outputs and in the inputs, in the order they are packed (each assigned
+  /// PDO's entries after the one before's).
+  std::vector<canopen::PdoMapEntry> outputs;
+  std::vector<canopen::PdoMapEntry> inputs;
+  /// Where object `index` (sub-index `subindex`) sits in the outputs (or inputs): its first byte
+  /// from the start of them, or -1 when it is not mapped.
+  int output_offset(std::uint16_t index, std::uint8_t subindex = 0) const {
+    return offset_in(outputs, index, subindex);
+  }
+  int input_offset(std::uint16_t index, std::uint8_t subindex = 0) const { return offset_in(inputs, index, subindex); }
+
+ private:
+  static int offset_in(const std::vector<canopen::PdoMapEntry>& entries, std::uint16_t index, std::uint8_t subindex);
 };
 
 struct StateResult {
@@ -77,6 +91,9 @@ class Master {
   /// One datagram there and back: `data` (length bytes) goes out and is replaced by what came
   /// back. Not answered after the retries: answered false, `data` as it was. Never throws.
   Reply exchange(Command command, std::uint32_t address, std::uint8_t* data, std::uint16_t length);
+  /// The same with this exchange's own reply time-out and retries (a cycle's deadline).
+  Reply exchange(Command command, std::uint32_t address, std::uint8_t* data, std::uint16_t length,
+                 std::int64_t reply_timeout_ns, int retries);
 
   /// The slaves on the bus: the working counter of a broadcast read.
   std::uint16_t count_slaves();
@@ -141,8 +158,8 @@ class Master {
   void read_register(std::uint16_t station, std::uint16_t address, std::uint8_t* data, std::uint16_t length,
                      const char* what);
   void record(Bytes frame);
-  /// The bits the PDOs assigned in `assign_index` (0x1C12, 0x1C13) map.
-  std::uint32_t assigned_bits(const SlaveInfo& slave, std::uint16_t assign_index);
+  /// The entries of the PDOs assigned in `assign_index` (0x1C12, 0x1C13), in order.
+  std::vector<canopen::PdoMapEntry> assigned_entries(const SlaveInfo& slave, std::uint16_t assign_index);
   /// One SDO request through the mailboxes and its response's 8 bytes.
   SdoResult sdo_transfer(const SlaveInfo& slave, const std::array<std::uint8_t, 8>& request);
 

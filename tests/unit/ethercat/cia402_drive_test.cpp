@@ -1,0 +1,253 @@
+// Our EtherCAT master's CiA 402 drive (ethercat::Cia402Drive, the drive loop's backend) against the
+// virtual EtherCAT drive over the simulated drive, in this thread: the boot (identity, mode, the
+// process data found in the drive's own mapping), the enable walk stepping nothing, a force
+// profile through the drive seam read back as the simulated drive stepped directly reads, lost
+// replies that cost no period and no second one, a drive that stops answering lost at zero force
+// with its AL state named, and (realtime) the drive's watchdog fault read with its error code.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "pmlsm/canopen/cia402_dictionary.hpp"
+#include "pmlsm/canopen/emcy.hpp"
+#include "pmlsm/canopen/scaling.hpp"
+#include "pmlsm/config/canopen_config.hpp"
+#include "pmlsm/config/config.hpp"
+#include "pmlsm/ethercat/cia402_drive.hpp"
+#include "pmlsm/ethercat/coe_drive.hpp"
+#include "pmlsm/ethercat/esc.hpp"
+#include "pmlsm/sim/simulated_drive.hpp"
+
+namespace pmlsm::ethercat::backend_test {
+namespace {
+
+constexpr std::int64_t kPeriodNs = 1'000'000;
+
+/// A link that loses what `drop` picks of the frames sent (counted from 0; the frame went out and
+/// passed the drive, its reply is lost, as on a wire that drops on the way back), or everything
+/// once `dead` is set (a cable pulled: nothing goes out).
+class LossyLink final : public Link {
+ public:
+  explicit LossyLink(Link& inner) : inner_(inner) {}
+  bool send(Bytes frame) override {
+    if (dead) return true;  // sent into a cable that leads nowhere
+    const bool lose_reply = drop && drop(sent_++);
+    if (!inner_.send(frame)) return false;
+    if (lose_reply) {
+      std::array<std::uint8_t, kMaxEthernetFrameBytes> sink{};
+      inner_.receive(sink.data(), 0);
+      ++dropped;
+    }
+    return true;
+  }
+  std::size_t receive(std::uint8_t* buffer, std::int64_t timeout_ns) override {
+    return dead ? 0 : inner_.receive(buffer, timeout_ns);
+  }
+  std::function<bool(std::uint64_t)> drop;
+  bool dead = false;
+  std::uint64_t dropped = 0;
+
+ private:
+  Link& inner_;
+  std::uint64_t sent_ = 0;
+};
+
+/// The virtual drive with the CANopen device's dictionary (the lockstep contract) or the CiA 402
+/// one alone, on a segment of its own, its application run after every frame at a simulated time
+/// that advances one period a frame; our drive backend on a lossy link to it.
+struct Rig {
+  explicit Rig(bool device_dictionary, Cia402DriveConfig config = rig_config())
+      : root(std::string(PMLSM_SOURCE_DIR) + "/"),
+        system(load_system_params(root + "configs/system.yaml")),
+        canopen_rig(load_canopen_config(root + "configs/canopen/drive.yaml")),
+        device(load_device_dictionary(root + "configs/canopen/virtual_drive_od.yaml")),
+        behind(system, PlantInitialCondition{}),
+        drive(make_drive(device_dictionary)),
+        segment({&drive->esc()}),
+        link(segment, [this] { drive->after_frame(now_ns += step_ns); }),
+        lossy(link),
+        master(config, lossy) {}
+
+  static Cia402DriveConfig rig_config() {
+    Cia402DriveConfig c;
+    c.vendor_id = VirtualCia402Slave::kVendorId;
+    c.product_code = VirtualCia402Slave::kProductCode;
+    c.reply_timeout_ms = 1;  // in this thread a reply is there at once or never
+    c.cycle_timeout_ms = 1;
+    return c;
+  }
+  std::unique_ptr<VirtualEthercatDrive> make_drive(bool device_dictionary) {
+    canopen::Cia402ApplicationParams params;
+    params.scaling = canopen_rig.master.scaling;
+    if (!device_dictionary) return std::make_unique<VirtualEthercatDrive>(params, behind);
+    return std::make_unique<VirtualEthercatDrive>(
+        params, behind, build_device_dictionary(canopen_rig, device, system.timing.control_period_s));
+  }
+
+  std::string root;
+  SystemParams system;
+  CanopenRigConfig canopen_rig;
+  DeviceDictionary device;
+  SimulatedDriveBackend behind;
+  std::unique_ptr<VirtualEthercatDrive> drive;
+  VirtualSegment segment;
+  std::int64_t now_ns = 0;
+  std::int64_t step_ns = kPeriodNs;
+  VirtualSegmentLink link;
+  LossyLink lossy;
+  Cia402Drive master;
+};
+
+double profile_n(int k) { return 120.0 * std::sin(2.0 * M_PI * k / 150.0); }
+
+/// `ticks` ticks through the seam (sample, then apply), each reading compared with the simulated
+/// drive stepped directly, call for call, to the encoder's and the torque's quantisation.
+void run_against_reference(Rig& rig, int ticks) {
+  SimulatedDriveBackend reference(rig.system, PlantInitialCondition{});
+  ASSERT_TRUE(reference.request(drive::DriveCommand::kShutdown).accepted);
+  ASSERT_TRUE(reference.request(drive::DriveCommand::kSwitchOn).accepted);
+  ASSERT_TRUE(reference.request(drive::DriveCommand::kEnableOperation).accepted);
+  const canopen::UnitScaling& scaling = rig.master.scaling();
+  drive::Measurement expected = reference.sample();
+  for (int k = 0; k < ticks; ++k) {
+    const drive::Measurement m = rig.master.sample();
+    ASSERT_FALSE(rig.master.lost()) << "tick " << k << ": " << rig.master.last_problem();
+    ASSERT_EQ(scaling.metres_to_increments(m.position_m).value, scaling.metres_to_increments(expected.position_m).value)
+        << "tick " << k;
+    ASSERT_EQ(scaling.velocity_to_increments(m.velocity_mps).value,
+              scaling.velocity_to_increments(expected.velocity_mps).value)
+        << "tick " << k;
+    // The command as the drive holds it: per mille of the rated force.
+    const double commanded_n = scaling.per_mille_to_force(scaling.force_to_per_mille(profile_n(k)).value);
+    rig.master.apply(profile_n(k));
+    reference.apply(commanded_n);
+    expected = reference.sample();
+  }
+}
+
+TEST(EthercatCia402Drive, BootsWalksAndDrivesTheVirtualDriveAsTheSimulatedDriveSteppedDirectly) {
+  Rig rig(true);
+  rig.master.boot();
+  EXPECT_EQ(rig.drive->esc().al_state(), AlState::kOp);
+  EXPECT_TRUE(rig.master.lockstep_contract());
+  EXPECT_EQ(rig.master.layout().output_bytes, 8);
+  EXPECT_EQ(rig.master.layout().input_bytes, 16);
+  EXPECT_EQ(rig.drive->esc().process_data_watchdog_ns(), 0) << "lockstep: the watchdog off";
+  rig.master.start();
+  rig.master.enable_and_wait();
+  EXPECT_EQ(rig.master.power_state(), drive::PowerState::kOperationEnabled);
+  EXPECT_EQ(rig.drive->periods(), 0u) << "the boot and the walk step nothing";
+
+  run_against_reference(rig, 600);
+  EXPECT_EQ(rig.drive->periods(), 600u) << "each tick's outputs one period";
+  EXPECT_GT(std::abs(rig.behind.sample().position_m), 1e-4) << "the profile moved the motor";
+  EXPECT_EQ(rig.master.counters().frames_lost, 0u);
+  EXPECT_EQ(rig.master.counters().working_counter_errors, 0u);
+  EXPECT_EQ(rig.master.fault_count(), 0u);
+}
+
+TEST(EthercatCia402Drive, LostRepliesCostNoPeriodAndStepNoSecondOne) {
+  Rig rig(true);
+  rig.master.boot();
+  rig.master.start();
+  rig.master.enable_and_wait();
+  // From now on one reply in seven is lost on its way back (the frame passed the drive).
+  rig.lossy.drop = [](std::uint64_t n) { return n % 7 == 3; };
+  run_against_reference(rig, 400);
+  EXPECT_GT(rig.lossy.dropped, 50u);
+  EXPECT_GT(rig.master.master().frames_lost(), 50u) << "each lost reply's frame was sent again";
+  EXPECT_EQ(rig.drive->periods(), 400u) << "every tick one period, however often its outputs came";
+  EXPECT_GT(rig.drive->unstepped_cycles(), 0u) << "outputs that came twice stepped nothing the second time";
+}
+
+TEST(EthercatCia402Drive, ADriveThatStopsAnsweringIsLostAtZeroForceNeverWaitedFor) {
+  Rig rig(true);
+  rig.master.boot();
+  rig.master.start();
+  rig.master.enable_and_wait();
+  for (int k = 0; k < 20; ++k) {
+    rig.master.sample();
+    rig.master.apply(50.0);
+  }
+  rig.lossy.dead = true;  // the cable pulled
+  rig.master.sample();
+  EXPECT_TRUE(rig.master.lost());
+  EXPECT_EQ(rig.master.error_code(), drive::kErrorCommandTimeout);
+  EXPECT_EQ(rig.master.power_state(), drive::PowerState::kFault);
+  EXPECT_NE(std::string(rig.master.last_problem()).find("does not answer"), std::string::npos)
+      << rig.master.last_problem();
+  // Lost for good: no frame is sent any more, and no request enables it again.
+  const std::uint64_t cycles = rig.master.counters().cycles;
+  rig.master.apply(50.0);
+  rig.master.sample();
+  EXPECT_EQ(rig.master.counters().cycles, cycles);
+  EXPECT_FALSE(rig.master.request(drive::DriveCommand::kEnableOperation).accepted);
+}
+
+TEST(EthercatCia402Drive, RealtimeTheDrivesWatchdogFaultIsReadWithItsErrorCode) {
+  Cia402DriveConfig config = Rig::rig_config();
+  config.realtime = true;
+  config.watchdog_ms = 10;
+  Rig rig(true, config);
+  rig.master.boot();
+  EXPECT_EQ(rig.drive->esc().process_data_watchdog_ns(), 10'000'000) << "realtime: drive.watchdog_ms";
+  rig.master.start();
+  rig.master.enable_and_wait();
+  for (int k = 0; k < 50; ++k) {
+    rig.master.sample();
+    rig.master.apply(30.0);
+  }
+  EXPECT_EQ(rig.drive->periods(), 50u) << "realtime: one period a cycle";
+  // The controller stalls for 20 ms: the next frame finds the drive's watchdog expired (the
+  // drive's application runs after the frame: the tick after reads it).
+  rig.now_ns += 20 * kPeriodNs;
+  for (int k = 0; k < 2; ++k) {
+    rig.master.sample();
+    rig.master.apply(30.0);
+  }
+  EXPECT_EQ(rig.drive->esc().al_state(), AlState::kSafeOp);
+  // Fault reaction active: without cycles (SAFEOP) the synchronous drive's time stands still.
+  EXPECT_EQ(rig.master.power_state(), drive::PowerState::kFaultReactionActive);
+  EXPECT_EQ(rig.master.error_code(), canopen::kEmcySyncLost) << rig.master.last_problem();
+  EXPECT_EQ(rig.master.fault_count(), 1u);
+  EXPECT_EQ(rig.behind.power_state(), drive::PowerState::kFaultReactionActive) << "out of operation enabled: no force";
+}
+
+TEST(EthercatCia402Drive, TheBootRefusesAnotherDriveAndALockstepWithoutTheContractNamingWhy) {
+  {
+    Cia402DriveConfig config = Rig::rig_config();
+    config.product_code = 0x12345678;
+    Rig rig(true, config);
+    try {
+      rig.master.boot();
+      FAIL() << "booted a drive of another product";
+    } catch (const Cia402DriveError& e) {
+      EXPECT_NE(std::string(e.what()).find("product 0x12345678"), std::string::npos) << e.what();
+    }
+  }
+  {
+    Rig rig(false);  // the CiA 402 dictionary alone: its TxPDO has no velocity actual
+    try {
+      rig.master.boot();
+      FAIL() << "booted a drive whose inputs lack the velocity";
+    } catch (const Cia402DriveError& e) {
+      EXPECT_NE(std::string(e.what()).find("do not map 0x606C"), std::string::npos) << e.what();
+    }
+  }
+  {
+    Cia402DriveConfig config = Rig::rig_config();
+    config.position = 1;
+    Rig rig(true, config);
+    EXPECT_THROW(rig.master.boot(), Cia402DriveError) << "one slave on the bus, none at position 1";
+  }
+  Cia402DriveConfig bad = Rig::rig_config();
+  bad.watchdog_ms = 0;
+  EXPECT_THROW(Rig(true, bad), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace pmlsm::ethercat::backend_test
