@@ -1,4 +1,4 @@
-// drive_bridge: a real (or virtual) CiA 402 servo drive on CAN, on DDS. The same drive node as
+// drive_bridge: a real (or virtual) CiA 402 servo drive on CAN or EtherCAT, on DDS. The same drive node as
 // plant_sim (nodes/support/drive_node.hpp: the drive loop, MotorFeedback and DriveState,
 // ForceCommand, DriveControl, watchdog, summary, exit codes) with the CANopen master
 // (pmlsm::canopen::Cia402Drive) as its backend instead of the simulation. MotorFeedback's
@@ -17,6 +17,13 @@
 // master.lockstep.sync_retries resends) or whose
 // heartbeat is lost is a fault 0x8130: force off, the run ends not valid (exit 5).
 //
+// EtherCAT (--bus ethercat): our master (pmlsm::ethercat::Cia402Drive) over UDP (--ethercat-udp) or
+// an interface (--ethercat-interface), the drive and the master's time-outs from
+// configs/ethercat/drive.yaml (--ethercat-config, --ethercat-set). The boot takes the drive to OP;
+// a cycle is its outputs written and its inputs read; lockstep needs the virtual drive's command
+// tick, a real drive runs realtime. At the end the drive is disabled (realtime) and its slave
+// walked to INIT.
+//
 // Exit codes as plant_sim's; a drive that cannot be booted or enabled: 1, with the reason.
 #include <cmath>
 #include <cstdio>
@@ -28,6 +35,7 @@
 #include "drive_node.hpp"
 #include "pmlsm/canopen/bus_load.hpp"
 #include "pmlsm/canopen/cia402_drive.hpp"
+#include "pmlsm/ethercat/cia402_drive.hpp"
 
 namespace {
 
@@ -159,20 +167,26 @@ class DriveBridgeComponent final : public node::DriveComponent {
   node::DriveNode node_;
 };
 
-canopen::Cia402DriveConfig DriveBridgeComponent::checked_config() {
-  canopen::Cia402DriveConfig drive_config = rig_.master;
-  drive_config.reset_communication = !opt_.no_reset;
-  node::check_drive_node_options("drive_bridge", opt_.drive, opt_.common, rt_);
-  if (rt_.cfg.command_level == node::CommandLevel::kVoltage) {
+/// What either bus asks of the runtime: force commands, a 1 ms period. Returns whether the run is
+/// realtime. @throws ConfigError
+bool check_bridge_runtime(const BridgeOptions& opt, const node::NodeRuntime& rt) {
+  node::check_drive_node_options("drive_bridge", opt.drive, opt.common, rt);
+  if (rt.cfg.command_level == node::CommandLevel::kVoltage) {
     throw ConfigError(
         "--command-level voltage: a CiA 402 drive runs its own current loop (cyclic synchronous "
         "torque); drive_bridge takes force commands only");
   }
-  if (std::abs(rt_.period_s - 1e-3) > 1e-9) {
-    throw ConfigError("control period " + std::to_string(rt_.period_s * 1e3) +
+  if (std::abs(rt.period_s - 1e-3) > 1e-9) {
+    throw ConfigError("control period " + std::to_string(rt.period_s * 1e3) +
                       " ms: the drive is set to a 1 ms interpolation period (0x60C2)");
   }
-  drive_config.realtime = rt_.cfg.clock == node::Clock::kRealtime;
+  return rt.cfg.clock == node::Clock::kRealtime;
+}
+
+canopen::Cia402DriveConfig DriveBridgeComponent::checked_config() {
+  canopen::Cia402DriveConfig drive_config = rig_.master;
+  drive_config.reset_communication = !opt_.no_reset;
+  drive_config.realtime = check_bridge_runtime(opt_, rt_);
   const canopen::BusLoad load = canopen::bus_load(
       canopen::bridge_cycle_frames(rt_.period_s, drive_config.drive_heartbeat_ms, drive_config.master_heartbeat_ms),
       rig_.bitrate_bps, rt_.period_s);
@@ -193,6 +207,113 @@ canopen::Cia402DriveConfig DriveBridgeComponent::checked_config() {
   return drive_config;
 }
 
+/// drive_bridge's own parts with the EtherCAT master: the boot to OP, the enable walk, the drive's
+/// problems reported once each, the slave released at the end.
+class EthercatHooks final : public node::DriveNodeHooks {
+ public:
+  EthercatHooks(ethercat::Cia402Drive& drive, std::string link) : drive_(drive), link_(std::move(link)) {}
+
+  void before_run(node::DriveNode& node) override {
+    drive_.boot();
+    drive_.start();
+    const ethercat::SlaveInfo& s = drive_.slave();
+    std::printf(
+        "%s: EtherCAT drive at position %u (%s, vendor 0x%08X product 0x%08X) in OP on %s: cyclic synchronous "
+        "torque, %u bytes out, %u in%s, rated force %.1f N, %g increments/m, %s\n",
+        node.name().c_str(), static_cast<unsigned>(drive_.config().position), s.name.c_str(), s.vendor_id,
+        s.product_code, link_.c_str(), static_cast<unsigned>(drive_.layout().output_bytes),
+        static_cast<unsigned>(drive_.layout().input_bytes), drive_.lockstep_contract() ? " (command tick mapped)" : "",
+        drive_.config().scaling.rated_force_n, drive_.config().scaling.increments_per_metre,
+        drive::to_string(drive_.power_state()));
+  }
+  void enable_at_start(node::DriveNode& node) override {
+    drive_.enable_and_wait();
+    std::printf("%s: drive %s (auto-enable)\n", node.name().c_str(), drive::to_string(drive_.power_state()));
+  }
+  void after_tick(node::DriveNode& node, std::uint64_t k) override {
+    if (drive_.lost() && !lost_reported_) {
+      lost_reported_ = true;
+      std::fprintf(stderr, "%s: tick %llu: drive lost: %s: fault 0x%04x, zero force\n", node.name().c_str(),
+                   static_cast<unsigned long long>(k), drive_.last_problem(), drive_.error_code());
+      node.set_fault_reason(std::string("drive lost: ") + drive_.last_problem());
+    }
+    if (drive_.error_code() != reported_error_) {
+      reported_error_ = drive_.error_code();
+      std::fprintf(stderr, "%s: tick %llu: drive error code 0x%04x (%s), drive %s\n", node.name().c_str(),
+                   static_cast<unsigned long long>(k), reported_error_, drive_.last_problem(),
+                   drive::to_string(drive_.power_state()));
+      if (!drive_.lost()) node.set_fault_reason(drive_.last_problem());
+    }
+    if (drive_.stuck_in() && !stuck_reported_) {
+      stuck_reported_ = true;
+      std::fprintf(stderr, "%s: tick %llu: the drive does not follow the controlword: stuck in %s\n",
+                   node.name().c_str(), static_cast<unsigned long long>(k), drive::to_string(*drive_.stuck_in()));
+    } else if (!drive_.stuck_in()) {
+      stuck_reported_ = false;
+    }
+  }
+  void at_end(node::DriveNode& node) override {
+    // A drive that is enabled when its slave leaves OP faults: disable it first (shutdown, zero
+    // torque, one cycle), then the slave to SAFEOP and INIT.
+    if (node.realtime() && drive_.power_state() == drive::PowerState::kOperationEnabled &&
+        drive_.request(drive::DriveCommand::kShutdown).accepted) {
+      drive_.apply(0.0);
+      std::printf("%s: run ended: drive disabled (shutdown)\n", node.name().c_str());
+    }
+    if (drive_.lost()) return;
+    if (drive_.release()) {
+      std::printf("%s: the drive's slave released to INIT\n", node.name().c_str());
+    } else {
+      std::fprintf(stderr, "%s: the drive's slave did not leave OP: %s\n", node.name().c_str(), drive_.last_problem());
+    }
+  }
+  void flush(std::chrono::seconds /*timeout*/) override {
+    const ethercat::Cia402DriveCounters& c = drive_.counters();
+    std::printf(
+        "drive_bridge: EtherCAT: %llu cycles (%llu outputs sent again), %llu exchanges without a reply (%llu "
+        "frames lost, resends included), %llu working counter errors, %llu cycles without the inputs in time\n",
+        static_cast<unsigned long long>(c.cycles), static_cast<unsigned long long>(c.output_resends),
+        static_cast<unsigned long long>(c.frames_lost), static_cast<unsigned long long>(drive_.master().frames_lost()),
+        static_cast<unsigned long long>(c.working_counter_errors), static_cast<unsigned long long>(c.missed_inputs));
+  }
+
+ private:
+  ethercat::Cia402Drive& drive_;
+  std::string link_;
+  bool lost_reported_ = false;
+  bool stuck_reported_ = false;
+  std::uint16_t reported_error_ = 0;
+};
+
+class EthercatBridgeComponent final : public node::DriveComponent {
+ public:
+  EthercatBridgeComponent(const node::ComponentContext& context, BridgeOptions options)
+      : opt_(std::move(options)),
+        rt_("drive_bridge", opt_.common, context),
+        drive_config_(checked_config()),
+        link_(node::open_master_link(opt_.ethercat)),
+        drive_(drive_config_, *link_),
+        hooks_(drive_, node::describe_link(opt_.ethercat, true)),
+        node_("drive_bridge", opt_.common, opt_.drive, rt_, drive_, hooks_) {
+    drive_with(node_);
+  }
+
+ private:
+  ethercat::Cia402DriveConfig checked_config() {
+    ethercat::Cia402DriveConfig c = node::load_ethercat_config(opt_.ethercat);
+    c.realtime = check_bridge_runtime(opt_, rt_);
+    return c;
+  }
+
+  BridgeOptions opt_;
+  node::NodeRuntime rt_;
+  ethercat::Cia402DriveConfig drive_config_;
+  std::unique_ptr<ethercat::Link> link_;
+  ethercat::Cia402Drive drive_;
+  EthercatHooks hooks_;
+  node::DriveNode node_;
+};
+
 }  // namespace
 
 namespace pmlsm::node {
@@ -203,6 +324,8 @@ MadeComponent make_drive_bridge(const ComponentContext& context, int argc, char*
   BridgeOptions opt;
   opt.common.spin_us = 200.0;
   if (const auto code = parse_drive_bridge_command_line(argc, argv, opt)) return {nullptr, *code};
+  if (opt.ethercat.bus == DriveBus::kEthercat)
+    return {std::make_unique<EthercatBridgeComponent>(context, std::move(opt))};
   return {std::make_unique<DriveBridgeComponent>(context, std::move(opt))};
 }
 

@@ -6,6 +6,7 @@
 
 #include "can_options.hpp"
 #include "drive_node.hpp"
+#include "ethercat_options.hpp"
 #include "node_support.hpp"
 
 namespace pmlsm::node {
@@ -14,6 +15,7 @@ struct DriveBridgeOptions {
   CommonOptions common;
   DriveNodeOptions drive;
   CanOptions can;
+  EthercatOptions ethercat;
   bool no_reset = false;
 };
 

@@ -1,5 +1,6 @@
 // virtual_drive: the rig in a box. The simulated drive (plant + current loop, as plant_sim)
-// behind the CiA 402 slave of pmlsm/canopen/cia402_slave.hpp on a CAN bus (UDP multicast in
+// behind the CiA 402 slave of pmlsm/canopen/cia402_slave.hpp on a CAN bus (--bus ethercat: behind
+// a virtual EtherCAT slave, virtual_ethercat_drive.cpp) (UDP multicast in
 // python-can's format, or SocketCAN). Control is CAN only; on DDS: NodeStatus, and PlantTruth
 // for the evaluator with --publish-truth in lockstep (truth_publisher.hpp). Dictionary:
 // configs/canopen/drive.yaml (shared with drive_bridge) and --dictionary (the device's part).
@@ -20,6 +21,7 @@
 #include "pmlsm/util/data_files.hpp"
 #include "truth_publisher.hpp"
 #include "virtual_drive_command_line.hpp"
+#include "virtual_ethercat_drive.hpp"
 
 namespace {
 
@@ -208,6 +210,7 @@ PMLSM_COMPONENT(virtual_drive, make_virtual_drive, kRunsAlone);
 MadeComponent make_virtual_drive(const ComponentContext& context, int argc, char** argv) {
   Options opt;
   if (const auto code = parse_virtual_drive_command_line(argc, argv, opt)) return {nullptr, *code};
+  if (opt.ethercat.bus == DriveBus::kEthercat) return make_virtual_ethercat_drive(context, std::move(opt));
   return {std::make_unique<VirtualDriveComponent>(context, std::move(opt))};
 }
 

@@ -5,9 +5,10 @@
 namespace pmlsm::node {
 
 std::optional<int> parse_virtual_drive_command_line(int argc, char** argv, VirtualDriveOptions& opt) {
-  CLI::App app{"virtual_drive: the simulated PMLSM drive behind a CiA 402 CANopen slave"};
+  CLI::App app{"virtual_drive: the simulated PMLSM drive behind a CiA 402 slave on CANopen or EtherCAT"};
   add_common_options(app, opt.common);
   add_can_options(app, opt.can);
+  add_ethercat_options(app, opt.ethercat, false);
   app.add_option("--dictionary", opt.dictionary_path,
                  "the device's part of the object dictionary (identity, manufacturer objects, PDO defaults), EDS-like")
       ->capture_default_str();

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "can_options.hpp"
+#include "ethercat_options.hpp"
 #include "node_support.hpp"
 #include "pmlsm/util/data_files.hpp"
 
@@ -15,6 +16,7 @@ namespace pmlsm::node {
 struct VirtualDriveOptions {
   CommonOptions common;
   CanOptions can;
+  EthercatOptions ethercat;
   std::string dictionary_path = pmlsm::data_file("configs/canopen/virtual_drive_od.yaml");
   std::optional<std::uint64_t> inject_fault_at_tick;
   bool publish_truth = false;

@@ -1,5 +1,6 @@
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/config/canopen_config.hpp"
+#include "pmlsm/config/ethercat_config.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -511,6 +512,23 @@ CanopenRigConfig parse_canopen_config(const std::string& yaml_text, const std::s
 
 CanopenRigConfig load_canopen_config(const std::string& path, const std::vector<ConfigOverride>& overrides) {
   return parse_canopen_config(read_file(path), path, overrides);
+}
+
+ethercat::Cia402DriveConfig parse_ethercat_config(const std::string& yaml_text, const std::string& origin,
+                                                  const std::vector<ConfigOverride>& overrides) {
+  YAML::Node root = parse_yaml(yaml_text, origin);
+  apply_overrides(root, overrides, origin);
+  ethercat::Cia402DriveConfig c;
+  TableReader reader(root, origin);
+  ethercat::visit_parameters(c, reader);
+  reader.finish();
+  reader.validate([&] { c.validate(); });
+  return c;
+}
+
+ethercat::Cia402DriveConfig load_ethercat_config(const std::string& path,
+                                                 const std::vector<ConfigOverride>& overrides) {
+  return parse_ethercat_config(read_file(path), path, overrides);
 }
 
 namespace {

@@ -279,6 +279,25 @@ void Cia402Drive::enable_and_wait() {
   last_measurement_ = measurement();
 }
 
+bool Cia402Drive::release() {
+  if (!booted_) return true;
+  try {
+    for (const AlState state : {AlState::kSafeOp, AlState::kInit}) {
+      const StateResult r = master_.request_state(slave_.station_address, state);
+      if (!r.reached) {
+        const std::string text = std::string("release: not in ") + to_string(state) + ": " + r.describe();
+        remote_.set_problem(text.c_str());
+        return false;
+      }
+    }
+  } catch (const std::runtime_error& e) {
+    remote_.set_problem(e.what());
+    return false;
+  }
+  booted_ = false;
+  return true;
+}
+
 drive::Measurement Cia402Drive::measurement() const {
   drive::Measurement m;
   m.position_m = scaling_.increments_to_metres(position_actual_);

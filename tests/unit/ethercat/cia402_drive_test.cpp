@@ -17,6 +17,7 @@
 #include "pmlsm/canopen/scaling.hpp"
 #include "pmlsm/config/canopen_config.hpp"
 #include "pmlsm/config/config.hpp"
+#include "pmlsm/config/ethercat_config.hpp"
 #include "pmlsm/ethercat/cia402_drive.hpp"
 #include "pmlsm/ethercat/coe_drive.hpp"
 #include "pmlsm/ethercat/esc.hpp"
@@ -72,10 +73,9 @@ struct Rig {
         lossy(link),
         master(config, lossy) {}
 
+  /// The shipped rig file, with this thread's time-outs.
   static Cia402DriveConfig rig_config() {
-    Cia402DriveConfig c;
-    c.vendor_id = VirtualCia402Slave::kVendorId;
-    c.product_code = VirtualCia402Slave::kProductCode;
+    Cia402DriveConfig c = load_ethercat_config(std::string(PMLSM_SOURCE_DIR) + "/configs/ethercat/drive.yaml");
     c.reply_timeout_ms = 1;  // in this thread a reply is there at once or never
     c.cycle_timeout_ms = 1;
     return c;

@@ -129,6 +129,9 @@ class Cia402Drive final : public drive::Drive {
   /// Walks the drive to operation enabled before the run, one cycle that steps nothing at a time.
   /// @throws Cia402DriveError naming the state it is stuck in (or the fault).
   void enable_and_wait();
+  /// The run over: the slave walked to SAFEOP (outputs no longer taken), then INIT. Never throws;
+  /// false when it did not follow (its AL state in last_problem()).
+  bool release();
 
   // drive::Drive
   drive::Measurement sample() override;

@@ -24,6 +24,8 @@ class Link {
   /// The next frame as an Ethernet frame into `buffer` (kMaxEthernetFrameBytes long), waiting up
   /// to timeout_ns; 0 when none came. Never throws.
   virtual std::size_t receive(std::uint8_t* buffer, std::int64_t timeout_ns) = 0;
+  /// The descriptor a frame makes readable (to wait on it with others); -1 when there is none.
+  virtual int fd() const { return -1; }
 };
 
 /// Two ends of a wire in one process: what one end sends, the other receives, in order. Up to
@@ -88,6 +90,7 @@ class UdpLink final : public Link {
   UdpLink& operator=(const UdpLink&) = delete;
   bool send(Bytes ethernet_frame) override;
   std::size_t receive(std::uint8_t* buffer, std::int64_t timeout_ns) override;
+  int fd() const override { return fd_; }
   /// Datagrams received that were no EtherCAT frame (too short): dropped.
   std::uint64_t dropped() const { return dropped_; }
   /// The port the link is bound to.
@@ -114,6 +117,7 @@ class RawSocketLink final : public Link {
   RawSocketLink& operator=(const RawSocketLink&) = delete;
   bool send(Bytes ethernet_frame) override;
   std::size_t receive(std::uint8_t* buffer, std::int64_t timeout_ns) override;
+  int fd() const override { return fd_; }
   /// The interface's own MAC address (a master sends from it).
   const MacAddress& mac() const { return mac_; }
 
