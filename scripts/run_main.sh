@@ -42,9 +42,9 @@ if [ "$train" = true ]; then
   history=out/rnn_weights.yaml.history.csv
 fi
 
-phase_start "[3/4] runs" "2 scenarios x 4 systems over DDS, then the same 8 on the virtual CANopen rig"
+phase_start "[3/4] runs" "2 scenarios x 4 systems over DDS, then the same 8 on the virtual CANopen rig and the virtual EtherCAT rig"
 run=0
-runs=16
+runs=24
 header=true
 for scenario in pulse free_vibration; do
   for variant in sim sim_accel sim_rnn sim_state; do
@@ -79,34 +79,39 @@ for scenario in pulse free_vibration; do
 done
 echo "cost = sum over the first second of |V_ref - v_L| (eq. 23), true and Kalman-estimated v_L (the paper's best: 5.6)"
 
-# The same eight runs on the virtual rig: drive_bridge (the CiA 402 master) and virtual_drive (the
-# simulated drive behind a CiA 402 slave) on the UDP multicast CAN bus (launch/virtual_rig.yaml).
-mkdir -p out/virtual_rig
+# The same eight runs on the virtual rigs: drive_bridge (the CiA 402 master) and virtual_drive (the
+# simulated drive behind a CiA 402 slave) on the UDP multicast CAN bus (launch/virtual_rig.yaml),
+# and over EtherCAT on UDP (launch/virtual_rig_ethercat.yaml).
+mkdir -p out/virtual_rig out/virtual_rig_ethercat
 echo
-echo "virtual rig (CANopen, lockstep) next to the simulated drive: true cost and 2 % settling time [s]"
-printf '%-15s %-6s %14s %12s %14s %12s %8s\n' scenario comp sim_cost sim_settle rig_cost rig_settle diff_%
+echo "virtual rigs (CANopen and EtherCAT, lockstep) next to the simulated drive: true cost and 2 % settling time [s]"
+printf '%-15s %-6s %10s %11s %10s %11s %8s %10s %11s %8s\n' scenario comp sim_cost sim_settle can_cost can_settle diff_% ecat_cost ecat_settle diff_%
+# Rows: scenario label cost_true cost_est vib track settle|"not settled" ...
+row() { sed -n "s/^\[evaluator\] \($scenario .*\)/\1/p" "$1" | awk '{s = ($7 == "not") ? "not_settled" : $7; print $3, s}'; }
 for scenario in pulse free_vibration; do
   for comp in none accel rnn state; do
     case $comp in none) variant=sim ;; accel) variant=sim_accel ;; rnn) variant=sim_rnn ;; state) variant=sim_state ;; esac
-    run=$((run + 1))
-    echo "run_main: run $run/$runs: $scenario, launch/virtual_rig.yaml, compensator $comp ($((SECONDS - t_start)) s since start)" >&2
-    log="out/virtual_rig/${scenario}_${comp}.launch.log"
-    if ! ./build/bin/launcher launch/virtual_rig.yaml --arg scenario="configs/scenarios/$scenario.yaml" \
-         --arg out=out/virtual_rig --arg domain="$domain" --arg compensator="$comp" --arg weights="$weights" \
-         --arg label="rig_$comp" >"$log" 2>&1; then
-      cat "$log" >&2
-      echo "run_main: the $scenario run of launch/virtual_rig.yaml (compensator $comp) failed (log above, also in $log)" >&2
-      exit 1
-    fi
-    # Rows: scenario label cost_true cost_est vib track settle|"not settled" ...
-    row() { sed -n "s/^\[evaluator\] \($scenario .*\)/\1/p" "$1" | awk '{s = ($7 == "not") ? "not_settled" : $7; print $3, s}'; }
     read -r sim_cost sim_settle < <(row "out/${scenario}_${variant}.launch.log")
-    read -r rig_cost rig_settle < <(row "$log")
-    diff=$(awk -v a="$sim_cost" -v b="$rig_cost" 'BEGIN { printf "%+.2f", 100 * (b - a) / a }')
-    printf '%-15s %-6s %14s %12s %14s %12s %8s\n' "$scenario" "$comp" "$sim_cost" "$sim_settle" "$rig_cost" "$rig_settle" "$diff"
+    cells=()
+    for rig in virtual_rig virtual_rig_ethercat; do
+      run=$((run + 1))
+      echo "run_main: run $run/$runs: $scenario, launch/$rig.yaml, compensator $comp ($((SECONDS - t_start)) s since start)" >&2
+      log="out/$rig/${scenario}_${comp}.launch.log"
+      if ! ./build/bin/launcher "launch/$rig.yaml" --arg scenario="configs/scenarios/$scenario.yaml" \
+           --arg out="out/$rig" --arg domain="$domain" --arg compensator="$comp" --arg weights="$weights" \
+           --arg label="rig_$comp" >"$log" 2>&1; then
+        cat "$log" >&2
+        echo "run_main: the $scenario run of launch/$rig.yaml (compensator $comp) failed (log above, also in $log)" >&2
+        exit 1
+      fi
+      read -r rig_cost rig_settle < <(row "$log")
+      diff=$(awk -v a="$sim_cost" -v b="$rig_cost" 'BEGIN { printf "%+.2f", 100 * (b - a) / a }')
+      cells+=("$rig_cost" "$rig_settle" "$diff")
+    done
+    printf '%-15s %-6s %10s %11s %10s %11s %8s %10s %11s %8s\n' "$scenario" "$comp" "$sim_cost" "$sim_settle" "${cells[@]}"
   done
 done
-echo "the torque (per mille of 675 N) and position (1 um) on the bus are the only difference; logs in out/virtual_rig/"
+echo "the torque (per mille of 675 N) and position (1 um) on the bus are the only difference; logs in out/virtual_rig/ and out/virtual_rig_ethercat/"
 phase_end
 echo
 echo "distributed lockstep runs over Fast DDS; RNN weights from $weights; logs and traces in out/"

@@ -275,6 +275,11 @@ class EthercatHooks final : public node::DriveNodeHooks {
         static_cast<unsigned long long>(c.cycles), static_cast<unsigned long long>(c.output_resends),
         static_cast<unsigned long long>(c.frames_lost), static_cast<unsigned long long>(drive_.master().frames_lost()),
         static_cast<unsigned long long>(c.working_counter_errors), static_cast<unsigned long long>(c.missed_inputs));
+    const drive::LatencySummary trip = drive_.round_trips();
+    if (trip.count > 0) {
+      std::printf("drive_bridge: EtherCAT frame round trip over %zu exchanges: p50 %.1f us, p99 %.1f us, max %.1f us\n",
+                  trip.count, trip.p50_us, trip.p99_us, trip.max_us);
+    }
   }
 
  private:

@@ -15,7 +15,8 @@ void add_ethercat_options(CLI::App& app, EthercatOptions& options, bool master) 
       ->default_str("can");
   CLI::Option* udp = nullptr;
   if (master) {
-    udp = app.add_option("--ethercat-udp", options.udp, "--bus ethercat: EtherCAT over UDP to the drive at HOST:PORT")
+    udp = app.add_option("--ethercat-udp", options.udp,
+                         "--bus ethercat: EtherCAT over UDP to the drive at HOST:PORT (unless --ethercat-interface)")
               ->capture_default_str();
   } else {
     udp = app.add_option("--ethercat-udp-port", options.udp_port,
@@ -23,9 +24,10 @@ void add_ethercat_options(CLI::App& app, EthercatOptions& options, bool master) 
               ->check(CLI::Range(0, 65535))
               ->capture_default_str();
   }
-  app.add_option("--ethercat-interface", options.interface_name,
-                 "--bus ethercat: raw EtherCAT on this interface instead of UDP (needs CAP_NET_RAW)")
-      ->excludes(udp);
+  CLI::Option* raw = app.add_option(
+      "--ethercat-interface", options.interface_name,
+      "--bus ethercat: raw EtherCAT on this interface instead of UDP (needs CAP_NET_RAW; \"\": UDP)");
+  if (!master) raw->excludes(udp);
   app.add_option("--ethercat-config", options.config_path,
                  "--bus ethercat: the EtherCAT settings both ends share (position, identity, scaling, time-outs)")
       ->capture_default_str();

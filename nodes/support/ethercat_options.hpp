@@ -4,7 +4,9 @@
 //   --ethercat-udp HOST:PORT             master: EtherCAT over UDP to the drive (the default,
 //                                        127.0.0.1:34980)
 //   --ethercat-udp-port N                virtual drive: answer EtherCAT over UDP on this port
-//   --ethercat-interface IF              raw EtherCAT on an interface instead (CAP_NET_RAW)
+//   --ethercat-interface IF              raw EtherCAT on an interface instead (CAP_NET_RAW); the
+//                                        master then does not use --ethercat-udp ("": UDP, so a
+//                                        launch file can pass both)
 //   --ethercat-config FILE               configs/ethercat/drive.yaml
 //   --ethercat-set key.path=value        overrides one value of it (repeatable)
 #pragma once

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <string>
 #include <algorithm>
+#include <chrono>
 
 #include "pmlsm/canopen/cia402_application.hpp"
 #include "pmlsm/canopen/cia402_dictionary.hpp"
@@ -164,11 +165,20 @@ bool Cia402Drive::send_outputs(std::uint16_t controlword, std::int16_t torque, s
   return send_outputs_again();
 }
 
+Reply Cia402Drive::cycle_exchange(Command command, std::uint32_t address, std::uint16_t length) {
+  const auto sent = std::chrono::steady_clock::now();
+  const Reply r = master_.exchange(command, address, scratch_.data(), length, exchange_timeout_ns(), exchange_retries());
+  if (r.answered) {
+    round_trips_.record_latency_ns(
+        std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - sent).count());
+  }
+  return r;
+}
+
 bool Cia402Drive::send_outputs_again() {
   ++counters_.cycles;
   std::copy(outputs_.begin(), outputs_.end(), scratch_.begin());
-  const Reply r = master_.exchange(Command::kLwr, layout_.outputs_logical, scratch_.data(), layout_.output_bytes,
-                                   exchange_timeout_ns(), exchange_retries());
+  const Reply r = cycle_exchange(Command::kLwr, layout_.outputs_logical, layout_.output_bytes);
   if (!r.answered) {
     ++counters_.frames_lost;
     return false;
@@ -181,8 +191,7 @@ bool Cia402Drive::send_outputs_again() {
 }
 
 bool Cia402Drive::read_inputs() {
-  const Reply r = master_.exchange(Command::kLrd, layout_.inputs_logical, scratch_.data(), layout_.input_bytes,
-                                   exchange_timeout_ns(), exchange_retries());
+  const Reply r = cycle_exchange(Command::kLrd, layout_.inputs_logical, layout_.input_bytes);
   if (!r.answered) {
     ++counters_.frames_lost;
     return false;

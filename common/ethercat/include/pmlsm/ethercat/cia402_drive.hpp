@@ -39,6 +39,7 @@
 #include "pmlsm/canopen/cia402_remote_state.hpp"
 #include "pmlsm/canopen/scaling.hpp"
 #include "pmlsm/drive/drive.hpp"
+#include "pmlsm/drive/loop_statistics.hpp"
 #include "pmlsm/ethercat/link.hpp"
 #include "pmlsm/ethercat/master.hpp"
 #include "pmlsm/util/parameter_table.hpp"
@@ -154,6 +155,9 @@ class Cia402Drive final : public drive::Drive {
   bool lockstep_contract() const noexcept { return command_tick_at_ >= 0 && periods_at_ >= 0; }
   std::uint64_t ticks() const noexcept { return tick_; }
   const Cia402DriveCounters& counters() const noexcept { return counters_; }
+  /// The cycle's exchanges there and back (the bus cycle time), the first kRoundTripsKept kept.
+  drive::LatencySummary round_trips() { return round_trips_.latency(); }
+  static constexpr std::size_t kRoundTripsKept = 1U << 17;
   const Cia402DriveConfig& config() const noexcept { return config_; }
   const canopen::UnitScaling& scaling() const noexcept { return scaling_; }
   const SlaveInfo& slave() const noexcept { return slave_; }
@@ -161,6 +165,8 @@ class Cia402Drive final : public drive::Drive {
   Master& master() noexcept { return master_; }
 
  private:
+  /// One exchange of a cycle, its time there and back recorded.
+  Reply cycle_exchange(Command command, std::uint32_t address, std::uint16_t length);
   /// The outputs out (LWR); true when the drive's SM2 took them (working counter 1).
   bool send_outputs(std::uint16_t controlword, std::int16_t torque, std::uint32_t command_tick);
   bool send_outputs_again();
@@ -208,6 +214,7 @@ class Cia402Drive final : public drive::Drive {
   std::uint64_t tick_ = 0;
   drive::Measurement last_measurement_;
   Cia402DriveCounters counters_;
+  drive::LoopStatistics round_trips_{kRoundTripsKept};
 };
 
 }  // namespace pmlsm::ethercat
