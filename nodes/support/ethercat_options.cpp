@@ -24,9 +24,9 @@ void add_ethercat_options(CLI::App& app, EthercatOptions& options, bool master) 
               ->check(CLI::Range(0, 65535))
               ->capture_default_str();
   }
-  CLI::Option* raw = app.add_option(
-      "--ethercat-interface", options.interface_name,
-      "--bus ethercat: raw EtherCAT on this interface instead of UDP (needs CAP_NET_RAW; \"\": UDP)");
+  CLI::Option* raw =
+      app.add_option("--ethercat-interface", options.interface_name,
+                     "--bus ethercat: raw EtherCAT on this interface instead of UDP (needs CAP_NET_RAW; \"\": UDP)");
   if (!master) raw->excludes(udp);
   app.add_option("--ethercat-config", options.config_path,
                  "--bus ethercat: the EtherCAT settings both ends share (position, identity, scaling, time-outs)")

@@ -1,6 +1,7 @@
 // `pmlsm config`: the configuration files' references and checks.
-//   pmlsm config reference [--kind system|canopen] [-c FILE] [-o PAGE] [--check]   the generated reference
-//   pmlsm config check [--kind system|canopen] [-c FILE] [--set K=V ...]   every check a program makes on loading it
+//   pmlsm config reference [--kind system|canopen|ethercat] [-c FILE] [-o PAGE] [--check]   the generated reference
+//   pmlsm config check [--kind system|canopen|ethercat] [-c FILE] [--set K=V ...]   every check a program makes on
+//   loading it
 // `reference --check` compares PAGE with what it would write and exits 1 when they differ (the
 // ctest `config_reference` runs it on docs/configuration-reference.md).
 #include <cstdio>
@@ -12,6 +13,7 @@
 
 #include "commands.hpp"
 #include "pmlsm/config/canopen_config.hpp"
+#include "pmlsm/config/ethercat_config.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/config/parameter_reference.hpp"
 #include "pmlsm/util/atomic_file.hpp"
@@ -21,7 +23,7 @@ namespace pmlsm::tools {
 namespace {
 
 struct ConfigCommandOptions {
-  std::string kind = "system";  ///< system (configs/system.yaml) or canopen (configs/canopen/drive.yaml)
+  std::string kind = "system";  ///< system (configs/system.yaml), canopen or ethercat (configs/<kind>/drive.yaml)
   std::string config;           ///< "": the shipped file of that kind
   std::string out;              ///< the page ("": standard output)
   bool check = false;
@@ -30,7 +32,7 @@ struct ConfigCommandOptions {
 
 /// The shipped file of the kind, by its place in the source tree.
 std::string shipped_file(const ConfigCommandOptions& o) {
-  return o.kind == "canopen" ? "configs/canopen/drive.yaml" : "configs/system.yaml";
+  return o.kind == "system" ? "configs/system.yaml" : "configs/" + o.kind + "/drive.yaml";
 }
 
 /// The file to read: the option's, else the shipped one wherever it is installed.
@@ -43,8 +45,9 @@ std::string origin_of(const ConfigCommandOptions& o) { return o.config.empty() ?
 
 int run_reference(const ConfigCommandOptions& o) {
   const std::string text = read_config_file(file_to_read(o));
-  const std::string page = o.kind == "canopen" ? canopen_parameter_reference(text, origin_of(o))
-                                               : system_parameter_reference(text, origin_of(o));
+  const std::string page = o.kind == "canopen"    ? canopen_parameter_reference(text, origin_of(o))
+                           : o.kind == "ethercat" ? ethercat_parameter_reference(text, origin_of(o))
+                                                  : system_parameter_reference(text, origin_of(o));
   if (o.check) {
     if (o.out.empty()) throw UsageError("--check needs -o PAGE, the page to compare");
     std::ifstream in(o.out, std::ios::binary);
@@ -77,6 +80,8 @@ int run_check(const ConfigCommandOptions& o) {
   const std::string text = read_config_file(file_to_read(o));
   if (o.kind == "canopen") {
     parse_canopen_config(text, origin_of(o), parse_overrides(o.set));
+  } else if (o.kind == "ethercat") {
+    parse_ethercat_config(text, origin_of(o), parse_overrides(o.set));
   } else {
     parse_system_params(text, origin_of(o), parse_overrides(o.set));
   }
@@ -88,7 +93,7 @@ int run_check(const ConfigCommandOptions& o) {
 
 void add_config_command(CLI::App& app, int& exit_code) {
   CLI::App* cmd =
-      app.add_subcommand("config", "The system and CANopen files: their generated references, their checks");
+      app.add_subcommand("config", "The system, CANopen and EtherCAT files: their generated references, their checks");
   cmd->require_subcommand(1);
   auto o = std::make_shared<ConfigCommandOptions>();
   const auto wrap = [&exit_code](const std::shared_ptr<ConfigCommandOptions>& options,
@@ -104,9 +109,10 @@ void add_config_command(CLI::App& app, int& exit_code) {
   // Which file, for both subcommands.
   const auto add_file_options = [&o](CLI::App& sub) {
     sub.add_option("--kind", o->kind,
-                   "Which file: system (configs/system.yaml) or canopen (configs/canopen/drive.yaml)")
+                   "Which file: system (configs/system.yaml), canopen (configs/canopen/drive.yaml) or ethercat "
+                   "(configs/ethercat/drive.yaml)")
         ->capture_default_str()
-        ->check(CLI::IsMember({"system", "canopen"}));
+        ->check(CLI::IsMember({"system", "canopen", "ethercat"}));
     sub.add_option("-c,--config", o->config, "The file (default: the shipped one of its kind)")
         ->check(CLI::ExistingFile);
   };

@@ -198,6 +198,12 @@ int run_state(const EthercatOptions& o) {
     if (step == AlState::kSafeOp && (info.mailbox_protocols & 0x0004) != 0) {
       const ProcessDataLayout layout = s.master->map_process_data(info, 0x00010000);
       std::printf("0x%04X: process data %u bytes out, %u bytes in\n", station, layout.output_bytes, layout.input_bytes);
+      for (const auto& [what, entries] :
+           {std::make_pair("out", &layout.outputs), std::make_pair("in", &layout.inputs)}) {
+        std::printf("  %-3s", what);
+        for (const canopen::PdoMapEntry& e : *entries) std::printf(" 0x%04X:%u/%u", e.index, e.subindex, e.bit_length);
+        std::printf("   (index:sub-index/bits, in order)\n");
+      }
     }
     r = s.master->request_state(station, step);
     std::printf("0x%04X: %s\n", station, r.describe().c_str());

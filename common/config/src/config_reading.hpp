@@ -133,13 +133,9 @@ inline double to_number(const YAML::Node& v, const std::string& origin, const st
 }
 
 // Digits only: no sign, no fraction, no exponent, no hexadecimal.
-// Decimal, or hexadecimal with 0x (identities and object indices are written so).
 inline std::uint64_t to_whole_number(const YAML::Node& v, const std::string& origin, const std::string& path) {
   std::uint64_t out = 0;
   const std::string text = v.IsScalar() ? v.Scalar() : std::string();
-  const bool hex = text.size() > 2 && text.size() <= 18 && text[0] == '0' && (text[1] == 'x' || text[1] == 'X') &&
-                   text.find_first_not_of("0123456789abcdefABCDEF", 2) == std::string::npos;
-  if (hex) return std::stoull(text.substr(2), nullptr, 16);
   if (!v.IsScalar() || text.empty() || text.find_first_not_of("0123456789") != std::string::npos ||
       !YAML::convert<std::uint64_t>::decode(v, out)) {
     fail_at(origin, path, "expected a non-negative integer, got '" + describe(v) + "'");

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "pmlsm/config/canopen_config.hpp"
+#include "pmlsm/config/ethercat_config.hpp"
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/util/validate.hpp"
 
@@ -201,6 +202,23 @@ std::string canopen_parameter_reference(const std::string& yaml_text, const std:
           "Both ends of the bus read this file (drive_bridge, the master; virtual_drive, the simulated\n"
           "drive), so they agree; a value outside its range is refused with the range and its reason.\n"
           "Connecting a drive: [real-drive.md](real-drive.md).\n");
+}
+
+std::string ethercat_parameter_reference(const std::string& yaml_text, const std::string& origin) {
+  ethercat::Cia402DriveConfig config = parse_ethercat_config(yaml_text, origin);
+  DeclarationCollector collector;
+  ethercat::visit_parameters(config, collector);
+  return reference_page(
+      collector.rows, yaml_text, origin,
+      "Generated from the parameter declarations (`ethercat::visit_parameters` in\n"
+      "`common/ethercat/include/pmlsm/ethercat/cia402_drive.hpp`) and the values and sources of `" +
+          origin +
+          "`\n"
+          "by `./build/bin/pmlsm config reference --kind ethercat -o docs/ethercat-reference.md`; the test\n"
+          "`ethercat_reference` fails when this page and either of them disagree. Do not edit it by hand.\n\n"
+          "Both ends of the link read this file (drive_bridge --bus ethercat, the master; virtual_drive\n"
+          "--bus ethercat, the simulated drive), so they agree; a value outside its range is refused with\n"
+          "the range and its reason. Connecting a drive: [ethercat.md](ethercat.md).\n");
 }
 
 }  // namespace pmlsm

@@ -167,7 +167,8 @@ bool Cia402Drive::send_outputs(std::uint16_t controlword, std::int16_t torque, s
 
 Reply Cia402Drive::cycle_exchange(Command command, std::uint32_t address, std::uint16_t length) {
   const auto sent = std::chrono::steady_clock::now();
-  const Reply r = master_.exchange(command, address, scratch_.data(), length, exchange_timeout_ns(), exchange_retries());
+  const Reply r =
+      master_.exchange(command, address, scratch_.data(), length, exchange_timeout_ns(), exchange_retries());
   if (r.answered) {
     round_trips_.record_latency_ns(
         std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - sent).count());

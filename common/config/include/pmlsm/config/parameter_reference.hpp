@@ -22,5 +22,9 @@ std::string system_parameter_reference(const std::string& yaml_text, const std::
 /// docs/canopen-reference.md, checked by the ctest `canopen_reference`.
 /// @throws ConfigError as parse_canopen_config.
 std::string canopen_parameter_reference(const std::string& yaml_text, const std::string& origin);
+/// The same for an EtherCAT rig file (configs/ethercat/drive.yaml; pmlsm/config/ethercat_config.hpp):
+/// docs/ethercat-reference.md, checked by the ctest `ethercat_reference`.
+/// @throws ConfigError as parse_ethercat_config.
+std::string ethercat_parameter_reference(const std::string& yaml_text, const std::string& origin);
 
 }  // namespace pmlsm
