@@ -41,6 +41,40 @@ namespace {
 
 using namespace pmlsm;
 
+/// A drive's problems reported once each, whatever its bus: lost, a new error code, a walk stuck
+/// in one state.
+class ProblemReports {
+ public:
+  template <typename Drive>
+  void after_tick(node::DriveNode& node, std::uint64_t k, const Drive& drive) {
+    if (drive.lost() && !lost_reported_) {
+      lost_reported_ = true;
+      std::fprintf(stderr, "%s: tick %llu: drive lost: %s: fault 0x%04x, zero force\n", node.name().c_str(),
+                   static_cast<unsigned long long>(k), drive.last_problem(), drive.error_code());
+      node.set_fault_reason(std::string("drive lost: ") + drive.last_problem());
+    }
+    if (drive.error_code() != reported_error_) {
+      reported_error_ = drive.error_code();
+      std::fprintf(stderr, "%s: tick %llu: drive error code 0x%04x (%s), drive %s\n", node.name().c_str(),
+                   static_cast<unsigned long long>(k), reported_error_, drive.last_problem(),
+                   drive::to_string(drive.power_state()));
+      if (!drive.lost()) node.set_fault_reason(drive.last_problem());
+    }
+    if (drive.stuck_in() && !stuck_reported_) {
+      stuck_reported_ = true;
+      std::fprintf(stderr, "%s: tick %llu: the drive does not follow the controlword: stuck in %s\n",
+                   node.name().c_str(), static_cast<unsigned long long>(k), drive::to_string(*drive.stuck_in()));
+    } else if (!drive.stuck_in()) {
+      stuck_reported_ = false;
+    }
+  }
+
+ private:
+  bool lost_reported_ = false;
+  bool stuck_reported_ = false;
+  std::uint16_t reported_error_ = 0;
+};
+
 /// drive_bridge's own parts of the drive node: the CANopen boot, the enable walk, and the
 /// drive's problems reported once each.
 class BridgeHooks final : public node::DriveNodeHooks {
@@ -61,19 +95,7 @@ class BridgeHooks final : public node::DriveNodeHooks {
     std::printf("%s: drive %s (auto-enable)\n", node.name().c_str(), drive::to_string(drive_.power_state()));
   }
   void after_tick(node::DriveNode& node, std::uint64_t k) override {
-    if (drive_.lost() && !lost_reported_) {
-      lost_reported_ = true;
-      std::fprintf(stderr, "%s: tick %llu: drive lost: %s: fault 0x%04x, zero force\n", node.name().c_str(),
-                   static_cast<unsigned long long>(k), drive_.last_problem(), drive_.error_code());
-      node.set_fault_reason(std::string("drive lost: ") + drive_.last_problem());
-    }
-    if (drive_.error_code() != reported_error_) {
-      reported_error_ = drive_.error_code();
-      std::fprintf(stderr, "%s: tick %llu: drive error code 0x%04x (%s), drive %s\n", node.name().c_str(),
-                   static_cast<unsigned long long>(k), reported_error_, drive_.last_problem(),
-                   drive::to_string(drive_.power_state()));
-      if (!drive_.lost()) node.set_fault_reason(drive_.last_problem());
-    }
+    reports_.after_tick(node, k, drive_);
     const canopen::Cia402DriveCounters& c = drive_.counters();
     if (c.foreign_syncs > 0 && !foreign_sync_reported_) {
       foreign_sync_reported_ = true;
@@ -94,13 +116,6 @@ class BridgeHooks final : public node::DriveNodeHooks {
                    "drive, not sent by it); counted\n",
                    node.name().c_str(), static_cast<unsigned long long>(k));
       node.report("an RPDO from another master on the CAN bus");
-    }
-    if (drive_.stuck_in() && !stuck_reported_) {
-      stuck_reported_ = true;
-      std::fprintf(stderr, "%s: tick %llu: the drive does not follow the controlword: stuck in %s\n",
-                   node.name().c_str(), static_cast<unsigned long long>(k), drive::to_string(*drive_.stuck_in()));
-    } else if (!drive_.stuck_in()) {
-      stuck_reported_ = false;
     }
   }
   void at_end(node::DriveNode& node) override {
@@ -129,12 +144,10 @@ class BridgeHooks final : public node::DriveNodeHooks {
  private:
   canopen::Cia402Drive& drive_;
   const can::CanBus& bus_;
-  bool lost_reported_ = false;
-  bool stuck_reported_ = false;
+  ProblemReports reports_;
   bool foreign_sync_reported_ = false;
   bool foreign_nmt_reported_ = false;
   bool foreign_rpdo_reported_ = false;
-  std::uint16_t reported_error_ = 0;
 };
 
 using BridgeOptions = node::DriveBridgeOptions;
@@ -230,28 +243,7 @@ class EthercatHooks final : public node::DriveNodeHooks {
     drive_.enable_and_wait();
     std::printf("%s: drive %s (auto-enable)\n", node.name().c_str(), drive::to_string(drive_.power_state()));
   }
-  void after_tick(node::DriveNode& node, std::uint64_t k) override {
-    if (drive_.lost() && !lost_reported_) {
-      lost_reported_ = true;
-      std::fprintf(stderr, "%s: tick %llu: drive lost: %s: fault 0x%04x, zero force\n", node.name().c_str(),
-                   static_cast<unsigned long long>(k), drive_.last_problem(), drive_.error_code());
-      node.set_fault_reason(std::string("drive lost: ") + drive_.last_problem());
-    }
-    if (drive_.error_code() != reported_error_) {
-      reported_error_ = drive_.error_code();
-      std::fprintf(stderr, "%s: tick %llu: drive error code 0x%04x (%s), drive %s\n", node.name().c_str(),
-                   static_cast<unsigned long long>(k), reported_error_, drive_.last_problem(),
-                   drive::to_string(drive_.power_state()));
-      if (!drive_.lost()) node.set_fault_reason(drive_.last_problem());
-    }
-    if (drive_.stuck_in() && !stuck_reported_) {
-      stuck_reported_ = true;
-      std::fprintf(stderr, "%s: tick %llu: the drive does not follow the controlword: stuck in %s\n",
-                   node.name().c_str(), static_cast<unsigned long long>(k), drive::to_string(*drive_.stuck_in()));
-    } else if (!drive_.stuck_in()) {
-      stuck_reported_ = false;
-    }
-  }
+  void after_tick(node::DriveNode& node, std::uint64_t k) override { reports_.after_tick(node, k, drive_); }
   void at_end(node::DriveNode& node) override {
     // A drive that is enabled when its slave leaves OP faults: disable it first (shutdown, zero
     // torque, one cycle), then the slave to SAFEOP and INIT.
@@ -285,9 +277,7 @@ class EthercatHooks final : public node::DriveNodeHooks {
  private:
   ethercat::Cia402Drive& drive_;
   std::string link_;
-  bool lost_reported_ = false;
-  bool stuck_reported_ = false;
-  std::uint16_t reported_error_ = 0;
+  ProblemReports reports_;
 };
 
 class EthercatBridgeComponent final : public node::DriveComponent {

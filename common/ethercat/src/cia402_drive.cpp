@@ -165,25 +165,16 @@ bool Cia402Drive::send_outputs(std::uint16_t controlword, std::int16_t torque, s
   return send_outputs_again();
 }
 
-Reply Cia402Drive::cycle_exchange(Command command, std::uint32_t address, std::uint16_t length) {
+bool Cia402Drive::cycle_exchange(Command command, std::uint32_t address, std::uint16_t length) {
   const auto sent = std::chrono::steady_clock::now();
   const Reply r =
       master_.exchange(command, address, scratch_.data(), length, exchange_timeout_ns(), exchange_retries());
-  if (r.answered) {
-    round_trips_.record_latency_ns(
-        std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - sent).count());
-  }
-  return r;
-}
-
-bool Cia402Drive::send_outputs_again() {
-  ++counters_.cycles;
-  std::copy(outputs_.begin(), outputs_.end(), scratch_.begin());
-  const Reply r = cycle_exchange(Command::kLwr, layout_.outputs_logical, layout_.output_bytes);
   if (!r.answered) {
     ++counters_.frames_lost;
     return false;
   }
+  round_trips_.record_latency_ns(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - sent).count());
   if (r.working_counter != 1) {
     ++counters_.working_counter_errors;
     return false;
@@ -191,16 +182,14 @@ bool Cia402Drive::send_outputs_again() {
   return true;
 }
 
+bool Cia402Drive::send_outputs_again() {
+  ++counters_.cycles;
+  std::copy(outputs_.begin(), outputs_.end(), scratch_.begin());
+  return cycle_exchange(Command::kLwr, layout_.outputs_logical, layout_.output_bytes);
+}
+
 bool Cia402Drive::read_inputs() {
-  const Reply r = cycle_exchange(Command::kLrd, layout_.inputs_logical, layout_.input_bytes);
-  if (!r.answered) {
-    ++counters_.frames_lost;
-    return false;
-  }
-  if (r.working_counter != 1) {
-    ++counters_.working_counter_errors;
-    return false;
-  }
+  if (!cycle_exchange(Command::kLrd, layout_.inputs_logical, layout_.input_bytes)) return false;
   std::copy(scratch_.begin(), scratch_.begin() + layout_.input_bytes, inputs_.begin());
   remote_.on_statusword(get_le16(inputs_.data() + statusword_at_));
   torque_actual_ = static_cast<std::int16_t>(get_le16(inputs_.data() + torque_actual_at_));

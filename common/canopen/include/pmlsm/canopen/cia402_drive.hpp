@@ -97,10 +97,7 @@ void visit_parameters(Config& m, Visitor& v) {
   const Plausible node_id{1.0, 127.0, "a CANopen node id (CiA 301: 1 to 127)"};
   const Plausible heartbeat{1.0, 65535.0, "a heartbeat time of 0x1016/0x1017: 16 bits of milliseconds"};
   v.integer("drive.node_id", m.node_id, node_id);
-  v.real("drive.rated_force_n", m.scaling.rated_force_n,
-         {1e-3, 4294967.295, "0x6076 holds it as 32 bits of millinewtons: 1 mN to 4.29 MN"});
-  v.real("drive.increments_per_metre", m.scaling.increments_per_metre,
-         {1.0, 1e12, "from a 1 m coarse scale to a 1 pm interferometer"});
+  visit_scaling_parameters(m.scaling, v);
   v.integer("drive.heartbeat_ms", m.drive_heartbeat_ms, {0.0, 65535.0, "0x1017: 0 (none) or 16 bits of milliseconds"});
   v.integer("master.node_id", m.master_node_id, node_id);
   v.integer("master.heartbeat_ms", m.master_heartbeat_ms, heartbeat);

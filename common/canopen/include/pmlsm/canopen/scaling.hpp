@@ -12,6 +12,8 @@
 
 #include <cstdint>
 
+#include "pmlsm/util/parameter_table.hpp"
+
 namespace pmlsm::canopen {
 
 struct ScalingConfig {
@@ -21,6 +23,16 @@ struct ScalingConfig {
   /// Encoder increments per metre (e.g. 1e6 for a 1 um encoder); finite, > 0.
   double increments_per_metre = 1e6;
 };
+
+/// The scaling's two settings as a rig file writes them (drive.rated_force_n,
+/// drive.increments_per_metre), declared once for both buses' rig files.
+template <typename Scaling, typename Visitor>
+void visit_scaling_parameters(Scaling& s, Visitor& v) {
+  v.real("drive.rated_force_n", s.rated_force_n,
+         {1e-3, 4294967.295, "0x6076 holds it as 32 bits of millinewtons: 1 mN to 4.29 MN"});
+  v.real("drive.increments_per_metre", s.increments_per_metre,
+         {1.0, 1e12, "from a 1 m coarse scale to a 1 pm interferometer"});
+}
 
 template <typename T>
 struct Scaled {

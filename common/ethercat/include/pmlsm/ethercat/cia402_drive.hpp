@@ -80,10 +80,7 @@ void visit_parameters(Config& m, Visitor& v) {
   v.integer("drive.position", m.position, {0.0, 65535.0, "a position on the ring: 16 bits of auto-increment address"});
   v.integer("drive.vendor_id", m.vendor_id, {0.0, 4294967295.0, "ETG's vendor id, 0x1018:1"});
   v.integer("drive.product_code", m.product_code, {0.0, 4294967295.0, "the vendor's product code, 0x1018:2"});
-  v.real("drive.rated_force_n", m.scaling.rated_force_n,
-         {1e-3, 4294967.295, "0x6076 holds it as 32 bits of millinewtons: 1 mN to 4.29 MN"});
-  v.real("drive.increments_per_metre", m.scaling.increments_per_metre,
-         {1.0, 1e12, "from a 1 m coarse scale to a 1 pm interferometer"});
+  canopen::visit_scaling_parameters(m.scaling, v);
   v.integer("drive.watchdog_ms", m.watchdog_ms,
             {1.0, 6500.0, "the ESC's 16-bit watchdog in its default 100 us units: up to 6.5 s"});
   v.integer("master.reply_timeout_ms", m.reply_timeout_ms, {1.0, 10000.0, "1 ms to 10 s for a frame there and back"});
@@ -165,8 +162,9 @@ class Cia402Drive final : public drive::Drive {
   Master& master() noexcept { return master_; }
 
  private:
-  /// One exchange of a cycle, its time there and back recorded.
-  Reply cycle_exchange(Command command, std::uint32_t address, std::uint16_t length);
+  /// One exchange of a cycle through scratch_, its time there and back recorded: true when
+  /// answered with working counter 1 (else counted as lost or as a working counter error).
+  bool cycle_exchange(Command command, std::uint32_t address, std::uint16_t length);
   /// The outputs out (LWR); true when the drive's SM2 took them (working counter 1).
   bool send_outputs(std::uint16_t controlword, std::int16_t torque, std::uint32_t command_tick);
   bool send_outputs_again();
