@@ -227,21 +227,23 @@ class EthercatHooks final : public node::DriveNodeHooks {
   EthercatHooks(ethercat::Cia402Drive& drive, std::string link) : drive_(drive), link_(std::move(link)) {}
 
   void before_run(node::DriveNode& node) override {
+    boot_began_ns_ = monotonic_ns();
     drive_.boot();
     drive_.start();
     const ethercat::SlaveInfo& s = drive_.slave();
     std::printf(
-        "%s: EtherCAT drive at position %u (%s, vendor 0x%08X product 0x%08X) in OP on %s: cyclic synchronous "
-        "torque, %u bytes out, %u in%s, rated force %.1f N, %g increments/m, %s\n",
+        "%s: EtherCAT drive at position %u (%s, vendor 0x%08X product 0x%08X) in OP on %s %.0f ms after the boot "
+        "began: cyclic synchronous torque, %u bytes out, %u in%s, rated force %.1f N, %g increments/m, %s\n",
         node.name().c_str(), static_cast<unsigned>(drive_.config().position), s.name.c_str(), s.vendor_id,
-        s.product_code, link_.c_str(), static_cast<unsigned>(drive_.layout().output_bytes),
+        s.product_code, link_.c_str(), since_boot_ms(), static_cast<unsigned>(drive_.layout().output_bytes),
         static_cast<unsigned>(drive_.layout().input_bytes), drive_.lockstep_contract() ? " (command tick mapped)" : "",
         drive_.config().scaling.rated_force_n, drive_.config().scaling.increments_per_metre,
         drive::to_string(drive_.power_state()));
   }
   void enable_at_start(node::DriveNode& node) override {
     drive_.enable_and_wait();
-    std::printf("%s: drive %s (auto-enable)\n", node.name().c_str(), drive::to_string(drive_.power_state()));
+    std::printf("%s: drive %s (auto-enable) %.0f ms after the boot began\n", node.name().c_str(),
+                drive::to_string(drive_.power_state()), since_boot_ms());
   }
   void after_tick(node::DriveNode& node, std::uint64_t k) override { reports_.after_tick(node, k, drive_); }
   void at_end(node::DriveNode& node) override {
@@ -275,9 +277,12 @@ class EthercatHooks final : public node::DriveNodeHooks {
   }
 
  private:
+  double since_boot_ms() const { return static_cast<double>(monotonic_ns() - boot_began_ns_) * 1e-6; }
+
   ethercat::Cia402Drive& drive_;
   std::string link_;
   ProblemReports reports_;
+  std::int64_t boot_began_ns_ = 0;
 };
 
 class EthercatBridgeComponent final : public node::DriveComponent {

@@ -4,13 +4,16 @@
 // interface, reads each slave's identity from its SII, takes the bus to PREOP, reads objects
 // over CoE, maps the process data, walks to SAFEOP and OP, and exchanges process data.
 //
-//   node soem_master.mjs INTERFACE [--read INDEX:SUB ...] [--walk]
+//   node soem_master.mjs INTERFACE [--read INDEX:SUB ...] [--walk [--exchange N]]
 //
 // --walk (a CiA 402 drive behind the slave, `pmlsm ethercat serve --drive`): after the cycles
 // above, the power-state walk by controlword in the process data (shutdown, switch on, enable
 // operation; 0x0006, 0x0007, 0x000F, three cycles each), then 200 cycles of 100 per mille target
 // torque; adds {"statusword_enabled":"hex","position_start":N,"position_end":N} (position actual,
-// increments, as the inputs carried it).
+// increments, as the inputs carried it). --exchange N: then N more cycles, a square wave of
+// +-20 per mille every 100 cycles; adds {"exchange":{"cycles":N,"wkc_errors":N,"no_frame":N}}
+// (a working counter other than 3, and frames SOEM got no answer to within its 2 ms and sent
+// again, up to 20 times a cycle).
 //
 // Prints one JSON line: {"slaves":N,"identity":[{"name","vendor","product","address"}],
 // "preop":STATE,"reads":{"0x1000:0":"hex bytes" or null},"safeop":STATE,"op":STATE,
@@ -36,9 +39,12 @@ if (args.length < 1) {
 const ifname = args[0];
 const reads = [];
 let walk = false;
+let exchange = 0;
 for (let i = 1; i < args.length; ++i) {
   if (args[i] === "--walk") {
     walk = true;
+  } else if (args[i] === "--exchange" && i + 1 < args.length) {
+    exchange = Number.parseInt(args[++i], 10);
   } else if (args[i] === "--read" && i + 1 < args.length) {
     reads.push(args[++i]);
   } else {
@@ -97,14 +103,19 @@ result.inputs = Buffer.from(new Uint8Array(master.getSlaves()[0].inputs)).toStri
 if (walk && slave.Obytes >= 4 && slave.Ibytes >= 8) {
   const outputs = new DataView(slave.outputs);
   const inputs = () => new DataView(master.getSlaves()[0].inputs);
-  // One answered cycle (a frame the host held past SOEM's 2 ms is sent again, up to 20 times).
+  // One answered cycle (a frame the host held past SOEM's 2 ms is sent again, up to 20 times);
+  // its working counter (-1: never answered).
+  let no_frame = 0;
   const cycle = (controlword, torque) => {
     outputs.setUint16(0, controlword, true);
     outputs.setInt16(2, torque, true);
     for (let attempt = 0; attempt < 20; ++attempt) {
       master.sendProcessdata();
-      if (master.receiveProcessdata() !== -1) return;
+      const wkc = master.receiveProcessdata();
+      if (wkc !== -1) return wkc;
+      ++no_frame;
     }
+    return -1;
   };
   for (const controlword of [0x0006, 0x0007, 0x000f]) {
     for (let i = 0; i < 3; ++i) cycle(controlword, 0);
@@ -113,6 +124,14 @@ if (walk && slave.Obytes >= 4 && slave.Ibytes >= 8) {
   result.position_start = inputs().getInt32(4, true);
   for (let i = 0; i < 200; ++i) cycle(0x000f, 100);
   result.position_end = inputs().getInt32(4, true);
+  if (exchange > 0) {
+    no_frame = 0;
+    let wkc_errors = 0;
+    for (let i = 0; i < exchange; ++i) {
+      if (cycle(0x000f, Math.floor(i / 100) % 2 === 0 ? 20 : -20) !== 3) ++wkc_errors;
+    }
+    result.exchange = { cycles: exchange, wkc_errors, no_frame };
+  }
 }
 master.close();
 console.log(JSON.stringify(result));

@@ -1181,7 +1181,7 @@ std::optional<long long> json_integer(const std::string& text, const std::string
   return std::stoll(text.substr(at + tag.size()));
 }
 
-TEST(Ethercat, SoemWalksTheVirtualDriveToOperationEnabledAndItsTorqueMovesTheSimulatedMotor) {
+TEST(Ethercat, SoemWalksTheVirtualDriveToOperationEnabledMovesTheMotorAndExchangesTenThousandCycles) {
   if (geteuid() != 0) GTEST_SKIP() << "raw sockets and network namespaces need root; not run";
   if (quiet_sh("command -v node") != 0) GTEST_SKIP() << "no node (scripts/install_deps.sh installs it); not run";
   if (!fs::exists(source("tests/node/node_modules/soem-node/build/Release/soem_addon.node"))) {
@@ -1195,7 +1195,7 @@ TEST(Ethercat, SoemWalksTheVirtualDriveToOperationEnabledAndItsTorqueMovesTheSim
                            (dir / "serve.log").string());
   ASSERT_TRUE(slave.wait_for_output("serving a virtual EtherCAT CiA 402 drive", kRunTimeout)) << slave.output();
   test::ChildProcess soem(pair.in(pair.master_ns(), {"/usr/bin/env", "node", source("tests/node/soem_master.mjs"),
-                                                     pair.master_if(), "--walk"}),
+                                                     pair.master_if(), "--walk", "--exchange", "10000"}),
                           (dir / "soem.log").string());
   EXPECT_EQ(run_to_end(soem), 0) << soem.output();
   const std::string out = soem.output();
@@ -1207,6 +1207,8 @@ TEST(Ethercat, SoemWalksTheVirtualDriveToOperationEnabledAndItsTorqueMovesTheSim
   const std::optional<long long> end = json_integer(out, "position_end");
   ASSERT_TRUE(start && end) << out;
   EXPECT_GT(*end - *start, 100) << "increments of 1 um over 200 cycles at 67.5 N; " << out;
+  // Then 10,000 cycles of process data, each answered with working counter 3 (the target).
+  EXPECT_NE(out.find("\"exchange\":{\"cycles\":10000,\"wkc_errors\":0,"), std::string::npos) << out;
   // SOEM stopped cycling without leaving OP: the process-data watchdog (100 ms) took the slave to
   // SAFEOP and faulted the enabled drive, force off.
   ASSERT_TRUE(slave.wait_for_output("process-data watchdog expired", kRunTimeout)) << slave.output();

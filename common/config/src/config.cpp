@@ -514,23 +514,6 @@ CanopenRigConfig load_canopen_config(const std::string& path, const std::vector<
   return parse_canopen_config(read_file(path), path, overrides);
 }
 
-ethercat::Cia402DriveConfig parse_ethercat_config(const std::string& yaml_text, const std::string& origin,
-                                                  const std::vector<ConfigOverride>& overrides) {
-  YAML::Node root = parse_yaml(yaml_text, origin);
-  apply_overrides(root, overrides, origin);
-  ethercat::Cia402DriveConfig c;
-  TableReader reader(root, origin);
-  ethercat::visit_parameters(c, reader);
-  reader.finish();
-  reader.validate([&] { c.validate(); });
-  return c;
-}
-
-ethercat::Cia402DriveConfig load_ethercat_config(const std::string& path,
-                                                 const std::vector<ConfigOverride>& overrides) {
-  return parse_ethercat_config(read_file(path), path, overrides);
-}
-
 namespace {
 // "0x2001", "8193": an unsigned number in C's notation, within [0, max].
 std::uint64_t c_number(const std::string& text, const std::string& origin, const std::string& path, std::uint64_t max) {
@@ -661,6 +644,25 @@ PdoDefault read_pdo_default(Section& p, const DeviceDictionary& d, const std::st
   return pdo;
 }
 
+// The rig file's pdo section (pdo.outputs, pdo.inputs): lists of "0xIIII:SS:BITS" the master maps,
+// read apart from the parameter table (they are entries, not numbers).
+std::vector<canopen::PdoMapEntry> read_pdo_list(const YAML::Node& section, const char* key, const std::string& origin) {
+  const std::string path = std::string("pdo.") + key;
+  const YAML::Node leaf = section[key];
+  if (!leaf) fail_at(origin, path, "missing key");
+  const YAML::Node v = leaf_value(leaf, origin, path);
+  if (!v.IsSequence() || v.size() == 0) {
+    fail_at(origin, path, "expected a list of \"0xIIII:SS:BITS\", got '" + describe(v) + "'");
+  }
+  std::vector<canopen::PdoMapEntry> entries;
+  for (std::size_t k = 0; k < v.size(); ++k) {
+    const std::string item = path + "[" + std::to_string(k) + "]";
+    if (!v[k].IsScalar()) fail_at(origin, item, "expected \"0xIIII:SS:BITS\", got '" + describe(v[k]) + "'");
+    entries.push_back(read_pdo_map_entry(v[k].Scalar(), origin, item));
+  }
+  return entries;
+}
+
 }  // namespace
 
 DeviceDictionary parse_device_dictionary(const std::string& yaml_text, const std::string& origin) {
@@ -691,6 +693,34 @@ DeviceDictionary parse_device_dictionary(const std::string& yaml_text, const std
 
 DeviceDictionary load_device_dictionary(const std::string& path) {
   return parse_device_dictionary(read_file(path), path);
+}
+
+ethercat::Cia402DriveConfig parse_ethercat_config(const std::string& yaml_text, const std::string& origin,
+                                                  const std::vector<ConfigOverride>& overrides) {
+  YAML::Node root = parse_yaml(yaml_text, origin);
+  apply_overrides(root, overrides, origin);
+  ethercat::Cia402DriveConfig c;
+  if (root.IsMap() && root["pdo"]) {
+    const YAML::Node pdo = root["pdo"];
+    if (!pdo.IsMap()) fail_at(origin, "pdo", "must be a mapping of keys, got '" + describe(pdo) + "'");
+    for (const auto& kv : pdo) {
+      const std::string key = kv.first.Scalar();
+      if (key != "outputs" && key != "inputs") fail_at(origin, "pdo." + key, "unknown key (outputs, inputs)");
+    }
+    c.outputs_mapping = read_pdo_list(pdo, "outputs", origin);
+    c.inputs_mapping = read_pdo_list(pdo, "inputs", origin);
+    root.remove("pdo");
+  }
+  TableReader reader(root, origin);
+  ethercat::visit_parameters(c, reader);
+  reader.finish();
+  reader.validate([&] { c.validate(); });
+  return c;
+}
+
+ethercat::Cia402DriveConfig load_ethercat_config(const std::string& path,
+                                                 const std::vector<ConfigOverride>& overrides) {
+  return parse_ethercat_config(read_file(path), path, overrides);
 }
 
 }  // namespace pmlsm

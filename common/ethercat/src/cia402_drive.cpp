@@ -8,6 +8,7 @@
 #include "pmlsm/canopen/cia402_application.hpp"
 #include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/canopen/emcy.hpp"
+#include "pmlsm/ethercat/coe_drive.hpp"
 #include "pmlsm/util/little_endian.hpp"
 #include "pmlsm/util/validate.hpp"
 
@@ -35,6 +36,10 @@ MasterParams master_params(const Cia402DriveConfig& c) {
 void Cia402DriveConfig::validate() const {
   RangeCheck check;
   visit_parameters(*this, check);
+  if (outputs_mapping.empty() != inputs_mapping.empty()) {
+    throw std::invalid_argument(std::string("pdo.") + (outputs_mapping.empty() ? "outputs" : "inputs") +
+                                ": both directions are mapped, or neither (the drive's own assignment)");
+  }
 }
 
 Cia402Drive::Cia402Drive(const Cia402DriveConfig& config, Link& link)
@@ -92,6 +97,10 @@ void Cia402Drive::boot() {
     sdo(true, canopen::kObjectInterpolationTimePeriod, 1, 1, 1, "interpolation time period value");
     sdo(true, canopen::kObjectInterpolationTimePeriod, 2, static_cast<std::uint8_t>(static_cast<std::int8_t>(-3)), 1,
         "interpolation time index");
+    if (!config_.outputs_mapping.empty()) {
+      master_.write_pdo_assignment(slave_, kObjectRxPdoAssign, kRxPdoMapping, config_.outputs_mapping);
+      master_.write_pdo_assignment(slave_, kObjectTxPdoAssign, kTxPdoMapping, config_.inputs_mapping);
+    }
     layout_ = master_.map_process_data(slave_, kLogicalAddress);
     const auto locate = [&](bool output, std::uint16_t index, std::uint8_t bits, bool required, const char* what) {
       const std::vector<canopen::PdoMapEntry>& entries = output ? layout_.outputs : layout_.inputs;

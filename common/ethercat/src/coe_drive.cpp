@@ -5,6 +5,7 @@
 #include "pmlsm/util/validate.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
@@ -37,6 +38,43 @@ canopen::PdoMap map_of(const canopen::ObjectDictionary& dictionary, std::uint16_
 
 }  // namespace
 
+namespace {
+
+// Static names: the dictionary keeps the pointer.
+constexpr std::array<const char*, kMaxAssignedPdos + 1> kRxAssignNames{
+    "SM2 PDO assignment: count", "SM2 PDO assignment: RxPDO 1", "SM2 PDO assignment: RxPDO 2",
+    "SM2 PDO assignment: RxPDO 3", "SM2 PDO assignment: RxPDO 4"};
+constexpr std::array<const char*, kMaxAssignedPdos + 1> kTxAssignNames{
+    "SM3 PDO assignment: count", "SM3 PDO assignment: TxPDO 1", "SM3 PDO assignment: TxPDO 2",
+    "SM3 PDO assignment: TxPDO 3", "SM3 PDO assignment: TxPDO 4"};
+
+std::uint16_t first_pdo_of(std::uint16_t assign) {
+  return assign == kObjectRxPdoAssign ? kRxPdoMapping : kTxPdoMapping;
+}
+
+// ETG.1000.6: an assigned PDO changes only while the count is 0, and is one of its direction's.
+std::uint32_t check_assigned_pdo(const canopen::ObjectDictionary& d, const canopen::Entry& e,
+                                 std::int64_t value) noexcept {
+  if (d.get_or(e.index, 0, 0) != 0) return canopen::kAbortDeviceState;
+  const std::uint16_t first = first_pdo_of(e.index);
+  if (value != 0 && (value < first || value >= first + kMaxAssignedPdos)) return canopen::kAbortValueRange;
+  return canopen::kAbortNone;
+}
+
+// A count: each PDO it counts is assigned and mapped with entries.
+std::uint32_t check_assigned_count(const canopen::ObjectDictionary& d, const canopen::Entry& e,
+                                   std::int64_t value) noexcept {
+  for (std::int64_t sub = 1; sub <= value; ++sub) {
+    const auto pdo = static_cast<std::uint16_t>(d.get_or(e.index, static_cast<std::uint8_t>(sub), 0));
+    if (pdo == 0) return canopen::kAbortValueRange;
+    const canopen::Result<canopen::PdoMap> map = canopen::read_pdo_map(d, pdo);
+    if (!map || map.value.empty()) return canopen::kAbortValueRange;
+  }
+  return canopen::kAbortNone;
+}
+
+}  // namespace
+
 void add_coe_sync_manager_objects(canopen::ObjectDictionary& d) {
   using T = canopen::DataType;
   d.add(entry(kObjectSyncManagerTypes, 0, "sync manager types: count", T::kU8, 4));
@@ -44,19 +82,35 @@ void add_coe_sync_manager_objects(canopen::ObjectDictionary& d) {
   d.add(entry(kObjectSyncManagerTypes, 2, "SM1: mailbox in", T::kU8, 2));
   d.add(entry(kObjectSyncManagerTypes, 3, "SM2: outputs", T::kU8, 3));
   d.add(entry(kObjectSyncManagerTypes, 4, "SM3: inputs", T::kU8, 4));
-  for (const auto& [assign, first, name] :
-       {std::tuple{kObjectRxPdoAssign, kRxPdoMapping, "SM2 PDO assignment: RxPDO"},
-        std::tuple{kObjectTxPdoAssign, kTxPdoMapping, "SM3 PDO assignment: TxPDO"}}) {
+  for (const auto& [assign, names] :
+       {std::pair{kObjectRxPdoAssign, &kRxAssignNames}, std::pair{kObjectTxPdoAssign, &kTxAssignNames}}) {
+    const std::uint16_t first = first_pdo_of(assign);
+    std::array<std::uint16_t, kMaxAssignedPdos> pdos{};
     std::uint8_t count = 0;
     for (std::uint8_t i = 0; i < kMaxAssignedPdos; ++i) {
       const auto pdo = static_cast<std::uint16_t>(first + i);
       const canopen::Result<canopen::PdoMap> map = canopen::read_pdo_map(d, pdo);
       if (!map || map.value.empty()) continue;
-      ++count;
-      const std::string entry_name = std::string(name) + " " + std::to_string(count);
-      d.add(entry(assign, count, entry_name.c_str(), T::kU16, pdo));
+      pdos[count++] = pdo;
+      // The PDO's COB-ID (a CANopen thing) not valid, so a master may map it anew.
+      const auto communication = static_cast<std::uint16_t>(pdo - canopen::kPdoMappingOffset);
+      if (const auto cob = d.get(communication, 1)) {
+        d.set(communication, 1,
+              static_cast<std::int64_t>(static_cast<std::uint32_t>(*cob) | canopen::kPdoCobIdInvalid));
+      }
     }
-    d.add(entry(assign, 0, (std::string(name) + ": count").c_str(), T::kU8, count));
+    canopen::Entry e = entry(assign, 0, (*names)[0], T::kU8, count);
+    e.access = canopen::Access::kRw;
+    e.min = 0;
+    e.max = kMaxAssignedPdos;
+    e.check = check_assigned_count;
+    d.add(e);
+    for (std::uint8_t i = 0; i < kMaxAssignedPdos; ++i) {
+      canopen::Entry pdo = entry(assign, static_cast<std::uint8_t>(i + 1), (*names)[i + 1], T::kU16, pdos[i]);
+      pdo.access = canopen::Access::kRw;
+      pdo.check = check_assigned_pdo;
+      d.add(pdo);
+    }
   }
 }
 
@@ -84,6 +138,13 @@ CoeProcessImage::CoeProcessImage(canopen::ObjectDictionary& dictionary, std::uin
       tx_(assigned(dictionary, kObjectTxPdoAssign)),
       outputs_at_(outputs_at),
       inputs_at_(inputs_at) {}
+
+void CoeProcessImage::rebuild() {
+  std::vector<canopen::PdoMap> rx = assigned(dictionary_, kObjectRxPdoAssign);
+  std::vector<canopen::PdoMap> tx = assigned(dictionary_, kObjectTxPdoAssign);
+  rx_ = std::move(rx);
+  tx_ = std::move(tx);
+}
 
 bool CoeProcessImage::outputs_map(std::uint16_t index) const {
   return std::any_of(rx_.begin(), rx_.end(), [&](const canopen::PdoMap& m) {
@@ -168,6 +229,17 @@ VirtualCia402Slave::VirtualCia402Slave(canopen::ObjectDictionary dictionary, std
       esc_(esc_params(std::move(sii), process_)),
       coe_(dictionary_, canopen::NodeId(1)) {
   esc_.set_mailbox_handler(&coe_);
+  esc_.set_before_safeop([this] { return take_mapping(); });
+}
+
+std::uint16_t VirtualCia402Slave::take_mapping() {
+  try {
+    process_.rebuild();
+  } catch (const std::invalid_argument&) {
+    return al_code::kInvalidOutputConfiguration;
+  }
+  esc_.set_process_data_bytes(process_.output_bytes(), process_.input_bytes());
+  return 0;
 }
 
 VirtualEthercatDrive::VirtualEthercatDrive(const canopen::Cia402ApplicationParams& params, drive::Drive& drive, Log log,
@@ -179,8 +251,7 @@ VirtualEthercatDrive::VirtualEthercatDrive(const canopen::Cia402ApplicationParam
                                            std::vector<std::uint16_t> sii)
     : slave_(std::move(dictionary), std::move(sii)),
       application_(params, slave_.dictionary(), drive, *this),
-      log_(std::move(log)),
-      lockstep_(slave_.process().outputs_map(canopen::kObjectCommandTick)) {}
+      log_(std::move(log)) {}
 
 void VirtualEthercatDrive::check_watchdog(std::int64_t now_ns) {
   Esc& esc = slave_.esc();
@@ -221,7 +292,9 @@ void VirtualEthercatDrive::after_frame(std::int64_t now_ns) {
     slave_.process().take_outputs(esc);
     application_.apply_controlword(now_ns);
     const auto command_tick = static_cast<std::uint64_t>(slave_.dictionary().get_or(canopen::kObjectCommandTick, 0, 0));
-    if (lockstep_ && command_tick != (application_.periods() & 0xFFFFFFFFULL)) {
+    // The lockstep contract when the outputs carry the command tick (the mapping the master chose).
+    if (slave_.process().outputs_map(canopen::kObjectCommandTick) &&
+        command_tick != (application_.periods() & 0xFFFFFFFFULL)) {
       ++unstepped_cycles_;  // a frame sent again, or a walk's cycle before the run: no period
       continue;
     }

@@ -392,6 +392,13 @@ void Esc::request_state(std::uint8_t control) {
         refuse(al_code::kInvalidStateChange);
         return;
       }
+      if (before_safeop_) {
+        const std::uint16_t code = before_safeop_();
+        if (code != 0) {
+          refuse(code);
+          return;
+        }
+      }
       if (!sync_manager_active_with(2, params_.output_bytes)) {
         refuse(al_code::kInvalidOutputConfiguration);
         return;

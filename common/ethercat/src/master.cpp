@@ -341,6 +341,47 @@ SdoResult Master::sdo_download(const SlaveInfo& slave, std::uint16_t index, std:
   return sdo_transfer(slave, bytes);
 }
 
+void Master::write_pdo_assignment(const SlaveInfo& slave, std::uint16_t assign_index, std::uint16_t first_pdo,
+                                  const std::vector<canopen::PdoMapEntry>& entries) {
+  // Greedy: each PDO takes entries while they fit (8 entries, 64 bits).
+  std::vector<std::vector<canopen::PdoMapEntry>> pdos;
+  std::uint32_t bits = 0;
+  for (const canopen::PdoMapEntry& e : entries) {
+    if (e.bit_length == 0 || e.bit_length > 32) {
+      throw std::invalid_argument(format_hex(e.index, 4) + ":" + std::to_string(e.subindex) + ": " +
+                                  std::to_string(e.bit_length) + " bits; an entry is 8, 16 or 32");
+    }
+    if (pdos.empty() || pdos.back().size() == canopen::kPdoMaxEntries || bits + e.bit_length > canopen::kPdoMaxBits) {
+      pdos.emplace_back();
+      bits = 0;
+    }
+    pdos.back().push_back(e);
+    bits += e.bit_length;
+  }
+  if (pdos.size() > 4) {
+    throw std::invalid_argument(std::to_string(entries.size()) + " entries need " + std::to_string(pdos.size()) +
+                                " PDOs of 64 bits; a sync manager takes 4 here");
+  }
+  const auto write = [&](std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t size) {
+    const SdoResult r = sdo_download(slave, index, sub, value, size);
+    if (!r.done) {
+      throw std::runtime_error(slave_name(slave.station_address) + ": " + format_hex(index, 4) + ":" +
+                               std::to_string(sub) + " = " + format_hex(value, 2 * size) + " " + r.describe());
+    }
+  };
+  write(assign_index, 0, 0, 1);
+  for (std::size_t p = 0; p < pdos.size(); ++p) {
+    const auto pdo = static_cast<std::uint16_t>(first_pdo + p);
+    write(pdo, 0, 0, 1);
+    for (std::size_t k = 0; k < pdos[p].size(); ++k) {
+      write(pdo, static_cast<std::uint8_t>(k + 1), canopen::encode_pdo_mapping(pdos[p][k]), 4);
+    }
+    write(pdo, 0, static_cast<std::uint32_t>(pdos[p].size()), 1);
+    write(assign_index, static_cast<std::uint8_t>(p + 1), pdo, 2);
+  }
+  write(assign_index, 0, static_cast<std::uint32_t>(pdos.size()), 1);
+}
+
 int ProcessDataLayout::offset_in(const std::vector<canopen::PdoMapEntry>& entries, std::uint16_t index,
                                  std::uint8_t subindex) {
   int bits = 0;

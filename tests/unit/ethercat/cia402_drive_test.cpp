@@ -8,8 +8,10 @@
 
 #include <cmath>
 #include <cstdint>
+#include <fstream>
 #include <functional>
 #include <memory>
+#include <sstream>
 #include <string>
 
 #include "pmlsm/canopen/cia402_dictionary.hpp"
@@ -230,7 +232,10 @@ TEST(EthercatCia402Drive, TheBootRefusesAnotherDriveAndALockstepWithoutTheContra
     }
   }
   {
-    Rig rig(false);  // the CiA 402 dictionary alone: its TxPDO has no velocity actual
+    Cia402DriveConfig own = Rig::rig_config();  // the drive's own assignment taken as it is
+    own.outputs_mapping.clear();
+    own.inputs_mapping.clear();
+    Rig rig(false, own);  // the CiA 402 dictionary alone: its TxPDO has no velocity actual
     try {
       rig.master.boot();
       FAIL() << "booted a drive whose inputs lack the velocity";
@@ -247,6 +252,69 @@ TEST(EthercatCia402Drive, TheBootRefusesAnotherDriveAndALockstepWithoutTheContra
   Cia402DriveConfig bad = Rig::rig_config();
   bad.watchdog_ms = 0;
   EXPECT_THROW(Rig(true, bad), std::invalid_argument);
+}
+
+TEST(EthercatCia402Drive, TheRigFilesMappingIsWrittenAndAnotherOrderDrivesTheSame) {
+  // The objects in another order: the master writes it by SDO in PREOP, the drive takes it at
+  // SAFEOP (its image and sync managers rebuilt), the master finds each object where it now is.
+  Cia402DriveConfig config = Rig::rig_config();
+  config.outputs_mapping = {{0x2002, 0, 32}, {0x6071, 0, 16}, {0x6040, 0, 16}};
+  config.inputs_mapping = {{0x2001, 0, 32}, {0x6064, 0, 32}, {0x606C, 0, 32}, {0x6077, 0, 16}, {0x6041, 0, 16}};
+  Rig rig(true, config);
+  rig.master.boot();
+  EXPECT_EQ(rig.master.layout().output_offset(0x6040), 6);
+  EXPECT_EQ(rig.master.layout().input_offset(0x6041), 14);
+  EXPECT_EQ(rig.drive->dictionary().get_or(kObjectTxPdoAssign, 0, 0), 2) << "96 bits: two TxPDOs of 64";
+  rig.master.start();
+  rig.master.enable_and_wait();
+  run_against_reference(rig, 300);
+  EXPECT_EQ(rig.drive->periods(), 300u);
+}
+
+TEST(EthercatCia402Drive, AMappingTheDriveRefusesStopsTheBootNamingTheObjectAndTheAbort) {
+  Cia402DriveConfig config = Rig::rig_config();
+  config.outputs_mapping = {{0x6040, 0, 16}, {0x6071, 0, 16}, {0x5FFF, 0, 16}};  // no such object
+  Rig rig(true, config);
+  try {
+    rig.master.boot();
+    FAIL() << "booted with a mapping of an object the drive does not have";
+  } catch (const Cia402DriveError& e) {
+    EXPECT_NE(std::string(e.what()).find("0x1600:0 = 0x03 aborted"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(rig.drive->esc().al_state(), AlState::kPreOp) << "the boot stopped before SAFEOP";
+}
+
+TEST(EthercatCia402DriveConfig, ThePdoSectionIsReadAsEntriesAndBadOnesAreRefusedNamingTheKey) {
+  const std::string root = std::string(PMLSM_SOURCE_DIR) + "/configs/ethercat/drive.yaml";
+  const Cia402DriveConfig shipped = load_ethercat_config(root);
+  ASSERT_EQ(shipped.outputs_mapping.size(), 3u);
+  EXPECT_EQ(shipped.outputs_mapping[2], (canopen::PdoMapEntry{0x2002, 0, 32}));
+  ASSERT_EQ(shipped.inputs_mapping.size(), 5u);
+  std::ifstream in(root);
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string yaml = text.str();
+  const std::string pdo = yaml.substr(yaml.find("\npdo:") + 1);
+  const std::string without_pdo = yaml.substr(0, yaml.find("\npdo:") + 1);
+  EXPECT_TRUE(parse_ethercat_config(without_pdo, "no pdo").outputs_mapping.empty()) << "the drive's own";
+  const auto refused = [&](const std::string& section, const std::string& what) {
+    try {
+      parse_ethercat_config(without_pdo + section, "test");
+      ADD_FAILURE() << "accepted:\n" << section;
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
+  };
+  refused("pdo:\n  outputs: {value: [\"0x6040:0:16\"], source: \"chosen: x\"}\n", "pdo.inputs");
+  refused(pdo + "  extra: {value: 1, source: \"chosen: x\"}\n", "pdo.extra");
+  refused(
+      "pdo:\n  outputs: {value: [\"0x6040:0:12\"], source: \"chosen: x\"}\n  inputs: {value: "
+      "[\"0x6041:0:16\"], source: \"chosen: x\"}\n",
+      "pdo.outputs[0]");
+  refused(
+      "pdo:\n  outputs: {value: [], source: \"chosen: x\"}\n  inputs: {value: [\"0x6041:0:16\"], source: "
+      "\"chosen: x\"}\n",
+      "pdo.outputs");
 }
 
 }  // namespace

@@ -7,7 +7,8 @@
 // Boot (boot()): the slaves counted (the drive at drive.position must answer), station addresses
 // set, the drive's SII read and its identity compared with the rig file's (vendor id, product
 // code), INIT, the mailbox, PREOP; by SDO 0x6060 = 10 (cyclic synchronous torque) and 0x60C2 =
-// 1 ms; the process data mapped as the drive's 0x1C12 / 0x1C13 say (map_process_data), in which
+// 1 ms; the rig file's mapping written (0x1C12 / 0x1C13 and the PDOs, when it has a pdo section);
+// the process data mapped as the drive's 0x1C12 / 0x1C13 say (map_process_data), in which
 // the master finds controlword 0x6040 and target torque 0x6071 (outputs), statusword 0x6041,
 // torque actual 0x6077, velocity actual 0x606C and position actual 0x6064 (inputs); a missing
 // one stops the boot naming it. 0x6061 read back = 10. The process-data watchdog set (realtime:
@@ -55,6 +56,10 @@ struct Cia402DriveConfig {
   canopen::ScalingConfig scaling{675.0, 1e6};
   /// The process-data watchdog the drive is given in realtime (ETG: the ESI's SM watchdog).
   std::uint32_t watchdog_ms = 100;
+  /// The objects the master maps into the outputs and the inputs at boot (the rig file's pdo
+  /// section), in order; empty: the drive's own assignment is taken as it is.
+  std::vector<canopen::PdoMapEntry> outputs_mapping;
+  std::vector<canopen::PdoMapEntry> inputs_mapping;
 
   bool realtime = false;
   /// Set-up frames: how long a reply may take, and how often a frame is sent again.
@@ -69,7 +74,8 @@ struct Cia402DriveConfig {
   /// Realtime: how long an exchange waits for its reply within the tick.
   std::uint32_t reply_deadline_us = 400;
   std::uint32_t max_missed_cycles = 10;
-  /// The ranges of visit_parameters. @throws std::invalid_argument naming the key and the value.
+  /// The ranges of visit_parameters, and the mappings both given or both empty.
+  /// @throws std::invalid_argument naming the key and the value.
   void validate() const;
 };
 

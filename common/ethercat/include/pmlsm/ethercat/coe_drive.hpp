@@ -30,7 +30,11 @@ inline constexpr std::uint8_t kMaxAssignedPdos = 4;
 /// Adds 0x1C00 (4 sync managers: mailbox out, mailbox in, outputs, inputs) and 0x1C12 / 0x1C13:
 /// every RxPDO (0x1600-0x1603) and TxPDO (0x1A00-0x1A03) whose mapping the dictionary has with
 /// entries, in order. The CiA 402 dictionary alone gives 0x1600 and 0x1A00; a CANopen device's
-/// (configs/canopen) its RPDO1 and TPDO1 + TPDO2, the same objects on EtherCAT.
+/// (configs/canopen) its RPDO1 and TPDO1 + TPDO2, the same objects on EtherCAT. A master may
+/// assign others in PREOP (ETG.1000.6): sub-indices 1-4 change only while the count (sub-index 0)
+/// is 0 and name a PDO of their direction; a count needs each PDO it counts mapped. The PDOs'
+/// COB-IDs (0x1400.., 0x1800..), which EtherCAT does not use, are marked not valid so their
+/// mappings can be written (CiA 301 changes a mapping only of a PDO not valid).
 /// @throws std::invalid_argument from the dictionary (full, or an object already there).
 void add_coe_sync_manager_objects(canopen::ObjectDictionary& dictionary);
 
@@ -45,6 +49,9 @@ class CoeProcessImage {
   std::uint16_t input_bytes() const { return bytes_of(tx_); }
   /// Whether the outputs carry object `index` (the lockstep contract's command tick).
   bool outputs_map(std::uint16_t index) const;
+  /// The assignment and mappings read again (a master wrote them in PREOP; at PREOP -> SAFEOP).
+  /// @throws std::invalid_argument as the constructor; the image is then unchanged.
+  void rebuild();
   /// The outputs the master wrote into SM2 into the dictionary's mapped objects. Never throws;
   /// outputs the dictionary refuses (out of range) are counted and not written.
   void take_outputs(Esc& esc);
@@ -70,8 +77,10 @@ class CoeProcessImage {
 };
 
 /// A virtual CiA 402 slave on EtherCAT: its ESC, the CiA 402 dictionary of common/canopen with the
-/// sync manager objects, SDO over CoE on it, and its process image. `pmlsm ethercat serve` runs
-/// one; tests and the fuzz target build one the same way.
+/// sync manager objects, SDO over CoE on it, and its process image. At PREOP -> SAFEOP it takes the
+/// mapping the master left (the image rebuilt, SM2 and SM3 checked against its lengths); one the
+/// dictionary refuses is AL status code 0x001D (invalid output configuration). `pmlsm ethercat
+/// serve` runs one; tests and the fuzz target build one the same way.
 class VirtualCia402Slave {
  public:
   static constexpr std::uint16_t kMailboxReceiveAt = 0x1000;
@@ -107,6 +116,8 @@ class VirtualCia402Slave {
   static canopen::ObjectDictionary make_dictionary(const std::vector<std::uint16_t>& sii);
   static canopen::ObjectDictionary with_sync_manager_objects(canopen::ObjectDictionary dictionary);
   static EscParams esc_params(std::vector<std::uint16_t> sii, const CoeProcessImage& process);
+  /// PREOP -> SAFEOP: the mapping the master left taken (0), or refused (0x001D).
+  std::uint16_t take_mapping();
 
   canopen::ObjectDictionary dictionary_;
   CoeProcessImage process_;
@@ -174,7 +185,6 @@ class VirtualEthercatDrive : canopen::Cia402ApplicationEvents {
   canopen::Cia402Application application_;
   Log log_;
   std::uint64_t outputs_seen_ = 0;
-  bool lockstep_ = false;        ///< the outputs carry the command tick
   std::int64_t outputs_ns_ = 0;  ///< when the last outputs came, or OP was entered if later
   bool in_op_ = false;
   std::uint64_t cycles_outside_op_ = 0;

@@ -145,6 +145,15 @@ class Esc {
   /// mailbox (SM1); nullptr: none (a message is taken and nothing answered). `handler` outlives
   /// the ESC.
   void set_mailbox_handler(MailboxHandler* handler) { mailbox_handler_ = handler; }
+  /// What the application does when the master asks PREOP -> SAFEOP, before the ESC checks SM2 and
+  /// SM3 against the process data's lengths: it may take a new mapping (set_process_data_bytes)
+  /// or refuse with an AL status code (0: go on). Empty: nothing.
+  void set_before_safeop(std::function<std::uint16_t()> before) { before_safeop_ = std::move(before); }
+  /// The process data's lengths SAFEOP checks SM2 and SM3 against (the application's mapping).
+  void set_process_data_bytes(std::uint16_t output_bytes, std::uint16_t input_bytes) {
+    params_.output_bytes = output_bytes;
+    params_.input_bytes = input_bytes;
+  }
 
  private:
   bool addressed(const DatagramHeader& header) const;
@@ -177,6 +186,7 @@ class Esc {
   EscParams params_;
   std::vector<std::uint8_t> memory_;
   MailboxHandler* mailbox_handler_ = nullptr;
+  std::function<std::uint16_t()> before_safeop_;
   std::uint64_t outputs_written_ = 0;
 };
 

@@ -141,6 +141,14 @@ class Master {
   SdoResult sdo_download(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex, std::uint32_t value,
                          std::uint8_t size);
 
+  /// A sync manager's PDO assignment written over CoE (the slave in PREOP, ETG.1000.6's order): the
+  /// assignment `assign_index` (0x1C12 outputs, 0x1C13 inputs) emptied, `entries` mapped in order
+  /// into the PDOs from `first_pdo` on (0x1600, 0x1A00), a PDO at most 8 entries and 64 bits (what
+  /// every CoE slave takes, CANopen's PDO included), each assigned after the one before.
+  /// @throws std::runtime_error naming the object and the abort code when the slave refuses,
+  /// std::invalid_argument when the entries need more than 4 PDOs or one is wider than 32 bits.
+  void write_pdo_assignment(const SlaveInfo& slave, std::uint16_t assign_index, std::uint16_t first_pdo,
+                            const std::vector<canopen::PdoMapEntry>& entries);
   /// The slave's process data mapped as its CoE objects say (0x1C12 / 0x1C13: the assigned PDOs,
   /// their mapping objects' entries), SM2 and SM3 set at the SII's addresses with those lengths,
   /// and FMMU 0 (outputs) and 1 (inputs) onto the logical image from `logical` on. The slave in
