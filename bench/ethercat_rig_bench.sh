@@ -4,7 +4,9 @@
 # composed chain (launch/virtual_rig_ethercat.yaml: drive_bridge, controller, estimator, evaluator)
 # on the other end. `runs` runs of `seconds` s of the pulse at 1 kHz; each run: the bridge's and
 # the drive's exit codes, working counter errors, cycles without the inputs in time, drive faults,
-# the frame round trip (p50 / p99 / max: the bus cycle time), the chain latency; then the totals.
+# the frame round trip (p50 / p99 / max: the bus cycle time), the chain latency, the drive's
+# distributed-clock difference at the end (its crystal 100 ppm fast, kept on the master's time by a
+# write each cycle); then the totals.
 # The lockstep run over UDP beside it, for the real-time factor against the CANopen rig's.
 #   sudo bench/ethercat_rig_bench.sh [runs] [seconds]   (default 20 runs of 10 s)
 # Needs root (a namespace, raw sockets); exits 77 without it. Prints figures; exits 1 when a run did
@@ -52,7 +54,7 @@ echo "  real-time factor: EtherCAT rig ${ecat_rtf}x, CANopen rig ${can_rtf}x, ra
 grep "round trip" "$work/lock_ecat.log" | sed 's/^\[drive_bridge\] drive_bridge: /  lockstep, UDP: /'
 
 echo "[2/2] realtime, composed, raw EtherCAT over a veth pair: $runs runs of $seconds s"
-printf '%4s %6s %6s %6s %7s %7s %11s %11s %11s %10s\n' run bridge drive wkc_err missed faults trip_p50_us trip_p99_us trip_max_us chain_p50
+printf '%4s %6s %6s %6s %7s %7s %11s %11s %11s %10s %11s\n' run bridge drive wkc_err missed faults trip_p50_us trip_p99_us trip_max_us chain_p50 dc_diff_ns
 failed=0
 total_wkc=0
 total_missed=0
@@ -61,7 +63,7 @@ for ((r = 1; r <= runs; r++)); do
   dlog="$work/drive_$r.log"
   blog="$work/bridge_$r.log"
   ip netns exec "$ns" "$bin/virtual_drive" --bus ethercat --ethercat-interface "$drive_end" --clock realtime \
-    --scenario "$scenario" --domain "$domain" >"$dlog" 2>&1 &
+    --ethercat-dc-drift-ppm 100 --scenario "$scenario" --domain "$domain" >"$dlog" 2>&1 &
   drive_pid=$!
   wait_for_line "$dlog" "virtual EtherCAT CiA 402 drive on"
   bridge_code=0
@@ -77,9 +79,10 @@ for ((r = 1; r <= runs; r++)); do
   faults=$(field 's/.*faults \([0-9]*\) (last error.*/\1/p' "$dlog")
   trip="$(grep "frame round trip" "$blog" || true)"
   chain="$(grep "chain latency" "$blog" || true)"
-  printf '%4d %6s %6s %6s %7s %7s %11s %11s %11s %10s\n' "$r" "$bridge_code" "$drive_code" "${wkc:-?}" "${missed:-?}" \
+  dc=$(field 's/.*difference 0x092C \([-0-9]*\) ns at the end.*/\1/p' "$blog")
+  printf '%4d %6s %6s %6s %7s %7s %11s %11s %11s %10s %11s\n' "$r" "$bridge_code" "$drive_code" "${wkc:-?}" "${missed:-?}" \
     "${faults:-?}" "$(sed -n 's/.*p50 \([0-9.]*\) us.*/\1/p' <<<"$trip")" "$(sed -n 's/.*p99 \([0-9.]*\) us.*/\1/p' <<<"$trip")" \
-    "$(sed -n 's/.*max \([0-9.]*\) us.*/\1/p' <<<"$trip")" "$(sed -n 's/.*p50 \([0-9.]*\) us.*/\1/p' <<<"$chain")"
+    "$(sed -n 's/.*max \([0-9.]*\) us.*/\1/p' <<<"$trip")" "$(sed -n 's/.*p50 \([0-9.]*\) us.*/\1/p' <<<"$chain")" "${dc:-?}"
   total_wkc=$((total_wkc + ${wkc:-1}))
   total_missed=$((total_missed + ${missed:-0}))
   total_faults=$((total_faults + ${faults:-1}))

@@ -28,6 +28,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "can_options.hpp"
@@ -255,6 +256,7 @@ class EthercatHooks final : public node::DriveNodeHooks {
       std::printf("%s: run ended: drive disabled (shutdown)\n", node.name().c_str());
     }
     if (drive_.lost()) return;
+    dc_difference_ns_ = drive_.dc_difference_ns();
     if (drive_.release()) {
       std::printf("%s: the drive's slave released to INIT\n", node.name().c_str());
     } else {
@@ -269,6 +271,13 @@ class EthercatHooks final : public node::DriveNodeHooks {
         static_cast<unsigned long long>(c.cycles), static_cast<unsigned long long>(c.output_resends),
         static_cast<unsigned long long>(c.frames_lost), static_cast<unsigned long long>(drive_.master().frames_lost()),
         static_cast<unsigned long long>(c.working_counter_errors), static_cast<unsigned long long>(c.missed_inputs));
+    if (const std::optional<std::int64_t> dc = dc_difference_ns_) {
+      std::printf(
+          "drive_bridge: EtherCAT distributed clock: %llu writes of the master's time (%llu lost), the "
+          "drive's difference 0x092C %lld ns at the end\n",
+          static_cast<unsigned long long>(c.dc_writes), static_cast<unsigned long long>(c.dc_writes_lost),
+          static_cast<long long>(*dc));
+    }
     const drive::LatencySummary trip = drive_.round_trips();
     if (trip.count > 0) {
       std::printf("drive_bridge: EtherCAT frame round trip over %zu exchanges: p50 %.1f us, p99 %.1f us, max %.1f us\n",
@@ -283,6 +292,7 @@ class EthercatHooks final : public node::DriveNodeHooks {
   std::string link_;
   ProblemReports reports_;
   std::int64_t boot_began_ns_ = 0;
+  std::optional<std::int64_t> dc_difference_ns_;  ///< read before the slave is released
 };
 
 class EthercatBridgeComponent final : public node::DriveComponent {

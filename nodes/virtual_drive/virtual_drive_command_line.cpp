@@ -9,6 +9,10 @@ std::optional<int> parse_virtual_drive_command_line(int argc, char** argv, Virtu
   add_common_options(app, opt.common);
   add_can_options(app, opt.can);
   add_ethercat_options(app, opt.ethercat, false);
+  app.add_option("--ethercat-dc-drift-ppm", opt.dc_drift_ppm,
+                 "--bus ethercat: the drive's distributed clock runs this many ppm fast (negative: slow)")
+      ->check(CLI::Range(-1000.0, 1000.0))
+      ->capture_default_str();
   app.add_option("--dictionary", opt.dictionary_path,
                  "the device's part of the object dictionary (identity, manufacturer objects, PDO defaults), EDS-like")
       ->capture_default_str();

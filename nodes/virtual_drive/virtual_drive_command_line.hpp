@@ -20,6 +20,8 @@ struct VirtualDriveOptions {
   std::string dictionary_path = pmlsm::data_file("configs/canopen/virtual_drive_od.yaml");
   std::optional<std::uint64_t> inject_fault_at_tick;
   bool publish_truth = false;
+  /// --bus ethercat: the virtual drive's clock crystal's rate error [ppm].
+  double dc_drift_ppm = 0.0;
 };
 
 /// Parses virtual_drive's command line into `opt` (its values are the defaults shown): an exit

@@ -48,7 +48,9 @@ class VirtualEthercatDriveComponent final : public CycleComponent {
         simulated_(rt_.cfg.params, scenario_initial_condition(rt_.cfg.scenario)),
         drive_(application_params(), simulated_, build_device_dictionary(canopen_, device_, rt_.period_s),
                [this](bool error, const std::string& line, std::int64_t now_ns) { log(error, line, now_ns); }),
-        segment_({&drive_.esc()}) {}
+        segment_({&drive_.esc()}, [] { return monotonic_ns(); }) {
+    drive_.esc().dc().set_drift_ppm(opt_.dc_drift_ppm);
+  }
 
   void activate() override;
   Update update() override;
@@ -191,6 +193,10 @@ int VirtualEthercatDriveComponent::finish(int exit_code) {
               drive_.cycles_outside_op(), drive_.unstepped_cycles(), simulated_.fault_count(),
               static_cast<unsigned>(simulated_.error_code()), drive::to_string(simulated_.power_state()),
               pdds::stop_requested() ? ", stopped by signal" : "");
+  const ec::DcClock& dc = drive_.esc().dc();
+  std::printf("virtual_drive: distributed clock: %.6g ppm crystal, %" PRIu64
+              " times of the master followed, correction %.3g ppm, difference 0x092C %lld ns\n",
+              opt_.dc_drift_ppm, dc.writes(), dc.correction_ppm(), static_cast<long long>(dc.difference_ns()));
   if (truth_) {
     truth_->finish();
     std::printf("virtual_drive: PlantTruth: %llu ticks published, %llu not published\n",

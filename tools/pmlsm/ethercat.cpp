@@ -295,7 +295,7 @@ int run_serve_drive(const EthercatOptions& o) {
                      static_cast<double>(now_ns - start_ns) * 1e-9);
       },
       sii);
-  VirtualSegment segment({&drive.esc()});
+  VirtualSegment segment({&drive.esc()}, [] { return monotonic_ns(); });
   const std::unique_ptr<Link> link = serve_link(o, "a virtual EtherCAT CiA 402 drive over the simulated motor");
   const std::size_t answered = serve_frames(o, segment, *link, [&] { drive.after_frame(monotonic_ns()); });
   const drive::Measurement m = simulated.sample();
@@ -317,7 +317,7 @@ int run_serve_drive(const EthercatOptions& o) {
 int run_serve(const EthercatOptions& o) {
   if (o.drive) return run_serve_drive(o);
   VirtualCia402Slave slave(o.sii.empty() ? std::vector<std::uint16_t>{} : sii_from_file(o.sii));
-  VirtualSegment segment({&slave.esc()});
+  VirtualSegment segment({&slave.esc()}, [] { return monotonic_ns(); });
   const std::unique_ptr<Link> link = serve_link(o, "a virtual EtherCAT slave");
   const std::size_t answered = serve_frames(o, segment, *link, [&] { slave.exchange(); });
   std::printf("answered %zu frames; AL state %s; %llu SDO requests\n", answered, to_string(slave.esc().al_state()),

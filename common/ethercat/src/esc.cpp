@@ -95,14 +95,17 @@ void EscParams::validate() const {
     throw std::invalid_argument("sii: at least " + std::to_string(sii::kMinWords) + " words (the fixed part and " +
                                 "an end category), got " + std::to_string(sii.size()));
   }
+  dc.validate();
   if (fmmus == 0 || fmmus > 16) throw std::invalid_argument("fmmus: 1 to 16, got " + std::to_string(fmmus));
   if (sync_managers < 4 || sync_managers > 16) {
     throw std::invalid_argument("sync_managers: 4 to 16, got " + std::to_string(sync_managers));
   }
 }
 
-Esc::Esc(EscParams params) : params_((params.validate(), std::move(params))), memory_(kMemoryBytes, 0) {
+Esc::Esc(EscParams params)
+    : params_((params.validate(), std::move(params))), memory_(kMemoryBytes, 0), dc_(params_.dc) {
   memory_[reg::kType] = params_.type;
+  memory_[reg::kFeatures] = 0x0C;  // distributed clocks, 64 bits
   memory_[reg::kRevision] = 1;
   memory_[reg::kFmmuCount] = params_.fmmus;
   memory_[reg::kSyncManagerCount] = params_.sync_managers;
@@ -271,8 +274,51 @@ void Esc::write_from(std::uint16_t address, const std::uint8_t* in, std::size_t 
   if (any) after_write(address, size);
 }
 
+void Esc::set_time(std::int64_t now_ns) {
+  dc_.advance_to(now_ns);
+  show_dc();
+}
+
+void Esc::show_dc() {
+  const std::uint64_t system = dc_.system_time_ns();
+  for (int i = 0; i < 8; ++i) memory_[reg::kDcSystemTime + i] = static_cast<std::uint8_t>(system >> (8 * i));
+  const std::int64_t difference = dc_.difference_ns();
+  const std::uint64_t magnitude = difference < 0 ? static_cast<std::uint64_t>(-difference) : difference;
+  std::uint32_t value = static_cast<std::uint32_t>(std::min<std::uint64_t>(magnitude, 0x7FFFFFFFU));
+  if (difference > 0) value |= 0x80000000U;  // its own time behind the ones received
+  for (int i = 0; i < 4; ++i) memory_[reg::kDcSystemTimeDifference + i] = static_cast<std::uint8_t>(value >> (8 * i));
+}
+
+void Esc::dc_written(std::uint16_t address, std::size_t size) {
+  const auto covers = [&](std::uint16_t reg_address) { return address <= reg_address && reg_address < address + size; };
+  const auto u64_at = [&](std::uint16_t at) {
+    return static_cast<std::uint64_t>(long_at(at)) | (static_cast<std::uint64_t>(long_at(at + 4)) << 32);
+  };
+  if (covers(reg::kDcReceiveTimePort0)) {
+    // The frame's arrival latched: port 0's receive time (32 bits) and the unit's (64 bits); ports
+    // 1-3 lead nowhere here.
+    const std::uint64_t local = dc_.local_ns();
+    for (int i = 0; i < 16; ++i) {
+      memory_[reg::kDcReceiveTimePort0 + i] = i < 4 ? static_cast<std::uint8_t>(local >> (8 * i)) : 0;
+    }
+    for (int i = 0; i < 8; ++i) memory_[reg::kDcReceiveTimeUnit + i] = static_cast<std::uint8_t>(local >> (8 * i));
+  }
+  if (covers(reg::kDcSystemTimeOffset)) dc_.set_offset_ns(u64_at(reg::kDcSystemTimeOffset));
+  if (covers(reg::kDcSystemTimeDelay)) dc_.set_delay_ns(long_at(reg::kDcSystemTimeDelay));
+  if (covers(reg::kDcSystemTime)) {
+    // A 32-bit write carries the low half; the high half is the clock's own.
+    std::uint64_t received = u64_at(reg::kDcSystemTime);
+    if (!covers(reg::kDcSystemTime + 4)) {
+      received = (dc_.system_time_ns() & 0xFFFFFFFF00000000ULL) | (received & 0xFFFFFFFFULL);
+    }
+    dc_.on_system_time_written(received);
+  }
+  show_dc();
+}
+
 void Esc::after_write(std::uint16_t address, std::size_t size) {
   const auto covers = [&](std::uint16_t reg_address) { return address <= reg_address && reg_address < address + size; };
+  if (address < 0x0A00 && address + size > reg::kDcReceiveTimePort0) dc_written(address, size);
   if (covers(reg::kAlControl)) request_state(memory_[reg::kAlControl]);
   if (covers(reg::kSiiControl) || covers(reg::kSiiControl + 1)) sii_command();
   const MailboxArea receive = mailbox_area(0);
@@ -441,6 +487,10 @@ FrameError VirtualSegment::pass(std::uint8_t* bytes, std::size_t size) {
   ParsedFrame parsed;
   const FrameError error = parse_ethernet_frame(bytes, size, parsed);
   if (error != FrameError::kNone) return error;
+  if (clock_) {
+    const std::int64_t now_ns = clock_();
+    for (Esc* slave : slaves_) slave->set_time(now_ns);
+  }
   // An ESC sets the locally administered bit of the source address on the way (ETG.1000.4): a
   // master tells the frames coming back from its own.
   bytes[6] = static_cast<std::uint8_t>(bytes[6] | 0x02U);

@@ -382,6 +382,45 @@ void Master::write_pdo_assignment(const SlaveInfo& slave, std::uint16_t assign_i
   write(assign_index, 0, static_cast<std::uint32_t>(pdos.size()), 1);
 }
 
+void Master::configure_distributed_clock(std::uint16_t station, std::uint64_t master_time_ns) {
+  std::array<std::uint8_t, 8> bytes{};
+  read_register(station, reg::kFeatures, bytes.data(), 2, "ESC features");
+  if ((bytes[0] & 0x0C) != 0x0C) {
+    throw std::runtime_error(slave_name(station) + ": no 64-bit distributed clock (ESC features " +
+                             format_hex(bytes[0], 2) + ")");
+  }
+  std::array<std::uint8_t, 4> latch{};
+  const Reply r = exchange(Command::kBwr, physical_address(0, reg::kDcReceiveTimePort0), latch.data(), 4);
+  if (!r.answered || r.working_counter == 0) {
+    throw std::runtime_error(slave_name(station) + ": the receive time latch (BWR 0x0900) was not taken");
+  }
+  read_register(station, reg::kDcReceiveTimeUnit, bytes.data(), 8, "DC receive time");
+  const std::uint64_t local = get_le32(bytes.data()) | (static_cast<std::uint64_t>(get_le32(bytes.data() + 4)) << 32);
+  const std::uint64_t offset = master_time_ns - local;
+  put_le32(bytes.data(), static_cast<std::uint32_t>(offset));
+  put_le32(bytes.data() + 4, static_cast<std::uint32_t>(offset >> 32));
+  write_register(station, reg::kDcSystemTimeOffset, bytes.data(), 8, "DC system time offset");
+  std::array<std::uint8_t, 4> delay{};
+  write_register(station, reg::kDcSystemTimeDelay, delay.data(), 4, "DC system time delay");
+}
+
+Reply Master::write_system_time(std::uint16_t station, std::uint64_t master_time_ns, std::int64_t reply_timeout_ns,
+                                int retries) {
+  std::array<std::uint8_t, 8> bytes{};
+  put_le32(bytes.data(), static_cast<std::uint32_t>(master_time_ns));
+  put_le32(bytes.data() + 4, static_cast<std::uint32_t>(master_time_ns >> 32));
+  return exchange(Command::kFpwr, physical_address(station, reg::kDcSystemTime), bytes.data(), 8, reply_timeout_ns,
+                  retries);
+}
+
+std::int64_t Master::read_system_time_difference(std::uint16_t station) {
+  std::array<std::uint8_t, 4> bytes{};
+  read_register(station, reg::kDcSystemTimeDifference, bytes.data(), 4, "DC system time difference");
+  const std::uint32_t value = get_le32(bytes.data());
+  const auto magnitude = static_cast<std::int64_t>(value & 0x7FFFFFFFU);
+  return (value & 0x80000000U) != 0 ? magnitude : -magnitude;
+}
+
 int ProcessDataLayout::offset_in(const std::vector<canopen::PdoMapEntry>& entries, std::uint16_t index,
                                  std::uint8_t subindex) {
   int bits = 0;

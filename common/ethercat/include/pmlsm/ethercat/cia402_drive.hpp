@@ -11,7 +11,11 @@
 // the process data mapped as the drive's 0x1C12 / 0x1C13 say (map_process_data), in which
 // the master finds controlword 0x6040 and target torque 0x6071 (outputs), statusword 0x6041,
 // torque actual 0x6077, velocity actual 0x606C and position actual 0x6064 (inputs); a missing
-// one stops the boot naming it. 0x6061 read back = 10. The process-data watchdog set (realtime:
+// one stops the boot naming it. 0x6061 read back = 10. With drive.distributed_clocks, the drive's
+// clock set to the master's time (Master::configure_distributed_clock) and, each cycle after the
+// outputs, the master's time written to it (its drift control follows), plus the frame's way there
+// (half the running mean of the cycle's round trips; a ring's delay would be measured by the ports'
+// receive times instead). The process-data watchdog set (realtime:
 // drive.watchdog_ms; lockstep: off, since a lockstep tick waits on the slowest node), SAFEOP, one
 // cycle of outputs that step nothing, OP. Errors throw Cia402DriveError naming the slave, the
 // object or register and what came back.
@@ -56,6 +60,9 @@ struct Cia402DriveConfig {
   canopen::ScalingConfig scaling{675.0, 1e6};
   /// The process-data watchdog the drive is given in realtime (ETG: the ESI's SM watchdog).
   std::uint32_t watchdog_ms = 100;
+  /// The drive's distributed clock set to the master's time at boot and kept on it, a write of the
+  /// master's time each cycle (Master::configure_distributed_clock, write_system_time).
+  bool distributed_clocks = true;
   /// The objects the master maps into the outputs and the inputs at boot (the rig file's pdo
   /// section), in order; empty: the drive's own assignment is taken as it is.
   std::vector<canopen::PdoMapEntry> outputs_mapping;
@@ -89,6 +96,7 @@ void visit_parameters(Config& m, Visitor& v) {
   canopen::visit_scaling_parameters(m.scaling, v);
   v.integer("drive.watchdog_ms", m.watchdog_ms,
             {1.0, 6500.0, "the ESC's 16-bit watchdog in its default 100 us units: up to 6.5 s"});
+  v.flag("drive.distributed_clocks", m.distributed_clocks);
   v.integer("master.reply_timeout_ms", m.reply_timeout_ms, {1.0, 10000.0, "1 ms to 10 s for a frame there and back"});
   v.integer("master.retries", m.retries, {0.0, 100.0, "0 to 100 resends of a set-up frame"});
   v.integer("master.state_timeout_ms", m.state_timeout_ms,
@@ -115,6 +123,8 @@ struct Cia402DriveCounters {
   std::uint64_t frames_lost = 0;             ///< exchanges without a reply
   std::uint64_t working_counter_errors = 0;  ///< replies with a working counter other than 1
   std::uint64_t missed_inputs = 0;           ///< realtime: cycles without the inputs in time
+  std::uint64_t dc_writes = 0;               ///< the master's time written to the drive's clock
+  std::uint64_t dc_writes_lost = 0;          ///< of them not answered or not taken
 };
 
 class Cia402Drive final : public drive::Drive {
@@ -133,6 +143,10 @@ class Cia402Drive final : public drive::Drive {
   /// Walks the drive to operation enabled before the run, one cycle that steps nothing at a time.
   /// @throws Cia402DriveError naming the state it is stuck in (or the fault).
   void enable_and_wait();
+  /// The drive's 0x092C (the difference of its clock to the master's times written, filtered)
+  /// [ns]; nullopt without distributed clocks or when it does not answer. Not for the cycle: one
+  /// more exchange with the set-up time-outs.
+  std::optional<std::int64_t> dc_difference_ns();
   /// The run over: the slave walked to SAFEOP (outputs no longer taken), then INIT. Never throws;
   /// false when it did not follow (its AL state in last_problem()).
   bool release();
@@ -219,6 +233,7 @@ class Cia402Drive final : public drive::Drive {
   drive::Measurement last_measurement_;
   Cia402DriveCounters counters_;
   drive::LoopStatistics round_trips_{kRoundTripsKept};
+  std::int64_t transit_ns_ = 0;  ///< a frame's way to the drive, estimated from the round trips
 };
 
 }  // namespace pmlsm::ethercat

@@ -32,6 +32,7 @@
 #include <utility>
 #include <vector>
 
+#include "pmlsm/ethercat/dc_clock.hpp"
 #include "pmlsm/ethercat/frame.hpp"
 #include "pmlsm/ethercat/link.hpp"
 #include "pmlsm/ethercat/mailbox.hpp"
@@ -47,6 +48,7 @@ inline constexpr std::uint16_t kBuild = 0x0002;
 inline constexpr std::uint16_t kFmmuCount = 0x0004;
 inline constexpr std::uint16_t kSyncManagerCount = 0x0005;
 inline constexpr std::uint16_t kRamSizeKib = 0x0006;
+inline constexpr std::uint16_t kFeatures = 0x0008;  ///< u16: bit 2 distributed clocks, bit 3 64-bit DC
 inline constexpr std::uint16_t kStationAddress = 0x0010;
 inline constexpr std::uint16_t kStationAlias = 0x0012;
 inline constexpr std::uint16_t kDlStatus = 0x0110;
@@ -61,6 +63,12 @@ inline constexpr std::uint16_t kSiiAddress = 0x0504;
 inline constexpr std::uint16_t kSiiData = 0x0508;
 inline constexpr std::uint16_t kFmmu0 = 0x0600;
 inline constexpr std::uint16_t kSyncManager0 = 0x0800;
+inline constexpr std::uint16_t kDcReceiveTimePort0 = 0x0900;      ///< u32; a write latches every port's
+inline constexpr std::uint16_t kDcSystemTime = 0x0910;            ///< u64: read the time, write to follow
+inline constexpr std::uint16_t kDcReceiveTimeUnit = 0x0918;       ///< u64: the latch in local time
+inline constexpr std::uint16_t kDcSystemTimeOffset = 0x0920;      ///< u64
+inline constexpr std::uint16_t kDcSystemTimeDelay = 0x0928;       ///< u32
+inline constexpr std::uint16_t kDcSystemTimeDifference = 0x092C;  ///< u32: bit 31 own time behind, 30-0 ns
 inline constexpr std::uint16_t kProcessRam = 0x1000;
 }  // namespace reg
 
@@ -106,6 +114,8 @@ struct EscParams {
   /// The process data the slave's mapping has (0: none): SM2's and SM3's lengths for SAFEOP.
   std::uint16_t output_bytes = 0;
   std::uint16_t input_bytes = 0;
+  /// Its distributed clock (64 bits; the local crystal's drift).
+  DcClockParams dc;
   /// @throws std::invalid_argument naming what is wrong.
   void validate() const;
 };
@@ -120,6 +130,12 @@ class Esc {
   /// A datagram passes this slave: done if it is addressed, the working counter and (auto
   /// increment) the ADP in `header` counted on. `data` holds header.length bytes.
   void pass(DatagramHeader& header, std::uint8_t* data, std::uint16_t& working_counter);
+
+  /// The wall time is `now_ns` (the owner's clock, set before a frame passes): its distributed
+  /// clock runs on to it, and 0x0910 and 0x092C read its system time and difference then.
+  void set_time(std::int64_t now_ns);
+  const DcClock& dc() const { return dc_; }
+  DcClock& dc() { return dc_; }
 
   AlState al_state() const;
   std::uint16_t al_status_code() const;
@@ -182,20 +198,28 @@ class Esc {
   void after_read(std::uint16_t address, std::uint16_t length);
   void mailbox_received();
   void set_sync_manager_full(std::size_t index, bool full);
+  /// The DC registers the master wrote: a latch of the receive times, a system time to follow, the
+  /// offset, the delay.
+  void dc_written(std::uint16_t address, std::size_t size);
+  /// 0x0910 and 0x092C from the clock.
+  void show_dc();
 
   EscParams params_;
   std::vector<std::uint8_t> memory_;
   MailboxHandler* mailbox_handler_ = nullptr;
   std::function<std::uint16_t()> before_safeop_;
   std::uint64_t outputs_written_ = 0;
+  DcClock dc_;
 };
 
 /// A line of virtual slaves in one process: a frame passes each in order and comes back, as on a
 /// ring of real ones.
 class VirtualSegment {
  public:
-  /// `slaves` outlive the segment.
-  explicit VirtualSegment(std::vector<Esc*> slaves) : slaves_(std::move(slaves)) {}
+  /// `slaves` outlive the segment. `clock` (monotonic ns; may be empty): the time each slave is set
+  /// to before a frame passes it (Esc::set_time: their distributed clocks run on it).
+  explicit VirtualSegment(std::vector<Esc*> slaves, std::function<std::int64_t()> clock = {})
+      : slaves_(std::move(slaves)), clock_(std::move(clock)) {}
   /// The frame in `bytes` (an Ethernet frame of `size` bytes) through every slave, in place.
   /// Returns what the parser said of it; a refused frame is left as it was (a real slave drops it).
   FrameError pass(std::uint8_t* bytes, std::size_t size);
@@ -206,6 +230,7 @@ class VirtualSegment {
 
  private:
   std::vector<Esc*> slaves_;
+  std::function<std::int64_t()> clock_;
   std::array<std::uint8_t, kMaxEthernetFrameBytes> buffer_{};
 };
 

@@ -156,6 +156,22 @@ class Master {
   /// sync manager for the process data.
   ProcessDataLayout map_process_data(const SlaveInfo& slave, std::uint32_t logical);
 
+  /// Distributed clocks with the slave's clock as the reference, following the master's time (as
+  /// IgH's master runs them; SOEM follows the reference instead): the receive times latched (BWR
+  /// 0x0900), the slave's local time at that frame read (0x0918), and its offset (0x0920) written so
+  /// that its system time is `master_time_ns` (the master's clock as the latch frame went) then;
+  /// the delay (0x0928) 0, the slave next to the master (a line of slaves needs the ports' receive
+  /// times, not measured here). @throws std::runtime_error when the slave has no 64-bit
+  /// distributed clock (0x0008) or does not take it.
+  void configure_distributed_clock(std::uint16_t station, std::uint64_t master_time_ns);
+  /// One drift-compensation write: `master_time_ns` into the slave's 0x0910 (FPWR), within the
+  /// given reply time-out and retries. Never throws.
+  Reply write_system_time(std::uint16_t station, std::uint64_t master_time_ns, std::int64_t reply_timeout_ns,
+                          int retries);
+  /// The slave's 0x092C: the filtered difference between the times written and its own [ns],
+  /// positive when its clock is behind. @throws std::runtime_error when it does not answer.
+  std::int64_t read_system_time_difference(std::uint16_t station);
+
   std::uint64_t frames_sent() const { return frames_sent_; }
   std::uint64_t frames_lost() const { return frames_lost_; }
 
