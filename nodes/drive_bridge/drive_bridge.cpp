@@ -255,15 +255,10 @@ class EthercatHooks final : public node::DriveNodeHooks {
       drive_.apply(0.0);
       std::printf("%s: run ended: drive disabled (shutdown)\n", node.name().c_str());
     }
-    if (drive_.lost()) return;
-    dc_difference_ns_ = drive_.dc_difference_ns();
-    if (drive_.release()) {
-      std::printf("%s: the drive's slave released to INIT\n", node.name().c_str());
-    } else {
-      std::fprintf(stderr, "%s: the drive's slave did not leave OP: %s\n", node.name().c_str(), drive_.last_problem());
-    }
+    release();
   }
   void flush(std::chrono::seconds /*timeout*/) override {
+    release();  // a run that ended otherwise (its controller lost, a fault) leaves no slave in OP either
     const ethercat::Cia402DriveCounters& c = drive_.counters();
     std::printf(
         "drive_bridge: EtherCAT: %llu cycles (%llu outputs sent again), %llu exchanges without a reply (%llu "
@@ -287,12 +282,24 @@ class EthercatHooks final : public node::DriveNodeHooks {
 
  private:
   double since_boot_ms() const { return static_cast<double>(monotonic_ns() - boot_began_ns_) * 1e-6; }
+  /// The drive's slave out of OP (SAFEOP, INIT), once; its DC difference read before.
+  void release() {
+    if (released_ || drive_.lost()) return;
+    released_ = true;
+    dc_difference_ns_ = drive_.dc_difference_ns();
+    if (drive_.release()) {
+      std::printf("drive_bridge: the drive's slave released to INIT\n");
+    } else {
+      std::fprintf(stderr, "drive_bridge: the drive's slave did not leave OP: %s\n", drive_.last_problem());
+    }
+  }
 
   ethercat::Cia402Drive& drive_;
   std::string link_;
   ProblemReports reports_;
   std::int64_t boot_began_ns_ = 0;
   std::optional<std::int64_t> dc_difference_ns_;  ///< read before the slave is released
+  bool released_ = false;
 };
 
 class EthercatBridgeComponent final : public node::DriveComponent {

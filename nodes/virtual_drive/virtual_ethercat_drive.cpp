@@ -6,7 +6,8 @@
 // cycle its master completes in OP (synchronous to SM2); the process-data watchdog checked between
 // frames. PlantTruth (--publish-truth, lockstep) per period since the slave entered OP.
 // Lockstep: the run ends when the master takes the slave out of OP (drive_bridge releases it to
-// INIT at its end), or no frame came for --peer-timeout-s (exit 4). Realtime: until SIGINT.
+// INIT at its end; before the scenario's last tick: exit 4), or no frame came for --peer-timeout-s
+// (exit 4). Realtime: until SIGINT.
 // Exit 0 ok, 2 bad input, 1 socket, 4 the master gone, 5 the drive faulted.
 #include "virtual_ethercat_drive.hpp"
 
@@ -153,8 +154,15 @@ CycleComponent::Update VirtualEthercatDriveComponent::update() {
   std::int64_t now = monotonic_ns();
   if (released_) {
     if (truth_) truth_->flush();
-    if (!truth_ || truth_->held() == 0 || now >= truth_deadline_ns_) return Update::finished(kExitOk);
-    return Update::waiting_until(std::min(truth_deadline_ns_, now + kPollNs));
+    if (truth_ && truth_->held() > 0 && now < truth_deadline_ns_) {
+      return Update::waiting_until(std::min(truth_deadline_ns_, now + kPollNs));
+    }
+    if (recorded_ >= ticks_) return Update::finished(kExitOk);
+    // The master ended the run before its last tick (stopped, or its own fault): no whole run.
+    std::fprintf(stderr,
+                 "virtual_drive: the master took the drive out of OP after %" PRIu64 " of %" PRIu64 " ticks: exit %d\n",
+                 recorded_, ticks_, kExitPeerLost);
+    return Update::finished(kExitPeerLost);
   }
   int frames = 0;
   while (frames < kMaxFramesPerUpdate) {
@@ -178,8 +186,8 @@ CycleComponent::Update VirtualEthercatDriveComponent::update() {
   }
   if (!realtime_ && frames_ > 0 && now - last_frame_ns_ > std::llround(opt_.common.peer_timeout_s * 1e9)) {
     std::fprintf(stderr, "virtual_drive: no frame from the master for %.1f s (--peer-timeout-s): exit %d\n",
-                 opt_.common.peer_timeout_s, kExitPeerMissing);
-    return Update::finished(kExitPeerMissing);
+                 opt_.common.peer_timeout_s, kExitPeerLost);
+    return Update::finished(kExitPeerLost);
   }
   if (frames > 0) return Update::worked();
   return Update::waiting_until(now + kPollNs);

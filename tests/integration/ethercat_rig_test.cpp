@@ -1,6 +1,6 @@
 // The EtherCAT rig: drive_bridge --bus ethercat (our master) and virtual_drive --bus ethercat (the
 // simulated drive behind a virtual EtherCAT slave) exchanging EtherCAT over UDP on loopback, with
-// the rest of the system on DDS. Each test has its own DDS domain (offsets 113..116) and UDP port
+// the rest of the system on DDS. Each test has its own DDS domain (offsets 113..117) and UDP port
 // (62xx: below DDS's port base and the ephemeral range).
 #include <gtest/gtest.h>
 
@@ -142,6 +142,29 @@ TEST(EthercatRig, TheDrivesOwnFaultReachesTheBridgeWithItsCodeAndNeitherEndsOk) 
   EXPECT_EQ(*drive_code, 5) << drive.output();
   controller.signal(SIGINT);
   controller.wait_for(std::chrono::seconds(30));
+  fs::remove_all(dir);
+}
+
+TEST(EthercatRig, ARunTheMasterEndsEarlyIsNoCleanRunForTheDriveEither) {
+  const fs::path dir = test::fresh_dir("pmlsm_ethercat_rig", "early_end");
+  const std::string scenario = source("configs/scenarios/free_vibration.yaml");
+  const std::string domain = test_domain(117);
+  test::ChildProcess drive(node_args("virtual_drive", domain, scenario, ethercat_drive_args("6285")),
+                           (dir / "virtual_drive.log").string());
+  test::ChildProcess controller(node_args("controller", domain, scenario), (dir / "controller.log").string());
+  std::vector<std::string> bridge_args = ethercat_bridge_args("6285");
+  bridge_args.insert(bridge_args.end(), {"--peer-timeout-s", "1"});
+  test::ChildProcess bridge(node_args("drive_bridge", domain, scenario, bridge_args), (dir / "bridge.log").string());
+  ASSERT_TRUE(bridge.wait_for_output("operation enabled", std::chrono::seconds(30))) << bridge.output();
+  controller.signal(SIGKILL);  // the bridge ends the run without its controller, and releases the drive
+  const auto code = bridge.wait_for(std::chrono::seconds(60));
+  ASSERT_TRUE(code.has_value()) << bridge.output();
+  EXPECT_NE(*code, 0) << bridge.output();
+  const auto drive_code = drive.wait_for(std::chrono::seconds(30));
+  ASSERT_TRUE(drive_code.has_value()) << drive.output();
+  EXPECT_EQ(*drive_code, 4) << drive.output() << bridge.output();
+  EXPECT_NE(drive.output().find("took the drive out of OP after"), std::string::npos) << bridge.output();
+  controller.wait_for(std::chrono::seconds(10));
   fs::remove_all(dir);
 }
 

@@ -1,9 +1,9 @@
 #include "pmlsm/ethercat/cia402_drive.hpp"
 
-#include <cstdio>
-#include <string>
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
+#include <string>
 
 #include "pmlsm/canopen/cia402_application.hpp"
 #include "pmlsm/canopen/cia402_dictionary.hpp"
