@@ -224,17 +224,22 @@ bool Cia402Drive::read_inputs() {
 }
 
 void Cia402Drive::read_error_code() {
-  // The drive entered fault: its 0x603F by one mailbox exchange (the force is already off).
+  // The drive entered fault: its 0x603F by one mailbox exchange (the force is already off); a CoE
+  // emergency it posted comes out of the mailbox on the way and is named too.
   std::uint16_t code = 0;
+  const std::uint64_t emergencies_before = master_.emergencies();
   try {
     const SdoResult r = master_.sdo_upload(slave_, canopen::kObjectErrorCode, 0);
     if (r.done) code = static_cast<std::uint16_t>(r.value);
   } catch (const std::runtime_error&) {
     code = 0;  // the mailbox did not answer: the fault stands without its code
   }
-  char text[128];
+  const bool emergency = master_.emergencies() > emergencies_before;
+  if (code == 0 && emergency) code = master_.last_emergency_code();
+  char text[160];
   if (code != 0) {
-    std::snprintf(text, sizeof text, "the drive faulted: 0x603F = 0x%04X (%s)", code, canopen::describe_emcy(code));
+    std::snprintf(text, sizeof text, "the drive faulted: %s0x603F = 0x%04X (%s)", emergency ? "CoE emergency, " : "",
+                  code, canopen::describe_emcy(code));
   } else {
     std::snprintf(text, sizeof text, "the drive faulted (0x603F not read)");
   }

@@ -232,6 +232,13 @@ VirtualCia402Slave::VirtualCia402Slave(canopen::ObjectDictionary dictionary, std
   esc_.set_before_safeop([this] { return take_mapping(); });
 }
 
+bool VirtualCia402Slave::post_emergency(std::uint16_t error_code) {
+  std::array<std::uint8_t, kMailboxHeaderBytes + kCoeHeaderBytes + kSdoBytes> message{};
+  const auto error_register = static_cast<std::uint8_t>(dictionary_.get_or(canopen::kObjectErrorRegister, 0, 0));
+  const std::size_t size = coe_.write_emergency(message.data(), error_code, error_register);
+  return esc_.post_mailbox(message.data(), size);
+}
+
 std::uint16_t VirtualCia402Slave::take_mapping() {
   try {
     process_.rebuild();

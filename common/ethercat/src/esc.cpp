@@ -362,6 +362,11 @@ void Esc::after_read(std::uint16_t address, std::uint16_t length) {
   const std::uint32_t last = send.start + send.length - 1U;
   if (send.active && address <= last && last < static_cast<std::uint32_t>(address) + length) {
     set_sync_manager_full(1, false);
+    if (send_count_ > 0) {  // the next message waiting
+      put_into_send_mailbox(send_queue_[send_head_].data(), send_sizes_[send_head_]);
+      send_head_ = (send_head_ + 1) % kSendQueue;
+      --send_count_;
+    }
   }
 }
 
@@ -373,10 +378,34 @@ void Esc::mailbox_received() {
   const std::size_t size =
       mailbox_handler_->handle(memory_.data() + receive.start, receive.length, answer.data(), send.length);
   if (size == 0) return;
+  post_mailbox(answer.data(), size);
+}
+
+void Esc::put_into_send_mailbox(const std::uint8_t* message, std::size_t size) {
+  const MailboxArea send = mailbox_area(1);
   std::fill(memory_.begin() + send.start, memory_.begin() + send.start + send.length, 0);
-  std::copy(answer.begin(), answer.begin() + static_cast<std::ptrdiff_t>(std::min<std::size_t>(size, send.length)),
-            memory_.begin() + send.start);
+  std::copy(message, message + std::min<std::size_t>(size, send.length), memory_.begin() + send.start);
   set_sync_manager_full(1, true);
+}
+
+bool Esc::post_mailbox(const std::uint8_t* message, std::size_t size) {
+  const MailboxArea send = mailbox_area(1);
+  if (!send.active || size > kMaxDatagramDataBytes) return false;
+  constexpr std::uint8_t kMailboxFull = 0x08;
+  const bool full = (memory_[reg::kSyncManager0 + kSyncManagerBytes + 5] & kMailboxFull) != 0;
+  if (!full && send_count_ == 0) {
+    put_into_send_mailbox(message, size);
+    return true;
+  }
+  if (send_count_ == kSendQueue) {
+    ++mailbox_dropped_;
+    return false;
+  }
+  const std::size_t slot = (send_head_ + send_count_) % kSendQueue;
+  std::copy(message, message + size, send_queue_[slot].begin());
+  send_sizes_[slot] = size;
+  ++send_count_;
+  return true;
 }
 
 void Esc::refuse(std::uint16_t code) {

@@ -70,4 +70,13 @@ std::size_t CoeSdoServer::handle(const std::uint8_t* request, std::size_t size, 
   return write_coe_sdo(response, counter_, kCoeServiceSdoResponse, answer);
 }
 
+std::size_t CoeSdoServer::write_emergency(std::uint8_t* out, std::uint16_t error_code, std::uint8_t error_register) {
+  SdoBytes body{};
+  body[0] = static_cast<std::uint8_t>(error_code & 0xFFU);
+  body[1] = static_cast<std::uint8_t>(error_code >> 8);
+  body[2] = error_register;
+  counter_ = static_cast<std::uint8_t>(counter_ % 7 + 1);
+  return write_coe_sdo(out, counter_, kCoeServiceEmergency, body);
+}
+
 }  // namespace pmlsm::ethercat

@@ -289,22 +289,32 @@ SdoResult Master::sdo_transfer(const SlaveInfo& slave, const std::array<std::uin
   write_coe_sdo(mailbox.data(), mailbox_counter_, kCoeServiceSdoRequest, request);
   // The whole receive mailbox: the slave takes a message when its last byte is written.
   write_register(station, slave.mailbox_receive_offset, mailbox.data(), slave.mailbox_receive_size, "receive mailbox");
-  // The answer: SM1's status says when the send mailbox is full; then the whole of it is read.
+  // The answer: SM1's status says when the send mailbox is full; then the whole of it is read. A
+  // CoE emergency the slave posted before it comes first: taken, counted, and the answer waited for.
   const auto sm1_status = static_cast<std::uint16_t>(reg::kSyncManager0 + kSyncManagerBytes + 5);
   const std::int64_t deadline = now_ns() + params_.state_timeout_ns;
-  for (std::array<std::uint8_t, 1> status{};;) {
-    read_register(station, sm1_status, status.data(), 1, "send mailbox status");
-    if ((status[0] & 0x08) != 0) break;
-    if (now_ns() >= deadline) throw std::runtime_error(slave_name(station) + ": no answer in the send mailbox");
-  }
-  read_register(station, slave.mailbox_send_offset, mailbox.data(), slave.mailbox_send_size, "send mailbox");
-  MailboxHeader header;
-  std::uint8_t service = 0;
   SdoBytes answer{};
-  const MailboxError error = parse_coe_sdo(mailbox.data(), slave.mailbox_send_size, header, service, answer);
-  if (error != MailboxError::kNone || service != kCoeServiceSdoResponse) {
-    throw std::runtime_error(slave_name(station) + ": the send mailbox held no SDO response (" +
-                             (error != MailboxError::kNone ? to_string(error) : "another service") + ")");
+  for (;;) {
+    for (std::array<std::uint8_t, 1> status{};;) {
+      read_register(station, sm1_status, status.data(), 1, "send mailbox status");
+      if ((status[0] & 0x08) != 0) break;
+      if (now_ns() >= deadline) throw std::runtime_error(slave_name(station) + ": no answer in the send mailbox");
+    }
+    read_register(station, slave.mailbox_send_offset, mailbox.data(), slave.mailbox_send_size, "send mailbox");
+    MailboxHeader header;
+    std::uint8_t service = 0;
+    const MailboxError error = parse_coe_sdo(mailbox.data(), slave.mailbox_send_size, header, service, answer);
+    if (error == MailboxError::kNotSdo && service == kCoeServiceEmergency) {
+      // Its error code follows the CoE header (then the error register and 5 bytes of the maker's).
+      ++emergencies_;
+      last_emergency_code_ = get_le16(mailbox.data() + kMailboxHeaderBytes + kCoeHeaderBytes);
+      continue;
+    }
+    if (error != MailboxError::kNone || service != kCoeServiceSdoResponse) {
+      throw std::runtime_error(slave_name(station) + ": the send mailbox held no SDO response (" +
+                               (error != MailboxError::kNone ? to_string(error) : "another service") + ")");
+    }
+    break;
   }
   canopen::CanFrame frame{};
   frame.id = canopen::sdo_tx_cob_id(canopen::NodeId(1));

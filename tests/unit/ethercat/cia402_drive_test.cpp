@@ -215,6 +215,10 @@ TEST(EthercatCia402Drive, RealtimeTheDrivesWatchdogFaultIsReadWithItsErrorCode) 
   // Fault reaction active: without cycles (SAFEOP) the synchronous drive's time stands still.
   EXPECT_EQ(rig.master.power_state(), drive::PowerState::kFaultReactionActive);
   EXPECT_EQ(rig.master.error_code(), canopen::kEmcySyncLost) << rig.master.last_problem();
+  EXPECT_EQ(rig.master.master().emergencies(), 1u) << "the drive's CoE emergency, met before 0x603F's answer";
+  EXPECT_EQ(rig.master.master().last_emergency_code(), canopen::kEmcySyncLost);
+  EXPECT_NE(std::string(rig.master.last_problem()).find("CoE emergency"), std::string::npos)
+      << rig.master.last_problem();
   EXPECT_EQ(rig.master.fault_count(), 1u);
   EXPECT_EQ(rig.behind.power_state(), drive::PowerState::kFaultReactionActive) << "out of operation enabled: no force";
 }

@@ -20,6 +20,7 @@
 
 #include "coe_slave.hpp"
 #include "pmlsm/ethercat/capture.hpp"
+#include "pmlsm/ethercat/coe_drive.hpp"
 #include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/ethercat/mailbox.hpp"
 #include "pmlsm/ethercat/frame.hpp"
@@ -253,6 +254,38 @@ TEST(EtherCatTshark, DecodesOurCoeSdoRequestsAndTheSlavesAnswers) {
             "0x1000\n0x1000\n0x1000\n0x6060\n0x6060\n0x6060\n0x7777\n0x7777\n\n");
   EXPECT_EQ(tshark(capture, "ecat_mailbox.coe.type == 3", "ecat_mailbox.counter"), "1\n2\n3\n")
       << "three SDO responses, the slave's mailbox counter counting 1, 2, 3";
+  EXPECT_EQ(tshark(capture, "_ws.malformed || _ws.expert.severity >= warning", "frame.number"), "");
+  if (!HasFailure()) fs::remove_all(dir);  // kept for a look when something failed
+}
+
+TEST(EtherCatTshark, DecodesTheVirtualDrivesCoeEmergenciesQueuedAheadOfAnSdoAnswer) {
+  if (!have_tshark()) GTEST_SKIP() << "tshark is not installed (scripts/install_deps.sh installs it)";
+  const fs::path dir = fs::temp_directory_path() / ("pmlsm_ethercat_emergency_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path capture = dir / "emergency.pcapng";
+  VirtualCia402Slave slave;
+  VirtualSegment segment({&slave.esc()});
+  VirtualSegmentLink link(segment);
+  {
+    PcapngWriter writer(capture.string());
+    Master master(link);
+    master.assign_station_addresses(1);
+    const SlaveInfo info = master.read_slave_info(0x1001);
+    master.configure_mailbox(info);
+    ASSERT_TRUE(master.request_state(0x1001, AlState::kPreOp).reached);
+    master.capture_to(&writer);
+    // A fault's emergency and its end, posted by the slave before the master asks anything.
+    ASSERT_TRUE(slave.post_emergency(0x8700));
+    ASSERT_TRUE(slave.post_emergency(0x0000));
+    ASSERT_TRUE(master.sdo_upload(info, 0x1000, 0).done);
+    EXPECT_EQ(master.emergencies(), 2u);
+    EXPECT_EQ(master.last_emergency_code(), 0x0000);
+    writer.flush();
+  }
+  // Wireshark reads two CoE messages of type 1 (emergency) read from the send mailbox, with the
+  // slave's mailbox counter going on (the SDO response after them is 3), nothing malformed.
+  EXPECT_EQ(tshark(capture, "ecat_mailbox.coe.type == 1", "ecat_mailbox.counter"), "1\n2\n");
+  EXPECT_EQ(tshark(capture, "ecat_mailbox.coe.type == 3", "ecat_mailbox.counter"), "3\n");
   EXPECT_EQ(tshark(capture, "_ws.malformed || _ws.expert.severity >= warning", "frame.number"), "");
   if (!HasFailure()) fs::remove_all(dir);  // kept for a look when something failed
 }

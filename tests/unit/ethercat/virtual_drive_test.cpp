@@ -177,6 +177,16 @@ TEST(VirtualEthercatDrive, OutsideOpTheOutputsAreHeldAndAFaultStopsTheForceWithI
   EXPECT_EQ(rig.behind.power_state(), drive::PowerState::kOperationEnabled);
   rig.cycle(0x000F, -250);
   EXPECT_DOUBLE_EQ(rig.drive.applied_force_n(), -50.0);
+  // Both emergencies wait in the send mailbox, one behind the other, as CoE messages: the
+  // master's next SDO meets them first, in order, and still gets its answer.
+  EXPECT_EQ(rig.master.emergencies(), 0u);
+  const SlaveInfo info = rig.master.read_slave_info(kStation);
+  const SdoResult mode = rig.master.sdo_upload(info, canopen::kObjectModesOfOperationDisplay, 0);
+  ASSERT_TRUE(mode.done);
+  EXPECT_EQ(mode.value, 10u);
+  EXPECT_EQ(rig.master.emergencies(), 2u);
+  EXPECT_EQ(rig.master.last_emergency_code(), canopen::kEmcyNoError) << "0x5000, then its end";
+  EXPECT_EQ(rig.drive.esc().mailbox_messages_dropped(), 0u);
 }
 
 TEST(VirtualEthercatDrive, TheProcessDataWatchdogDropsItToSafeopAndStopsTheForceWhenTheCyclesStop) {

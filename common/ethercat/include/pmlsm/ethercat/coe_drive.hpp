@@ -107,6 +107,10 @@ class VirtualCia402Slave {
   const CoeSdoServer& coe() const { return coe_; }
   /// The application between frames: the process image (CoeProcessImage::exchange).
   void exchange() { process_.exchange(esc_); }
+  /// A CoE emergency (the error code and the dictionary's error register 0x1001) into the send
+  /// mailbox, for the master's next read of it. False when it could not be posted (no mailbox yet,
+  /// or the queue full: counted by the ESC).
+  bool post_emergency(std::uint16_t error_code);
 
   /// Its own SII: identity, the name "PMLSM virtual drive", a 128-byte CoE mailbox at 0x1000 and
   /// 0x1080, and its sync managers with the process data's lengths.
@@ -179,6 +183,7 @@ class VirtualEthercatDrive : canopen::Cia402ApplicationEvents {
   void emergency(std::uint16_t code) override {
     ++emergencies_;
     last_emergency_ = code;
+    slave_.post_emergency(code);
   }
 
   VirtualCia402Slave slave_;  // declared first: the application holds its dictionary

@@ -161,6 +161,12 @@ class Esc {
   /// mailbox (SM1); nullptr: none (a message is taken and nothing answered). `handler` outlives
   /// the ESC.
   void set_mailbox_handler(MailboxHandler* handler) { mailbox_handler_ = handler; }
+  /// A message of the slave's own (a CoE emergency) into its send mailbox: at once when the master
+  /// has read the one before, else queued behind it (up to kSendQueue; beyond, dropped and
+  /// counted). False when it has no send mailbox set up or the message was dropped.
+  bool post_mailbox(const std::uint8_t* message, std::size_t size);
+  static constexpr std::size_t kSendQueue = 4;
+  std::uint64_t mailbox_messages_dropped() const { return mailbox_dropped_; }
   /// What the application does when the master asks PREOP -> SAFEOP, before the ESC checks SM2 and
   /// SM3 against the process data's lengths: it may take a new mapping (set_process_data_bytes)
   /// or refuse with an AL status code (0: go on). Empty: nothing.
@@ -210,6 +216,14 @@ class Esc {
   std::function<std::uint16_t()> before_safeop_;
   std::uint64_t outputs_written_ = 0;
   DcClock dc_;
+  /// Messages waiting for the send mailbox to be read (a ring).
+  std::array<std::array<std::uint8_t, kMaxDatagramDataBytes>, kSendQueue> send_queue_{};
+  std::array<std::size_t, kSendQueue> send_sizes_{};
+  std::size_t send_head_ = 0;
+  std::size_t send_count_ = 0;
+  std::uint64_t mailbox_dropped_ = 0;
+  /// A message into the send mailbox now, marked full.
+  void put_into_send_mailbox(const std::uint8_t* message, std::size_t size);
 };
 
 /// A line of virtual slaves in one process: a frame passes each in order and comes back, as on a

@@ -45,7 +45,8 @@ using SdoBytes = std::array<std::uint8_t, kSdoBytes>;
 /// kMailboxHeaderBytes + kCoeHeaderBytes + kSdoBytes = 16 bytes). Returns the bytes written.
 std::size_t write_coe_sdo(std::uint8_t* out, std::uint8_t counter, std::uint8_t service, const SdoBytes& sdo);
 
-/// A mailbox holding a CoE SDO message: its header, its service and the 8 SDO bytes. Never throws.
+/// A mailbox holding a CoE SDO message: its header, its service and the 8 SDO bytes (an emergency
+/// (service 1) has 8 bytes too: error code, error register, 5 of the maker's). Never throws.
 MailboxError parse_coe_sdo(const std::uint8_t* mailbox, std::size_t size, MailboxHeader& header, std::uint8_t& service,
                            SdoBytes& sdo);
 
@@ -68,6 +69,9 @@ class CoeSdoServer final : public MailboxHandler {
   std::size_t handle(const std::uint8_t* request, std::size_t size, std::uint8_t* response,
                      std::size_t capacity) override;
   std::uint64_t requests() const { return requests_; }
+  /// A CoE emergency (ETG.1000.6: error code, error register, 5 bytes of the maker's) into `out`
+  /// (16 bytes), with the next mailbox counter. Returns the bytes written.
+  std::size_t write_emergency(std::uint8_t* out, std::uint16_t error_code, std::uint8_t error_register);
 
  private:
   canopen::SdoServer server_;

@@ -172,6 +172,11 @@ class Master {
   /// positive when its clock is behind. @throws std::runtime_error when it does not answer.
   std::int64_t read_system_time_difference(std::uint16_t station);
 
+  /// CoE emergencies the slaves posted, met in their send mailboxes on the way to an SDO answer,
+  /// and the last one's error code (0: the errors gone).
+  std::uint64_t emergencies() const { return emergencies_; }
+  std::uint16_t last_emergency_code() const { return last_emergency_code_; }
+
   std::uint64_t frames_sent() const { return frames_sent_; }
   std::uint64_t frames_lost() const { return frames_lost_; }
 
@@ -197,6 +202,8 @@ class Master {
   bool capture_failed_ = false;
   std::uint64_t frames_sent_ = 0;
   std::uint64_t frames_lost_ = 0;
+  std::uint64_t emergencies_ = 0;
+  std::uint16_t last_emergency_code_ = 0;
 };
 
 }  // namespace pmlsm::ethercat
