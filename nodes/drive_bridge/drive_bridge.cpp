@@ -284,7 +284,7 @@ class EthercatHooks final : public node::DriveNodeHooks {
   double since_boot_ms() const { return static_cast<double>(monotonic_ns() - boot_began_ns_) * 1e-6; }
   /// The drive's slave out of OP (SAFEOP, INIT), once; its DC difference read before.
   void release() {
-    if (released_ || drive_.lost()) return;
+    if (released_ || drive_.lost() || !drive_.booted()) return;
     released_ = true;
     dc_difference_ns_ = drive_.dc_difference_ns();
     if (drive_.release()) {

@@ -1,6 +1,8 @@
 #include "ethercat_options.hpp"
 #include <CLI/CLI.hpp>
 
+#include <arpa/inet.h>
+
 #include <map>
 
 #include "pmlsm/config/config.hpp"
@@ -49,8 +51,10 @@ ethercat::UdpLinkParams master_udp(const EthercatOptions& options) {
       port = -1;
     }
   }
-  if (port < 1 || port > 65535) {
-    throw ConfigError("--ethercat-udp: expected HOST:PORT with a port in 1..65535, got '" + options.udp + "'");
+  in_addr host{};
+  if (port < 1 || port > 65535 || inet_pton(AF_INET, options.udp.substr(0, colon).c_str(), &host) != 1) {
+    throw ConfigError("--ethercat-udp: expected an IPv4 address and a port in 1..65535 (127.0.0.1:34980), got '" +
+                      options.udp + "'");
   }
   // The master binds a port of its own; the drive answers whoever sent.
   return {"0.0.0.0", 0, options.udp.substr(0, colon), static_cast<std::uint16_t>(port)};

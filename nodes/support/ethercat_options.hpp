@@ -1,7 +1,7 @@
 // What both ends of an EtherCAT link take on the command line (drive_bridge and virtual_drive with
 // --bus ethercat): where the frames go and the rig file they share.
 //   --bus can|ethercat                   the bus to the drive (can: the CANopen options apply)
-//   --ethercat-udp HOST:PORT             master: EtherCAT over UDP to the drive (the default,
+//   --ethercat-udp ADDRESS:PORT          master: EtherCAT over UDP to the drive (IPv4; the default,
 //                                        127.0.0.1:34980)
 //   --ethercat-udp-port N                virtual drive: answer EtherCAT over UDP on this port
 //   --ethercat-interface IF              raw EtherCAT on an interface instead (CAP_NET_RAW); the

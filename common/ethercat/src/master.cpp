@@ -308,6 +308,7 @@ SdoResult Master::sdo_transfer(const SlaveInfo& slave, const std::array<std::uin
       // Its error code follows the CoE header (then the error register and 5 bytes of the maker's).
       ++emergencies_;
       last_emergency_code_ = get_le16(mailbox.data() + kMailboxHeaderBytes + kCoeHeaderBytes);
+      if (now_ns() >= deadline) throw std::runtime_error(slave_name(station) + ": emergencies, no SDO answer");
       continue;
     }
     if (error != MailboxError::kNone || service != kCoeServiceSdoResponse) {

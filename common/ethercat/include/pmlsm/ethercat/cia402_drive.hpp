@@ -162,6 +162,8 @@ class Cia402Drive final : public drive::Drive {
   bool simulated() const override { return false; }
 
   bool lost() const noexcept { return remote_.lost(); }
+  /// In OP after boot() and not released since.
+  bool booted() const noexcept { return booted_; }
   /// Why the drive was lost or faulted, its error code, a stuck walk ("" when none).
   const char* last_problem() const noexcept { return remote_.problem(); }
   std::optional<drive::PowerState> stuck_in() const noexcept { return remote_.stuck_in(); }
