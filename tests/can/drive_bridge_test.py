@@ -169,7 +169,9 @@ def realtime_checks(args, src, tmp, bus, checks):
         rt_bus.send(can.Message(arbitration_id=0x200 + NODE, data=b"\x0f\x00\x00", is_extended_id=False))
         rt_bus.send(can.Message(arbitration_id=0x180 + NODE, data=b"\x27\x02", is_extended_id=False))
         rt_bus.send(can.Message(arbitration_id=0x080, data=b"", is_extended_id=False))
-        collect(rt_bus, lambda: "second SYNC producer" in text("bridge") or bridge.poll() is not None, [])
+        # Both reports, each a line of its own the bridge may write a moment apart.
+        collect(rt_bus, lambda: ("second SYNC producer" in text("bridge") and "another master's RPDO" in text("bridge"))
+                or bridge.poll() is not None, [])
         checks.check("second SYNC producer" in text("bridge"), "the bridge reports a second SYNC producer")
         checks.check("another master's RPDO" in text("bridge"), "the bridge reports another master's RPDO to its drive")
         checks.check(bridge.poll() is None and "FAULT" not in text("drive"),
