@@ -323,11 +323,7 @@ bool Cia402Drive::release() {
 }
 
 drive::Measurement Cia402Drive::measurement() const {
-  drive::Measurement m;
-  m.position_m = scaling_.increments_to_metres(position_actual_);
-  m.velocity_mps = scaling_.increments_to_velocity(velocity_actual_);
-  m.thrust_force_n = scaling_.per_mille_to_force(torque_actual_);
-  return m;
+  return scaling_.measurement(position_actual_, velocity_actual_, torque_actual_);
 }
 
 drive::Measurement Cia402Drive::sample() {

@@ -12,6 +12,7 @@
 
 #include <cstdint>
 
+#include "pmlsm/drive/drive.hpp"
 #include "pmlsm/util/parameter_table.hpp"
 
 namespace pmlsm::canopen {
@@ -59,6 +60,17 @@ class UnitScaling {
 
   Scaled<std::int32_t> velocity_to_increments(double velocity_m_per_s) const noexcept;
   double increments_to_velocity(std::int32_t increments_per_s) const noexcept;
+
+  /// A drive's actual values (0x6064 position, 0x606C velocity, 0x6077 torque) as the drive loop
+  /// reads them: metres, m/s, and the thrust in newtons.
+  drive::Measurement measurement(std::int32_t position_increments, std::int32_t velocity_increments_per_s,
+                                 std::int16_t torque_per_mille) const noexcept {
+    drive::Measurement m;
+    m.position_m = increments_to_metres(position_increments);
+    m.velocity_mps = increments_to_velocity(velocity_increments_per_s);
+    m.thrust_force_n = per_mille_to_force(torque_per_mille);
+    return m;
+  }
 
   /// round(rated_force_n * 1000): the value of 0x6076 in mN.
   std::uint32_t rated_torque_object() const noexcept { return rated_torque_mn_; }
