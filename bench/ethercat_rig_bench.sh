@@ -8,7 +8,9 @@
 # distributed-clock difference at the end (its crystal 100 ppm fast, kept on the master's time by a
 # write each cycle); then the totals.
 # The lockstep run over UDP beside it, for the real-time factor against the CANopen rig's.
-#   sudo bench/ethercat_rig_bench.sh [runs] [seconds]   (default 20 runs of 10 s)
+# With sync0 = true the drive runs on SYNC0 of its distributed clock (drive.sync0, DC mode): the
+# column sync0_missed counts the pulses that found no new outputs (the drive's 0x1C32:0B).
+#   sudo bench/ethercat_rig_bench.sh [runs] [seconds] [sync0]   (default 20 runs of 10 s, sync0 false)
 # Needs root (a namespace, raw sockets); exits 77 without it. Prints figures; exits 1 when a run did
 # not end with exit 0 on both ends or counted a working counter error or a fault.
 set -euo pipefail
@@ -17,6 +19,7 @@ cd "$root"
 bin=build/bin
 runs="${1:-20}"
 seconds="${2:-10}"
+sync0="${3:-false}"
 domain="${PMLSM_DOMAIN:-51}"
 if [ "$(id -u)" != 0 ]; then
   echo "$(basename "$0"): needs root (a network namespace and raw EtherCAT on a veth pair)" >&2
@@ -53,8 +56,8 @@ can_rtf=$(rtf_of "$work/lock_can.log")
 echo "  real-time factor: EtherCAT rig ${ecat_rtf}x, CANopen rig ${can_rtf}x, ratio $(awk -v a="$can_rtf" -v b="$ecat_rtf" 'BEGIN { printf "%.2f", b / a }')"
 grep "round trip" "$work/lock_ecat.log" | sed 's/^\[drive_bridge\] drive_bridge: /  lockstep, UDP: /'
 
-echo "[2/2] realtime, composed, raw EtherCAT over a veth pair: $runs runs of $seconds s"
-printf '%4s %6s %6s %6s %7s %7s %11s %11s %11s %10s %11s\n' run bridge drive wkc_err missed faults trip_p50_us trip_p99_us trip_max_us chain_p50 dc_diff_ns
+echo "[2/2] realtime, composed, raw EtherCAT over a veth pair: $runs runs of $seconds s, drive on SYNC0: $sync0"
+printf '%4s %6s %6s %6s %7s %7s %11s %11s %11s %10s %11s %12s\n' run bridge drive wkc_err missed faults trip_p50_us trip_p99_us trip_max_us chain_p50 dc_diff_ns sync0_missed
 failed=0
 total_wkc=0
 total_missed=0
@@ -69,7 +72,7 @@ for ((r = 1; r <= runs; r++)); do
   bridge_code=0
   "$bin/launcher" launch/virtual_rig_ethercat.yaml --arg clock=realtime --arg virtual_drive=false \
     --arg ethercat_interface="$master_end" --arg scenario="$scenario" --arg domain="$domain" \
-    --arg out="$work/out_$r" >"$blog" 2>&1 || bridge_code=$?
+    --arg sync0="$sync0" --arg out="$work/out_$r" >"$blog" 2>&1 || bridge_code=$?
   kill -INT "$drive_pid"
   drive_code=0
   wait "$drive_pid" || drive_code=$?
@@ -80,9 +83,11 @@ for ((r = 1; r <= runs; r++)); do
   trip="$(grep "frame round trip" "$blog" || true)"
   chain="$(grep "chain latency" "$blog" || true)"
   dc=$(field 's/.*difference 0x092C \([-0-9]*\) ns at the end.*/\1/p' "$blog")
-  printf '%4d %6s %6s %6s %7s %7s %11s %11s %11s %10s %11s\n' "$r" "$bridge_code" "$drive_code" "${wkc:-?}" "${missed:-?}" \
+  sync0_missed=$(field 's/.*SYNC0: [0-9]* pulses .*, \([0-9]*\) in OP without new outputs.*/\1/p' "$dlog")
+  printf '%4d %6s %6s %6s %7s %7s %11s %11s %11s %10s %11s %12s\n' "$r" "$bridge_code" "$drive_code" "${wkc:-?}" "${missed:-?}" \
     "${faults:-?}" "$(sed -n 's/.*p50 \([0-9.]*\) us.*/\1/p' <<<"$trip")" "$(sed -n 's/.*p99 \([0-9.]*\) us.*/\1/p' <<<"$trip")" \
-    "$(sed -n 's/.*max \([0-9.]*\) us.*/\1/p' <<<"$trip")" "$(sed -n 's/.*p50 \([0-9.]*\) us.*/\1/p' <<<"$chain")" "${dc:-?}"
+    "$(sed -n 's/.*max \([0-9.]*\) us.*/\1/p' <<<"$trip")" "$(sed -n 's/.*p50 \([0-9.]*\) us.*/\1/p' <<<"$chain")" "${dc:-?}" \
+    "${sync0_missed:--}"
   total_wkc=$((total_wkc + ${wkc:-1}))
   total_missed=$((total_missed + ${missed:-0}))
   total_faults=$((total_faults + ${faults:-1}))

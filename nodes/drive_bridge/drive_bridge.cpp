@@ -18,7 +18,8 @@
 // heartbeat is lost is a fault 0x8130: force off, the run ends not valid (exit 5).
 //
 // EtherCAT (--bus ethercat): our master (pmlsm::ethercat::Cia402Drive) over UDP (--ethercat-udp) or
-// an interface (--ethercat-interface), the drive and the master's time-outs from
+// an interface (--ethercat-interface; --ethercat-capture FILE: every frame into a pcapng capture),
+// the drive and the master's time-outs from
 // configs/ethercat/drive.yaml (--ethercat-config, --ethercat-set). The boot takes the drive to OP;
 // a cycle is its outputs written and its inputs read; lockstep needs the virtual drive's command
 // tick, a real drive runs realtime. At the end the drive is disabled (realtime) and its slave
@@ -225,7 +226,12 @@ canopen::Cia402DriveConfig DriveBridgeComponent::checked_config() {
 /// problems reported once each, the slave released at the end.
 class EthercatHooks final : public node::DriveNodeHooks {
  public:
-  EthercatHooks(ethercat::Cia402Drive& drive, std::string link) : drive_(drive), link_(std::move(link)) {}
+  /// `capture` (nullptr: none) holds the run's frames, written to `capture_path`.
+  EthercatHooks(ethercat::Cia402Drive& drive, std::string link, ethercat::PcapngWriter* capture,
+                std::string capture_path)
+      : drive_(drive), link_(std::move(link)), capture_(capture), capture_path_(std::move(capture_path)) {
+    drive_.master().capture_to(capture_);
+  }
 
   void before_run(node::DriveNode& node) override {
     boot_began_ns_ = monotonic_ns();
@@ -240,6 +246,10 @@ class EthercatHooks final : public node::DriveNodeHooks {
         static_cast<unsigned>(drive_.layout().input_bytes), drive_.lockstep_contract() ? " (command tick mapped)" : "",
         drive_.config().scaling.rated_force_n, drive_.config().scaling.increments_per_metre,
         drive::to_string(drive_.power_state()));
+    if (drive_.sync0_start_ns() != 0) {
+      std::printf("%s: the drive on SYNC0 (DC mode): every 1 ms, %u us into the cycle of the master's clock\n",
+                  node.name().c_str(), static_cast<unsigned>(drive_.config().sync0_shift_us));
+    }
   }
   void enable_at_start(node::DriveNode& node) override {
     drive_.enable_and_wait();
@@ -278,7 +288,9 @@ class EthercatHooks final : public node::DriveNodeHooks {
       std::printf("drive_bridge: EtherCAT frame round trip over %zu exchanges: p50 %.1f us, p99 %.1f us, max %.1f us\n",
                   trip.count, trip.p50_us, trip.p99_us, trip.max_us);
     }
+    flush_capture();
   }
+  bool outputs_complete() override { return !capture_failed_; }
 
  private:
   double since_boot_ms() const { return static_cast<double>(monotonic_ns() - boot_began_ns_) * 1e-6; }
@@ -294,8 +306,33 @@ class EthercatHooks final : public node::DriveNodeHooks {
     }
   }
 
+  /// The capture's last frames onto the disk, and how many it holds; a write that failed named.
+  void flush_capture() {
+    if (capture_ == nullptr) return;
+    drive_.master().capture_to(nullptr);
+    capture_failed_ = drive_.master().capture_failed();
+    if (!capture_failed_) {
+      try {
+        capture_->flush();
+      } catch (const std::runtime_error& e) {
+        std::fprintf(stderr, "drive_bridge: EtherCAT capture: %s\n", e.what());
+        capture_failed_ = true;
+      }
+    }
+    if (capture_failed_) {
+      std::fprintf(stderr, "drive_bridge: EtherCAT capture %s is not whole: a write failed after %llu frames\n",
+                   capture_path_.c_str(), static_cast<unsigned long long>(capture_->frames()));
+      return;
+    }
+    std::printf("drive_bridge: EtherCAT capture: %llu frames in %s\n",
+                static_cast<unsigned long long>(capture_->frames()), capture_path_.c_str());
+  }
+
   ethercat::Cia402Drive& drive_;
   std::string link_;
+  ethercat::PcapngWriter* capture_;
+  std::string capture_path_;
+  bool capture_failed_ = false;
   ProblemReports reports_;
   std::int64_t boot_began_ns_ = 0;
   std::optional<std::int64_t> dc_difference_ns_;  ///< read before the slave is released
@@ -309,8 +346,9 @@ class EthercatBridgeComponent final : public node::DriveComponent {
         rt_("drive_bridge", opt_.common, context),
         drive_config_(checked_config()),
         link_(node::open_master_link(opt_.ethercat)),
+        capture_(node::open_ethercat_capture(opt_.ethercat)),
         drive_(drive_config_, *link_),
-        hooks_(drive_, node::describe_link(opt_.ethercat, true)),
+        hooks_(drive_, node::describe_link(opt_.ethercat, true), capture_.get(), opt_.ethercat.capture_path),
         node_("drive_bridge", opt_.common, opt_.drive, rt_, drive_, hooks_) {
     drive_with(node_);
   }
@@ -319,6 +357,11 @@ class EthercatBridgeComponent final : public node::DriveComponent {
   ethercat::Cia402DriveConfig checked_config() {
     ethercat::Cia402DriveConfig c = node::load_ethercat_config(opt_.ethercat);
     c.realtime = check_bridge_runtime(opt_, rt_);
+    if (c.sync0 && !c.realtime) {
+      throw ConfigError(
+          "drive.sync0: SYNC0 runs on the drive's clock, which a lockstep run does not follow: "
+          "realtime only (--clock realtime)");
+    }
     return c;
   }
 
@@ -326,6 +369,7 @@ class EthercatBridgeComponent final : public node::DriveComponent {
   node::NodeRuntime rt_;
   ethercat::Cia402DriveConfig drive_config_;
   std::unique_ptr<ethercat::Link> link_;
+  std::unique_ptr<ethercat::PcapngWriter> capture_;
   ethercat::Cia402Drive drive_;
   EthercatHooks hooks_;
   node::DriveNode node_;

@@ -287,6 +287,10 @@ CycleStep DriveNode::update() {
       loop_start_ns_ = monotonic_ns();
       clock_.start();
       phase_ = Phase::kFeedback;
+      // Realtime: tick 0 on the clock's grid, a period away at most.
+      if (realtime_ && monotonic_ns() < clock_.tick_start_ns()) {
+        return CycleStep::sleeping_until(clock_.tick_start_ns(), clock_.wake_early_ns());
+      }
       [[fallthrough]];
     case Phase::kFeedback:
       if (k_ == ticks_) return CycleStep::finished(kExitOk);
@@ -403,6 +407,11 @@ int DriveNode::summary(int exit_code, double loop_s) {
       static_cast<unsigned long long>(c.safe_ticks), static_cast<unsigned long long>(c.drive_stalls),
       drive::to_string(backend_.power_state()));
   if (exit_code != kExitOk) return exit_code;
+  if (!hooks_.outputs_complete()) {
+    std::fprintf(stderr, "%s: an output the run was asked to write is not whole (above): run not valid\n",
+                 name_.c_str());
+    return kExitError;
+  }
   // Stopped by a signal: the operator's stop is no failure, but force-off ticks before it still are.
   if (!loop_.ever_enabled() && !pdds::stop_requested()) {
     std::fprintf(stderr, "%s: the drive was never enabled: no force was applied; run not valid\n", name_.c_str());

@@ -78,6 +78,9 @@ class DriveNodeHooks {
   virtual void at_end(DriveNode& /*node*/) {}
   /// Waits for the node's own writers at the end, at most `timeout` each (node::flush_timeout).
   virtual void flush(std::chrono::seconds /*timeout*/) {}
+  /// After flush: false when something the run was asked to write (a bus capture) is not whole; a
+  /// run that went well otherwise then exits kExitError.
+  virtual bool outputs_complete() { return true; }
   /// Added to the summary's late and rejected counts.
   virtual std::uint64_t extra_late() const { return 0; }
   virtual std::uint64_t extra_rejected() const { return 0; }

@@ -30,6 +30,11 @@ void add_ethercat_options(CLI::App& app, EthercatOptions& options, bool master) 
       app.add_option("--ethercat-interface", options.interface_name,
                      "--bus ethercat: raw EtherCAT on this interface instead of UDP (needs CAP_NET_RAW; \"\": UDP)");
   if (!master) raw->excludes(udp);
+  if (master) {
+    app.add_option("--ethercat-capture", options.capture_path,
+                   "--bus ethercat: every frame of the run into this pcapng capture (Wireshark, `pmlsm ethercat "
+                   "pcap`; \"\": none)");
+  }
   app.add_option("--ethercat-config", options.config_path,
                  "--bus ethercat: the EtherCAT settings both ends share (position, identity, scaling, time-outs)")
       ->capture_default_str();
@@ -81,6 +86,15 @@ std::string describe_link(const EthercatOptions& options, bool master) {
 
 ethercat::Cia402DriveConfig load_ethercat_config(const EthercatOptions& options) {
   return pmlsm::load_ethercat_config(options.config_path, parse_overrides(options.overrides));
+}
+
+std::unique_ptr<ethercat::PcapngWriter> open_ethercat_capture(const EthercatOptions& options) {
+  if (options.capture_path.empty()) return nullptr;
+  try {
+    return std::make_unique<ethercat::PcapngWriter>(options.capture_path);
+  } catch (const std::runtime_error& e) {
+    throw ConfigError(std::string("--ethercat-capture: ") + e.what());
+  }
 }
 
 }  // namespace pmlsm::node

@@ -7,6 +7,7 @@
 //   --ethercat-interface IF              raw EtherCAT on an interface instead (CAP_NET_RAW); the
 //                                        master then does not use --ethercat-udp ("": UDP, so a
 //                                        launch file can pass both)
+//   --ethercat-capture FILE              master: every frame of the run into a pcapng capture ("": none)
 //   --ethercat-config FILE               configs/ethercat/drive.yaml
 //   --ethercat-set key.path=value        overrides one value of it (repeatable)
 #pragma once
@@ -18,6 +19,7 @@
 
 #include "pmlsm/ethercat/cia402_drive.hpp"
 #include "pmlsm/ethercat/link.hpp"
+#include "pmlsm/ethercat/pcapng.hpp"
 #include "pmlsm/util/data_files.hpp"
 
 namespace CLI {
@@ -33,6 +35,7 @@ struct EthercatOptions {
   std::string udp = "127.0.0.1:34980";  ///< master: the drive's address
   int udp_port = 34980;                 ///< drive: the port it answers on
   std::string interface_name;           ///< raw EtherCAT when set
+  std::string capture_path;             ///< master: the run's frames into this pcapng file when set
   std::string config_path = pmlsm::data_file("configs/ethercat/drive.yaml");
   std::vector<std::string> overrides;
 };
@@ -50,5 +53,9 @@ std::string describe_link(const EthercatOptions& options, bool master);
 
 /// @throws ConfigError naming the file, key path and value.
 ethercat::Cia402DriveConfig load_ethercat_config(const EthercatOptions& options);
+
+/// The capture --ethercat-capture asks for, nullptr when none. @throws ConfigError naming the path
+/// when it cannot be written.
+std::unique_ptr<ethercat::PcapngWriter> open_ethercat_capture(const EthercatOptions& options);
 
 }  // namespace pmlsm::node

@@ -178,6 +178,9 @@ CycleComponent::Update VirtualEthercatDriveComponent::update() {
     record_truth();
   }
   now = monotonic_ns();
+  // The drive's clock runs on between frames: its SYNC0 pulses (DC mode) come when due, frames or not.
+  drive_.esc().set_time(now);
+  record_truth();
   drive_.check_watchdog(now);
   if (truth_) truth_->flush();
   if (released_) {
@@ -190,7 +193,8 @@ CycleComponent::Update VirtualEthercatDriveComponent::update() {
     return Update::finished(kExitPeerLost);
   }
   if (frames > 0) return Update::worked();
-  return Update::waiting_until(now + kPollNs);
+  const std::int64_t to_sync0 = drive_.esc().ns_to_next_sync0();
+  return Update::waiting_until(now + (to_sync0 >= 0 ? std::min(to_sync0, kPollNs) : kPollNs));
 }
 
 int VirtualEthercatDriveComponent::finish(int exit_code) {
@@ -205,6 +209,14 @@ int VirtualEthercatDriveComponent::finish(int exit_code) {
   std::printf("virtual_drive: distributed clock: %.6g ppm crystal, %" PRIu64
               " times of the master followed, correction %.3g ppm, difference 0x092C %lld ns\n",
               opt_.dc_drift_ppm, dc.writes(), dc.correction_ppm(), static_cast<long long>(dc.difference_ns()));
+  const ec::Sync0State& sync0 = drive_.esc().sync0();
+  if (sync0.pulses > 0 || sync0.late_starts > 0) {
+    std::printf("virtual_drive: SYNC0: %" PRIu64 " pulses of %.3f ms, %" PRIu64
+                " in OP without new outputs (0x1C32:0B), %" PRIu64 " activations with the start time past, %" PRIu64
+                " dropped by a jump of the clock\n",
+                sync0.pulses, static_cast<double>(sync0.cycle_ns) * 1e-6, drive_.sync0_without_outputs(),
+                sync0.late_starts, sync0.dropped);
+  }
   if (truth_) {
     truth_->finish();
     std::printf("virtual_drive: PlantTruth: %llu ticks published, %llu not published\n",

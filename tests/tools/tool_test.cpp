@@ -1036,6 +1036,10 @@ TEST(Ethercat, AVirtualSlaveOverUdpIsScannedWalkedAndReadOverCoe) {
   EXPECT_EQ(code, 0) << text;
   std::tie(code, text) = ethercat({"sdo", "read", "0x1001", "0x6060", "0"}, "mode_back.log");
   EXPECT_NE(text.find("0x6060:0 0x0A"), std::string::npos) << text;
+  // The device name, a text: a normal upload, printed as text.
+  std::tie(code, text) = ethercat({"sdo", "read", "0x1001", "0x1008", "0"}, "device_name.log");
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("0x1008:0 \"PMLSM virtual drive\" (19 bytes)"), std::string::npos) << text;
   std::tie(code, text) = ethercat({"sdo", "read", "0x1001", "0x7777", "0"}, "absent.log");
   EXPECT_EQ(code, 1) << text;
   EXPECT_NE(text.find("aborted: 0x06020000"), std::string::npos) << text;
@@ -1063,8 +1067,8 @@ TEST(Ethercat, AVirtualSlaveOverUdpIsScannedWalkedAndReadOverCoe) {
   const auto served = slave.wait_for(kRunTimeout);
   ASSERT_TRUE(served.has_value());
   EXPECT_EQ(*served, 0) << slave.output();
-  // 4 SDO requests of the commands above and 11 of the mapping: 0x1C12 and 0x1C13 with their PDOs'.
-  EXPECT_NE(slave.output().find("AL state OP; 15 SDO requests"), std::string::npos) << slave.output();
+  // 5 SDO requests of the commands above and 11 of the mapping: 0x1C12 and 0x1C13 with their PDOs'.
+  EXPECT_NE(slave.output().find("AL state OP; 16 SDO requests"), std::string::npos) << slave.output();
   // Nobody there: exit 3, said.
   test::ChildProcess nobody({bin("pmlsm"), "ethercat", "--udp", "127.0.0.1:9", "scan"}, (dir / "nobody.log").string());
   EXPECT_EQ(run_to_end(nobody), 3) << nobody.output();
@@ -1144,9 +1148,10 @@ TEST(Ethercat, SoemAnIndependentMasterFindsTheVirtualSlaveReadsItOverCoeTakesItT
       pair.in(pair.slave_ns(), {bin("pmlsm"), "ethercat", "serve", "--interface", pair.slave_if(), "--seconds", "120"}),
       (dir / "serve.log").string());
   ASSERT_TRUE(slave.wait_for_output("serving a virtual EtherCAT slave on", kRunTimeout)) << slave.output();
-  test::ChildProcess soem(pair.in(pair.master_ns(), {"/usr/bin/env", "node", source("tests/node/soem_master.mjs"),
-                                                     pair.master_if(), "--read", "1000:0", "--read", "1018:2"}),
-                          (dir / "soem.log").string());
+  test::ChildProcess soem(
+      pair.in(pair.master_ns(), {"/usr/bin/env", "node", source("tests/node/soem_master.mjs"), pair.master_if(),
+                                 "--read", "1000:0", "--read", "1018:2", "--read", "1008:0"}),
+      (dir / "soem.log").string());
   EXPECT_EQ(run_to_end(soem), 0) << soem.output();
   const std::string out = soem.output();
   EXPECT_NE(out.find("\"slaves\":1"), std::string::npos) << out;
@@ -1157,6 +1162,8 @@ TEST(Ethercat, SoemAnIndependentMasterFindsTheVirtualSlaveReadsItOverCoeTakesItT
   // The CiA 402 device type and the product code, over CoE, little-endian as on the wire.
   EXPECT_NE(out.find("\"1000:0\":\"92010200\""), std::string::npos) << out;
   EXPECT_NE(out.find("\"1018:2\":\"01500000\""), std::string::npos) << out;
+  // The device name, over 4 bytes: SOEM's normal upload of it ("PMLSM virtual drive").
+  EXPECT_NE(out.find("\"1008:0\":\"504d4c534d207669727475616c206472697665\""), std::string::npos) << out;
   EXPECT_NE(out.find("\"safeop\":4"), std::string::npos) << out;
   EXPECT_NE(out.find("\"op\":8"), std::string::npos) << out;
   // The process data SOEM mapped from 0x1C12 / 0x1C13: the CiA 402 RxPDO (controlword, target

@@ -119,6 +119,7 @@ ObjectDictionary make_cia402_dictionary(NodeId node, const Cia402DictionaryConfi
   ObjectDictionary od(kCia402DictionaryCapacity);
   od.add(make(kObjectDeviceType, 0, "device type", T::kU32, A::kConst, kDeviceTypeCia402Servo));
   od.add(make(kObjectErrorRegister, 0, "error register", T::kU8, A::kRo, 0));
+  od.add_text({kObjectDeviceName, 0, "manufacturer device name", config.device_name});
   od.add(make(kObjectConsumerHeartbeatTime, 0, "consumer heartbeat time: highest sub-index", T::kU8, A::kConst, 1));
   od.add(with_check(make(kObjectConsumerHeartbeatTime, 1, "consumer heartbeat time 1", T::kU32, A::kRw, 0),
                     check_consumer_heartbeat));

@@ -93,10 +93,30 @@ void ObjectDictionary::add(Entry entry) {
   }
   const auto at = std::lower_bound(entries_.begin(), entries_.end(), key_of(entry),
                                    [](const Entry& e, std::uint32_t key) { return key_of(e) < key; });
-  if (at != entries_.end() && key_of(*at) == key_of(entry)) {
+  if ((at != entries_.end() && key_of(*at) == key_of(entry)) || find_text(entry.index, entry.subindex) != nullptr) {
     throw std::invalid_argument(entry_label(entry) + ": already in the dictionary");
   }
   entries_.insert(at, entry);  // within the reserved capacity: no reallocation
+}
+
+void ObjectDictionary::add_text(TextEntry text) {
+  Entry label;
+  label.index = text.index;
+  label.subindex = text.subindex;
+  label.name = text.name;
+  if (text.name == nullptr || text.name[0] == '\0') {
+    throw std::invalid_argument(entry_label(label) + ": name must not be empty");
+  }
+  if (find(text.index, text.subindex) != nullptr || find_text(text.index, text.subindex) != nullptr) {
+    throw std::invalid_argument(entry_label(label) + ": already in the dictionary");
+  }
+  texts_.push_back(std::move(text));
+}
+
+const TextEntry* ObjectDictionary::find_text(std::uint16_t index, std::uint8_t subindex) const noexcept {
+  const auto at = std::find_if(texts_.begin(), texts_.end(),
+                               [&](const TextEntry& t) { return t.index == index && t.subindex == subindex; });
+  return at == texts_.end() ? nullptr : &*at;
 }
 
 const Entry* ObjectDictionary::find(std::uint16_t index, std::uint8_t subindex) const noexcept {
@@ -114,16 +134,21 @@ bool ObjectDictionary::contains(std::uint16_t index) const noexcept {
   const std::uint32_t key = key_of(index, 0);
   const auto at = std::lower_bound(entries_.begin(), entries_.end(), key,
                                    [](const Entry& e, std::uint32_t k) { return key_of(e) < k; });
-  return at != entries_.end() && at->index == index;
+  return (at != entries_.end() && at->index == index) ||
+         std::any_of(texts_.begin(), texts_.end(), [&](const TextEntry& t) { return t.index == index; });
 }
 
 std::uint32_t ObjectDictionary::locate(std::uint16_t index, std::uint8_t subindex) const noexcept {
-  if (find(index, subindex) != nullptr) return kAbortNone;
+  if (find(index, subindex) != nullptr || find_text(index, subindex) != nullptr) return kAbortNone;
   return contains(index) ? kAbortSubindexMissing : kAbortObjectMissing;
 }
 
 Result<SdoData> ObjectDictionary::read(std::uint16_t index, std::uint8_t subindex) const noexcept {
   const Entry* entry = find(index, subindex);
+  if (entry == nullptr && find_text(index, subindex) != nullptr) {
+    return fail_with<SdoData>(Error::kAccessRefused, "object dictionary: a text, read by a segmented upload",
+                              kAbortUnsupportedAccess);
+  }
   if (entry == nullptr) {
     const std::uint32_t code = locate(index, subindex);
     Result<SdoData> r;
@@ -145,10 +170,7 @@ std::uint32_t ObjectDictionary::check_value(const Entry& entry, std::int64_t val
 
 Status ObjectDictionary::write(std::uint16_t index, std::uint8_t subindex, SdoData data) noexcept {
   Entry* entry = find_mutable(index, subindex);
-  if (entry == nullptr) {
-    const std::uint32_t code = locate(index, subindex);
-    return refuse(code, detail_of(code));
-  }
+  if (entry == nullptr) return refuse_missing(index, subindex);
   if (!writable(entry->access)) {
     return refuse(kAbortWriteReadOnly, "object dictionary: the entry is read-only");
   }
@@ -179,10 +201,7 @@ std::int64_t ObjectDictionary::get_or(std::uint16_t index, std::uint8_t subindex
 
 Status ObjectDictionary::set(std::uint16_t index, std::uint8_t subindex, std::int64_t value) noexcept {
   Entry* entry = find_mutable(index, subindex);
-  if (entry == nullptr) {
-    const std::uint32_t code = locate(index, subindex);
-    return refuse(code, detail_of(code));
-  }
+  if (entry == nullptr) return refuse_missing(index, subindex);
   if (value > type_max(entry->type)) {
     return refuse(kAbortValueTooHigh, "object dictionary: value above the data type's range");
   }
@@ -191,6 +210,13 @@ Status ObjectDictionary::set(std::uint16_t index, std::uint8_t subindex, std::in
   }
   entry->value = value;
   return {};
+}
+
+Status ObjectDictionary::refuse_missing(std::uint16_t index, std::uint8_t subindex) const noexcept {
+  if (find_text(index, subindex) != nullptr)
+    return refuse(kAbortWriteReadOnly, "object dictionary: a text is read-only");
+  const std::uint32_t code = locate(index, subindex);
+  return refuse(code, detail_of(code));
 }
 
 void ObjectDictionary::store(const Entry& entry, std::int64_t value) noexcept {

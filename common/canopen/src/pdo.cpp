@@ -26,6 +26,9 @@ std::uint32_t PdoMap::add(PdoMapEntry entry) noexcept {
 Status validate_pdo_map(const PdoMap& map, const ObjectDictionary& dictionary, PdoDirection direction) noexcept {
   for (const PdoMapEntry& mapped : map) {
     const Entry* entry = dictionary.find(mapped.index, mapped.subindex);
+    if (entry == nullptr && dictionary.find_text(mapped.index, mapped.subindex) != nullptr) {
+      return mapping_error(kAbortNotMappable, "PDO mapping: a text is not PDO-mappable");
+    }
     if (entry == nullptr) {
       const std::uint32_t code = dictionary.locate(mapped.index, mapped.subindex);
       return mapping_error(code, code == kAbortSubindexMissing ? "PDO mapping: a mapped sub-index does not exist"

@@ -16,7 +16,10 @@ TickClock::TickClock(std::int64_t period_ns, bool realtime, std::int64_t wake_ea
   }
 }
 
-void TickClock::start() { next_ns_ = monotonic_ns(); }
+void TickClock::start() {
+  const std::int64_t now = monotonic_ns();
+  next_ns_ = realtime_ ? (now + period_ns_ - 1) / period_ns_ * period_ns_ : now;
+}
 
 bool TickClock::advance() {
   if (!realtime_) return false;

@@ -5,6 +5,7 @@
 #include "pmlsm/canopen/cob_id.hpp"
 #include "pmlsm/canopen/sdo.hpp"
 #include "pmlsm/ethercat/esc.hpp"
+#include "pmlsm/util/little_endian.hpp"
 
 namespace pmlsm::ethercat {
 
@@ -87,7 +88,38 @@ bool upload_value(const SeenSdo& sdo, std::uint16_t& index, std::uint8_t& subind
   return true;
 }
 
+namespace {
+
+/// The normal and segmented transfers' messages (mailbox.hpp), which the CANopen codec, expedited
+/// only, does not read; "" for any other.
+std::string describe_normal_or_segment(const SeenSdo& sdo) {
+  const std::uint8_t command = sdo.sdo[0];
+  const std::uint8_t specifier = command >> 5;
+  const bool request = sdo.service == kCoeServiceSdoRequest;
+  const std::string toggle = std::to_string((command >> 4) & 1U);
+  const auto total = [&] { return std::to_string(get_le32(sdo.sdo.data() + 4)); };
+  const std::string at = multiplexer(static_cast<std::uint16_t>(sdo.sdo[1] | (sdo.sdo[2] << 8)), sdo.sdo[3]);
+  const std::size_t more = coe_sdo_more_bytes(sdo.header);
+  if (request && specifier == 3) return "upload segment request (toggle " + toggle + ")";
+  if (!request && specifier == 0) {
+    const std::size_t bytes = more > 0 ? 7 + more : 7 - ((command >> 1) & 7U);
+    return "upload segment response (toggle " + toggle + ", " + std::to_string(bytes) + " bytes" +
+           ((command & 1U) != 0 ? ", last)" : ")");
+  }
+  if ((command & 0x03U) != 0x01) return "";  // expedited, or no size: not a normal transfer
+  if (!request && specifier == 2) {
+    return "upload response " + at + ", normal: " + total() + " bytes, " + std::to_string(more) + " here";
+  }
+  if (request && specifier == 1) {
+    return "download request " + at + ", normal: " + total() + " bytes, " + std::to_string(more) + " here";
+  }
+  return "";
+}
+
+}  // namespace
+
 std::string describe(const SeenSdo& sdo) {
+  if (std::string text = describe_normal_or_segment(sdo); !text.empty()) return text;
   const canopen::CanFrame frame = as_can_frame(sdo);
   if (sdo.service == kCoeServiceSdoRequest) {
     const canopen::Result<canopen::SdoRequest> r = canopen::parse_sdo_request(frame);

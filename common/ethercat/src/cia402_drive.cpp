@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstdio>
 #include <string>
+#include <thread>
 
 #include "pmlsm/canopen/cia402_application.hpp"
 #include "pmlsm/canopen/cia402_dictionary.hpp"
@@ -23,11 +24,11 @@ const Cia402DriveConfig& validated(const Cia402DriveConfig& config) {
   return config;
 }
 
-/// The master's clock for the drive's distributed clock: the host's monotonic time.
-std::uint64_t master_time_ns() {
-  return static_cast<std::uint64_t>(
-      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
-          .count());
+/// The master's clock for the drive's distributed clock, unless the owner gives one: the host's
+/// monotonic time (the drive loop's tick grid runs on it).
+std::int64_t host_monotonic_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
 }
 
 MasterParams master_params(const Cia402DriveConfig& c) {
@@ -43,17 +44,34 @@ MasterParams master_params(const Cia402DriveConfig& c) {
 void Cia402DriveConfig::validate() const {
   RangeCheck check;
   visit_parameters(*this, check);
+  if (sync0 && !distributed_clocks) {
+    throw std::invalid_argument(
+        "drive.sync0: SYNC0 comes from the drive's distributed clock: needs "
+        "drive.distributed_clocks true");
+  }
   if (outputs_mapping.empty() != inputs_mapping.empty()) {
     throw std::invalid_argument(std::string("pdo.") + (outputs_mapping.empty() ? "outputs" : "inputs") +
                                 ": both directions are mapped, or neither (the drive's own assignment)");
   }
 }
 
-Cia402Drive::Cia402Drive(const Cia402DriveConfig& config, Link& link)
+Cia402Drive::Cia402Drive(const Cia402DriveConfig& config, Link& link, std::function<std::int64_t()> master_clock)
     : config_(validated(config)),
       master_(link, master_params(config)),
       scaling_(config.scaling),
-      remote_(config.enable_timeout_cycles) {}
+      remote_(config.enable_timeout_cycles),
+      own_clock_(static_cast<bool>(master_clock)),
+      master_clock_(master_clock ? std::move(master_clock) : host_monotonic_ns) {}
+
+std::uint64_t Cia402Drive::master_time_ns() const { return static_cast<std::uint64_t>(master_clock_()); }
+
+void Cia402Drive::pace_cycle() {
+  // A drive's state machine runs in its cycle (on SYNC0 in DC mode): a walk at wire speed would
+  // outrun it. On the host's clock only; a clock of the owner's paces itself.
+  if (own_clock_) return;
+  const std::int64_t now = host_monotonic_ns();
+  std::this_thread::sleep_for(std::chrono::nanoseconds(kNsPerMs - now % kNsPerMs));
+}
 
 // The boot is one sequence of set-up steps, each naming what failed; kept in one place so the
 // order ETG.1000.6 and CiA 402 ask for is visible.
@@ -149,6 +167,20 @@ void Cia402Drive::boot() {
                              " after 0x6060 = 10: the drive did not enter cyclic synchronous torque");
     }
     if (config_.distributed_clocks) master_.configure_distributed_clock(station, master_time_ns());
+    if (config_.sync0) {
+      if (!config_.realtime) {
+        throw Cia402DriveError(
+            "drive.sync0: SYNC0 runs on the drive's clock, which a lockstep run does not "
+            "follow: realtime only (--clock realtime)");
+      }
+      // ETG.1020: the sync mode and the cycle in PREOP, then SYNC0 on the grid of the drive's clock.
+      sdo(true, kObjectOutputSyncParameters, kSyncParameterMode, kSyncModeDcSync0, 2, "SM2 sync mode, DC SYNC0");
+      sdo(true, kObjectOutputSyncParameters, kSyncParameterCycleTime, static_cast<std::uint32_t>(kNsPerMs), 4,
+          "SM2 cycle time");
+      sdo(true, kObjectInputSyncParameters, kSyncParameterMode, kSyncModeDcSync0, 2, "SM3 sync mode, DC SYNC0");
+      sync0_start_ns_ =
+          master_.configure_sync0(station, kNsPerMs, static_cast<std::int64_t>(config_.sync0_shift_us) * 1000);
+    }
     master_.configure_process_data_watchdog(
         station, config_.realtime ? static_cast<std::int64_t>(config_.watchdog_ms) * kNsPerMs : 0);
     walk_to(AlState::kSafeOp);
@@ -183,15 +215,15 @@ bool Cia402Drive::send_outputs(std::uint16_t controlword, std::int16_t torque, s
 }
 
 bool Cia402Drive::cycle_exchange(Command command, std::uint32_t address, std::uint16_t length) {
-  const auto sent = std::chrono::steady_clock::now();
+  // On the master's clock, the one the drive's distributed clock follows.
+  const std::int64_t sent_ns = master_clock_();
   const Reply r =
       master_.exchange(command, address, scratch_.data(), length, exchange_timeout_ns(), exchange_retries());
   if (!r.answered) {
     ++counters_.frames_lost;
     return false;
   }
-  const std::int64_t trip_ns =
-      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - sent).count();
+  const std::int64_t trip_ns = master_clock_() - sent_ns;
   round_trips_.record_latency_ns(trip_ns);
   // A frame's way to the drive, taken as half its way there and back (a running mean over ~16).
   transit_ns_ += (trip_ns / 2 - transit_ns_) / 16;
@@ -294,6 +326,7 @@ void Cia402Drive::enable_and_wait() {
                              format_hex(out.controlword, 4) + ") for " + std::to_string(config_.enable_timeout_cycles) +
                              " cycles");
     }
+    if (config_.realtime) pace_cycle();
     if (!idle_cycle(out.controlword)) {
       lose("no answer during the enable walk");
       throw Cia402DriveError(std::string("the drive stopped answering during the enable walk: ") + remote_.problem());

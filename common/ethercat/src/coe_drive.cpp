@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdio>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <tuple>
@@ -48,6 +49,19 @@ constexpr std::array<const char*, kMaxAssignedPdos + 1> kTxAssignNames{
     "SM3 PDO assignment: count", "SM3 PDO assignment: TxPDO 1", "SM3 PDO assignment: TxPDO 2",
     "SM3 PDO assignment: TxPDO 3", "SM3 PDO assignment: TxPDO 4"};
 
+constexpr std::array<const char*, 6> kOutputSyncNames{"SM2 sync parameters: highest sub-index",
+                                                      "SM2 sync mode",
+                                                      "SM2 cycle time",
+                                                      "SM2 sync modes supported",
+                                                      "SM2 minimum cycle time",
+                                                      "SM2 SM event missed"};
+constexpr std::array<const char*, 6> kInputSyncNames{"SM3 sync parameters: highest sub-index",
+                                                     "SM3 sync mode",
+                                                     "SM3 cycle time",
+                                                     "SM3 sync modes supported",
+                                                     "SM3 minimum cycle time",
+                                                     "SM3 SM event missed"};
+
 std::uint16_t first_pdo_of(std::uint16_t assign) {
   return assign == kObjectRxPdoAssign ? kRxPdoMapping : kTxPdoMapping;
 }
@@ -59,6 +73,14 @@ std::uint32_t check_assigned_pdo(const canopen::ObjectDictionary& d, const canop
   const std::uint16_t first = first_pdo_of(e.index);
   if (value != 0 && (value < first || value >= first + kMaxAssignedPdos)) return canopen::kAbortValueRange;
   return canopen::kAbortNone;
+}
+
+// 0x1C32:01 takes SM-synchronous or DC SYNC0; 0x1C33:01 also SM2-latched inputs (TwinCAT's 0x22).
+std::uint32_t check_sync_mode(const canopen::ObjectDictionary& /*d*/, const canopen::Entry& e,
+                              std::int64_t value) noexcept {
+  if (value == kSyncModeSm || value == kSyncModeDcSync0) return canopen::kAbortNone;
+  if (e.index == kObjectInputSyncParameters && value == kSyncModeSm2Inputs) return canopen::kAbortNone;
+  return canopen::kAbortValueRange;
 }
 
 // A count: each PDO it counts is assigned and mapped with entries.
@@ -75,8 +97,34 @@ std::uint32_t check_assigned_count(const canopen::ObjectDictionary& d, const can
 
 }  // namespace
 
+std::int64_t interpolation_period_ns(const canopen::ObjectDictionary& d) {
+  const std::optional<std::int64_t> value = d.get(canopen::kObjectInterpolationTimePeriod, 1);
+  const std::optional<std::int64_t> index = d.get(canopen::kObjectInterpolationTimePeriod, 2);
+  if (!value || !index || *index < -9 || *index > 0) return 1'000'000;
+  std::int64_t ns = *value;
+  for (std::int64_t i = -9; i < *index; ++i) ns *= 10;
+  return ns;
+}
+
 void add_coe_sync_manager_objects(canopen::ObjectDictionary& d) {
   using T = canopen::DataType;
+  const auto period_ns = static_cast<std::uint32_t>(interpolation_period_ns(d));
+  for (const auto& [index, names] : {std::pair{kObjectOutputSyncParameters, &kOutputSyncNames},
+                                     std::pair{kObjectInputSyncParameters, &kInputSyncNames}}) {
+    d.add(entry(index, 0, (*names)[0], T::kU8, kSyncParameterSmMissed));
+    canopen::Entry mode = entry(index, kSyncParameterMode, (*names)[1], T::kU16, kSyncModeSm);
+    mode.access = canopen::Access::kRw;
+    mode.check = check_sync_mode;
+    d.add(mode);
+    canopen::Entry cycle = entry(index, kSyncParameterCycleTime, (*names)[2], T::kU32, 0);
+    cycle.access = canopen::Access::kRw;
+    d.add(cycle);
+    d.add(entry(index, kSyncParameterModes, (*names)[3], T::kU16, 0x0006));
+    d.add(entry(index, kSyncParameterMinCycle, (*names)[4], T::kU32, period_ns));
+    canopen::Entry missed = entry(index, kSyncParameterSmMissed, (*names)[5], T::kU16, 0);
+    missed.access = canopen::Access::kRo;
+    d.add(missed);
+  }
   d.add(entry(kObjectSyncManagerTypes, 0, "sync manager types: count", T::kU8, 4));
   d.add(entry(kObjectSyncManagerTypes, 1, "SM0: mailbox out", T::kU8, 1));
   d.add(entry(kObjectSyncManagerTypes, 2, "SM1: mailbox in", T::kU8, 2));
@@ -196,14 +244,12 @@ std::vector<std::uint16_t> VirtualCia402Slave::virtual_sii(std::uint16_t output_
 }
 
 canopen::ObjectDictionary VirtualCia402Slave::make_dictionary(const std::vector<std::uint16_t>& sii) {
+  // The identity and name the SII gives (a drive's dump: its own), else ours.
+  const SiiInfo info = parse_sii(sii.size() >= sii::kMinWords ? sii : virtual_sii(0, 0));
   canopen::Cia402DictionaryConfig config;
-  if (sii.size() >= sii::kMinWords) {
-    config.vendor_id = static_cast<std::uint32_t>(sii[sii::kVendorId] | (sii[sii::kVendorId + 1] << 16));
-    config.product_code = static_cast<std::uint32_t>(sii[sii::kProductCode] | (sii[sii::kProductCode + 1] << 16));
-  } else {
-    config.vendor_id = kVendorId;
-    config.product_code = kProductCode;
-  }
+  config.vendor_id = info.vendor_id;
+  config.product_code = info.product_code;
+  if (!info.name.empty()) config.device_name = info.name;
   return canopen::make_cia402_dictionary(canopen::NodeId(1), config);
 }
 
@@ -230,6 +276,21 @@ VirtualCia402Slave::VirtualCia402Slave(canopen::ObjectDictionary dictionary, std
       coe_(dictionary_, canopen::NodeId(1)) {
   esc_.set_mailbox_handler(&coe_);
   esc_.set_before_safeop([this] { return take_mapping(); });
+  esc_.set_before_op([this] { return check_synchronisation(); });
+}
+
+bool VirtualCia402Slave::dc_synchronous() const {
+  return dictionary_.get_or(kObjectOutputSyncParameters, kSyncParameterMode, kSyncModeSm) == kSyncModeDcSync0;
+}
+
+std::uint16_t VirtualCia402Slave::check_synchronisation() const {
+  if (!dc_synchronous()) return 0;
+  const std::int64_t period_ns = interpolation_period_ns(dictionary_);
+  const std::int64_t written = dictionary_.get_or(kObjectOutputSyncParameters, kSyncParameterCycleTime, 0);
+  if (written != 0 && written != period_ns) return al_code::kInvalidSyncCycleTime;
+  const Sync0State& sync0 = esc_.sync0();
+  if (!sync0.active || sync0.cycle_ns != period_ns) return al_code::kInvalidDcSyncConfiguration;
+  return 0;
 }
 
 bool VirtualCia402Slave::post_emergency(std::uint16_t error_code) {
@@ -251,14 +312,18 @@ std::uint16_t VirtualCia402Slave::take_mapping() {
 
 VirtualEthercatDrive::VirtualEthercatDrive(const canopen::Cia402ApplicationParams& params, drive::Drive& drive, Log log,
                                            std::vector<std::uint16_t> sii)
-    : slave_(std::move(sii)), application_(params, slave_.dictionary(), drive, *this), log_(std::move(log)) {}
+    : slave_(std::move(sii)), application_(params, slave_.dictionary(), drive, *this), log_(std::move(log)) {
+  slave_.esc().set_sync0_handler([this](std::int64_t now_ns) { on_sync0(now_ns); });
+}
 
 VirtualEthercatDrive::VirtualEthercatDrive(const canopen::Cia402ApplicationParams& params, drive::Drive& drive,
                                            canopen::ObjectDictionary dictionary, Log log,
                                            std::vector<std::uint16_t> sii)
     : slave_(std::move(dictionary), std::move(sii)),
       application_(params, slave_.dictionary(), drive, *this),
-      log_(std::move(log)) {}
+      log_(std::move(log)) {
+  slave_.esc().set_sync0_handler([this](std::int64_t now_ns) { on_sync0(now_ns); });
+}
 
 void VirtualEthercatDrive::check_watchdog(std::int64_t now_ns) {
   Esc& esc = slave_.esc();
@@ -278,9 +343,36 @@ void VirtualEthercatDrive::check_watchdog(std::int64_t now_ns) {
   log(true, "process-data watchdog expired: OP -> SAFEOP (AL status code 0x001B)", now_ns);
 }
 
+void VirtualEthercatDrive::on_sync0(std::int64_t now_ns) {
+  Esc& esc = slave_.esc();
+  const std::uint64_t written = esc.outputs_written();
+  const bool new_outputs = written != outputs_at_pulse_;
+  outputs_at_pulse_ = written;
+  if (!slave_.dc_synchronous() || esc.al_state() != AlState::kOp) return;
+  if (!new_outputs) {
+    ++sm_missed_;
+    slave_.dictionary().set(kObjectOutputSyncParameters, kSyncParameterSmMissed,
+                            static_cast<std::int64_t>(std::min<std::uint64_t>(sm_missed_, 0xFFFF)));
+  }
+  slave_.process().take_outputs(esc);
+  application_.apply_controlword(now_ns);
+  application_.step_period(now_ns);
+  slave_.process().give_inputs(esc);
+}
+
 void VirtualEthercatDrive::after_frame(std::int64_t now_ns) {
   check_watchdog(now_ns);
   Esc& esc = slave_.esc();
+  if (slave_.dc_synchronous()) {
+    // The periods are the pulses' (on_sync0); between frames only the watch and the objects.
+    const std::uint64_t written = esc.outputs_written();
+    if (written > outputs_seen_) outputs_ns_ = now_ns;
+    outputs_seen_ = written;
+    if (esc.al_state() == AlState::kOp) return;
+    application_.update_objects();
+    if (esc.al_state() == AlState::kSafeOp) slave_.process().give_inputs(esc);
+    return;
+  }
   const AlState state = esc.al_state();
   const std::uint64_t written = esc.outputs_written();
   const std::uint64_t cycles = written - outputs_seen_;

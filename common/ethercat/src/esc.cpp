@@ -275,8 +275,65 @@ void Esc::write_from(std::uint16_t address, const std::uint8_t* in, std::size_t 
 }
 
 void Esc::set_time(std::int64_t now_ns) {
+  now_ns_ = now_ns;
   dc_.advance_to(now_ns);
   show_dc();
+  run_sync0(now_ns);
+}
+
+std::int64_t Esc::ns_to_next_sync0() const {
+  if (!sync0_.active) return -1;
+  const std::uint64_t now = dc_.system_time_ns();
+  return sync0_.next_ns > now ? static_cast<std::int64_t>(sync0_.next_ns - now) : 0;
+}
+
+void Esc::sync0_written() {
+  const bool on = (memory_[reg::kDcActivation] & 0x03U) == 0x03U;
+  if (on == sync0_.active) return;
+  sync0_.active = on;
+  if (!on) return;
+  sync0_.cycle_ns = long_at(reg::kDcSync0CycleTime);
+  const std::uint64_t start = static_cast<std::uint64_t>(long_at(reg::kDcStartTime)) |
+                              (static_cast<std::uint64_t>(long_at(reg::kDcStartTime + 4)) << 32);
+  const std::uint64_t now = dc_.system_time_ns();
+  sync0_.next_ns = start;
+  if (start < now) {
+    // The ET1100 compares 32 bits: the start's low half comes round again after the wrap.
+    ++sync0_.late_starts;
+    constexpr std::uint64_t kWrap = std::uint64_t{1} << 32;
+    sync0_.next_ns = (now & ~(kWrap - 1)) | (start & (kWrap - 1));
+    if (sync0_.next_ns < now) sync0_.next_ns += kWrap;
+  }
+  outputs_at_last_pulse_ = outputs_written_;
+  run_sync0(now_ns_);
+}
+
+void Esc::run_sync0(std::int64_t now_ns) {
+  const std::uint64_t now = dc_.system_time_ns();
+  // A clock moved far ahead at once (a master's time beyond the loop's reach): the pulses a second
+  // behind and more are not each the application's; the unit goes on from the last of them.
+  constexpr std::uint64_t kMaxBacklog = 1000;
+  if (sync0_.active && sync0_.cycle_ns > 0 && sync0_.next_ns <= now) {
+    const std::uint64_t due = (now - sync0_.next_ns) / sync0_.cycle_ns + 1;
+    if (due > kMaxBacklog) {
+      sync0_.next_ns += (due - kMaxBacklog) * sync0_.cycle_ns;
+      sync0_.dropped += due - kMaxBacklog;
+    }
+  }
+  while (sync0_.active && sync0_.next_ns <= now) {
+    ++sync0_.pulses;
+    if (outputs_written_ == outputs_at_last_pulse_) ++sync0_.pulses_without_outputs;
+    outputs_at_last_pulse_ = outputs_written_;
+    memory_[reg::kDcSync0Status] = 0x01;
+    if (sync0_.cycle_ns == 0) {
+      sync0_.active = false;  // a single pulse
+    } else {
+      sync0_.next_ns += sync0_.cycle_ns;
+    }
+    if (sync0_handler_) sync0_handler_(now_ns);
+  }
+  if (!sync0_.active) return;  // 0x0990 holds what the master writes until the unit runs
+  for (int i = 0; i < 8; ++i) memory_[reg::kDcStartTime + i] = static_cast<std::uint8_t>(sync0_.next_ns >> (8 * i));
 }
 
 void Esc::show_dc() {
@@ -303,6 +360,7 @@ void Esc::dc_written(std::uint16_t address, std::size_t size) {
     }
     for (int i = 0; i < 8; ++i) memory_[reg::kDcReceiveTimeUnit + i] = static_cast<std::uint8_t>(local >> (8 * i));
   }
+  if (covers(reg::kDcActivation)) sync0_written();
   if (covers(reg::kDcSystemTimeOffset)) dc_.set_offset_ns(u64_at(reg::kDcSystemTimeOffset));
   if (covers(reg::kDcSystemTimeDelay)) dc_.set_delay_ns(long_at(reg::kDcSystemTimeDelay));
   if (covers(reg::kDcSystemTime)) {
@@ -358,6 +416,9 @@ bool Esc::send_mailbox_empty_for(std::uint16_t address, std::uint16_t length) co
 }
 
 void Esc::after_read(std::uint16_t address, std::uint16_t length) {
+  if (address <= reg::kDcSync0Status && reg::kDcSync0Status < static_cast<std::uint32_t>(address) + length) {
+    memory_[reg::kDcSync0Status] = 0;  // read, acknowledged
+  }
   const MailboxArea send = mailbox_area(1);
   const std::uint32_t last = send.start + send.length - 1U;
   if (send.active && address <= last && last < static_cast<std::uint32_t>(address) + length) {
@@ -489,6 +550,13 @@ void Esc::request_state(std::uint8_t control) {
       if (now != AlState::kSafeOp) {
         refuse(al_code::kInvalidStateChange);
         return;
+      }
+      if (before_op_) {
+        const std::uint16_t code = before_op_();
+        if (code != 0) {
+          refuse(code);
+          return;
+        }
       }
       go(AlState::kOp);
       return;

@@ -7,6 +7,20 @@
 
 namespace pmlsm::ethercat {
 
+namespace {
+
+// CiA 301's command specifiers (the top 3 bits of the command byte) and flags.
+constexpr std::uint8_t kCcsDownloadSegment = 0;
+constexpr std::uint8_t kCcsInitiateDownload = 1;
+constexpr std::uint8_t kCcsInitiateUpload = 2;  // scs 2: initiate upload response
+constexpr std::uint8_t kCcsUploadSegment = 3;
+constexpr std::uint8_t kCcsInitiateDownloadResponse = 3;
+constexpr std::uint8_t kCcsAbort = 4;
+constexpr std::uint8_t kBitExpedited = 1U << 1;
+constexpr std::uint8_t kBitSizeIndicated = 1U << 0;
+
+}  // namespace
+
 const char* to_string(MailboxError error) {
   switch (error) {
     case MailboxError::kNone: return "none";
@@ -18,14 +32,16 @@ const char* to_string(MailboxError error) {
   return "?";
 }
 
-std::size_t write_coe_sdo(std::uint8_t* out, std::uint8_t counter, std::uint8_t service, const SdoBytes& sdo) {
-  put_le16(out, static_cast<std::uint16_t>(kCoeHeaderBytes + kSdoBytes));
+std::size_t write_coe_sdo(std::uint8_t* out, std::uint8_t counter, std::uint8_t service, const SdoBytes& sdo,
+                          const std::uint8_t* more, std::size_t more_bytes) {
+  put_le16(out, static_cast<std::uint16_t>(kCoeHeaderBytes + kSdoBytes + more_bytes));
   put_le16(out + 2, 0);  // address: the master
   out[4] = 0;            // channel 0, priority 0
   out[5] = static_cast<std::uint8_t>(kMailboxTypeCoe | ((counter & 0x07U) << 4));
   put_le16(out + kMailboxHeaderBytes, static_cast<std::uint16_t>(service << 12));
   std::copy(sdo.begin(), sdo.end(), out + kMailboxHeaderBytes + kCoeHeaderBytes);
-  return kMailboxHeaderBytes + kCoeHeaderBytes + kSdoBytes;
+  if (more_bytes > 0) std::copy(more, more + more_bytes, out + kCoeSdoMoreAt);
+  return kCoeSdoMoreAt + more_bytes;
 }
 
 MailboxError parse_coe_sdo(const std::uint8_t* mailbox, std::size_t size, MailboxHeader& header, std::uint8_t& service,
@@ -57,6 +73,27 @@ std::size_t CoeSdoServer::handle(const std::uint8_t* request, std::size_t size, 
     return 0;
   }
   ++requests_;
+  const std::uint8_t command = sdo[0];
+  const auto index = static_cast<std::uint16_t>(sdo[1] | (sdo[2] << 8));
+  const std::uint8_t subindex = sdo[3];
+  switch (command >> 5) {
+    case kCcsInitiateUpload:
+      upload_ = {};  // a new request ends any upload under way
+      if (const canopen::TextEntry* text = dictionary_.find_text(index, subindex)) {
+        return start_upload(*text, response, capacity);
+      }
+      break;
+    case kCcsUploadSegment: return upload_segment(command, response, capacity);
+    case kCcsInitiateDownload:
+      upload_ = {};
+      if ((command & kBitExpedited) == 0) {
+        return normal_download(sdo, request + kCoeSdoMoreAt, coe_sdo_more_bytes(header), response);
+      }
+      break;
+    case kCcsDownloadSegment: return abort(response, 0, 0, canopen::kAbortCommandSpecifier);
+    case kCcsAbort: upload_ = {}; break;
+    default: break;
+  }
   // The CANopen server's request frame: its own COB-ID, the 8 bytes as they came.
   canopen::CanFrame frame{};
   frame.id = canopen::sdo_rx_cob_id(server_.node());
@@ -66,8 +103,90 @@ std::size_t CoeSdoServer::handle(const std::uint8_t* request, std::size_t size, 
   if (!r.respond) return 0;  // the client's abort: nothing to answer
   SdoBytes answer{};
   std::copy(r.response.data.begin(), r.response.data.end(), answer.begin());
+  return respond(response, answer);
+}
+
+std::size_t CoeSdoServer::respond(std::uint8_t* response, const SdoBytes& sdo, const std::uint8_t* more,
+                                  std::size_t more_bytes) {
   counter_ = static_cast<std::uint8_t>(counter_ % 7 + 1);
-  return write_coe_sdo(response, counter_, kCoeServiceSdoResponse, answer);
+  return write_coe_sdo(response, counter_, kCoeServiceSdoResponse, sdo, more, more_bytes);
+}
+
+std::size_t CoeSdoServer::abort(std::uint8_t* response, std::uint16_t index, std::uint8_t subindex,
+                                std::uint32_t code) {
+  upload_ = {};
+  SdoBytes sdo{};
+  sdo[0] = kCcsAbort << 5;
+  put_le16(sdo.data() + 1, index);
+  sdo[3] = subindex;
+  put_le32(sdo.data() + 4, code);
+  return respond(response, sdo);
+}
+
+std::size_t CoeSdoServer::start_upload(const canopen::TextEntry& text, std::uint8_t* response, std::size_t capacity) {
+  // 0x41: initiate upload response, size indicated, not expedited; the complete size in bytes 4-7.
+  SdoBytes sdo{};
+  sdo[0] = (kCcsInitiateUpload << 5) | kBitSizeIndicated;
+  put_le16(sdo.data() + 1, text.index);
+  sdo[3] = text.subindex;
+  put_le32(sdo.data() + 4, static_cast<std::uint32_t>(text.text.size()));
+  const std::size_t room = capacity - kCoeSdoMoreAt;
+  const std::size_t first = std::min(room, text.text.size());
+  if (first < text.text.size()) upload_ = {true, text.index, text.subindex, first, 0};
+  return respond(response, sdo, reinterpret_cast<const std::uint8_t*>(text.text.data()), first);
+}
+
+std::size_t CoeSdoServer::upload_segment(std::uint8_t command, std::uint8_t* response, std::size_t capacity) {
+  const canopen::TextEntry* text = upload_.active ? dictionary_.find_text(upload_.index, upload_.subindex) : nullptr;
+  if (text == nullptr) return abort(response, 0, 0, canopen::kAbortCommandSpecifier);  // no upload under way
+  if (((command >> 4) & 1U) != upload_.toggle) {
+    return abort(response, upload_.index, upload_.subindex, canopen::kAbortToggleBit);
+  }
+  // The command byte, then as many bytes as the mailbox holds; at least 7 (n of them unused).
+  const std::size_t room = capacity - kMailboxHeaderBytes - kCoeHeaderBytes - 1;
+  const std::size_t left = text->text.size() - upload_.sent;
+  const std::size_t bytes = std::min(room, left);
+  const bool last = bytes == left;
+  const auto* data = reinterpret_cast<const std::uint8_t*>(text->text.data()) + upload_.sent;
+  SdoBytes sdo{};
+  const std::size_t in_eight = std::min<std::size_t>(bytes, kSdoBytes - 1);
+  sdo[0] = static_cast<std::uint8_t>((upload_.toggle << 4) | ((kSdoBytes - 1 - in_eight) << 1) | (last ? 1U : 0U));
+  std::copy(data, data + in_eight, sdo.begin() + 1);
+  upload_.sent += bytes;
+  upload_.toggle ^= 1U;
+  ++segments_;
+  if (last) upload_ = {};
+  return respond(response, sdo, data + in_eight, bytes - in_eight);
+}
+
+std::size_t CoeSdoServer::normal_download(const SdoBytes& sdo, const std::uint8_t* more, std::size_t more_bytes,
+                                          std::uint8_t* response) {
+  const auto index = static_cast<std::uint16_t>(sdo[1] | (sdo[2] << 8));
+  const std::uint8_t subindex = sdo[3];
+  if ((sdo[0] & kBitSizeIndicated) == 0) return abort(response, index, subindex, canopen::kAbortCommandSpecifier);
+  const std::uint32_t size = get_le32(sdo.data() + 4);
+  if (size > 4) {
+    // Nothing writable here is longer: a text is read-only, a missing object missing, the rest
+    // too long for their type.
+    std::uint32_t code = canopen::kAbortLengthTooHigh;
+    if (dictionary_.find_text(index, subindex) != nullptr) {
+      code = canopen::kAbortWriteReadOnly;
+    } else if (dictionary_.find(index, subindex) == nullptr) {
+      code = dictionary_.locate(index, subindex);
+    }
+    return abort(response, index, subindex, code);
+  }
+  if (size == 0 || more_bytes < size) return abort(response, index, subindex, canopen::kAbortCommandSpecifier);
+  std::uint32_t value = 0;
+  for (std::uint32_t i = 0; i < size; ++i) value |= static_cast<std::uint32_t>(more[i]) << (8 * i);
+  const canopen::Status written =
+      dictionary_.write(index, subindex, canopen::SdoData{value, static_cast<std::uint8_t>(size)});
+  if (!written) return abort(response, index, subindex, written.abort_code);
+  SdoBytes answer{};
+  answer[0] = kCcsInitiateDownloadResponse << 5;
+  put_le16(answer.data() + 1, index);
+  answer[3] = subindex;
+  return respond(response, answer);
 }
 
 std::size_t CoeSdoServer::write_emergency(std::uint8_t* out, std::uint16_t error_code, std::uint8_t error_register) {

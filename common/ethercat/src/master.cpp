@@ -1,5 +1,6 @@
 #include "pmlsm/ethercat/master.hpp"
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdio>
@@ -34,6 +35,21 @@ void MasterParams::validate() const {
 }
 
 std::string SdoResult::describe() const {
+  if (done && bytes.size() > 4) {
+    const bool text = std::all_of(bytes.begin(), bytes.end(), [](std::uint8_t b) { return b >= 0x20 && b < 0x7F; });
+    std::string shown;
+    if (text) {
+      shown = "\"" + std::string(bytes.begin(), bytes.end()) + "\"";
+    } else {
+      char hex[4];
+      for (const std::uint8_t b : bytes) {
+        std::snprintf(hex, sizeof hex, "%02X ", b);
+        shown += hex;
+      }
+      shown.pop_back();
+    }
+    return shown + " (" + std::to_string(bytes.size()) + " bytes)";
+  }
   if (done) return format_hex(value, 2 * (size == 0 ? 4 : size));
   return "aborted: " + format_hex(abort_code, 8) + " " + canopen::describe(abort_code);
 }
@@ -276,7 +292,7 @@ StateResult Master::request_state(std::uint16_t station, AlState state) {
   }
 }
 
-SdoResult Master::sdo_transfer(const SlaveInfo& slave, const std::array<std::uint8_t, 8>& request) {
+Master::CoeAnswer Master::coe_request(const SlaveInfo& slave, const SdoBytes& request) {
   const std::uint16_t station = slave.station_address;
   if (slave.mailbox_receive_size < kMailboxHeaderBytes + kCoeHeaderBytes + kSdoBytes ||
       slave.mailbox_receive_size > kMaxDatagramDataBytes || slave.mailbox_send_size > kMaxDatagramDataBytes) {
@@ -293,7 +309,7 @@ SdoResult Master::sdo_transfer(const SlaveInfo& slave, const std::array<std::uin
   // CoE emergency the slave posted before it comes first: taken, counted, and the answer waited for.
   const auto sm1_status = static_cast<std::uint16_t>(reg::kSyncManager0 + kSyncManagerBytes + 5);
   const std::int64_t deadline = now_ns() + params_.state_timeout_ns;
-  SdoBytes answer{};
+  CoeAnswer answer;
   for (;;) {
     for (std::array<std::uint8_t, 1> status{};;) {
       read_register(station, sm1_status, status.data(), 1, "send mailbox status");
@@ -303,7 +319,7 @@ SdoResult Master::sdo_transfer(const SlaveInfo& slave, const std::array<std::uin
     read_register(station, slave.mailbox_send_offset, mailbox.data(), slave.mailbox_send_size, "send mailbox");
     MailboxHeader header;
     std::uint8_t service = 0;
-    const MailboxError error = parse_coe_sdo(mailbox.data(), slave.mailbox_send_size, header, service, answer);
+    const MailboxError error = parse_coe_sdo(mailbox.data(), slave.mailbox_send_size, header, service, answer.sdo);
     if (error == MailboxError::kNotSdo && service == kCoeServiceEmergency) {
       // Its error code follows the CoE header (then the error register and 5 bytes of the maker's).
       ++emergencies_;
@@ -315,15 +331,24 @@ SdoResult Master::sdo_transfer(const SlaveInfo& slave, const std::array<std::uin
       throw std::runtime_error(slave_name(station) + ": the send mailbox held no SDO response (" +
                                (error != MailboxError::kNone ? to_string(error) : "another service") + ")");
     }
-    break;
+    const auto* more = mailbox.data() + kCoeSdoMoreAt;
+    answer.more.assign(more, more + coe_sdo_more_bytes(header));
+    return answer;
   }
+}
+
+SdoResult Master::sdo_transfer(const SlaveInfo& slave, const SdoBytes& request) {
+  return expedited_answer(slave, coe_request(slave, request));
+}
+
+SdoResult Master::expedited_answer(const SlaveInfo& slave, const CoeAnswer& answer) {
   canopen::CanFrame frame{};
   frame.id = canopen::sdo_tx_cob_id(canopen::NodeId(1));
   frame.dlc = 8;
-  std::copy(answer.begin(), answer.end(), frame.data.begin());
+  std::copy(answer.sdo.begin(), answer.sdo.end(), frame.data.begin());
   const canopen::Result<canopen::SdoResponse> parsed = canopen::parse_sdo_response(frame);
   if (!parsed) {
-    throw std::runtime_error(slave_name(station) + ": an SDO response not understood: " +
+    throw std::runtime_error(slave_name(slave.station_address) + ": an SDO response not understood: " +
                              canopen::to_string(parsed.error) + " (" + parsed.detail + ")");
   }
   SdoResult r;
@@ -332,14 +357,78 @@ SdoResult Master::sdo_transfer(const SlaveInfo& slave, const std::array<std::uin
   r.abort_code = response.abort_code;
   r.value = response.data.data;
   r.size = response.data.size;
+  if (response.kind == canopen::SdoResponseKind::kUpload) {
+    for (std::uint8_t i = 0; i < (r.size == 0 ? 4 : r.size); ++i) r.bytes.push_back(answer.sdo[4 + i]);
+  }
   return r;
 }
 
 SdoResult Master::sdo_upload(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex) {
   const canopen::CanFrame request = canopen::sdo_upload_request(canopen::NodeId(1), index, subindex);
-  std::array<std::uint8_t, 8> bytes{};
+  SdoBytes bytes{};
   std::copy(request.data.begin(), request.data.end(), bytes.begin());
-  return sdo_transfer(slave, bytes);
+  const CoeAnswer first = coe_request(slave, bytes);
+  // 0x41: a normal upload (CoE): the complete size, then the data; segments for the rest.
+  constexpr std::uint8_t kNormalUpload = 0x41;
+  if ((first.sdo[0] & 0xE3U) != kNormalUpload) {
+    // Expedited, or an abort: what the CANopen codec reads.
+    return expedited_answer(slave, first);
+  }
+  return normal_upload(slave, index, subindex, first);
+}
+
+SdoResult Master::normal_upload(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex,
+                                const CoeAnswer& first) {
+  const std::string what =
+      slave_name(slave.station_address) + " " + format_hex(index, 4) + ":" + std::to_string(subindex) + ": ";
+  const std::uint32_t total = get_le32(first.sdo.data() + 4);
+  if (total > kMaxUploadBytes) {
+    abort_transfer(slave, index, subindex, canopen::kAbortOutOfMemory);
+    throw std::runtime_error(what + "an upload of " + std::to_string(total) + " bytes (at most " +
+                             std::to_string(kMaxUploadBytes) + " taken)");
+  }
+  SdoResult r;
+  r.bytes.assign(first.more.begin(), first.more.begin() + std::min<std::size_t>(total, first.more.size()));
+  for (std::uint8_t toggle = 0; r.bytes.size() < total; toggle ^= 1U) {
+    SdoBytes request{};
+    request[0] = static_cast<std::uint8_t>(0x60U | (toggle << 4));  // upload segment request
+    const CoeAnswer segment = coe_request(slave, request);
+    const std::uint8_t command = segment.sdo[0];
+    if ((command >> 5) == 4) {  // the slave's abort
+      r.abort_code = get_le32(segment.sdo.data() + 4);
+      return r;
+    }
+    if ((command >> 5) != 0 || ((command >> 4) & 1U) != toggle) {
+      abort_transfer(slave, index, subindex, canopen::kAbortToggleBit);
+      throw std::runtime_error(what + "segment " + format_hex(command, 2) + " is not the upload segment (toggle " +
+                               std::to_string(toggle) + ") asked for");
+    }
+    // Past 10 bytes of message every byte is data; a message of 10 says how many of its 7 are not.
+    const std::size_t in_eight = segment.more.empty() ? 7 - ((command >> 1) & 7U) : 7;
+    const std::size_t take = std::min<std::size_t>(total - r.bytes.size(), in_eight + segment.more.size());
+    for (std::size_t i = 0; i < take; ++i) {
+      r.bytes.push_back(i < in_eight ? segment.sdo[1 + i] : segment.more[i - in_eight]);
+    }
+    if ((command & 1U) != 0) break;  // the last segment
+  }
+  if (r.bytes.size() != total) {
+    throw std::runtime_error(what + "the upload ended after " + std::to_string(r.bytes.size()) + " of " +
+                             std::to_string(total) + " bytes");
+  }
+  r.done = true;
+  for (std::size_t i = 0; i < std::min<std::size_t>(4, total); ++i) r.value |= std::uint32_t{r.bytes[i]} << (8 * i);
+  return r;
+}
+
+void Master::abort_transfer(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex, std::uint32_t code) {
+  const canopen::CanFrame abort = canopen::sdo_abort_request(canopen::NodeId(1), index, subindex, code);
+  SdoBytes bytes{};
+  std::copy(abort.data.begin(), abort.data.end(), bytes.begin());
+  std::array<std::uint8_t, kMaxDatagramDataBytes> mailbox{};
+  mailbox_counter_ = static_cast<std::uint8_t>(mailbox_counter_ % 7 + 1);
+  write_coe_sdo(mailbox.data(), mailbox_counter_, kCoeServiceSdoRequest, bytes);
+  write_register(slave.station_address, slave.mailbox_receive_offset, mailbox.data(), slave.mailbox_receive_size,
+                 "receive mailbox");
 }
 
 SdoResult Master::sdo_download(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex, std::uint32_t value,
@@ -394,14 +483,15 @@ void Master::write_pdo_assignment(const SlaveInfo& slave, std::uint16_t assign_i
 }
 
 void Master::configure_distributed_clock(std::uint16_t station, std::uint64_t master_time_ns) {
+  // The latch first, so that the master's time (taken just before the call) is the frame's.
+  std::array<std::uint8_t, 4> latch{};
+  const Reply r = exchange(Command::kBwr, physical_address(0, reg::kDcReceiveTimePort0), latch.data(), 4);
   std::array<std::uint8_t, 8> bytes{};
   read_register(station, reg::kFeatures, bytes.data(), 2, "ESC features");
   if ((bytes[0] & 0x0C) != 0x0C) {
     throw std::runtime_error(slave_name(station) + ": no 64-bit distributed clock (ESC features " +
                              format_hex(bytes[0], 2) + ")");
   }
-  std::array<std::uint8_t, 4> latch{};
-  const Reply r = exchange(Command::kBwr, physical_address(0, reg::kDcReceiveTimePort0), latch.data(), 4);
   if (!r.answered || r.working_counter == 0) {
     throw std::runtime_error(slave_name(station) + ": the receive time latch (BWR 0x0900) was not taken");
   }
@@ -413,6 +503,35 @@ void Master::configure_distributed_clock(std::uint16_t station, std::uint64_t ma
   write_register(station, reg::kDcSystemTimeOffset, bytes.data(), 8, "DC system time offset");
   std::array<std::uint8_t, 4> delay{};
   write_register(station, reg::kDcSystemTimeDelay, delay.data(), 4, "DC system time delay");
+}
+
+std::uint64_t Master::configure_sync0(std::uint16_t station, std::int64_t cycle_ns, std::int64_t shift_ns,
+                                      std::int64_t lead_ns) {
+  if (cycle_ns <= 0 || cycle_ns > 0xFFFFFFFFLL) {
+    throw std::invalid_argument("SYNC0 cycle: 1 ns to 4.29 s, got " + std::to_string(cycle_ns) + " ns");
+  }
+  if (shift_ns < 0 || shift_ns >= cycle_ns) {
+    throw std::invalid_argument("SYNC0 shift: 0 to the cycle (" + std::to_string(cycle_ns) + " ns), got " +
+                                std::to_string(shift_ns) + " ns");
+  }
+  if (lead_ns < 0) throw std::invalid_argument("SYNC0 lead: >= 0, got " + std::to_string(lead_ns) + " ns");
+  std::array<std::uint8_t, 8> bytes{};
+  write_register(station, reg::kDcActivation, bytes.data(), 1, "DC activation (off)");
+  read_register(station, reg::kDcSystemTime, bytes.data(), 8, "DC system time");
+  const std::uint64_t now = get_le32(bytes.data()) | (static_cast<std::uint64_t>(get_le32(bytes.data() + 4)) << 32);
+  // The first whole cycle at least `lead_ns` ahead, plus the shift: every pulse then falls on the
+  // cycle's grid of system time, which the master's own cycle follows (distributed clocks).
+  const auto cycle = static_cast<std::uint64_t>(cycle_ns);
+  const std::uint64_t start =
+      ((now + static_cast<std::uint64_t>(lead_ns)) / cycle + 1) * cycle + static_cast<std::uint64_t>(shift_ns);
+  put_le32(bytes.data(), static_cast<std::uint32_t>(cycle_ns));
+  write_register(station, reg::kDcSync0CycleTime, bytes.data(), 4, "SYNC0 cycle time");
+  put_le32(bytes.data(), static_cast<std::uint32_t>(start));
+  put_le32(bytes.data() + 4, static_cast<std::uint32_t>(start >> 32));
+  write_register(station, reg::kDcStartTime, bytes.data(), 8, "SYNC0 start time");
+  bytes[0] = 0x03;  // the cyclic unit on, with SYNC0
+  write_register(station, reg::kDcActivation, bytes.data(), 1, "DC activation (SYNC0)");
+  return start;
 }
 
 Reply Master::write_system_time(std::uint16_t station, std::uint64_t master_time_ns, std::int64_t reply_timeout_ns,

@@ -338,8 +338,12 @@ TEST(DriveLoop, ParametersAreValidatedWithTheValue) {
 
 TEST(TickClock, RealtimeTicksOnAbsoluteTimesAndNamesAnOverrunLockstepDoesNotPace) {
   TickClock realtime(1'000'000'000, true, 200'000);
+  const std::int64_t before = monotonic_ns();
   realtime.start();
   const std::int64_t t0 = realtime.tick_start_ns();
+  EXPECT_EQ(t0 % 1'000'000'000, 0) << "tick 0 on the whole periods of CLOCK_MONOTONIC";
+  EXPECT_GE(t0, before);
+  EXPECT_LT(t0 - before, 1'000'000'000);
   EXPECT_FALSE(realtime.advance()) << "a second-long tick just started cannot have overrun";
   EXPECT_EQ(realtime.tick_start_ns(), t0 + 1'000'000'000) << "t_k = t_0 + k T: no drift from the time spent";
   EXPECT_EQ(realtime.wake_early_ns(), 200'000);

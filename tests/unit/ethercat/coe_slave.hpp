@@ -5,7 +5,10 @@
 #include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/ethercat/mailbox.hpp"
+#include "pmlsm/ethercat/master.hpp"
 #include "pmlsm/ethercat/sii.hpp"
+
+#include <stdexcept>
 
 namespace pmlsm::ethercat::test {
 
@@ -30,5 +33,15 @@ struct CoeSlave {
   CoeSlave(const CoeSlave&) = delete;
   CoeSlave& operator=(const CoeSlave&) = delete;
 };
+
+/// The one slave on `master`'s link addressed (0x1001), its SII read and its mailbox set, in
+/// PREOP: what a CoE exchange needs. @throws std::runtime_error when it does not reach PREOP.
+inline SlaveInfo to_preop(Master& master) {
+  master.assign_station_addresses(1);
+  const SlaveInfo info = master.read_slave_info(0x1001);
+  master.configure_mailbox(info);
+  if (!master.request_state(0x1001, AlState::kPreOp).reached) throw std::runtime_error("the slave did not reach PREOP");
+  return info;
+}
 
 }  // namespace pmlsm::ethercat::test

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -237,10 +238,7 @@ TEST(EtherCatTshark, DecodesOurCoeSdoRequestsAndTheSlavesAnswers) {
   {
     PcapngWriter writer(capture.string());
     Master master(link);
-    master.assign_station_addresses(1);
-    const SlaveInfo info = master.read_slave_info(0x1001);
-    master.configure_mailbox(info);
-    ASSERT_TRUE(master.request_state(0x1001, AlState::kPreOp).reached);
+    const SlaveInfo info = test::to_preop(master);
     master.capture_to(&writer);
     ASSERT_TRUE(master.sdo_upload(info, 0x1000, 0).done);
     ASSERT_TRUE(master.sdo_download(info, 0x6060, 0, 10, 1).done);
@@ -258,6 +256,40 @@ TEST(EtherCatTshark, DecodesOurCoeSdoRequestsAndTheSlavesAnswers) {
   if (!HasFailure()) fs::remove_all(dir);  // kept for a look when something failed
 }
 
+TEST(EtherCatTshark, DecodesOurNormalAndSegmentedUploadOfALongText) {
+  if (!have_tshark()) GTEST_SKIP() << "tshark is not installed (scripts/install_deps.sh installs it)";
+  const fs::path dir = fs::temp_directory_path() / ("pmlsm_ethercat_segments_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path capture = dir / "segments.pcapng";
+  test::CoeSlave slave;
+  // 112 bytes in the normal upload response, 119 in a full segment, 3 in the last one.
+  std::string text(112 + 119 + 3, '.');
+  for (std::size_t i = 0; i < text.size(); ++i) text[i] = static_cast<char>('A' + i % 26);
+  slave.dictionary.add_text({0x2100, 1, "a long text", text});
+  VirtualSegment segment({&slave.esc});
+  VirtualSegmentLink link(segment);
+  {
+    PcapngWriter writer(capture.string());
+    Master master(link);
+    const SlaveInfo info = test::to_preop(master);
+    master.capture_to(&writer);
+    const SdoResult r = master.sdo_upload(info, 0x2100, 1);
+    ASSERT_TRUE(r.done) << r.describe();
+    EXPECT_EQ(std::string(r.bytes.begin(), r.bytes.end()), text);
+    writer.flush();
+  }
+  // The initiate response: not expedited, size indicated, the complete size 234.
+  EXPECT_EQ(tshark(capture, "ecat_mailbox.coe.sdoscsiu && ecat.cnt == 1",
+                   "ecat_mailbox.coe.sdoscsiu_expedited ecat_mailbox.coe.sdoscsiu_sizeind ecat_mailbox.coe.sdolength"),
+            "0,1,0x000000ea\n");
+  // The segment responses read from the send mailbox: toggle and last-segment bits as sent.
+  EXPECT_EQ(tshark(capture, "ecat_mailbox.coe.sdoscsus && ecat.cnt == 1",
+                   "ecat_mailbox.coe.sdoscsus_toggle ecat_mailbox.coe.sdoscsus_lastseg"),
+            "0,0\n1,1\n");
+  EXPECT_EQ(tshark(capture, "_ws.malformed || _ws.expert.severity >= warning", "frame.number"), "");
+  if (!HasFailure()) fs::remove_all(dir);  // kept for a look when something failed
+}
+
 TEST(EtherCatTshark, DecodesTheVirtualDrivesCoeEmergenciesQueuedAheadOfAnSdoAnswer) {
   if (!have_tshark()) GTEST_SKIP() << "tshark is not installed (scripts/install_deps.sh installs it)";
   const fs::path dir = fs::temp_directory_path() / ("pmlsm_ethercat_emergency_" + std::to_string(::getpid()));
@@ -269,10 +301,7 @@ TEST(EtherCatTshark, DecodesTheVirtualDrivesCoeEmergenciesQueuedAheadOfAnSdoAnsw
   {
     PcapngWriter writer(capture.string());
     Master master(link);
-    master.assign_station_addresses(1);
-    const SlaveInfo info = master.read_slave_info(0x1001);
-    master.configure_mailbox(info);
-    ASSERT_TRUE(master.request_state(0x1001, AlState::kPreOp).reached);
+    const SlaveInfo info = test::to_preop(master);
     master.capture_to(&writer);
     // A fault's emergency and its end, posted by the slave before the master asks anything.
     ASSERT_TRUE(slave.post_emergency(0x8700));
@@ -335,6 +364,35 @@ TEST(EtherCatTshark, ARealDrivesCapturesParseAsTsharkReadsThemAndTheAkdsSdoAnswe
   EXPECT_EQ(std::count(theirs.begin(), theirs.end(), '\n'), 35) << "SOEM's 35 reads of the AKD's PDO objects";
   EXPECT_NE(ours.str().find("0x1a03,0x02,0x606c0020"), std::string::npos)
       << "the AKD's TxPDO 4 maps velocity actual (0x606C, 32 bits)";
+}
+
+TEST(EtherCatTshark, TheNormalUploadsSoemReadFromALan9252AreReadAsTsharkReadsThem) {
+  if (!have_tshark()) GTEST_SKIP() << "tshark is not installed (scripts/install_deps.sh installs it)";
+  const fs::path lan9252 = shared_capture("soem-single-lan9252.pcapng");
+  if (lan9252.empty()) GTEST_SKIP() << "no ../shared/ethercat/captures (real devices' captures); not run";
+  // SOEM reads the sync manager and PDO objects whole (complete access): the slave answers each by
+  // a normal upload, its complete size before the data. Frame, index and size as ours reads them.
+  PcapngReader reader(lan9252.string());
+  const CaptureDecode d = decode_capture(reader);
+  std::ostringstream ours;
+  for (const CaptureDecode::Sdo& s : d.sdos) {
+    const std::string text = describe(s.seen);
+    const std::size_t normal = text.find(", normal: ");
+    if (s.seen.service != kCoeServiceSdoResponse || normal == std::string::npos) continue;
+    const std::uint32_t size = std::stoul(text.substr(normal + 10));
+    char row[64];
+    std::snprintf(row, sizeof row, "%llu,%s,0x%08x\n", static_cast<unsigned long long>(s.frame),
+                  text.substr(16, 6).c_str(), size);
+    ours << row;
+  }
+  std::string theirs = tshark(lan9252, "ecat_mailbox.coe.sdoscsiu_expedited == 0 && ecat.cmd == 4 && ecat.cnt == 1",
+                              "frame.number ecat_mailbox.coe.sdoidx ecat_mailbox.coe.sdolength");
+  // Our index text is 0xIIII in capitals, tshark's in small letters.
+  std::string ours_lower = ours.str();
+  std::transform(ours_lower.begin(), ours_lower.end(), ours_lower.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  EXPECT_EQ(ours_lower, theirs);
+  EXPECT_EQ(std::count(theirs.begin(), theirs.end(), '\n'), 5) << "0x1C00, 0x1C13, 0x1601, 0x1A00, 0x1A02 read whole";
 }
 
 }  // namespace

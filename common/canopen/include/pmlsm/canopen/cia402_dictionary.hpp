@@ -5,6 +5,7 @@
 //   index   sub  name                                  type  access  PDO  default
 //   0x1000   0   device type                           u32   const        0x00020192 (CiA 402 servo)
 //   0x1001   0   error register                        u8    ro           0
+//   0x1008   0   manufacturer device name              text  const        config (segmented upload)
 //   0x1016   0   consumer heartbeat: highest sub       u8    const        1
 //            1   consumer heartbeat time 1             u32   rw           0 (node << 16 | ms)
 //   0x1017   0   producer heartbeat time (ms)          u16   rw           config
@@ -54,6 +55,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 
 #include "pmlsm/canopen/cob_id.hpp"
 #include "pmlsm/canopen/object_dictionary.hpp"
@@ -65,6 +67,7 @@ namespace pmlsm::canopen {
 
 inline constexpr std::uint16_t kObjectDeviceType = 0x1000;
 inline constexpr std::uint16_t kObjectErrorRegister = 0x1001;
+inline constexpr std::uint16_t kObjectDeviceName = 0x1008;
 inline constexpr std::uint16_t kObjectConsumerHeartbeatTime = 0x1016;
 inline constexpr std::uint16_t kObjectProducerHeartbeatTime = 0x1017;
 inline constexpr std::uint16_t kObjectIdentity = 0x1018;
@@ -104,6 +107,8 @@ struct Cia402DictionaryConfig {
   std::uint32_t product_code = 0;
   std::uint32_t revision_number = 0;
   std::uint32_t serial_number = 0;
+  /// 0x1008, a VISIBLE_STRING (an EtherCAT slave's: its SII's name).
+  std::string device_name = "PMLSM CiA 402 drive";
 };
 
 /// The capacity of the dictionary make_cia402_dictionary returns: its ~50 entries leave room for

@@ -8,13 +8,16 @@
 // constructor and kept sorted by (index, sub-index), found by binary search.
 //
 // Values are held as std::int64_t, which represents every supported type exactly; on the bus
-// they are 1, 2 or 4 bytes little endian, two's complement for the signed types.
+// they are 1, 2 or 4 bytes little endian, two's complement for the signed types. Texts (a
+// device's name and versions, VISIBLE_STRING) are a table of their own beside the entries:
+// read-only, longer than an expedited SDO carries.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "pmlsm/canopen/result.hpp"
@@ -103,6 +106,16 @@ struct Entry {
   ValueCheck check = nullptr;
 };
 
+/// A VISIBLE_STRING object (CiA 301 data type 0x0009): read-only text such as 0x1008, the
+/// device's name. More than 4 bytes go by a normal or segmented upload: CoE serves them
+/// (ethercat::CoeSdoServer); CANopen's server here is expedited only and refuses them (0x06010000).
+struct TextEntry {
+  std::uint16_t index = 0;
+  std::uint8_t subindex = 0;
+  const char* name = "";  // static text
+  std::string text;
+};
+
 class ObjectDictionary {
  public:
   /// @throws std::invalid_argument when capacity is 0.
@@ -119,22 +132,30 @@ class ObjectDictionary {
   const Entry* begin() const noexcept { return entries_.data(); }
   const Entry* end() const noexcept { return entries_.data() + entries_.size(); }
 
-  /// The entry, or nullptr. The pointer stays valid until the next add().
+  /// Adds a text. @throws std::invalid_argument naming it when its name is empty or its
+  /// (index, sub-index) is taken (by an entry or a text).
+  void add_text(TextEntry text);
+  const std::vector<TextEntry>& texts() const noexcept { return texts_; }
+
+  /// The entry, or nullptr (also for a text). The pointer stays valid until the next add().
   const Entry* find(std::uint16_t index, std::uint8_t subindex) const noexcept;
-  /// Some sub-index of `index` exists.
+  /// The text, or nullptr.
+  const TextEntry* find_text(std::uint16_t index, std::uint8_t subindex) const noexcept;
+  /// Some sub-index of `index` exists (an entry or a text).
   bool contains(std::uint16_t index) const noexcept;
-  /// 0 when the entry exists, else 0x06020000 (no such index) or 0x06090011 (the index exists,
-  /// the sub-index does not).
+  /// 0 when the entry or text exists, else 0x06020000 (no such index) or 0x06090011 (the index
+  /// exists, the sub-index does not).
   std::uint32_t locate(std::uint16_t index, std::uint8_t subindex) const noexcept;
 
   // ---- SDO semantics (a master's access) -------------------------------------------------------
 
   /// Upload: the value's bus coding and size. Refused (kAccessRefused with abort_code) for a
-  /// missing object (0x06020000) or sub-index (0x06090011), or a write-only entry (0x06010001).
+  /// missing object (0x06020000) or sub-index (0x06090011), a write-only entry (0x06010001), or a
+  /// text (0x06010000: not in 4 bytes; find_text() gives it to a server that segments).
   Result<SdoData> read(std::uint16_t index, std::uint8_t subindex) const noexcept;
 
   /// Download. Checks, in this order: object (0x06020000), sub-index (0x06090011), access
-  /// (0x06010002 for ro / const), size (0x06070010 when indicated and not the type's; a size
+  /// (0x06010002 for ro / const and for a text), size (0x06070010 when indicated and not the type's; a size
   /// not indicated takes the type's low bytes), range (0x06090031 above max, 0x06090032 below
   /// min), the entry's check (its code). Nothing is written unless all pass.
   Status write(std::uint16_t index, std::uint8_t subindex, SdoData data) noexcept;
@@ -152,7 +173,7 @@ class ObjectDictionary {
   /// Sets a value whatever the access type (the application updates its read-only statusword
   /// and actual values), checking only the data type's range (not min / max or the entry's
   /// check): refused with 0x06020000 / 0x06090011 for a missing entry, 0x06090031 /
-  /// 0x06090032 outside the type's range.
+  /// 0x06090032 outside the type's range, 0x06010002 for a text.
   Status set(std::uint16_t index, std::uint8_t subindex, std::int64_t value) noexcept;
 
   /// Stores an already-checked value into the entry with `entry`'s index and sub-index (PDO
@@ -161,8 +182,11 @@ class ObjectDictionary {
 
  private:
   Entry* find_mutable(std::uint16_t index, std::uint8_t subindex) noexcept;
+  /// A write to no entry: read-only for a text, else locate()'s code.
+  Status refuse_missing(std::uint16_t index, std::uint8_t subindex) const noexcept;
 
   std::vector<Entry> entries_;
+  std::vector<TextEntry> texts_;  // a handful, in the order added
 };
 
 }  // namespace pmlsm::canopen

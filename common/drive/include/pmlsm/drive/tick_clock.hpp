@@ -1,4 +1,5 @@
-// The drive loop's clock. Realtime: ticks on absolute CLOCK_MONOTONIC time, t_k = t_0 + k T,
+// The drive loop's clock. Realtime: ticks on absolute CLOCK_MONOTONIC time, t_k = t_0 + k T (t_0 a
+// whole multiple of T),
 // so time spent computing never accumulates into drift; the executor sleeps to `wake_early`
 // before the tick and polls the clock to its start (a sleeping thread may wake tens of
 // microseconds late). Lockstep: no pacing; the plant is the clock and the loop moves on as
@@ -14,7 +15,10 @@ class TickClock {
   /// @throws std::invalid_argument for period_ns <= 0 or wake_early_ns outside [0, period_ns).
   TickClock(std::int64_t period_ns, bool realtime, std::int64_t wake_early_ns = 0);
 
-  /// Starts tick 0 now.
+  /// Realtime: tick 0 at the next whole period of CLOCK_MONOTONIC (t_0 = ceil(now / T) T, at most
+  /// T away; the caller waits for it), so every loop's ticks fall on the same grid of the host's
+  /// clock, the grid a drive's distributed clock runs SYNC0 on when its master keeps it on the host's
+  /// time (EtherCAT). Lockstep: now.
   void start();
   /// The CLOCK_MONOTONIC time tick k is due.
   std::int64_t tick_start_ns() const { return next_ns_; }

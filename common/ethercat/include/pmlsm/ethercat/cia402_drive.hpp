@@ -37,6 +37,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <stdexcept>
 #include <vector>
@@ -63,6 +64,12 @@ struct Cia402DriveConfig {
   /// The drive's distributed clock set to the master's time at boot and kept on it, a write of the
   /// master's time each cycle (Master::configure_distributed_clock, write_system_time).
   bool distributed_clocks = true;
+  /// The drive synchronous to SYNC0 (ETG.1020's DC mode): 0x1C32:01 / 0x1C33:01 = 2 and the cycle
+  /// in 0x1C32:02 at boot, SYNC0 every cycle from the slave's clock (Master::configure_sync0),
+  /// `sync0_shift_us` into the cycle. Needs distributed_clocks; realtime only (the slave's clock
+  /// paces the drive, not the master's frames).
+  bool sync0 = false;
+  std::uint32_t sync0_shift_us = 0;
   /// The objects the master maps into the outputs and the inputs at boot (the rig file's pdo
   /// section), in order; empty: the drive's own assignment is taken as it is.
   std::vector<canopen::PdoMapEntry> outputs_mapping;
@@ -97,6 +104,8 @@ void visit_parameters(Config& m, Visitor& v) {
   v.integer("drive.watchdog_ms", m.watchdog_ms,
             {1.0, 6500.0, "the ESC's 16-bit watchdog in its default 100 us units: up to 6.5 s"});
   v.flag("drive.distributed_clocks", m.distributed_clocks);
+  v.flag("drive.sync0", m.sync0);
+  v.integer("drive.sync0_shift_us", m.sync0_shift_us, {0.0, 999.0, "into the 1 ms cycle: 0 to 999 us"});
   v.integer("master.reply_timeout_ms", m.reply_timeout_ms, {1.0, 10000.0, "1 ms to 10 s for a frame there and back"});
   v.integer("master.retries", m.retries, {0.0, 100.0, "0 to 100 resends of a set-up frame"});
   v.integer("master.state_timeout_ms", m.state_timeout_ms,
@@ -132,15 +141,18 @@ class Cia402Drive final : public drive::Drive {
   /// Where the image sits in the logical address space.
   static constexpr std::uint32_t kLogicalAddress = 0x00010000;
 
-  /// @throws std::invalid_argument for a bad config. `link` outlives the drive.
-  Cia402Drive(const Cia402DriveConfig& config, Link& link);
+  /// @throws std::invalid_argument for a bad config. `link` outlives the drive. `master_clock` (ns,
+  /// monotonic; empty: the host's CLOCK_MONOTONIC, on which the drive loop ticks) is the master's
+  /// time the drive's distributed clock follows, and so the grid SYNC0 falls on.
+  Cia402Drive(const Cia402DriveConfig& config, Link& link, std::function<std::int64_t()> master_clock = {});
 
   /// The boot (see the file comment): the drive in OP, not stepped. @throws Cia402DriveError.
   void boot();
   /// Learns the drive's periods stepped (the run's base) by one read, without stepping it.
   /// @throws Cia402DriveError when the drive does not answer.
   void start();
-  /// Walks the drive to operation enabled before the run, one cycle that steps nothing at a time.
+  /// Walks the drive to operation enabled before the run, one cycle that steps nothing at a time
+  /// (realtime: a cycle a millisecond of the host's clock).
   /// @throws Cia402DriveError naming the state it is stuck in (or the fault).
   void enable_and_wait();
   /// The drive's 0x092C (the difference of its clock to the master's times written, filtered)
@@ -174,6 +186,8 @@ class Cia402Drive final : public drive::Drive {
   bool lockstep_contract() const noexcept { return command_tick_at_ >= 0 && periods_at_ >= 0; }
   std::uint64_t ticks() const noexcept { return tick_; }
   const Cia402DriveCounters& counters() const noexcept { return counters_; }
+  /// The first SYNC0 pulse the boot set, in the drive's system time; 0 without SYNC0.
+  std::uint64_t sync0_start_ns() const noexcept { return sync0_start_ns_; }
   /// The cycle's exchanges there and back (the bus cycle time), the first kRoundTripsKept kept.
   drive::LatencySummary round_trips() { return round_trips_.latency(); }
   static constexpr std::size_t kRoundTripsKept = 1U << 17;
@@ -200,6 +214,9 @@ class Cia402Drive final : public drive::Drive {
   bool idle_cycle(std::uint16_t controlword);
   void read_error_code();
   drive::Measurement measurement() const;
+  std::uint64_t master_time_ns() const;
+  /// Realtime, on the host's clock: waits for the next whole cycle (a set-up cycle at the drive's pace).
+  void pace_cycle();
 
   Cia402DriveConfig config_;
   Master master_;
@@ -235,7 +252,10 @@ class Cia402Drive final : public drive::Drive {
   drive::Measurement last_measurement_;
   Cia402DriveCounters counters_;
   drive::LoopStatistics round_trips_{kRoundTripsKept};
-  std::int64_t transit_ns_ = 0;  ///< a frame's way to the drive, estimated from the round trips
+  std::int64_t transit_ns_ = 0;       ///< a frame's way to the drive, estimated from the round trips
+  std::uint64_t sync0_start_ns_ = 0;  ///< the first SYNC0 pulse in the drive's system time (0: none)
+  bool own_clock_;                    ///< the owner gave the master's clock
+  std::function<std::int64_t()> master_clock_;
 };
 
 }  // namespace pmlsm::ethercat

@@ -26,6 +26,19 @@ inline constexpr std::uint16_t kObjectTxPdoAssign = 0x1C13;  ///< SM3, inputs
 inline constexpr std::uint16_t kRxPdoMapping = 0x1600;       ///< the first RxPDO; 0x1600-0x1603 looked at
 inline constexpr std::uint16_t kTxPdoMapping = 0x1A00;       ///< the first TxPDO; 0x1A00-0x1A03 looked at
 inline constexpr std::uint8_t kMaxAssignedPdos = 4;
+/// ETG.1020's sync manager parameters: how the outputs (SM2) and the inputs (SM3) are synchronised.
+inline constexpr std::uint16_t kObjectOutputSyncParameters = 0x1C32;
+inline constexpr std::uint16_t kObjectInputSyncParameters = 0x1C33;
+inline constexpr std::uint8_t kSyncParameterMode = 1;         ///< u16 rw: the sync mode
+inline constexpr std::uint8_t kSyncParameterCycleTime = 2;    ///< u32 rw: the master's cycle [ns]
+inline constexpr std::uint8_t kSyncParameterModes = 4;        ///< u16 const: the modes supported
+inline constexpr std::uint8_t kSyncParameterMinCycle = 5;     ///< u32 const: the shortest cycle [ns]
+inline constexpr std::uint8_t kSyncParameterSmMissed = 0x0B;  ///< u16 ro: cycles without the outputs in time
+/// Sync modes (0x1C32:01, 0x1C33:01): synchronous to the SM2 event, to the DC's SYNC0, and (inputs
+/// only) latched at the SM2 event as TwinCAT writes it.
+inline constexpr std::uint16_t kSyncModeSm = 0x0001;
+inline constexpr std::uint16_t kSyncModeDcSync0 = 0x0002;
+inline constexpr std::uint16_t kSyncModeSm2Inputs = 0x0022;
 
 /// Adds 0x1C00 (4 sync managers: mailbox out, mailbox in, outputs, inputs) and 0x1C12 / 0x1C13:
 /// every RxPDO (0x1600-0x1603) and TxPDO (0x1A00-0x1A03) whose mapping the dictionary has with
@@ -35,8 +48,16 @@ inline constexpr std::uint8_t kMaxAssignedPdos = 4;
 /// is 0 and name a PDO of their direction; a count needs each PDO it counts mapped. The PDOs'
 /// COB-IDs (0x1400.., 0x1800..), which EtherCAT does not use, are marked not valid so their
 /// mappings can be written (CiA 301 changes a mapping only of a PDO not valid).
+/// And 0x1C32 / 0x1C33 (ETG.1020), sub-indices 1, 2, 4, 5 and 0x0B: the sync mode a master chooses
+/// (SM-synchronous, 1, as the slave starts; DC SYNC0, 2), the cycle it writes, the modes supported
+/// (0x0006: SM-synchronous and DC SYNC0) and the shortest cycle (the dictionary's interpolation
+/// period 0x60C2, the one period the drive steps; 1 ms without it); 0x1C32:0B counts the SYNC0
+/// pulses that found no new outputs.
 /// @throws std::invalid_argument from the dictionary (full, or an object already there).
 void add_coe_sync_manager_objects(canopen::ObjectDictionary& dictionary);
+
+/// The dictionary's period (0x60C2: value x 10^index s) in ns; 1 ms without the object.
+std::int64_t interpolation_period_ns(const canopen::ObjectDictionary& dictionary);
 
 /// The slave application's side of the process data, between frames.
 class CoeProcessImage {
@@ -107,6 +128,8 @@ class VirtualCia402Slave {
   const CoeSdoServer& coe() const { return coe_; }
   /// The application between frames: the process image (CoeProcessImage::exchange).
   void exchange() { process_.exchange(esc_); }
+  /// The master chose DC SYNC0 (0x1C32:01 = 2): a period at each SYNC0 pulse, not at each SM2 event.
+  bool dc_synchronous() const;
   /// A CoE emergency (the error code and the dictionary's error register 0x1001) into the send
   /// mailbox, for the master's next read of it. False when it could not be posted (no mailbox yet,
   /// or the queue full: counted by the ESC).
@@ -122,6 +145,9 @@ class VirtualCia402Slave {
   static EscParams esc_params(std::vector<std::uint16_t> sii, const CoeProcessImage& process);
   /// PREOP -> SAFEOP: the mapping the master left taken (0), or refused (0x001D).
   std::uint16_t take_mapping();
+  /// SAFEOP -> OP in DC SYNC0 mode: SYNC0 running at the drive's period (else 0x0030), a cycle
+  /// written to 0x1C32:02 that is that period (else 0x0035).
+  std::uint16_t check_synchronisation() const;
 
   canopen::ObjectDictionary dictionary_;
   CoeProcessImage process_;
@@ -140,6 +166,13 @@ class VirtualCia402Slave {
 /// master sets it): in OP, no outputs for longer than it since the last ones (or the entry into
 /// OP) drops the slave to SAFEOP with AL status code 0x001B and faults an enabled drive with
 /// 0x8700 (force off). The drive's faults go out as counted emergencies.
+///
+/// When the master chooses DC SYNC0 (0x1C32:01 = 2, SYNC0 running at the drive's period, checked
+/// at SAFEOP -> OP), a period is stepped at each SYNC0 pulse instead (the ESC's SYNC0 interrupt, as
+/// the slave's clock passes it), with the outputs SM2 holds then, whether new ones came or not; the
+/// actual values are in SM3 for the master's next read. Pulses without new outputs count in
+/// 0x1C32:0B. The command tick does not gate the pulses: the slave's clock, not the master's frames,
+/// is the drive's time (realtime only).
 class VirtualEthercatDrive : canopen::Cia402ApplicationEvents {
  public:
   /// A line for the owner's log (error false: a state change; true: a fault or a refusal).
@@ -173,10 +206,14 @@ class VirtualEthercatDrive : canopen::Cia402ApplicationEvents {
   std::uint64_t cycles_outside_op() const { return cycles_outside_op_; }
   /// Lockstep: cycles in OP whose command tick was not the next period (a repeated frame).
   std::uint64_t unstepped_cycles() const { return unstepped_cycles_; }
+  /// DC SYNC0 mode: pulses in OP that found no new outputs since the one before (0x1C32:0B).
+  std::uint64_t sync0_without_outputs() const { return sm_missed_; }
   std::uint64_t emergencies() const { return emergencies_; }
   std::uint16_t last_emergency() const { return last_emergency_; }
 
  private:
+  /// A SYNC0 pulse: a period in OP when the master chose DC SYNC0 mode.
+  void on_sync0(std::int64_t now_ns);
   void log(bool error, const std::string& line, std::int64_t now_ns) override {
     if (log_) log_(error, line, now_ns);
   }
@@ -190,7 +227,9 @@ class VirtualEthercatDrive : canopen::Cia402ApplicationEvents {
   canopen::Cia402Application application_;
   Log log_;
   std::uint64_t outputs_seen_ = 0;
-  std::int64_t outputs_ns_ = 0;  ///< when the last outputs came, or OP was entered if later
+  std::uint64_t sm_missed_ = 0;         ///< SYNC0 pulses in OP without new outputs (0x1C32:0B)
+  std::uint64_t outputs_at_pulse_ = 0;  ///< the ESC's outputs completed at the last pulse
+  std::int64_t outputs_ns_ = 0;         ///< when the last outputs came, or OP was entered if later
   bool in_op_ = false;
   std::uint64_t cycles_outside_op_ = 0;
   std::uint64_t unstepped_cycles_ = 0;

@@ -21,7 +21,20 @@
 // inputs) active with the lengths the slave's mapping has; SAFEOP -> OP; any state -> INIT;
 // OP -> SAFEOP and SAFEOP or OP -> PREOP back down. Anything else is refused with code 0x0011;
 // BOOT is not supported (0x0013). A refusal sets the error indicator, which stays until the
-// master acknowledges it (AL control's bit 4).
+// master acknowledges it (AL control's bit 4). SAFEOP -> OP asks the application first (a drive
+// synchronous to SYNC0 refuses with 0x0030 while SYNC0 is off).
+//
+// SYNC0 (the DC cyclic unit, ETG.1000.4 and the ET1100's 0x0980-0x09A3): the master writes the
+// cycle (0x09A0, ns), the first pulse's system time (0x0990) and then activates the unit with SYNC0
+// (0x0981 bits 0 and 1). From then on a pulse falls at the start time and every cycle after it, on
+// the slave's system time; 0x0990 reads the next one, 0x098E bit 0 says one fell since it was last
+// read. Like an ET1100, which compares the low 32 bits, a start time already past when the unit is
+// activated fires only when those bits come round again (up to 4.3 s later: counted, a master's
+// error). Each pulse is the application's SYNC0 interrupt (set_sync0_handler), as the clock passes
+// it: before a frame that comes after it passes the slave. The ESC counts the pulses without new
+// outputs since the one before (the SM event missed a drive counts). A clock moved more than 1000
+// cycles past the next pulse at once hands the application the last 1000 and counts the rest as
+// dropped.
 #pragma once
 
 #include <array>
@@ -69,6 +82,10 @@ inline constexpr std::uint16_t kDcReceiveTimeUnit = 0x0918;       ///< u64: the 
 inline constexpr std::uint16_t kDcSystemTimeOffset = 0x0920;      ///< u64
 inline constexpr std::uint16_t kDcSystemTimeDelay = 0x0928;       ///< u32
 inline constexpr std::uint16_t kDcSystemTimeDifference = 0x092C;  ///< u32: bit 31 own time behind, 30-0 ns
+inline constexpr std::uint16_t kDcActivation = 0x0981;            ///< u8: bit 0 cyclic unit, bit 1 SYNC0
+inline constexpr std::uint16_t kDcSync0Status = 0x098E;           ///< u8: bit 0 a pulse since the last read
+inline constexpr std::uint16_t kDcStartTime = 0x0990;             ///< u64: write the first pulse; read the next
+inline constexpr std::uint16_t kDcSync0CycleTime = 0x09A0;        ///< u32 ns (0: a single pulse)
 inline constexpr std::uint16_t kProcessRam = 0x1000;
 }  // namespace reg
 
@@ -104,7 +121,20 @@ inline constexpr std::uint16_t kInvalidMailboxConfiguration = 0x0016;
 inline constexpr std::uint16_t kSyncManagerWatchdog = 0x001B;
 inline constexpr std::uint16_t kInvalidOutputConfiguration = 0x001D;
 inline constexpr std::uint16_t kInvalidInputConfiguration = 0x001E;
+inline constexpr std::uint16_t kInvalidDcSyncConfiguration = 0x0030;
+inline constexpr std::uint16_t kInvalidSyncCycleTime = 0x0035;
 }  // namespace al_code
+
+/// The SYNC0 unit's state, as the ESC's DC registers hold it.
+struct Sync0State {
+  bool active = false;                       ///< 0x0981 bits 0 and 1
+  std::uint32_t cycle_ns = 0;                ///< 0x09A0
+  std::uint64_t next_ns = 0;                 ///< the next pulse's system time (0x0990 read)
+  std::uint64_t pulses = 0;                  ///< since the ESC began
+  std::uint64_t pulses_without_outputs = 0;  ///< pulses with no outputs completed since the one before
+  std::uint64_t late_starts = 0;             ///< activations with the start time already past (the 32-bit wait)
+  std::uint64_t dropped = 0;                 ///< pulses passed over when the clock jumped 1000 cycles or more ahead
+};
 
 struct EscParams {
   std::uint8_t type = 0x11;  ///< register 0x0000 (ET1100's)
@@ -171,6 +201,16 @@ class Esc {
   /// SM3 against the process data's lengths: it may take a new mapping (set_process_data_bytes)
   /// or refuse with an AL status code (0: go on). Empty: nothing.
   void set_before_safeop(std::function<std::uint16_t()> before) { before_safeop_ = std::move(before); }
+  /// What the application does when the master asks SAFEOP -> OP: an AL status code to refuse
+  /// with, or 0. Empty: nothing.
+  void set_before_op(std::function<std::uint16_t()> before) { before_op_ = std::move(before); }
+  /// The SYNC0 unit (see the file comment).
+  const Sync0State& sync0() const { return sync0_; }
+  /// What the application does at each SYNC0 pulse (its interrupt), given the owner's wall time
+  /// of set_time(). Empty: nothing.
+  void set_sync0_handler(std::function<void(std::int64_t now_ns)> handler) { sync0_handler_ = std::move(handler); }
+  /// The time to the next SYNC0 pulse on the slave's clock [ns] (0 when due); -1 when SYNC0 is off.
+  std::int64_t ns_to_next_sync0() const;
   /// The process data's lengths SAFEOP checks SM2 and SM3 against (the application's mapping).
   void set_process_data_bytes(std::uint16_t output_bytes, std::uint16_t input_bytes) {
     params_.output_bytes = output_bytes;
@@ -209,11 +249,21 @@ class Esc {
   void dc_written(std::uint16_t address, std::size_t size);
   /// 0x0910 and 0x092C from the clock.
   void show_dc();
+  /// The SYNC0 registers written: the unit on or off.
+  void sync0_written();
+  /// The pulses up to the clock's system time now: counted, each to the handler, 0x0990 and 0x098E
+  /// shown.
+  void run_sync0(std::int64_t now_ns);
 
   EscParams params_;
   std::vector<std::uint8_t> memory_;
   MailboxHandler* mailbox_handler_ = nullptr;
   std::function<std::uint16_t()> before_safeop_;
+  std::function<std::uint16_t()> before_op_;
+  Sync0State sync0_;
+  std::uint64_t outputs_at_last_pulse_ = 0;
+  std::function<void(std::int64_t)> sync0_handler_;
+  std::int64_t now_ns_ = 0;  ///< the owner's time at the last set_time()
   std::uint64_t outputs_written_ = 0;
   DcClock dc_;
   /// Messages waiting for the send mailbox to be read (a ring).

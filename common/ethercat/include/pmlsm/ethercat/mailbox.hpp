@@ -8,6 +8,15 @@
 // 3 SDO response, 1 emergency) and, for SDO, the same 8 bytes as a CANopen SDO frame (CiA 301):
 // command, index, sub-index, 4 data bytes. So the CANopen SDO server and its object dictionary
 // answer CoE too (CoeSdoServer): one CiA 402 dictionary for both buses.
+//
+// What does not fit in 4 bytes (a text such as 0x1008) goes as CoE carries it (ETG.1000.6
+// 5.6.2): a normal upload answers the initiate request with 0x41, the complete size in the 4 data
+// bytes and as much of the value as the send mailbox holds after them; the rest in upload segments
+// (CiA 301's: the master asks with 0x60 | toggle << 4, the slave answers with toggle << 4,
+// c = 1 on the last), each as long as its mailbox message (at least 7 data bytes, n of them unused
+// when fewer are left). A normal download (0x21, the size, the data after it) is taken for an
+// object of up to 4 bytes; the slave has nothing writable that is longer, so a segmented download
+// is refused (0x05040001).
 #pragma once
 
 #include <array>
@@ -42,8 +51,16 @@ const char* to_string(MailboxError error);
 using SdoBytes = std::array<std::uint8_t, kSdoBytes>;
 
 /// A CoE SDO message (`service`: request or response) into `out` (at least
-/// kMailboxHeaderBytes + kCoeHeaderBytes + kSdoBytes = 16 bytes). Returns the bytes written.
-std::size_t write_coe_sdo(std::uint8_t* out, std::uint8_t counter, std::uint8_t service, const SdoBytes& sdo);
+/// kMailboxHeaderBytes + kCoeHeaderBytes + kSdoBytes = 16 bytes), `more_bytes` of `more` after
+/// the 8 (a normal transfer's or a segment's further data). Returns the bytes written.
+std::size_t write_coe_sdo(std::uint8_t* out, std::uint8_t counter, std::uint8_t service, const SdoBytes& sdo,
+                          const std::uint8_t* more = nullptr, std::size_t more_bytes = 0);
+/// Where the bytes after the 8 SDO bytes start in a mailbox message, and how many there are (its
+/// length past 10).
+inline constexpr std::size_t kCoeSdoMoreAt = kMailboxHeaderBytes + kCoeHeaderBytes + kSdoBytes;
+inline std::size_t coe_sdo_more_bytes(const MailboxHeader& header) {
+  return header.length > kCoeHeaderBytes + kSdoBytes ? header.length - kCoeHeaderBytes - kSdoBytes : 0;
+}
 
 /// A mailbox holding a CoE SDO message: its header, its service and the 8 SDO bytes (an emergency
 /// (service 1) has 8 bytes too: error code, error register, 5 of the maker's). Never throws.
@@ -61,11 +78,13 @@ class MailboxHandler {
 };
 
 /// SDO over CoE answered by the CANopen SDO server on an object dictionary (expedited transfers,
-/// CiA 301's abort codes). Anything else in the mailbox is answered with nothing.
+/// CiA 301's abort codes); the dictionary's texts by normal and segmented upload, a normal download
+/// of up to 4 bytes, as above. Anything else in the mailbox is answered with nothing.
 class CoeSdoServer final : public MailboxHandler {
  public:
   /// `dictionary` outlives the server; `node` only addresses the CANopen server inside.
-  CoeSdoServer(canopen::ObjectDictionary& dictionary, canopen::NodeId node) : server_(dictionary, node) {}
+  CoeSdoServer(canopen::ObjectDictionary& dictionary, canopen::NodeId node)
+      : dictionary_(dictionary), server_(dictionary, node) {}
   std::size_t handle(const std::uint8_t* request, std::size_t size, std::uint8_t* response,
                      std::size_t capacity) override;
   std::uint64_t requests() const { return requests_; }
@@ -73,10 +92,35 @@ class CoeSdoServer final : public MailboxHandler {
   /// (16 bytes), with the next mailbox counter. Returns the bytes written.
   std::size_t write_emergency(std::uint8_t* out, std::uint16_t error_code, std::uint8_t error_register);
 
+  /// Segments answered (upload segment responses), a count for tests and reports.
+  std::uint64_t segments() const { return segments_; }
+
  private:
+  /// A text's normal upload: its size and first bytes, the transfer kept for the segments.
+  std::size_t start_upload(const canopen::TextEntry& text, std::uint8_t* response, std::size_t capacity);
+  std::size_t upload_segment(std::uint8_t command, std::uint8_t* response, std::size_t capacity);
+  /// A normal download: the size (bytes 4-7) and the data after the 8 bytes.
+  std::size_t normal_download(const SdoBytes& sdo, const std::uint8_t* more, std::size_t more_bytes,
+                              std::uint8_t* response);
+  std::size_t respond(std::uint8_t* response, const SdoBytes& sdo, const std::uint8_t* more = nullptr,
+                      std::size_t more_bytes = 0);
+  std::size_t abort(std::uint8_t* response, std::uint16_t index, std::uint8_t subindex, std::uint32_t code);
+
+  /// A normal upload under way: the text's multiplexer, the bytes sent so far, the next toggle.
+  struct Upload {
+    bool active = false;
+    std::uint16_t index = 0;
+    std::uint8_t subindex = 0;
+    std::size_t sent = 0;
+    std::uint8_t toggle = 0;
+  };
+
+  canopen::ObjectDictionary& dictionary_;
   canopen::SdoServer server_;
+  Upload upload_;
   std::uint8_t counter_ = 0;
   std::uint64_t requests_ = 0;
+  std::uint64_t segments_ = 0;
 };
 
 }  // namespace pmlsm::ethercat

@@ -16,10 +16,14 @@
 #include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/ethercat/frame.hpp"
 #include "pmlsm/ethercat/link.hpp"
+#include "pmlsm/ethercat/mailbox.hpp"
 #include "pmlsm/ethercat/pcapng.hpp"
 #include "pmlsm/ethercat/sii.hpp"
 
 namespace pmlsm::ethercat {
+
+/// The longest value sdo_upload() takes (ETG.1000.6 allows 2^32 - 1; drives' texts are short).
+inline constexpr std::uint32_t kMaxUploadBytes = 65536;
 
 struct MasterParams {
   std::int64_t reply_timeout_ns = 20'000'000;  ///< how long a datagram may take there and back
@@ -43,10 +47,13 @@ struct SlaveInfo : SiiInfo {
 /// An SDO transfer's outcome: done (the value read, its size), or aborted by the slave.
 struct SdoResult {
   bool done = false;
-  std::uint32_t value = 0;  ///< upload: the value (little-endian bytes as a number)
-  std::uint8_t size = 0;    ///< upload: 1..4 bytes (0: not indicated)
+  std::uint32_t value = 0;  ///< upload: the value (its first 4 little-endian bytes as a number)
+  std::uint8_t size = 0;    ///< upload, expedited: 1..4 bytes (0: not indicated or not expedited)
   std::uint32_t abort_code = 0;
-  std::string describe() const;  ///< "0x00020192" or "aborted: 0x06020000 object does not exist ..."
+  std::vector<std::uint8_t> bytes;  ///< upload: every byte read (4 when the size was not indicated)
+  /// "0x00020192", "\"AKD EtherCAT Drive (CoE)\" (24 bytes)" for a text, "01 02 ... (300 bytes)"
+  /// for other long data, or "aborted: 0x06020000 object does not exist ..."
+  std::string describe() const;
 };
 
 /// A slave's process data as mapped: its bytes, where they sit in the slave and in the logical
@@ -132,9 +139,11 @@ class Master {
   /// A slave's AL state and status code. @throws std::runtime_error when it does not answer.
   StateResult read_state(std::uint16_t station);
 
-  /// An object of a slave's dictionary read over CoE (expedited SDO through its mailboxes, whose
-  /// layout `slave` holds; the slave in PREOP or above).
-  /// @throws std::runtime_error naming the slave when the mailbox does not answer.
+  /// An object of a slave's dictionary read over CoE (SDO through its mailboxes, whose layout
+  /// `slave` holds; the slave in PREOP or above): expedited, or normal and segmented (mailbox.hpp)
+  /// for a value over 4 bytes, up to kMaxUploadBytes.
+  /// @throws std::runtime_error naming the slave when the mailbox does not answer, or the object
+  /// when its segments do not follow the protocol or it is longer (the transfer aborted first).
   SdoResult sdo_upload(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex);
   /// An object written over CoE: `size` bytes (1..4) of `value`.
   /// @throws std::runtime_error as sdo_upload, std::invalid_argument for a size outside 1..4.
@@ -164,6 +173,14 @@ class Master {
   /// times, not measured here). @throws std::runtime_error when the slave has no 64-bit
   /// distributed clock (0x0008) or does not take it.
   void configure_distributed_clock(std::uint16_t station, std::uint64_t master_time_ns);
+  /// SYNC0 of a slave's distributed clock (after configure_distributed_clock), as SOEM's
+  /// ec_dcsync0 sets it: the unit off (0x0981 = 0), the cycle (0x09A0), the first pulse at the first
+  /// whole cycle of system time at least `lead_ns` ahead of the slave's time now plus `shift_ns`
+  /// (0x0990), the unit on with SYNC0 (0x0981 = 0x03). Returns that start time.
+  /// @throws std::invalid_argument for a cycle outside 1 ns..2^32-1 ns, a shift outside
+  /// [0, cycle) or a negative lead; std::runtime_error when the slave does not take it.
+  std::uint64_t configure_sync0(std::uint16_t station, std::int64_t cycle_ns, std::int64_t shift_ns,
+                                std::int64_t lead_ns = 100'000'000);
   /// One drift-compensation write: `master_time_ns` into the slave's 0x0910 (FPWR), within the
   /// given reply time-out and retries. Never throws.
   Reply write_system_time(std::uint16_t station, std::uint64_t master_time_ns, std::int64_t reply_timeout_ns,
@@ -189,8 +206,21 @@ class Master {
   void record(Bytes frame);
   /// The entries of the PDOs assigned in `assign_index` (0x1C12, 0x1C13), in order.
   std::vector<canopen::PdoMapEntry> assigned_entries(const SlaveInfo& slave, std::uint16_t assign_index);
-  /// One SDO request through the mailboxes and its response's 8 bytes.
-  SdoResult sdo_transfer(const SlaveInfo& slave, const std::array<std::uint8_t, 8>& request);
+  /// A CoE SDO response: its 8 bytes and what the message carries after them.
+  struct CoeAnswer {
+    SdoBytes sdo{};
+    std::vector<std::uint8_t> more;
+  };
+  /// One SDO request through the mailboxes and its response (emergencies before it counted).
+  CoeAnswer coe_request(const SlaveInfo& slave, const SdoBytes& request);
+  /// One expedited SDO request and its response read.
+  SdoResult sdo_transfer(const SlaveInfo& slave, const SdoBytes& request);
+  /// An expedited response (or an abort) read. @throws std::runtime_error when not understood.
+  SdoResult expedited_answer(const SlaveInfo& slave, const CoeAnswer& answer);
+  /// The rest of a normal upload whose first response is `first`: its segments.
+  SdoResult normal_upload(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex, const CoeAnswer& first);
+  /// The master's abort of a transfer (no answer comes).
+  void abort_transfer(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex, std::uint32_t code);
 
   Link& link_;
   MasterParams params_;
