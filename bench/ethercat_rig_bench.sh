@@ -9,7 +9,8 @@
 # write each cycle); then the totals.
 # The lockstep run over UDP beside it, for the real-time factor against the CANopen rig's.
 # With sync0 = true the drive runs on SYNC0 of its distributed clock (drive.sync0, DC mode): the
-# column sync0_missed counts the pulses that found no new outputs (the drive's 0x1C32:0B).
+# column sync0_missed counts the pulses that found no new outputs (the drive's 0x1C32:0B), late_out
+# the outputs the bridge sent after their tick's pulse.
 #   sudo bench/ethercat_rig_bench.sh [runs] [seconds] [sync0]   (default 20 runs of 10 s, sync0 false)
 # Needs root (a namespace, raw sockets); exits 77 without it. Prints figures; exits 1 when a run did
 # not end with exit 0 on both ends or counted a working counter error or a fault.
@@ -57,7 +58,7 @@ echo "  real-time factor: EtherCAT rig ${ecat_rtf}x, CANopen rig ${can_rtf}x, ra
 grep "round trip" "$work/lock_ecat.log" | sed 's/^\[drive_bridge\] drive_bridge: /  lockstep, UDP: /'
 
 echo "[2/2] realtime, composed, raw EtherCAT over a veth pair: $runs runs of $seconds s, drive on SYNC0: $sync0"
-printf '%4s %6s %6s %6s %7s %7s %11s %11s %11s %10s %11s %12s\n' run bridge drive wkc_err missed faults trip_p50_us trip_p99_us trip_max_us chain_p50 dc_diff_ns sync0_missed
+printf '%4s %6s %6s %6s %7s %7s %11s %11s %11s %10s %11s %12s %8s\n' run bridge drive wkc_err missed faults trip_p50_us trip_p99_us trip_max_us chain_p50 dc_diff_ns sync0_missed late_out
 failed=0
 total_wkc=0
 total_missed=0
@@ -84,10 +85,11 @@ for ((r = 1; r <= runs; r++)); do
   chain="$(grep "chain latency" "$blog" || true)"
   dc=$(field 's/.*difference 0x092C \([-0-9]*\) ns at the end.*/\1/p' "$blog")
   sync0_missed=$(field 's/.*SYNC0: [0-9]* pulses .*, \([0-9]*\) in OP without new outputs.*/\1/p' "$dlog")
-  printf '%4d %6s %6s %6s %7s %7s %11s %11s %11s %10s %11s %12s\n' "$r" "$bridge_code" "$drive_code" "${wkc:-?}" "${missed:-?}" \
+  late_out=$(field 's/.*SYNC0: \([0-9]*\) of [0-9]* outputs sent after.*/\1/p' "$blog")
+  printf '%4d %6s %6s %6s %7s %7s %11s %11s %11s %10s %11s %12s %8s\n' "$r" "$bridge_code" "$drive_code" "${wkc:-?}" "${missed:-?}" \
     "${faults:-?}" "$(sed -n 's/.*p50 \([0-9.]*\) us.*/\1/p' <<<"$trip")" "$(sed -n 's/.*p99 \([0-9.]*\) us.*/\1/p' <<<"$trip")" \
     "$(sed -n 's/.*max \([0-9.]*\) us.*/\1/p' <<<"$trip")" "$(sed -n 's/.*p50 \([0-9.]*\) us.*/\1/p' <<<"$chain")" "${dc:-?}" \
-    "${sync0_missed:--}"
+    "${sync0_missed:--}" "${late_out:--}"
   total_wkc=$((total_wkc + ${wkc:-1}))
   total_missed=$((total_missed + ${missed:-0}))
   total_faults=$((total_faults + ${faults:-1}))

@@ -283,6 +283,11 @@ class EthercatHooks final : public node::DriveNodeHooks {
           static_cast<unsigned long long>(c.dc_writes), static_cast<unsigned long long>(c.dc_writes_lost),
           static_cast<long long>(*dc));
     }
+    if (drive_.sync0_start_ns() != 0) {
+      std::printf("drive_bridge: EtherCAT SYNC0: %llu of %llu outputs sent after their tick's pulse (%u us into it)\n",
+                  static_cast<unsigned long long>(c.outputs_after_sync0), static_cast<unsigned long long>(c.cycles),
+                  static_cast<unsigned>(drive_.config().sync0_shift_us));
+    }
     const drive::LatencySummary trip = drive_.round_trips();
     if (trip.count > 0) {
       std::printf("drive_bridge: EtherCAT frame round trip over %zu exchanges: p50 %.1f us, p99 %.1f us, max %.1f us\n",

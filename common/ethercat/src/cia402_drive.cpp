@@ -166,7 +166,16 @@ void Cia402Drive::boot() {
       throw Cia402DriveError(name + ": 0x6061 (modes of operation display) is " + std::to_string(mode_value) +
                              " after 0x6060 = 10: the drive did not enter cyclic synchronous torque");
     }
-    if (config_.distributed_clocks) master_.configure_distributed_clock(station, master_time_ns());
+    if (config_.distributed_clocks) {
+      // Every clock on the line, so the drive's delay from the reference is measured.
+      const std::vector<DcSlave> line = master_.configure_distributed_clocks(stations, master_time_ns());
+      if (std::none_of(line.begin(), line.end(), [&](const DcSlave& s) { return s.station == station; })) {
+        throw Cia402DriveError(name +
+                               ": no 64-bit distributed clock (set drive.distributed_clocks false for a "
+                               "drive without one)");
+      }
+      line_delay_ns_ = line.back().delay_ns;
+    }
     if (config_.sync0) {
       if (!config_.realtime) {
         throw Cia402DriveError(
@@ -411,12 +420,17 @@ void Cia402Drive::apply(double force_n) {
   const std::uint64_t k = tick_ == 0 ? 0 : tick_ - 1;  // the tick sampled last
   const std::uint32_t command_tick = config_.realtime ? periods_ : base_ + static_cast<std::uint32_t>(k);
   send_outputs(controlword, torque, command_tick);
+  if (sync0_start_ns_ != 0 && master_time_ns() % kNsPerMs >= config_.sync0_shift_us * 1000ULL) {
+    ++counters_.outputs_after_sync0;
+  }
   if (config_.distributed_clocks) {
     ++counters_.dc_writes;
-    // The time the frame reaches the drive: now plus its way there.
-    const Reply r =
-        master_.write_system_time(slave_.station_address, master_time_ns() + static_cast<std::uint64_t>(transit_ns_),
-                                  exchange_timeout_ns(), exchange_retries());
+    // The reference's time as the frame reaches it: now plus its way there, half the round trip
+    // less the line beyond it (the drive adds its own delay from the reference, 0x0928).
+    const std::int64_t to_reference_ns = std::max<std::int64_t>(transit_ns_ - line_delay_ns_, 0);
+    const Reply r = master_.write_system_time(slave_.station_address,
+                                              master_time_ns() + static_cast<std::uint64_t>(to_reference_ns),
+                                              exchange_timeout_ns(), exchange_retries());
     if (!r.answered || r.working_counter != 1) ++counters_.dc_writes_lost;
   }
 }

@@ -352,11 +352,15 @@ void Esc::dc_written(std::uint16_t address, std::size_t size) {
     return static_cast<std::uint64_t>(long_at(at)) | (static_cast<std::uint64_t>(long_at(at + 4)) << 32);
   };
   if (covers(reg::kDcReceiveTimePort0)) {
-    // The frame's arrival latched: port 0's receive time (32 bits) and the unit's (64 bits); ports
-    // 1-3 lead nowhere here.
+    // The frame's arrival latched: port 0's receive time (32 bits) and the unit's (64 bits); port
+    // 1's when the frame comes back through it (0 when it is closed); ports 2-3 lead nowhere here.
     const std::uint64_t local = dc_.local_ns();
+    const std::uint64_t port1 = port1_return_ns_ < 0 ? 0 : local + static_cast<std::uint64_t>(port1_return_ns_);
     for (int i = 0; i < 16; ++i) {
-      memory_[reg::kDcReceiveTimePort0 + i] = i < 4 ? static_cast<std::uint8_t>(local >> (8 * i)) : 0;
+      std::uint8_t byte = 0;
+      if (i < 4) byte = static_cast<std::uint8_t>(local >> (8 * i));
+      if (i >= 4 && i < 8) byte = static_cast<std::uint8_t>(port1 >> (8 * (i - 4)));
+      memory_[reg::kDcReceiveTimePort0 + i] = byte;
     }
     for (int i = 0; i < 8; ++i) memory_[reg::kDcReceiveTimeUnit + i] = static_cast<std::uint8_t>(local >> (8 * i));
   }
@@ -586,7 +590,12 @@ FrameError VirtualSegment::pass(std::uint8_t* bytes, std::size_t size) {
   if (error != FrameError::kNone) return error;
   if (clock_) {
     const std::int64_t now_ns = clock_();
-    for (Esc* slave : slaves_) slave->set_time(now_ns);
+    const auto last = static_cast<std::int64_t>(slaves_.size()) - 1;
+    for (std::int64_t i = 0; i <= last; ++i) {
+      Esc* slave = slaves_[static_cast<std::size_t>(i)];
+      slave->set_time(now_ns + i * hop_ns_);
+      slave->set_port1_return_ns(i < last ? 2 * (last - i) * hop_ns_ : -1);
+    }
   }
   // An ESC sets the locally administered bit of the source address on the way (ETG.1000.4): a
   // master tells the frames coming back from its own.

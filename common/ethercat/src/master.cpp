@@ -483,26 +483,55 @@ void Master::write_pdo_assignment(const SlaveInfo& slave, std::uint16_t assign_i
 }
 
 void Master::configure_distributed_clock(std::uint16_t station, std::uint64_t master_time_ns) {
+  configure_distributed_clocks({station}, master_time_ns);
+}
+
+std::vector<DcSlave> Master::configure_distributed_clocks(const std::vector<std::uint16_t>& stations,
+                                                          std::uint64_t master_time_ns) {
   // The latch first, so that the master's time (taken just before the call) is the frame's.
   std::array<std::uint8_t, 4> latch{};
   const Reply r = exchange(Command::kBwr, physical_address(0, reg::kDcReceiveTimePort0), latch.data(), 4);
-  std::array<std::uint8_t, 8> bytes{};
-  read_register(station, reg::kFeatures, bytes.data(), 2, "ESC features");
-  if ((bytes[0] & 0x0C) != 0x0C) {
-    throw std::runtime_error(slave_name(station) + ": no 64-bit distributed clock (ESC features " +
-                             format_hex(bytes[0], 2) + ")");
+  std::vector<DcSlave> line;
+  for (const std::uint16_t station : stations) {
+    std::array<std::uint8_t, 8> bytes{};
+    read_register(station, reg::kFeatures, bytes.data(), 2, "ESC features");
+    if ((bytes[0] & 0x0C) != 0x0C) continue;  // no 64-bit clock: a piece of cable to the others
+    if (!r.answered || r.working_counter == 0) {
+      throw std::runtime_error(slave_name(station) + ": the receive time latch (BWR 0x0900) was not taken");
+    }
+    DcSlave s;
+    s.station = station;
+    read_register(station, reg::kDcReceiveTimePort0, bytes.data(), 8, "DC receive times, ports 0 and 1");
+    const std::uint32_t port0 = get_le32(bytes.data());
+    const std::uint32_t port1 = get_le32(bytes.data() + 4);
+    // The time the frame spent behind this slave (0 at the end of the line: port 1 closed).
+    s.behind_ns = port1 == 0 ? 0 : static_cast<std::uint32_t>(port1 - port0);
+    read_register(station, reg::kDcReceiveTimeUnit, bytes.data(), 8, "DC receive time");
+    s.latched_local_ns = get_le32(bytes.data()) | (static_cast<std::uint64_t>(get_le32(bytes.data() + 4)) << 32);
+    line.push_back(s);
   }
-  if (!r.answered || r.working_counter == 0) {
-    throw std::runtime_error(slave_name(station) + ": the receive time latch (BWR 0x0900) was not taken");
+  if (line.empty() && stations.size() == 1) {
+    throw std::runtime_error(slave_name(stations[0]) + ": no 64-bit distributed clock");
   }
-  read_register(station, reg::kDcReceiveTimeUnit, bytes.data(), 8, "DC receive time");
-  const std::uint64_t local = get_le32(bytes.data()) | (static_cast<std::uint64_t>(get_le32(bytes.data() + 4)) << 32);
-  const std::uint64_t offset = master_time_ns - local;
-  put_le32(bytes.data(), static_cast<std::uint32_t>(offset));
-  put_le32(bytes.data() + 4, static_cast<std::uint32_t>(offset >> 32));
-  write_register(station, reg::kDcSystemTimeOffset, bytes.data(), 8, "DC system time offset");
-  std::array<std::uint8_t, 4> delay{};
-  write_register(station, reg::kDcSystemTimeDelay, delay.data(), 4, "DC system time delay");
+  // Down a line the frame reaches each slave half of what the one before saw behind it, less what
+  // this one sees behind itself, after the one before (ETG.1000.4's propagation delay); the first
+  // is the reference, its system time the master's.
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    DcSlave& s = line[i];
+    if (i > 0) {
+      const DcSlave& before = line[i - 1];
+      const std::int64_t hops = static_cast<std::int64_t>(before.behind_ns) - static_cast<std::int64_t>(s.behind_ns);
+      s.delay_ns = before.delay_ns + static_cast<std::uint32_t>(std::max<std::int64_t>(hops, 0) / 2);
+    }
+    const std::uint64_t offset = master_time_ns + s.delay_ns - s.latched_local_ns;
+    std::array<std::uint8_t, 8> bytes{};
+    put_le32(bytes.data(), static_cast<std::uint32_t>(offset));
+    put_le32(bytes.data() + 4, static_cast<std::uint32_t>(offset >> 32));
+    write_register(s.station, reg::kDcSystemTimeOffset, bytes.data(), 8, "DC system time offset");
+    put_le32(bytes.data(), s.delay_ns);
+    write_register(s.station, reg::kDcSystemTimeDelay, bytes.data(), 4, "DC system time delay");
+  }
+  return line;
 }
 
 std::uint64_t Master::configure_sync0(std::uint16_t station, std::int64_t cycle_ns, std::int64_t shift_ns,

@@ -8,7 +8,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <memory>
 #include <random>
+#include <vector>
 
 #include "pmlsm/ethercat/dc_clock.hpp"
 #include "pmlsm/ethercat/esc.hpp"
@@ -89,6 +91,44 @@ TEST(DistributedClock, TheRegistersLatchReadAndTakeTheOffset) {
     ASSERT_EQ(bus.master.write_system_time(kStation, bus.esc.dc().system_time_ns() + 400, kMs, 0).working_counter, 1);
   }
   EXPECT_GT(bus.master.read_system_time_difference(kStation), 100);
+}
+
+TEST(DistributedClock, ALineOfSlavesIsMeasuredPortByPortAndEachClockTakesItsDelayFromTheReference) {
+  // Three slaves with clocks, powered up at different times, and one without a clock (a coupler)
+  // between the second and the third, 700 ns a hop: a frame reaches slave i i hops after the first.
+  constexpr std::int64_t kHopNs = 700;
+  std::vector<std::unique_ptr<Esc>> slaves;
+  for (const std::uint64_t start : {987'654'321'000ULL, 12'345'000ULL, 0ULL, 555'000'111'000ULL}) {
+    EscParams p = Bus::params(0.0);
+    p.dc.start_local_ns = start;
+    slaves.push_back(std::make_unique<Esc>(p));
+  }
+  std::int64_t now_ns = 40 * kMs;
+  VirtualSegment segment(
+      {slaves[0].get(), slaves[1].get(), slaves[2].get(), slaves[3].get()}, [&] { return now_ns; }, kHopNs);
+  VirtualSegmentLink link(segment);
+  Master master(link);
+  const std::vector<std::uint16_t> stations = master.assign_station_addresses(4);
+  // The coupler's ESC reports no distributed clock.
+  slaves[2]->write_memory(reg::kFeatures, std::array<std::uint8_t, 1>{0x00}.data(), 1);
+  const std::uint64_t master_ns = 5'000'000'000'000ULL;
+  const std::vector<DcSlave> line = master.configure_distributed_clocks(stations, master_ns + now_ns);
+  ASSERT_EQ(line.size(), 3u) << "the coupler is cable";
+  EXPECT_EQ(line[0].behind_ns, 6u * kHopNs) << "the frame behind the first slave: three hops out and back";
+  EXPECT_EQ(line[1].behind_ns, 4u * kHopNs);
+  EXPECT_EQ(line[2].behind_ns, 0u) << "the last: port 1 closed";
+  EXPECT_EQ(line[0].delay_ns, 0u);
+  EXPECT_EQ(line[1].delay_ns, 1u * kHopNs);
+  EXPECT_EQ(line[2].delay_ns, 3u * kHopNs) << "two hops and the coupler's";
+  EXPECT_EQ(slaves[3]->long_at(reg::kDcSystemTimeDelay), 3u * kHopNs);
+  // A later frame: each slave's system time as it passes is the master's time then, to the ns.
+  now_ns += 250 * kMs;
+  std::array<std::uint8_t, 8> bytes{};
+  master.exchange(Command::kBrd, physical_address(0, reg::kStationAddress), bytes.data(), 2);
+  for (const std::size_t i : {std::size_t{0}, std::size_t{1}, std::size_t{3}}) {
+    EXPECT_EQ(slaves[i]->dc().system_time_ns(), master_ns + static_cast<std::uint64_t>(now_ns) + i * kHopNs)
+        << "slave " << i;
+  }
 }
 
 class DistributedClockDrift : public ::testing::TestWithParam<double> {};

@@ -222,6 +222,7 @@ TEST(Sync0, OurMastersDriveOnSync0RunsTheVirtualDriveAPeriodAPulseAsTheSimulated
   }
   EXPECT_EQ(rig.drive->periods() - periods_before, 299u) << "a period a pulse (the last tick's is half a cycle on)";
   EXPECT_EQ(rig.drive->sync0_without_outputs(), 0u);
+  EXPECT_EQ(rig.master.counters().outputs_after_sync0, 0u) << "every tick's outputs 10-20 us into it";
   EXPECT_EQ(rig.drive->unstepped_cycles(), 0u) << "the command tick gates nothing on SYNC0";
   // A tick without outputs (the controller late): the pulse steps on the outputs SM2 holds, counted.
   rig.now_ns = tick_ns;
@@ -233,6 +234,10 @@ TEST(Sync0, OurMastersDriveOnSync0RunsTheVirtualDriveAPeriodAPulseAsTheSimulated
   EXPECT_EQ(od.get_or(kObjectOutputSyncParameters, kSyncParameterSmMissed, 0), 1);
   EXPECT_EQ(rig.drive->periods() - periods_before, 301u) << "the drive's clock goes on";
   EXPECT_EQ(rig.drive->esc().sync0().late_starts, 0u);
+  // Outputs 600 us into their tick, after its pulse at 500 us: the master counts them late.
+  rig.now_ns = tick_ns + 600'000;
+  rig.master.apply(0.0);
+  EXPECT_EQ(rig.master.counters().outputs_after_sync0, 1u);
 }
 
 TEST(Sync0, InDcModeTheDriveRefusesOpWithoutSync0AtItsPeriodNamingTheCode) {

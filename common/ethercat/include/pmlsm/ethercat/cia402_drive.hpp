@@ -12,7 +12,7 @@
 // the master finds controlword 0x6040 and target torque 0x6071 (outputs), statusword 0x6041,
 // torque actual 0x6077, velocity actual 0x606C and position actual 0x6064 (inputs); a missing
 // one stops the boot naming it. 0x6061 read back = 10. With drive.distributed_clocks, the drive's
-// clock set to the master's time (Master::configure_distributed_clock) and, each cycle after the
+// clock set to the master's time (Master::configure_distributed_clocks) and, each cycle after the
 // outputs, the master's time written to it (its drift control follows), plus the frame's way there
 // (half the running mean of the cycle's round trips; a ring's delay would be measured by the ports'
 // receive times instead). The process-data watchdog set (realtime:
@@ -62,7 +62,7 @@ struct Cia402DriveConfig {
   /// The process-data watchdog the drive is given in realtime (ETG: the ESI's SM watchdog).
   std::uint32_t watchdog_ms = 100;
   /// The drive's distributed clock set to the master's time at boot and kept on it, a write of the
-  /// master's time each cycle (Master::configure_distributed_clock, write_system_time).
+  /// master's time each cycle (Master::configure_distributed_clocks, write_system_time).
   bool distributed_clocks = true;
   /// The drive synchronous to SYNC0 (ETG.1020's DC mode): 0x1C32:01 / 0x1C33:01 = 2 and the cycle
   /// in 0x1C32:02 at boot, SYNC0 every cycle from the slave's clock (Master::configure_sync0),
@@ -134,6 +134,9 @@ struct Cia402DriveCounters {
   std::uint64_t missed_inputs = 0;           ///< realtime: cycles without the inputs in time
   std::uint64_t dc_writes = 0;               ///< the master's time written to the drive's clock
   std::uint64_t dc_writes_lost = 0;          ///< of them not answered or not taken
+  /// SYNC0: outputs sent `sync0_shift_us` or more into their tick (the tick on whole milliseconds
+  /// of the master's clock), after the pulse that was to take them.
+  std::uint64_t outputs_after_sync0 = 0;
 };
 
 class Cia402Drive final : public drive::Drive {
@@ -254,6 +257,7 @@ class Cia402Drive final : public drive::Drive {
   drive::LoopStatistics round_trips_{kRoundTripsKept};
   std::int64_t transit_ns_ = 0;       ///< a frame's way to the drive, estimated from the round trips
   std::uint64_t sync0_start_ns_ = 0;  ///< the first SYNC0 pulse in the drive's system time (0: none)
+  std::int64_t line_delay_ns_ = 0;    ///< the reference clock to the line's last clock
   bool own_clock_;                    ///< the owner gave the master's clock
   std::function<std::int64_t()> master_clock_;
 };

@@ -164,6 +164,10 @@ class Esc {
   /// The wall time is `now_ns` (the owner's clock, set before a frame passes): its distributed
   /// clock runs on to it, and 0x0910 and 0x092C read its system time and difference then.
   void set_time(std::int64_t now_ns);
+  /// How long the frame passing now takes to come back to port 1 from the slaves behind this one
+  /// [ns]; -1: port 1 closed (the last slave of the line). A receive-time latch (0x0900) then holds
+  /// port 1's time too (0x0904), from which a master measures the line's propagation delays.
+  void set_port1_return_ns(std::int64_t ns) { port1_return_ns_ = ns; }
   const DcClock& dc() const { return dc_; }
   DcClock& dc() { return dc_; }
 
@@ -264,6 +268,7 @@ class Esc {
   std::uint64_t outputs_at_last_pulse_ = 0;
   std::function<void(std::int64_t)> sync0_handler_;
   std::int64_t now_ns_ = 0;  ///< the owner's time at the last set_time()
+  std::int64_t port1_return_ns_ = -1;
   std::uint64_t outputs_written_ = 0;
   DcClock dc_;
   /// Messages waiting for the send mailbox to be read (a ring).
@@ -280,10 +285,13 @@ class Esc {
 /// ring of real ones.
 class VirtualSegment {
  public:
-  /// `slaves` outlive the segment. `clock` (monotonic ns; may be empty): the time each slave is set
-  /// to before a frame passes it (Esc::set_time: their distributed clocks run on it).
-  explicit VirtualSegment(std::vector<Esc*> slaves, std::function<std::int64_t()> clock = {})
-      : slaves_(std::move(slaves)), clock_(std::move(clock)) {}
+  /// `slaves` outlive the segment, in the line's order. `clock` (monotonic ns; may be empty): the
+  /// time each slave is set to before a frame passes it (Esc::set_time: their distributed clocks
+  /// run on it), `hop_ns` later for each slave further down the line (the cable and the slave
+  /// before: a frame reaches slave i i hops after the first, and comes back through its port 1
+  /// 2 (n - 1 - i) hops after it passed).
+  explicit VirtualSegment(std::vector<Esc*> slaves, std::function<std::int64_t()> clock = {}, std::int64_t hop_ns = 0)
+      : slaves_(std::move(slaves)), clock_(std::move(clock)), hop_ns_(hop_ns) {}
   /// The frame in `bytes` (an Ethernet frame of `size` bytes) through every slave, in place.
   /// Returns what the parser said of it; a refused frame is left as it was (a real slave drops it).
   FrameError pass(std::uint8_t* bytes, std::size_t size);
@@ -295,6 +303,7 @@ class VirtualSegment {
  private:
   std::vector<Esc*> slaves_;
   std::function<std::int64_t()> clock_;
+  std::int64_t hop_ns_;
   std::array<std::uint8_t, kMaxEthernetFrameBytes> buffer_{};
 };
 

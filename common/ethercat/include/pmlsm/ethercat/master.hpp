@@ -78,6 +78,14 @@ struct ProcessDataLayout {
   static int offset_in(const std::vector<canopen::PdoMapEntry>& entries, std::uint16_t index, std::uint8_t subindex);
 };
 
+/// A slave's distributed clock as configure_distributed_clocks() found it.
+struct DcSlave {
+  std::uint16_t station = 0;
+  std::uint32_t behind_ns = 0;         ///< port 1's receive time less port 0's: the line behind it
+  std::uint64_t latched_local_ns = 0;  ///< its local time at the latch (0x0918)
+  std::uint32_t delay_ns = 0;          ///< the frame's way from the reference to it (0x0928)
+};
+
 struct StateResult {
   bool reached = false;
   AlState state = AlState::kInit;  ///< the state the slave is in
@@ -165,13 +173,19 @@ class Master {
   /// sync manager for the process data.
   ProcessDataLayout map_process_data(const SlaveInfo& slave, std::uint32_t logical);
 
-  /// Distributed clocks with the slave's clock as the reference, following the master's time (as
-  /// IgH's master runs them; SOEM follows the reference instead): the receive times latched (BWR
-  /// 0x0900), the slave's local time at that frame read (0x0918), and its offset (0x0920) written so
-  /// that its system time is `master_time_ns` (the master's clock as the latch frame went) then;
-  /// the delay (0x0928) 0, the slave next to the master (a line of slaves needs the ports' receive
-  /// times, not measured here). @throws std::runtime_error when the slave has no 64-bit
-  /// distributed clock (0x0008) or does not take it.
+  /// Distributed clocks along a line of slaves (`stations` in the line's order), the first with a
+  /// 64-bit clock (0x0008) the reference, following the master's time (as IgH's master runs them;
+  /// SOEM follows the reference instead): the receive times latched (BWR 0x0900); for each slave
+  /// with a clock, ports 0 and 1's times (0x0900, 0x0904: how long the frame was behind it) and its
+  /// local time at that frame (0x0918); each one's propagation delay from the reference, the one
+  /// before's plus half the difference of what each saw behind it (0x0928); and its offset (0x0920)
+  /// so that its system time is `master_time_ns` (the master's clock as the latch frame went) plus
+  /// its delay. Slaves without a clock are cable between the others. Returns the slaves with a
+  /// clock, in order. @throws std::runtime_error when a single slave asked for has no clock, or a
+  /// slave does not take it.
+  std::vector<DcSlave> configure_distributed_clocks(const std::vector<std::uint16_t>& stations,
+                                                    std::uint64_t master_time_ns);
+  /// The same for one slave, the reference (delay 0).
   void configure_distributed_clock(std::uint16_t station, std::uint64_t master_time_ns);
   /// SYNC0 of a slave's distributed clock (after configure_distributed_clock), as SOEM's
   /// ec_dcsync0 sets it: the unit off (0x0981 = 0), the cycle (0x09A0), the first pulse at the first
