@@ -37,6 +37,7 @@
 #include "drive_node.hpp"
 #include "pmlsm/canopen/bus_load.hpp"
 #include "pmlsm/canopen/cia402_drive.hpp"
+#include "pmlsm/canopen/emcy.hpp"
 #include "pmlsm/ethercat/cia402_drive.hpp"
 
 namespace {
@@ -256,7 +257,16 @@ class EthercatHooks final : public node::DriveNodeHooks {
     std::printf("%s: drive %s (auto-enable) %.0f ms after the boot began\n", node.name().c_str(),
                 drive::to_string(drive_.power_state()), since_boot_ms());
   }
-  void after_tick(node::DriveNode& node, std::uint64_t k) override { reports_.after_tick(node, k, drive_); }
+  void after_tick(node::DriveNode& node, std::uint64_t k) override {
+    reports_.after_tick(node, k, drive_);
+    if (drive_.emergencies() != emergencies_reported_) {
+      // A warning the drive posts (or a fault's, read with it): said as it comes.
+      emergencies_reported_ = drive_.emergencies();
+      std::fprintf(stderr, "%s: tick %llu: CoE emergency from the drive: 0x%04X (%s)\n", node.name().c_str(),
+                   static_cast<unsigned long long>(k), drive_.last_emergency_code(),
+                   canopen::describe_emcy(drive_.last_emergency_code()));
+    }
+  }
   void at_end(node::DriveNode& node) override {
     // A drive that is enabled when its slave leaves OP faults: disable it first (shutdown, zero
     // torque, one cycle), then the slave to SAFEOP and INIT.
@@ -272,10 +282,12 @@ class EthercatHooks final : public node::DriveNodeHooks {
     const ethercat::Cia402DriveCounters& c = drive_.counters();
     std::printf(
         "drive_bridge: EtherCAT: %llu cycles (%llu outputs sent again), %llu exchanges without a reply (%llu "
-        "frames lost, resends included), %llu working counter errors, %llu cycles without the inputs in time\n",
+        "frames lost, resends included), %llu working counter errors, %llu cycles without the inputs in time, "
+        "%llu CoE emergencies read\n",
         static_cast<unsigned long long>(c.cycles), static_cast<unsigned long long>(c.output_resends),
         static_cast<unsigned long long>(c.frames_lost), static_cast<unsigned long long>(drive_.master().frames_lost()),
-        static_cast<unsigned long long>(c.working_counter_errors), static_cast<unsigned long long>(c.missed_inputs));
+        static_cast<unsigned long long>(c.working_counter_errors), static_cast<unsigned long long>(c.missed_inputs),
+        static_cast<unsigned long long>(drive_.emergencies()));
     if (const std::optional<std::int64_t> dc = dc_difference_ns_) {
       std::printf(
           "drive_bridge: EtherCAT distributed clock: %llu writes of the master's time (%llu lost), the "
@@ -337,6 +349,7 @@ class EthercatHooks final : public node::DriveNodeHooks {
   std::string link_;
   ethercat::PcapngWriter* capture_;
   std::string capture_path_;
+  std::uint64_t emergencies_reported_ = 0;
   bool capture_failed_ = false;
   ProblemReports reports_;
   std::int64_t boot_began_ns_ = 0;

@@ -268,14 +268,15 @@ void Cia402Drive::read_error_code() {
   // The drive entered fault: its 0x603F by one mailbox exchange (the force is already off); a CoE
   // emergency it posted comes out of the mailbox on the way and is named too.
   std::uint16_t code = 0;
-  const std::uint64_t emergencies_before = master_.emergencies();
   try {
     const SdoResult r = master_.sdo_upload(slave_, canopen::kObjectErrorCode, 0);
     if (r.done) code = static_cast<std::uint16_t>(r.value);
   } catch (const std::runtime_error&) {
     code = 0;  // the mailbox did not answer: the fault stands without its code
   }
-  const bool emergency = master_.emergencies() > emergencies_before;
+  // Its emergency, read on the way to 0x603F's answer or by a cycle's look into the mailbox.
+  const bool emergency = master_.emergencies() > emergencies_at_fault_check_;
+  emergencies_at_fault_check_ = master_.emergencies();
   if (code == 0 && emergency) code = master_.last_emergency_code();
   char text[160];
   if (code != 0) {
@@ -432,6 +433,10 @@ void Cia402Drive::apply(double force_n) {
                                               master_time_ns() + static_cast<std::uint64_t>(to_reference_ns),
                                               exchange_timeout_ns(), exchange_retries());
     if (!r.answered || r.working_counter != 1) ++counters_.dc_writes_lost;
+  }
+  if (counters_.cycles % kMailboxPollCycles == 0) {
+    ++counters_.mailbox_polls;
+    master_.poll_emergency(slave_, exchange_timeout_ns(), exchange_retries());
   }
 }
 

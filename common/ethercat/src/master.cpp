@@ -337,6 +337,34 @@ Master::CoeAnswer Master::coe_request(const SlaveInfo& slave, const SdoBytes& re
   }
 }
 
+bool Master::poll_emergency(const SlaveInfo& slave, std::int64_t reply_timeout_ns, int retries) {
+  if (slave.mailbox_send_size < kMailboxHeaderBytes + kCoeHeaderBytes + kSdoBytes ||
+      slave.mailbox_send_size > kMaxDatagramDataBytes) {
+    return false;
+  }
+  const std::uint16_t station = slave.station_address;
+  const auto sm1_status = static_cast<std::uint16_t>(reg::kSyncManager0 + kSyncManagerBytes + 5);
+  std::array<std::uint8_t, 1> status{};
+  Reply r =
+      exchange(Command::kFprd, physical_address(station, sm1_status), status.data(), 1, reply_timeout_ns, retries);
+  if (!r.answered || r.working_counter != 1 || (status[0] & 0x08) == 0) return false;
+  std::array<std::uint8_t, kMaxDatagramDataBytes> mailbox{};
+  r = exchange(Command::kFprd, physical_address(station, slave.mailbox_send_offset), mailbox.data(),
+               slave.mailbox_send_size, reply_timeout_ns, retries);
+  if (!r.answered || r.working_counter != 1) return false;
+  MailboxHeader header;
+  std::uint8_t service = 0;
+  SdoBytes body{};
+  if (parse_coe_sdo(mailbox.data(), slave.mailbox_send_size, header, service, body) == MailboxError::kNotSdo &&
+      service == kCoeServiceEmergency) {
+    ++emergencies_;
+    last_emergency_code_ = get_le16(mailbox.data() + kMailboxHeaderBytes + kCoeHeaderBytes);
+    return true;
+  }
+  ++mailbox_unexpected_;
+  return false;
+}
+
 SdoResult Master::sdo_transfer(const SlaveInfo& slave, const SdoBytes& request) {
   return expedited_answer(slave, coe_request(slave, request));
 }

@@ -223,6 +223,31 @@ TEST(EthercatCia402Drive, RealtimeTheDrivesWatchdogFaultIsReadWithItsErrorCode) 
   EXPECT_EQ(rig.behind.power_state(), drive::PowerState::kFaultReactionActive) << "out of operation enabled: no force";
 }
 
+TEST(EthercatCia402Drive, AWarningTheDrivePostsIsReadWithinTenCyclesWithoutAFaultOrALostPeriod) {
+  Rig rig(true);
+  rig.master.boot();
+  rig.master.start();
+  rig.master.enable_and_wait();
+  for (int k = 0; k < 5; ++k) {
+    rig.master.sample();
+    rig.master.apply(20.0);
+  }
+  EXPECT_EQ(rig.master.emergencies(), 0u);
+  // A manufacturer's warning (0xFF01) in the drive's send mailbox, no fault behind it.
+  ASSERT_TRUE(rig.drive->slave().post_emergency(0xFF01));
+  for (int k = 0; k < static_cast<int>(Cia402Drive::kMailboxPollCycles); ++k) {
+    rig.master.sample();
+    rig.master.apply(20.0);
+  }
+  EXPECT_EQ(rig.master.emergencies(), 1u) << "read by a cycle's look into the mailbox";
+  EXPECT_EQ(rig.master.last_emergency_code(), 0xFF01);
+  EXPECT_GE(rig.master.counters().mailbox_polls, 1u);
+  EXPECT_EQ(rig.master.power_state(), drive::PowerState::kOperationEnabled);
+  EXPECT_FALSE(rig.master.lost());
+  EXPECT_EQ(rig.master.ticks(), 15u);
+  EXPECT_EQ(rig.master.master().mailbox_unexpected(), 0u);
+}
+
 TEST(EthercatCia402Drive, TheBootRefusesAnotherDriveAndALockstepWithoutTheContractNamingWhy) {
   {
     Cia402DriveConfig config = Rig::rig_config();

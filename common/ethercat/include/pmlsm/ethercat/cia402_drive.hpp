@@ -134,6 +134,7 @@ struct Cia402DriveCounters {
   std::uint64_t missed_inputs = 0;           ///< realtime: cycles without the inputs in time
   std::uint64_t dc_writes = 0;               ///< the master's time written to the drive's clock
   std::uint64_t dc_writes_lost = 0;          ///< of them not answered or not taken
+  std::uint64_t mailbox_polls = 0;           ///< looks into the drive's send mailbox for emergencies
   /// SYNC0: outputs sent `sync0_shift_us` or more into their tick (the tick on whole milliseconds
   /// of the master's clock), after the pulse that was to take them.
   std::uint64_t outputs_after_sync0 = 0;
@@ -194,6 +195,13 @@ class Cia402Drive final : public drive::Drive {
   /// The cycle's exchanges there and back (the bus cycle time), the first kRoundTripsKept kept.
   drive::LatencySummary round_trips() { return round_trips_.latency(); }
   static constexpr std::size_t kRoundTripsKept = 1U << 17;
+  /// Every this many cycles the drive's send mailbox is looked into (Master::poll_emergency): a
+  /// CoE emergency the drive posted (a warning, or a fault's) is read within 10 ms, not only at
+  /// the next SDO transfer.
+  static constexpr std::uint64_t kMailboxPollCycles = 10;
+  /// The drive's CoE emergencies read so far, and the last one's error code.
+  std::uint64_t emergencies() const noexcept { return master_.emergencies(); }
+  std::uint16_t last_emergency_code() const noexcept { return master_.last_emergency_code(); }
   const Cia402DriveConfig& config() const noexcept { return config_; }
   const canopen::UnitScaling& scaling() const noexcept { return scaling_; }
   const SlaveInfo& slave() const noexcept { return slave_; }
@@ -255,10 +263,11 @@ class Cia402Drive final : public drive::Drive {
   drive::Measurement last_measurement_;
   Cia402DriveCounters counters_;
   drive::LoopStatistics round_trips_{kRoundTripsKept};
-  std::int64_t transit_ns_ = 0;       ///< a frame's way to the drive, estimated from the round trips
-  std::uint64_t sync0_start_ns_ = 0;  ///< the first SYNC0 pulse in the drive's system time (0: none)
-  std::int64_t line_delay_ns_ = 0;    ///< the reference clock to the line's last clock
-  bool own_clock_;                    ///< the owner gave the master's clock
+  std::int64_t transit_ns_ = 0;                   ///< a frame's way to the drive, estimated from the round trips
+  std::uint64_t sync0_start_ns_ = 0;              ///< the first SYNC0 pulse in the drive's system time (0: none)
+  std::int64_t line_delay_ns_ = 0;                ///< the reference clock to the line's last clock
+  std::uint64_t emergencies_at_fault_check_ = 0;  ///< the master's count when a fault was last read
+  bool own_clock_;                                ///< the owner gave the master's clock
   std::function<std::int64_t()> master_clock_;
 };
 

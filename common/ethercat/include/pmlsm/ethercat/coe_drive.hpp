@@ -192,6 +192,8 @@ class VirtualEthercatDrive : canopen::Cia402ApplicationEvents {
   Esc& esc() { return slave_.esc(); }
   canopen::ObjectDictionary& dictionary() { return slave_.dictionary(); }
   const VirtualCia402Slave& slave() const { return slave_; }
+  /// The slave, to post a message of the application's own (a warning's emergency).
+  VirtualCia402Slave& slave() { return slave_; }
 
   /// Between frames (VirtualSegment::serve's between_frames): the watchdog, then the cycles the
   /// master completed since, as above. Never throws.

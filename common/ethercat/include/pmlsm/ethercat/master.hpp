@@ -203,8 +203,15 @@ class Master {
   /// positive when its clock is behind. @throws std::runtime_error when it does not answer.
   std::int64_t read_system_time_difference(std::uint16_t station);
 
-  /// CoE emergencies the slaves posted, met in their send mailboxes on the way to an SDO answer,
-  /// and the last one's error code (0: the errors gone).
+  /// A look into a slave's send mailbox between SDO transfers, as a cycle can afford it: SM1's
+  /// status read (one FPRD), and only when the mailbox is full, the mailbox read. A CoE emergency is
+  /// counted with its code (true); anything else there, an answer nobody waits for, is taken and
+  /// counted (mailbox_unexpected()). Within the given reply time-out and retries. Never throws.
+  bool poll_emergency(const SlaveInfo& slave, std::int64_t reply_timeout_ns, int retries);
+  std::uint64_t mailbox_unexpected() const { return mailbox_unexpected_; }
+
+  /// CoE emergencies the slaves posted, met in their send mailboxes on the way to an SDO answer or
+  /// by poll_emergency(), and the last one's error code (0: the errors gone).
   std::uint64_t emergencies() const { return emergencies_; }
   std::uint16_t last_emergency_code() const { return last_emergency_code_; }
 
@@ -248,6 +255,7 @@ class Master {
   std::uint64_t frames_lost_ = 0;
   std::uint64_t emergencies_ = 0;
   std::uint16_t last_emergency_code_ = 0;
+  std::uint64_t mailbox_unexpected_ = 0;
 };
 
 }  // namespace pmlsm::ethercat
