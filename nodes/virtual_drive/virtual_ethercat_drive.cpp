@@ -169,7 +169,12 @@ CycleComponent::Update VirtualEthercatDriveComponent::update() {
     const std::size_t size = link_->receive(frame_.data(), 0);
     if (size == 0) break;
     ++frames;
-    if (segment_.pass(frame_.data(), size) != ec::FrameError::kNone) continue;  // dropped, as a slave drops it
+    // At the time it came, when the link knows it: a SYNC0 pulse between its coming and now
+    // comes after it, as on the wire.
+    const std::int64_t arrived = link_->last_arrival_ns();
+    const ec::FrameError error =
+        arrived >= 0 ? segment_.pass(frame_.data(), size, arrived) : segment_.pass(frame_.data(), size);
+    if (error != ec::FrameError::kNone) continue;  // dropped, as a slave drops it
     link_->send({frame_.data(), size});
     ++frames_;
     now = monotonic_ns();

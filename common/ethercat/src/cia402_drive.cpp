@@ -371,6 +371,8 @@ drive::Measurement Cia402Drive::measurement() const {
 
 drive::Measurement Cia402Drive::sample() {
   const std::uint64_t k = tick_++;
+  // The run's ticks are on whole milliseconds of the master's clock from the first on.
+  if (k == 0) tick0_ns_ = master_time_ns() / kNsPerMs * kNsPerMs;
   if (!booted_ || remote_.lost()) return last_measurement_;
   if (!started_) {
     base_ = periods_;
@@ -421,7 +423,8 @@ void Cia402Drive::apply(double force_n) {
   const std::uint64_t k = tick_ == 0 ? 0 : tick_ - 1;  // the tick sampled last
   const std::uint32_t command_tick = config_.realtime ? periods_ : base_ + static_cast<std::uint32_t>(k);
   send_outputs(controlword, torque, command_tick);
-  if (sync0_start_ns_ != 0 && master_time_ns() % kNsPerMs >= config_.sync0_shift_us * 1000ULL) {
+  // Sent after the pulse that was to take them: sync0_shift_us or more past their tick's start.
+  if (sync0_start_ns_ != 0 && master_time_ns() >= tick0_ns_ + k * kNsPerMs + config_.sync0_shift_us * 1000ULL) {
     ++counters_.outputs_after_sync0;
   }
   if (config_.distributed_clocks) {

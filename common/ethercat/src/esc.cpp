@@ -585,11 +585,15 @@ void Esc::sii_command() {
 }
 
 FrameError VirtualSegment::pass(std::uint8_t* bytes, std::size_t size) {
+  return pass(bytes, size, clock_ ? clock_() : -1);
+}
+
+FrameError VirtualSegment::pass(std::uint8_t* bytes, std::size_t size, std::int64_t at_ns) {
   ParsedFrame parsed;
   const FrameError error = parse_ethernet_frame(bytes, size, parsed);
   if (error != FrameError::kNone) return error;
-  if (clock_) {
-    const std::int64_t now_ns = clock_();
+  if (at_ns >= 0) {
+    const std::int64_t now_ns = at_ns;
     const auto last = static_cast<std::int64_t>(slaves_.size()) - 1;
     for (std::int64_t i = 0; i <= last; ++i) {
       Esc* slave = slaves_[static_cast<std::size_t>(i)];

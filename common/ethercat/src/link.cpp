@@ -8,9 +8,12 @@
 #include <sys/ioctl.h>
 #include <poll.h>
 #include <sys/socket.h>
+#include <sys/uio.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
@@ -61,6 +64,44 @@ bool readable_before(int fd, std::chrono::steady_clock::time_point deadline) {
   }
 }
 
+/// recvfrom() with the kernel's receive stamp (SO_TIMESTAMPNS, CLOCK_REALTIME) turned into
+/// CLOCK_MONOTONIC by the two clocks' difference now; `arrival_ns` -1 when there was none.
+ssize_t receive_stamped(int fd, void* buffer, std::size_t size, int flags, sockaddr* from, socklen_t* from_size,
+                        std::int64_t& arrival_ns) {
+  iovec io{buffer, size};
+  alignas(cmsghdr) std::array<char, CMSG_SPACE(sizeof(timespec))> control{};
+  msghdr message{};
+  message.msg_name = from;
+  message.msg_namelen = *from_size;
+  message.msg_iov = &io;
+  message.msg_iovlen = 1;
+  message.msg_control = control.data();
+  message.msg_controllen = control.size();
+  const ssize_t n = ::recvmsg(fd, &message, flags);
+  *from_size = message.msg_namelen;
+  arrival_ns = -1;
+  if (n < 0) return n;
+  for (cmsghdr* c = CMSG_FIRSTHDR(&message); c != nullptr; c = CMSG_NXTHDR(&message, c)) {
+    if (c->cmsg_level != SOL_SOCKET || c->cmsg_type != SCM_TIMESTAMPNS) continue;
+    timespec stamp{};
+    std::memcpy(&stamp, CMSG_DATA(c), sizeof stamp);
+    timespec real{};
+    timespec mono{};
+    ::clock_gettime(CLOCK_REALTIME, &real);
+    ::clock_gettime(CLOCK_MONOTONIC, &mono);
+    const auto ns = [](const timespec& t) { return static_cast<std::int64_t>(t.tv_sec) * 1'000'000'000 + t.tv_nsec; };
+    arrival_ns = std::min(ns(mono), ns(stamp) - (ns(real) - ns(mono)));
+  }
+  return n;
+}
+
+/// The kernel's receive stamps on a socket's frames (last_arrival_ns()); a socket without them
+/// still works, its frames unstamped.
+void stamp_arrivals(int fd) {
+  const int on = 1;
+  ::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on);
+}
+
 sockaddr_in ipv4(const std::string& address, std::uint16_t port) {
   sockaddr_in a{};
   a.sin_family = AF_INET;
@@ -94,6 +135,7 @@ UdpLink::UdpLink(const UdpLinkParams& params) {
   socklen_t bound_size = sizeof bound;
   ::getsockname(fd_, reinterpret_cast<sockaddr*>(&bound), &bound_size);
   bound_port_ = ntohs(bound.sin_port);
+  stamp_arrivals(fd_);
   answer_sender_ = params.peer_port == 0;
   peer_known_ = !answer_sender_;
 }
@@ -116,8 +158,9 @@ std::size_t UdpLink::receive(std::uint8_t* buffer, std::int64_t timeout_ns) {
     if (!readable_before(fd_, deadline)) return 0;
     sockaddr_in sender{};
     socklen_t sender_size = sizeof sender;
-    const ssize_t n = ::recvfrom(fd_, buffer + kEthernetHeaderBytes, kMaxEthernetFrameBytes - kEthernetHeaderBytes,
-                                 MSG_DONTWAIT, reinterpret_cast<sockaddr*>(&sender), &sender_size);
+    const ssize_t n =
+        receive_stamped(fd_, buffer + kEthernetHeaderBytes, kMaxEthernetFrameBytes - kEthernetHeaderBytes, MSG_DONTWAIT,
+                        reinterpret_cast<sockaddr*>(&sender), &sender_size, last_arrival_ns_);
     if (n < static_cast<ssize_t>(kFrameHeaderBytes)) {
       if (n >= 0) ++dropped_;
       if (std::chrono::steady_clock::now() < deadline) continue;
@@ -158,6 +201,7 @@ RawSocketLink::RawSocketLink(const std::string& interface) {
   if (::bind(fd_, reinterpret_cast<const sockaddr*>(&address), sizeof address) != 0) fail("bind");
   const int ignore = 1;  // our own frames are not the bus's answer (Linux 4.20 and later)
   ::setsockopt(fd_, SOL_PACKET, PACKET_IGNORE_OUTGOING, &ignore, sizeof ignore);
+  stamp_arrivals(fd_);
 }
 
 RawSocketLink::~RawSocketLink() { ::close(fd_); }
@@ -173,8 +217,8 @@ std::size_t RawSocketLink::receive(std::uint8_t* buffer, std::int64_t timeout_ns
     if (!readable_before(fd_, deadline)) return 0;
     sockaddr_ll from{};
     socklen_t from_size = sizeof from;
-    const ssize_t n = ::recvfrom(fd_, buffer, kMaxEthernetFrameBytes, MSG_DONTWAIT | MSG_TRUNC,
-                                 reinterpret_cast<sockaddr*>(&from), &from_size);
+    const ssize_t n = receive_stamped(fd_, buffer, kMaxEthernetFrameBytes, MSG_DONTWAIT | MSG_TRUNC,
+                                      reinterpret_cast<sockaddr*>(&from), &from_size, last_arrival_ns_);
     const bool ours = from.sll_pkttype == PACKET_OUTGOING;  // where PACKET_IGNORE_OUTGOING is not there
     if (n > 0 && n <= static_cast<ssize_t>(kMaxEthernetFrameBytes) && !ours) return static_cast<std::size_t>(n);
     if (std::chrono::steady_clock::now() >= deadline) return 0;

@@ -7,6 +7,7 @@
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -15,6 +16,9 @@
 #include <cstdint>
 #include <string>
 #include <system_error>
+#include <thread>
+
+#include "pmlsm/util/clock.hpp"
 
 namespace pmlsm::ethercat {
 namespace {
@@ -81,6 +85,32 @@ TEST(EtherCatLink, OverUdpAMasterAsksAndASlaveAnswersWhoeverAsked) {
   EXPECT_EQ(slave.receive(buffer.data(), kShortWaitNs), 0u);
   EXPECT_GE(std::chrono::steady_clock::now() - start, std::chrono::nanoseconds(kShortWaitNs));
   EXPECT_EQ(slave.dropped(), 1u);
+}
+
+TEST(EtherCatLink, OverUdpAFrameReadLateCarriesTheTimeItCameNotTheTimeItWasRead) {
+  UdpLink slave({"127.0.0.1", 0, "127.0.0.1", 0});
+  UdpLink master({"127.0.0.1", 0, "127.0.0.1", slave.bound_port()});
+  EXPECT_EQ(slave.last_arrival_ns(), -1) << "nothing came yet";
+  // Linux turns receive stamps on for the whole system a moment after the first socket asks (a
+  // deferred switch); until then a frame carries the time it was read. Frames go until one is
+  // stamped, at most 50.
+  std::array<std::uint8_t, kMaxEthernetFrameBytes> buffer{};
+  int frames = 0;
+  bool stamped_on_arrival = false;
+  for (; frames < 50 && !stamped_on_arrival; ++frames) {
+    const std::int64_t before_send = monotonic_ns();
+    ASSERT_TRUE(master.send(numbered(3).ethernet()));
+    pollfd ready{slave.fd(), POLLIN, 0};
+    ASSERT_EQ(::poll(&ready, 1, 2000), 1);
+    const std::int64_t there = monotonic_ns();
+    // A reader busy elsewhere for 2 ms (a slave's process woken late).
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    expect_numbered(buffer.data(), slave.receive(buffer.data(), kArrivalNs), 3);
+    const std::int64_t arrived = slave.last_arrival_ns();
+    ASSERT_GE(arrived, before_send);
+    stamped_on_arrival = arrived <= there;
+  }
+  EXPECT_TRUE(stamped_on_arrival) << "after " << frames << " frames, each stamped when it was read";
 }
 
 TEST(EtherCatLink, AnAddressThatIsNotIpv4IsRefusedNamingIt) {

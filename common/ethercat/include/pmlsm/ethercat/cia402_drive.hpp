@@ -135,8 +135,8 @@ struct Cia402DriveCounters {
   std::uint64_t dc_writes = 0;               ///< the master's time written to the drive's clock
   std::uint64_t dc_writes_lost = 0;          ///< of them not answered or not taken
   std::uint64_t mailbox_polls = 0;           ///< looks into the drive's send mailbox for emergencies
-  /// SYNC0: outputs sent `sync0_shift_us` or more into their tick (the tick on whole milliseconds
-  /// of the master's clock), after the pulse that was to take them.
+  /// SYNC0: outputs sent `sync0_shift_us` or more after their tick's start (tick 0 on a whole
+  /// millisecond of the master's clock, each a millisecond on), after the pulse that was to take them.
   std::uint64_t outputs_after_sync0 = 0;
 };
 
@@ -266,6 +266,7 @@ class Cia402Drive final : public drive::Drive {
   std::int64_t transit_ns_ = 0;                   ///< a frame's way to the drive, estimated from the round trips
   std::uint64_t sync0_start_ns_ = 0;              ///< the first SYNC0 pulse in the drive's system time (0: none)
   std::int64_t line_delay_ns_ = 0;                ///< the reference clock to the line's last clock
+  std::uint64_t tick0_ns_ = 0;                    ///< tick 0\'s start on the master\'s clock (a whole millisecond)
   std::uint64_t emergencies_at_fault_check_ = 0;  ///< the master's count when a fault was last read
   bool own_clock_;                                ///< the owner gave the master's clock
   std::function<std::int64_t()> master_clock_;

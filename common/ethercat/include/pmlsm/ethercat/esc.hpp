@@ -295,6 +295,9 @@ class VirtualSegment {
   /// The frame in `bytes` (an Ethernet frame of `size` bytes) through every slave, in place.
   /// Returns what the parser said of it; a refused frame is left as it was (a real slave drops it).
   FrameError pass(std::uint8_t* bytes, std::size_t size);
+  /// The same at `at_ns` instead of the clock's now (the time the frame came: a frame read late
+  /// passes among the slaves' own events in the order it came).
+  FrameError pass(std::uint8_t* bytes, std::size_t size, std::int64_t at_ns);
   /// Frames received from `link`, passed and sent back, until none comes within `timeout_ns`;
   /// `between_frames` (may be empty) after each: the slaves' applications (their process data).
   /// @return the frames answered.

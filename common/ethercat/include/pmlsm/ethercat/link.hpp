@@ -26,6 +26,10 @@ class Link {
   virtual std::size_t receive(std::uint8_t* buffer, std::int64_t timeout_ns) = 0;
   /// The descriptor a frame makes readable (to wait on it with others); -1 when there is none.
   virtual int fd() const { return -1; }
+  /// When the last frame receive() returned reached this host, CLOCK_MONOTONIC ns, as the kernel
+  /// stamped it: a slave that reads its frames late still takes them in the order they came
+  /// among its own events (SYNC0). -1 when the transport does not know.
+  virtual std::int64_t last_arrival_ns() const { return -1; }
 };
 
 /// Two ends of a wire in one process: what one end sends, the other receives, in order. Up to
@@ -91,6 +95,7 @@ class UdpLink final : public Link {
   bool send(Bytes ethernet_frame) override;
   std::size_t receive(std::uint8_t* buffer, std::int64_t timeout_ns) override;
   int fd() const override { return fd_; }
+  std::int64_t last_arrival_ns() const override { return last_arrival_ns_; }
   /// Datagrams received that were no EtherCAT frame (too short): dropped.
   std::uint64_t dropped() const { return dropped_; }
   /// The port the link is bound to.
@@ -103,6 +108,7 @@ class UdpLink final : public Link {
   bool peer_known_ = false;
   std::uint16_t bound_port_ = 0;
   std::uint64_t dropped_ = 0;
+  std::int64_t last_arrival_ns_ = -1;
 };
 
 /// Raw Ethernet on an interface (Linux AF_PACKET, EtherType 0x88A4 only): the real bus. Needs
@@ -118,6 +124,7 @@ class RawSocketLink final : public Link {
   bool send(Bytes ethernet_frame) override;
   std::size_t receive(std::uint8_t* buffer, std::int64_t timeout_ns) override;
   int fd() const override { return fd_; }
+  std::int64_t last_arrival_ns() const override { return last_arrival_ns_; }
   /// The interface's own MAC address (a master sends from it).
   const MacAddress& mac() const { return mac_; }
 
@@ -125,6 +132,7 @@ class RawSocketLink final : public Link {
   int fd_ = -1;
   int interface_index_ = 0;
   MacAddress mac_{};
+  std::int64_t last_arrival_ns_ = -1;
 };
 
 }  // namespace pmlsm::ethercat
