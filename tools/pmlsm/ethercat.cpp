@@ -3,6 +3,7 @@
 //   pmlsm ethercat --interface eth1 scan                    # the slaves: identity, state, mailbox
 //   pmlsm ethercat --interface eth1 state 0x1001 preop      # walk a slave's AL state
 //   pmlsm ethercat --interface eth1 sdo read 0x1001 0x6061 0
+//   pmlsm ethercat --interface eth1 sdo read 0x1001 0x1C12 0 --complete   # a record whole
 //   pmlsm ethercat --interface eth1 sdo write 0x1001 0x6060 0 10 --size 1
 //   pmlsm ethercat serve --udp-port 34980                   # a virtual slave (or --interface)
 //   pmlsm ethercat serve --udp-port 34980 --drive           # ... driving the simulated motor
@@ -65,6 +66,7 @@ struct EthercatOptions {
   std::string rig;        ///< serve --drive: the CANopen rig file whose scaling the drive takes
   std::string file;       ///< pcap: the capture
   bool sdo_list = false;  ///< pcap --sdo
+  bool complete = false;  ///< sdo read --complete
 };
 
 std::uint32_t parse_number(const std::string& text, const char* what, std::uint32_t max) {
@@ -234,7 +236,12 @@ int run_sdo(const EthercatOptions& o, bool write) {
     const std::uint32_t value = parse_number(o.value, "value", 0xFFFFFFFFU);
     r = s.master->sdo_download(info, index, subindex, value, static_cast<std::uint8_t>(o.size));
   } else {
-    r = s.master->sdo_upload(info, index, subindex);
+    if (o.complete && (info.coe_details & 0x20) == 0) {
+      std::fprintf(stderr, "ethercat: slave %s does not offer complete access (its SII's CoE details: 0x%02X)\n",
+                   o.station.c_str(), info.coe_details);
+      return kExitError;
+    }
+    r = s.master->sdo_upload(info, index, subindex, o.complete);
   }
   std::printf("0x%04X 0x%04X:%u %s\n", station, index, subindex, write && r.done ? "written" : r.describe().c_str());
   return r.done ? kExitOk : kExitError;
@@ -408,6 +415,9 @@ void add_ethercat_command(CLI::App& app, int& exit_code) {
     sub->add_option("index", o->index, "The object's index (0x6060)")->required();
     sub->add_option("subindex", o->subindex, "Its sub-index")->required();
   }
+  read->add_flag("--complete", o->complete,
+                 "The whole record from the sub-index (0 or 1) on, by CoE's complete access (the slave's SII "
+                 "offers it)");
   write->add_option("value", o->value, "The value")->required();
   write->add_option("--size", o->size, "Its size in bytes, 1 to 4")->capture_default_str();
   read->callback(run([](const EthercatOptions& opt) { return run_sdo(opt, false); }));

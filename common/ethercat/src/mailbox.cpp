@@ -18,6 +18,7 @@ constexpr std::uint8_t kCcsInitiateDownloadResponse = 3;
 constexpr std::uint8_t kCcsAbort = 4;
 constexpr std::uint8_t kBitExpedited = 1U << 1;
 constexpr std::uint8_t kBitSizeIndicated = 1U << 0;
+constexpr std::uint8_t kBitCompleteAccess = 1U << 4;  // CoE: the whole record (initiate requests)
 
 }  // namespace
 
@@ -79,8 +80,14 @@ std::size_t CoeSdoServer::handle(const std::uint8_t* request, std::size_t size, 
   switch (command >> 5) {
     case kCcsInitiateUpload:
       upload_ = {};  // a new request ends any upload under way
+      if ((command & kBitCompleteAccess) != 0) {
+        const std::uint32_t code = read_record(index, subindex);
+        if (code != canopen::kAbortNone) return abort(response, index, subindex, code);
+        return start_upload(index, subindex, true, response, capacity);
+      }
       if (const canopen::TextEntry* text = dictionary_.find_text(index, subindex)) {
-        return start_upload(*text, response, capacity);
+        upload_data_.assign(text->text.begin(), text->text.end());
+        return start_upload(index, subindex, false, response, capacity);
       }
       break;
     case kCcsUploadSegment: return upload_segment(command, response, capacity);
@@ -88,6 +95,12 @@ std::size_t CoeSdoServer::handle(const std::uint8_t* request, std::size_t size, 
       upload_ = {};
       if ((command & kBitExpedited) == 0) {
         return normal_download(sdo, request + kCoeSdoMoreAt, coe_sdo_more_bytes(header), response);
+      }
+      if ((command & kBitCompleteAccess) != 0) {  // a whole record of up to 4 bytes, expedited
+        const std::size_t bytes = (command & kBitSizeIndicated) != 0 ? 4 - ((command >> 2) & 3U) : 4;
+        const std::uint32_t code = write_record(index, subindex, sdo.data() + 4, bytes);
+        if (code != canopen::kAbortNone) return abort(response, index, subindex, code);
+        return downloaded(response, index, subindex);
       }
       break;
     case kCcsDownloadSegment: return abort(response, 0, 0, canopen::kAbortCommandSpecifier);
@@ -112,6 +125,14 @@ std::size_t CoeSdoServer::respond(std::uint8_t* response, const SdoBytes& sdo, c
   return write_coe_sdo(response, counter_, kCoeServiceSdoResponse, sdo, more, more_bytes);
 }
 
+std::size_t CoeSdoServer::downloaded(std::uint8_t* response, std::uint16_t index, std::uint8_t subindex) {
+  SdoBytes answer{};
+  answer[0] = kCcsInitiateDownloadResponse << 5;
+  put_le16(answer.data() + 1, index);
+  answer[3] = subindex;
+  return respond(response, answer);
+}
+
 std::size_t CoeSdoServer::abort(std::uint8_t* response, std::uint16_t index, std::uint8_t subindex,
                                 std::uint32_t code) {
   upload_ = {};
@@ -123,31 +144,32 @@ std::size_t CoeSdoServer::abort(std::uint8_t* response, std::uint16_t index, std
   return respond(response, sdo);
 }
 
-std::size_t CoeSdoServer::start_upload(const canopen::TextEntry& text, std::uint8_t* response, std::size_t capacity) {
+std::size_t CoeSdoServer::start_upload(std::uint16_t index, std::uint8_t subindex, bool complete_access,
+                                       std::uint8_t* response, std::size_t capacity) {
   // 0x41: initiate upload response, size indicated, not expedited; the complete size in bytes 4-7.
   SdoBytes sdo{};
-  sdo[0] = (kCcsInitiateUpload << 5) | kBitSizeIndicated;
-  put_le16(sdo.data() + 1, text.index);
-  sdo[3] = text.subindex;
-  put_le32(sdo.data() + 4, static_cast<std::uint32_t>(text.text.size()));
+  sdo[0] = static_cast<std::uint8_t>((kCcsInitiateUpload << 5) | kBitSizeIndicated |
+                                     (complete_access ? kBitCompleteAccess : 0U));
+  put_le16(sdo.data() + 1, index);
+  sdo[3] = subindex;
+  put_le32(sdo.data() + 4, static_cast<std::uint32_t>(upload_data_.size()));
   const std::size_t room = capacity - kCoeSdoMoreAt;
-  const std::size_t first = std::min(room, text.text.size());
-  if (first < text.text.size()) upload_ = {true, text.index, text.subindex, first, 0};
-  return respond(response, sdo, reinterpret_cast<const std::uint8_t*>(text.text.data()), first);
+  const std::size_t first = std::min(room, upload_data_.size());
+  if (first < upload_data_.size()) upload_ = {true, index, subindex, first, 0};
+  return respond(response, sdo, upload_data_.data(), first);
 }
 
 std::size_t CoeSdoServer::upload_segment(std::uint8_t command, std::uint8_t* response, std::size_t capacity) {
-  const canopen::TextEntry* text = upload_.active ? dictionary_.find_text(upload_.index, upload_.subindex) : nullptr;
-  if (text == nullptr) return abort(response, 0, 0, canopen::kAbortCommandSpecifier);  // no upload under way
+  if (!upload_.active) return abort(response, 0, 0, canopen::kAbortCommandSpecifier);  // no upload under way
   if (((command >> 4) & 1U) != upload_.toggle) {
     return abort(response, upload_.index, upload_.subindex, canopen::kAbortToggleBit);
   }
   // The command byte, then as many bytes as the mailbox holds; at least 7 (n of them unused).
   const std::size_t room = capacity - kMailboxHeaderBytes - kCoeHeaderBytes - 1;
-  const std::size_t left = text->text.size() - upload_.sent;
+  const std::size_t left = upload_data_.size() - upload_.sent;
   const std::size_t bytes = std::min(room, left);
   const bool last = bytes == left;
-  const auto* data = reinterpret_cast<const std::uint8_t*>(text->text.data()) + upload_.sent;
+  const std::uint8_t* data = upload_data_.data() + upload_.sent;
   SdoBytes sdo{};
   const std::size_t in_eight = std::min<std::size_t>(bytes, kSdoBytes - 1);
   sdo[0] = static_cast<std::uint8_t>((upload_.toggle << 4) | ((kSdoBytes - 1 - in_eight) << 1) | (last ? 1U : 0U));
@@ -159,12 +181,96 @@ std::size_t CoeSdoServer::upload_segment(std::uint8_t command, std::uint8_t* res
   return respond(response, sdo, data + in_eight, bytes - in_eight);
 }
 
+const canopen::Entry* CoeSdoServer::record_count(std::uint16_t index, std::uint32_t& code) const {
+  const canopen::Entry* count = dictionary_.find(index, 0);
+  code = dictionary_.locate(index, 0);
+  if (count == nullptr) {
+    if (code == canopen::kAbortNone) code = canopen::kAbortUnsupportedAccess;  // a text
+    return nullptr;
+  }
+  const bool entries = std::any_of(dictionary_.begin(), dictionary_.end(),
+                                   [&](const canopen::Entry& e) { return e.index == index && e.subindex > 0; });
+  if (count->type != canopen::DataType::kU8 || !entries) {
+    code = canopen::kAbortUnsupportedAccess;  // a variable, not a record
+    return nullptr;
+  }
+  code = canopen::kAbortNone;
+  return count;
+}
+
+std::uint32_t CoeSdoServer::read_record(std::uint16_t index, std::uint8_t first_subindex) {
+  upload_data_.clear();
+  std::uint32_t code = canopen::kAbortNone;
+  const canopen::Entry* count = record_count(index, code);
+  if (count == nullptr) return code;
+  if (first_subindex > 1) return canopen::kAbortUnsupportedAccess;
+  const auto n = static_cast<std::uint8_t>(count->value);
+  if (first_subindex == 0) upload_data_.insert(upload_data_.end(), {n, 0});  // sub-index 0 as 16 bits
+  for (unsigned sub = 1; sub <= n; ++sub) {
+    const canopen::Result<canopen::SdoData> value = dictionary_.read(index, static_cast<std::uint8_t>(sub));
+    if (!value && value.abort_code == canopen::kAbortSubindexMissing) continue;  // a gap in the record
+    if (!value) return value.abort_code;
+    for (std::uint8_t i = 0; i < value.value.size; ++i) {
+      upload_data_.push_back(static_cast<std::uint8_t>(value.value.data >> (8 * i)));
+    }
+  }
+  return canopen::kAbortNone;
+}
+
+std::uint32_t CoeSdoServer::write_record(std::uint16_t index, std::uint8_t first_subindex, const std::uint8_t* data,
+                                         std::size_t size) {
+  std::uint32_t code = canopen::kAbortNone;
+  const canopen::Entry* count = record_count(index, code);
+  if (count == nullptr) return code;
+  if (first_subindex > 1) return canopen::kAbortUnsupportedAccess;
+  const bool with_count = first_subindex == 0;
+  if (with_count && size < 2) return canopen::kAbortLengthTooLow;
+  const auto n = with_count ? data[0] : static_cast<std::uint8_t>(count->value);
+  const bool count_writable = canopen::writable(count->access);
+  if (with_count && !count_writable && n != count->value) return canopen::kAbortWriteReadOnly;
+  // The length first: nothing is written from a record of the wrong size.
+  std::size_t expected = with_count ? 2 : 0;
+  for (unsigned sub = 1; sub <= n; ++sub) {
+    const canopen::Entry* e = dictionary_.find(index, static_cast<std::uint8_t>(sub));
+    if (e != nullptr) expected += canopen::size_of(e->type);
+  }
+  if (size != expected) return size < expected ? canopen::kAbortLengthTooLow : canopen::kAbortLengthTooHigh;
+  const auto write = [&](std::uint8_t sub, std::uint32_t value, std::uint8_t bytes) {
+    const canopen::Status s = dictionary_.write(index, sub, canopen::SdoData{value, bytes});
+    return s ? canopen::kAbortNone : s.abort_code;
+  };
+  if (with_count && count_writable) {
+    code = write(0, 0, 1);
+    if (code != canopen::kAbortNone) return code;
+  }
+  std::size_t at = with_count ? 2 : 0;
+  for (unsigned sub = 1; sub <= n; ++sub) {
+    const canopen::Entry* e = dictionary_.find(index, static_cast<std::uint8_t>(sub));
+    if (e == nullptr) continue;
+    const std::uint8_t bytes = canopen::size_of(e->type);
+    std::uint32_t value = 0;
+    for (std::uint8_t i = 0; i < bytes; ++i) value |= static_cast<std::uint32_t>(data[at + i]) << (8 * i);
+    at += bytes;
+    code = write(static_cast<std::uint8_t>(sub), value, bytes);
+    if (code != canopen::kAbortNone) return code;
+  }
+  if (with_count && count_writable) return write(0, n, 1);
+  return canopen::kAbortNone;
+}
+
 std::size_t CoeSdoServer::normal_download(const SdoBytes& sdo, const std::uint8_t* more, std::size_t more_bytes,
                                           std::uint8_t* response) {
   const auto index = static_cast<std::uint16_t>(sdo[1] | (sdo[2] << 8));
   const std::uint8_t subindex = sdo[3];
   if ((sdo[0] & kBitSizeIndicated) == 0) return abort(response, index, subindex, canopen::kAbortCommandSpecifier);
   const std::uint32_t size = get_le32(sdo.data() + 4);
+  if ((sdo[0] & kBitCompleteAccess) != 0) {
+    // A whole record in this message (a longer one would need segments: refused below).
+    std::uint32_t code = canopen::kAbortCommandSpecifier;
+    if (more_bytes >= size) code = write_record(index, subindex, more, size);
+    if (code != canopen::kAbortNone) return abort(response, index, subindex, code);
+    return downloaded(response, index, subindex);
+  }
   if (size > 4) {
     // Nothing writable here is longer: a text is read-only, a missing object missing, the rest
     // too long for their type.
@@ -182,11 +288,7 @@ std::size_t CoeSdoServer::normal_download(const SdoBytes& sdo, const std::uint8_
   const canopen::Status written =
       dictionary_.write(index, subindex, canopen::SdoData{value, static_cast<std::uint8_t>(size)});
   if (!written) return abort(response, index, subindex, written.abort_code);
-  SdoBytes answer{};
-  answer[0] = kCcsInitiateDownloadResponse << 5;
-  put_le16(answer.data() + 1, index);
-  answer[3] = subindex;
-  return respond(response, answer);
+  return downloaded(response, index, subindex);
 }
 
 std::size_t CoeSdoServer::write_emergency(std::uint8_t* out, std::uint16_t error_code, std::uint8_t error_register) {

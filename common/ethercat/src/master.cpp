@@ -35,7 +35,7 @@ void MasterParams::validate() const {
 }
 
 std::string SdoResult::describe() const {
-  if (done && bytes.size() > 4) {
+  if (done && (bytes.size() > 4 || !expedited)) {
     const bool text = std::all_of(bytes.begin(), bytes.end(), [](std::uint8_t b) { return b >= 0x20 && b < 0x7F; });
     std::string shown;
     if (text) {
@@ -46,7 +46,7 @@ std::string SdoResult::describe() const {
         std::snprintf(hex, sizeof hex, "%02X ", b);
         shown += hex;
       }
-      shown.pop_back();
+      if (!shown.empty()) shown.pop_back();
     }
     return shown + " (" + std::to_string(bytes.size()) + " bytes)";
   }
@@ -391,10 +391,11 @@ SdoResult Master::expedited_answer(const SlaveInfo& slave, const CoeAnswer& answ
   return r;
 }
 
-SdoResult Master::sdo_upload(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex) {
+SdoResult Master::sdo_upload(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex, bool complete_access) {
   const canopen::CanFrame request = canopen::sdo_upload_request(canopen::NodeId(1), index, subindex);
   SdoBytes bytes{};
   std::copy(request.data.begin(), request.data.end(), bytes.begin());
+  if (complete_access) bytes[0] = static_cast<std::uint8_t>(bytes[0] | 0x10U);  // CoE's complete access
   const CoeAnswer first = coe_request(slave, bytes);
   // 0x41: a normal upload (CoE): the complete size, then the data; segments for the rest.
   constexpr std::uint8_t kNormalUpload = 0x41;
@@ -416,6 +417,7 @@ SdoResult Master::normal_upload(const SlaveInfo& slave, std::uint16_t index, std
                              std::to_string(kMaxUploadBytes) + " taken)");
   }
   SdoResult r;
+  r.expedited = false;
   r.bytes.assign(first.more.begin(), first.more.begin() + std::min<std::size_t>(total, first.more.size()));
   for (std::uint8_t toggle = 0; r.bytes.size() < total; toggle ^= 1U) {
     SdoBytes request{};

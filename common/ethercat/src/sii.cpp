@@ -106,6 +106,7 @@ SiiInfo parse_sii(const std::vector<std::uint16_t>& w) {
     info.group = string_at(info.strings, general[0], "the group");
     info.order = string_at(info.strings, general[2], "the order code");
     info.name = string_at(info.strings, general[3], "the name");
+    if (general.size() >= 6) info.coe_details = general[5];
   }
   return info;
 }
@@ -133,10 +134,10 @@ std::vector<std::uint16_t> build_sii(const SiiInfo& info) {
   }
   append_category(w, sii_category::kStrings, strings);
   std::vector<std::uint8_t> general(32, 0);
-  general[0] = 3;                                                     // group
-  general[2] = 2;                                                     // order
-  general[3] = 1;                                                     // name
-  general[5] = (info.mailbox_protocols & 0x0004) != 0 ? 0x01 : 0x00;  // CoE: SDO supported
+  general[0] = 3;  // group
+  general[2] = 2;  // order
+  general[3] = 1;  // name
+  general[5] = static_cast<std::uint8_t>(info.coe_details | ((info.mailbox_protocols & 0x0004) != 0 ? 0x01 : 0x00));
   append_category(w, sii_category::kGeneral, general);
   std::vector<std::uint8_t> sync_managers;
   for (const SiiSyncManager& sm : info.sync_managers) {

@@ -149,6 +149,46 @@ TEST(CoeSdo, TheServerAbortsEachMisuseOfTheProtocolWithItsCode) {
   EXPECT_EQ(slave.dictionary.read(0x1008, 0).abort_code, canopen::kAbortUnsupportedAccess);
 }
 
+TEST(CoeSdo, CompleteAccessReadsAndWritesARecordWholeAsTheSiiOffersIt) {
+  VirtualCia402Slave slave;
+  VirtualSegment segment({&slave.esc()});
+  VirtualSegmentLink link(segment);
+  Master master(link);
+  const SlaveInfo info = test::to_preop(master);
+  EXPECT_EQ(info.coe_details & 0x20, 0x20) << "its SII offers complete access";
+  const auto read = [&](std::uint16_t index, std::uint8_t sub) {
+    const SdoResult r = master.sdo_upload(info, index, sub, true);
+    EXPECT_TRUE(r.done) << r.describe();
+    return r.describe();
+  };
+  // Sub-index 0 as 16 bits, then each entry in its size (ETG.1000.6), as SOEM reads them.
+  EXPECT_EQ(read(kObjectSyncManagerTypes, 0), "04 00 01 02 03 04 (6 bytes)");
+  EXPECT_EQ(read(kObjectSyncManagerTypes, 1), "01 02 03 04 (4 bytes)");
+  EXPECT_EQ(read(kObjectRxPdoAssign, 0), "01 00 00 16 (4 bytes)");
+  EXPECT_EQ(read(kRxPdoMapping, 0), "02 00 10 00 40 60 10 00 71 60 (10 bytes)");
+  EXPECT_EQ(master.sdo_upload(info, 0x6041, 0, true).abort_code, canopen::kAbortUnsupportedAccess) << "a variable";
+  EXPECT_EQ(master.sdo_upload(info, 0x1008, 0, true).abort_code, canopen::kAbortUnsupportedAccess) << "a text";
+  EXPECT_EQ(master.sdo_upload(info, kRxPdoMapping, 2, true).abort_code, canopen::kAbortUnsupportedAccess);
+  // Written whole: the mapping in the other order (count 0, the entries, the count, each checked).
+  CoeSdoServer server(slave.dictionary(), canopen::NodeId(1));
+  const std::vector<std::uint8_t> swapped{2, 0, 0x10, 0, 0x71, 0x60, 0x10, 0, 0x40, 0x60};
+  const auto write = [&](const std::vector<std::uint8_t>& record) {
+    return ask(server, {0x31, 0x00, 0x16, 0, static_cast<std::uint8_t>(record.size()), 0, 0, 0}, record);
+  };
+  EXPECT_EQ(write(swapped).sdo[0], 0x60);
+  EXPECT_EQ(read(kRxPdoMapping, 0), "02 00 10 00 71 60 10 00 40 60 (10 bytes)");
+  // The wrong length: aborted before anything is written. An entry the dictionary refuses: aborted
+  // after the count went to 0, so the mapping is empty until it is written again.
+  std::vector<std::uint8_t> short_one(swapped.begin(), swapped.end() - 1);
+  EXPECT_EQ(abort_code_of(write(short_one)), canopen::kAbortLengthTooLow);
+  std::vector<std::uint8_t> absent = swapped;
+  absent[5] = 0x77;  // 0x7771: no such object
+  EXPECT_EQ(abort_code_of(write(absent)), canopen::kAbortObjectMissing);
+  EXPECT_EQ(read(kRxPdoMapping, 0).substr(0, 5), "00 00") << "count 0 first: a mapping is rebuilt from nothing";
+  EXPECT_EQ(write(swapped).sdo[0], 0x60);
+  EXPECT_EQ(read(kRxPdoMapping, 0), "02 00 10 00 71 60 10 00 40 60 (10 bytes)");
+}
+
 TEST(CoeSdo, ACaptureOfASegmentedUploadNamesEachMessage) {
   const fs::path path = fs::temp_directory_path() / ("pmlsm_coe_sdo_" + std::to_string(::getpid())) / "s.pcapng";
   fs::create_directories(path.parent_path());

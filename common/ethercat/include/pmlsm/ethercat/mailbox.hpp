@@ -22,6 +22,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <vector>
 
 #include "pmlsm/canopen/object_dictionary.hpp"
 #include "pmlsm/canopen/sdo_server.hpp"
@@ -79,12 +80,19 @@ class MailboxHandler {
 
 /// SDO over CoE answered by the CANopen SDO server on an object dictionary (expedited transfers,
 /// CiA 301's abort codes); the dictionary's texts by normal and segmented upload, a normal download
-/// of up to 4 bytes, as above. Anything else in the mailbox is answered with nothing.
+/// of up to 4 bytes, as above; and complete access (command bit 4, what SOEM uses to read a
+/// slave's PDO assignment and mapping whole when the SII's CoE details offer it): a record read or
+/// written whole, sub-index 0 padded to 16 bits. Anything else in the mailbox is answered with
+/// nothing.
 class CoeSdoServer final : public MailboxHandler {
  public:
+  /// What an upload usually needs (texts and records grow it, outside a cycle).
+  static constexpr std::size_t kReservedUploadBytes = 512;
   /// `dictionary` outlives the server; `node` only addresses the CANopen server inside.
   CoeSdoServer(canopen::ObjectDictionary& dictionary, canopen::NodeId node)
-      : dictionary_(dictionary), server_(dictionary, node) {}
+      : dictionary_(dictionary), server_(dictionary, node) {
+    upload_data_.reserve(kReservedUploadBytes);
+  }
   std::size_t handle(const std::uint8_t* request, std::size_t size, std::uint8_t* response,
                      std::size_t capacity) override;
   std::uint64_t requests() const { return requests_; }
@@ -96,17 +104,31 @@ class CoeSdoServer final : public MailboxHandler {
   std::uint64_t segments() const { return segments_; }
 
  private:
-  /// A text's normal upload: its size and first bytes, the transfer kept for the segments.
-  std::size_t start_upload(const canopen::TextEntry& text, std::uint8_t* response, std::size_t capacity);
+  /// A normal upload of upload_data_: its size and first bytes (0x41, with the complete-access bit
+  /// when asked so), the transfer kept for the segments.
+  std::size_t start_upload(std::uint16_t index, std::uint8_t subindex, bool complete_access, std::uint8_t* response,
+                           std::size_t capacity);
   std::size_t upload_segment(std::uint8_t command, std::uint8_t* response, std::size_t capacity);
   /// A normal download: the size (bytes 4-7) and the data after the 8 bytes.
   std::size_t normal_download(const SdoBytes& sdo, const std::uint8_t* more, std::size_t more_bytes,
                               std::uint8_t* response);
+  /// Complete access (ETG.1000.6): a record from sub-index 0 (itself as 16 bits) or 1 on, each
+  /// present entry up to sub-index 0's value in its size, into upload_data_. 0 or the abort code.
+  std::uint32_t read_record(std::uint16_t index, std::uint8_t first_subindex);
+  /// The same laid out in `data` written: the length checked first, sub-index 0 (when written and
+  /// writable) set to 0 before the entries and to its value after them, each entry's checks kept.
+  std::uint32_t write_record(std::uint16_t index, std::uint8_t first_subindex, const std::uint8_t* data,
+                             std::size_t size);
+  /// The record's sub-index 0 when `index` is a record (an unsigned 8-bit sub-index 0 and more
+  /// entries), else nullptr with the abort code in `code`.
+  const canopen::Entry* record_count(std::uint16_t index, std::uint32_t& code) const;
   std::size_t respond(std::uint8_t* response, const SdoBytes& sdo, const std::uint8_t* more = nullptr,
                       std::size_t more_bytes = 0);
   std::size_t abort(std::uint8_t* response, std::uint16_t index, std::uint8_t subindex, std::uint32_t code);
+  /// The initiate download response (0x60): written.
+  std::size_t downloaded(std::uint8_t* response, std::uint16_t index, std::uint8_t subindex);
 
-  /// A normal upload under way: the text's multiplexer, the bytes sent so far, the next toggle.
+  /// A normal upload under way: its multiplexer, the bytes sent so far, the next toggle.
   struct Upload {
     bool active = false;
     std::uint16_t index = 0;
@@ -118,6 +140,7 @@ class CoeSdoServer final : public MailboxHandler {
   canopen::ObjectDictionary& dictionary_;
   canopen::SdoServer server_;
   Upload upload_;
+  std::vector<std::uint8_t> upload_data_;  ///< what the upload under way sends
   std::uint8_t counter_ = 0;
   std::uint64_t requests_ = 0;
   std::uint64_t segments_ = 0;

@@ -51,6 +51,7 @@ struct SdoResult {
   std::uint8_t size = 0;    ///< upload, expedited: 1..4 bytes (0: not indicated or not expedited)
   std::uint32_t abort_code = 0;
   std::vector<std::uint8_t> bytes;  ///< upload: every byte read (4 when the size was not indicated)
+  bool expedited = true;            ///< upload: in the initiate response (else normal or segmented)
   /// "0x00020192", "\"AKD EtherCAT Drive (CoE)\" (24 bytes)" for a text, "01 02 ... (300 bytes)"
   /// for other long data, or "aborted: 0x06020000 object does not exist ..."
   std::string describe() const;
@@ -152,7 +153,10 @@ class Master {
   /// for a value over 4 bytes, up to kMaxUploadBytes.
   /// @throws std::runtime_error naming the slave when the mailbox does not answer, or the object
   /// when its segments do not follow the protocol or it is longer (the transfer aborted first).
-  SdoResult sdo_upload(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex);
+  /// `complete_access`: the whole record from `subindex` (0 or 1) on, as the slave lays it out
+  /// (sub-index 0 padded to 16 bits), for a slave whose SII offers it (CoE details bit 5).
+  SdoResult sdo_upload(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex,
+                       bool complete_access = false);
   /// An object written over CoE: `size` bytes (1..4) of `value`.
   /// @throws std::runtime_error as sdo_upload, std::invalid_argument for a size outside 1..4.
   SdoResult sdo_download(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex, std::uint32_t value,

@@ -67,8 +67,11 @@ struct SiiInfo {
   std::uint16_t mailbox_send_offset = 0;
   std::uint16_t mailbox_send_size = 0;
   std::uint16_t mailbox_protocols = 0;  ///< bit 2: CoE
-  std::vector<std::string> strings;     ///< index 1 is strings[0]
-  std::string name;                     ///< from the general category ("" without one)
+  /// The general category's CoE details: bit 0 SDO, bit 5 SDO complete access (a master may read
+  /// and write a whole record at once). Built with bit 0 set whenever the mailbox speaks CoE.
+  std::uint8_t coe_details = 0;
+  std::vector<std::string> strings;  ///< index 1 is strings[0]
+  std::string name;                  ///< from the general category ("" without one)
   std::string order;
   std::string group;
   std::vector<SiiSyncManager> sync_managers;
