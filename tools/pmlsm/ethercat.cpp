@@ -236,7 +236,7 @@ int run_sdo(const EthercatOptions& o, bool write) {
     const std::uint32_t value = parse_number(o.value, "value", 0xFFFFFFFFU);
     r = s.master->sdo_download(info, index, subindex, value, static_cast<std::uint8_t>(o.size));
   } else {
-    if (o.complete && (info.coe_details & 0x20) == 0) {
+    if (o.complete && (info.coe_details & kCoeDetailsCompleteAccess) == 0) {
       std::fprintf(stderr, "ethercat: slave %s does not offer complete access (its SII's CoE details: 0x%02X)\n",
                    o.station.c_str(), info.coe_details);
       return kExitError;

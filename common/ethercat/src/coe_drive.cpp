@@ -232,8 +232,8 @@ std::vector<std::uint16_t> VirtualCia402Slave::virtual_sii(std::uint16_t output_
   info.mailbox_receive_size = kMailboxBytes;
   info.mailbox_send_offset = kMailboxSendAt;
   info.mailbox_send_size = kMailboxBytes;
-  info.mailbox_protocols = 0x0004;  // CoE
-  info.coe_details = 0x21;          // SDO, and complete access
+  info.mailbox_protocols = 0x0004;                      // CoE
+  info.coe_details = 0x01 | kCoeDetailsCompleteAccess;  // SDO, and complete access
   info.group = "Drive";
   info.order = "pmlsm-virtual-drive";
   info.name = "PMLSM virtual drive";

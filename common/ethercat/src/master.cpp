@@ -292,7 +292,8 @@ StateResult Master::request_state(std::uint16_t station, AlState state) {
   }
 }
 
-Master::CoeAnswer Master::coe_request(const SlaveInfo& slave, const SdoBytes& request) {
+Master::CoeAnswer Master::coe_request(const SlaveInfo& slave, const SdoBytes& request, const std::uint8_t* more,
+                                      std::size_t more_bytes) {
   const std::uint16_t station = slave.station_address;
   if (slave.mailbox_receive_size < kMailboxHeaderBytes + kCoeHeaderBytes + kSdoBytes ||
       slave.mailbox_receive_size > kMaxDatagramDataBytes || slave.mailbox_send_size > kMaxDatagramDataBytes) {
@@ -302,7 +303,7 @@ Master::CoeAnswer Master::coe_request(const SlaveInfo& slave, const SdoBytes& re
   }
   std::array<std::uint8_t, kMaxDatagramDataBytes> mailbox{};
   mailbox_counter_ = static_cast<std::uint8_t>(mailbox_counter_ % 7 + 1);
-  write_coe_sdo(mailbox.data(), mailbox_counter_, kCoeServiceSdoRequest, request);
+  write_coe_sdo(mailbox.data(), mailbox_counter_, kCoeServiceSdoRequest, request, more, more_bytes);
   // The whole receive mailbox: the slave takes a message when its last byte is written.
   write_register(station, slave.mailbox_receive_offset, mailbox.data(), slave.mailbox_receive_size, "receive mailbox");
   // The answer: SM1's status says when the send mailbox is full; then the whole of it is read. A
@@ -461,6 +462,22 @@ void Master::abort_transfer(const SlaveInfo& slave, std::uint16_t index, std::ui
                  "receive mailbox");
 }
 
+SdoResult Master::sdo_download_record(const SlaveInfo& slave, std::uint16_t index,
+                                      const std::vector<std::uint8_t>& record) {
+  const std::size_t room = std::min<std::size_t>(slave.mailbox_receive_size, kMaxDatagramDataBytes);
+  if (room < kCoeSdoMoreAt || record.size() > room - kCoeSdoMoreAt) {
+    throw std::invalid_argument(
+        "sdo_download_record: " + std::to_string(record.size()) + " bytes; the receive mailbox holds " +
+        std::to_string(room > kCoeSdoMoreAt ? room - kCoeSdoMoreAt : 0) + " (a segmented download is not done)");
+  }
+  // 0x31: initiate download, size indicated, not expedited, complete access from sub-index 0.
+  SdoBytes request{};
+  request[0] = 0x31;
+  put_le16(request.data() + 1, index);
+  put_le32(request.data() + 4, static_cast<std::uint32_t>(record.size()));
+  return expedited_answer(slave, coe_request(slave, request, record.data(), record.size()));
+}
+
 SdoResult Master::sdo_download(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex, std::uint32_t value,
                                std::uint8_t size) {
   const canopen::Result<canopen::CanFrame> request =
@@ -492,6 +509,36 @@ void Master::write_pdo_assignment(const SlaveInfo& slave, std::uint16_t assign_i
     throw std::invalid_argument(std::to_string(entries.size()) + " entries need " + std::to_string(pdos.size()) +
                                 " PDOs of 64 bits; a sync manager takes 4 here");
   }
+  // A refusal of a record sends it all again entry by entry, which names the entry refused.
+  if ((slave.coe_details & kCoeDetailsCompleteAccess) != 0 &&
+      write_pdo_assignment_whole(slave, assign_index, first_pdo, pdos)) {
+    return;
+  }
+  write_pdo_assignment_by_entry(slave, assign_index, first_pdo, pdos);
+}
+
+bool Master::write_pdo_assignment_whole(const SlaveInfo& slave, std::uint16_t assign_index, std::uint16_t first_pdo,
+                                        const std::vector<std::vector<canopen::PdoMapEntry>>& pdos) {
+  // Each record whole: the assignment emptied, each mapping, then the assignment (three SDOs for
+  // one PDO instead of an SDO an entry); the slave keeps CiA 301's order inside each.
+  if (!sdo_download_record(slave, assign_index, {0, 0}).done) return false;
+  std::vector<std::uint8_t> assignment{static_cast<std::uint8_t>(pdos.size()), 0};
+  for (std::size_t p = 0; p < pdos.size(); ++p) {
+    const auto pdo = static_cast<std::uint16_t>(first_pdo + p);
+    std::vector<std::uint8_t> mapping{static_cast<std::uint8_t>(pdos[p].size()), 0};
+    for (const canopen::PdoMapEntry& e : pdos[p]) {
+      const std::uint32_t coded = canopen::encode_pdo_mapping(e);
+      for (int i = 0; i < 4; ++i) mapping.push_back(static_cast<std::uint8_t>(coded >> (8 * i)));
+    }
+    if (!sdo_download_record(slave, pdo, mapping).done) return false;
+    assignment.push_back(static_cast<std::uint8_t>(pdo & 0xFFU));
+    assignment.push_back(static_cast<std::uint8_t>(pdo >> 8));
+  }
+  return sdo_download_record(slave, assign_index, assignment).done;
+}
+
+void Master::write_pdo_assignment_by_entry(const SlaveInfo& slave, std::uint16_t assign_index, std::uint16_t first_pdo,
+                                           const std::vector<std::vector<canopen::PdoMapEntry>>& pdos) {
   const auto write = [&](std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t size) {
     const SdoResult r = sdo_download(slave, index, sub, value, size);
     if (!r.done) {

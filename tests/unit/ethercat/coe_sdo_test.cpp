@@ -155,7 +155,8 @@ TEST(CoeSdo, CompleteAccessReadsAndWritesARecordWholeAsTheSiiOffersIt) {
   VirtualSegmentLink link(segment);
   Master master(link);
   const SlaveInfo info = test::to_preop(master);
-  EXPECT_EQ(info.coe_details & 0x20, 0x20) << "its SII offers complete access";
+  EXPECT_EQ(info.coe_details & kCoeDetailsCompleteAccess, kCoeDetailsCompleteAccess)
+      << "its SII offers complete access";
   const auto read = [&](std::uint16_t index, std::uint8_t sub) {
     const SdoResult r = master.sdo_upload(info, index, sub, true);
     EXPECT_TRUE(r.done) << r.describe();
@@ -187,6 +188,29 @@ TEST(CoeSdo, CompleteAccessReadsAndWritesARecordWholeAsTheSiiOffersIt) {
   EXPECT_EQ(read(kRxPdoMapping, 0).substr(0, 5), "00 00") << "count 0 first: a mapping is rebuilt from nothing";
   EXPECT_EQ(write(swapped).sdo[0], 0x60);
   EXPECT_EQ(read(kRxPdoMapping, 0), "02 00 10 00 71 60 10 00 40 60 (10 bytes)");
+}
+
+TEST(CoeSdo, OurMasterWritesAPdoAssignmentWholeWhereTheSlaveOffersCompleteAccess) {
+  // Three SDOs for one PDO (the assignment emptied, the mapping, the assignment) instead of seven,
+  // the dictionary left as the entry-by-entry procedure leaves it.
+  const std::vector<canopen::PdoMapEntry> entries{{0x6071, 0, 16}, {0x6040, 0, 16}};
+  std::vector<std::string> records;
+  for (const bool whole : {true, false}) {
+    VirtualCia402Slave slave;
+    VirtualSegment segment({&slave.esc()});
+    VirtualSegmentLink link(segment);
+    Master master(link);
+    SlaveInfo info = test::to_preop(master);
+    if (!whole) info.coe_details = 0x01;  // as a slave without complete access
+    const std::uint64_t before = slave.coe().requests();
+    master.write_pdo_assignment(info, kObjectRxPdoAssign, kRxPdoMapping, entries);
+    EXPECT_EQ(slave.coe().requests() - before, whole ? 3u : 7u);
+    info.coe_details = 0x21;
+    records.push_back(master.sdo_upload(info, kRxPdoMapping, 0, true).describe() + " / " +
+                      master.sdo_upload(info, kObjectRxPdoAssign, 0, true).describe());
+  }
+  EXPECT_EQ(records[0], "02 00 10 00 71 60 10 00 40 60 (10 bytes) / 01 00 00 16 (4 bytes)");
+  EXPECT_EQ(records[0], records[1]);
 }
 
 TEST(CoeSdo, ACaptureOfASegmentedUploadNamesEachMessage) {

@@ -162,10 +162,17 @@ class Master {
   SdoResult sdo_download(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex, std::uint32_t value,
                          std::uint8_t size);
 
+  /// A record written whole by CoE's complete access from sub-index 0 (`record`: sub-index 0 as
+  /// 16 bits, then each entry in its size), in one mailbox message.
+  /// @throws std::runtime_error as sdo_upload, std::invalid_argument for a record longer than the
+  /// receive mailbox holds (a segmented download is not done).
+  SdoResult sdo_download_record(const SlaveInfo& slave, std::uint16_t index, const std::vector<std::uint8_t>& record);
+
   /// A sync manager's PDO assignment written over CoE (the slave in PREOP, ETG.1000.6's order): the
   /// assignment `assign_index` (0x1C12 outputs, 0x1C13 inputs) emptied, `entries` mapped in order
   /// into the PDOs from `first_pdo` on (0x1600, 0x1A00), a PDO at most 8 entries and 64 bits (what
-  /// every CoE slave takes, CANopen's PDO included), each assigned after the one before.
+  /// every CoE slave takes, CANopen's PDO included), each assigned after the one before. A slave
+  /// whose SII offers complete access gets each record whole (three SDOs for one PDO).
   /// @throws std::runtime_error naming the object and the abort code when the slave refuses,
   /// std::invalid_argument when the entries need more than 4 PDOs or one is wider than 32 bits.
   void write_pdo_assignment(const SlaveInfo& slave, std::uint16_t assign_index, std::uint16_t first_pdo,
@@ -237,13 +244,20 @@ class Master {
     std::vector<std::uint8_t> more;
   };
   /// One SDO request through the mailboxes and its response (emergencies before it counted).
-  CoeAnswer coe_request(const SlaveInfo& slave, const SdoBytes& request);
+  CoeAnswer coe_request(const SlaveInfo& slave, const SdoBytes& request, const std::uint8_t* more = nullptr,
+                        std::size_t more_bytes = 0);
   /// One expedited SDO request and its response read.
   SdoResult sdo_transfer(const SlaveInfo& slave, const SdoBytes& request);
   /// An expedited response (or an abort) read. @throws std::runtime_error when not understood.
   SdoResult expedited_answer(const SlaveInfo& slave, const CoeAnswer& answer);
   /// The rest of a normal upload whose first response is `first`: its segments.
   SdoResult normal_upload(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex, const CoeAnswer& first);
+  /// write_pdo_assignment by complete access, the PDOs laid out: false at the first refusal.
+  bool write_pdo_assignment_whole(const SlaveInfo& slave, std::uint16_t assign_index, std::uint16_t first_pdo,
+                                  const std::vector<std::vector<canopen::PdoMapEntry>>& pdos);
+  /// write_pdo_assignment an SDO an entry (CiA 301's procedure), the PDOs already laid out.
+  void write_pdo_assignment_by_entry(const SlaveInfo& slave, std::uint16_t assign_index, std::uint16_t first_pdo,
+                                     const std::vector<std::vector<canopen::PdoMapEntry>>& pdos);
   /// The master's abort of a transfer (no answer comes).
   void abort_transfer(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex, std::uint32_t code);
 

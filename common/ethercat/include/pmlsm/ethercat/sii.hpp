@@ -57,6 +57,9 @@ struct SiiSyncManager {
   }
 };
 
+/// SiiInfo::coe_details: SDO complete access offered.
+inline constexpr std::uint8_t kCoeDetailsCompleteAccess = 0x20;
+
 struct SiiInfo {
   std::uint32_t vendor_id = 0;
   std::uint32_t product_code = 0;
