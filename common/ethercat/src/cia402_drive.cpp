@@ -1,15 +1,14 @@
 #include "pmlsm/ethercat/cia402_drive.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <string>
-#include <thread>
 
 #include "pmlsm/canopen/cia402_application.hpp"
 #include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/canopen/emcy.hpp"
 #include "pmlsm/ethercat/coe_drive.hpp"
+#include "pmlsm/util/clock.hpp"
 #include "pmlsm/util/little_endian.hpp"
 #include "pmlsm/util/validate.hpp"
 
@@ -22,13 +21,6 @@ constexpr std::int64_t kNsPerMs = 1'000'000;
 const Cia402DriveConfig& validated(const Cia402DriveConfig& config) {
   config.validate();
   return config;
-}
-
-/// The master's clock for the drive's distributed clock, unless the owner gives one: the host's
-/// monotonic time (the drive loop's tick grid runs on it).
-std::int64_t host_monotonic_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
 }
 
 MasterParams master_params(const Cia402DriveConfig& c) {
@@ -61,7 +53,8 @@ Cia402Drive::Cia402Drive(const Cia402DriveConfig& config, Link& link, std::funct
       scaling_(config.scaling),
       remote_(config.enable_timeout_cycles),
       own_clock_(static_cast<bool>(master_clock)),
-      master_clock_(master_clock ? std::move(master_clock) : host_monotonic_ns) {}
+      // Unless the owner gives one, the host's CLOCK_MONOTONIC: the drive loop's tick grid runs on it.
+      master_clock_(master_clock ? std::move(master_clock) : monotonic_ns) {}
 
 std::uint64_t Cia402Drive::master_time_ns() const { return static_cast<std::uint64_t>(master_clock_()); }
 
@@ -69,8 +62,7 @@ void Cia402Drive::pace_cycle() {
   // A drive's state machine runs in its cycle (on SYNC0 in DC mode): a walk at wire speed would
   // outrun it. On the host's clock only; a clock of the owner's paces itself.
   if (own_clock_) return;
-  const std::int64_t now = host_monotonic_ns();
-  std::this_thread::sleep_for(std::chrono::nanoseconds(kNsPerMs - now % kNsPerMs));
+  sleep_until_monotonic_ns((monotonic_ns() / kNsPerMs + 1) * kNsPerMs);
 }
 
 // The boot is one sequence of set-up steps, each naming what failed; kept in one place so the

@@ -1,5 +1,7 @@
 #include "pmlsm/ethercat/link.hpp"
 
+#include "pmlsm/util/clock.hpp"
+
 #include <arpa/inet.h>
 #include <linux/if_packet.h>
 #include <net/ethernet.h>
@@ -9,7 +11,6 @@
 #include <poll.h>
 #include <sys/socket.h>
 #include <sys/uio.h>
-#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -85,12 +86,8 @@ ssize_t receive_stamped(int fd, void* buffer, std::size_t size, int flags, socka
     if (c->cmsg_level != SOL_SOCKET || c->cmsg_type != SCM_TIMESTAMPNS) continue;
     timespec stamp{};
     std::memcpy(&stamp, CMSG_DATA(c), sizeof stamp);
-    timespec real{};
-    timespec mono{};
-    ::clock_gettime(CLOCK_REALTIME, &real);
-    ::clock_gettime(CLOCK_MONOTONIC, &mono);
-    const auto ns = [](const timespec& t) { return static_cast<std::int64_t>(t.tv_sec) * 1'000'000'000 + t.tv_nsec; };
-    arrival_ns = std::min(ns(mono), ns(stamp) - (ns(real) - ns(mono)));
+    const std::int64_t mono = monotonic_ns();
+    arrival_ns = std::min(mono, to_ns(stamp) - (wall_time_ns() - mono));
   }
   return n;
 }

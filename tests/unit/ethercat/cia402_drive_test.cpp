@@ -24,6 +24,7 @@
 #include "pmlsm/ethercat/coe_drive.hpp"
 #include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/sim/simulated_drive.hpp"
+#include "shipped_drive.hpp"
 
 namespace pmlsm::ethercat::backend_test {
 namespace {
@@ -62,39 +63,14 @@ class LossyLink final : public Link {
 /// The virtual drive with the CANopen device's dictionary (the lockstep contract) or the CiA 402
 /// one alone, on a segment of its own, its application run after every frame at a simulated time
 /// that advances one period a frame; our drive backend on a lossy link to it.
-struct Rig {
+struct Rig : test::ShippedDrive {
   explicit Rig(bool device_dictionary, Cia402DriveConfig config = rig_config())
-      : root(std::string(PMLSM_SOURCE_DIR) + "/"),
-        system(load_system_params(root + "configs/system.yaml")),
-        canopen_rig(load_canopen_config(root + "configs/canopen/drive.yaml")),
-        device(load_device_dictionary(root + "configs/canopen/virtual_drive_od.yaml")),
-        behind(system, PlantInitialCondition{}),
-        drive(make_drive(device_dictionary)),
+      : drive(make_drive(device_dictionary)),
         segment({&drive->esc()}),
         link(segment, [this] { drive->after_frame(now_ns += step_ns); }),
         lossy(link),
         master(config, lossy) {}
 
-  /// The shipped rig file, with this thread's time-outs.
-  static Cia402DriveConfig rig_config() {
-    Cia402DriveConfig c = load_ethercat_config(std::string(PMLSM_SOURCE_DIR) + "/configs/ethercat/drive.yaml");
-    c.reply_timeout_ms = 1;  // in this thread a reply is there at once or never
-    c.cycle_timeout_ms = 1;
-    return c;
-  }
-  std::unique_ptr<VirtualEthercatDrive> make_drive(bool device_dictionary) {
-    canopen::Cia402ApplicationParams params;
-    params.scaling = canopen_rig.master.scaling;
-    if (!device_dictionary) return std::make_unique<VirtualEthercatDrive>(params, behind);
-    return std::make_unique<VirtualEthercatDrive>(
-        params, behind, build_device_dictionary(canopen_rig, device, system.timing.control_period_s));
-  }
-
-  std::string root;
-  SystemParams system;
-  CanopenRigConfig canopen_rig;
-  DeviceDictionary device;
-  SimulatedDriveBackend behind;
   std::unique_ptr<VirtualEthercatDrive> drive;
   VirtualSegment segment;
   std::int64_t now_ns = 0;
@@ -105,6 +81,17 @@ struct Rig {
 };
 
 double profile_n(int k) { return 120.0 * std::sin(2.0 * M_PI * k / 150.0); }
+
+/// The boot, the walk to operation enabled, then `ticks` ticks of `force_n` through the seam.
+void boot_and_run(Rig& rig, int ticks, double force_n) {
+  rig.master.boot();
+  rig.master.start();
+  rig.master.enable_and_wait();
+  for (int k = 0; k < ticks; ++k) {
+    rig.master.sample();
+    rig.master.apply(force_n);
+  }
+}
 
 /// `ticks` ticks through the seam (sample, then apply), each reading compared with the simulated
 /// drive stepped directly, call for call, to the encoder's and the torque's quantisation.
@@ -168,13 +155,7 @@ TEST(EthercatCia402Drive, LostRepliesCostNoPeriodAndStepNoSecondOne) {
 
 TEST(EthercatCia402Drive, ADriveThatStopsAnsweringIsLostAtZeroForceNeverWaitedFor) {
   Rig rig(true);
-  rig.master.boot();
-  rig.master.start();
-  rig.master.enable_and_wait();
-  for (int k = 0; k < 20; ++k) {
-    rig.master.sample();
-    rig.master.apply(50.0);
-  }
+  boot_and_run(rig, 20, 50.0);
   rig.lossy.dead = true;  // the cable pulled
   rig.master.sample();
   EXPECT_TRUE(rig.master.lost());
@@ -225,13 +206,7 @@ TEST(EthercatCia402Drive, RealtimeTheDrivesWatchdogFaultIsReadWithItsErrorCode) 
 
 TEST(EthercatCia402Drive, AWarningTheDrivePostsIsReadWithinTenCyclesWithoutAFaultOrALostPeriod) {
   Rig rig(true);
-  rig.master.boot();
-  rig.master.start();
-  rig.master.enable_and_wait();
-  for (int k = 0; k < 5; ++k) {
-    rig.master.sample();
-    rig.master.apply(20.0);
-  }
+  boot_and_run(rig, 5, 20.0);
   EXPECT_EQ(rig.master.emergencies(), 0u);
   // A manufacturer's warning (0xFF01) in the drive's send mailbox, no fault behind it.
   ASSERT_TRUE(rig.drive->slave().post_emergency(0xFF01));

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "coe_slave.hpp"
+#include "shipped_drive.hpp"
 #include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/config/canopen_config.hpp"
 #include "pmlsm/config/config.hpp"
@@ -134,38 +135,20 @@ TEST(Sync0, AClockMovedFarAheadAtOnceHandsTheApplicationTheLastSecondsPulsesOnly
 }
 
 /// The virtual drive and our master's drive on a simulated clock: every frame takes `frame_ns`.
-struct DcRig {
+struct DcRig : test::ShippedDrive {
   explicit DcRig(Cia402DriveConfig config)
-      : root(std::string(PMLSM_SOURCE_DIR) + "/"),
-        system(load_system_params(root + "configs/system.yaml")),
-        canopen_rig(load_canopen_config(root + "configs/canopen/drive.yaml")),
-        device(load_device_dictionary(root + "configs/canopen/virtual_drive_od.yaml")),
-        behind(system, PlantInitialCondition{}),
-        drive(std::make_unique<VirtualEthercatDrive>(
-            params(), behind, build_device_dictionary(canopen_rig, device, system.timing.control_period_s))),
+      : drive(make_drive(true)),
         segment({&drive->esc()}, [this] { return now_ns; }),
         link(segment, [this] { drive->after_frame(now_ns += frame_ns); }),
         master(config, link, [this] { return now_ns; }) {}
 
   static Cia402DriveConfig dc_config() {
-    Cia402DriveConfig c = load_ethercat_config(std::string(PMLSM_SOURCE_DIR) + "/configs/ethercat/drive.yaml");
-    c.reply_timeout_ms = 1;
-    c.cycle_timeout_ms = 1;
+    Cia402DriveConfig c = rig_config();
     c.realtime = true;
     c.sync0 = true;
     return c;
   }
-  canopen::Cia402ApplicationParams params() const {
-    canopen::Cia402ApplicationParams p;
-    p.scaling = canopen_rig.master.scaling;
-    return p;
-  }
 
-  std::string root;
-  SystemParams system;
-  CanopenRigConfig canopen_rig;
-  DeviceDictionary device;
-  SimulatedDriveBackend behind;
   std::unique_ptr<VirtualEthercatDrive> drive;
   std::int64_t now_ns = kStartNs;
   std::int64_t frame_ns = 300'000;  // the enable walk: about a pulse a cycle

@@ -33,6 +33,13 @@ namespace {
 
 namespace fs = std::filesystem;
 
+/// A capture's path in a fresh directory of this test's own (pmlsm_ethercat_<what>_<pid>).
+fs::path scratch_capture(const std::string& what, const std::string& file) {
+  const fs::path dir = fs::temp_directory_path() / ("pmlsm_ethercat_" + what + "_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  return dir / (file + ".pcapng");
+}
+
 bool have_tshark() { return std::system("tshark --version >/dev/null 2>&1") == 0; }
 
 /// What tshark prints for `fields` of every packet of `capture` matching `filter`, a line a
@@ -139,9 +146,8 @@ std::string column(const std::string& table, std::size_t n) {
 
 TEST(EtherCatTshark, DecodesEveryDatagramAsBuiltOnEthernetAndOverUdp) {
   if (!have_tshark()) GTEST_SKIP() << "tshark is not installed (scripts/install_deps.sh installs it)";
-  const fs::path dir = fs::temp_directory_path() / ("pmlsm_ethercat_tshark_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  const fs::path capture = dir / "frames.pcapng";
+  const fs::path capture = scratch_capture("tshark", "frames");
+  const fs::path dir = capture.parent_path();
   Expected raw, over_udp;
   {
     PcapngWriter writer(capture.string());
@@ -181,9 +187,8 @@ TEST(EtherCatTshark, DecodesEveryDatagramAsBuiltOnEthernetAndOverUdp) {
 
 TEST(EtherCatTshark, AMasterSessionWithVirtualSlavesDecodesWithTheWorkingCountersTheMasterSaw) {
   if (!have_tshark()) GTEST_SKIP() << "tshark is not installed (scripts/install_deps.sh installs it)";
-  const fs::path dir = fs::temp_directory_path() / ("pmlsm_ethercat_session_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  const fs::path capture = dir / "session.pcapng";
+  const fs::path capture = scratch_capture("session", "session");
+  const fs::path dir = capture.parent_path();
   std::vector<std::unique_ptr<Esc>> slaves;
   std::vector<Esc*> line;
   for (int i = 0; i < 2; ++i) {
@@ -229,9 +234,8 @@ TEST(EtherCatTshark, AMasterSessionWithVirtualSlavesDecodesWithTheWorkingCounter
 
 TEST(EtherCatTshark, DecodesOurCoeSdoRequestsAndTheSlavesAnswers) {
   if (!have_tshark()) GTEST_SKIP() << "tshark is not installed (scripts/install_deps.sh installs it)";
-  const fs::path dir = fs::temp_directory_path() / ("pmlsm_ethercat_coe_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  const fs::path capture = dir / "coe.pcapng";
+  const fs::path capture = scratch_capture("coe", "coe");
+  const fs::path dir = capture.parent_path();
   test::CoeSlave slave;
   VirtualSegment segment({&slave.esc});
   VirtualSegmentLink link(segment);
@@ -258,9 +262,8 @@ TEST(EtherCatTshark, DecodesOurCoeSdoRequestsAndTheSlavesAnswers) {
 
 TEST(EtherCatTshark, DecodesOurNormalAndSegmentedUploadOfALongText) {
   if (!have_tshark()) GTEST_SKIP() << "tshark is not installed (scripts/install_deps.sh installs it)";
-  const fs::path dir = fs::temp_directory_path() / ("pmlsm_ethercat_segments_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  const fs::path capture = dir / "segments.pcapng";
+  const fs::path capture = scratch_capture("segments", "segments");
+  const fs::path dir = capture.parent_path();
   test::CoeSlave slave;
   // 112 bytes in the normal upload response, 119 in a full segment, 3 in the last one.
   std::string text(112 + 119 + 3, '.');
@@ -292,9 +295,8 @@ TEST(EtherCatTshark, DecodesOurNormalAndSegmentedUploadOfALongText) {
 
 TEST(EtherCatTshark, DecodesTheVirtualDrivesCoeEmergenciesQueuedAheadOfAnSdoAnswer) {
   if (!have_tshark()) GTEST_SKIP() << "tshark is not installed (scripts/install_deps.sh installs it)";
-  const fs::path dir = fs::temp_directory_path() / ("pmlsm_ethercat_emergency_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  const fs::path capture = dir / "emergency.pcapng";
+  const fs::path capture = scratch_capture("emergency", "emergency");
+  const fs::path dir = capture.parent_path();
   VirtualCia402Slave slave;
   VirtualSegment segment({&slave.esc()});
   VirtualSegmentLink link(segment);
