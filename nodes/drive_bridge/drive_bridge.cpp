@@ -36,6 +36,7 @@
 #include "drive_bridge_command_line.hpp"
 #include "drive_node.hpp"
 #include "pmlsm/canopen/bus_load.hpp"
+#include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/canopen/cia402_drive.hpp"
 #include "pmlsm/canopen/emcy.hpp"
 #include "pmlsm/ethercat/cia402_drive.hpp"
@@ -241,12 +242,21 @@ class EthercatHooks final : public node::DriveNodeHooks {
     const ethercat::SlaveInfo& s = drive_.slave();
     std::printf(
         "%s: EtherCAT drive at position %u (%s, vendor 0x%08X product 0x%08X) in OP on %s %.0f ms after the boot "
-        "began: cyclic synchronous torque, %u bytes out, %u in%s, rated force %.1f N, %g increments/m, %s\n",
+        "began: %s, %u bytes out, %u in%s, rated force %.1f N, %g increments/m, %s\n",
         node.name().c_str(), static_cast<unsigned>(drive_.config().position), s.name.c_str(), s.vendor_id,
-        s.product_code, link_.c_str(), since_boot_ms(), static_cast<unsigned>(drive_.layout().output_bytes),
-        static_cast<unsigned>(drive_.layout().input_bytes), drive_.lockstep_contract() ? " (command tick mapped)" : "",
-        drive_.config().scaling.rated_force_n, drive_.config().scaling.increments_per_metre,
-        drive::to_string(drive_.power_state()));
+        s.product_code, link_.c_str(), since_boot_ms(), canopen::describe_mode(drive_.config().mode),
+        static_cast<unsigned>(drive_.layout().output_bytes), static_cast<unsigned>(drive_.layout().input_bytes),
+        drive_.lockstep_contract() ? " (command tick mapped)" : "", drive_.config().scaling.rated_force_n,
+        drive_.config().scaling.increments_per_metre, drive::to_string(drive_.power_state()));
+    if (drive_.config().mode != canopen::kModeCyclicSynchronousTorque) {
+      const bool offset = drive_.layout().output_offset(canopen::kObjectTorqueOffset) >= 0;
+      std::printf(
+          "%s: the drive closes its own %s loop on V_ref%s; %s\n", node.name().c_str(),
+          drive_.config().mode == canopen::kModeCyclicSynchronousVelocity ? "velocity" : "position and velocity",
+          drive_.config().mode == canopen::kModeCyclicSynchronousPosition ? "'s motion" : "",
+          offset ? "the compensation goes in as its torque offset 0x60B2"
+                 : "0x60B2 (torque offset) is not mapped: the compensation does not reach it");
+    }
     if (drive_.sync0_start_ns() != 0) {
       std::printf("%s: the drive on SYNC0 (DC mode): every 1 ms, %u us into the cycle of the master's clock\n",
                   node.name().c_str(), static_cast<unsigned>(drive_.config().sync0_shift_us));

@@ -134,6 +134,8 @@ void to_msg(const VelocityControllerOutput& control, double compensation_force_n
   out.compensation_force_n(compensation_force_n);
   out.velocity_error_mps(control.velocity_error_mps);
   out.saturated(control.saturated);
+  out.v_ref_mps(control.v_ref_mps);
+  out.x_ref_m(control.x_ref_m);
 }
 
 void from_msg(const msg::ForceCommand& in, TickRecord& rec) {
@@ -205,6 +207,9 @@ drive::ForceCommandIn from_msg(const pmlsm_msgs::msg::ForceCommand& c, std::uint
   in.force_n = c.force_n();
   in.writer_id = writer;
   in.received_wall_ns = received_wall_ns;
+  in.feedforward_force_n = c.compensation_force_n();
+  in.velocity_mps = c.v_ref_mps();
+  in.position_m = c.x_ref_m();
   return in;
 }
 

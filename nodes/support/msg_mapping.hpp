@@ -15,7 +15,10 @@
 //                                KalmanInput::motor_velocity_measured_mps
 //   MotorFeedback.applied_force_n  KalmanInput::thrust_previous_n (u_{k-1})
 //   VelocityReference.velocity_command_mps  command_mps
-//   ForceCommand.force_n         VelocityControllerOutput::force_n, TickRecord::force_command_n
+//   ForceCommand.force_n         VelocityControllerOutput::force_n, TickRecord::force_command_n,
+//                                drive::ForceCommandIn::force_n
+//   ForceCommand.compensation_force_n  drive::ForceCommandIn::feedforward_force_n
+//   ForceCommand.v_ref_mps, x_ref_m    drive::ForceCommandIn::velocity_mps, position_m
 //   EstimatedState.v_motor_mps / v_load_mps / a_load_mps2  motor_velocity_mps /
 //                                load_velocity_mps / load_accel_mps2 (est_* in TickRecord)
 //

@@ -47,7 +47,8 @@ class VirtualEthercatDriveComponent final : public CycleComponent {
         truth_(make_truth()),
         link_(open_drive_link(opt_.ethercat)),
         simulated_(rt_.cfg.params, scenario_initial_condition(rt_.cfg.scenario)),
-        drive_(application_params(), simulated_, build_device_dictionary(canopen_, device_, rt_.period_s),
+        drive_(application_params(), simulated_,
+               build_device_dictionary(canopen_, device_, rt_.period_s, canopen::kSupportedModesCyclicSynchronous),
                [this](bool error, const std::string& line, std::int64_t now_ns) { log(error, line, now_ns); }),
         segment_({&drive_.esc()}, [] { return monotonic_ns(); }) {
     drive_.esc().dc().set_drift_ppm(opt_.dc_drift_ppm);
@@ -72,6 +73,8 @@ class VirtualEthercatDriveComponent final : public CycleComponent {
     canopen::Cia402ApplicationParams p;
     p.scaling = config_.scaling;
     p.inject_fault_at_period = opt_.inject_fault_at_tick;
+    // Velocity and position modes: the drive's own loops tuned as the system's controller.
+    p.own_loops = canopen::DriveOwnLoopsParams::like_controller(rt_.cfg.params.velocity_loop, rt_.period_s);
     return p;
   }
   std::optional<TruthPublisher> make_truth() {

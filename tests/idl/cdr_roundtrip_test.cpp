@@ -160,6 +160,8 @@ struct Fields<msg::ForceCommand> {
     v("compensation_force_n", m.compensation_force_n()...);
     v("velocity_error_mps", m.velocity_error_mps()...);
     v("saturated", m.saturated()...);
+    v("v_ref_mps", m.v_ref_mps()...);
+    v("x_ref_m", m.x_ref_m()...);
   }
 };
 

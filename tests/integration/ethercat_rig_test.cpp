@@ -1,6 +1,6 @@
 // The EtherCAT rig: drive_bridge --bus ethercat (our master) and virtual_drive --bus ethercat (the
 // simulated drive behind a virtual EtherCAT slave) exchanging EtherCAT over UDP on loopback, with
-// the rest of the system on DDS. Each test has its own DDS domain (offsets 113..118) and UDP port
+// the rest of the system on DDS. Each test has its own DDS domain (offsets 113..119) and UDP port
 // (62xx: below DDS's port base and the ephemeral range).
 #include <gtest/gtest.h>
 
@@ -156,6 +156,39 @@ TEST(EthercatRig, TheRealtimeRigOnSync0StepsAPeriodAPulseAndALockstepOneIsRefuse
   EXPECT_GE(std::stoll(out.substr(at + said.size())), 2000) << out;
   EXPECT_NE(out.find("pulses of 1.000 ms"), std::string::npos) << out;
   EXPECT_NE(out.find("0 activations with the start time past"), std::string::npos) << out;
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+// drive.mode (the launch file's drive_mode): in cyclic synchronous velocity the drive's own
+// velocity loop (the system's PI) follows V_ref with the compensation as its torque offset, the
+// paper's structure with the PI moved into the drive, so the lockstep pulse costs what the torque
+// run's does to the quantisation's difference (the torque's per mille against the velocity's
+// increment per second); in cyclic synchronous position the drive's position loop follows the
+// reference's motion and the run ends cleanly, its cost finite.
+TEST(EthercatRig, InVelocityModeTheDrivesOwnLoopCostsWhatTheTorqueRunDoesAndPositionModeRuns) {
+  const fs::path dir = test::fresh_dir("pmlsm_ethercat_rig", "modes");
+  const std::string scenario = source("configs/scenarios/pulse.yaml");
+  std::optional<std::pair<double, double>> costs[3];
+  const char* const modes[3] = {"cst", "csv", "csp"};
+  for (int i = 0; i < 3; ++i) {
+    test::ChildProcess run(rig_args("launch/virtual_rig_ethercat.yaml", test_domain(119), scenario, dir / modes[i],
+                                    {"--arg", "ethercat_port=6287", "--arg", std::string("drive_mode=") + modes[i]}),
+                           (dir / (std::string(modes[i]) + ".log")).string());
+    ASSERT_EQ(run.wait_for(std::chrono::seconds(90)), std::optional<int>(0)) << run.output();
+    const std::string out = run.output();
+    EXPECT_NE(out.find("all 6 nodes ended cleanly"), std::string::npos) << out;
+    EXPECT_NE(out.find("0 working counter errors"), std::string::npos) << out;
+    costs[i] = costs_of(out, "pulse");
+    ASSERT_TRUE(costs[i].has_value()) << out;
+    EXPECT_TRUE(std::isfinite(costs[i]->first) && std::isfinite(costs[i]->second)) << out;
+    if (i > 0) {
+      EXPECT_NE(out.find(i == 1 ? "cyclic synchronous velocity" : "cyclic synchronous position"), std::string::npos)
+          << out;
+      EXPECT_NE(out.find("the compensation goes in as its torque offset 0x60B2"), std::string::npos) << out;
+    }
+  }
+  EXPECT_NEAR(costs[1]->first, costs[0]->first, 0.05 * costs[0]->first) << "csv against cst";
+  EXPECT_NEAR(costs[1]->second, costs[0]->second, 0.2 * costs[0]->second) << "csv against cst, estimated";
   if (!HasFailure()) fs::remove_all(dir);
 }
 

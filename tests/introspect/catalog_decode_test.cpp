@@ -202,6 +202,8 @@ msg::ForceCommand force_command(Sampler& s) {
   v.compensation_force_n(s.real("compensation_force_n"));
   v.velocity_error_mps(s.real("velocity_error_mps"));
   v.saturated(s.flag("saturated"));
+  v.v_ref_mps(s.real("v_ref_mps"));
+  v.x_ref_m(s.real("x_ref_m"));
   return v;
 }
 

@@ -1,23 +1,71 @@
 #include "pmlsm/canopen/cia402_application.hpp"
 
 #include <cinttypes>
+#include <cmath>
 #include <cstdio>
+#include <stdexcept>
+#include <string>
 
 #include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/canopen/emcy.hpp"
 
 namespace pmlsm::canopen {
 
+void DriveOwnLoopsParams::validate() const {
+  velocity.validate();
+  if (!std::isfinite(position_gain_per_s) || position_gain_per_s <= 0.0) {
+    throw std::invalid_argument("position_gain_per_s: must be finite and > 0, got " +
+                                std::to_string(position_gain_per_s));
+  }
+}
+
+DriveOwnLoopsParams DriveOwnLoopsParams::like_controller(const VelocityPiParams& pi, double period_s) {
+  DriveOwnLoopsParams p;
+  p.velocity = pi;
+  p.velocity.period_s = period_s;
+  return p;
+}
+
 Cia402Application::Cia402Application(const Cia402ApplicationParams& params, ObjectDictionary& dictionary,
                                      drive::Drive& drive, Cia402ApplicationEvents& events)
     : params_(params), scaling_(params.scaling), od_(dictionary), drive_(drive), events_(events) {
+  if (params_.own_loops) {
+    params_.own_loops->validate();
+    velocity_loop_.emplace(params_.own_loops->velocity);
+  } else if ((static_cast<std::uint32_t>(od_.get_or(kObjectSupportedDriveModes, 0, 0)) & ~kSupportedModesTorque) != 0) {
+    throw std::invalid_argument(
+        "supported drive modes 0x6502 offer velocity or position, but the drive has no own loops");
+  }
   measurement_ = drive_.sample();
   update_objects();
 }
 
-double Cia402Application::commanded_force() const {
-  const auto per_mille = static_cast<std::int16_t>(od_.get_or(kObjectTargetTorque, 0, 0));
-  return scaling_.per_mille_to_force(per_mille);
+double Cia402Application::commanded_force() {
+  const auto mode = static_cast<std::int8_t>(od_.get_or(kObjectModesOfOperation, 0, 0));
+  const bool enabled_now = enabled();
+  if (velocity_loop_ && (mode != mode_ || (enabled_now && !was_enabled_))) velocity_loop_->reset();
+  mode_ = mode;
+  was_enabled_ = enabled_now;
+  const auto torque_offset = static_cast<std::int16_t>(od_.get_or(kObjectTorqueOffset, 0, 0));
+  const double offset_n = scaling_.per_mille_to_force(torque_offset);
+  if (mode != kModeCyclicSynchronousVelocity && mode != kModeCyclicSynchronousPosition) {
+    const auto per_mille = static_cast<std::int16_t>(od_.get_or(kObjectTargetTorque, 0, 0));
+    return scaling_.per_mille_to_force(per_mille) + offset_n;
+  }
+  // 0x6060 accepts velocity and position only when 0x6502 offers them, which needs own loops.
+  if (!velocity_loop_) return 0.0;
+  const auto velocity_offset = static_cast<std::int32_t>(od_.get_or(kObjectVelocityOffset, 0, 0));
+  double velocity_command_mps = scaling_.increments_to_velocity(velocity_offset);
+  if (mode == kModeCyclicSynchronousVelocity) {
+    const auto target = static_cast<std::int32_t>(od_.get_or(kObjectTargetVelocity, 0, 0));
+    velocity_command_mps += scaling_.increments_to_velocity(target);
+  } else {
+    const auto target = static_cast<std::int32_t>(od_.get_or(kObjectTargetPosition, 0, 0));
+    velocity_command_mps +=
+        params_.own_loops->position_gain_per_s * (scaling_.increments_to_metres(target) - measurement_.position_m);
+  }
+  if (!enabled_now) return 0.0;  // the loop runs only while its force is applied (no windup)
+  return velocity_loop_->step({velocity_command_mps, measurement_.velocity_mps, offset_n}).force_n;
 }
 
 void Cia402Application::update_objects() {
@@ -31,6 +79,8 @@ void Cia402Application::update_objects() {
   od_.set(kObjectVelocityActual, 0, scaling_.velocity_to_increments(measurement_.velocity_mps).value);
   // Torque actual, as a drive measures it: the force its current loop produces, K_f i_q.
   od_.set(kObjectTorqueActual, 0, scaling_.force_to_per_mille(measurement_.thrust_force_n).value);
+  // Torque demand: the force the period applied (the own loops' output in velocity and position).
+  od_.set(kObjectTorqueDemand, 0, scaling_.force_to_per_mille(applied_force_n_).value);
   od_.set(kObjectPeriodsStepped, 0, static_cast<std::int64_t>(periods_ & 0xFFFFFFFFULL));
 }
 

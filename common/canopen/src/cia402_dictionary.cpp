@@ -2,6 +2,7 @@
 // cia402_dictionary.hpp.
 #include "pmlsm/canopen/cia402_dictionary.hpp"
 
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 
@@ -15,8 +16,11 @@ namespace {
 
 // ---- value checks (ValueCheck) -------------------------------------------------------------------
 
-std::uint32_t check_mode_of_operation(const ObjectDictionary&, const Entry&, std::int64_t value) noexcept {
-  return value == kModeCyclicSynchronousTorque ? kAbortNone : kAbortValueRange;
+std::uint32_t check_mode_of_operation(const ObjectDictionary& dictionary, const Entry&, std::int64_t value) noexcept {
+  if (value < INT8_MIN || value > INT8_MAX) return kAbortValueRange;
+  const auto supported = static_cast<std::uint32_t>(dictionary.get_or(kObjectSupportedDriveModes, 0, 0));
+  const std::uint32_t bit = supported_mode_bit(static_cast<std::int8_t>(value));
+  return bit != 0 && (supported & bit) != 0 ? kAbortNone : kAbortValueRange;
 }
 
 // CiA 301's restricted CAN-IDs: no PDO may use them.
@@ -104,10 +108,79 @@ Entry with_range(Entry e, std::int64_t min, std::int64_t max) {
   return e;
 }
 
+// The CiA 402 objects of the table (0x603F on).
+void add_cia402_objects(ObjectDictionary& od, const Cia402DictionaryConfig& config) {
+  using T = DataType;
+  using A = Access;
+  od.add(make(kObjectErrorCode, 0, "error code", T::kU16, A::kRo, 0));
+  od.add(make(kObjectControlword, 0, "controlword", T::kU16, A::kRw, 0, true));
+  od.add(make(kObjectStatusword, 0, "statusword", T::kU16, A::kRo, 0, true));
+  od.add(with_check(make(kObjectModesOfOperation, 0, "modes of operation", T::kI8, A::kRw, kModeNone),
+                    check_mode_of_operation));
+  od.add(make(kObjectModesOfOperationDisplay, 0, "modes of operation display", T::kI8, A::kRo, kModeNone));
+  od.add(make(kObjectPositionActual, 0, "position actual value", T::kI32, A::kRo, 0, true));
+  od.add(make(kObjectVelocityActual, 0, "velocity actual value", T::kI32, A::kRo, 0, true));
+  od.add(make(kObjectTargetTorque, 0, "target torque", T::kI16, A::kRw, 0, true));
+  od.add(make(kObjectTorqueDemand, 0, "torque demand", T::kI16, A::kRo, 0, true));
+  od.add(make(kObjectRatedTorque, 0, "rated torque", T::kU32, A::kRo, config.rated_torque));
+  od.add(make(kObjectTorqueActual, 0, "torque actual value", T::kI16, A::kRo, 0, true));
+  od.add(make(kObjectTargetPosition, 0, "target position", T::kI32, A::kRw, 0, true));
+  od.add(make(kObjectVelocityOffset, 0, "velocity offset", T::kI32, A::kRw, 0, true));
+  od.add(make(kObjectTorqueOffset, 0, "torque offset", T::kI16, A::kRw, 0, true));
+  od.add(make(kObjectTargetVelocity, 0, "target velocity", T::kI32, A::kRw, 0, true));
+  od.add(make(kObjectSupportedDriveModes, 0, "supported drive modes", T::kU32, A::kRo, config.supported_drive_modes));
+  od.add(make(kObjectInterpolationTimePeriod, 0, "interpolation time period: highest sub-index", T::kU8, A::kConst, 2));
+  od.add(with_range(make(kObjectInterpolationTimePeriod, 1, "interpolation time period value", T::kU8, A::kRw,
+                         config.interpolation_period_ms),
+                    1, 255));
+  od.add(with_range(make(kObjectInterpolationTimePeriod, 2, "interpolation time index", T::kI8, A::kRw, -3), -6, 0));
+}
+
 }  // namespace
+
+std::uint32_t supported_mode_bit(std::int8_t mode) noexcept {
+  switch (mode) {
+    case kModeCyclicSynchronousPosition: return 1U << 7;
+    case kModeCyclicSynchronousVelocity: return 1U << 8;
+    case kModeCyclicSynchronousTorque: return 1U << 9;
+    default: return 0;
+  }
+}
+
+const char* mode_name(std::int8_t mode) noexcept {
+  switch (mode) {
+    case kModeCyclicSynchronousPosition: return "csp";
+    case kModeCyclicSynchronousVelocity: return "csv";
+    case kModeCyclicSynchronousTorque: return "cst";
+    case kModeNone: return "none";
+    default: return "another mode";
+  }
+}
+
+const char* describe_mode(std::int8_t mode) noexcept {
+  switch (mode) {
+    case kModeCyclicSynchronousPosition: return "cyclic synchronous position";
+    case kModeCyclicSynchronousVelocity: return "cyclic synchronous velocity";
+    case kModeCyclicSynchronousTorque: return "cyclic synchronous torque";
+    default: return mode_name(mode);
+  }
+}
+
+std::int8_t mode_from_string(const std::string& name) {
+  if (name == "cst") return kModeCyclicSynchronousTorque;
+  if (name == "csv") return kModeCyclicSynchronousVelocity;
+  if (name == "csp") return kModeCyclicSynchronousPosition;
+  throw std::invalid_argument("must be one of cst (cyclic synchronous torque), csv (velocity), csp (position), got '" +
+                              name + "'");
+}
 
 ObjectDictionary make_cia402_dictionary(NodeId node, const Cia402DictionaryConfig& config) {
   if (config.rated_torque < 1) throw std::invalid_argument("rated_torque: must be >= 1, got 0");
+  if ((config.supported_drive_modes & kSupportedModesTorque) == 0 ||
+      (config.supported_drive_modes & ~kSupportedModesCyclicSynchronous) != 0) {
+    throw std::invalid_argument("supported_drive_modes: must have bit 9 (cst) and only bits 7-9, got " +
+                                std::to_string(config.supported_drive_modes));
+  }
   if (config.interpolation_period_ms < 1) {
     throw std::invalid_argument("interpolation_period_ms: must be in [1, 255], got 0");
   }
@@ -166,23 +239,7 @@ ObjectDictionary make_cia402_dictionary(NodeId node, const Cia402DictionaryConfi
                       check_mapping_entry));
   }
 
-  // CiA 402.
-  od.add(make(kObjectErrorCode, 0, "error code", T::kU16, A::kRo, 0));
-  od.add(make(kObjectControlword, 0, "controlword", T::kU16, A::kRw, 0, true));
-  od.add(make(kObjectStatusword, 0, "statusword", T::kU16, A::kRo, 0, true));
-  od.add(with_check(make(kObjectModesOfOperation, 0, "modes of operation", T::kI8, A::kRw, kModeNone),
-                    check_mode_of_operation));
-  od.add(make(kObjectModesOfOperationDisplay, 0, "modes of operation display", T::kI8, A::kRo, kModeNone));
-  od.add(make(kObjectPositionActual, 0, "position actual value", T::kI32, A::kRo, 0, true));
-  od.add(make(kObjectVelocityActual, 0, "velocity actual value", T::kI32, A::kRo, 0, true));
-  od.add(make(kObjectTargetTorque, 0, "target torque", T::kI16, A::kRw, 0, true));
-  od.add(make(kObjectRatedTorque, 0, "rated torque", T::kU32, A::kRo, config.rated_torque));
-  od.add(make(kObjectTorqueActual, 0, "torque actual value", T::kI16, A::kRo, 0, true));
-  od.add(make(kObjectInterpolationTimePeriod, 0, "interpolation time period: highest sub-index", T::kU8, A::kConst, 2));
-  od.add(with_range(make(kObjectInterpolationTimePeriod, 1, "interpolation time period value", T::kU8, A::kRw,
-                         config.interpolation_period_ms),
-                    1, 255));
-  od.add(with_range(make(kObjectInterpolationTimePeriod, 2, "interpolation time index", T::kI8, A::kRw, -3), -6, 0));
+  add_cia402_objects(od, config);
   return od;
 }
 

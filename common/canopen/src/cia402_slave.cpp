@@ -64,7 +64,7 @@ Cia402Slave::Cia402Slave(const Cia402SlaveParams& params, DictionaryFactory make
       bus_(bus),
       events_(events),
       od_(make_dictionary_()),
-      application_({params.scaling, params.inject_fault_at_period}, od_, drive, *this),
+      application_({params.scaling, params.inject_fault_at_period, std::nullopt}, od_, drive, *this),
       sdo_(od_, params_.node),
       nmt_(params_.node) {
   reload_pdos();

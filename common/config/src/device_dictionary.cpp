@@ -89,7 +89,7 @@ void write_pdo_default(co::ObjectDictionary& od, co::NodeId node, const PdoDefau
 }  // namespace
 
 co::ObjectDictionary build_device_dictionary(const CanopenRigConfig& rig, const DeviceDictionary& device,
-                                             double control_period_s) {
+                                             double control_period_s, std::uint32_t supported_drive_modes) {
   const co::NodeId node(rig.master.node_id);
   const co::UnitScaling scaling(rig.master.scaling);
   co::Cia402DictionaryConfig dc;
@@ -100,6 +100,7 @@ co::ObjectDictionary build_device_dictionary(const CanopenRigConfig& rig, const 
   dc.product_code = device.product_code;
   dc.revision_number = device.revision_number;
   dc.serial_number = device.serial_number;
+  dc.supported_drive_modes = supported_drive_modes;
   co::ObjectDictionary od = co::make_cia402_dictionary(node, dc);
 
   for (const DictionaryObject& obj : device.objects) {

@@ -131,7 +131,8 @@ const TickReport& DriveLoop::begin_tick(std::uint64_t tick, std::int64_t now_mon
   if (drive_.simulated()) bits |= status::kSimulated;
   if (foreign_seen_) bits |= status::kForeignCommand;
   report_.tick = tick;
-  report_.applied_force_n = last_applied_force_n_;
+  report_.applied_force_n =
+      std::isfinite(report_.measurement.applied_force_n) ? report_.measurement.applied_force_n : last_applied_force_n_;
   report_.applied_command_tick = applied_tick_;
   report_.status = bits;
   report_.power_state = state;
@@ -160,7 +161,8 @@ Verdict DriveLoop::offer(const ForceCommandIn& c) {
     foreign_seen_ = true;
     return Verdict::kForeignWriter;
   }
-  const bool finite = std::isfinite(c.force_n);
+  const bool finite = std::isfinite(c.force_n) && std::isfinite(c.feedforward_force_n) &&
+                      std::isfinite(c.velocity_mps) && std::isfinite(c.position_m);
   if (!params_.realtime) {
     if (c.feedback_tick != tick_) {
       ++counters_.late;  // an answer to another tick: stale or out of order
@@ -185,7 +187,7 @@ Verdict DriveLoop::offer(const ForceCommandIn& c) {
       return Verdict::kStale;
     }
   }
-  force_n_ = c.force_n;
+  setpoint_ = {c.force_n, c.feedforward_force_n, c.velocity_mps, c.position_m};
   applied_tick_ = c.feedback_tick;
   any_command_ = true;
   accepted_this_tick_ = true;
@@ -228,8 +230,10 @@ TickEvents DriveLoop::end_tick(std::int64_t now_mono_ns, bool apply_force) {
   last_fresh_ = fresh_;
   const bool still_enabled = drive_.power_state() == PowerState::kOperationEnabled;
   if (ever_enabled_ && !still_enabled) ++counters_.safe_ticks;
-  last_applied_force_n_ = still_enabled ? force_n_ : 0.0;
-  if (apply_force) drive_.apply(last_applied_force_n_);
+  Setpoint out = setpoint_;
+  if (!still_enabled) out.force_n = out.feedforward_force_n = 0.0;  // force off; the references go on
+  last_applied_force_n_ = out.force_n;
+  if (apply_force) drive_.apply_setpoint(out);
   return events_;
 }
 

@@ -36,6 +36,10 @@ MasterParams master_params(const Cia402DriveConfig& c) {
 void Cia402DriveConfig::validate() const {
   RangeCheck check;
   visit_parameters(*this, check);
+  if (canopen::supported_mode_bit(mode) == 0) {
+    throw std::invalid_argument("drive.mode: must be a cyclic synchronous mode (8, 9, 10), got " +
+                                std::to_string(static_cast<int>(mode)));
+  }
   if (sync0 && !distributed_clocks) {
     throw std::invalid_argument(
         "drive.sync0: SYNC0 comes from the drive's distributed clock: needs "
@@ -109,8 +113,8 @@ void Cia402Drive::boot() {
     walk_to(AlState::kInit);  // whatever a master before this one left it in
     master_.configure_mailbox(slave_);
     walk_to(AlState::kPreOp);
-    sdo(true, canopen::kObjectModesOfOperation, 0, static_cast<std::uint8_t>(canopen::kModeCyclicSynchronousTorque), 1,
-        "modes of operation, cyclic synchronous torque");
+    const std::string mode_text = std::string("modes of operation, ") + canopen::mode_name(config_.mode);
+    sdo(true, canopen::kObjectModesOfOperation, 0, static_cast<std::uint8_t>(config_.mode), 1, mode_text.c_str());
     sdo(true, canopen::kObjectInterpolationTimePeriod, 1, 1, 1, "interpolation time period value");
     sdo(true, canopen::kObjectInterpolationTimePeriod, 2, static_cast<std::uint8_t>(static_cast<std::int8_t>(-3)), 1,
         "interpolation time index");
@@ -135,7 +139,16 @@ void Cia402Drive::boot() {
       return at;
     };
     controlword_at_ = locate(true, canopen::kObjectControlword, 16, true, "controlword");
-    target_torque_at_ = locate(true, canopen::kObjectTargetTorque, 16, true, "target torque");
+    const std::int8_t mode = config_.mode;
+    target_torque_at_ =
+        locate(true, canopen::kObjectTargetTorque, 16, mode == canopen::kModeCyclicSynchronousTorque, "target torque");
+    target_velocity_at_ = locate(true, canopen::kObjectTargetVelocity, 32,
+                                 mode == canopen::kModeCyclicSynchronousVelocity, "target velocity");
+    target_position_at_ = locate(true, canopen::kObjectTargetPosition, 32,
+                                 mode == canopen::kModeCyclicSynchronousPosition, "target position");
+    velocity_offset_at_ = locate(true, canopen::kObjectVelocityOffset, 32, false, "velocity offset");
+    torque_offset_at_ = locate(true, canopen::kObjectTorqueOffset, 16, false, "torque offset");
+    torque_demand_at_ = locate(false, canopen::kObjectTorqueDemand, 16, false, "torque demand");
     command_tick_at_ = locate(true, canopen::kObjectCommandTick, 32, false, "command tick");
     statusword_at_ = locate(false, canopen::kObjectStatusword, 16, true, "statusword");
     torque_actual_at_ = locate(false, canopen::kObjectTorqueActual, 16, true, "torque actual value");
@@ -151,12 +164,13 @@ void Cia402Drive::boot() {
     outputs_.assign(layout_.output_bytes, 0);
     inputs_.assign(layout_.input_bytes, 0);
     scratch_.assign(std::max(layout_.output_bytes, layout_.input_bytes), 0);
-    const std::uint32_t mode =
+    const std::uint32_t displayed =
         sdo(false, canopen::kObjectModesOfOperationDisplay, 0, 0, 0, "modes of operation display");
-    const auto mode_value = static_cast<std::int8_t>(static_cast<std::uint8_t>(mode & 0xFFU));
-    if (mode_value != canopen::kModeCyclicSynchronousTorque) {
+    const auto mode_value = static_cast<std::int8_t>(static_cast<std::uint8_t>(displayed & 0xFFU));
+    if (mode_value != config_.mode) {
       throw Cia402DriveError(name + ": 0x6061 (modes of operation display) is " + std::to_string(mode_value) +
-                             " after 0x6060 = 10: the drive did not enter cyclic synchronous torque");
+                             " after 0x6060 = " + std::to_string(config_.mode) + ": the drive did not enter " +
+                             canopen::mode_name(config_.mode));
     }
     if (config_.distributed_clocks) {
       // Every clock on the line, so the drive's delay from the reference is measured.
@@ -188,7 +202,7 @@ void Cia402Drive::boot() {
     booted_ = true;
     if (!read_inputs()) throw Cia402DriveError(name + ": its inputs could not be read in SAFEOP");
     // Valid outputs before OP (ETG.1000.6): the master's word and a command tick that steps nothing.
-    if (!send_outputs(remote_.next_controlword(), 0, periods_ - 1U)) {
+    if (!send_outputs(remote_.next_controlword(), still(), periods_ - 1U)) {
       throw Cia402DriveError(name + ": its outputs were not taken in SAFEOP");
     }
     walk_to(AlState::kOp);
@@ -208,10 +222,23 @@ std::int64_t Cia402Drive::exchange_timeout_ns() const {
 
 int Cia402Drive::exchange_retries() const { return config_.realtime ? 0 : static_cast<int>(config_.retries); }
 
-bool Cia402Drive::send_outputs(std::uint16_t controlword, std::int16_t torque, std::uint32_t command_tick) {
-  put_le16(outputs_.data() + controlword_at_, controlword);
-  put_le16(outputs_.data() + target_torque_at_, static_cast<std::uint16_t>(torque));
-  if (command_tick_at_ >= 0) put_le32(outputs_.data() + command_tick_at_, command_tick);
+Cia402Drive::Targets Cia402Drive::still() const {
+  Targets t;
+  t.position = position_actual_;
+  return t;
+}
+
+bool Cia402Drive::send_outputs(std::uint16_t controlword, const Targets& targets, std::uint32_t command_tick) {
+  std::uint8_t* out = outputs_.data();
+  put_le16(out + controlword_at_, controlword);
+  if (target_torque_at_ >= 0) put_le16(out + target_torque_at_, static_cast<std::uint16_t>(targets.torque));
+  if (target_velocity_at_ >= 0) put_le32(out + target_velocity_at_, static_cast<std::uint32_t>(targets.velocity));
+  if (target_position_at_ >= 0) put_le32(out + target_position_at_, static_cast<std::uint32_t>(targets.position));
+  if (velocity_offset_at_ >= 0) {
+    put_le32(out + velocity_offset_at_, static_cast<std::uint32_t>(targets.velocity_offset));
+  }
+  if (torque_offset_at_ >= 0) put_le16(out + torque_offset_at_, static_cast<std::uint16_t>(targets.torque_offset));
+  if (command_tick_at_ >= 0) put_le32(out + command_tick_at_, command_tick);
   return send_outputs_again();
 }
 
@@ -246,6 +273,7 @@ bool Cia402Drive::read_inputs() {
   std::copy(scratch_.begin(), scratch_.begin() + layout_.input_bytes, inputs_.begin());
   remote_.on_statusword(get_le16(inputs_.data() + statusword_at_));
   torque_actual_ = static_cast<std::int16_t>(get_le16(inputs_.data() + torque_actual_at_));
+  if (torque_demand_at_ >= 0) torque_demand_ = static_cast<std::int16_t>(get_le16(inputs_.data() + torque_demand_at_));
   velocity_actual_ = static_cast<std::int32_t>(get_le32(inputs_.data() + velocity_actual_at_));
   position_actual_ = static_cast<std::int32_t>(get_le32(inputs_.data() + position_actual_at_));
   if (periods_at_ >= 0) periods_ = get_le32(inputs_.data() + periods_at_);
@@ -294,7 +322,7 @@ void Cia402Drive::lose(const char* what) {
 
 bool Cia402Drive::idle_cycle(std::uint16_t controlword) {
   for (std::uint32_t attempt = 0; attempt <= config_.cycle_retries; ++attempt) {
-    if (send_outputs(controlword, 0, periods_ - 1U) && read_inputs()) return true;
+    if (send_outputs(controlword, still(), periods_ - 1U) && read_inputs()) return true;
   }
   return false;
 }
@@ -358,7 +386,13 @@ bool Cia402Drive::release() {
 }
 
 drive::Measurement Cia402Drive::measurement() const {
-  return scaling_.measurement(position_actual_, velocity_actual_, torque_actual_);
+  drive::Measurement m = scaling_.measurement(position_actual_, velocity_actual_, torque_actual_);
+  if (config_.mode != canopen::kModeCyclicSynchronousTorque) {
+    // The drive's loops chose the force: its torque demand says which (torque actual: the current
+    // loop's result, the nearest account a mapping without 0x6074 gives).
+    m.applied_force_n = scaling_.per_mille_to_force(torque_demand_at_ >= 0 ? torque_demand_ : torque_actual_);
+  }
+  return m;
 }
 
 drive::Measurement Cia402Drive::sample() {
@@ -407,14 +441,34 @@ drive::Measurement Cia402Drive::sample() {
 }
 
 void Cia402Drive::apply(double force_n) {
+  drive::Setpoint setpoint;
+  setpoint.force_n = force_n;
+  apply_setpoint(setpoint);
+}
+
+void Cia402Drive::apply_setpoint(const drive::Setpoint& setpoint) {
   if (!booted_) return;
   const bool enabled = power_state() == drive::PowerState::kOperationEnabled;
   const std::uint16_t controlword = remote_.next_controlword();
   if (remote_.lost()) return;
-  const std::int16_t torque = enabled ? scaling_.force_to_per_mille(force_n).value : std::int16_t{0};
+  // csp: the reference's motion from the drive's position at enable.
+  if (enabled && !was_enabled_) {
+    position_origin_m_ = scaling_.increments_to_metres(position_actual_) - setpoint.position_m;
+  }
+  was_enabled_ = enabled;
+  Targets targets = still();
+  if (enabled) {
+    targets.torque = scaling_.force_to_per_mille(setpoint.force_n).value;
+    targets.velocity = scaling_.velocity_to_increments(setpoint.velocity_mps).value;
+    targets.position = scaling_.metres_to_increments(position_origin_m_ + setpoint.position_m).value;
+    targets.velocity_offset = config_.mode == canopen::kModeCyclicSynchronousPosition ? targets.velocity : 0;
+    targets.torque_offset = config_.mode == canopen::kModeCyclicSynchronousTorque
+                                ? std::int16_t{0}
+                                : scaling_.force_to_per_mille(setpoint.feedforward_force_n).value;
+  }
   const std::uint64_t k = tick_ == 0 ? 0 : tick_ - 1;  // the tick sampled last
   const std::uint32_t command_tick = config_.realtime ? periods_ : base_ + static_cast<std::uint32_t>(k);
-  send_outputs(controlword, torque, command_tick);
+  send_outputs(controlword, targets, command_tick);
   // Sent after the pulse that was to take them: sync0_shift_us or more past their tick's start.
   if (sync0_start_ns_ != 0 && master_time_ns() >= tick0_ns_ + k * kNsPerMs + config_.sync0_shift_us * 1000ULL) {
     ++counters_.outputs_after_sync0;

@@ -95,6 +95,34 @@ std::uint32_t check_assigned_count(const canopen::ObjectDictionary& d, const can
   return canopen::kAbortNone;
 }
 
+// The mapping objects a drive offers beyond CANopen's one or two: every PDO 0x1C12 / 0x1C13 may
+// assign (kMaxAssignedPdos a direction), empty until a master maps them, with the first's checks
+// (CiA 301's procedure). A cyclic synchronous velocity or position mapping with its offsets and
+// the lockstep contract needs two RxPDOs and three TxPDOs of 64 bits.
+void add_missing_pdo_mappings(canopen::ObjectDictionary& d) {
+  static const char* const kCountNames[2][kMaxAssignedPdos] = {
+      {"RxPDO 1 mapping: number of entries", "RxPDO 2 mapping: number of entries", "RxPDO 3 mapping: number of entries",
+       "RxPDO 4 mapping: number of entries"},
+      {"TxPDO 1 mapping: number of entries", "TxPDO 2 mapping: number of entries", "TxPDO 3 mapping: number of entries",
+       "TxPDO 4 mapping: number of entries"}};
+  for (const std::uint16_t first : {kRxPdoMapping, kTxPdoMapping}) {
+    const int direction = first == kRxPdoMapping ? 0 : 1;
+    for (std::uint8_t i = 1; i < kMaxAssignedPdos; ++i) {
+      const auto pdo = static_cast<std::uint16_t>(first + i);
+      if (d.find(pdo, 0) != nullptr) continue;
+      for (std::uint8_t sub = 0; sub <= canopen::kPdoMaxEntries; ++sub) {
+        const canopen::Entry* from = d.find(first, sub);
+        if (from == nullptr) continue;
+        canopen::Entry copy = *from;
+        copy.index = pdo;
+        copy.value = 0;
+        if (sub == 0) copy.name = kCountNames[direction][i];
+        d.add(copy);
+      }
+    }
+  }
+}
+
 }  // namespace
 
 std::int64_t interpolation_period_ns(const canopen::ObjectDictionary& d) {
@@ -108,6 +136,7 @@ std::int64_t interpolation_period_ns(const canopen::ObjectDictionary& d) {
 
 void add_coe_sync_manager_objects(canopen::ObjectDictionary& d) {
   using T = canopen::DataType;
+  add_missing_pdo_mappings(d);
   const auto period_ns = static_cast<std::uint32_t>(interpolation_period_ns(d));
   for (const auto& [index, names] : {std::pair{kObjectOutputSyncParameters, &kOutputSyncNames},
                                      std::pair{kObjectInputSyncParameters, &kInputSyncNames}}) {
@@ -244,13 +273,15 @@ std::vector<std::uint16_t> VirtualCia402Slave::virtual_sii(std::uint16_t output_
   return build_sii(info);
 }
 
-canopen::ObjectDictionary VirtualCia402Slave::make_dictionary(const std::vector<std::uint16_t>& sii) {
+canopen::ObjectDictionary VirtualCia402Slave::make_dictionary(const std::vector<std::uint16_t>& sii,
+                                                              std::uint32_t supported_drive_modes) {
   // The identity and name the SII gives (a drive's dump: its own), else ours.
   const SiiInfo info = parse_sii(sii.size() >= sii::kMinWords ? sii : virtual_sii(0, 0));
   canopen::Cia402DictionaryConfig config;
   config.vendor_id = info.vendor_id;
   config.product_code = info.product_code;
   if (!info.name.empty()) config.device_name = info.name;
+  config.supported_drive_modes = supported_drive_modes;
   return canopen::make_cia402_dictionary(canopen::NodeId(1), config);
 }
 
@@ -313,7 +344,11 @@ std::uint16_t VirtualCia402Slave::take_mapping() {
 
 VirtualEthercatDrive::VirtualEthercatDrive(const canopen::Cia402ApplicationParams& params, drive::Drive& drive, Log log,
                                            std::vector<std::uint16_t> sii)
-    : slave_(std::move(sii)), application_(params, slave_.dictionary(), drive, *this), log_(std::move(log)) {
+    : slave_(VirtualCia402Slave::make_dictionary(
+                 sii, params.own_loops ? canopen::kSupportedModesCyclicSynchronous : canopen::kSupportedModesTorque),
+             sii),
+      application_(params, slave_.dictionary(), drive, *this),
+      log_(std::move(log)) {
   slave_.esc().set_sync0_handler([this](std::int64_t now_ns) { on_sync0(now_ns); });
 }
 

@@ -57,6 +57,8 @@ VelocityControllerOutput VelocityController::step_command(double command_mps, do
   }
   out.v_ref_mps = ref.velocity_mps;
   out.a_ref_mps2 = ref.accel_mps2;
+  out.x_ref_m = x_ref_m_;
+  x_ref_m_ += ref.velocity_mps * period_s_;
   // The guard's scale of the previous period (it judges what was applied), then its new look;
   // the standstill gate's of this period (a move opens it on its first tick).
   if (standstill_)

@@ -27,9 +27,15 @@ class RecordingDrive final : public Drive {
  public:
   Measurement sample() override {
     power_.step();
-    return {};
+    Measurement m;
+    m.applied_force_n = own_loops_force_n;
+    return m;
   }
   void apply(double force_n) override { applied.push_back(power_.force_allowed() ? force_n : 0.0); }
+  void apply_setpoint(const Setpoint& setpoint) override {
+    setpoints.push_back(setpoint);
+    Drive::apply_setpoint(setpoint);
+  }
   TransitionResult request(DriveCommand c) override { return power_.request(c); }
   void fault(std::uint16_t code) override { power_.fault(code); }
   PowerState power_state() const override { return power_.state(); }
@@ -37,6 +43,9 @@ class RecordingDrive final : public Drive {
   std::uint64_t fault_count() const override { return power_.fault_count(); }
   bool simulated() const override { return true; }
   std::vector<double> applied;
+  std::vector<Setpoint> setpoints;
+  /// What sample() reports as the force its own loops applied (NaN: it does not say).
+  double own_loops_force_n = std::numeric_limits<double>::quiet_NaN();
 
  private:
   PowerStateMachine power_;
@@ -95,6 +104,46 @@ TEST(DriveLoop, LockstepTakesOnlyTheAnswerToTheTickAndHoldsTheLastFiniteForce) {
   EXPECT_EQ(loop.counters().late, 2u);
   EXPECT_EQ(loop.counters().rejected, 1u);
   EXPECT_EQ(loop.counters().safe_ticks, 0u);
+}
+
+TEST(DriveLoop, TheWholeSetpointIsHeldAndPassedOnAndADriveClosingItsOwnLoopsReportsTheForce) {
+  RecordingDrive drive;
+  DriveLoop loop(params(true), drive);
+  loop.set_run_id(kRun);
+  enable(loop, drive, 0);
+  ForceCommandIn c = cmd(0, 40.0);
+  c.feedforward_force_n = 7.0;
+  c.velocity_mps = 0.2;
+  c.position_m = 0.01;
+  loop.begin_tick(0, 0);
+  loop.published(0, 0);
+  EXPECT_EQ(loop.offer(c), Verdict::kAccepted);
+  loop.end_tick(kMs / 2);
+  ASSERT_EQ(drive.setpoints.size(), 1u);
+  EXPECT_EQ(drive.setpoints[0].force_n, 40.0);
+  EXPECT_EQ(drive.setpoints[0].feedforward_force_n, 7.0);
+  EXPECT_EQ(drive.setpoints[0].velocity_mps, 0.2);
+  EXPECT_EQ(drive.setpoints[0].position_m, 0.01);
+
+  // A reference that is not finite is refused like a force that is not: the last setpoint holds.
+  ForceCommandIn bad = cmd(1, 41.0);
+  bad.velocity_mps = std::numeric_limits<double>::quiet_NaN();
+  drive.own_loops_force_n = 33.0;  // the drive's loops applied 33 N over the last tick
+  const TickReport& report = loop.begin_tick(1, kMs);
+  EXPECT_EQ(report.applied_force_n, 33.0) << "the drive's account, not the force the loop held";
+  loop.published(kMs, kMs);
+  EXPECT_EQ(loop.offer(bad), Verdict::kNonFinite);
+  loop.end_tick(kMs + kMs / 2);
+  EXPECT_EQ(drive.setpoints.back().velocity_mps, 0.2);
+
+  // Out of operation enabled: no force, no feedforward; the references go on for the drive to hold.
+  ASSERT_TRUE(loop.request(DriveCommand::kDisableOperation, 2 * kMs).accepted);
+  loop.begin_tick(2, 2 * kMs);
+  loop.published(2 * kMs, 2 * kMs);
+  loop.end_tick(2 * kMs + kMs / 2);
+  EXPECT_EQ(drive.setpoints.back().force_n, 0.0);
+  EXPECT_EQ(drive.setpoints.back().feedforward_force_n, 0.0);
+  EXPECT_EQ(drive.setpoints.back().position_m, 0.01);
 }
 
 TEST(DriveLoop, AnotherRunsCommandIsRejected) {

@@ -123,8 +123,9 @@ TEST(EthercatCia402Drive, BootsWalksAndDrivesTheVirtualDriveAsTheSimulatedDriveS
   rig.master.boot();
   EXPECT_EQ(rig.drive->esc().al_state(), AlState::kOp);
   EXPECT_TRUE(rig.master.lockstep_contract());
-  EXPECT_EQ(rig.master.layout().output_bytes, 8);
-  EXPECT_EQ(rig.master.layout().input_bytes, 16);
+  // Every mode's targets (22 bytes in three RxPDOs) and the actual values with the torque demand.
+  EXPECT_EQ(rig.master.layout().output_bytes, 22);
+  EXPECT_EQ(rig.master.layout().input_bytes, 18);
   EXPECT_EQ(rig.drive->esc().process_data_watchdog_ns(), 0) << "lockstep: the watchdog off";
   rig.master.start();
   rig.master.enable_and_wait();
@@ -291,9 +292,10 @@ TEST(EthercatCia402Drive, AMappingTheDriveRefusesStopsTheBootNamingTheObjectAndT
 TEST(EthercatCia402DriveConfig, ThePdoSectionIsReadAsEntriesAndBadOnesAreRefusedNamingTheKey) {
   const std::string root = std::string(PMLSM_SOURCE_DIR) + "/configs/ethercat/drive.yaml";
   const Cia402DriveConfig shipped = load_ethercat_config(root);
-  ASSERT_EQ(shipped.outputs_mapping.size(), 3u);
-  EXPECT_EQ(shipped.outputs_mapping[2], (canopen::PdoMapEntry{0x2002, 0, 32}));
-  ASSERT_EQ(shipped.inputs_mapping.size(), 5u);
+  ASSERT_EQ(shipped.outputs_mapping.size(), 7u);
+  EXPECT_EQ(shipped.outputs_mapping[6], (canopen::PdoMapEntry{0x2002, 0, 32}));
+  ASSERT_EQ(shipped.inputs_mapping.size(), 6u);
+  EXPECT_EQ(shipped.mode, canopen::kModeCyclicSynchronousTorque);
   std::ifstream in(root);
   std::stringstream text;
   text << in.rdbuf();
@@ -319,6 +321,18 @@ TEST(EthercatCia402DriveConfig, ThePdoSectionIsReadAsEntriesAndBadOnesAreRefused
       "pdo:\n  outputs: {value: [], source: \"chosen: x\"}\n  inputs: {value: [\"0x6041:0:16\"], source: "
       "\"chosen: x\"}\n",
       "pdo.outputs");
+  // The mode by its name; another is refused with the choices.
+  std::string csv = yaml;
+  csv.replace(csv.find("mode: {value: cst"), 17, "mode: {value: csv");
+  EXPECT_EQ(parse_ethercat_config(csv, "csv").mode, canopen::kModeCyclicSynchronousVelocity);
+  std::string pv = yaml;
+  pv.replace(pv.find("mode: {value: cst"), 17, "mode: {value: pv ");
+  try {
+    parse_ethercat_config(pv, "test");
+    ADD_FAILURE() << "profile velocity accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("drive.mode: must be one of cst"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

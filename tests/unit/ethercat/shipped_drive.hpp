@@ -24,13 +24,19 @@ struct ShippedDrive {
         behind(system, PlantInitialCondition{}) {}
 
   /// The virtual drive over `behind`, with the CANopen device's dictionary (the lockstep contract)
-  /// or the CiA 402 one alone.
-  std::unique_ptr<VirtualEthercatDrive> make_drive(bool device_dictionary) {
+  /// or the CiA 402 one alone; with `own_loops`, its velocity and position modes (the system's
+  /// velocity PI), else torque only.
+  std::unique_ptr<VirtualEthercatDrive> make_drive(bool device_dictionary, bool own_loops = false) {
     canopen::Cia402ApplicationParams params;
     params.scaling = canopen_rig.master.scaling;
+    if (own_loops) {
+      params.own_loops =
+          canopen::DriveOwnLoopsParams::like_controller(system.velocity_loop, system.timing.control_period_s);
+    }
     if (!device_dictionary) return std::make_unique<VirtualEthercatDrive>(params, behind);
+    const std::uint32_t modes = own_loops ? canopen::kSupportedModesCyclicSynchronous : canopen::kSupportedModesTorque;
     return std::make_unique<VirtualEthercatDrive>(
-        params, behind, build_device_dictionary(canopen_rig, device, system.timing.control_period_s));
+        params, behind, build_device_dictionary(canopen_rig, device, system.timing.control_period_s, modes));
   }
 
   /// The shipped rig file, with this thread's time-outs (a reply is there at once or never).

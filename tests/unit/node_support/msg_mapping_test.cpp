@@ -290,6 +290,7 @@ VelocityControllerOutput distinct_control(bool saturated) {
   c.force_n = 4.04;
   c.velocity_error_mps = 4.05;
   c.saturated = saturated;
+  c.x_ref_m = 4.06;
   return c;
 }
 
@@ -324,7 +325,20 @@ TEST(MsgMapping, ForceCommandFromTheControllerOutput) {
     EXPECT_EQ(m.compensation_force_n(), 0.25);
     EXPECT_EQ(m.velocity_error_mps(), 4.05);
     EXPECT_EQ(m.saturated(), saturated);
+    EXPECT_EQ(m.v_ref_mps(), 4.02);
+    EXPECT_EQ(m.x_ref_m(), 4.06);
     expect_stamp_untouched(m.stamp());
+
+    // The drive loop's setpoint: the force, and the references a drive closing its own loops follows.
+    const drive::ForceCommandIn in = from_msg(m, 77, 88);
+    EXPECT_EQ(in.run_id, m.stamp().run_id());
+    EXPECT_EQ(in.feedback_tick, 5006u);
+    EXPECT_EQ(in.force_n, 4.04);
+    EXPECT_EQ(in.feedforward_force_n, 0.25);
+    EXPECT_EQ(in.velocity_mps, 4.02);
+    EXPECT_EQ(in.position_m, 4.06);
+    EXPECT_EQ(in.writer_id, 77u);
+    EXPECT_EQ(in.received_wall_ns, 88);
 
     TickRecord r = sentinel_record();
     from_msg(m, r);

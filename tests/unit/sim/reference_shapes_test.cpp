@@ -344,6 +344,19 @@ TEST(ReferenceLoop, WithoutTheReferenceModelVrefIsTheCommand) {
   EXPECT_GT(max_gap_shaped, 0.01);  // the model (25) lags the ramp: the bypass is not a no-op
 }
 
+TEST(ReferenceLoop, ThePositionReferenceIsTheSumOfTheVelocityReferenceBeforeTheTick) {
+  const SystemParams& params = test::shipped_params();
+  VelocityController controller(params, test::shipped_scenario("trapezoid"));
+  const double period_s = params.timing.control_period_s;
+  double sum_m = 0.0;
+  for (std::uint64_t k = 0; k < 1500; ++k) {
+    const VelocityControllerOutput out = controller.step(k, 0.0, {});
+    ASSERT_NEAR(out.x_ref_m, sum_m, 1e-12) << "tick " << k;
+    sum_m += out.v_ref_mps * period_s;
+  }
+  EXPECT_GT(sum_m, 0.01) << "the trapezoid moved the reference";
+}
+
 TEST(ReferenceLoop, SettlingIsMeasuredOverConstantSegmentsOnly) {
   const Scenario s = move(CommandShape::kTrapezoid);
   std::vector<TickRecord> trace(2000);

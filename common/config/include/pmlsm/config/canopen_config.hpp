@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/canopen/cia402_drive.hpp"
 #include "pmlsm/canopen/object_dictionary.hpp"
 #include "pmlsm/canopen/pdo.hpp"
@@ -104,7 +105,10 @@ CanopenRigConfig parse_canopen_config(const std::string& yaml_text, const std::s
 /// check). `device` must outlive the dictionary (the entries' names point into it).
 /// @throws ConfigError naming the object or PDO entry the dictionary refused, or a control period
 ///         that is not a whole number of milliseconds in [1, 255].
+/// `supported_drive_modes`: 0x6502 (canopen::kSupportedModes*; velocity and position only for a
+/// drive whose application closes those loops).
 canopen::ObjectDictionary build_device_dictionary(const CanopenRigConfig& rig, const DeviceDictionary& device,
-                                                  double control_period_s);
+                                                  double control_period_s,
+                                                  std::uint32_t supported_drive_modes = canopen::kSupportedModesTorque);
 
 }  // namespace pmlsm

@@ -20,9 +20,22 @@ struct Measurement {
   double i_q_a = 0;           ///< measured q-axis current [A]
   double thrust_force_n = 0;  ///< thrust from the currents, K_m i_q (eq. 14) [N]
   /// The force the drive held over the tick before this reading, as it reports it (a command
-  /// that came late leaves the one before in force) [N]; NaN when the reading does not say
-  /// (the drive backends: their caller knows what it applied).
+  /// that came late leaves the one before in force; a drive closing its own loops: their force)
+  /// [N]; NaN when the reading does not say (the caller knows what it applied).
   double applied_force_n = std::numeric_limits<double>::quiet_NaN();
+};
+
+/// What the controller asks of the drive for one period, in every form a drive may take it. A
+/// drive in cyclic synchronous torque (and the simulation) applies `force_n`. A drive that closes
+/// its own velocity loop (CiA 402's cyclic synchronous velocity) follows `velocity_mps` with
+/// `feedforward_force_n` added inside its loop, where the controller adds the compensator's force
+/// inside its PI (Fig. 4); one that closes position too (cyclic synchronous position) follows
+/// `position_m`, `velocity_mps` its velocity offset.
+struct Setpoint {
+  double force_n = 0;              ///< the force: the velocity PI's and the compensation's [N]
+  double feedforward_force_n = 0;  ///< the part a drive's own velocity loop adds (the compensation) [N]
+  double velocity_mps = 0;         ///< the velocity reference V_ref the PI followed [m/s]
+  double position_m = 0;           ///< V_ref's integral since the controller's start [m]
 };
 
 /// A drive backend. Called from the loop thread only; no call may block past its tick, throw
@@ -37,6 +50,9 @@ class Drive {
   /// Once per tick, last: hold `force_n` for one control period. The backend applies it
   /// only in operation enabled (zero force in every other state, whatever is asked).
   virtual void apply(double force_n) = 0;
+  /// As apply(), with the whole setpoint, for a backend that closes loops itself (its
+  /// Measurement::applied_force_n then says what force its loops applied). The rest apply the force.
+  virtual void apply_setpoint(const Setpoint& setpoint) { apply(setpoint.force_n); }
   /// An operator's or supervisor's request to the power state machine.
   virtual TransitionResult request(DriveCommand command) = 0;
   /// A fault the loop detected (watchdog, a command that cannot be applied): transition 13,

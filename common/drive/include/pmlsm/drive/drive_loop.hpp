@@ -5,16 +5,16 @@
 //   published    the node has written the feedback (times kept for latency and the watchdog)
 //   offer        each ForceCommand received is arbitrated (below)
 //   end_tick     realtime: late count, watchdog, lost-controller check; the backend applies
-//                the force for the next period (zero unless operation enabled)
+//                the setpoint for the next period (zero unless operation enabled)
 //
 // Arbitration (a command names the feedback tick it answers, its run and its writer):
 //   - another run's command (run_id differs: a controller still following a drive that has
 //     restarted) is rejected;
 //   - lockstep: only the answer to tick k is taken; answers to other ticks are stale (late);
-//     a non-finite force answers the tick but is rejected: the last force is held;
+//     a non-finite setpoint answers the tick but is rejected: the last one is held;
 //   - realtime: the newest command is held (zero-order hold); a command is rejected when its
-//     force is not finite, when it answers a tick not yet published (malformed: taken, it would
-//     make every genuine answer after it look stale) or one not newer than the applied one;
+//     setpoint (force, feedforward, velocity, position) is not finite, when it answers a tick not yet published
+//     (malformed: taken, it would make every genuine answer after it look stale) or one not newer than the applied one;
 //   - one writer owns the drive: the first whose command is taken after the drive entered
 //     operation enabled. Commands of any other writer (a second controller) are rejected,
 //     counted and flagged (STATUS_FOREIGN_COMMAND), never applied: the drive never alternates
@@ -78,6 +78,10 @@ struct ForceCommandIn {
   double force_n = 0;
   std::uint64_t writer_id = 0;        ///< identifies the writer (a hash of its GUID)
   std::int64_t received_wall_ns = 0;  ///< reception time (CLOCK_REALTIME), for latency
+  /// The rest of the setpoint (Setpoint), for a drive closing its own loops.
+  double feedforward_force_n = 0;
+  double velocity_mps = 0;
+  double position_m = 0;
 };
 
 enum class Verdict : std::uint8_t {
@@ -94,7 +98,9 @@ const char* to_string(Verdict verdict) noexcept;
 struct TickReport {
   std::uint64_t tick = 0;
   Measurement measurement;
-  double applied_force_n = 0;  ///< force in effect during the last tick
+  /// Force in effect during the last tick: the drive's account when it gives one
+  /// (Measurement::applied_force_n), else the force the loop held.
+  double applied_force_n = 0;
   std::uint64_t applied_command_tick = 0;
   std::uint32_t status = 0;  ///< status::k* bits
   PowerState power_state = PowerState::kNotReadyToSwitchOn;
@@ -173,7 +179,7 @@ class DriveLoop {
   TickReport report_;
   std::uint64_t run_id_ = 0;
   std::uint64_t tick_ = 0;
-  double force_n_ = 0;  // zero-order hold of the last accepted command
+  Setpoint setpoint_;  // zero-order hold of the last accepted command
   std::uint64_t applied_tick_ = 0;
   bool any_command_ = false;
   bool answered_ = false;

@@ -1,17 +1,27 @@
 // The drive loop's backend for a real (or virtual) CiA 402 drive on EtherCAT: our master (Master)
-// taking one slave to OP in cyclic synchronous torque and exchanging its process data once a
+// taking one slave to OP in a cyclic synchronous mode and exchanging its process data once a
 // tick, behind the same seam and with the same contract as the CANopen master
 // (canopen::Cia402Drive): the power-state walk, faults, quick stop, a lost drive at zero force.
 // Pure: a Link, no DDS, no threads; tested against the virtual drive in this thread.
 //
 // Boot (boot()): the slaves counted (the drive at drive.position must answer), station addresses
 // set, the drive's SII read and its identity compared with the rig file's (vendor id, product
-// code), INIT, the mailbox, PREOP; by SDO 0x6060 = 10 (cyclic synchronous torque) and 0x60C2 =
-// 1 ms; the rig file's mapping written (0x1C12 / 0x1C13 and the PDOs, when it has a pdo section);
-// the process data mapped as the drive's 0x1C12 / 0x1C13 say (map_process_data), in which
-// the master finds controlword 0x6040 and target torque 0x6071 (outputs), statusword 0x6041,
-// torque actual 0x6077, velocity actual 0x606C and position actual 0x6064 (inputs); a missing
-// one stops the boot naming it. 0x6061 read back = 10. With drive.distributed_clocks, the drive's
+// code), INIT, the mailbox, PREOP; by SDO 0x6060 = drive.mode and 0x60C2 = 1 ms; the rig file's
+// mapping written (0x1C12 / 0x1C13 and the PDOs, when it has a pdo section); the process data
+// mapped as the drive's 0x1C12 / 0x1C13 say (map_process_data), in which the master finds
+// controlword 0x6040 and the mode's target (outputs: target torque 0x6071, velocity 0x60FF or
+// position 0x607A), statusword 0x6041, torque actual 0x6077, velocity actual 0x606C and position
+// actual 0x6064 (inputs); a missing one stops the boot naming it. 0x6061 read back = the mode.
+//
+// The setpoint (drive::Setpoint) by mode, as far as the mapping carries it:
+//   cst  0x6071 = force_n
+//   csv  0x60FF = velocity_mps, 0x60B2 torque offset = feedforward_force_n
+//   csp  0x607A = position_m + origin, 0x60B1 velocity offset = velocity_mps, 0x60B2 as in csv
+// where origin makes the target the drive's position when it entered operation enabled (the
+// reference moves it from there, it never jumps to where the controller started). Outside
+// operation enabled the targets hold the drive still: torque and velocity 0, position its own.
+// In csv and csp the reading's applied force is the drive's torque demand 0x6074 (or, unmapped,
+// its torque actual): the force its own loops applied, for the estimator. With drive.distributed_clocks, the drive's
 // clock set to the master's time (Master::configure_distributed_clocks) and, each cycle after the
 // outputs, the master's time written to it (its drift control follows), plus the frame's way there
 // (half the running mean of the cycle's round trips; a ring's delay would be measured by the ports'
@@ -42,6 +52,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/canopen/cia402_remote_state.hpp"
 #include "pmlsm/canopen/scaling.hpp"
 #include "pmlsm/drive/drive.hpp"
@@ -55,6 +66,8 @@ namespace pmlsm::ethercat {
 struct Cia402DriveConfig {
   /// The drive's position on the ring (0: the first slave after the master).
   std::uint16_t position = 0;
+  /// 0x6060: canopen::kModeCyclicSynchronous{Torque,Velocity,Position}.
+  std::int8_t mode = canopen::kModeCyclicSynchronousTorque;
   /// The identity the drive's SII must show (0x1018:1 and :2).
   std::uint32_t vendor_id = 0;
   std::uint32_t product_code = 0x00005001;
@@ -98,6 +111,7 @@ struct Cia402DriveConfig {
 template <typename Config, typename Visitor>
 void visit_parameters(Config& m, Visitor& v) {
   v.integer("drive.position", m.position, {0.0, 65535.0, "a position on the ring: 16 bits of auto-increment address"});
+  v.choice("drive.mode", m.mode, &canopen::mode_from_string);
   v.integer("drive.vendor_id", m.vendor_id, {0.0, 4294967295.0, "ETG's vendor id, 0x1018:1"});
   v.integer("drive.product_code", m.product_code, {0.0, 4294967295.0, "the vendor's product code, 0x1018:2"});
   canopen::visit_scaling_parameters(m.scaling, v);
@@ -169,7 +183,9 @@ class Cia402Drive final : public drive::Drive {
 
   // drive::Drive
   drive::Measurement sample() override;
+  /// The force alone: apply_setpoint({force_n}) (in csv and csp: the drive held still).
   void apply(double force_n) override;
+  void apply_setpoint(const drive::Setpoint& setpoint) override;
   drive::TransitionResult request(drive::DriveCommand command) override { return remote_.request(command); }
   void fault(std::uint16_t error_code) override { remote_.fault(error_code); }
   drive::PowerState power_state() const override { return remote_.power_state(); }
@@ -212,8 +228,18 @@ class Cia402Drive final : public drive::Drive {
   /// One exchange of a cycle through scratch_, its time there and back recorded: true when
   /// answered with working counter 1 (else counted as lost or as a working counter error).
   bool cycle_exchange(Command command, std::uint32_t address, std::uint16_t length);
+  /// The targets a cycle sends, in the dictionary's units.
+  struct Targets {
+    std::int16_t torque = 0;
+    std::int32_t velocity = 0;
+    std::int32_t position = 0;
+    std::int32_t velocity_offset = 0;
+    std::int16_t torque_offset = 0;
+  };
+  /// Targets that hold the drive still (torque and velocity 0, position where it is).
+  Targets still() const;
   /// The outputs out (LWR); true when the drive's SM2 took them (working counter 1).
-  bool send_outputs(std::uint16_t controlword, std::int16_t torque, std::uint32_t command_tick);
+  bool send_outputs(std::uint16_t controlword, const Targets& targets, std::uint32_t command_tick);
   bool send_outputs_again();
   /// The inputs in (LRD); true when read (working counter 1), the values taken.
   bool read_inputs();
@@ -238,6 +264,11 @@ class Cia402Drive final : public drive::Drive {
   // Byte offsets of the objects in the image (-1: not mapped).
   int controlword_at_ = -1;
   int target_torque_at_ = -1;
+  int target_velocity_at_ = -1;
+  int target_position_at_ = -1;
+  int velocity_offset_at_ = -1;
+  int torque_offset_at_ = -1;
+  int torque_demand_at_ = -1;
   int command_tick_at_ = -1;
   int statusword_at_ = -1;
   int torque_actual_at_ = -1;
@@ -250,10 +281,13 @@ class Cia402Drive final : public drive::Drive {
 
   // the drive as last read
   std::int16_t torque_actual_ = 0;
+  std::int16_t torque_demand_ = 0;
   std::int32_t velocity_actual_ = 0;
   std::int32_t position_actual_ = 0;
   std::uint32_t periods_ = 0;
   bool was_faulted_ = false;
+  bool was_enabled_ = false;
+  double position_origin_m_ = 0;  ///< csp: the drive's position less the reference's at enable
 
   std::uint32_t base_ = 0;
   bool booted_ = false;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "pmlsm/canopen/cia402_application.hpp"
+#include "pmlsm/canopen/cia402_dictionary.hpp"
 #include "pmlsm/canopen/object_dictionary.hpp"
 #include "pmlsm/canopen/pdo.hpp"
 #include "pmlsm/drive/drive.hpp"
@@ -43,7 +44,9 @@ inline constexpr std::uint16_t kSyncModeSm2Inputs = 0x0022;
 /// Adds 0x1C00 (4 sync managers: mailbox out, mailbox in, outputs, inputs) and 0x1C12 / 0x1C13:
 /// every RxPDO (0x1600-0x1603) and TxPDO (0x1A00-0x1A03) whose mapping the dictionary has with
 /// entries, in order. The CiA 402 dictionary alone gives 0x1600 and 0x1A00; a CANopen device's
-/// (configs/canopen) its RPDO1 and TPDO1 + TPDO2, the same objects on EtherCAT. A master may
+/// (configs/canopen) its RPDO1 and TPDO1 + TPDO2, the same objects on EtherCAT; the mapping
+/// objects of the rest of 0x1600-0x1603 / 0x1A00-0x1A03 are added empty, with the first's checks,
+/// for a master to map (a velocity or position mapping needs more than 64 bits). A master may
 /// assign others in PREOP (ETG.1000.6): sub-indices 1-4 change only while the count (sub-index 0)
 /// is 0 and name a PDO of their direction; a count needs each PDO it counts mapped. The PDOs'
 /// COB-IDs (0x1400.., 0x1800..), which EtherCAT does not use, are marked not valid so their
@@ -138,9 +141,12 @@ class VirtualCia402Slave {
   /// Its own SII: identity, the name "PMLSM virtual drive", a 128-byte CoE mailbox at 0x1000 and
   /// 0x1080, and its sync managers with the process data's lengths.
   static std::vector<std::uint16_t> virtual_sii(std::uint16_t output_bytes, std::uint16_t input_bytes);
+  /// The CiA 402 dictionary with the identity and name `sii` gives (empty: virtual_sii()'s) and
+  /// 0x6502 = `supported_drive_modes`.
+  static canopen::ObjectDictionary make_dictionary(
+      const std::vector<std::uint16_t>& sii, std::uint32_t supported_drive_modes = canopen::kSupportedModesTorque);
 
  private:
-  static canopen::ObjectDictionary make_dictionary(const std::vector<std::uint16_t>& sii);
   static canopen::ObjectDictionary with_sync_manager_objects(canopen::ObjectDictionary dictionary);
   static EscParams esc_params(std::vector<std::uint16_t> sii, const CoeProcessImage& process);
   /// PREOP -> SAFEOP: the mapping the master left taken (0), or refused (0x001D).
@@ -178,7 +184,8 @@ class VirtualEthercatDrive : canopen::Cia402ApplicationEvents {
   /// A line for the owner's log (error false: a state change; true: a fault or a refusal).
   using Log = std::function<void(bool error, const std::string& line, std::int64_t now_ns)>;
 
-  /// `drive` outlives it; `sii` as VirtualCia402Slave's. @throws std::invalid_argument from the
+  /// `drive` outlives it; `sii` as VirtualCia402Slave's; the dictionary offers the velocity and
+  /// position modes when `params` has the drive's own loops. @throws std::invalid_argument from the
   /// image, the dictionary or the scaling.
   VirtualEthercatDrive(const canopen::Cia402ApplicationParams& params, drive::Drive& drive, Log log = {},
                        std::vector<std::uint16_t> sii = {});

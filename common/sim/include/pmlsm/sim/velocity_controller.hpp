@@ -41,6 +41,9 @@ struct VelocityControllerOutput {
   double command_mps = 0;  ///< the command c(t_k) into the reference model, after input shaping
   double v_ref_mps = 0;
   double a_ref_mps2 = 0;
+  /// x_ref,k = T sum_{j<k} V_ref,j: where the motor should be at this tick's start, from the
+  /// controller's start (a drive closing position follows its motion) [m].
+  double x_ref_m = 0;
   double force_n = 0;  ///< force request after the limit
   double velocity_error_mps = 0;
   bool saturated = false;
@@ -82,6 +85,7 @@ class VelocityController {
   std::optional<InputShaper> shaper_;
   double last_command_mps_ = 0;  ///< without the reference model: c(t_{k-1})
   bool have_last_command_ = false;
+  double x_ref_m_ = 0;  ///< x_ref of the next tick
   VelocityPi velocity_;
   std::optional<VibrationGuard> guard_;
   std::optional<StandstillGate> standstill_;
