@@ -106,6 +106,12 @@ std::string describe_normal_or_segment(const SeenSdo& sdo) {
     return "upload segment response (toggle " + toggle + ", " + std::to_string(bytes) + " bytes" +
            ((command & 1U) != 0 ? ", last)" : ")");
   }
+  if (request && specifier == 0) {
+    const std::size_t bytes = more > 0 ? 7 + more : 7 - ((command >> 1) & 7U);
+    return "download segment request (toggle " + toggle + ", " + std::to_string(bytes) + " bytes" +
+           ((command & 1U) != 0 ? ", last)" : ")");
+  }
+  if (!request && specifier == 1) return "download segment response (toggle " + toggle + ")";
   if ((command & 0x03U) != 0x01) return "";  // expedited, or no size: not a normal transfer
   if (!request && specifier == 2) {
     return "upload response " + at + ", normal: " + total() + " bytes, " + std::to_string(more) + " here";

@@ -79,7 +79,8 @@ std::size_t CoeSdoServer::handle(const std::uint8_t* request, std::size_t size, 
   const std::uint8_t subindex = sdo[3];
   switch (command >> 5) {
     case kCcsInitiateUpload:
-      upload_ = {};  // a new request ends any upload under way
+      upload_ = {};  // a new request ends any transfer under way
+      download_ = {};
       if ((command & kBitCompleteAccess) != 0) {
         const std::uint32_t code = read_record(index, subindex);
         if (code != canopen::kAbortNone) return abort(response, index, subindex, code);
@@ -93,6 +94,7 @@ std::size_t CoeSdoServer::handle(const std::uint8_t* request, std::size_t size, 
     case kCcsUploadSegment: return upload_segment(command, response, capacity);
     case kCcsInitiateDownload:
       upload_ = {};
+      download_ = {};
       if ((command & kBitExpedited) == 0) {
         return normal_download(sdo, request + kCoeSdoMoreAt, coe_sdo_more_bytes(header), response);
       }
@@ -103,8 +105,12 @@ std::size_t CoeSdoServer::handle(const std::uint8_t* request, std::size_t size, 
         return downloaded(response, index, subindex);
       }
       break;
-    case kCcsDownloadSegment: return abort(response, 0, 0, canopen::kAbortCommandSpecifier);
-    case kCcsAbort: upload_ = {}; break;
+    case kCcsDownloadSegment:
+      return download_segment(sdo, request + kCoeSdoMoreAt, coe_sdo_more_bytes(header), response);
+    case kCcsAbort:
+      upload_ = {};
+      download_ = {};
+      break;
     default: break;
   }
   // The CANopen server's request frame: its own COB-ID, the 8 bytes as they came.
@@ -265,9 +271,13 @@ std::size_t CoeSdoServer::normal_download(const SdoBytes& sdo, const std::uint8_
   if ((sdo[0] & kBitSizeIndicated) == 0) return abort(response, index, subindex, canopen::kAbortCommandSpecifier);
   const std::uint32_t size = get_le32(sdo.data() + 4);
   if ((sdo[0] & kBitCompleteAccess) != 0) {
-    // A whole record in this message (a longer one would need segments: refused below).
-    std::uint32_t code = canopen::kAbortCommandSpecifier;
-    if (more_bytes >= size) code = write_record(index, subindex, more, size);
+    if (more_bytes < size) {  // the rest follows in segments
+      if (size > kMaxDownloadBytes) return abort(response, index, subindex, canopen::kAbortOutOfMemory);
+      download_ = {true, index, subindex, size, 0};
+      download_data_.assign(more, more + more_bytes);
+      return downloaded(response, index, subindex);
+    }
+    const std::uint32_t code = write_record(index, subindex, more, size);
     if (code != canopen::kAbortNone) return abort(response, index, subindex, code);
     return downloaded(response, index, subindex);
   }
@@ -289,6 +299,37 @@ std::size_t CoeSdoServer::normal_download(const SdoBytes& sdo, const std::uint8_
       dictionary_.write(index, subindex, canopen::SdoData{value, static_cast<std::uint8_t>(size)});
   if (!written) return abort(response, index, subindex, written.abort_code);
   return downloaded(response, index, subindex);
+}
+
+std::size_t CoeSdoServer::download_segment(const SdoBytes& sdo, const std::uint8_t* more, std::size_t more_bytes,
+                                           std::uint8_t* response) {
+  const std::uint8_t command = sdo[0];
+  if (!download_.active) return abort(response, 0, 0, canopen::kAbortCommandSpecifier);
+  const Download d = download_;
+  if (((command >> 4) & 1U) != d.toggle) {
+    download_ = {};
+    return abort(response, d.index, d.subindex, canopen::kAbortToggleBit);
+  }
+  // Past the 8 bytes every byte is data; a message of 8 says how many of its 7 are not (n).
+  const std::size_t in_seven = more_bytes > 0 ? 7 : 7 - ((command >> 1) & 7U);
+  if (download_data_.size() + in_seven + more_bytes > d.total) {
+    download_ = {};
+    return abort(response, d.index, d.subindex, canopen::kAbortLengthTooHigh);
+  }
+  download_data_.insert(download_data_.end(), sdo.begin() + 1, sdo.begin() + 1 + static_cast<std::ptrdiff_t>(in_seven));
+  download_data_.insert(download_data_.end(), more, more + more_bytes);
+  ++segments_;
+  if ((command & 1U) != 0) {  // the last: the record written whole
+    download_ = {};
+    std::uint32_t code = canopen::kAbortLengthTooLow;
+    if (download_data_.size() == d.total) code = write_record(d.index, d.subindex, download_data_.data(), d.total);
+    if (code != canopen::kAbortNone) return abort(response, d.index, d.subindex, code);
+  } else {
+    download_.toggle = static_cast<std::uint8_t>(d.toggle ^ 1U);
+  }
+  SdoBytes answer{};
+  answer[0] = static_cast<std::uint8_t>(0x20U | (d.toggle << 4));  // scs 1: download segment response
+  return respond(response, answer);
 }
 
 std::size_t CoeSdoServer::write_emergency(std::uint8_t* out, std::uint16_t error_code, std::uint8_t error_register) {

@@ -465,17 +465,43 @@ void Master::abort_transfer(const SlaveInfo& slave, std::uint16_t index, std::ui
 SdoResult Master::sdo_download_record(const SlaveInfo& slave, std::uint16_t index,
                                       const std::vector<std::uint8_t>& record) {
   const std::size_t room = std::min<std::size_t>(slave.mailbox_receive_size, kMaxDatagramDataBytes);
-  if (room < kCoeSdoMoreAt || record.size() > room - kCoeSdoMoreAt) {
-    throw std::invalid_argument(
-        "sdo_download_record: " + std::to_string(record.size()) + " bytes; the receive mailbox holds " +
-        std::to_string(room > kCoeSdoMoreAt ? room - kCoeSdoMoreAt : 0) + " (a segmented download is not done)");
+  if (room < kCoeSdoMoreAt) {
+    throw std::runtime_error(slave_name(slave.station_address) + ": no mailbox for CoE (receive " +
+                             std::to_string(slave.mailbox_receive_size) + " bytes)");
   }
-  // 0x31: initiate download, size indicated, not expedited, complete access from sub-index 0.
+  // 0x31: initiate download, size indicated, not expedited, complete access from sub-index 0, with
+  // as much of the record as the receive mailbox holds after the 8 bytes.
   SdoBytes request{};
   request[0] = 0x31;
   put_le16(request.data() + 1, index);
   put_le32(request.data() + 4, static_cast<std::uint32_t>(record.size()));
-  return expedited_answer(slave, coe_request(slave, request, record.data(), record.size()));
+  std::size_t sent = std::min(record.size(), room - kCoeSdoMoreAt);
+  SdoResult r = expedited_answer(slave, coe_request(slave, request, record.data(), sent));
+  // The rest in download segments: 7 bytes in the 8, as many after them as the mailbox holds.
+  for (std::uint8_t toggle = 0; r.done && sent < record.size(); toggle ^= 1U) {
+    const std::size_t take = std::min(record.size() - sent, room - kCoeSdoMoreAt + 7);
+    const bool last = sent + take == record.size();
+    SdoBytes segment{};
+    const std::size_t in_seven = std::min<std::size_t>(take, 7);
+    segment[0] = static_cast<std::uint8_t>((toggle << 4) | ((7 - in_seven) << 1) | (last ? 1U : 0U));
+    std::copy(record.begin() + static_cast<std::ptrdiff_t>(sent),
+              record.begin() + static_cast<std::ptrdiff_t>(sent + in_seven), segment.begin() + 1);
+    const CoeAnswer answer = coe_request(slave, segment, record.data() + sent + in_seven, take - in_seven);
+    const std::uint8_t command = answer.sdo[0];
+    if ((command >> 5) == 4) {  // the slave's abort
+      r.done = false;
+      r.abort_code = get_le32(answer.sdo.data() + 4);
+      return r;
+    }
+    if ((command >> 5) != 1 || ((command >> 4) & 1U) != toggle) {
+      abort_transfer(slave, index, 0, canopen::kAbortToggleBit);
+      throw std::runtime_error(slave_name(slave.station_address) + " " + format_hex(index, 4) + ": answer " +
+                               format_hex(command, 2) + " is not the download segment response (toggle " +
+                               std::to_string(toggle) + ")");
+    }
+    sent += take;
+  }
+  return r;
 }
 
 SdoResult Master::sdo_download(const SlaveInfo& slave, std::uint16_t index, std::uint8_t subindex, std::uint32_t value,

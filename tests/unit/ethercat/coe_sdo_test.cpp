@@ -1,7 +1,8 @@
 // SDO over CoE beyond 4 bytes (mailbox.hpp): our master reads texts by normal upload, and by
 // upload segments where the send mailbox does not hold them, at every boundary of the segmenting;
 // the server answers the protocol's misuses (a segment without an upload, the wrong toggle, a
-// segmented or over-long download) with CiA 301's abort codes; the capture decoder names each
+// segmented or over-long download) with CiA 301's abort codes; a record longer than the receive
+// mailbox goes in download segments, each misuse of them aborted; the capture decoder names each
 // message of such a transfer.
 #include <gtest/gtest.h>
 
@@ -20,6 +21,7 @@
 #include "pmlsm/ethercat/coe_drive.hpp"
 #include "pmlsm/ethercat/master.hpp"
 #include "pmlsm/ethercat/pcapng.hpp"
+#include "pmlsm/ethercat/sii.hpp"
 #include "pmlsm/util/little_endian.hpp"
 
 namespace pmlsm::ethercat {
@@ -213,6 +215,85 @@ TEST(CoeSdo, OurMasterWritesAPdoAssignmentWholeWhereTheSlaveOffersCompleteAccess
   EXPECT_EQ(records[0], records[1]);
 }
 
+/// Each SDO message of the capture at `path` as our decoder names it (none malformed).
+std::vector<std::string> named_sdo_messages(const fs::path& path) {
+  PcapngReader reader(path.string());
+  const CaptureDecode d = decode_capture(reader);
+  EXPECT_EQ(d.malformed_frames, 0u);
+  std::vector<std::string> seen;
+  for (const CaptureDecode::Sdo& sdo : d.sdos) seen.push_back(describe(sdo.seen));
+  return seen;
+}
+
+TEST(CoeSdo, ARecordLongerThanTheReceiveMailboxGoesInDownloadSegments) {
+  // Mailboxes of 16 bytes: the initiate carries none of the record, each segment 7 bytes.
+  const std::vector<std::uint16_t> sii = test::sii_with_mailboxes(16);
+  VirtualCia402Slave slave(VirtualCia402Slave::make_dictionary(sii, canopen::kSupportedModesCyclicSynchronous), sii);
+  VirtualSegment segment({&slave.esc()});
+  VirtualSegmentLink link(segment);
+  Master master(link);
+  const fs::path path = fs::temp_directory_path() / ("pmlsm_coe_sdo_" + std::to_string(::getpid())) / "d.pcapng";
+  fs::create_directories(path.parent_path());
+  {
+    const SlaveInfo info = test::to_preop(master);
+    ASSERT_EQ(info.mailbox_receive_size, 16);
+    PcapngWriter writer(path.string());
+    master.capture_to(&writer);
+    // TxPDO 0x1A01 with four 16-bit entries (statusword, torque actual, torque demand,
+    // controlword): 18 bytes, in segments of 7, 7 and 4.
+    const std::vector<std::uint8_t> record{4,    0,    0x10, 0,    0x41, 0x60, 0x10, 0,    0x77,
+                                           0x60, 0x10, 0,    0x74, 0x60, 0x10, 0,    0x40, 0x60};
+    const std::uint64_t before = slave.coe().segments();
+    const SdoResult r = master.sdo_download_record(info, 0x1A01, record);
+    ASSERT_TRUE(r.done) << r.describe();
+    EXPECT_EQ(slave.coe().segments() - before, 3u);
+    master.capture_to(nullptr);
+    writer.flush();
+    EXPECT_EQ(master.sdo_upload(info, 0x1A01, 0, true).describe(),
+              "04 00 10 00 41 60 10 00 77 60 10 00 74 60 10 00 40 60 (18 bytes)")
+        << "read back whole (by upload segments through the same small mailbox)";
+    // The slave's checks hold at the end: an entry it refuses aborts the last segment's answer.
+    std::vector<std::uint8_t> absent = record;
+    absent[17] = 0x77;  // 0x7740: no such object
+    EXPECT_EQ(master.sdo_download_record(info, 0x1A01, absent).abort_code, canopen::kAbortObjectMissing);
+    // And our master maps the velocity and position modes' outputs through it, record by record.
+    master.write_pdo_assignment(info, kObjectRxPdoAssign, kRxPdoMapping,
+                                {{0x6040, 0, 16}, {0x60FF, 0, 32}, {0x60B2, 0, 16}, {0x607A, 0, 32}});
+    EXPECT_EQ(master.sdo_upload(info, kObjectRxPdoAssign, 0, true).describe(), "02 00 00 16 01 16 (6 bytes)");
+  }
+  const std::vector<std::string> expected{
+      "download request 0x1A01:00, normal: 18 bytes, 0 here", "download response 0x1A01:00",
+      "download segment request (toggle 0, 7 bytes)",         "download segment response (toggle 0)",
+      "download segment request (toggle 1, 7 bytes)",         "download segment response (toggle 1)",
+      "download segment request (toggle 0, 4 bytes, last)",   "download segment response (toggle 0)"};
+  EXPECT_EQ(named_sdo_messages(path), expected);
+  fs::remove_all(path.parent_path());
+}
+
+TEST(CoeSdo, TheServerAbortsADownloadSegmentOutOfTurnOrPastTheSize) {
+  VirtualCia402Slave slave;
+  CoeSdoServer server(slave.dictionary(), canopen::NodeId(1));
+  const auto start = [&](std::uint8_t size, const std::vector<std::uint8_t>& first) {
+    return ask(server, {0x31, 0x01, 0x16, 0, size, 0, 0, 0}, first).sdo[0];
+  };
+  // A record of 10 bytes announced, 2 in the initiate: the rest must follow in turn.
+  EXPECT_EQ(start(10, {2, 0}), 0x60);
+  EXPECT_EQ(abort_code_of(ask(server, {0x10, 0x10, 0, 0x40, 0x60, 0x10, 0, 0x71})), canopen::kAbortToggleBit)
+      << "toggle 1 first";
+  EXPECT_EQ(abort_code_of(ask(server, {0x00, 0x10, 0, 0x40, 0x60, 0x10, 0, 0x71})), canopen::kAbortCommandSpecifier)
+      << "the abort ended the transfer";
+  EXPECT_EQ(start(10, {2, 0}), 0x60);
+  EXPECT_EQ(abort_code_of(ask(server, {0x00, 1, 2, 3, 4, 5, 6, 7}, {8, 9})), canopen::kAbortLengthTooHigh)
+      << "9 bytes where 8 were left";
+  EXPECT_EQ(start(10, {2, 0}), 0x60);
+  EXPECT_EQ(abort_code_of(ask(server, {0x03, 0x10, 0, 0x40, 0x60, 0x10, 0, 0})), canopen::kAbortLengthTooLow)
+      << "the last segment with 6 bytes where 8 were left";
+  EXPECT_EQ(start(10, {2, 0}), 0x60);
+  EXPECT_EQ(ask(server, {0x00, 0x10, 0, 0x71, 0x60, 0x10, 0, 0x40}).sdo[0], 0x20);
+  EXPECT_EQ(ask(server, {0x1D, 0x60, 0, 0, 0, 0, 0, 0}).sdo[0], 0x30) << "the last, 1 byte (n = 6), toggle 1";
+  EXPECT_EQ(slave.dictionary().get_or(0x1601, 2, 0), 0x60400010) << "written whole when the last came";
+}
+
 TEST(CoeSdo, ACaptureOfASegmentedUploadNamesEachMessage) {
   const fs::path path = fs::temp_directory_path() / ("pmlsm_coe_sdo_" + std::to_string(::getpid())) / "s.pcapng";
   fs::create_directories(path.parent_path());
@@ -224,16 +305,11 @@ TEST(CoeSdo, ACaptureOfASegmentedUploadNamesEachMessage) {
     ASSERT_TRUE(s.master.sdo_upload(s.info, 0x2100, 1).done);
     writer.flush();
   }
-  PcapngReader reader(path.string());
-  const CaptureDecode d = decode_capture(reader);
-  EXPECT_EQ(d.malformed_frames, 0u);
-  std::vector<std::string> seen;
-  for (const CaptureDecode::Sdo& sdo : d.sdos) seen.push_back(describe(sdo.seen));
   const std::vector<std::string> expected{
       "upload request 0x2100:01",          "upload response 0x2100:01, normal: 234 bytes, 112 here",
       "upload segment request (toggle 0)", "upload segment response (toggle 0, 119 bytes)",
       "upload segment request (toggle 1)", "upload segment response (toggle 1, 3 bytes, last)"};
-  EXPECT_EQ(seen, expected);
+  EXPECT_EQ(named_sdo_messages(path), expected);
   fs::remove_all(path.parent_path());
 }
 

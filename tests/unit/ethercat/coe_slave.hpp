@@ -3,12 +3,15 @@
 #pragma once
 
 #include "pmlsm/canopen/cia402_dictionary.hpp"
+#include "pmlsm/ethercat/coe_drive.hpp"
 #include "pmlsm/ethercat/esc.hpp"
 #include "pmlsm/ethercat/mailbox.hpp"
 #include "pmlsm/ethercat/master.hpp"
 #include "pmlsm/ethercat/sii.hpp"
 
+#include <cstdint>
 #include <stdexcept>
+#include <vector>
 
 namespace pmlsm::ethercat::test {
 
@@ -42,6 +45,17 @@ inline SlaveInfo to_preop(Master& master) {
   master.configure_mailbox(info);
   if (!master.request_state(0x1001, AlState::kPreOp).reached) throw std::runtime_error("the slave did not reach PREOP");
   return info;
+}
+
+/// The virtual drive's SII with both mailboxes `bytes` long (at least the 16 of an SDO message),
+/// for transfers that need segments where a 128-byte mailbox would not.
+inline std::vector<std::uint16_t> sii_with_mailboxes(std::uint16_t bytes) {
+  SiiInfo info = parse_sii(VirtualCia402Slave::virtual_sii(8, 16));
+  info.mailbox_receive_size = bytes;
+  info.mailbox_send_size = bytes;
+  info.sync_managers[0].length = bytes;
+  info.sync_managers[1].length = bytes;
+  return build_sii(info);
 }
 
 }  // namespace pmlsm::ethercat::test

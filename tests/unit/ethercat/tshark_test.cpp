@@ -42,6 +42,20 @@ fs::path scratch_capture(const std::string& what, const std::string& file) {
 
 bool have_tshark() { return std::system("tshark --version >/dev/null 2>&1") == 0; }
 
+/// Our master with `esc` alone on its segment, the slave taken to PREOP, then every frame of
+/// `session(master, info)` into `capture`.
+template <typename Session>
+void capture_session(Esc& esc, const fs::path& capture, Session session) {
+  VirtualSegment segment({&esc});
+  VirtualSegmentLink link(segment);
+  PcapngWriter writer(capture.string());
+  Master master(link);
+  const SlaveInfo info = test::to_preop(master);
+  master.capture_to(&writer);
+  session(master, info);
+  writer.flush();
+}
+
 /// What tshark prints for `fields` of every packet of `capture` matching `filter`, a line a
 /// packet, the fields comma-separated (a field with several values: those joined by ';').
 std::string tshark(const fs::path& capture, const std::string& filter, const std::string& fields) {
@@ -237,18 +251,11 @@ TEST(EtherCatTshark, DecodesOurCoeSdoRequestsAndTheSlavesAnswers) {
   const fs::path capture = scratch_capture("coe", "coe");
   const fs::path dir = capture.parent_path();
   test::CoeSlave slave;
-  VirtualSegment segment({&slave.esc});
-  VirtualSegmentLink link(segment);
-  {
-    PcapngWriter writer(capture.string());
-    Master master(link);
-    const SlaveInfo info = test::to_preop(master);
-    master.capture_to(&writer);
+  capture_session(slave.esc, capture, [&](Master& master, const SlaveInfo& info) {
     ASSERT_TRUE(master.sdo_upload(info, 0x1000, 0).done);
     ASSERT_TRUE(master.sdo_download(info, 0x6060, 0, 10, 1).done);
     ASSERT_FALSE(master.sdo_upload(info, 0x7777, 0).done);
-    writer.flush();
-  }
+  });
   // Each transfer is seen three times: the request on its way to the receive mailbox and back
   // through the slave, then the answer read from the send mailbox, each with the object's index.
   // Wireshark 4.0 names an abort response's service (scs 4) but does not dissect its index.
@@ -269,18 +276,11 @@ TEST(EtherCatTshark, DecodesOurNormalAndSegmentedUploadOfALongText) {
   std::string text(112 + 119 + 3, '.');
   for (std::size_t i = 0; i < text.size(); ++i) text[i] = static_cast<char>('A' + i % 26);
   slave.dictionary.add_text({0x2100, 1, "a long text", text});
-  VirtualSegment segment({&slave.esc});
-  VirtualSegmentLink link(segment);
-  {
-    PcapngWriter writer(capture.string());
-    Master master(link);
-    const SlaveInfo info = test::to_preop(master);
-    master.capture_to(&writer);
+  capture_session(slave.esc, capture, [&](Master& master, const SlaveInfo& info) {
     const SdoResult r = master.sdo_upload(info, 0x2100, 1);
     ASSERT_TRUE(r.done) << r.describe();
     EXPECT_EQ(std::string(r.bytes.begin(), r.bytes.end()), text);
-    writer.flush();
-  }
+  });
   // The initiate response: not expedited, size indicated, the complete size 234.
   EXPECT_EQ(tshark(capture, "ecat_mailbox.coe.sdoscsiu && ecat.cnt == 1",
                    "ecat_mailbox.coe.sdoscsiu_expedited ecat_mailbox.coe.sdoscsiu_sizeind ecat_mailbox.coe.sdolength"),
@@ -293,26 +293,46 @@ TEST(EtherCatTshark, DecodesOurNormalAndSegmentedUploadOfALongText) {
   if (!HasFailure()) fs::remove_all(dir);  // kept for a look when something failed
 }
 
+TEST(EtherCatTshark, DecodesOurSegmentedDownloadOfARecordThroughSmallMailboxes) {
+  if (!have_tshark()) GTEST_SKIP() << "tshark is not installed (scripts/install_deps.sh installs it)";
+  const fs::path capture = scratch_capture("download", "download");
+  const fs::path dir = capture.parent_path();
+  const std::vector<std::uint16_t> sii = test::sii_with_mailboxes(16);
+  VirtualCia402Slave slave(VirtualCia402Slave::make_dictionary(sii), sii);
+  capture_session(slave.esc(), capture, [&](Master& master, const SlaveInfo& info) {
+    // TxPDO 0x1A01 with four 16-bit entries: 18 bytes in segments of 7, 7 and 4.
+    const SdoResult r = master.sdo_download_record(
+        info, 0x1A01, {4, 0, 0x10, 0, 0x41, 0x60, 0x10, 0, 0x77, 0x60, 0x10, 0, 0x74, 0x60, 0x10, 0, 0x60, 0x77});
+    ASSERT_EQ(r.abort_code, canopen::kAbortObjectMissing) << "0x7760 does not exist: refused at the end";
+  });
+  // The initiate request: not expedited, size indicated, complete access; then the segments'
+  // toggle, size and last bits as sent, each answered with its toggle (the last by the abort).
+  EXPECT_EQ(tshark(capture, "ecat_mailbox.coe.sdoccsid && ecat.cnt == 0",
+                   "ecat_mailbox.coe.sdoccsid.expedited ecat_mailbox.coe.sdoccsid.sizeind "
+                   "ecat_mailbox.coe.sdoccsid.complete ecat_mailbox.coe.sdolength"),
+            "0,1,1,0x00000012\n");
+  EXPECT_EQ(tshark(capture, "ecat_mailbox.coe.sdoccsds && ecat.cnt == 0",
+                   "ecat_mailbox.coe.sdoccsds.toggle ecat_mailbox.coe.sdoccsds.size ecat_mailbox.coe.sdoccsds.lastseg"),
+            "0,0,0\n1,0,0\n0,3,1\n");
+  EXPECT_EQ(tshark(capture, "ecat_mailbox.coe.sdoscsds && ecat.cnt == 1", "ecat_mailbox.coe.sdoscsds_toggle"),
+            "0\n1\n");
+  EXPECT_EQ(tshark(capture, "_ws.malformed || _ws.expert.severity >= warning", "frame.number"), "");
+  if (!HasFailure()) fs::remove_all(dir);  // kept for a look when something failed
+}
+
 TEST(EtherCatTshark, DecodesTheVirtualDrivesCoeEmergenciesQueuedAheadOfAnSdoAnswer) {
   if (!have_tshark()) GTEST_SKIP() << "tshark is not installed (scripts/install_deps.sh installs it)";
   const fs::path capture = scratch_capture("emergency", "emergency");
   const fs::path dir = capture.parent_path();
   VirtualCia402Slave slave;
-  VirtualSegment segment({&slave.esc()});
-  VirtualSegmentLink link(segment);
-  {
-    PcapngWriter writer(capture.string());
-    Master master(link);
-    const SlaveInfo info = test::to_preop(master);
-    master.capture_to(&writer);
+  capture_session(slave.esc(), capture, [&](Master& master, const SlaveInfo& info) {
     // A fault's emergency and its end, posted by the slave before the master asks anything.
     ASSERT_TRUE(slave.post_emergency(0x8700));
     ASSERT_TRUE(slave.post_emergency(0x0000));
     ASSERT_TRUE(master.sdo_upload(info, 0x1000, 0).done);
     EXPECT_EQ(master.emergencies(), 2u);
     EXPECT_EQ(master.last_emergency_code(), 0x0000);
-    writer.flush();
-  }
+  });
   // Wireshark reads two CoE messages of type 1 (emergency) read from the send mailbox, with the
   // slave's mailbox counter going on (the SDO response after them is 3), nothing malformed.
   EXPECT_EQ(tshark(capture, "ecat_mailbox.coe.type == 1", "ecat_mailbox.counter"), "1\n2\n");

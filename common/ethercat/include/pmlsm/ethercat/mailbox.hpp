@@ -15,8 +15,10 @@
 // (CiA 301's: the master asks with 0x60 | toggle << 4, the slave answers with toggle << 4,
 // c = 1 on the last), each as long as its mailbox message (at least 7 data bytes, n of them unused
 // when fewer are left). A normal download (0x21, the size, the data after it) is taken for an
-// object of up to 4 bytes; the slave has nothing writable that is longer, so a segmented download
-// is refused (0x05040001).
+// object of up to 4 bytes, and for a record written whole (complete access) of any length: what
+// the receive mailbox does not hold follows in download segments (the master's toggle << 4 | n << 1
+// | c, the slave answering 0x20 | toggle << 4), the record written when the last is in. The slave
+// has nothing else writable that is longer than 4 bytes.
 #pragma once
 
 #include <array>
@@ -80,18 +82,21 @@ class MailboxHandler {
 
 /// SDO over CoE answered by the CANopen SDO server on an object dictionary (expedited transfers,
 /// CiA 301's abort codes); the dictionary's texts by normal and segmented upload, a normal download
-/// of up to 4 bytes, as above; and complete access (command bit 4, what SOEM uses to read a
-/// slave's PDO assignment and mapping whole when the SII's CoE details offer it): a record read or
+/// of up to 4 bytes, a record's by normal and segmented download, as above; and complete access (command bit 4, what
+/// SOEM uses to read a slave's PDO assignment and mapping whole when the SII's CoE details offer it): a record read or
 /// written whole, sub-index 0 padded to 16 bits. Anything else in the mailbox is answered with
 /// nothing.
 class CoeSdoServer final : public MailboxHandler {
  public:
-  /// What an upload usually needs (texts and records grow it, outside a cycle).
+  /// What an upload usually needs (texts and records grow it, outside a cycle); a download too.
   static constexpr std::size_t kReservedUploadBytes = 512;
+  /// The longest record a segmented download takes (a record of 255 entries of 32 bits, and more).
+  static constexpr std::size_t kMaxDownloadBytes = 2048;
   /// `dictionary` outlives the server; `node` only addresses the CANopen server inside.
   CoeSdoServer(canopen::ObjectDictionary& dictionary, canopen::NodeId node)
       : dictionary_(dictionary), server_(dictionary, node) {
     upload_data_.reserve(kReservedUploadBytes);
+    download_data_.reserve(kReservedUploadBytes);
   }
   std::size_t handle(const std::uint8_t* request, std::size_t size, std::uint8_t* response,
                      std::size_t capacity) override;
@@ -100,7 +105,7 @@ class CoeSdoServer final : public MailboxHandler {
   /// (16 bytes), with the next mailbox counter. Returns the bytes written.
   std::size_t write_emergency(std::uint8_t* out, std::uint16_t error_code, std::uint8_t error_register);
 
-  /// Segments answered (upload segment responses), a count for tests and reports.
+  /// Segments answered (upload and download segment responses), a count for tests and reports.
   std::uint64_t segments() const { return segments_; }
 
  private:
@@ -109,6 +114,9 @@ class CoeSdoServer final : public MailboxHandler {
   std::size_t start_upload(std::uint16_t index, std::uint8_t subindex, bool complete_access, std::uint8_t* response,
                            std::size_t capacity);
   std::size_t upload_segment(std::uint8_t command, std::uint8_t* response, std::size_t capacity);
+  /// A download segment of the record under way (`sdo` its 8 bytes, `more` what follows them).
+  std::size_t download_segment(const SdoBytes& sdo, const std::uint8_t* more, std::size_t more_bytes,
+                               std::uint8_t* response);
   /// A normal download: the size (bytes 4-7) and the data after the 8 bytes.
   std::size_t normal_download(const SdoBytes& sdo, const std::uint8_t* more, std::size_t more_bytes,
                               std::uint8_t* response);
@@ -137,10 +145,22 @@ class CoeSdoServer final : public MailboxHandler {
     std::uint8_t toggle = 0;
   };
 
+  /// A segmented download of a record under way: its multiplexer, its size, the next toggle (the
+  /// bytes so far in download_data_).
+  struct Download {
+    bool active = false;
+    std::uint16_t index = 0;
+    std::uint8_t subindex = 0;
+    std::size_t total = 0;
+    std::uint8_t toggle = 0;
+  };
+
   canopen::ObjectDictionary& dictionary_;
   canopen::SdoServer server_;
   Upload upload_;
-  std::vector<std::uint8_t> upload_data_;  ///< what the upload under way sends
+  Download download_;
+  std::vector<std::uint8_t> upload_data_;    ///< what the upload under way sends
+  std::vector<std::uint8_t> download_data_;  ///< what the download under way brought
   std::uint8_t counter_ = 0;
   std::uint64_t requests_ = 0;
   std::uint64_t segments_ = 0;

@@ -163,9 +163,9 @@ class Master {
                          std::uint8_t size);
 
   /// A record written whole by CoE's complete access from sub-index 0 (`record`: sub-index 0 as
-  /// 16 bits, then each entry in its size), in one mailbox message.
-  /// @throws std::runtime_error as sdo_upload, std::invalid_argument for a record longer than the
-  /// receive mailbox holds (a segmented download is not done).
+  /// 16 bits, then each entry in its size): a normal download with as much as the receive mailbox
+  /// holds, the rest in download segments.
+  /// @throws std::runtime_error as sdo_upload (and for an answer that is not the segment's).
   SdoResult sdo_download_record(const SlaveInfo& slave, std::uint16_t index, const std::vector<std::uint8_t>& record);
 
   /// A sync manager's PDO assignment written over CoE (the slave in PREOP, ETG.1000.6's order): the
