@@ -1,5 +1,8 @@
 #include "msg_mapping.hpp"
 
+#include <cmath>
+#include <limits>
+
 namespace pmlsm::node {
 namespace {
 
@@ -12,6 +15,7 @@ static_assert(drive::status::kWatchdogTripped == feedback_flags::STATUS_WATCHDOG
 static_assert(drive::status::kSimulated == feedback_flags::STATUS_SIMULATED);
 static_assert(drive::status::kFault == feedback_flags::STATUS_FAULT);
 static_assert(drive::status::kForeignCommand == feedback_flags::STATUS_FOREIGN_COMMAND);
+static_assert(drive::status::kLoadSensorSaturated == feedback_flags::STATUS_LOAD_SENSOR_SATURATED);
 static_assert(static_cast<int>(drive::PowerState::kOperationEnabled) == power::POWER_OPERATION_ENABLED);
 static_assert(static_cast<int>(drive::PowerState::kFault) == power::POWER_FAULT);
 static_assert(static_cast<int>(drive::PowerState::kSwitchOnDisabled) == power::POWER_SWITCH_ON_DISABLED);
@@ -103,6 +107,10 @@ void from_msg(const msg::MotorFeedback& in, KalmanInput& out) {
   out.motor_velocity_measured_mps = in.velocity_mps();
   out.thrust_previous_n = in.applied_force_n();
   out.motor_position_m = in.position_m();
+  constexpr double kNotMeasured = std::numeric_limits<double>::quiet_NaN();
+  out.load_position_m = in.load_sensor() == feedback_flags::LOAD_SENSOR_ENCODER ? in.load_position_m() : kNotMeasured;
+  out.load_accel_mps2 =
+      in.load_sensor() == feedback_flags::LOAD_SENSOR_ACCELEROMETER ? in.load_acceleration_mps2() : kNotMeasured;
 }
 
 void from_msg(const msg::MotorFeedback& in, DriveTickStatus& out) {
@@ -188,6 +196,14 @@ void to_msg(const drive::TickReport& r, pmlsm_msgs::msg::MotorFeedback& out) {
   out.status(r.status);
   out.power_state(static_cast<std::uint8_t>(r.power_state));
   out.error_code(r.error_code);
+  // The load's sensor: NaN in the measurement is "not measured", on the wire the kind and a 0.
+  const bool position = std::isfinite(r.measurement.load_position_m);
+  const bool acceleration = std::isfinite(r.measurement.load_acceleration_mps2);
+  out.load_sensor(position       ? feedback_flags::LOAD_SENSOR_ENCODER
+                  : acceleration ? feedback_flags::LOAD_SENSOR_ACCELEROMETER
+                                 : feedback_flags::LOAD_SENSOR_NONE);
+  out.load_position_m(position ? r.measurement.load_position_m : 0.0);
+  out.load_acceleration_mps2(acceleration ? r.measurement.load_acceleration_mps2 : 0.0);
 }
 
 void from_msg(const pmlsm_msgs::msg::MotorFeedback& in, drive::Measurement& out) {
@@ -197,6 +213,11 @@ void from_msg(const pmlsm_msgs::msg::MotorFeedback& in, drive::Measurement& out)
   out.i_q_a = in.i_q_a();
   out.thrust_force_n = in.thrust_force_n();
   out.applied_force_n = in.applied_force_n();
+  constexpr double kNotMeasured = std::numeric_limits<double>::quiet_NaN();
+  out.load_position_m = in.load_sensor() == feedback_flags::LOAD_SENSOR_ENCODER ? in.load_position_m() : kNotMeasured;
+  out.load_acceleration_mps2 =
+      in.load_sensor() == feedback_flags::LOAD_SENSOR_ACCELEROMETER ? in.load_acceleration_mps2() : kNotMeasured;
+  out.load_sensor_saturated = (in.status() & feedback_flags::STATUS_LOAD_SENSOR_SATURATED) != 0;
 }
 
 drive::ForceCommandIn from_msg(const pmlsm_msgs::msg::ForceCommand& c, std::uint64_t writer,

@@ -77,6 +77,9 @@ struct Fields<msg::MotorFeedback> {
     v("status", m.status()...);
     v("power_state", m.power_state()...);
     v("error_code", m.error_code()...);
+    v("load_sensor", m.load_sensor()...);
+    v("load_position_m", m.load_position_m()...);
+    v("load_acceleration_mps2", m.load_acceleration_mps2()...);
   }
 };
 

@@ -135,6 +135,9 @@ msg::MotorFeedback motor_feedback(Sampler& s) {
   v.status(s.u32("status"));
   v.power_state(s.u8("power_state"));
   v.error_code(s.u16("error_code"));
+  v.load_sensor(s.u8("load_sensor"));
+  v.load_position_m(s.real("load_position_m"));
+  v.load_acceleration_mps2(s.real("load_acceleration_mps2"));
   return v;
 }
 
@@ -673,14 +676,16 @@ void check_every_truncation(const std::string& type_name, const Bytes& bytes) {
 TEST(CatalogDecode, EveryTruncationOfMotorFeedback) {
   Sampler sampler;
   const Bytes bytes = make_sample<msg::MotorFeedbackPubSubType, motor_feedback>(sampler, ByteOrder::Little);
-  // header + 11 eight-byte members (4 in the stamp) + uint32 + uint8 + 1 padding + uint16
-  ASSERT_EQ(bytes.size(), 100U);
+  // header + 11 eight-byte members (4 in the stamp) + uint32 + uint8 + 1 padding + uint16 + uint8
+  // + 7 padding + 2 eight-byte members
+  ASSERT_EQ(bytes.size(), 124U);
   check_every_truncation("pmlsm_msgs::msg::MotorFeedback", bytes);
   // Fixed layout: member i (< 11) ends at byte 4 + 8 (i + 1), status at 96, power_state at 97,
-  // error_code (aligned to 2) at 100.
+  // error_code (aligned to 2) at 100, load_sensor at 101, the load's position (aligned to 8 in
+  // the payload) at 116 and its acceleration at 124.
   std::vector<std::size_t> ends;
   for (std::size_t i = 0; i < 11; ++i) ends.push_back(4 + 8 * (i + 1));
-  ends.insert(ends.end(), {96, 97, 100});
+  ends.insert(ends.end(), {96, 97, 100, 101, 116, 124});
   const MessageSchema schema = schema_of("pmlsm_msgs::msg::MotorFeedback");
   ASSERT_EQ(schema.decode(bytes.data(), bytes.size()).fields.size(), ends.size());
   for (std::size_t length = 0; length < bytes.size(); ++length) {

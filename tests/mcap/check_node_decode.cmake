@@ -56,6 +56,8 @@ set(checks
   "/pmlsm/motor_feedback|status|192"
   "/pmlsm/motor_feedback|power_state|6"
   "/pmlsm/motor_feedback|error_code|34321"
+  "/pmlsm/motor_feedback|load_sensor|2"
+  "/pmlsm/motor_feedback|load_acceleration_mps2|-3.25"
   "/pmlsm/force_command|force_n|12.5"
   "/pmlsm/force_command|pi_force_n|10.25"
   "/pmlsm/force_command|velocity_error_mps|-0.5"

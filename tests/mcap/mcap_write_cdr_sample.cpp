@@ -99,6 +99,8 @@ std::vector<std::uint8_t> motor_feedback(std::uint32_t tick) {
   sample.status(64 | 128);    // STATUS_SIMULATED | STATUS_FAULT
   sample.power_state(6);      // POWER_FAULT_REACTION_ACTIVE
   sample.error_code(0x8611);  // CiA 402 "following error"
+  sample.load_sensor(2);      // LOAD_SENSOR_ACCELEROMETER
+  sample.load_acceleration_mps2(-3.25);
   return to_cdr<msg::MotorFeedbackPubSubType>(sample);
 }
 

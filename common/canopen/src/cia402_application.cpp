@@ -1,5 +1,6 @@
 #include "pmlsm/canopen/cia402_application.hpp"
 
+#include <algorithm>
 #include <cinttypes>
 #include <cmath>
 #include <cstdio>
@@ -81,6 +82,16 @@ void Cia402Application::update_objects() {
   od_.set(kObjectTorqueActual, 0, scaling_.force_to_per_mille(measurement_.thrust_force_n).value);
   // Torque demand: the force the period applied (the own loops' output in velocity and position).
   od_.set(kObjectTorqueDemand, 0, scaling_.force_to_per_mille(applied_force_n_).value);
+  // The load's sensor, where the drive has one (NaN: it measures no such thing; an object the
+  // dictionary lacks is simply not set).
+  if (std::isfinite(measurement_.load_position_m)) {
+    od_.set(kObjectAdditionalPositionActual, 1, scaling_.metres_to_increments(measurement_.load_position_m).value);
+  }
+  if (std::isfinite(measurement_.load_acceleration_mps2)) {
+    const double units = std::clamp(measurement_.load_acceleration_mps2 / kLoadAccelerationPerUnit,
+                                    static_cast<double>(INT32_MIN), static_cast<double>(INT32_MAX));
+    od_.set(kObjectLoadAcceleration, 0, std::llround(units));
+  }
   od_.set(kObjectPeriodsStepped, 0, static_cast<std::int64_t>(periods_ & 0xFFFFFFFFULL));
 }
 

@@ -128,6 +128,9 @@ void add_cia402_objects(ObjectDictionary& od, const Cia402DictionaryConfig& conf
   od.add(make(kObjectVelocityOffset, 0, "velocity offset", T::kI32, A::kRw, 0, true));
   od.add(make(kObjectTorqueOffset, 0, "torque offset", T::kI16, A::kRw, 0, true));
   od.add(make(kObjectTargetVelocity, 0, "target velocity", T::kI32, A::kRw, 0, true));
+  od.add(make(kObjectAdditionalPositionActual, 0, "additional position actual value: highest sub-index", T::kU8,
+              A::kConst, 1));
+  od.add(make(kObjectAdditionalPositionActual, 1, "additional position actual value 1", T::kI32, A::kRo, 0, true));
   od.add(make(kObjectSupportedDriveModes, 0, "supported drive modes", T::kU32, A::kRo, config.supported_drive_modes));
   od.add(make(kObjectInterpolationTimePeriod, 0, "interpolation time period: highest sub-index", T::kU8, A::kConst, 2));
   od.add(with_range(make(kObjectInterpolationTimePeriod, 1, "interpolation time period value", T::kU8, A::kRw,

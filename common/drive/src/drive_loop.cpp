@@ -130,6 +130,7 @@ const TickReport& DriveLoop::begin_tick(std::uint64_t tick, std::int64_t now_mon
   if (params_.realtime && !last_fresh_) bits |= status::kCommandLate;
   if (drive_.simulated()) bits |= status::kSimulated;
   if (foreign_seen_) bits |= status::kForeignCommand;
+  if (report_.measurement.load_sensor_saturated) bits |= status::kLoadSensorSaturated;
   report_.tick = tick;
   report_.applied_force_n =
       std::isfinite(report_.measurement.applied_force_n) ? report_.measurement.applied_force_n : last_applied_force_n_;

@@ -12,6 +12,9 @@ void KalmanParams::validate() const {
   // The model, the noises, the lag, the friction and ripple inputs and the standstill hold.
   check_declared_ranges(*this);
   require_in_range("period_s", period_s, 1e-6, 1.0);
+  if (load_measurement.kind != LoadSensorKind::kNone) {
+    require_in_range("load_measurement.variance", load_measurement.variance, 1e-15, 1e12);
+  }
 }
 
 Eigen::Matrix3d KalmanFilter::continuous_a(const KalmanParams& p) {
@@ -132,12 +135,59 @@ KalmanEstimate KalmanFilter::step(const KalmanInput& in) {
   } else {
     ++counters_.rejected_measurements;
   }
+  load_update(in, out);
   out.motor_velocity_mps = x_(0);
   out.load_velocity_mps = x_(1);
   out.spring_force_n = x_(2);
   out.load_accel_mps2 = x_(2) / params_.model.load_mass_kg;
   out.covariance_diag = p_.diagonal();
   return out;
+}
+
+double KalmanFilter::scalar_update(const Eigen::RowVector3d& h, double y, double r) {
+  const Eigen::Vector3d ph = p_ * h.transpose();
+  const double s = h.dot(ph) + r;
+  const Eigen::Vector3d gain = ph / s;
+  const double innovation = y - h.dot(x_);
+  x_ += gain * innovation;
+  const Eigen::Matrix3d i_kh = Eigen::Matrix3d::Identity() - gain * h;
+  p_ = i_kh * p_ * i_kh.transpose() + gain * r * gain.transpose();
+  return innovation;
+}
+
+void KalmanFilter::load_update(const KalmanInput& in, KalmanEstimate& out) {
+  const KalmanLoadMeasurement& m = params_.load_measurement;
+  if (m.kind == LoadSensorKind::kEncoder && std::isfinite(in.load_position_m)) {
+    // The load's mean velocity over the period, from its two readings (none at the first).
+    if (have_load_position_) {
+      const double y = (in.load_position_m - last_load_position_m_) / params_.period_s;
+      out.load_innovation = scalar_update(Eigen::RowVector3d(0.0, 1.0, 0.0), y, m.variance);
+      out.load_measurement_used = true;
+    }
+    last_load_position_m_ = in.load_position_m;
+    have_load_position_ = true;
+  } else if (m.kind == LoadSensorKind::kAccelerometer && std::isfinite(in.load_accel_mps2)) {
+    const Eigen::RowVector3d h(0.0, 0.0, 1.0 / params_.model.load_mass_kg);
+    out.load_innovation = scalar_update(h, in.load_accel_mps2, m.variance);
+    out.load_measurement_used = true;
+  }
+  if (out.load_measurement_used) ++counters_.load_updates;
+}
+
+KalmanLoadMeasurement KalmanLoadMeasurement::of(const LoadSensorParams& sensor, double period_s) {
+  KalmanLoadMeasurement m;
+  m.kind = sensor.kind;
+  if (sensor.kind == LoadSensorKind::kEncoder) {
+    const double per_reading =
+        sensor.resolution_m * sensor.resolution_m / 12.0 + sensor.position_noise_std_m * sensor.position_noise_std_m;
+    m.variance = 2.0 * per_reading / (period_s * period_s);
+  } else if (sensor.kind == LoadSensorKind::kAccelerometer) {
+    const double gain = LoadSensor::low_pass_gain(sensor.bandwidth_hz, period_s);
+    const double white = sensor.noise_density_mps2_per_sqrt_hz * sensor.noise_density_mps2_per_sqrt_hz * 0.5 / period_s;
+    // A noiseless part is still read to the unit of its object (1 um/s^2): never a zero variance.
+    m.variance = std::max(white * gain / (2.0 - gain), 1e-12);
+  }
+  return m;
 }
 
 }  // namespace pmlsm

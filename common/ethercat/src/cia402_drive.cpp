@@ -149,6 +149,14 @@ void Cia402Drive::boot() {
     velocity_offset_at_ = locate(true, canopen::kObjectVelocityOffset, 32, false, "velocity offset");
     torque_offset_at_ = locate(true, canopen::kObjectTorqueOffset, 16, false, "torque offset");
     torque_demand_at_ = locate(false, canopen::kObjectTorqueDemand, 16, false, "torque demand");
+    load_position_at_ = layout_.input_offset(canopen::kObjectAdditionalPositionActual, 1);
+    load_acceleration_at_ = locate(false, canopen::kObjectLoadAcceleration, 32, false, "load acceleration");
+    for (const canopen::PdoMapEntry& e : layout_.inputs) {
+      if (e.index == canopen::kObjectAdditionalPositionActual && e.subindex == 1 && e.bit_length != 32) {
+        throw Cia402DriveError(name + ": 0x60E4:1 (additional position actual value) is mapped with " +
+                               std::to_string(e.bit_length) + " bits, not 32");
+      }
+    }
     command_tick_at_ = locate(true, canopen::kObjectCommandTick, 32, false, "command tick");
     statusword_at_ = locate(false, canopen::kObjectStatusword, 16, true, "statusword");
     torque_actual_at_ = locate(false, canopen::kObjectTorqueActual, 16, true, "torque actual value");
@@ -274,6 +282,10 @@ bool Cia402Drive::read_inputs() {
   remote_.on_statusword(get_le16(inputs_.data() + statusword_at_));
   torque_actual_ = static_cast<std::int16_t>(get_le16(inputs_.data() + torque_actual_at_));
   if (torque_demand_at_ >= 0) torque_demand_ = static_cast<std::int16_t>(get_le16(inputs_.data() + torque_demand_at_));
+  if (load_position_at_ >= 0) load_position_ = static_cast<std::int32_t>(get_le32(inputs_.data() + load_position_at_));
+  if (load_acceleration_at_ >= 0) {
+    load_acceleration_ = static_cast<std::int32_t>(get_le32(inputs_.data() + load_acceleration_at_));
+  }
   velocity_actual_ = static_cast<std::int32_t>(get_le32(inputs_.data() + velocity_actual_at_));
   position_actual_ = static_cast<std::int32_t>(get_le32(inputs_.data() + position_actual_at_));
   if (periods_at_ >= 0) periods_ = get_le32(inputs_.data() + periods_at_);
@@ -392,7 +404,17 @@ drive::Measurement Cia402Drive::measurement() const {
     // loop's result, the nearest account a mapping without 0x6074 gives).
     m.applied_force_n = scaling_.per_mille_to_force(torque_demand_at_ >= 0 ? torque_demand_ : torque_actual_);
   }
+  if (load_position_at_ >= 0) m.load_position_m = scaling_.increments_to_metres(load_position_);
+  if (load_acceleration_at_ >= 0) {
+    m.load_acceleration_mps2 = static_cast<double>(load_acceleration_) * canopen::kLoadAccelerationPerUnit;
+  }
   return m;
+}
+
+const char* Cia402Drive::load_sensor() const noexcept {
+  if (load_position_at_ >= 0) return "encoder (0x60E4:1)";
+  if (load_acceleration_at_ >= 0) return "accelerometer (0x2003)";
+  return "none";
 }
 
 drive::Measurement Cia402Drive::sample() {

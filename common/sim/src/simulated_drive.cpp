@@ -8,18 +8,27 @@ SimulatedDrive::SimulatedDrive(const SystemParams& params, const PlantInitialCon
     : plant_(params.plant),
       current_(params.current_controller_params()),
       encoder_velocity_(params.timing.control_period_s),
+      load_sensor_(params.load_sensor, params.timing.control_period_s),
       current_steps_per_tick_(params.timing.current_steps_per_tick()),
       current_period_s_(params.timing.current_loop_period_s) {
   params.timing.validate();
   plant_.reset(initial);
   last_measurement_ = plant_.measure();
   encoder_velocity_.reset(last_measurement_.encoder_position_m);
+  load_sensor_.reset(initial.load_position_m);
 }
 
 DriveFeedback SimulatedDrive::sample() {
   last_velocity_mps_ = encoder_velocity_.step(last_measurement_.encoder_position_m);
-  return DriveFeedback{last_measurement_.encoder_position_m, last_velocity_mps_, last_measurement_.i_d_a,
-                       last_measurement_.i_q_a};
+  DriveFeedback fb{
+      last_measurement_.encoder_position_m, last_velocity_mps_, last_measurement_.i_d_a, last_measurement_.i_q_a, {}};
+  if (load_sensor_.params().kind == LoadSensorKind::kNone) {
+    fb.load = load_sensor_.step(0.0, 0.0);  // NaN: no sensor (and no truth computed for it)
+  } else {
+    const PlantTruth truth = plant_.truth();
+    fb.load = load_sensor_.step(truth.state.load_position_m, truth.load_accel_mps2);
+  }
+  return fb;
 }
 
 void SimulatedDrive::apply_force(double force_request_n) {
@@ -64,6 +73,9 @@ drive::Measurement SimulatedDriveBackend::sample() {
   m.i_d_a = fb.i_d_a;
   m.i_q_a = fb.i_q_a;
   m.thrust_force_n = motor_constant_n_per_a_ * fb.i_q_a;
+  m.load_position_m = fb.load.position_m;
+  m.load_acceleration_mps2 = fb.load.acceleration_mps2;
+  m.load_sensor_saturated = fb.load.saturated;
   return m;
 }
 

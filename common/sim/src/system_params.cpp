@@ -57,6 +57,7 @@ ReferenceModelParams SystemParams::reference_model_params() const {
 KalmanParams SystemParams::kalman_params() const {
   KalmanParams p = kalman;
   p.period_s = timing.control_period_s;
+  p.load_measurement = KalmanLoadMeasurement::of(load_sensor, timing.control_period_s);
   return p;
 }
 
@@ -242,6 +243,7 @@ void SystemParams::validate() const {
   validate_section("compensator.standstill", [&] { standstill_gate_params().validate(); });
   validate_section("filters.force_command", [&] { force_command_filter_params().validate(); });
   validate_section("filters.compensation", [&] { compensation_filter_params().validate(); });
+  validate_section("sensors.load", [&] { load_sensor.validate(); });
   validate_section("plant", [&] { plant.check_step(); });
   for (const ParameterSection& section : sections) {
     validate_section(section.at, [&] { section.validate(section, section_values); });

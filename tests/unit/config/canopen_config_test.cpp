@@ -5,6 +5,7 @@
 #include <string>
 
 #include "config_edit.hpp"
+#include "pmlsm/canopen/cia402_application.hpp"
 #include "pmlsm/config/canopen_config.hpp"
 
 namespace pmlsm {
@@ -81,10 +82,12 @@ TEST(CanopenConfig, AnErrorInTheFileNamesItsLine) {
 TEST(DeviceDictionary, TheShippedDescriptionLoads) {
   const DeviceDictionary d = parse_device_dictionary(shipped("configs/canopen/virtual_drive_od.yaml"), "od.yaml");
   EXPECT_EQ(d.product_code, 0x402U);
-  ASSERT_EQ(d.objects.size(), 2U);
+  ASSERT_EQ(d.objects.size(), 3U);
   EXPECT_EQ(d.objects[0].index, 0x2001);
   EXPECT_EQ(d.objects[0].name, "periods stepped");
   EXPECT_EQ(d.objects[1].access, canopen::Access::kRw);
+  EXPECT_EQ(d.objects[2].index, canopen::kObjectLoadAcceleration);
+  EXPECT_EQ(d.objects[2].type, canopen::DataType::kI32);
   ASSERT_EQ(d.pdos.size(), 3U);
   EXPECT_EQ(d.pdos[0].channel, "rpdo1");
   EXPECT_TRUE(d.pdos[0].node_relative);

@@ -29,6 +29,7 @@ class RecordingDrive final : public Drive {
     power_.step();
     Measurement m;
     m.applied_force_n = own_loops_force_n;
+    m.load_sensor_saturated = load_sensor_saturated;
     return m;
   }
   void apply(double force_n) override { applied.push_back(power_.force_allowed() ? force_n : 0.0); }
@@ -46,6 +47,7 @@ class RecordingDrive final : public Drive {
   std::vector<Setpoint> setpoints;
   /// What sample() reports as the force its own loops applied (NaN: it does not say).
   double own_loops_force_n = std::numeric_limits<double>::quiet_NaN();
+  bool load_sensor_saturated = false;
 
  private:
   PowerStateMachine power_;
@@ -144,6 +146,14 @@ TEST(DriveLoop, TheWholeSetpointIsHeldAndPassedOnAndADriveClosingItsOwnLoopsRepo
   EXPECT_EQ(drive.setpoints.back().force_n, 0.0);
   EXPECT_EQ(drive.setpoints.back().feedforward_force_n, 0.0);
   EXPECT_EQ(drive.setpoints.back().position_m, 0.01);
+}
+
+TEST(DriveLoop, ALoadSensorAtItsRailIsFlaggedInTheTicksStatus) {
+  RecordingDrive drive;
+  DriveLoop loop(params(false), drive);
+  EXPECT_EQ(loop.begin_tick(0, 0).status & status::kLoadSensorSaturated, 0u);
+  drive.load_sensor_saturated = true;
+  EXPECT_EQ(loop.begin_tick(1, kMs).status & status::kLoadSensorSaturated, status::kLoadSensorSaturated);
 }
 
 TEST(DriveLoop, AnotherRunsCommandIsRejected) {

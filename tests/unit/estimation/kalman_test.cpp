@@ -116,6 +116,85 @@ TEST(Kalman, TracksLoadVelocityAndSpringForceOnTheNoisyPlant) {
   }
 }
 
+/// The rms error of the estimated load velocity and spring force over the free vibration with the
+/// PI loop alone, relative to their rms, with the load's sensor `kind` (sensors.load's shipped
+/// values for it); and the filter's last variances of v_L and F_s.
+struct LoadSensorRun {
+  double rel_v = 0, rel_f = 0, var_v = 0, var_f = 0;
+  std::uint64_t load_updates = 0;
+};
+LoadSensorRun free_vibration_with(LoadSensorKind kind) {
+  SystemParams params = test::shipped_params();
+  params.load_sensor.kind = kind;
+  const Scenario scenario = test::shipped_scenario("free_vibration");
+  ClosedLoop loop(params, scenario);
+  double err_v = 0, err_f = 0, sig_v = 0, sig_f = 0;
+  while (!loop.done()) {
+    const TickRecord r = loop.step({});
+    err_v += std::pow(r.est_load_velocity_mps - r.load_velocity_mps, 2);
+    err_f += std::pow(r.est_spring_force_n - r.spring_force_n, 2);
+    sig_v += r.load_velocity_mps * r.load_velocity_mps;
+    sig_f += r.spring_force_n * r.spring_force_n;
+  }
+  LoadSensorRun run;
+  run.rel_v = std::sqrt(err_v / sig_v);
+  run.rel_f = std::sqrt(err_f / sig_f);
+  run.var_v = loop.kalman().covariance()(1, 1);
+  run.var_f = loop.kalman().covariance()(2, 2);
+  run.load_updates = loop.kalman().counters().load_updates;
+  return run;
+}
+
+TEST(Kalman, ASensorOnTheLoadCorrectsWhatTheMotorsEncoderCannotSee) {
+  // The free vibration starts with the spring stretched (F_s = -274 N) and the motor held by the
+  // PI: the motor's encoder sees the swing only through the motor, the load's sensor directly.
+  const LoadSensorRun none = free_vibration_with(LoadSensorKind::kNone);
+  const LoadSensorRun encoder = free_vibration_with(LoadSensorKind::kEncoder);
+  const LoadSensorRun accelerometer = free_vibration_with(LoadSensorKind::kAccelerometer);
+  for (const auto& [name, run] :
+       {std::pair{"none", none}, std::pair{"encoder", encoder}, std::pair{"accelerometer", accelerometer}}) {
+    std::printf(
+        "[ kalman     ] free vibration, load sensor %s: v_L rms error %.1f %%, F_s %.1f %%; "
+        "variances at the end v_L %.3g (m/s)^2, F_s %.3g N^2\n",
+        name, 100 * run.rel_v, 100 * run.rel_f, run.var_v, run.var_f);
+  }
+  EXPECT_EQ(none.load_updates, 0u);
+  EXPECT_GT(encoder.load_updates, 0u);
+  EXPECT_GT(accelerometer.load_updates, 0u);
+  EXPECT_LT(encoder.var_v, none.var_v) << "the load encoder's velocity: v_L's variance falls";
+  EXPECT_LT(encoder.var_f, none.var_f);
+  EXPECT_LT(accelerometer.var_f, none.var_f) << "the accelerometer reads F_s / m_L: F_s's variance falls";
+  EXPECT_LT(encoder.rel_v, none.rel_v);
+  EXPECT_LT(accelerometer.rel_f, none.rel_f);
+}
+
+TEST(Kalman, WithoutALoadSensorTheLoadsReadingsChangeNothing) {
+  // A filter declared without a load sensor ignores load readings it is given: step for step the
+  // filter without them (the filter before the load's sensor existed).
+  const KalmanParams params = test::shipped_params().kalman_params();
+  ASSERT_EQ(params.load_measurement.kind, LoadSensorKind::kNone);
+  KalmanFilter given(params);
+  KalmanFilter plain(params);
+  for (int k = 0; k < 500; ++k) {
+    const double v = 0.1 * std::sin(0.02 * k);
+    KalmanInput with_load{v, 50.0 * std::cos(0.03 * k), 0.001 * k};
+    with_load.load_position_m = 0.002 * std::sin(0.05 * k);
+    with_load.load_accel_mps2 = 3.0 * std::cos(0.05 * k);
+    const KalmanEstimate a = given.step(with_load);
+    const KalmanEstimate b = plain.step({v, 50.0 * std::cos(0.03 * k), 0.001 * k});
+    ASSERT_EQ(a.load_velocity_mps, b.load_velocity_mps) << k;
+    ASSERT_EQ(a.spring_force_n, b.spring_force_n) << k;
+    ASSERT_EQ(a.covariance_diag, b.covariance_diag) << k;
+    ASSERT_FALSE(a.load_measurement_used);
+  }
+  // With a sensor declared, the variance is the declaration's: an encoder's two counts over T^2.
+  LoadSensorParams sensor = test::shipped_params().load_sensor;
+  sensor.kind = LoadSensorKind::kEncoder;
+  EXPECT_NEAR(KalmanLoadMeasurement::of(sensor, 1e-3).variance, 2.0 * 1e-12 / 12.0 / 1e-6, 1e-15);
+  sensor.kind = LoadSensorKind::kAccelerometer;
+  EXPECT_GT(KalmanLoadMeasurement::of(sensor, 1e-3).variance, 0.0);
+}
+
 TEST(Kalman, RejectsNonFiniteMeasurementAndInput) {
   KalmanFilter kf(test::shipped_params().kalman_params());
   KalmanFilter reference(test::shipped_params().kalman_params());

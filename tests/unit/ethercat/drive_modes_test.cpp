@@ -4,12 +4,14 @@
 // drive refuses); in velocity mode a setpoint through the seam is, tick for tick, the simulated
 // drive stepped directly with VelocityPi on its readings (target and torque offset as the
 // dictionary carries them), the reading's applied force the drive's torque demand; in position
-// mode the drive follows the reference's motion from where it was enabled.
+// mode the drive follows the reference's motion from where it was enabled. And a sensor on the load
+// (a load encoder's 0x60E4:1, an accelerometer's 0x2003) reaches the master's reading where mapped.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -46,8 +48,9 @@ Cia402DriveConfig config_in(std::int8_t mode) {
 /// The virtual drive (the CANopen device's dictionary, own loops or not) on a segment of its own,
 /// a period per frame; our master on it.
 struct ModesRig : test::ShippedDrive {
-  ModesRig(const Cia402DriveConfig& config, bool own_loops)
-      : drive(make_drive(true, own_loops)),
+  ModesRig(const Cia402DriveConfig& config, bool own_loops, const std::function<void(SystemParams&)>& edit = {})
+      : test::ShippedDrive(edit),
+        drive(make_drive(true, own_loops)),
         segment({&drive->esc()}),
         link(segment, [this] { drive->after_frame(now_ns += kPeriodNs); }),
         master(config, link) {}
@@ -175,6 +178,49 @@ TEST(EthercatDriveModes, OutsideOperationEnabledTheTargetsHoldTheDriveStill) {
   EXPECT_EQ(od.get_or(canopen::kObjectVelocityOffset, 0, -1), 0);
   EXPECT_EQ(od.get_or(canopen::kObjectTorqueOffset, 0, -1), 0);
   EXPECT_EQ(rig.drive->applied_force_n(), 0.0);
+}
+
+// A sensor on the load (sensors.load), read by the virtual drive from its plant and carried in its
+// inputs: a load encoder's position in 0x60E4:1, an accelerometer's reading in 0x2003; the master's
+// reading holds them where the inputs map them, NaN where they do not.
+TEST(EthercatLoadSensor, TheLoadsSensorReachesTheMasterThroughTheDrivesInputs) {
+  for (const LoadSensorKind kind : {LoadSensorKind::kEncoder, LoadSensorKind::kAccelerometer}) {
+    const bool encoder = kind == LoadSensorKind::kEncoder;
+    Cia402DriveConfig c = test::ShippedDrive::rig_config();
+    c.inputs_mapping.push_back(encoder ? canopen::PdoMapEntry{canopen::kObjectAdditionalPositionActual, 1, 32}
+                                       : canopen::PdoMapEntry{canopen::kObjectLoadAcceleration, 0, 32});
+    ModesRig rig(c, false, [&](SystemParams& s) {
+      s.load_sensor.kind = kind;
+      s.load_sensor.noise_density_mps2_per_sqrt_hz = 0.0;
+      s.load_sensor.bandwidth_hz = 1e5;  // the reading is the truth, to the unit
+    });
+    rig.boot_and_enable();
+    EXPECT_STREQ(rig.master.load_sensor(), encoder ? "encoder (0x60E4:1)" : "accelerometer (0x2003)");
+    double widest_stretch_m = 0.0;
+    for (int k = 0; k < 400; ++k) {
+      const drive::Measurement m = rig.master.sample();
+      ASSERT_FALSE(rig.master.lost()) << rig.master.last_problem();
+      const Plant& plant = rig.behind.simulated_drive().plant();  // where the drive read its sensor
+      if (encoder) {
+        ASSERT_TRUE(std::isnan(m.load_acceleration_mps2));
+        ASSERT_NEAR(m.load_position_m, plant.state().load_position_m, 1e-6) << "tick " << k;
+        widest_stretch_m = std::max(widest_stretch_m, std::abs(m.load_position_m - m.position_m));
+      } else {
+        ASSERT_TRUE(std::isnan(m.load_position_m));
+        ASSERT_NEAR(m.load_acceleration_mps2, plant.truth().load_accel_mps2, 1e-6) << "tick " << k;
+      }
+      rig.master.apply(120.0 * std::sin(2.0 * M_PI * k / 150.0));
+    }
+    if (encoder) {
+      EXPECT_GT(widest_stretch_m, 10e-6) << "the load's own position, not the motor's";
+    }
+  }
+  // Unmapped: no sensor in the reading, whatever the drive has.
+  ModesRig rig(test::ShippedDrive::rig_config(), false,
+               [](SystemParams& s) { s.load_sensor.kind = LoadSensorKind::kEncoder; });
+  rig.boot_and_enable();
+  EXPECT_STREQ(rig.master.load_sensor(), "none");
+  EXPECT_TRUE(std::isnan(rig.master.sample().load_position_m));
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 // the shipped EtherCAT rig file with this thread's time-outs: what the drive tests stand on.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -16,9 +17,10 @@
 namespace pmlsm::ethercat::test {
 
 struct ShippedDrive {
-  ShippedDrive()
+  /// `edit` changes the shipped system before the simulated drive is built from it.
+  explicit ShippedDrive(const std::function<void(SystemParams&)>& edit = {})
       : root(std::string(PMLSM_SOURCE_DIR) + "/"),
-        system(load_system_params(root + "configs/system.yaml")),
+        system(edited(load_system_params(root + "configs/system.yaml"), edit)),
         canopen_rig(load_canopen_config(root + "configs/canopen/drive.yaml")),
         device(load_device_dictionary(root + "configs/canopen/virtual_drive_od.yaml")),
         behind(system, PlantInitialCondition{}) {}
@@ -45,6 +47,11 @@ struct ShippedDrive {
     c.reply_timeout_ms = 1;
     c.cycle_timeout_ms = 1;
     return c;
+  }
+
+  static SystemParams edited(SystemParams system, const std::function<void(SystemParams&)>& edit) {
+    if (edit) edit(system);
+    return system;
   }
 
   std::string root;

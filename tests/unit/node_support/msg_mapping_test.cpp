@@ -280,6 +280,37 @@ TEST(MsgMapping, MotorFeedbackIntoTheDrivesMeasurement) {
   EXPECT_TRUE(std::isnan(drive::Measurement{}.applied_force_n));  // a backend's reading: not said
 }
 
+// The load's sensor at the tick: NaN in the drive's reading is "not measured", on the wire the
+// kind and a 0; back out of the message, the kind decides again.
+TEST(MsgMapping, TheLoadsSensorOnTheWireAndBack) {
+  const std::uint8_t kinds[3] = {msg::MotorFeedback_Constants::LOAD_SENSOR_NONE,
+                                 msg::MotorFeedback_Constants::LOAD_SENSOR_ENCODER,
+                                 msg::MotorFeedback_Constants::LOAD_SENSOR_ACCELEROMETER};
+  for (int kind = 0; kind < 3; ++kind) {
+    drive::TickReport report;
+    if (kind == 1) report.measurement.load_position_m = 0.0123;
+    if (kind == 2) report.measurement.load_acceleration_mps2 = -4.5;
+    report.measurement.load_sensor_saturated = kind == 2;
+    report.status = kind == 2 ? drive::status::kLoadSensorSaturated : 0;
+    msg::MotorFeedback m;
+    to_msg(report, m);
+    EXPECT_EQ(m.load_sensor(), kinds[kind]);
+    EXPECT_EQ(m.load_position_m(), kind == 1 ? 0.0123 : 0.0);
+    EXPECT_EQ(m.load_acceleration_mps2(), kind == 2 ? -4.5 : 0.0);
+    drive::Measurement back;
+    from_msg(m, back);
+    EXPECT_EQ(std::isnan(back.load_position_m), kind != 1);
+    EXPECT_EQ(std::isnan(back.load_acceleration_mps2), kind != 2);
+    if (kind == 1) {
+      EXPECT_EQ(back.load_position_m, 0.0123);
+    }
+    if (kind == 2) {
+      EXPECT_EQ(back.load_acceleration_mps2, -4.5);
+    }
+    EXPECT_EQ(back.load_sensor_saturated, kind == 2);
+  }
+}
+
 // ---- VelocityReference, ForceCommand ------------------------------------------------------
 
 VelocityControllerOutput distinct_control(bool saturated) {

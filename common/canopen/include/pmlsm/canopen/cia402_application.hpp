@@ -4,10 +4,11 @@
 // the drive with the force of the mode 0x6060 names (applied in operation enabled only) and writes
 // back the statusword, the error code and register, the mode displayed, the actual position,
 // velocity and torque (the force the current loop produces, K_f i_q), the torque demand (the force
-// the period applied) and the periods stepped. A fault sets the drive's fault (force zero) and asks
-// the carrier for its emergency (CANopen's EMCY, EtherCAT's CoE emergency); a fault reset and
-// enable clear it, with the emergency 0x0000. Pure: no bus, no clock (times are given), never
-// throws after construction.
+// the period applied), the load's sensor where the drive has one (0x60E4:1 a load encoder's
+// position, 0x2003 an accelerometer's reading) and the periods stepped. A fault sets the drive's
+// fault (force zero) and asks the carrier for its emergency (CANopen's EMCY, EtherCAT's CoE
+// emergency); a fault reset and enable clear it, with the emergency 0x0000. Pure: no bus, no clock
+// (times are given), never throws after construction.
 //
 // The force of a period, by mode (CiA 402-2's cyclic synchronous modes; targets and offsets in
 // the dictionary's units, scaled; x and v the drive's encoder reading at the period's start):
@@ -34,6 +35,12 @@ namespace pmlsm::canopen {
 // declares them): the periods the drive stepped, and the tick of the command written for the next.
 inline constexpr std::uint16_t kObjectPeriodsStepped = 0x2001;
 inline constexpr std::uint16_t kObjectCommandTick = 0x2002;
+// A manufacturer object of the virtual drive's (configs/canopen/virtual_drive_od.yaml): the load's
+// acceleration from an accelerometer on it [um/s^2], the accelerometer's counterpart of CiA 402's
+// additional position 0x60E4 (a load encoder's), which has no standard object.
+inline constexpr std::uint16_t kObjectLoadAcceleration = 0x2003;
+/// 0x2003's unit: um/s^2 (a 32-bit value spans +-2147 m/s^2, 219 g).
+inline constexpr double kLoadAccelerationPerUnit = 1e-6;
 
 /// The loops a drive closes itself in the velocity and position modes: its own tuning (a real
 /// drive's is set in its vendor's tool; the virtual drives take the system file's velocity loop).

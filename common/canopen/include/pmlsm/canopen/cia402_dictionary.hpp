@@ -41,6 +41,8 @@
 //   0x60B2   0   torque offset (per mille)             i16   rw      yes  0
 //   0x60FF   0   target velocity (increments/s)        i32   rw      yes  0
 //   0x6502   0   supported drive modes                 u32   ro           config (bit 9 cst, 8 csv, 7 csp)
+//   0x60E4   0   additional position actual: highest   u8    const        1
+//            1   additional position actual value 1    i32   ro      yes  0 (a load encoder's, increments)
 //   0x60C2   0   interpolation period: highest sub     u8    const        2
 //            1   value                                 u8    rw           config (1 for 1 ms)
 //            2   index (power of ten, s)               i8    rw           -3 (range -6..0)
@@ -98,6 +100,7 @@ inline constexpr std::uint16_t kObjectVelocityOffset = 0x60B1;
 inline constexpr std::uint16_t kObjectTorqueOffset = 0x60B2;
 inline constexpr std::uint16_t kObjectInterpolationTimePeriod = 0x60C2;
 inline constexpr std::uint16_t kObjectTargetVelocity = 0x60FF;
+inline constexpr std::uint16_t kObjectAdditionalPositionActual = 0x60E4;
 inline constexpr std::uint16_t kObjectSupportedDriveModes = 0x6502;
 
 /// 0x1000 of a CiA 402 servo drive: device profile 402 (0x0192) in bits 0-15, type 0x0002

@@ -23,6 +23,11 @@ struct Measurement {
   /// that came late leaves the one before in force; a drive closing its own loops: their force)
   /// [N]; NaN when the reading does not say (the caller knows what it applied).
   double applied_force_n = std::numeric_limits<double>::quiet_NaN();
+  /// A sensor on the load beside the motor's encoder (a second encoder, CiA 402 0x60E4, or an
+  /// accelerometer), read at the tick's start: NaN in what the drive does not measure.
+  double load_position_m = std::numeric_limits<double>::quiet_NaN();
+  double load_acceleration_mps2 = std::numeric_limits<double>::quiet_NaN();
+  bool load_sensor_saturated = false;  ///< the accelerometer at its rail
 };
 
 /// What the controller asks of the drive for one period, in every form a drive may take it. A

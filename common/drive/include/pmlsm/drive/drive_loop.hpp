@@ -68,8 +68,9 @@ inline constexpr std::uint32_t kSafeState = 1;         ///< force off: not opera
 inline constexpr std::uint32_t kCommandLate = 8;       ///< realtime: last tick had no fresh command
 inline constexpr std::uint32_t kWatchdogTripped = 16;  ///< latched until fault reset
 inline constexpr std::uint32_t kSimulated = 64;
-inline constexpr std::uint32_t kFault = 128;           ///< fault reaction active or fault
-inline constexpr std::uint32_t kForeignCommand = 256;  ///< a second writer's commands were refused
+inline constexpr std::uint32_t kFault = 128;                ///< fault reaction active or fault
+inline constexpr std::uint32_t kForeignCommand = 256;       ///< a second writer's commands were refused
+inline constexpr std::uint32_t kLoadSensorSaturated = 512;  ///< the load's accelerometer at its rail
 }  // namespace status
 
 struct ForceCommandIn {

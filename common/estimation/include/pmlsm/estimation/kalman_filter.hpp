@@ -58,11 +58,24 @@
 // model (no correction: y_k says nothing about them while friction is unknown). A small swing
 // (below the share) is left to the normal update: a compensator's jitter at rest keeps the motor
 // moving enough for it to be seen and damped, and the nominal runs stay as they were.
+//
+// A sensor on the load (optional; sensors.load). After the motor's update, one more scalar update
+// y = h x + e with the load's own reading, whatever the standstill hold did (the load's sensor sees
+// the swing the motor's cannot):
+//   encoder        y_k = (x_L,k - x_L,k-1) / T, h = [0 1 0]        (the load's velocity, as y_k
+//                  is the motor's; none at the first reading)
+//   accelerometer  y_k = a_L,k,              h = [0 0 1/m_L]       ((36): a_L = F_s / m_L)
+// with the variance of the sensor's declaration (SystemParams::kalman_params): an encoder's two
+// counts, 2 (q^2 / 12 + sigma^2) / T^2; an accelerometer's white noise N^2 / (2 T) through its low
+// pass of gain g, times g / (2 - g). The bias, the low pass's lag and the latency are not modelled.
+// Without a sensor the filter is the one above, step for step.
 #pragma once
 
 #include <Eigen/Dense>
 #include <cstdint>
+#include <limits>
 
+#include "pmlsm/plant/load_sensor.hpp"
 #include "pmlsm/plant/plant.hpp"
 #include "pmlsm/util/two_mass_model.hpp"
 
@@ -93,6 +106,15 @@ struct KalmanStandstillHold {
   double min_ring_share = 0;    ///< held only while A >= this x F_c, >= 0
 };
 
+/// The load's sensor as the filter takes it (see the header): derived from the sensor's declaration
+/// (SystemParams::kalman_params), not a file entry of the filter's own.
+struct KalmanLoadMeasurement {
+  LoadSensorKind kind = LoadSensorKind::kNone;
+  double variance = 0;  ///< of y: (m/s)^2 for an encoder, (m/s^2)^2 for an accelerometer; > 0 with a sensor
+  /// The variance of a sensor declared by `sensor`, read every `period_s`.
+  static KalmanLoadMeasurement of(const LoadSensorParams& sensor, double period_s);
+};
+
 struct KalmanParams {
   TwoMassModel model;  ///< the mechanics (34) the filter assumes: its own, not the plant's
   double period_s = 0;
@@ -103,6 +125,7 @@ struct KalmanParams {
   KalmanRippleInput ripple_input;                                     ///< off: the paper's filter
   KalmanStandstillHold standstill_hold;                               ///< off: the paper's filter
   double thrust_lag_s = 0;  ///< tau_i, the current loop's first-order lag; 0: thrust = command (the paper), >= 0
+  KalmanLoadMeasurement load_measurement;  ///< none: the filter without a load sensor
   void validate() const;
   /// Its own entries under `at` ("kalman"): the model of the mechanics with the plant's ranges,
   /// the noises and the optional inputs; the period comes from the system. Self: this, const or not.
@@ -131,6 +154,9 @@ struct KalmanInput {
   double motor_velocity_measured_mps = 0;  ///< y_k = (x_k - x_{k-1}) / T
   double thrust_previous_n = 0;            ///< F_{k-1}: the force commanded over the last period
   double motor_position_m = 0;             ///< x_k, the encoder position (used by the ripple input only)
+  /// The load's sensor at tick k (NaN: not measured): its encoder's position, its acceleration.
+  double load_position_m = std::numeric_limits<double>::quiet_NaN();
+  double load_accel_mps2 = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct KalmanEstimate {
@@ -142,7 +168,9 @@ struct KalmanEstimate {
   double input_force_n = 0;    ///< u_{k-1} used in the time update (force + modelled disturbance)
   Eigen::Vector3d covariance_diag = Eigen::Vector3d::Zero();
   bool measurement_used = false;
-  bool standstill_held = false;  ///< the standstill hold replaced the measurement update
+  bool standstill_held = false;        ///< the standstill hold replaced the measurement update
+  bool load_measurement_used = false;  ///< the load's sensor corrected the estimate
+  double load_innovation = 0;          ///< y - h x^- of the load's update (its unit: m/s or m/s^2)
 };
 
 struct KalmanCounters {
@@ -151,6 +179,7 @@ struct KalmanCounters {
   std::uint64_t rejected_inputs =
       0;  ///< non-finite u (or position, with the ripple input): the last finite one is used
   std::uint64_t standstill_holds = 0;  ///< steps the standstill hold kept v_L and F_s on the model
+  std::uint64_t load_updates = 0;      ///< steps the load's sensor corrected
 };
 
 class KalmanFilter {
@@ -173,12 +202,18 @@ class KalmanFilter {
  private:
   /// F_friction + F_ripple of the period ending at y_k, x_k (0 when both inputs are off).
   double modelled_disturbance_n(double motor_velocity_measured_mps, double motor_position_m);
+  /// The measurement update with y = h x + e, e of variance r (Joseph form); the innovation.
+  double scalar_update(const Eigen::RowVector3d& h, double y, double r);
+  /// The load sensor's update of the step (see the header) into `out`.
+  void load_update(const KalmanInput& in, KalmanEstimate& out);
 
   KalmanParams params_;
   Eigen::Matrix3d phi_;
   Eigen::Vector3d gamma_;
   Eigen::Matrix3d q_;
   double load_impedance_n_s_per_m_ = 0;  ///< sqrt(k m_L): the standstill hold's v_L - v_M in force units
+  double last_load_position_m_ = 0;      ///< the load encoder's last reading
+  bool have_load_position_ = false;
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d p_;
   double last_input_n_ = 0;

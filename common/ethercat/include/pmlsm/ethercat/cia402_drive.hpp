@@ -12,6 +12,13 @@
 // controlword 0x6040 and the mode's target (outputs: target torque 0x6071, velocity 0x60FF or
 // position 0x607A), statusword 0x6041, torque actual 0x6077, velocity actual 0x606C and position
 // actual 0x6064 (inputs); a missing one stops the boot naming it. 0x6061 read back = the mode.
+// With drive.distributed_clocks, the drive's clock set to the master's time
+// (Master::configure_distributed_clocks) and, each cycle after the outputs, the master's time
+// written to it (its drift control follows), plus the frame's way there (half the running mean of
+// the cycle's round trips; a ring's delay would be measured by the ports' receive times instead).
+// The process-data watchdog set (realtime: drive.watchdog_ms; lockstep: off, since a lockstep tick
+// waits on the slowest node), SAFEOP, one cycle of outputs that step nothing, OP. Errors throw
+// Cia402DriveError naming the slave, the object or register and what came back.
 //
 // The setpoint (drive::Setpoint) by mode, as far as the mapping carries it:
 //   cst  0x6071 = force_n
@@ -21,14 +28,12 @@
 // reference moves it from there, it never jumps to where the controller started). Outside
 // operation enabled the targets hold the drive still: torque and velocity 0, position its own.
 // In csv and csp the reading's applied force is the drive's torque demand 0x6074 (or, unmapped,
-// its torque actual): the force its own loops applied, for the estimator. With drive.distributed_clocks, the drive's
-// clock set to the master's time (Master::configure_distributed_clocks) and, each cycle after the
-// outputs, the master's time written to it (its drift control follows), plus the frame's way there
-// (half the running mean of the cycle's round trips; a ring's delay would be measured by the ports'
-// receive times instead). The process-data watchdog set (realtime:
-// drive.watchdog_ms; lockstep: off, since a lockstep tick waits on the slowest node), SAFEOP, one
-// cycle of outputs that step nothing, OP. Errors throw Cia402DriveError naming the slave, the
-// object or register and what came back.
+// its torque actual): the force its own loops applied, for the estimator.
+//
+// A sensor on the load: the additional position 0x60E4:1 in the inputs is a load encoder's
+// position (increments, the drive's scaling), the virtual drive's 0x2003 an accelerometer's
+// reading (um/s^2); mapped, the reading carries them (Measurement::load_position_m,
+// load_acceleration_mps2), else they are NaN: a drive without the sensor does not map them.
 //
 // A cycle: apply() writes the outputs (LWR, working counter 1: the drive's SM2 took them) and the
 // drive steps one period with them; sample() reads the inputs (LRD, working counter 1): the period
@@ -222,6 +227,8 @@ class Cia402Drive final : public drive::Drive {
   const canopen::UnitScaling& scaling() const noexcept { return scaling_; }
   const SlaveInfo& slave() const noexcept { return slave_; }
   const ProcessDataLayout& layout() const noexcept { return layout_; }
+  /// The load's sensor the inputs carry: "encoder (0x60E4:1)", "accelerometer (0x2003)" or "none".
+  const char* load_sensor() const noexcept;
   Master& master() noexcept { return master_; }
 
  private:
@@ -269,6 +276,8 @@ class Cia402Drive final : public drive::Drive {
   int velocity_offset_at_ = -1;
   int torque_offset_at_ = -1;
   int torque_demand_at_ = -1;
+  int load_position_at_ = -1;
+  int load_acceleration_at_ = -1;
   int command_tick_at_ = -1;
   int statusword_at_ = -1;
   int torque_actual_at_ = -1;
@@ -282,6 +291,8 @@ class Cia402Drive final : public drive::Drive {
   // the drive as last read
   std::int16_t torque_actual_ = 0;
   std::int16_t torque_demand_ = 0;
+  std::int32_t load_position_ = 0;
+  std::int32_t load_acceleration_ = 0;
   std::int32_t velocity_actual_ = 0;
   std::int32_t position_actual_ = 0;
   std::uint32_t periods_ = 0;

@@ -8,6 +8,7 @@
 #include "pmlsm/control/current_controller.hpp"
 #include "pmlsm/drive/drive.hpp"
 #include "pmlsm/plant/encoder_velocity.hpp"
+#include "pmlsm/plant/load_sensor.hpp"
 #include "pmlsm/plant/plant.hpp"
 #include "pmlsm/sim/system_params.hpp"
 
@@ -19,6 +20,8 @@ struct DriveFeedback {
   double velocity_mps = 0;  ///< encoder difference over the last tick
   double i_d_a = 0;
   double i_q_a = 0;
+  /// The load's sensor (SystemParams::load_sensor; NaN in what it does not measure).
+  LoadSensorReading load;
 };
 
 class SimulatedDrive {
@@ -56,6 +59,7 @@ class SimulatedDrive {
   Plant plant_;
   CurrentController current_;
   EncoderVelocity encoder_velocity_;
+  LoadSensor load_sensor_;
   int current_steps_per_tick_;
   double current_period_s_;
   PlantMeasurement last_measurement_;

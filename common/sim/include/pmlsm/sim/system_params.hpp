@@ -17,6 +17,7 @@
 #include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/compensation/state_feedback.hpp"
 #include "pmlsm/estimation/kalman_filter.hpp"
+#include "pmlsm/plant/load_sensor.hpp"
 #include "pmlsm/plant/plant.hpp"
 #include "pmlsm/util/parameter_section.hpp"
 #include "pmlsm/util/parameter_table.hpp"
@@ -101,6 +102,8 @@ struct SystemParams {
   /// is added to the PI (period_s: timing.control_period_s).
   FilterChainParams force_command_filters;
   FilterChainParams compensation_filters;
+  /// A sensor on the load beside the motor's encoder (none by default), read each control tick.
+  LoadSensorParams load_sensor;
   /// The sections declared outside this library (the commissioning's, in analysis; the compensators
   /// added in their own folders, compensators/<name>/), as the system file was read with them
   /// (pmlsm/util/parameter_section.hpp), and their values.
@@ -170,6 +173,7 @@ void visit_parameters(Params& p, Visitor& v) {
   VibrationGuardParams::declare("compensator.guard", c.guard, v);
   v.flag("compensator.standstill.enabled", c.standstill_enabled);
   StandstillGateParams::declare("compensator.standstill", c.standstill, v);
+  LoadSensorParams::declare("sensors.load", p.load_sensor, v);
   // The sections' entries go through a visitor behind virtual calls; a const walk sees a copy.
   SectionVisitorOf<Visitor> section_visitor(v);
   for (const ParameterSection& section : p.sections) {
