@@ -92,6 +92,17 @@ class KalmanEstimatorComponent final : public node::CycleComponent {
     estimate_writer_.wait_for_acknowledgments(node::flush_timeout(exit_code));
     std::printf("kalman_estimator: %llu ticks, %llu rejected\n", static_cast<unsigned long long>(next_tick_),
                 static_cast<unsigned long long>(rejected_ + c.rejected_measurements + c.rejected_inputs));
+    const LoadSensorMonitor& load = filter_.load_monitor();
+    if (load.failed()) {
+      std::fprintf(stderr,
+                   "kalman_estimator: the load's sensor failed at tick %llu: %s; the estimate is the motor's "
+                   "encoder's alone from then on (%llu readings refused in all)\n",
+                   static_cast<unsigned long long>(load.failed_at_tick()), to_string(load.fault()),
+                   static_cast<unsigned long long>(load.rejected()));
+    } else if (load.rejected() > 0) {
+      std::printf("kalman_estimator: the load's sensor: %llu readings refused\n",
+                  static_cast<unsigned long long>(load.rejected()));
+    }
     return exit_code;
   }
 

@@ -111,6 +111,7 @@ void from_msg(const msg::MotorFeedback& in, KalmanInput& out) {
   out.load_position_m = in.load_sensor() == feedback_flags::LOAD_SENSOR_ENCODER ? in.load_position_m() : kNotMeasured;
   out.load_accel_mps2 =
       in.load_sensor() == feedback_flags::LOAD_SENSOR_ACCELEROMETER ? in.load_acceleration_mps2() : kNotMeasured;
+  out.load_sensor_saturated = (in.status() & feedback_flags::STATUS_LOAD_SENSOR_SATURATED) != 0;
 }
 
 void from_msg(const msg::MotorFeedback& in, DriveTickStatus& out) {

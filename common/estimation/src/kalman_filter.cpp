@@ -29,7 +29,8 @@ Eigen::Vector3d KalmanFilter::continuous_b(const KalmanParams& p) {
   return Eigen::Vector3d(1.0 / p.model.motor_mass_kg, 0.0, 0.0);
 }
 
-KalmanFilter::KalmanFilter(const KalmanParams& params) : params_(params) {
+KalmanFilter::KalmanFilter(const KalmanParams& params)
+    : params_(params), load_monitor_(params.load_measurement.monitor) {
   params_.validate();
   const DiscreteModel d = discretize_zoh(continuous_a(params_), continuous_b(params_), params_.period_s);
   phi_ = d.phi;
@@ -157,16 +158,23 @@ double KalmanFilter::scalar_update(const Eigen::RowVector3d& h, double y, double
 
 void KalmanFilter::load_update(const KalmanInput& in, KalmanEstimate& out) {
   const KalmanLoadMeasurement& m = params_.load_measurement;
-  if (m.kind == LoadSensorKind::kEncoder && std::isfinite(in.load_position_m)) {
-    // The load's mean velocity over the period, from its two readings (none at the first).
-    if (have_load_position_) {
+  if (m.kind == LoadSensorKind::kNone) return;
+  const LoadSensorVerdict verdict = load_monitor_.judge(counters_.steps - 1, in.load_position_m, in.load_accel_mps2,
+                                                        in.load_sensor_saturated, in.motor_position_m);
+  out.load_sensor_problem = verdict.problem;
+  out.load_sensor_failed = load_monitor_.failed();
+  if (m.kind == LoadSensorKind::kEncoder) {
+    // The load's mean velocity over the period, from this reading and the last tick's (none at the
+    // first, or after a silent tick); a reading refused as a jump is still the next one's start.
+    const bool finite = std::isfinite(in.load_position_m);
+    if (verdict.use && have_load_position_) {
       const double y = (in.load_position_m - last_load_position_m_) / params_.period_s;
       out.load_innovation = scalar_update(Eigen::RowVector3d(0.0, 1.0, 0.0), y, m.variance);
       out.load_measurement_used = true;
     }
-    last_load_position_m_ = in.load_position_m;
-    have_load_position_ = true;
-  } else if (m.kind == LoadSensorKind::kAccelerometer && std::isfinite(in.load_accel_mps2)) {
+    have_load_position_ = finite;
+    if (finite) last_load_position_m_ = in.load_position_m;
+  } else if (verdict.use) {
     const Eigen::RowVector3d h(0.0, 0.0, 1.0 / params_.model.load_mass_kg);
     out.load_innovation = scalar_update(h, in.load_accel_mps2, m.variance);
     out.load_measurement_used = true;
@@ -187,6 +195,7 @@ KalmanLoadMeasurement KalmanLoadMeasurement::of(const LoadSensorParams& sensor, 
     // A noiseless part is still read to the unit of its object (1 um/s^2): never a zero variance.
     m.variance = std::max(white * gain / (2.0 - gain), 1e-12);
   }
+  m.monitor = LoadSensorMonitorParams::of(sensor, period_s);
   return m;
 }
 

@@ -56,8 +56,9 @@ TickRecord ClosedLoop::step(const Compensation& compensation) {
   rec.encoder_position_m = feedback.encoder_position_m;
   rec.motor_velocity_measured_mps = feedback.velocity_mps;
 
-  const KalmanEstimate est = kalman_.step({feedback.velocity_mps, last_force_n_, feedback.encoder_position_m,
-                                           feedback.load.position_m, feedback.load.acceleration_mps2});
+  const KalmanEstimate est =
+      kalman_.step({feedback.velocity_mps, last_force_n_, feedback.encoder_position_m, feedback.load.position_m,
+                    feedback.load.acceleration_mps2, feedback.load.saturated});
   rec.est_motor_velocity_mps = est.motor_velocity_mps;
   rec.est_load_velocity_mps = est.load_velocity_mps;
   rec.est_spring_force_n = est.spring_force_n;

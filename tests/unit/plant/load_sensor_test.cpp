@@ -26,6 +26,9 @@ LoadSensorParams none() {
   p.noise_density_mps2_per_sqrt_hz = 9.80665e-4;
   p.bandwidth_hz = 1000.0;
   p.range_mps2 = 156.9064;
+  p.fault_after_s = 0.01;
+  p.max_speed_mps = 5.0;
+  p.stuck_travel_m = 5e-4;
   return p;
 }
 

@@ -68,6 +68,8 @@
 // with the variance of the sensor's declaration (SystemParams::kalman_params): an encoder's two
 // counts, 2 (q^2 / 12 + sigma^2) / T^2; an accelerometer's white noise N^2 / (2 T) through its low
 // pass of gain g, times g / (2 - g). The bias, the low pass's lag and the latency are not modelled.
+// A reading LoadSensorMonitor judges bad (silent, saturated, jumping) is not used; a sensor that
+// failed (bad over its window, or stuck) is not used again: the filter is back on the motor's side.
 // Without a sensor the filter is the one above, step for step.
 #pragma once
 
@@ -75,6 +77,7 @@
 #include <cstdint>
 #include <limits>
 
+#include "pmlsm/estimation/load_sensor_monitor.hpp"
 #include "pmlsm/plant/load_sensor.hpp"
 #include "pmlsm/plant/plant.hpp"
 #include "pmlsm/util/two_mass_model.hpp"
@@ -110,7 +113,8 @@ struct KalmanStandstillHold {
 /// (SystemParams::kalman_params), not a file entry of the filter's own.
 struct KalmanLoadMeasurement {
   LoadSensorKind kind = LoadSensorKind::kNone;
-  double variance = 0;  ///< of y: (m/s)^2 for an encoder, (m/s^2)^2 for an accelerometer; > 0 with a sensor
+  double variance = 0;              ///< of y: (m/s)^2 for an encoder, (m/s^2)^2 for an accelerometer; > 0 with a sensor
+  LoadSensorMonitorParams monitor;  ///< which readings are believed
   /// The variance of a sensor declared by `sensor`, read every `period_s`.
   static KalmanLoadMeasurement of(const LoadSensorParams& sensor, double period_s);
 };
@@ -157,6 +161,7 @@ struct KalmanInput {
   /// The load's sensor at tick k (NaN: not measured): its encoder's position, its acceleration.
   double load_position_m = std::numeric_limits<double>::quiet_NaN();
   double load_accel_mps2 = std::numeric_limits<double>::quiet_NaN();
+  bool load_sensor_saturated = false;  ///< the accelerometer at its rail
 };
 
 struct KalmanEstimate {
@@ -171,6 +176,8 @@ struct KalmanEstimate {
   bool standstill_held = false;        ///< the standstill hold replaced the measurement update
   bool load_measurement_used = false;  ///< the load's sensor corrected the estimate
   double load_innovation = 0;          ///< y - h x^- of the load's update (its unit: m/s or m/s^2)
+  LoadSensorFault load_sensor_problem = LoadSensorFault::kNone;  ///< why this tick's reading was not used
+  bool load_sensor_failed = false;                               ///< the sensor failed (latched)
 };
 
 struct KalmanCounters {
@@ -195,6 +202,8 @@ class KalmanFilter {
   const Eigen::Vector3d& state() const { return x_; }
   const Eigen::Matrix3d& covariance() const { return p_; }
   const KalmanCounters& counters() const { return counters_; }
+  /// The load sensor's judge: its fault, when and how many readings it refused.
+  const LoadSensorMonitor& load_monitor() const { return load_monitor_; }
   /// Continuous-time model (34), for tests and the estimator's documentation.
   static Eigen::Matrix3d continuous_a(const KalmanParams& params);
   static Eigen::Vector3d continuous_b(const KalmanParams& params);
@@ -212,7 +221,8 @@ class KalmanFilter {
   Eigen::Vector3d gamma_;
   Eigen::Matrix3d q_;
   double load_impedance_n_s_per_m_ = 0;  ///< sqrt(k m_L): the standstill hold's v_L - v_M in force units
-  double last_load_position_m_ = 0;      ///< the load encoder's last reading
+  LoadSensorMonitor load_monitor_;
+  double last_load_position_m_ = 0;  ///< the load encoder's last reading
   bool have_load_position_ = false;
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d p_;

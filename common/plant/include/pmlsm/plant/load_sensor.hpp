@@ -41,6 +41,10 @@ struct LoadSensorParams {
   double range_mps2 = 0;                      ///< accelerometer: the rail
   std::uint32_t latency_ticks = 0;            ///< L, both kinds
   std::uint64_t noise_seed = 0;
+  // Judging its readings (pmlsm/estimation/load_sensor_monitor.hpp):
+  double fault_after_s = 0;   ///< bad this long in a row, or stuck over it: failed
+  double max_speed_mps = 0;   ///< an encoder's reading moving faster than this jumped
+  double stuck_travel_m = 0;  ///< an encoder's count unchanged while the motor travelled this far: stuck
   /// The declared ranges.
   void validate() const;
   /// Its entries under `at` ("sensors.load").
@@ -59,6 +63,9 @@ struct LoadSensorParams {
     v.real(s + "range_mps2", p.range_mps2, {1.0, 1e5, "a 0.1 g part to a 10,000 g shock sensor"});
     v.integer(s + "latency_ticks", p.latency_ticks, {0.0, static_cast<double>(kMaxLatencyTicks), "0 to 16 ticks"});
     v.integer(s + "noise_seed", p.noise_seed, {0.0, 18446744073709551615.0, "a seed: any whole number of 64 bits"});
+    v.real(s + "fault_after_s", p.fault_after_s, {1e-4, 1.0, "0.1 ms to 1 s"});
+    v.real(s + "max_speed_mps", p.max_speed_mps, {1e-3, 1e3, "1 mm/s to 1 km/s"});
+    v.real(s + "stuck_travel_m", p.stuck_travel_m, {1e-6, 1.0, "1 um to 1 m of the motor's travel"});
   }
   static constexpr std::uint32_t kMaxLatencyTicks = 16;
 };
