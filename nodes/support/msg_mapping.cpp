@@ -20,6 +20,20 @@ static_assert(static_cast<int>(drive::PowerState::kOperationEnabled) == power::P
 static_assert(static_cast<int>(drive::PowerState::kFault) == power::POWER_FAULT);
 static_assert(static_cast<int>(drive::PowerState::kSwitchOnDisabled) == power::POWER_SWITCH_ON_DISABLED);
 
+/// MotorFeedback's load fields as the drive's reading holds them: NaN in what the kind says is not
+/// measured, the saturation from the status bit.
+struct LoadReading {
+  double position_m;
+  double acceleration_mps2;
+  bool saturated;
+};
+LoadReading load_reading_of(const pmlsm_msgs::msg::MotorFeedback& in) {
+  constexpr double kNotMeasured = std::numeric_limits<double>::quiet_NaN();
+  return {in.load_sensor() == feedback_flags::LOAD_SENSOR_ENCODER ? in.load_position_m() : kNotMeasured,
+          in.load_sensor() == feedback_flags::LOAD_SENSOR_ACCELEROMETER ? in.load_acceleration_mps2() : kNotMeasured,
+          (in.status() & feedback_flags::STATUS_LOAD_SENSOR_SATURATED) != 0};
+}
+
 }  // namespace
 
 namespace msg = pmlsm_msgs::msg;
@@ -107,11 +121,10 @@ void from_msg(const msg::MotorFeedback& in, KalmanInput& out) {
   out.motor_velocity_measured_mps = in.velocity_mps();
   out.thrust_previous_n = in.applied_force_n();
   out.motor_position_m = in.position_m();
-  constexpr double kNotMeasured = std::numeric_limits<double>::quiet_NaN();
-  out.load_position_m = in.load_sensor() == feedback_flags::LOAD_SENSOR_ENCODER ? in.load_position_m() : kNotMeasured;
-  out.load_accel_mps2 =
-      in.load_sensor() == feedback_flags::LOAD_SENSOR_ACCELEROMETER ? in.load_acceleration_mps2() : kNotMeasured;
-  out.load_sensor_saturated = (in.status() & feedback_flags::STATUS_LOAD_SENSOR_SATURATED) != 0;
+  const LoadReading load = load_reading_of(in);
+  out.load_position_m = load.position_m;
+  out.load_accel_mps2 = load.acceleration_mps2;
+  out.load_sensor_saturated = load.saturated;
 }
 
 void from_msg(const msg::MotorFeedback& in, DriveTickStatus& out) {
@@ -214,11 +227,10 @@ void from_msg(const pmlsm_msgs::msg::MotorFeedback& in, drive::Measurement& out)
   out.i_q_a = in.i_q_a();
   out.thrust_force_n = in.thrust_force_n();
   out.applied_force_n = in.applied_force_n();
-  constexpr double kNotMeasured = std::numeric_limits<double>::quiet_NaN();
-  out.load_position_m = in.load_sensor() == feedback_flags::LOAD_SENSOR_ENCODER ? in.load_position_m() : kNotMeasured;
-  out.load_acceleration_mps2 =
-      in.load_sensor() == feedback_flags::LOAD_SENSOR_ACCELEROMETER ? in.load_acceleration_mps2() : kNotMeasured;
-  out.load_sensor_saturated = (in.status() & feedback_flags::STATUS_LOAD_SENSOR_SATURATED) != 0;
+  const LoadReading load = load_reading_of(in);
+  out.load_position_m = load.position_m;
+  out.load_acceleration_mps2 = load.acceleration_mps2;
+  out.load_sensor_saturated = load.saturated;
 }
 
 drive::ForceCommandIn from_msg(const pmlsm_msgs::msg::ForceCommand& c, std::uint64_t writer,

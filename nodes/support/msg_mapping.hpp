@@ -17,6 +17,8 @@
 //   VelocityReference.velocity_command_mps  command_mps
 //   ForceCommand.force_n         VelocityControllerOutput::force_n, TickRecord::force_command_n,
 //                                drive::ForceCommandIn::force_n
+//   MotorFeedback.load_sensor, load_position_m, load_acceleration_mps2
+//                                drive::Measurement::load_* (NaN: not measured), KalmanInput::load_*
 //   ForceCommand.compensation_force_n  drive::ForceCommandIn::feedforward_force_n
 //   ForceCommand.v_ref_mps, x_ref_m    drive::ForceCommandIn::velocity_mps, position_m
 //   EstimatedState.v_motor_mps / v_load_mps / a_load_mps2  motor_velocity_mps /

@@ -59,7 +59,6 @@ class LoadSensorMonitor {
   std::uint64_t failed_at_tick_ = 0;
   std::uint64_t rejected_ = 0;
   std::uint32_t bad_in_row_ = 0;
-  LoadSensorFault last_problem_ = LoadSensorFault::kNone;
   bool have_last_ = false;
   double last_value_ = 0;         ///< the last reading (position or acceleration)
   std::uint32_t unchanged_ = 0;   ///< ticks the reading has not changed
