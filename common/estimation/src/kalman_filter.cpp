@@ -8,6 +8,10 @@
 
 namespace pmlsm {
 
+namespace {
+constexpr double kNoReading = std::numeric_limits<double>::quiet_NaN();
+}  // namespace
+
 void KalmanParams::validate() const {
   // The model, the noises, the lag, the friction and ripple inputs and the standstill hold.
   check_declared_ranges(*this);
@@ -52,6 +56,8 @@ void KalmanFilter::reset(const Eigen::Vector3d& initial_state) {
   thrust_n_ = 0;
   last_position_m_ = 0;
   have_last_position_ = false;
+  have_load_position_ = false;
+  stretch_ = StretchOffset{};
 }
 
 double KalmanFilter::modelled_disturbance_n(double y_mps, double position_m) {
@@ -172,6 +178,8 @@ void KalmanFilter::load_update(const KalmanInput& in, KalmanEstimate& out) {
       out.load_innovation = scalar_update(Eigen::RowVector3d(0.0, 1.0, 0.0), y, m.variance);
       out.load_measurement_used = true;
     }
+    stretch_update(verdict.use && std::isfinite(in.motor_position_m) ? in.load_position_m : kNoReading,
+                   in.motor_position_m, out);
     have_load_position_ = finite;
     if (finite) last_load_position_m_ = in.load_position_m;
   } else if (verdict.use) {
@@ -182,13 +190,49 @@ void KalmanFilter::load_update(const KalmanInput& in, KalmanEstimate& out) {
   if (out.load_measurement_used) ++counters_.load_updates;
 }
 
-KalmanLoadMeasurement KalmanLoadMeasurement::of(const LoadSensorParams& sensor, double period_s) {
+void KalmanFilter::stretch_update(double load_position_m, double motor_position_m, KalmanEstimate& out) {
+  StretchOffset& b = stretch_;
+  const double k = params_.model.spring_n_per_m;
+  const double m_l = params_.model.load_mass_kg;
+  if (!b.started) {
+    if (!std::isfinite(load_position_m)) return;
+    b.started = true;
+    b.first_n = b.last_n = b.sum_n = k * (motor_position_m - load_position_m);
+    b.first_load_velocity_mps = x_(1);
+    b.first_variance = p_(1, 1);
+    return;
+  }
+  // b_k from the readings' trapezoid so far and the filter's v_L now (see the header).
+  const auto offset_n = [&] {
+    if (b.periods == 0) return 0.0;
+    const double integral_n_s = params_.period_s * (b.sum_n - 0.5 * (b.first_n + b.last_n));
+    return (integral_n_s - m_l * (x_(1) - b.first_load_velocity_mps)) /
+           (static_cast<double>(b.periods) * params_.period_s);
+  };
+  // A tick without a reading carries the prediction F_s^- + b into the integral.
+  const bool reading = std::isfinite(load_position_m);
+  const double y_n = reading ? k * (motor_position_m - load_position_m) : x_(2) + offset_n();
+  ++b.periods;
+  b.sum_n += y_n;
+  b.last_n = y_n;
+  const double span_s = static_cast<double>(b.periods) * params_.period_s;
+  const double offset_now_n = offset_n();
+  out.stretch_offset_n = offset_now_n;
+  if (!reading) return;
+  const double offset_variance = m_l * m_l * (p_(1, 1) + b.first_variance) / (span_s * span_s);
+  const double r = k * k * params_.load_measurement.stretch_variance_m2 + offset_variance;
+  out.stretch_innovation_n = scalar_update(Eigen::RowVector3d(0.0, 0.0, 1.0), y_n - offset_now_n, r);
+}
+
+KalmanLoadMeasurement KalmanLoadMeasurement::of(const LoadSensorParams& sensor, double period_s,
+                                                double motor_resolution_m) {
   KalmanLoadMeasurement m;
   m.kind = sensor.kind;
   if (sensor.kind == LoadSensorKind::kEncoder) {
     const double per_reading =
         sensor.resolution_m * sensor.resolution_m / 12.0 + sensor.position_noise_std_m * sensor.position_noise_std_m;
     m.variance = 2.0 * per_reading / (period_s * period_s);
+    m.stretch_variance_m2 = per_reading + motor_resolution_m * motor_resolution_m / 12.0;
   } else if (sensor.kind == LoadSensorKind::kAccelerometer) {
     const double gain = LoadSensor::low_pass_gain(sensor.bandwidth_hz, period_s);
     const double white = sensor.noise_density_mps2_per_sqrt_hz * sensor.noise_density_mps2_per_sqrt_hz * 0.5 / period_s;

@@ -57,7 +57,7 @@ ReferenceModelParams SystemParams::reference_model_params() const {
 KalmanParams SystemParams::kalman_params() const {
   KalmanParams p = kalman;
   p.period_s = timing.control_period_s;
-  p.load_measurement = KalmanLoadMeasurement::of(load_sensor, timing.control_period_s);
+  p.load_measurement = KalmanLoadMeasurement::of(load_sensor, timing.control_period_s, plant.encoder.resolution_m);
   return p;
 }
 

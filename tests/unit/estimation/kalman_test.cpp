@@ -168,6 +168,41 @@ TEST(Kalman, ASensorOnTheLoadCorrectsWhatTheMotorsEncoderCannotSee) {
   EXPECT_LT(accelerometer.rel_f, none.rel_f);
 }
 
+TEST(Kalman, ALoadEncodersCountMeasuresTheSpringOnAStuckMotor) {
+  // The motor held by its bearings (its encoder still at 0), the load swinging 20 um on the spring
+  // at sqrt(k / m_L), its encoder's zero 3 mm from the motor's: a swing whose 0.27 N the motor's
+  // encoder cannot see and whose 1.2 mm/s the load's two counts resolve to a step in four. The
+  // count itself, offset found from the load's momentum, carries the spring force.
+  KalmanParams p = test::shipped_params().kalman_params();
+  LoadSensorParams sensor = test::shipped_params().load_sensor;
+  sensor.kind = LoadSensorKind::kEncoder;
+  p.load_measurement = KalmanLoadMeasurement::of(sensor, p.period_s, 1e-6);
+  const double k = p.model.spring_n_per_m;
+  const double w = std::sqrt(k / p.model.load_mass_kg);
+  const double amplitude_m = 20e-6, scale_offset_m = 3e-3;
+  KalmanFilter kf(p);
+  double err2 = 0, sig2 = 0, offset_n = 0;
+  const int steps = 2000;
+  for (int i = 0; i < steps; ++i) {
+    const double x_l = amplitude_m * std::cos(w * i * p.period_s);
+    KalmanInput in{0.0, 0.0, 0.0};
+    in.load_position_m = std::floor((x_l + scale_offset_m) / sensor.resolution_m) * sensor.resolution_m;
+    const KalmanEstimate e = kf.step(in);
+    if (i >= steps / 2) {
+      err2 += std::pow(e.spring_force_n - (-k * x_l), 2);
+      sig2 += std::pow(k * x_l, 2);
+    }
+    offset_n = e.stretch_offset_n;
+  }
+  const double rel = std::sqrt(err2 / sig2);
+  std::printf(
+      "[ kalman     ] 20 um swing on a stuck motor, load encoder: F_s rms error %.1f %% over the last second; "
+      "scales' offset %.2f N (true %.2f)\n",
+      100 * rel, offset_n, -k * scale_offset_m);
+  EXPECT_LT(rel, 0.2);
+  EXPECT_NEAR(offset_n, -k * scale_offset_m, 0.02 * k * scale_offset_m);
+}
+
 TEST(Kalman, WithoutALoadSensorTheLoadsReadingsChangeNothing) {
   // A filter declared without a load sensor ignores load readings it is given: step for step the
   // filter without them (the filter before the load's sensor existed).
@@ -190,9 +225,11 @@ TEST(Kalman, WithoutALoadSensorTheLoadsReadingsChangeNothing) {
   // With a sensor declared, the variance is the declaration's: an encoder's two counts over T^2.
   LoadSensorParams sensor = test::shipped_params().load_sensor;
   sensor.kind = LoadSensorKind::kEncoder;
-  EXPECT_NEAR(KalmanLoadMeasurement::of(sensor, 1e-3).variance, 2.0 * 1e-12 / 12.0 / 1e-6, 1e-15);
+  const KalmanLoadMeasurement encoder = KalmanLoadMeasurement::of(sensor, 1e-3, 1e-6);
+  EXPECT_NEAR(encoder.variance, 2.0 * 1e-12 / 12.0 / 1e-6, 1e-15);
+  EXPECT_NEAR(encoder.stretch_variance_m2, 2.0 * 1e-12 / 12.0, 1e-24) << "the load's count and the motor's";
   sensor.kind = LoadSensorKind::kAccelerometer;
-  EXPECT_GT(KalmanLoadMeasurement::of(sensor, 1e-3).variance, 0.0);
+  EXPECT_GT(KalmanLoadMeasurement::of(sensor, 1e-3, 1e-6).variance, 0.0);
 }
 
 TEST(Kalman, RejectsNonFiniteMeasurementAndInput) {

@@ -68,6 +68,18 @@
 // with the variance of the sensor's declaration (SystemParams::kalman_params): an encoder's two
 // counts, 2 (q^2 / 12 + sigma^2) / T^2; an accelerometer's white noise N^2 / (2 T) through its low
 // pass of gain g, times g / (2 - g). The bias, the low pass's lag and the latency are not modelled.
+// An encoder's count also measures the spring: with the motor's encoder, F_s = k (x_M - x_L)
+// up to the offset b between the two scales (their zeros, the spring's free length), so a second
+// scalar update takes
+//   z_k = k (x_M,k - x_L,k) - b_k,  h = [0 0 1],  r = k^2 (q_M^2 / 12 + q_L^2 / 12 + sigma^2) + var(b_k).
+// b comes from the load's momentum: the spring is the only force on the load (b neglected in
+// (34)), so its integral since the first reading at t_0 is m_L (v_L(t) - v_L(t_0)), and
+//   b_k = (int_{t_0}^{t_k} k (x_M - x_L) dt - m_L (v_L,k - v_L,0)) / (t_k - t_0)
+// (the trapezoid of the readings; the filter's v_L before this update and at the first reading;
+// var(b_k) = m_L^2 (P_11,k + P_11,0) / (t_k - t_0)^2, so the first readings hardly count). Why: the
+// velocity from two counts steps by q / T (1 mm/s for 1 um at 1 ms), larger than a 5 um swing's
+// 0.3 mm/s at the load's 9 Hz, and the spring force integrated from it is lost at rest; the count
+// itself resolves that swing to a fifth.
 // A reading LoadSensorMonitor judges bad (silent, saturated, jumping) is not used; a sensor that
 // failed (bad over its window, or stuck) is not used again: the filter is back on the motor's side.
 // Without a sensor the filter is the one above, step for step.
@@ -113,10 +125,13 @@ struct KalmanStandstillHold {
 /// (SystemParams::kalman_params), not a file entry of the filter's own.
 struct KalmanLoadMeasurement {
   LoadSensorKind kind = LoadSensorKind::kNone;
-  double variance = 0;              ///< of y: (m/s)^2 for an encoder, (m/s^2)^2 for an accelerometer; > 0 with a sensor
+  double variance = 0;  ///< of y: (m/s)^2 for an encoder, (m/s^2)^2 for an accelerometer; > 0 with a sensor
+  /// An encoder's: the variance of x_M - x_L from the two counts, q_M^2 / 12 + q_L^2 / 12 + sigma^2 [m^2].
+  double stretch_variance_m2 = 0;
   LoadSensorMonitorParams monitor;  ///< which readings are believed
-  /// The variance of a sensor declared by `sensor`, read every `period_s`.
-  static KalmanLoadMeasurement of(const LoadSensorParams& sensor, double period_s);
+  /// The variances of a sensor declared by `sensor`, read every `period_s` beside a motor encoder
+  /// of `motor_resolution_m`.
+  static KalmanLoadMeasurement of(const LoadSensorParams& sensor, double period_s, double motor_resolution_m);
 };
 
 struct KalmanParams {
@@ -176,6 +191,8 @@ struct KalmanEstimate {
   bool standstill_held = false;        ///< the standstill hold replaced the measurement update
   bool load_measurement_used = false;  ///< the load's sensor corrected the estimate
   double load_innovation = 0;          ///< y - h x^- of the load's update (its unit: m/s or m/s^2)
+  double stretch_innovation_n = 0;     ///< z - F_s^- of an encoder's spring update (0 without one)
+  double stretch_offset_n = 0;         ///< b_k, the two scales' offset in spring-force units (encoder)
   LoadSensorFault load_sensor_problem = LoadSensorFault::kNone;  ///< why this tick's reading was not used
   bool load_sensor_failed = false;                               ///< the sensor failed (latched)
 };
@@ -224,6 +241,15 @@ class KalmanFilter {
   LoadSensorMonitor load_monitor_;
   double last_load_position_m_ = 0;  ///< the load encoder's last reading
   bool have_load_position_ = false;
+  /// The offset b (see the header): the readings' trapezoid since the first, and the first's v_L.
+  struct StretchOffset {
+    bool started = false;
+    std::uint64_t periods = 0;  ///< (t_k - t_0) / T
+    double first_n = 0, last_n = 0, sum_n = 0;
+    double first_load_velocity_mps = 0, first_variance = 0;
+  } stretch_;
+  /// The encoder's spring update of the step (see the header) into `out`.
+  void stretch_update(double load_position_m, double motor_position_m, KalmanEstimate& out);
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d p_;
   double last_input_n_ = 0;
