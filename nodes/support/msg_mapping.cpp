@@ -127,6 +127,8 @@ void from_msg(const msg::MotorFeedback& in, KalmanInput& out) {
   out.load_sensor_saturated = load.saturated;
 }
 
+double load_stretch_m(const msg::MotorFeedback& in) { return in.position_m() - load_reading_of(in).position_m; }
+
 void from_msg(const msg::MotorFeedback& in, DriveTickStatus& out) {
   out.status = in.status();
   out.power_state = in.power_state();

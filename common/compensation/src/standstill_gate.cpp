@@ -16,6 +16,10 @@ void StandstillGateParams::validate() const {
     throw std::invalid_argument("wake_velocity_mps: must be above quiet_velocity_mps (" +
                                 format_value(quiet_velocity_mps) + " m/s), got " + format_value(wake_velocity_mps));
   }
+  if (!(wake_load_swing_m > quiet_load_swing_m)) {
+    throw std::invalid_argument("wake_load_swing_m: must be above quiet_load_swing_m (" +
+                                format_value(quiet_load_swing_m) + " m), got " + format_value(wake_load_swing_m));
+  }
 }
 
 StandstillGate::StandstillGate(const StandstillGateParams& params)
@@ -41,11 +45,16 @@ StandstillGateOutput StandstillGate::step(const StandstillGateInput& in) noexcep
   if (!reference_at_rest) {
     // A move (or a reading that cannot be trusted): the compensation from this tick on.
     open(true);
-    in_window_ = closed_in_window_ = 0;
+    in_window_ = closed_in_window_ = stretch_in_window_ = 0;
     sum_v2_ = sum_f2_ = 0;
     return out_;
   }
   sum_v2_ += in.motor_velocity_mps * in.motor_velocity_mps;
+  if (std::isfinite(in.load_stretch_m)) {
+    stretch_min_m_ = stretch_in_window_ == 0 ? in.load_stretch_m : std::min(stretch_min_m_, in.load_stretch_m);
+    stretch_max_m_ = stretch_in_window_ == 0 ? in.load_stretch_m : std::max(stretch_max_m_, in.load_stretch_m);
+    ++stretch_in_window_;
+  }
   if (out_.closed && out_.scale == 0.0) {
     sum_f2_ += in.compensation_force_n * in.compensation_force_n;
     ++closed_in_window_;
@@ -54,15 +63,20 @@ StandstillGateOutput StandstillGate::step(const StandstillGateInput& in) noexcep
     counters_.last_window_rms_mps = std::sqrt(sum_v2_ / static_cast<double>(in_window_));
     const bool closed_window = closed_in_window_ == in_window_;
     if (closed_window) counters_.last_closed_force_n = std::sqrt(sum_f2_ / static_cast<double>(in_window_));
-    in_window_ = closed_in_window_ = 0;
+    // The load's own witness, when its encoder read every tick of the window.
+    const bool load_seen = stretch_in_window_ == in_window_;
+    if (load_seen) counters_.last_load_swing_m = 0.5 * (stretch_max_m_ - stretch_min_m_);
+    const bool load_quiet = !load_seen || counters_.last_load_swing_m <= params_.quiet_load_swing_m;
+    const bool load_moves = load_seen && counters_.last_load_swing_m > params_.wake_load_swing_m;
+    in_window_ = closed_in_window_ = stretch_in_window_ = 0;
     sum_v2_ = sum_f2_ = 0;
-    if (counters_.last_window_rms_mps > params_.wake_velocity_mps ||
-        (closed_window && counters_.last_closed_force_n > params_.wake_force_n)) {
+    if (counters_.last_window_rms_mps > params_.wake_velocity_mps || load_moves ||
+        (closed_window && !load_seen && counters_.last_closed_force_n > params_.wake_force_n)) {
       // Woken: open for settle_s at least, as after a move, so the swing is damped, not sampled.
       open(false);
       at_rest_steps_ = 0;
     } else if (!out_.closed && at_rest_steps_ >= settle_steps_ &&
-               counters_.last_window_rms_mps < params_.quiet_velocity_mps) {
+               counters_.last_window_rms_mps < params_.quiet_velocity_mps && load_quiet) {
       out_.closed = true;
       ++counters_.closings;
     }

@@ -64,7 +64,8 @@ TickRecord ClosedLoop::step(const Compensation& compensation) {
   rec.est_spring_force_n = est.spring_force_n;
   rec.est_load_accel_mps2 = est.load_accel_mps2;
 
-  const VelocityControllerOutput control = controller_.step(tick_, feedback.velocity_mps, compensation);
+  const VelocityControllerOutput control = controller_.step(tick_, feedback.velocity_mps, compensation,
+                                                            feedback.encoder_position_m - feedback.load.position_m);
   rec.command_mps = control.command_mps;
   rec.v_ref_mps = control.v_ref_mps;
   rec.a_ref_mps2 = control.a_ref_mps2;

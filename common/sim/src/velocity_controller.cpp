@@ -37,12 +37,13 @@ ExternalReferenceParams external_reference_params(const Scenario& scenario, doub
 }
 
 VelocityControllerOutput VelocityController::step(std::uint64_t tick, double motor_velocity_mps,
-                                                  const Compensation& compensation) {
-  return step_command(scenario_.command_mps(static_cast<double>(tick) * period_s_), motor_velocity_mps, compensation);
+                                                  const Compensation& compensation, double load_stretch_m) {
+  return step_command(scenario_.command_mps(static_cast<double>(tick) * period_s_), motor_velocity_mps, compensation,
+                      load_stretch_m);
 }
 
 VelocityControllerOutput VelocityController::step_command(double command_mps, double motor_velocity_mps,
-                                                          const Compensation& compensation) {
+                                                          const Compensation& compensation, double load_stretch_m) {
   VelocityControllerOutput out;
   out.command_mps = shaper_ ? shaper_->step(command_mps) : command_mps;
   ReferenceSample ref;
@@ -62,7 +63,8 @@ VelocityControllerOutput VelocityController::step_command(double command_mps, do
   // The guard's scale of the previous period (it judges what was applied), then its new look;
   // the standstill gate's of this period (a move opens it on its first tick).
   if (standstill_)
-    out.standstill = standstill_->step({out.command_mps, ref.velocity_mps, motor_velocity_mps, compensation.force_n});
+    out.standstill = standstill_->step(
+        {out.command_mps, ref.velocity_mps, motor_velocity_mps, compensation.force_n, load_stretch_m});
   const double scale = (guard_ ? guard_->output().scale : 1.0) * out.standstill.scale;
   out.compensation_applied_n = compensation_filters_.step(scale * compensation.force_n);
   if (guard_) {

@@ -28,6 +28,8 @@ StandstillGateParams gate_params() {
   p.wake_velocity_mps = 1e-2;
   p.wake_force_n = 10.0;
   p.fade_s = 0.1;
+  p.quiet_load_swing_m = 3e-6;
+  p.wake_load_swing_m = 5e-6;
   return p;
 }
 
@@ -84,6 +86,43 @@ TEST(StandstillGate, AMotorThatStillSwingsKeepsItOpen) {
   EXPECT_EQ(gate.counters().closings, 0u);
 }
 
+// `ticks` ticks at rest, the motor still, asking `request_n`, a load encoder reading a stretch
+// that swings `swing_m` at 10 Hz about 3 mm (the scales' offset: only the range counts).
+StandstillGateOutput load_swinging_for(StandstillGate& gate, int ticks, double swing_m, double request_n = 0.0) {
+  StandstillGateOutput out;
+  for (int k = 0; k < ticks; ++k) {
+    out = gate.step({0.0, 0.0, 0.0, request_n, 3e-3 + swing_m * std::sin(2 * M_PI * 10.0 * k * 1e-3)});
+  }
+  return out;
+}
+
+TEST(StandstillGate, WithALoadEncoderItClosesOnlyOverAQuietLoad) {
+  StandstillGate gate(gate_params());
+  // The motor quiet, the load swinging 10 um: the motor-side test alone would close at 0.3 s.
+  StandstillGateOutput out = load_swinging_for(gate, 1000, 10e-6);
+  EXPECT_FALSE(out.closed);
+  EXPECT_EQ(gate.counters().closings, 0u);
+  EXPECT_NEAR(gate.counters().last_load_swing_m, 10e-6, 0.1e-6);
+  // Its swing down to 2 um: quiet, closed once settled again (each swinging window woke it).
+  out = load_swinging_for(gate, 299, 2e-6);
+  EXPECT_FALSE(out.closed);
+  out = load_swinging_for(gate, 1, 2e-6);
+  EXPECT_TRUE(out.closed);
+  // Closed, a constant request (a compensator's offset at rest) is no swing while the load is seen ...
+  out = load_swinging_for(gate, 500, 2e-6, 20.0);
+  EXPECT_TRUE(out.closed);
+  EXPECT_EQ(out.scale, 0.0);
+  // ... and the load's swing growing to 6 um opens it, fading in.
+  out = load_swinging_for(gate, 100, 6e-6);
+  EXPECT_FALSE(out.closed);
+  EXPECT_EQ(gate.counters().openings, 1u);
+  // Without the load's stretch the same request, closed, is taken for a swing: it reopens.
+  StandstillGate blind(gate_params());
+  ASSERT_TRUE(rest_for(blind, 500, 0.0).closed);
+  for (int k = 0; k < 200; ++k) out = blind.step({0.0, 0.0, 0.0, 20.0});
+  EXPECT_FALSE(out.closed);
+}
+
 TEST(StandstillGate, ANonFiniteInputIsCountedAndOpensIt) {
   StandstillGate gate(gate_params());
   ASSERT_EQ(rest_for(gate, 500, 0.0).scale, 0.0);
@@ -104,6 +143,9 @@ TEST(StandstillGate, InvalidParametersAreNamed) {
   StandstillGateParams p = gate_params();
   p.wake_velocity_mps = 3e-3;
   EXPECT_NE(message(p).find("wake_velocity_mps: must be above quiet_velocity_mps"), std::string::npos);
+  p = gate_params();
+  p.wake_load_swing_m = 3e-6;
+  EXPECT_NE(message(p).find("wake_load_swing_m: must be above quiet_load_swing_m"), std::string::npos);
   p = gate_params();
   p.window_s = 1e-3;
   EXPECT_NE(message(p).find("window_s: must be at least two periods"), std::string::npos);
@@ -160,6 +202,36 @@ TEST(StandstillGate, InTheLoopItHalvesTheChatterAtRestButClosesOverASwingTheMoto
       compute_metrics(run_with_compensator(gated, scenario, {CompensatorKind::kState, {}, false}), scenario, period);
   EXPECT_LT(kept.load_settling_time_s, 1.0);
   EXPECT_GT(lost.load_settling_time_s, 4.0);
+}
+
+// The same sticky corner with a load encoder: the gate sees the swing the motor cannot feel, stays
+// open until the compensation has damped it, and closes over a load at rest.
+TEST(StandstillGate, WithALoadEncoderItWaitsForTheSwingOnTheStickyCorner) {
+  const Scenario scenario = test::shipped_scenario("free_vibration");
+  SystemParams p = test::shipped_params();
+  p.plant.mechanics.load_mass_kg = 2.0;
+  p.plant.mechanics.spring_n_per_m = 6850.0;
+  p.plant.friction.coulomb_n = 30.0;
+  p.plant.friction.viscous_n_s_per_m = 45.0;
+  p = with_identified_load(p, commission_load(p, test::shipped_scenario("identification"), {}));
+  p.compensator.standstill_enabled = true;
+  p.load_sensor.kind = LoadSensorKind::kEncoder;
+  const auto trace = run_with_compensator(p, scenario, {CompensatorKind::kState, {}, false});
+  double stretch_min = 1e9, stretch_max = -1e9, comp2 = 0;
+  for (std::size_t k = trace.size() - 200; k < trace.size(); ++k) {
+    const double s = trace[k].load_position_m - trace[k].motor_position_m;
+    stretch_min = std::min(stretch_min, s);
+    stretch_max = std::max(stretch_max, s);
+    comp2 += trace[k].compensation_force_n * trace[k].compensation_force_n;
+  }
+  const ScenarioMetrics m = compute_metrics(trace, scenario, p.timing.control_period_s);
+  std::printf(
+      "[ standstill ] 2 kg, 6850 N/m, 30 N, load encoder, gated: settled in %.2f s; last 0.2 s: "
+      "swing %.2f um, compensation %.2f N rms\n",
+      m.load_settling_time_s, 0.5e6 * (stretch_max - stretch_min), std::sqrt(comp2 / 200.0));
+  EXPECT_LT(m.load_settling_time_s, 1.0);
+  EXPECT_LT(0.5 * (stretch_max - stretch_min), 5e-6);
+  EXPECT_LT(std::sqrt(comp2 / 200.0), 5.0);
 }
 
 }  // namespace

@@ -14,6 +14,15 @@
 //             or a window spent wholly closed in which the compensator's request has an rms
 //             over wake_force_n (the scale ramps back to 1 over fade_s)
 //
+// With an encoder on the load the gate judges the load itself: the measured stretch
+// s = x_M - x_L of the two counts (its offset does not matter: only its range over a window is
+// read), swing = (max s - min s) / 2 over the window:
+//   quiet:    also swing <= quiet_load_swing_m
+//   open:     also a window with swing > wake_load_swing_m
+// so it never closes over a swing the motor's encoder cannot see, and reopens for one that grows;
+// the request while closed is then no witness (a compensator's offset at rest is no swing).
+// A window with a tick of no stretch (no encoder, a silent one) is judged on the motor alone.
+//
 // The last is for a heavy, soft load on sticky bearings: its swing (1.5 mm on 8 kg and 6,850 N/m
 // pulls 10 N) may not move a motor held by 30 N, so the motor is quiet while the load still
 // swings. Closed, the request is a clean witness: no force reaches the motor, nothing chatters,
@@ -23,6 +32,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <string>
 
 #include "pmlsm/util/parameter_table.hpp"
@@ -40,6 +50,8 @@ struct StandstillGateParams {
   double wake_velocity_mps = 0;   ///< rms(v_M) of a window above this: pushed, > quiet_velocity_mps
   double wake_force_n = 0;        ///< the request's rms over a window spent closed above this: a swing, > 0
   double fade_s = 0;              ///< >= 0 (0: at once)
+  double quiet_load_swing_m = 0;  ///< a load encoder's swing over a window at or below this: quiet, > 0
+  double wake_load_swing_m = 0;   ///< ... above this: the load moves, open; > quiet_load_swing_m
   /// @throws std::invalid_argument naming the parameter and its value.
   void validate() const;
   /// Its own entries under `at` ("compensator.standstill"); the period comes from the system.
@@ -55,6 +67,10 @@ struct StandstillGateParams {
     v.real(at + ".fade_s", p.fade_s, {0.0, 60.0, "0 (at once) to a minute"});
     v.real(at + ".wake_force_n", p.wake_force_n,
            {1e-3, 1e5, "1 mN to 100 kN of requested compensation (rms over a window spent closed)"});
+    v.real(at + ".quiet_load_swing_m", p.quiet_load_swing_m,
+           {1e-9, 1e-2, "1 nm to 10 mm of the load's swing against the motor (half the range over a window)"});
+    v.real(at + ".wake_load_swing_m", p.wake_load_swing_m,
+           {1e-9, 1e-2, "1 nm to 10 mm of the load's swing against the motor (half the range over a window)"});
   }
 };
 
@@ -63,6 +79,8 @@ struct StandstillGateInput {
   double reference_velocity_mps = 0;  ///< V_ref(t_k)
   double motor_velocity_mps = 0;      ///< measured v_M(t_k)
   double compensation_force_n = 0;    ///< the compensator's request, before any scale
+  /// The measured stretch x_M - x_L of a load encoder against the motor's (any offset; NaN: none).
+  double load_stretch_m = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct StandstillGateOutput {
@@ -77,6 +95,7 @@ struct StandstillGateCounters {
   std::uint64_t openings = 0;
   double last_window_rms_mps = 0;  ///< rms(v_M) of the last full window
   double last_closed_force_n = 0;  ///< the request's rms over the last window spent closed
+  double last_load_swing_m = 0;    ///< the load's swing of the last full window with a stretch every tick
 };
 
 class StandstillGate {
@@ -100,7 +119,9 @@ class StandstillGate {
   std::uint64_t at_rest_steps_ = 0;
   std::uint32_t in_window_ = 0;
   double sum_v2_ = 0, sum_f2_ = 0;
-  std::uint32_t closed_in_window_ = 0;  ///< ticks of the window with the scale at 0
+  std::uint32_t closed_in_window_ = 0;   ///< ticks of the window with the scale at 0
+  std::uint32_t stretch_in_window_ = 0;  ///< ticks of the window with a finite stretch
+  double stretch_min_m_ = 0, stretch_max_m_ = 0;
   StandstillGateOutput out_;
   StandstillGateCounters counters_;
 };

@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <optional>
 
 #include "pmlsm/control/biquad.hpp"
@@ -57,11 +58,13 @@ class VelocityController {
  public:
   /// @throws std::invalid_argument from the parameters or the scenario.
   VelocityController(const SystemParams& params, const Scenario& scenario);
-  /// Tick k with the scenario's command c(t_k).
-  VelocityControllerOutput step(std::uint64_t tick, double motor_velocity_mps, const Compensation& compensation);
+  /// Tick k with the scenario's command c(t_k). `load_stretch_m`: x_M - x_L measured by a load
+  /// encoder against the motor's (NaN: none), the standstill gate's witness of the load.
+  VelocityControllerOutput step(std::uint64_t tick, double motor_velocity_mps, const Compensation& compensation,
+                                double load_stretch_m = std::numeric_limits<double>::quiet_NaN());
   /// A tick with a command from elsewhere (an external scenario: the setpoints' command).
-  VelocityControllerOutput step_command(double command_mps, double motor_velocity_mps,
-                                        const Compensation& compensation);
+  VelocityControllerOutput step_command(double command_mps, double motor_velocity_mps, const Compensation& compensation,
+                                        double load_stretch_m = std::numeric_limits<double>::quiet_NaN());
   /// The live parameters (LiveParameters) at a tick boundary: the PI's gains and limit (its
   /// integral kept), each filter chain rebuilt from rest when its slots changed (unchanged
   /// chains keep their state), and the input shaper retimed when the loop's mode moved with the
