@@ -73,17 +73,23 @@ pmlsm::CompensatorSetup compensator_setup(const ClosedLoopOptions& o, const pmls
   return setup;
 }
 
-/// Runs one scenario, writes its trace and prints its row of the results table; false when the
-/// plant diverged (a fault: the run is not valid).
-bool run_scenario(const pmlsm::SystemParams& params, const pmlsm::Scenario& scenario,
-                  const pmlsm::CompensatorSetup& setup, const std::string& out_dir, const std::string& suffix) {
+/// Runs one scenario, writes its trace and prints its row of the results table; kExitSafeState
+/// when the plant diverged (a fault: the run is not valid), kExitVerdictFailed when the load's
+/// sensor failed (the run lost the feedback it was asked to run with), else kExitOk.
+int run_scenario(const pmlsm::SystemParams& params, const pmlsm::Scenario& scenario,
+                 const pmlsm::CompensatorSetup& setup, const std::string& out_dir, const std::string& suffix) {
   const double period = params.timing.control_period_s;
   const std::vector<pmlsm::TickRecord> trace = pmlsm::run_with_compensator(params, scenario, setup);
   const auto m = pmlsm::compute_metrics(trace, scenario, period);
   const std::string csv = out_dir + "/" + scenario.name + suffix + ".csv";
   pmlsm::write_trace_csv(csv, trace);
-  // A plant that diverged is a fault: its row is marked, the run is not valid.
-  const std::string fault = pmlsm::plant_fault_reason(trace);
+  // A plant that diverged is a fault, a load sensor that failed a lost feedback: the row is
+  // marked, the run is not valid.
+  const std::string plant_fault = pmlsm::plant_fault_reason(trace);
+  const std::string sensor_fault = pmlsm::load_sensor_failure_reason(trace);
+  const std::string fault = plant_fault.empty()    ? sensor_fault
+                            : sensor_fault.empty() ? plant_fault
+                                                   : plant_fault + "; " + sensor_fault;
   pmlsm::node::print_results_row(scenario.name + suffix, m, fault);
   // The vibration guard's verdict: the compensation ran the whole scenario, or from when it was out.
   const auto trip =
@@ -96,9 +102,9 @@ bool run_scenario(const pmlsm::SystemParams& params, const pmlsm::Scenario& scen
   }
   if (!fault.empty()) {
     std::fprintf(stderr, "closed_loop: %s: %s: run not valid\n", scenario.name.c_str(), fault.c_str());
-    return false;
+    return plant_fault.empty() ? pmlsm::kExitVerdictFailed : pmlsm::kExitSafeState;
   }
-  return true;
+  return pmlsm::kExitOk;
 }
 
 /// Says, for a scenario that shapes its command, the mode and the impulses the shaper uses.
@@ -116,7 +122,8 @@ void print_shaper(const pmlsm::SystemParams& params, const pmlsm::Scenario& scen
                shaper.damping_ratio, impulses.c_str());
 }
 
-/// Every scenario with the chosen compensator; kExitSafeState when a plant diverged.
+/// Every scenario with the chosen compensator; kExitSafeState when a plant diverged, else
+/// kExitVerdictFailed when a load sensor failed.
 /// @throws ConfigError, std::invalid_argument (parameters refused)
 int run_closed_loop(const ClosedLoopOptions& o) {
   std::vector<pmlsm::ConfigOverride> overrides;
@@ -146,7 +153,8 @@ int run_closed_loop(const ClosedLoopOptions& o) {
   pmlsm::node::print_results_header();
   for (const pmlsm::Scenario& scenario : scenarios) print_shaper(params, scenario);
   for (const pmlsm::Scenario& scenario : scenarios) {
-    if (!run_scenario(params, scenario, setup, o.out_dir, suffix)) exit_code = pmlsm::kExitSafeState;
+    const int code = run_scenario(params, scenario, setup, o.out_dir, suffix);
+    if (code == pmlsm::kExitSafeState || exit_code == pmlsm::kExitOk) exit_code = code;
   }
   pmlsm::node::print_results_footer(o.out_dir);
   return exit_code;

@@ -8,6 +8,9 @@
 //   - a tick at which the drive had its force off (MotorFeedback STATUS_SAFE_STATE or
 //     STATUS_FAULT, or a power state other than operation enabled) marks the row INVALID with
 //     the reason; the CSV is still written and the exit code is kExitSafeState (5);
+//   - an estimate that reports the load's sensor failed (EstimatedState LOAD_SENSOR_FAILED) marks
+//     the row INVALID with the tick and why (the run lost the feedback it was asked to run with);
+//     the CSV is still written and the exit code is kExitVerdictFailed (6);
 //   - a sample of any topic stamped with another run_id than the first one seen (0 ignored)
 //     means the drive restarted mid-run: no table, no CSV, exit kExitPeerLost (4).
 // With --truth optional (a real drive, or the virtual rig in realtime, has no PlantTruth): when
@@ -237,15 +240,24 @@ int EvaluatorComponent::report_results() {
   std::filesystem::create_directories(opt_.out_dir);
   const std::string run_name = opt_.label.empty() ? scenario.name : scenario.name + "_" + opt_.label;
   write_trace_csv(opt_.out_dir + "/" + run_name + ".csv", trace_);
-  const std::string invalid_reason = validity_.reason();  // empty: valid
+  // Empty: valid. The drive's force off first; a load sensor that failed is a lost feedback.
+  const std::string drive_reason = validity_.reason();
+  const std::string sensor_reason = load_sensor_failure_reason(trace_);
+  const std::string invalid_reason = drive_reason.empty()    ? sensor_reason
+                                     : sensor_reason.empty() ? drive_reason
+                                                             : drive_reason + "; " + sensor_reason;
   if (opt_.print_header) node::print_results_header();
   node::print_results_row(opt_.label.empty() ? scenario.name : scenario.name + " " + opt_.label, m, invalid_reason,
                           has_truth);
   std::fflush(stdout);
   rt_.status.status().rejected(rejected_);
-  if (!invalid_reason.empty()) {
+  if (!drive_reason.empty()) {
     rt_.status.publish(node_state::STATE_ERROR, ticks_, period_s_, "invalid run: drive force off");
     return kExitSafeState;
+  }
+  if (!sensor_reason.empty()) {
+    rt_.status.publish(node_state::STATE_ERROR, ticks_, period_s_, "invalid run: the load's sensor failed");
+    return kExitVerdictFailed;
   }
   rt_.status.publish(node_state::STATE_STOPPING, ticks_, period_s_, "done");
   return kExitOk;

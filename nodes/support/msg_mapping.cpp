@@ -112,6 +112,9 @@ void from_msg(const msg::MotorFeedback& in, TickRecord& rec) {
   rec.encoder_position_m = in.position_m();
   rec.motor_velocity_measured_mps = in.velocity_mps();
   rec.applied_force_n = in.applied_force_n();
+  const LoadReading load = load_reading_of(in);
+  rec.load_position_measured_m = load.position_m;
+  rec.load_accel_measured_mps2 = load.acceleration_mps2;
   DriveTickStatus status;
   from_msg(in, status);
   rec.force_off = !force_applied(status);
@@ -169,6 +172,25 @@ void from_msg(const msg::ForceCommand& in, TickRecord& rec) {
 
 // ---- EstimatedState -----------------------------------------------------------------------
 
+namespace estimate_flags = msg::EstimatedState_Constants;
+static_assert(static_cast<int>(LoadSensorUse::kNotUsed) == estimate_flags::LOAD_SENSOR_NOT_USED);
+static_assert(static_cast<int>(LoadSensorUse::kUsed) == estimate_flags::LOAD_SENSOR_USED);
+static_assert(static_cast<int>(LoadSensorUse::kRefused) == estimate_flags::LOAD_SENSOR_REFUSED);
+static_assert(static_cast<int>(LoadSensorUse::kFailed) == estimate_flags::LOAD_SENSOR_FAILED);
+static_assert(static_cast<int>(LoadSensorFault::kNone) == estimate_flags::LOAD_FAULT_NONE);
+static_assert(static_cast<int>(LoadSensorFault::kSilent) == estimate_flags::LOAD_FAULT_SILENT);
+static_assert(static_cast<int>(LoadSensorFault::kSaturated) == estimate_flags::LOAD_FAULT_SATURATED);
+static_assert(static_cast<int>(LoadSensorFault::kJumping) == estimate_flags::LOAD_FAULT_JUMPING);
+static_assert(static_cast<int>(LoadSensorFault::kStuck) == estimate_flags::LOAD_FAULT_STUCK);
+
+namespace {
+/// A LOAD_FAULT_* value off the wire; one past the last reads as none (a newer sender's fault is
+/// still a refusal: load_sensor_use says so).
+LoadSensorFault load_fault_of(std::uint8_t value) {
+  return value <= estimate_flags::LOAD_FAULT_STUCK ? static_cast<LoadSensorFault>(value) : LoadSensorFault::kNone;
+}
+}  // namespace
+
 void to_msg(const KalmanEstimate& estimate, std::uint64_t feedback_tick, msg::EstimatedState& out) {
   out.feedback_tick(feedback_tick);
   out.v_motor_mps(estimate.motor_velocity_mps);
@@ -179,6 +201,8 @@ void to_msg(const KalmanEstimate& estimate, std::uint64_t feedback_tick, msg::Es
   out.innovation_mps(estimate.innovation_mps);
   auto& p = out.covariance_diag();
   for (int i = 0; i < 3; ++i) p[static_cast<std::size_t>(i)] = estimate.covariance_diag(i);
+  out.load_sensor_use(static_cast<std::uint8_t>(load_sensor_use(estimate)));
+  out.load_sensor_fault(static_cast<std::uint8_t>(estimate.load_sensor_problem));
 }
 
 void from_msg(const msg::EstimatedState& in, KalmanEstimate& out) {
@@ -190,6 +214,9 @@ void from_msg(const msg::EstimatedState& in, KalmanEstimate& out) {
   out.innovation_mps = in.innovation_mps();
   const auto& p = in.covariance_diag();
   for (int i = 0; i < 3; ++i) out.covariance_diag(i) = p[static_cast<std::size_t>(i)];
+  out.load_measurement_used = in.load_sensor_use() == estimate_flags::LOAD_SENSOR_USED;
+  out.load_sensor_failed = in.load_sensor_use() == estimate_flags::LOAD_SENSOR_FAILED;
+  out.load_sensor_problem = load_fault_of(in.load_sensor_fault());
 }
 
 void from_msg(const msg::EstimatedState& in, TickRecord& rec) {
@@ -197,6 +224,10 @@ void from_msg(const msg::EstimatedState& in, TickRecord& rec) {
   rec.est_load_velocity_mps = in.v_load_mps();
   rec.est_spring_force_n = in.spring_force_n();
   rec.est_load_accel_mps2 = in.a_load_mps2();
+  rec.load_sensor_use = in.load_sensor_use() <= estimate_flags::LOAD_SENSOR_FAILED
+                            ? static_cast<LoadSensorUse>(in.load_sensor_use())
+                            : LoadSensorUse::kRefused;
+  rec.load_sensor_fault = load_fault_of(in.load_sensor_fault());
 }
 
 // ---- drive messages -----------------------------------------------------------------------

@@ -1,4 +1,6 @@
-// CSV trace of a closed-loop run: one row per control tick, SI units in the header.
+// CSV trace of a closed-loop run: one row per control tick, SI units in the header. The load
+// sensor's readings are nan when not measured; load_sensor_use is EstimatedState's LOAD_SENSOR_*
+// (0 not used, 1 used, 2 refused, 3 failed).
 #pragma once
 
 #include <string>

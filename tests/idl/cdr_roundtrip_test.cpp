@@ -228,6 +228,8 @@ struct Fields<msg::EstimatedState> {
     v("input_force_n", m.input_force_n()...);
     v("innovation_mps", m.innovation_mps()...);
     v("covariance_diag", m.covariance_diag()...);
+    v("load_sensor_use", m.load_sensor_use()...);
+    v("load_sensor_fault", m.load_sensor_fault()...);
   }
 };
 

@@ -75,6 +75,50 @@ TEST(DriveSafety, ARunThatNeverEnabledTheDriveEndsWith5AndTheEvaluatorMarksItInv
   fs::remove_all(dir);
 }
 
+// A load encoder whose cable is cut 0.1 s into a 0.3 s run: the estimator's judge fails it ten ticks
+// later, and the evaluator marks the run INVALID with the tick and why, and ends with 6: the run
+// lost the feedback it was asked to run with.
+TEST(DriveSafety, ALoadSensorThatFailsMarksTheRunInvalidAndEndsWith6) {
+  const fs::path dir = test::fresh_dir("pmlsm_load_sensor_failed", "run");
+  const std::string scenario = short_pulse(dir, 0.3);
+  const std::string domain = test_domain(132);
+  const std::vector<std::string> sensor{"--set", "sensors.load.kind=encoder", "--set",
+                                        "sensors.load.silent_after_s=0.1"};
+  const auto with_sensor = [&](std::vector<std::string> extra) {
+    extra.insert(extra.end(), sensor.begin(), sensor.end());
+    return extra;
+  };
+  test::ChildProcess evaluator(node_args("evaluator", domain, scenario, with_sensor({"--out", dir.string()})),
+                               (dir / "evaluator.log").string());
+  test::ChildProcess estimator(
+      node_args("kalman_estimator", domain, scenario, with_sensor({"--estimate-readers", "1"})),
+      (dir / "estimator.log").string());
+  test::ChildProcess controller(
+      node_args("controller", domain, scenario, with_sensor({"--command-readers", "2", "--reference-readers", "1"})),
+      (dir / "controller.log").string());
+  test::ChildProcess plant(node_args("plant_sim", domain, scenario, with_sensor({"--peers", "3"})),
+                           (dir / "plant.log").string());
+  const auto evaluator_code = evaluator.wait_for(std::chrono::seconds(60));
+  ASSERT_TRUE(evaluator_code.has_value()) << evaluator.output();
+  EXPECT_EQ(*evaluator_code, 6) << evaluator.output() << "\nestimator:\n" << estimator.output();
+  EXPECT_NE(evaluator.output().find("INVALID: the load's sensor failed at tick 109 (t = 0.109 s): silent"),
+            std::string::npos)
+      << evaluator.output();
+  EXPECT_NE(estimator.output().find("the load's sensor failed at tick 109"), std::string::npos) << estimator.output();
+  for (auto* p : {&plant, &controller, &estimator}) EXPECT_TRUE(p->wait_for(std::chrono::seconds(30)).has_value());
+  // The trace says it too: the reading nan from tick 100, the filter's use 3 (failed) from 109.
+  std::ifstream csv(dir / "pulse.csv");
+  std::string header, line;
+  std::getline(csv, header);
+  EXPECT_NE(header.find(",load_position_measured_m,load_accel_measured_mps2,load_sensor_use"), std::string::npos);
+  std::vector<std::string> rows;
+  while (std::getline(csv, line)) rows.push_back(line);
+  ASSERT_EQ(rows.size(), 300u);
+  EXPECT_EQ(rows[99].substr(rows[99].rfind(',') + 1), "1") << rows[99];
+  EXPECT_EQ(rows[109].substr(rows[109].rfind(',') + 1), "3") << rows[109];
+  fs::remove_all(dir);
+}
+
 // A controller or an estimator told to wait for its readers gives up after the peer timeout, naming what is missing.
 TEST(DriveSafety, AControllerOrEstimatorWithoutItsReadersSaysWhichAndExits3) {
   const fs::path dir = test::fresh_dir("pmlsm_no_readers", "run");

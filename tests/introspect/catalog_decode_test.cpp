@@ -266,6 +266,8 @@ msg::EstimatedState estimated_state(Sampler& s) {
   v.innovation_mps(s.real("innovation_mps"));
   const auto diagonal = s.reals("covariance_diag", 3);
   v.covariance_diag({diagonal[0], diagonal[1], diagonal[2]});
+  v.load_sensor_use(s.u8("load_sensor_use"));
+  v.load_sensor_fault(s.u8("load_sensor_fault"));
   return v;
 }
 

@@ -224,6 +224,12 @@ void KalmanFilter::stretch_update(double load_position_m, double motor_position_
   out.stretch_innovation_n = scalar_update(Eigen::RowVector3d(0.0, 0.0, 1.0), y_n - offset_now_n, r);
 }
 
+LoadSensorUse load_sensor_use(const KalmanEstimate& e) {
+  if (e.load_sensor_failed) return LoadSensorUse::kFailed;
+  if (e.load_measurement_used) return LoadSensorUse::kUsed;
+  return e.load_sensor_problem != LoadSensorFault::kNone ? LoadSensorUse::kRefused : LoadSensorUse::kNotUsed;
+}
+
 KalmanLoadMeasurement KalmanLoadMeasurement::of(const LoadSensorParams& sensor, double period_s,
                                                 double motor_resolution_m) {
   KalmanLoadMeasurement m;

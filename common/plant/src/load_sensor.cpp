@@ -42,6 +42,7 @@ LoadSensor::LoadSensor(const LoadSensorParams& params, double period_s)
   low_pass_gain_ = low_pass_gain(params_.bandwidth_hz, period_s_);
   noise_std_mps2_ = params_.noise_density_mps2_per_sqrt_hz * std::sqrt(0.5 / period_s_);
   drift_std_mps2_ = params_.bias_drift_mps2_per_sqrt_s * std::sqrt(period_s_);
+  silent_from_ = static_cast<std::uint64_t>(std::llround(params_.silent_after_s / period_s_));
   inv_resolution_ = 1.0 / params_.resolution_m;
   reset(0.0);
 }
@@ -53,6 +54,7 @@ double LoadSensor::low_pass_gain(double bandwidth_hz, double period_s) {
 void LoadSensor::reset(double load_position_m) {
   line_.fill(Truth{load_position_m, 0.0});
   next_ = 0;
+  steps_ = 0;
   filtered_mps2_ = params_.bias_mps2;
   bias_mps2_ = params_.bias_mps2;
   last_ = LoadSensorReading{};
@@ -60,6 +62,11 @@ void LoadSensor::reset(double load_position_m) {
 
 LoadSensorReading LoadSensor::step(double load_position_m, double load_accel_mps2) {
   if (params_.kind == LoadSensorKind::kNone) return LoadSensorReading{};
+  const std::uint64_t step = steps_++;
+  if (silent_from_ > 0 && step >= silent_from_) {
+    ++counters_.silent;
+    return LoadSensorReading{};
+  }
   if (!std::isfinite(load_position_m) || !std::isfinite(load_accel_mps2)) {
     ++counters_.rejected_inputs;
     return last_;

@@ -63,6 +63,10 @@ TickRecord ClosedLoop::step(const Compensation& compensation) {
   rec.est_load_velocity_mps = est.load_velocity_mps;
   rec.est_spring_force_n = est.spring_force_n;
   rec.est_load_accel_mps2 = est.load_accel_mps2;
+  rec.load_position_measured_m = feedback.load.position_m;
+  rec.load_accel_measured_mps2 = feedback.load.acceleration_mps2;
+  rec.load_sensor_use = load_sensor_use(est);
+  rec.load_sensor_fault = est.load_sensor_problem;
 
   const VelocityControllerOutput control = controller_.step(tick_, feedback.velocity_mps, compensation,
                                                             feedback.encoder_position_m - feedback.load.position_m);
@@ -98,6 +102,19 @@ std::string plant_fault_reason(const std::vector<TickRecord>& trace) {
                   "plant state %s = %.6g (not finite or beyond any motor) at tick %llu: zero force from tick %llu",
                   rec.plant_fault_state, rec.plant_fault_value, static_cast<unsigned long long>(rec.tick),
                   static_cast<unsigned long long>(rec.tick + 1));
+    return text;
+  }
+  return "";
+}
+
+std::string load_sensor_failure_reason(const std::vector<TickRecord>& trace) {
+  for (const TickRecord& rec : trace) {
+    if (rec.load_sensor_use != LoadSensorUse::kFailed) continue;
+    char text[240];
+    std::snprintf(text, sizeof text,
+                  "the load's sensor failed at tick %llu (t = %.3f s): %s; the estimate from then on is the motor "
+                  "side's alone",
+                  static_cast<unsigned long long>(rec.tick), rec.time_s, to_string(rec.load_sensor_fault));
     return text;
   }
   return "";

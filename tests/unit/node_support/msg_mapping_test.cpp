@@ -311,6 +311,50 @@ TEST(MsgMapping, TheLoadsSensorOnTheWireAndBack) {
   }
 }
 
+TEST(MsgMapping, WhatTheLoadsSensorDidForAnEstimateOnTheWireAndBack) {
+  namespace c = msg::EstimatedState_Constants;
+  struct Case {
+    bool used, failed;
+    LoadSensorFault problem;
+    std::uint8_t use, fault;
+    LoadSensorUse record;
+  };
+  for (const Case& k :
+       {Case{false, false, LoadSensorFault::kNone, c::LOAD_SENSOR_NOT_USED, c::LOAD_FAULT_NONE,
+             LoadSensorUse::kNotUsed},
+        Case{true, false, LoadSensorFault::kNone, c::LOAD_SENSOR_USED, c::LOAD_FAULT_NONE, LoadSensorUse::kUsed},
+        Case{false, false, LoadSensorFault::kJumping, c::LOAD_SENSOR_REFUSED, c::LOAD_FAULT_JUMPING,
+             LoadSensorUse::kRefused},
+        Case{false, true, LoadSensorFault::kStuck, c::LOAD_SENSOR_FAILED, c::LOAD_FAULT_STUCK,
+             LoadSensorUse::kFailed}}) {
+    KalmanEstimate e;
+    e.load_measurement_used = k.used;
+    e.load_sensor_failed = k.failed;
+    e.load_sensor_problem = k.problem;
+    msg::EstimatedState m;
+    to_msg(e, 7, m);
+    EXPECT_EQ(m.load_sensor_use(), k.use);
+    EXPECT_EQ(m.load_sensor_fault(), k.fault);
+    KalmanEstimate back;
+    from_msg(m, back);
+    EXPECT_EQ(back.load_measurement_used, k.used);
+    EXPECT_EQ(back.load_sensor_failed, k.failed);
+    EXPECT_EQ(back.load_sensor_problem, k.problem);
+    TickRecord rec;
+    from_msg(m, rec);
+    EXPECT_EQ(rec.load_sensor_use, k.record);
+    EXPECT_EQ(rec.load_sensor_fault, k.problem);
+  }
+  // A value past the last from a newer sender: refused, no fault named.
+  msg::EstimatedState newer;
+  newer.load_sensor_use(9);
+  newer.load_sensor_fault(9);
+  TickRecord rec;
+  from_msg(newer, rec);
+  EXPECT_EQ(rec.load_sensor_use, LoadSensorUse::kRefused);
+  EXPECT_EQ(rec.load_sensor_fault, LoadSensorFault::kNone);
+}
+
 // ---- VelocityReference, ForceCommand ------------------------------------------------------
 
 VelocityControllerOutput distinct_control(bool saturated) {

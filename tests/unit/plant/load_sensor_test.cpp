@@ -11,6 +11,7 @@
 
 #include "pmlsm/config/config.hpp"
 #include "pmlsm/plant/load_sensor.hpp"
+#include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/sim/simulated_drive.hpp"
 
 namespace pmlsm {
@@ -184,6 +185,44 @@ TEST(LoadSensor, TheSimulatedDriveReadsTheLoadBesideTheMotorsEncoder) {
     EXPECT_LT(m.load_acceleration_mps2, 0.0);
     EXPECT_NEAR(m.load_acceleration_mps2, drive.simulated_drive().plant().truth().load_accel_mps2, 1e-9);
   }
+}
+
+TEST(LoadSensor, ACutCableSilencesItFromItsTime) {
+  LoadSensorParams p = load_system_params(std::string(PMLSM_SOURCE_DIR) + "/configs/system.yaml").load_sensor;
+  EXPECT_EQ(p.silent_after_s, 0.0) << "never, as shipped";
+  p.kind = LoadSensorKind::kEncoder;
+  p.silent_after_s = 0.005;
+  LoadSensor sensor(p, 1e-3);
+  sensor.reset(0.0);
+  for (int k = 0; k < 10; ++k) {
+    const LoadSensorReading r = sensor.step(1e-3 * k, 0.0);
+    EXPECT_EQ(std::isnan(r.position_m), k >= 5) << k;
+  }
+  EXPECT_EQ(sensor.counters().silent, 5u);
+  sensor.reset(0.0);  // a new run: read again until its time
+  EXPECT_FALSE(std::isnan(sensor.step(0.0, 0.0).position_m));
+}
+
+// In the loop: the cable cut at 0.5 s, the filter's judge fails the sensor ten ticks later, and the
+// run says so: the trace's records from then on, the reason the results table and the exit code use.
+TEST(LoadSensor, ASensorThatFailsInTheLoopIsReportedWithItsTickAndWhy) {
+  SystemParams params = load_system_params(std::string(PMLSM_SOURCE_DIR) + "/configs/system.yaml");
+  params.load_sensor.kind = LoadSensorKind::kEncoder;
+  const Scenario pulse =
+      load_scenario(std::string(PMLSM_SOURCE_DIR) + "/configs/scenarios/pulse.yaml", params.timing.control_period_s);
+  EXPECT_EQ(load_sensor_failure_reason(run_scenario(params, pulse)), "") << "a sensor that reads throughout";
+  params.load_sensor.silent_after_s = 0.5;
+  const std::vector<TickRecord> trace = run_scenario(params, pulse);
+  EXPECT_EQ(trace[400].load_sensor_use, LoadSensorUse::kUsed);
+  EXPECT_FALSE(std::isnan(trace[499].load_position_measured_m));
+  EXPECT_TRUE(std::isnan(trace[500].load_position_measured_m));
+  EXPECT_EQ(trace[500].load_sensor_use, LoadSensorUse::kRefused);
+  EXPECT_EQ(trace[500].load_sensor_fault, LoadSensorFault::kSilent);
+  EXPECT_EQ(trace[509].load_sensor_use, LoadSensorUse::kFailed) << "bad for 10 ms in a row";
+  EXPECT_EQ(trace.back().load_sensor_use, LoadSensorUse::kFailed) << "latched";
+  EXPECT_EQ(load_sensor_failure_reason(trace),
+            "the load's sensor failed at tick 509 (t = 0.509 s): silent (no reading); the estimate from then on "
+            "is the motor side's alone");
 }
 
 }  // namespace load_sensor_test

@@ -197,6 +197,15 @@ struct KalmanEstimate {
   bool load_sensor_failed = false;                               ///< the sensor failed (latched)
 };
 
+/// What the load's sensor did for one estimate (EstimatedState.load_sensor_use).
+enum class LoadSensorUse : std::uint8_t {
+  kNotUsed = 0,  ///< no sensor declared, or no reading to use yet (an encoder's first)
+  kUsed = 1,     ///< its reading corrected the estimate
+  kRefused = 2,  ///< its reading was judged bad (load_sensor_problem says why)
+  kFailed = 3,   ///< the sensor failed (latched): the estimate is the motor's side alone
+};
+LoadSensorUse load_sensor_use(const KalmanEstimate& estimate);
+
 struct KalmanCounters {
   std::uint64_t steps = 0;
   std::uint64_t rejected_measurements = 0;  ///< non-finite y: time update only

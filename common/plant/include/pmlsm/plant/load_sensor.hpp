@@ -45,6 +45,9 @@ struct LoadSensorParams {
   double fault_after_s = 0;   ///< bad this long in a row, or stuck over it: failed
   double max_speed_mps = 0;   ///< an encoder's reading moving faster than this jumped
   double stuck_travel_m = 0;  ///< an encoder's count unchanged while the motor travelled this far: stuck
+  /// The simulated part goes silent (NaN readings) from this time on, a cut cable to rehearse the
+  /// failure with; 0: never.
+  double silent_after_s = 0;
   /// The declared ranges.
   void validate() const;
   /// Its entries under `at` ("sensors.load").
@@ -66,6 +69,7 @@ struct LoadSensorParams {
     v.real(s + "fault_after_s", p.fault_after_s, {1e-4, 1.0, "0.1 ms to 1 s"});
     v.real(s + "max_speed_mps", p.max_speed_mps, {1e-3, 1e3, "1 mm/s to 1 km/s"});
     v.real(s + "stuck_travel_m", p.stuck_travel_m, {1e-6, 1.0, "1 um to 1 m of the motor's travel"});
+    v.real(s + "silent_after_s", p.silent_after_s, {0.0, 1e6, "0 (never) to 1e6 s into the run"});
   }
   static constexpr std::uint32_t kMaxLatencyTicks = 16;
 };
@@ -81,6 +85,7 @@ struct LoadSensorCounters {
   std::uint64_t readings = 0;
   std::uint64_t saturated = 0;        ///< readings at the rail
   std::uint64_t rejected_inputs = 0;  ///< non-finite truth: the last reading held
+  std::uint64_t silent = 0;           ///< ticks without a reading (silent_after_s)
 };
 
 class LoadSensor {
@@ -110,6 +115,8 @@ class LoadSensor {
   double inv_resolution_;
   std::array<Truth, LoadSensorParams::kMaxLatencyTicks + 1> line_{};  ///< the truth of the last L + 1 ticks
   std::uint64_t next_ = 0;
+  std::uint64_t steps_ = 0;        ///< ticks since reset
+  std::uint64_t silent_from_ = 0;  ///< the first silent tick (0: never)
   double filtered_mps2_ = 0;
   double bias_mps2_ = 0;
   LoadSensorReading last_{};

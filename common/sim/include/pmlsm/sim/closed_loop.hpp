@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -55,6 +56,11 @@ struct TickRecord {
   double u_q_v = 0;            ///< last q-axis voltage of the previous tick
   double applied_force_n = 0;  ///< force the drive applied during the previous tick (MotorFeedback's)
   bool force_off = false;      ///< the drive had its force off at t_k (fault, safe state, not enabled)
+  /// The load's sensor as the drive read it at t_k (NaN: not measured) and what the filter did with it.
+  double load_position_measured_m = std::numeric_limits<double>::quiet_NaN();
+  double load_accel_measured_mps2 = std::numeric_limits<double>::quiet_NaN();
+  LoadSensorUse load_sensor_use = LoadSensorUse::kNotUsed;
+  LoadSensorFault load_sensor_fault = LoadSensorFault::kNone;  ///< why refused, or why it failed
   /// Set from the tick whose integration diverged on (PlantDivergence): the plant
   /// entry that left the numbers and its value. The loop applies zero force from the
   /// next tick and the plant stays at its last good state: the run is not valid.
@@ -65,6 +71,11 @@ struct TickRecord {
 /// "plant state <name> = <value> (not finite or beyond any motor) at tick k: zero force
 /// from tick k+1", or "" when no record of the trace has a plant fault.
 std::string plant_fault_reason(const std::vector<TickRecord>& trace);
+
+/// "the load's sensor failed at tick k (t = X s): <why>; the estimate from then on is the motor
+/// side's alone", or "" when no record has it failed. A run asked for with a load sensor that lost
+/// it is not the run asked for: the results table marks it, the exit code is not 0.
+std::string load_sensor_failure_reason(const std::vector<TickRecord>& trace);
 
 class ClosedLoop {
  public:
