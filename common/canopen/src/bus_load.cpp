@@ -32,8 +32,9 @@ BusLoad bus_load(const std::vector<CycleFrame>& frames, double bitrate_bps, doub
 }
 
 std::vector<CycleFrame> bridge_cycle_frames(double cycle_s, std::uint32_t drive_heartbeat_ms,
-                                            std::uint32_t master_heartbeat_ms) {
+                                            std::uint32_t master_heartbeat_ms, bool load_sensor) {
   std::vector<CycleFrame> frames = {{"SYNC", 1, 1.0}, {"RPDO1", 8, 1.0}, {"TPDO1", 8, 1.0}, {"TPDO2", 8, 1.0}};
+  if (load_sensor) frames.push_back({"TPDO3", 8, 1.0});
   if (drive_heartbeat_ms > 0) frames.push_back({"drive heartbeat", 1, cycle_s * 1e3 / drive_heartbeat_ms});
   if (master_heartbeat_ms > 0) frames.push_back({"master heartbeat", 1, cycle_s * 1e3 / master_heartbeat_ms});
   return frames;

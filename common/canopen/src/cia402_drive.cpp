@@ -5,7 +5,9 @@
 #include <utility>
 
 #include "pmlsm/canopen/bytes.hpp"
+#include "pmlsm/canopen/cia402_application.hpp"
 #include "pmlsm/canopen/emcy.hpp"
+#include "pmlsm/canopen/pdo.hpp"
 
 namespace pmlsm::canopen {
 
@@ -20,6 +22,22 @@ std::string hex(std::uint32_t value, int digits) {
 }
 
 }  // namespace
+
+const char* to_string(DriveLoadSensor sensor) noexcept {
+  switch (sensor) {
+    case DriveLoadSensor::kNone: return "none";
+    case DriveLoadSensor::kEncoder: return "encoder";
+    case DriveLoadSensor::kAccelerometer: return "accelerometer";
+  }
+  return "none";
+}
+
+DriveLoadSensor drive_load_sensor_from_string(const std::string& name) {
+  for (const DriveLoadSensor s : {DriveLoadSensor::kNone, DriveLoadSensor::kEncoder, DriveLoadSensor::kAccelerometer}) {
+    if (name == to_string(s)) return s;
+  }
+  throw std::invalid_argument("must be one of none, encoder, accelerometer, got '" + name + "'");
+}
 
 void Cia402DriveConfig::validate() const {
   RangeCheck check;
@@ -144,6 +162,15 @@ void Cia402Drive::handle(const can::CanFrame& frame) {
       periods_ = tpdo2_periods_;
       tpdo2_generation_ = generation_;
       break;
+    case FunctionCode::kTpdo3:
+      if (tpdo3_dlc_ == 0) return;  // no load sensor asked for: not ours to read
+      if (frame.dlc != tpdo3_dlc_) {
+        ++counters_.malformed;
+        return;
+      }
+      load_reading_ = static_cast<std::int32_t>(get_u32_le(frame.data, tpdo3_offset_));
+      tpdo3_generation_ = generation_;
+      break;
     case FunctionCode::kEmcy: {
       const Result<EmcyMessage> emcy = decode_emcy(frame);
       if (!emcy) return;
@@ -202,6 +229,7 @@ void Cia402Drive::send_rpdo(std::uint16_t controlword, std::int16_t torque, std:
 bool Cia402Drive::wait_answer(std::optional<std::uint32_t> expected, std::int64_t deadline_ns) {
   for (;;) {
     const bool complete = tpdo1_generation_ == generation_ && tpdo2_generation_ == generation_ &&
+                          (tpdo3_dlc_ == 0 || tpdo3_generation_ == generation_) &&
                           (!expected || tpdo2_periods_ == *expected);
     if (complete) return true;
     const std::int64_t left = deadline_ns - now_ns();
@@ -284,7 +312,40 @@ void Cia402Drive::boot() {
     throw Cia402DriveError("0x6061 (modes of operation display) is " + std::to_string(mode_value) +
                            " after 0x6060 = 10: the drive did not enter cyclic synchronous torque");
   }
+  if (config_.load_sensor != DriveLoadSensor::kNone) enable_load_sensor();
   send(encode_nmt(NmtCommand::kStart, node_));
+}
+
+void Cia402Drive::enable_load_sensor() {
+  const bool encoder = config_.load_sensor == DriveLoadSensor::kEncoder;
+  const PdoMapEntry wanted =
+      encoder ? PdoMapEntry{kObjectAdditionalPositionActual, 1, 32} : PdoMapEntry{kObjectLoadAcceleration, 0, 32};
+  const std::string name = std::string("drive.load_sensor ") + to_string(config_.load_sensor) + ": ";
+  const std::uint32_t count = sdo(false, kObjectTpdo3Mapping, 0, 0, 0, "TPDO3 mapping: number of entries");
+  if (count > kPdoMaxEntries) throw Cia402DriveError(name + "0x1A02:00 holds " + std::to_string(count) + " entries");
+  std::uint32_t bits = 0;
+  std::string mapped;
+  bool found = false;
+  for (std::uint32_t i = 1; i <= count; ++i) {
+    const PdoMapEntry e =
+        decode_pdo_mapping(sdo(false, kObjectTpdo3Mapping, static_cast<std::uint8_t>(i), 0, 0, "TPDO3 mapping entry"));
+    mapped += (mapped.empty() ? "" : ", ") + hex(e.index, 4) + ":" + std::to_string(e.subindex) + ":" +
+              std::to_string(e.bit_length);
+    if (e.index == wanted.index && e.subindex == wanted.subindex && e.bit_length == wanted.bit_length && !found) {
+      found = true;
+      tpdo3_offset_ = static_cast<std::uint8_t>(bits / 8);
+    }
+    bits += e.bit_length;
+  }
+  if (!found || bits % 8 != 0 || bits > kPdoMaxBits) {
+    throw Cia402DriveError(name + "the drive's TPDO3 (0x1A02) does not map " + hex(wanted.index, 4) + ":" +
+                           std::to_string(wanted.subindex) + ":32 (it maps " + (mapped.empty() ? "nothing" : mapped) +
+                           ")");
+  }
+  tpdo3_dlc_ = static_cast<std::uint8_t>(bits / 8);
+  // Valid, synchronous at every SYNC, on the node's TPDO3 id.
+  sdo(true, kObjectTpdo3Communication, 2, kPdoTransmissionSyncEvery, 1, "TPDO3 transmission type");
+  sdo(true, kObjectTpdo3Communication, 1, tpdo_cob_id(3, node_), 4, "TPDO3 COB-ID, valid");
 }
 
 bool Cia402Drive::idle_exchange(std::uint16_t controlword) {
@@ -348,7 +409,13 @@ void Cia402Drive::enable_and_wait() {
 }
 
 drive::Measurement Cia402Drive::measurement() const {
-  return scaling_.measurement(position_actual_, velocity_actual_, torque_actual_);
+  drive::Measurement m = scaling_.measurement(position_actual_, velocity_actual_, torque_actual_);
+  if (config_.load_sensor == DriveLoadSensor::kEncoder)
+    m.load_position_m = scaling_.increments_to_metres(load_reading_);
+  if (config_.load_sensor == DriveLoadSensor::kAccelerometer) {
+    m.load_acceleration_mps2 = static_cast<double>(load_reading_) * kLoadAccelerationPerUnit;
+  }
+  return m;
 }
 
 drive::Measurement Cia402Drive::sample() {

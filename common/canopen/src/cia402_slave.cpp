@@ -110,6 +110,7 @@ void Cia402Slave::reload_pdos() {
   rpdo1_ = load_pdo(od_, kObjectRpdo1Communication);
   tpdo1_ = load_pdo(od_, kObjectTpdo1Communication);
   tpdo2_ = load_pdo(od_, kObjectTpdo2Communication);
+  tpdo3_ = load_pdo(od_, kObjectTpdo3Communication);
 }
 
 std::optional<ConsumerHeartbeat> Cia402Slave::consumer() const {
@@ -133,7 +134,7 @@ void Cia402Slave::step_period(std::int64_t now_ns) { application_.step_period(no
 
 void Cia402Slave::send_tpdos() {
   ++tpdo_syncs_;
-  for (const PdoChannel* ch : {&tpdo1_, &tpdo2_}) {
+  for (const PdoChannel* ch : {&tpdo1_, &tpdo2_, &tpdo3_}) {
     if (!ch->valid || ch->transmission_type == 0) continue;
     if (tpdo_syncs_ % ch->transmission_type != 0) continue;
     const Result<CanFrame> f = pack_pdo(ch->map, od_, ch->cob_id);

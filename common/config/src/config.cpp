@@ -618,19 +618,27 @@ canopen::PdoMapEntry read_pdo_map_entry(const std::string& text, const std::stri
 PdoDefault read_pdo_default(Section& p, const DeviceDictionary& d, const std::string& origin, const std::string& path) {
   PdoDefault pdo;
   pdo.channel = p.text("channel");
-  if (pdo.channel != "rpdo1" && pdo.channel != "tpdo1" && pdo.channel != "tpdo2") {
-    throw ConfigError(origin + ": " + path + ".channel: one of rpdo1, tpdo1, tpdo2, got '" + pdo.channel + "'");
+  if (pdo.channel != "rpdo1" && pdo.channel != "tpdo1" && pdo.channel != "tpdo2" && pdo.channel != "tpdo3") {
+    throw ConfigError(origin + ": " + path + ".channel: one of rpdo1, tpdo1, tpdo2, tpdo3, got '" + pdo.channel + "'");
   }
   for (const PdoDefault& other : d.pdos) {
     if (other.channel == pdo.channel) {
       throw ConfigError(origin + ": " + path + ".channel: " + pdo.channel + " is listed twice");
     }
   }
-  std::string cob = p.text("cob_id");
+  const std::string cob_text = p.text("cob_id");
+  std::string cob = cob_text;
   const std::string node_prefix = "$NODEID+";
   pdo.node_relative = cob.rfind(node_prefix, 0) == 0;
   if (pdo.node_relative) cob = cob.substr(node_prefix.size());
-  pdo.cob_id = static_cast<std::uint32_t>(c_number(cob, origin, path + ".cob_id", 0x7FF));
+  // Bit 31 (CiA 301: the PDO not valid) may be set; the id itself is 11 bits.
+  const auto value = static_cast<std::uint32_t>(c_number(cob, origin, path + ".cob_id", 0xFFFFFFFF));
+  pdo.valid = (value & canopen::kPdoCobIdInvalid) == 0;
+  pdo.cob_id = value & ~canopen::kPdoCobIdInvalid;
+  if (pdo.cob_id > 0x7FF) {
+    throw ConfigError(origin + ": " + path + ".cob_id: an 11-bit id (bit 31 may mark the PDO not valid), got '" +
+                      cob_text + "'");
+  }
   pdo.transmission_type =
       static_cast<std::uint8_t>(c_number(p.text("transmission_type"), origin, path + ".transmission_type", 0xFF));
   const std::vector<std::string> mapping = p.texts("mapping");

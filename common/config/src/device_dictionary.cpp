@@ -32,30 +32,31 @@ void must(co::Status s, const std::string& what) {
   throw ConfigError("device dictionary: " + what + ": refused (" + s.detail + ", abort " + code + ")");
 }
 
-/// TPDO2's communication and mapping entries, copied from TPDO1's (the same checks); invalid
-/// and empty until the description configures them.
-void add_tpdo2(co::ObjectDictionary& od, co::NodeId node) {
-  static const char* const kTpdo2CommNames[6] = {"TPDO2 communication: highest sub-index",
-                                                 "TPDO2 COB-ID",
-                                                 "TPDO2 transmission type",
-                                                 "TPDO2 inhibit time",
-                                                 "",
-                                                 "TPDO2 event timer"};
+/// TPDO n's (2 or 3) communication and mapping entries, copied from TPDO1's (the same checks);
+/// invalid and empty until the description configures them.
+void add_tpdo(co::ObjectDictionary& od, co::NodeId node, int n) {
+  static const char* const kCommNames[2][6] = {
+      {"TPDO2 communication: highest sub-index", "TPDO2 COB-ID", "TPDO2 transmission type", "TPDO2 inhibit time", "",
+       "TPDO2 event timer"},
+      {"TPDO3 communication: highest sub-index", "TPDO3 COB-ID", "TPDO3 transmission type", "TPDO3 inhibit time", "",
+       "TPDO3 event timer"}};
+  static const char* const kCountNames[2] = {"TPDO2 mapping: number of entries", "TPDO3 mapping: number of entries"};
+  const auto offset = static_cast<std::uint16_t>(n - 1);
   for (std::uint8_t sub : {0, 1, 2, 3, 5}) {
     const co::Entry* from = od.find(co::kObjectTpdo1Communication, sub);
     if (from == nullptr) throw std::logic_error("device dictionary: 0x1800 lacks a sub-index");
     co::Entry copy = *from;
-    copy.index = co::kObjectTpdo2Communication;
-    copy.name = kTpdo2CommNames[sub];
-    if (sub == 1) copy.value = co::tpdo_cob_id(2, node) | co::kPdoCobIdInvalid;
+    copy.index = static_cast<std::uint16_t>(co::kObjectTpdo1Communication + offset);
+    copy.name = kCommNames[n - 2][sub];
+    if (sub == 1) copy.value = co::tpdo_cob_id(n, node) | co::kPdoCobIdInvalid;
     od.add(copy);
   }
   for (std::uint8_t sub = 0; sub <= 8; ++sub) {
     const co::Entry* from = od.find(co::kObjectTpdo1Mapping, sub);
     if (from == nullptr) throw std::logic_error("device dictionary: 0x1A00 lacks a sub-index");
     co::Entry copy = *from;
-    copy.index = co::kObjectTpdo2Mapping;
-    if (sub == 0) copy.name = "TPDO2 mapping: number of entries";
+    copy.index = static_cast<std::uint16_t>(co::kObjectTpdo1Mapping + offset);
+    if (sub == 0) copy.name = kCountNames[n - 2];
     copy.value = 0;
     od.add(copy);
   }
@@ -66,7 +67,8 @@ void add_tpdo2(co::ObjectDictionary& od, co::NodeId node) {
 void write_pdo_default(co::ObjectDictionary& od, co::NodeId node, const PdoDefault& pdo) {
   const std::uint16_t comm = pdo.channel == "rpdo1"   ? co::kObjectRpdo1Communication
                              : pdo.channel == "tpdo1" ? co::kObjectTpdo1Communication
-                                                      : co::kObjectTpdo2Communication;
+                             : pdo.channel == "tpdo2" ? co::kObjectTpdo2Communication
+                                                      : co::kObjectTpdo3Communication;
   const auto map = static_cast<std::uint16_t>(comm + co::kPdoMappingOffset);
   const std::uint32_t cob = pdo.cob_id + (pdo.node_relative ? node.value() : 0U);
   const auto write = [&](std::uint16_t index, std::uint8_t sub, std::uint32_t value, const std::string& what) {
@@ -83,7 +85,7 @@ void write_pdo_default(co::ObjectDictionary& od, co::NodeId node, const PdoDefau
   }
   write(map, 0, static_cast<std::uint32_t>(pdo.mapping.size()), "mapping count");
   write(comm, 2, pdo.transmission_type, "transmission type");
-  write(comm, 1, cob, "COB-ID");
+  if (pdo.valid) write(comm, 1, cob, "COB-ID");  // else left invalid, as the description says
 }
 
 }  // namespace
@@ -122,9 +124,11 @@ co::ObjectDictionary build_device_dictionary(const CanopenRigConfig& rig, const 
               co::consumer_heartbeat_entry(static_cast<std::uint8_t>(rig.master.master_node_id),
                                            rig.master.master_heartbeat_timeout_ms)),
        "0x1016.1");
-  add_tpdo2(od, node);
+  add_tpdo(od, node, 2);
+  add_tpdo(od, node, 3);
   for (const PdoDefault& pdo : device.pdos) write_pdo_default(od, node, pdo);
-  for (std::uint16_t mapping : {co::kObjectRpdo1Mapping, co::kObjectTpdo1Mapping, co::kObjectTpdo2Mapping}) {
+  for (std::uint16_t mapping :
+       {co::kObjectRpdo1Mapping, co::kObjectTpdo1Mapping, co::kObjectTpdo2Mapping, co::kObjectTpdo3Mapping}) {
     const co::Result<co::PdoMap> pdo_map = co::read_pdo_map(od, mapping);
     if (!pdo_map) throw ConfigError("device dictionary: mapping invalid: " + std::string(pdo_map.detail));
   }

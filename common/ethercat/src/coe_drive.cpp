@@ -168,10 +168,14 @@ void add_coe_sync_manager_objects(canopen::ObjectDictionary& d) {
       const auto pdo = static_cast<std::uint16_t>(first + i);
       const canopen::Result<canopen::PdoMap> map = canopen::read_pdo_map(d, pdo);
       if (!map || map.value.empty()) continue;
-      pdos[count++] = pdo;
-      // The PDO's COB-ID (a CANopen thing) not valid, so a master may map it anew.
+      // Assigned by default as the CANopen description sends it: a PDO mapped but not valid there
+      // (a load sensor's TPDO3) is offered, for a master to assign.
       const auto communication = static_cast<std::uint16_t>(pdo - canopen::kPdoMappingOffset);
-      if (const auto cob = d.get(communication, 1)) {
+      const std::optional<std::int64_t> cob = d.get(communication, 1);
+      const bool sent = !cob || (static_cast<std::uint32_t>(*cob) & canopen::kPdoCobIdInvalid) == 0;
+      if (sent) pdos[count++] = pdo;
+      // The PDO's COB-ID (a CANopen thing) not valid, so a master may map it anew.
+      if (cob) {
         d.set(communication, 1,
               static_cast<std::int64_t>(static_cast<std::uint32_t>(*cob) | canopen::kPdoCobIdInvalid));
       }

@@ -5,6 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -38,6 +41,8 @@ class FreeMass final : public drive::Drive {
     m.position_m = position_m;
     m.velocity_mps = velocity_mps;
     m.thrust_force_n = force_n;
+    m.load_position_m = load_position_m;
+    m.load_acceleration_mps2 = load_acceleration_mps2;
     return m;
   }
   void apply(double force_n_in) override {
@@ -55,6 +60,9 @@ class FreeMass final : public drive::Drive {
   bool simulated() const override { return true; }
 
   double position_m = 0, velocity_mps = 0, force_n = 0;
+  /// A sensor on a load (NaN: none): what the drive measured of it.
+  double load_position_m = std::numeric_limits<double>::quiet_NaN();
+  double load_acceleration_mps2 = std::numeric_limits<double>::quiet_NaN();
   std::vector<double> forces;  // what each applied period held
 
  private:
@@ -66,9 +74,11 @@ class ToMaster final : public can::CanBus {
  public:
   explicit ToMaster(MemoryBus& bus) : bus_(bus) {}
   bool send(const CanFrame& f) noexcept override {
+    if (f.id == tpdo_cob_id(3, NodeId(1))) ++tpdo3_frames;
     bus_.inbox.push_back(f);
     return true;
   }
+  int tpdo3_frames = 0;
   bool receive(CanFrame&, std::chrono::nanoseconds) noexcept override { return false; }
 
  private:
@@ -138,6 +148,62 @@ TEST(Cia402Slave, TheMasterBootsStartsAndEnablesIt) {
   EXPECT_EQ(r.slave.run_periods(), 0U) << "the enable walk must not step";
   EXPECT_EQ(r.events.ticks, std::vector<std::uint64_t>{0}) << "tick 0 at the first SYNC after NMT start";
   EXPECT_EQ(r.slave.counters().malformed, 0U);
+}
+
+// A sensor on the load: the virtual drive's TPDO3 maps 0x60E4:1 and 0x2003 and is not valid until
+// the master, told drive.load_sensor, checks its mapping and makes it valid; then every tick's
+// answer carries the reading. Without one TPDO3 stays off the bus.
+TEST(Cia402Slave, ALoadSensorIsReadInTpdo3WhenTheMasterAsksForIt) {
+  {
+    Rig r;
+    r.mass.load_position_m = 0.0123;
+    Cia402Drive& d = r.enabled();
+    const drive::Measurement m = d.sample();
+    EXPECT_TRUE(std::isnan(m.load_position_m)) << "none asked for";
+    EXPECT_EQ(r.to_master.tpdo3_frames, 0);
+  }
+  for (const DriveLoadSensor kind : {DriveLoadSensor::kEncoder, DriveLoadSensor::kAccelerometer}) {
+    SCOPED_TRACE(to_string(kind));
+    Rig r;
+    r.rig.master.load_sensor = kind;
+    Cia402Drive& d = r.enabled();
+    d.sample();  // tick 0: the drive as it was at its start
+    for (int k = 1; k <= 20; ++k) {
+      // What the drive measures at the SYNC of tick k, where it steps the period and answers.
+      r.mass.load_position_m = 0.0123 + 1e-5 * k;  // a load creeping 10 um a period
+      r.mass.load_acceleration_mps2 = -3.25 + 0.5 * k;
+      d.apply(0.0);
+      const drive::Measurement m = d.sample();
+      if (kind == DriveLoadSensor::kEncoder) {
+        EXPECT_NEAR(m.load_position_m, r.mass.load_position_m, 1e-6) << k;  // one increment
+        EXPECT_TRUE(std::isnan(m.load_acceleration_mps2));
+      } else {
+        EXPECT_NEAR(m.load_acceleration_mps2, r.mass.load_acceleration_mps2, 1e-6) << k;  // 1 um/s^2
+        EXPECT_TRUE(std::isnan(m.load_position_m));
+      }
+    }
+    EXPECT_GE(r.to_master.tpdo3_frames, 20);
+    EXPECT_EQ(d.counters().malformed, 0U);
+  }
+}
+
+// A drive whose TPDO3 does not map what the rig file says it has: the boot says what it maps.
+TEST(Cia402Slave, ALoadSensorTheDrivesTpdo3DoesNotMapIsRefusedAtBoot) {
+  Rig r;
+  r.rig.master.load_sensor = DriveLoadSensor::kEncoder;
+  // The master's boot resets the drive's communication: the dictionary is built again without it.
+  auto& pdos = r.device.pdos;
+  pdos.erase(std::remove_if(pdos.begin(), pdos.end(), [](const PdoDefault& p) { return p.channel == "tpdo3"; }),
+             pdos.end());
+  try {
+    r.enabled();
+    ADD_FAILURE() << "booted";
+  } catch (const Cia402DriveError& e) {
+    EXPECT_NE(std::string(e.what()).find("drive.load_sensor encoder: the drive's TPDO3 (0x1A02) does not map "
+                                         "0x60E4:1:32 (it maps nothing)"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(Cia402Slave, EachLockstepTickStepsOnePeriodWithTheCommandedForce) {

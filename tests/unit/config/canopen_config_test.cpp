@@ -88,12 +88,18 @@ TEST(DeviceDictionary, TheShippedDescriptionLoads) {
   EXPECT_EQ(d.objects[1].access, canopen::Access::kRw);
   EXPECT_EQ(d.objects[2].index, canopen::kObjectLoadAcceleration);
   EXPECT_EQ(d.objects[2].type, canopen::DataType::kI32);
-  ASSERT_EQ(d.pdos.size(), 3U);
+  ASSERT_EQ(d.pdos.size(), 4U);
   EXPECT_EQ(d.pdos[0].channel, "rpdo1");
   EXPECT_TRUE(d.pdos[0].node_relative);
   EXPECT_EQ(d.pdos[0].cob_id, 0x200U);
   ASSERT_EQ(d.pdos[2].mapping.size(), 2U);
   EXPECT_EQ(d.pdos[2].mapping[1], (canopen::PdoMapEntry{0x2001, 0, 32}));
+  EXPECT_TRUE(d.pdos[2].valid);
+  // TPDO3, the load's sensor: mapped, not valid (bit 31) until a master asks for it.
+  EXPECT_EQ(d.pdos[3].channel, "tpdo3");
+  EXPECT_EQ(d.pdos[3].cob_id, 0x380U);
+  EXPECT_FALSE(d.pdos[3].valid);
+  EXPECT_EQ(d.pdos[3].mapping[0], (canopen::PdoMapEntry{0x60E4, 1, 32}));
 }
 
 TEST(DeviceDictionary, BadDescriptionsAreRefusedNamingTheItem) {
@@ -110,8 +116,9 @@ TEST(DeviceDictionary, BadDescriptionsAreRefusedNamingTheItem) {
   refused("\"0x6040:0:16\"", "\"0x6040:0:12\"", "pdos[0].mapping[0]: the bit length must be 8, 16 or 32");
   refused("\"0x6040:0:16\"", "\"0x6040\"", "pdos[0].mapping[0]: expected \"0xIIII:SS:BITS\"");
   refused("channel: tpdo2", "channel: tpdo1", "pdos[2].channel: tpdo1 is listed twice");
-  refused("channel: tpdo2", "channel: tpdo9", "pdos[2].channel: one of rpdo1, tpdo1, tpdo2");
-  refused("cob_id: \"$NODEID+0x200\"", "cob_id: \"$NODEID+0x900\"", "pdos[0].cob_id: expected a number in [0, 2047]");
+  refused("channel: tpdo2", "channel: tpdo9", "pdos[2].channel: one of rpdo1, tpdo1, tpdo2, tpdo3");
+  refused("cob_id: \"$NODEID+0x200\"", "cob_id: \"$NODEID+0x900\"",
+          "pdos[0].cob_id: an 11-bit id (bit 31 may mark the PDO not valid), got '$NODEID+0x900'");
   refused("vendor_id: \"0x00000000\"", "vendor_id: \"-1\"", "identity.vendor_id");
   EXPECT_NE(error_of([&] { parse_device_dictionary(text + "eds: 1\n", "od.yaml"); }).find("eds: unknown key"),
             std::string::npos);

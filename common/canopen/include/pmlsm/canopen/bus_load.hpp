@@ -31,9 +31,9 @@ struct BusLoad {
 BusLoad bus_load(const std::vector<CycleFrame>& frames, double bitrate_bps, double cycle_s);
 
 /// The drive bridge's frames per 1 ms cycle (the bus contract in cia402_drive.hpp): SYNC with a
-/// counter (1 byte), RPDO1, TPDO1, TPDO2 (8 bytes each), and both heartbeats (1 byte) every
-/// `heartbeat_ms` (0: none).
+/// counter (1 byte), RPDO1, TPDO1, TPDO2 (8 bytes each), with a load sensor TPDO3 (8 bytes at
+/// most), and both heartbeats (1 byte) every `heartbeat_ms` (0: none).
 std::vector<CycleFrame> bridge_cycle_frames(double cycle_s, std::uint32_t drive_heartbeat_ms,
-                                            std::uint32_t master_heartbeat_ms);
+                                            std::uint32_t master_heartbeat_ms, bool load_sensor);
 
 }  // namespace pmlsm::canopen

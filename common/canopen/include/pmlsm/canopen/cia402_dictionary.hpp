@@ -84,6 +84,9 @@ inline constexpr std::uint16_t kObjectRpdo1Communication = 0x1400;
 inline constexpr std::uint16_t kObjectRpdo1Mapping = 0x1600;
 inline constexpr std::uint16_t kObjectTpdo1Communication = 0x1800;
 inline constexpr std::uint16_t kObjectTpdo1Mapping = 0x1A00;
+/// TPDO3, a load sensor's reading (cia402_drive.hpp); a device's description adds it (as TPDO2).
+inline constexpr std::uint16_t kObjectTpdo3Communication = 0x1802;
+inline constexpr std::uint16_t kObjectTpdo3Mapping = 0x1A02;
 inline constexpr std::uint16_t kObjectErrorCode = drive::kObjectErrorCode;      // 0x603F
 inline constexpr std::uint16_t kObjectControlword = drive::kObjectControlword;  // 0x6040
 inline constexpr std::uint16_t kObjectStatusword = drive::kObjectStatusword;    // 0x6041

@@ -7,6 +7,9 @@
 //                  force 0x6076), 0x2002 command tick u32 (the tick whose command this is)
 //   TPDO1 0x180+N: 0x6041 statusword u16, 0x6077 torque actual i16, 0x606C velocity actual i32
 //   TPDO2 0x280+N: 0x6064 position actual i32, 0x2001 periods stepped u32
+//   TPDO3 0x380+N: with a sensor on the load (drive.load_sensor), its reading: 0x60E4:1 additional
+//                  position actual i32 (a load encoder's, the drive's increments) or 0x2003 load
+//                  acceleration i32 (um/s^2), where the drive's 0x1A02 maps it
 //   SYNC  0x080 with a counter 1..240. All PDOs synchronous.
 // Lockstep: the drive, on SYNC, steps one period only when the latest RPDO1's command tick
 // equals its periods stepped, then answers TPDO1 + TPDO2. The master's tick k is the drive's
@@ -27,7 +30,9 @@
 // Boot (boot()): NMT reset communication (unless disabled), wait for the drive's boot-up or
 // heartbeat; SDO writes 0x6060 = 10 (cyclic
 // synchronous torque), 0x60C2 = 1 ms (sub 1 = 1, sub 2 = -3), 0x1017 producer heartbeat,
-// 0x1016:01 consumer (M << 16 | ms); read back 0x6061 = 10; NMT start. The master's heartbeat
+// 0x1016:01 consumer (M << 16 | ms); read back 0x6061 = 10; with a load sensor, read TPDO3's
+// mapping 0x1A02 (it must map the sensor's object, 32 bits) and make TPDO3 valid (0x1802:01 =
+// 0x380+N); NMT start. Then every answer waits for TPDO3 too. The master's heartbeat
 // (0x700+M, operational) is produced from construction, during every wait. Errors throw
 // Cia402DriveError naming what is missing, the object and the abort code.
 #pragma once
@@ -51,6 +56,12 @@
 #include "pmlsm/util/parameter_table.hpp"
 
 namespace pmlsm::canopen {
+
+/// A sensor on the drive's load, read through TPDO3 (drive.load_sensor).
+enum class DriveLoadSensor { kNone, kEncoder, kAccelerometer };
+const char* to_string(DriveLoadSensor sensor) noexcept;
+/// @throws std::invalid_argument listing the names ("must be one of none, encoder, accelerometer").
+DriveLoadSensor drive_load_sensor_from_string(const std::string& name);
 
 struct Cia402DriveConfig {
   int node_id = 1;
@@ -80,6 +91,8 @@ struct Cia402DriveConfig {
   std::uint8_t sync_overflow = 240;
   /// Cycles in one state while a move is expected before the walk is stuck.
   std::uint32_t enable_timeout_cycles = 200;
+  /// The drive's load sensor, read in TPDO3 (none: TPDO3 left as the drive has it).
+  DriveLoadSensor load_sensor = DriveLoadSensor::kNone;
   /// The ranges of visit_parameters, then check_relations().
   /// @throws std::invalid_argument naming the key (as the rig file writes it) and the value.
   void validate() const;
@@ -99,6 +112,7 @@ void visit_parameters(Config& m, Visitor& v) {
   v.integer("drive.node_id", m.node_id, node_id);
   visit_scaling_parameters(m.scaling, v);
   v.integer("drive.heartbeat_ms", m.drive_heartbeat_ms, {0.0, 65535.0, "0x1017: 0 (none) or 16 bits of milliseconds"});
+  v.choice("drive.load_sensor", m.load_sensor, &drive_load_sensor_from_string);
   v.integer("master.node_id", m.master_node_id, node_id);
   v.integer("master.heartbeat_ms", m.master_heartbeat_ms, heartbeat);
   v.integer("master.heartbeat_timeout_ms", m.master_heartbeat_timeout_ms, heartbeat);
@@ -194,6 +208,8 @@ class Cia402Drive final : public drive::Drive {
   std::uint32_t sdo(bool write, std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t size,
                     const char* name);
   void lose(const char* what);
+  /// boot(): TPDO3's mapping checked for the load sensor's object, TPDO3 made valid.
+  void enable_load_sensor();
   drive::Measurement measurement() const;
 
   Cia402DriveConfig config_;
@@ -223,6 +239,11 @@ class Cia402Drive final : public drive::Drive {
   std::uint64_t tpdo1_generation_ = 0;
   std::uint64_t tpdo2_generation_ = 0;
   std::uint32_t tpdo2_periods_ = 0;
+  std::uint64_t tpdo3_generation_ = 0;
+  // TPDO3 with a load sensor: its length and where the sensor's 32 bits are in it (boot()).
+  std::uint8_t tpdo3_dlc_ = 0;
+  std::uint8_t tpdo3_offset_ = 0;
+  std::int32_t load_reading_ = 0;  // increments (0x60E4:1) or um/s^2 (0x2003)
   // SDO transfer outcome
   std::optional<SdoClientEvent> sdo_event_;
 

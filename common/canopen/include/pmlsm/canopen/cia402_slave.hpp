@@ -48,7 +48,7 @@
 namespace pmlsm::canopen {
 
 // TPDO2's entries, which make_cia402_dictionary leaves out (the lockstep contract's objects are
-// the application's: cia402_application.hpp).
+// the application's: cia402_application.hpp). TPDO3's (a load sensor's) are cia402_dictionary.hpp's.
 inline constexpr std::uint16_t kObjectTpdo2Communication = 0x1801;
 inline constexpr std::uint16_t kObjectTpdo2Mapping = 0x1A01;
 
@@ -171,7 +171,7 @@ class Cia402Slave : Cia402ApplicationEvents {
   Cia402Application application_;
   SdoServer sdo_;
   NmtSlave nmt_;
-  PdoChannel rpdo1_, tpdo1_, tpdo2_;
+  PdoChannel rpdo1_, tpdo1_, tpdo2_, tpdo3_;
   IntervalStatistics sync_intervals_;
   Cia402SlaveCounters counters_;
 

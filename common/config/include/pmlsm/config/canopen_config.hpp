@@ -69,11 +69,14 @@ struct DictionaryObject {
 };
 
 struct PdoDefault {
-  /// "rpdo1", "tpdo1" or "tpdo2".
+  /// "rpdo1", "tpdo1", "tpdo2" or "tpdo3".
   std::string channel;
   /// The COB-ID: cob_id + the node id when node_relative (EDS: "$NODEID+0x180").
   std::uint32_t cob_id = 0;
   bool node_relative = true;
+  /// false: the PDO is mapped but not sent until a master makes it valid (EDS: bit 31 of the
+  /// COB-ID set, "$NODEID+0x80000380").
+  bool valid = true;
   std::uint8_t transmission_type = 1;
   std::vector<canopen::PdoMapEntry> mapping;
 };
