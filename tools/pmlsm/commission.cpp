@@ -285,6 +285,7 @@ void write_commissioned(const CommissionOptions& o, const TwoMassFit& fit,
 struct FamilyTally {
   std::size_t plants = 0, failed = 0, filter_on = 0, verification_failed = 0;
   double worst_error_percent[5] = {0, 0, 0, 0, 0};
+  double worst_load_side_error_percent = std::nan("");  ///< NaN: no plant measured with a load sensor
   double least_phase_deg = 1e9, least_gain_db = 1e9, worst_cost_ratio = 0;
 };
 
@@ -296,6 +297,12 @@ void report_family_row(const std::string& label, const MechanicsParams& m, const
   tally.failed += met && d.exit_code == kExitOk ? 0 : 1;
   for (int i = 0; i < 5; ++i)
     tally.worst_error_percent[i] = std::max(tally.worst_error_percent[i], std::fabs(row.errors[i]));
+  if (std::isfinite(row.load_side_error_percent)) {
+    tally.worst_load_side_error_percent =
+        std::isfinite(tally.worst_load_side_error_percent)
+            ? std::max(tally.worst_load_side_error_percent, std::fabs(row.load_side_error_percent))
+            : std::fabs(row.load_side_error_percent);
+  }
   tally.least_phase_deg = std::min(tally.least_phase_deg, row.tuned.phase_margin_deg);
   tally.least_gain_db = std::min(tally.least_gain_db, row.tuned.gain_margin_db);
   const bool filtered = d.commissioned && d.commissioned->compensator.state_feedback.output_filter_enabled;
@@ -324,7 +331,8 @@ void report_family_row(const std::string& label, const MechanicsParams& m, const
   csv << ',' << row.tuned_kp_n_s_per_m << ',' << row.tuned.phase_margin_deg << ',' << row.tuned.gain_margin_db << ','
       << (filtered ? "on" : "off") << ',' << gain_kg << ',' << rnn_scale << ','
       << (d.verification ? d.verification->runs : 0) << ',' << (d.verification ? d.verification->failed_runs : 0) << ','
-      << (d.verification ? d.verification->worst_cost_ratio : std::nan("")) << ',' << d.exit_code << '\n';
+      << (d.verification ? d.verification->worst_cost_ratio : std::nan("")) << ',' << row.load_side_error_percent << ','
+      << row.load_sensor_gain << ',' << d.exit_code << '\n';
 }
 
 /// The plants of a family commissioned on o.jobs threads (each plant's runs are independent and
@@ -427,7 +435,8 @@ int run_family(const CommissionOptions& o, const SystemParams& nominal) {
   csv << "plant,load_mass_kg,spring_n_per_m,anti_resonance_error_percent,resonance_error_percent,"
          "load_mass_error_percent,spring_error_percent,motor_mass_error_percent,tuned_kp_n_s_per_m,"
          "tuned_phase_margin_deg,tuned_gain_margin_db,state_output_filter,accel_gain_kg,rnn_output_scale,"
-         "verified_runs,failed_runs,worst_cost_ratio_to_pi,exit_code\n";
+         "verified_runs,failed_runs,worst_cost_ratio_to_pi,load_side_anti_resonance_error_percent,load_sensor_gain,"
+         "exit_code\n";
   std::ofstream verification_csv;
   if (!o.verify.empty()) {
     verification_csv.open(dir / "family_verification.csv");
@@ -449,6 +458,10 @@ int run_family(const CommissionOptions& o, const SystemParams& nominal) {
       "%.1f deg, gain margin >= %.2f dB (targets %.4g deg, %.4g dB)\n",
       tally.plants, o.family.c_str(), tally.failed, worst[0], worst[1], worst[2], worst[3], worst[4],
       tally.least_phase_deg, tally.least_gain_db, targets.min_phase_margin_deg, targets.min_gain_margin_db);
+  if (std::isfinite(tally.worst_load_side_error_percent)) {
+    std::printf("the load's side (its sensor): the corner within %.3f %% of sqrt(k / m_L) on every plant\n",
+                tally.worst_load_side_error_percent);
+  }
   if (o.tune && !o.verify.empty()) {
     std::printf("state feedback's output filter on for %zu of %zu plants\n", tally.filter_on, tally.plants);
   }
@@ -523,6 +536,15 @@ int commission(const CommissionOptions& o, Transcript& transcript) {
       o.simulate ? "the simulated plant" : "the drive", result.points.size(), result.low_coherence_lines,
       measurement.params().min_coherence);
   print_fit(result.fit, time_domain, configured, o.simulate, transcript);
+  if (result.load_fit) {
+    const LoadSideFit& l = *result.load_fit;
+    say(transcript,
+        "the load's side (its sensor against the motor's encoder, %zu lines): anti-resonance %.3f Hz (the motor "
+        "side's fit %.3f Hz, %+.2f %%), the load's own damping %.4f, the sensor's gain %.4f, rms log error %.4f\n",
+        l.lines_used, l.anti_resonance_hz, result.fit.anti_resonance_hz,
+        100.0 * (l.anti_resonance_hz / result.fit.anti_resonance_hz - 1.0), l.anti_resonance_damping, l.gain,
+        l.rms_log_error);
+  }
   say(transcript, "anti-resonance %.3f Hz\nresonance %.3f Hz\n", result.fit.anti_resonance_hz, result.fit.resonance_hz);
   std::ofstream verification_csv;
   if (!o.verify.empty()) {

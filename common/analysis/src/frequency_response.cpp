@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include "pmlsm/util/validate.hpp"
@@ -17,6 +18,25 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr int kSkIterations = 12;
 
 using Complex = std::complex<double>;
+
+/// The whole periods of n ticks in `samples`, at least settle_periods + 2.
+/// @throws std::invalid_argument saying how many there are and how many are needed.
+std::size_t whole_periods(std::size_t samples, std::size_t n, std::size_t settle_periods) {
+  const std::size_t periods = samples / n;
+  if (periods < settle_periods + 2) {
+    throw std::invalid_argument("samples: " + std::to_string(samples) + " ticks hold " + std::to_string(periods) +
+                                " periods of " + std::to_string(n) + "; need " + std::to_string(settle_periods) +
+                                " to settle and 2 to average");
+  }
+  return periods;
+}
+
+/// e^{-j 2 pi m / n}, m = 0 .. n - 1: a period's DFT.
+std::vector<Complex> twiddles(std::size_t n) {
+  std::vector<Complex> table(n);
+  for (std::size_t m = 0; m < n; ++m) table[m] = std::polar(1.0, -2.0 * kPi * static_cast<double>(m) / n);
+  return table;
+}
 
 }  // namespace
 
@@ -81,19 +101,13 @@ std::vector<FrequencyPoint> estimate_frequency_response(const Multisine& excitat
                                 std::to_string(excitation_n.size()) + ", " + std::to_string(force_n.size()) + ", " +
                                 std::to_string(velocity_mps.size()) + ")");
   }
-  const std::size_t periods = excitation_n.size() / n;
-  if (periods < settle_periods + 2) {
-    throw std::invalid_argument("samples: " + std::to_string(excitation_n.size()) + " ticks hold " +
-                                std::to_string(periods) + " periods of " + std::to_string(n) + "; need " +
-                                std::to_string(settle_periods) + " to settle and 2 to average");
-  }
+  const std::size_t periods = whole_periods(excitation_n.size(), n, settle_periods);
   for (std::size_t i = 0; i < force_n.size(); ++i) {
     if (!std::isfinite(excitation_n[i]) || !std::isfinite(force_n[i]) || !std::isfinite(velocity_mps[i])) {
       throw std::invalid_argument("samples: a non-finite value at tick " + std::to_string(i));
     }
   }
-  std::vector<Complex> twiddle(n);  // e^{-j 2 pi m / n}
-  for (std::size_t m = 0; m < n; ++m) twiddle[m] = std::polar(1.0, -2.0 * kPi * static_cast<double>(m) / n);
+  const std::vector<Complex> twiddle = twiddles(n);
   std::vector<FrequencyPoint> out;
   for (const std::size_t k : excitation.lines()) {
     Complex sum_r, sum_f, sum_v, cross_vr;
@@ -122,6 +136,117 @@ std::vector<FrequencyPoint> estimate_frequency_response(const Multisine& excitat
     out.push_back(point);
   }
   return out;
+}
+
+std::vector<LoadRatioPoint> estimate_load_ratio(const Multisine& excitation, const std::vector<double>& velocity_mps,
+                                                const std::vector<double>& load_velocity_mps,
+                                                std::size_t settle_periods) {
+  const std::size_t n = excitation.ticks_per_period();
+  if (velocity_mps.size() != load_velocity_mps.size()) {
+    throw std::invalid_argument("samples: the motor's and the load's velocity differ in length (" +
+                                std::to_string(velocity_mps.size()) + ", " + std::to_string(load_velocity_mps.size()) +
+                                ")");
+  }
+  const std::size_t periods = whole_periods(velocity_mps.size(), n, settle_periods);
+  for (std::size_t i = 0; i < velocity_mps.size(); ++i) {
+    if (!std::isfinite(velocity_mps[i]) || !std::isfinite(load_velocity_mps[i])) {
+      throw std::invalid_argument("samples: a non-finite value at tick " + std::to_string(i));
+    }
+  }
+  const std::vector<Complex> twiddle = twiddles(n);
+  std::vector<LoadRatioPoint> out;
+  for (const std::size_t k : excitation.lines()) {
+    Complex sum_m, sum_l, cross;
+    double power_m = 0, power_l = 0;
+    for (std::size_t p = settle_periods; p < periods; ++p) {
+      Complex vm, vl;
+      const std::size_t start = p * n;
+      for (std::size_t t = 0; t < n; ++t) {
+        const Complex w = twiddle[(k * t) % n];
+        vm += velocity_mps[start + t] * w;
+        vl += load_velocity_mps[start + t] * w;
+      }
+      sum_m += vm;
+      sum_l += vl;
+      cross += vl * std::conj(vm);
+      power_m += std::norm(vm);
+      power_l += std::norm(vl);
+    }
+    LoadRatioPoint point;
+    point.frequency_hz = static_cast<double>(k) * excitation.resolution_hz();
+    point.ratio = sum_l / sum_m;
+    point.coherence = power_m > 0 && power_l > 0 ? std::norm(cross) / (power_m * power_l) : 0.0;
+    out.push_back(point);
+  }
+  return out;
+}
+
+LoadSideFit fit_load_side(const std::vector<LoadRatioPoint>& load, const std::vector<FrequencyPoint>& motor,
+                          double min_coherence, double max_frequency_hz) {
+  if (load.size() != motor.size()) {
+    throw std::invalid_argument("load side: " + std::to_string(load.size()) + " lines against the motor's " +
+                                std::to_string(motor.size()));
+  }
+  std::vector<std::size_t> used;
+  for (std::size_t i = 0; i < load.size(); ++i) {
+    if (load[i].frequency_hz <= max_frequency_hz && load[i].coherence >= min_coherence &&
+        motor[i].coherence >= min_coherence && std::isfinite(std::abs(load[i].ratio))) {
+      used.push_back(i);
+    }
+  }
+  if (used.size() < 4) {
+    throw std::invalid_argument("load side: " + std::to_string(used.size()) + " lines of coherence " +
+                                format_value(min_coherence) + " or more up to " + format_value(max_frequency_hz) +
+                                " Hz, need 4");
+  }
+  // Rows (real and imaginary parts) of  -Q n1 s - Q n0 + u1 s + u0 = Q s^2,  over |s|^2.
+  Eigen::MatrixXd a(2 * used.size(), 4);
+  Eigen::VectorXd b(2 * used.size());
+  for (std::size_t r = 0; r < used.size(); ++r) {
+    const LoadRatioPoint& p = load[used[r]];
+    const Complex s(0.0, 2.0 * kPi * p.frequency_hz);
+    const double weight = 1.0 / std::norm(s);
+    const Complex row[4] = {-p.ratio * s, -p.ratio, s, Complex(1.0, 0.0)};
+    const Complex rhs = p.ratio * s * s;
+    for (int c = 0; c < 4; ++c) {
+      a(static_cast<Eigen::Index>(2 * r), c) = weight * row[c].real();
+      a(static_cast<Eigen::Index>(2 * r + 1), c) = weight * row[c].imag();
+    }
+    b(static_cast<Eigen::Index>(2 * r)) = weight * rhs.real();
+    b(static_cast<Eigen::Index>(2 * r + 1)) = weight * rhs.imag();
+  }
+  const Eigen::Vector4d x = a.colPivHouseholderQr().solve(b);
+  const double n1 = x(0), n0 = x(1), u0 = x(3);
+  // An undamped load (c = 0, the paper's) fits 2 z w about 0, either side: only the corner must exist.
+  if (!(n0 > 0) || !std::isfinite(n1) || !std::isfinite(u0)) {
+    throw std::invalid_argument("load side: not a second-order corner (w^2 = " + format_value(n0) +
+                                ", 2 z w = " + format_value(n1) + ")");
+  }
+  LoadSideFit fit;
+  const double w = std::sqrt(n0);
+  fit.anti_resonance_hz = w / (2.0 * kPi);
+  fit.anti_resonance_damping = n1 / (2.0 * w);
+  fit.gain = u0 / n0;
+  double sum = 0;
+  for (const std::size_t i : used) {
+    const Complex s(0.0, 2.0 * kPi * load[i].frequency_hz);
+    const Complex model = fit.gain * (n1 * s + n0) / (s * s + n1 * s + n0);
+    sum += std::norm(std::log(load[i].ratio / model));
+  }
+  fit.rms_log_error = std::sqrt(sum / static_cast<double>(used.size()));
+  fit.lines_used = used.size();
+  return fit;
+}
+
+std::string load_sensor_disagreement(const LoadSideFit& fit, double tolerance) {
+  if (std::fabs(fit.gain - 1.0) <= tolerance) return "";
+  char text[240];
+  std::snprintf(text, sizeof text,
+                "the load's sensor reads %.3f times the load's motion against the motor's encoder (fitted over %zu "
+                "lines): %s",
+                fit.gain, fit.lines_used,
+                fit.gain < 0 ? "its sign is reversed" : "its scale is off (its resolution or the drive's increments)");
+  return text;
 }
 
 double anti_resonance_hz(double load_mass_kg, double spring_n_per_m) {

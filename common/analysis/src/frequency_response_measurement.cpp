@@ -107,6 +107,7 @@ FrequencyResponseMeasurement::FrequencyResponseMeasurement(const FrequencyRespon
   excitation_n_.reserve(excite_ticks);
   force_n_.reserve(excite_ticks);
   velocity_mps_.reserve(excite_ticks);
+  load_velocity_mps_.reserve(excite_ticks);
   abort_reason_.reserve(200);
 }
 
@@ -167,7 +168,16 @@ double FrequencyResponseMeasurement::step(const drive::Measurement& m, bool oper
     force_n_.push_back(reported ? m.applied_force_n : last_force_n_);
     if (reported && m.applied_force_n != last_force_n_) ++late_ticks_;
     velocity_mps_.push_back(m.velocity_mps);
+    // The load's velocity over the same tick, from its encoder's two readings.
+    if (std::isfinite(m.load_position_m) && std::isfinite(last_load_position_m_)) {
+      if (load_velocity_mps_.size() + 1 == velocity_mps_.size()) {
+        load_velocity_mps_.push_back((m.load_position_m - last_load_position_m_) / params_.period_s);
+      }
+    } else if (!load_velocity_mps_.empty()) {
+      load_lost_ = true;
+    }
   }
+  last_load_position_m_ = m.load_position_m;
   const bool exciting = tick_ >= ramp_ticks_ && tick_ < excite_end_tick_;
   // The PI's integral is weak (Table 3: K_i = 0.01 N/m): the motor runs slower than commanded by
   // the friction over K_p. A slow trim of the command, frozen before the averaged periods, brings
@@ -218,8 +228,18 @@ FrequencyResponseResult evaluate_measurement(const FrequencyResponseMeasurement&
                                 " at " + format_value(worst->frequency_hz) +
                                 " Hz), more than max_low_coherence_share " + format_value(p.max_low_coherence_share));
   }
-  result.fit = fit_two_mass(result.points, p.min_coherence,
-                            p.dense_max_frequency_hz != 0.0 ? p.dense_max_frequency_hz : p.max_frequency_hz);
+  const double band_hz = p.dense_max_frequency_hz != 0.0 ? p.dense_max_frequency_hz : p.max_frequency_hz;
+  result.fit = fit_two_mass(result.points, p.min_coherence, band_hz);
+  if (measurement.load_lost()) {
+    throw std::invalid_argument("the load's sensor stopped reading during the excitation: its side not measured");
+  }
+  if (measurement.has_load_sensor()) {
+    result.load_points = estimate_load_ratio(measurement.excitation(), measurement.velocity_mps(),
+                                             measurement.load_velocity_mps(), p.settle_periods);
+    result.load_fit = fit_load_side(result.load_points, result.points, p.min_coherence, band_hz);
+    const std::string disagreement = load_sensor_disagreement(*result.load_fit, kLoadSensorGainTolerance);
+    if (!disagreement.empty()) throw std::invalid_argument(disagreement);
+  }
   return result;
 }
 

@@ -374,6 +374,10 @@ std::optional<FamilyRow> family_row(const CommissioningChoices& o, const SystemP
                             error_percent(r->fit.spring_n_per_m, truth.spring_n_per_m),
                             error_percent(r->fit.motor_mass_kg, truth.motor_mass_kg)};
   std::copy(std::begin(errors), std::end(errors), std::begin(row.errors));
+  if (r->load_fit) {
+    row.load_side_error_percent = error_percent(r->load_fit->anti_resonance_hz, anti_hz);
+    row.load_sensor_gain = r->load_fit->gain;
+  }
   Transcript quiet{{}, false};
   row.decision = decide(o, p, *r, time_domain, verification_csv, label + ",", quiet);
   if (!row.decision.loop.tuned) {

@@ -113,4 +113,51 @@ double resonance_hz(double motor_mass_kg, double load_mass_kg, double spring_n_p
 /// G(j 2 pi f) of the two-mass model with the given parameters.
 std::complex<double> two_mass_response(const TwoMassFit& model, double frequency_hz);
 
+// ---- the load's side, with a sensor on the load
+//
+// The load's velocity over the motor's, per excited line: Q = sum_p V_L,p / sum_p V_M,p. In the
+// two-mass model the load is a mass on the spring and damper the motor drives,
+//   Q(s) = (c s + k) / (m_L s^2 + c s + k) = (2 z w s + w^2) / (s^2 + 2 z w s + w^2),
+// a second-order low pass whose corner w is the motor side's anti-resonance sqrt(k / m_L) and
+// whose damping z = c / (2 sqrt(k m_L)) is the load's own: read here directly, not through the
+// motor's response, where they are a notch between two resonances. A sensor that reads g times
+// the load's motion (a reversed sign, a wrong scale) gives g Q; g is fitted too:
+//   Q s^2 + Q n1 s + Q n0 = u1 s + u0,  n1 = 2 z w, n0 = w^2, u1 = g n1, u0 = g n0,
+// linear in (n1, n0, u1, u0), each line's equation weighted by 1 / |s|^2 (a least-squares fit of
+// real and imaginary parts), g = u0 / n0.
+
+struct LoadRatioPoint {
+  double frequency_hz = 0;
+  std::complex<double> ratio;  ///< Q = V_L / V_M
+  double coherence = 0;        ///< of the load's velocity with the motor's, [0, 1]
+};
+
+/// Q per excited line from one sample per tick of the motor's and the load's velocity (the means
+/// over the same ticks), from the excitation's tick 0, the first `settle_periods` periods skipped.
+/// @throws std::invalid_argument as estimate_frequency_response.
+std::vector<LoadRatioPoint> estimate_load_ratio(const Multisine& excitation, const std::vector<double>& velocity_mps,
+                                                const std::vector<double>& load_velocity_mps,
+                                                std::size_t settle_periods);
+
+struct LoadSideFit {
+  double anti_resonance_hz = 0;       ///< w / 2 pi
+  double anti_resonance_damping = 0;  ///< z, the load's own
+  double gain = 0;                    ///< g: 1 for a sensor that reads the load as the motor's encoder reads the motor
+  double rms_log_error = 0;           ///< RMS of |ln Q_measured - ln Q_model| over the lines used
+  std::size_t lines_used = 0;
+};
+
+/// Fits Q to the lines with both coherences (the load's with the motor's, the motor's with the
+/// excitation: near w the motor stands still and Q is not measured) at least `min_coherence`, up
+/// to `max_frequency_hz`.
+/// @throws std::invalid_argument when fewer than 4 lines qualify or the fit has no corner (w^2 not
+/// positive), naming what. An undamped load fits a damping about 0, either side.
+LoadSideFit fit_load_side(const std::vector<LoadRatioPoint>& load, const std::vector<FrequencyPoint>& motor,
+                          double min_coherence, double max_frequency_hz);
+
+/// A sensor whose gain g is not within `tolerance` of 1: "the load's sensor reads -1.002 times the
+/// load's motion against the motor's encoder (fitted over 150 lines): its sign is reversed", or
+/// "... its scale is off by ..."; "" when it agrees.
+std::string load_sensor_disagreement(const LoadSideFit& fit, double tolerance);
+
 }  // namespace pmlsm

@@ -26,6 +26,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -147,6 +149,14 @@ class FrequencyResponseMeasurement {
   const std::vector<double>& excitation_n() const { return excitation_n_; }
   const std::vector<double>& force_n() const { return force_n_; }
   const std::vector<double>& velocity_mps() const { return velocity_mps_; }
+  /// With a load encoder (a finite load_position_m in every reading of the excitation): the load's
+  /// velocity over the same ticks, (x_L,k - x_L,k-1) / T; empty without one, or when its reading
+  /// went missing (load_lost()).
+  const std::vector<double>& load_velocity_mps() const { return load_velocity_mps_; }
+  bool has_load_sensor() const {
+    return !load_lost_ && load_velocity_mps_.size() == velocity_mps_.size() && !load_velocity_mps_.empty();
+  }
+  bool load_lost() const { return load_lost_; }
   /// The estimates per line after a completed measurement.
   /// @throws std::invalid_argument when the measurement did not complete.
   std::vector<FrequencyPoint> response() const;
@@ -176,13 +186,19 @@ class FrequencyResponseMeasurement {
   bool last_recorded_ = false;  ///< the force applied over the last tick was an excitation tick's
   std::uint64_t late_ticks_ = 0;
   std::vector<double> excitation_n_, force_n_, velocity_mps_;
+  std::vector<double> load_velocity_mps_;
+  double last_load_position_m_ = std::numeric_limits<double>::quiet_NaN();
+  bool load_lost_ = false;  ///< a load reading was there and went missing during the excitation
 };
 
-/// The plant's response and the two-mass fit of a completed measurement.
+/// The plant's response and the two-mass fit of a completed measurement; with a load encoder the
+/// load's side and its fit too.
 struct FrequencyResponseResult {
   std::vector<FrequencyPoint> points;
   TwoMassFit fit;
   std::size_t low_coherence_lines = 0;
+  std::vector<LoadRatioPoint> load_points;  ///< empty without a load encoder
+  std::optional<LoadSideFit> load_fit;
 };
 
 /// Runs a measurement on a drive to its end: enables the drive (shutdown, switch on, enable
@@ -209,10 +225,17 @@ void run_measurement(drive::Drive& drive, FrequencyResponseMeasurement& measurem
   drive.request(drive::DriveCommand::kSwitchOn);  // disable operation (transition 5)
 }
 
-/// The estimates and the fit of a completed measurement, with the coherence rule applied.
+/// The estimates and the fit of a completed measurement, with the coherence rule applied; with a
+/// load encoder the load's side fitted over the two-mass fit's band and its sensor checked against
+/// the motor's encoder (its gain within kLoadSensorGainTolerance of 1).
 /// @throws std::invalid_argument when the measurement did not complete, when more than
 /// max_low_coherence_share of the lines fall below min_coherence (naming how many and the
-/// worst), or from the fit.
+/// worst), from the fits, or when the load's sensor disagrees with the motor's encoder (its sign
+/// or scale, with what was measured).
 FrequencyResponseResult evaluate_measurement(const FrequencyResponseMeasurement& measurement);
+
+/// How far a load sensor's gain against the motor's encoder may be from 1: a 5 % scale error or a
+/// reversed sign is a misconfigured part, not noise (the family's fits: within 0.5 %).
+inline constexpr double kLoadSensorGainTolerance = 0.05;
 
 }  // namespace pmlsm

@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <ostream>
 #include <string>
@@ -97,6 +98,10 @@ struct CommissionDecision {
 /// force command's filters, and what the commissioning decided.
 struct FamilyRow {
   double errors[5] = {0, 0, 0, 0, 0};
+  /// With a load encoder: the load side's corner against the plant's sqrt(k / m_L) [%], and the
+  /// sensor's gain against the motor's encoder; NaN without one.
+  double load_side_error_percent = std::numeric_limits<double>::quiet_NaN();
+  double load_sensor_gain = std::numeric_limits<double>::quiet_NaN();
 
   double tuned_kp_n_s_per_m = 0;
   LoopMargins tuned;  ///< measured at the tuned gains (not predicted)
