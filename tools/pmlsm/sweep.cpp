@@ -87,14 +87,14 @@ void write_csv(const std::filesystem::path& path, const SweepFile& file, const S
 // Per compensator and scenario: how many plants passed, what failed, the spread of the cost
 // ratio to PI and the worst plant. Returns the runs that failed.
 std::size_t print_table(const SystemParams& nominal, const SweepFile& file, const SweepResult& result) {
-  std::printf("\n%-6s %-16s %6s %6s %6s %6s %6s %6s %6s %6s %6s %7s %8s %8s %9s  %s\n", "comp", "scenario", "plants",
-              "passed", "cycle", "satur", "guard", "slow", "resid", "chat", "nonfin", ">=PI", "ratio50", "ratio_max",
-              "settle_max", "worst plant");
+  std::printf("\n%-6s %-16s %6s %6s %6s %6s %6s %6s %6s %6s %6s %6s %7s %8s %8s %9s  %s\n", "comp", "scenario",
+              "plants", "passed", "cycle", "satur", "guard", "slow", "resid", "chat", "nonfin", "sensor", ">=PI",
+              "ratio50", "ratio_max", "settle_max", "worst plant");
   std::size_t failed = 0;
   for (std::size_t c = 0; c < result.compensators.size(); ++c) {
     for (std::size_t s = 0; s < file.spec.scenarios.size(); ++s) {
       std::size_t passed = 0, cycles = 0, saturated = 0, guard = 0, slow = 0, residual = 0, chatter = 0, non_finite = 0,
-                  worse = 0;
+                  sensor = 0, worse = 0;
       std::vector<double> ratios;
       double worst_ratio = -1, worst_settling = 0;
       std::size_t worst_plant = 0;
@@ -109,6 +109,7 @@ std::size_t print_table(const SystemParams& nominal, const SweepFile& file, cons
         residual += v.residual ? 1 : 0;
         chatter += v.chatter ? 1 : 0;
         non_finite += v.non_finite ? 1 : 0;
+        sensor += v.sensor_failed ? 1 : 0;
         if (c != 0 && !(v.cost < result.run(p, 0, s).verdict.cost)) ++worse;
         ratios.push_back(run.cost_ratio_to_pi);
         const double ratio = std::isnan(run.cost_ratio_to_pi) ? INFINITY : run.cost_ratio_to_pi;
@@ -126,10 +127,10 @@ std::size_t print_table(const SystemParams& nominal, const SweepFile& file, cons
         where += (d ? " " : "") + short_key(file.spec.ranges[d].key_path) + "=" + num(wp.values[d], "%.4g");
       }
       where += ")";
-      std::printf("%-6s %-16s %6zu %6s %6zu %6zu %6zu %6zu %6zu %6zu %6zu %7s %8s %8s %9s  %s\n",
+      std::printf("%-6s %-16s %6zu %6s %6zu %6zu %6zu %6zu %6zu %6zu %6zu %6zu %7s %8s %8s %9s  %s\n",
                   to_string(result.compensators[c]), file.spec.scenarios[s].name.c_str(), result.plants.size(),
                   c == 0 ? "-" : std::to_string(passed).c_str(), cycles, saturated, guard, slow, residual, chatter,
-                  non_finite, c == 0 ? "-" : std::to_string(worse).c_str(),
+                  non_finite, sensor, c == 0 ? "-" : std::to_string(worse).c_str(),
                   num(ratios[ratios.size() / 2], "%.3f").c_str(), num(worst_ratio, "%.3f").c_str(),
                   num(worst_settling, "%.3f").c_str(), c == 0 ? "" : where.c_str());
     }
@@ -151,8 +152,9 @@ std::size_t print_table(const SystemParams& nominal, const SweepFile& file, cons
   std::printf(
       "passed: clean (no limit cycle, no saturated tail, the guard never tripped, a free vibration settled\n"
       "in time, a standstill (the command at rest long enough up to the end) without residual oscillation\n"
-      "(resid) or compensation chatter (chat), finite) and a cost (eq. 23) below PI alone's on the same\n"
-      "plant; ratio: cost / PI's cost on that plant. A moving reference's end is a limit cycle only beyond\n"
+      "(resid) or compensation chatter (chat), finite, no load sensor that failed (sensor)) and a cost\n"
+      "(eq. 23) below PI alone's on the same plant; ratio: cost / PI's cost on that plant. A moving\n"
+      "reference's end is a limit cycle only beyond\n"
       "PI alone's forced response there. PI alone (none) is the baseline: its faults are shown, not\n"
       "judged.\n");
   return failed;

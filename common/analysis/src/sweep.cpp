@@ -162,6 +162,7 @@ std::string RunVerdict::faults() const {
     if (on) out += (out.empty() ? "" : ", ") + std::string(what);
   };
   add(non_finite, "non-finite");
+  add(sensor_failed, "sensor");
   add(limit_cycle, "limit cycle");
   add(saturated, "saturated");
   add(guard_trip_s >= 0, "guard");
@@ -369,6 +370,7 @@ RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scena
   for (const TickRecord& r : trace) {
     if (r.plant_fault_state != nullptr || !record_finite(r)) out.non_finite = true;
     if (r.guard_tripped && out.guard_trip_s < 0) out.guard_trip_s = r.time_s;
+    if (r.load_sensor_use == LoadSensorUse::kFailed) out.sensor_failed = true;
   }
   const ScenarioMetrics metrics = compute_metrics(trace, scenario, control_period_s);
   out.cost = metrics.cost_true;

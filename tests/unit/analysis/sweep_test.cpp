@@ -185,6 +185,18 @@ TEST(SweepVerdict, AtRestResidualOscillationAndChatterAreJudgedInTheLastWindow) 
   EXPECT_FALSE(damped.chatter);
 }
 
+// A load sensor that failed during a run is a fault of the run, as the results table and the exit
+// codes say elsewhere: the sweep's verdict names it.
+TEST(SweepVerdict, ARunWhoseLoadSensorFailedIsNotClean) {
+  const Scenario s = zero_scenario(2.0);
+  std::vector<TickRecord> trace = oscillation(0.0, 0.0, 10.0, 2.0);
+  EXPECT_EQ(judge_run(trace, s, kT, 675, verdict()).faults(), "");
+  trace[1500].load_sensor_use = LoadSensorUse::kFailed;
+  const RunVerdict failed = judge_run(trace, s, kT, 675, verdict());
+  EXPECT_TRUE(failed.sensor_failed);
+  EXPECT_EQ(failed.faults(), "sensor");
+}
+
 // A moving reference's end holds its forced response: a stretch at the reference's own frequency,
 // in any phase and however large, is taken out (unforced_stretch) and no limit cycle, beside PI
 // alone's forced response or not. An oscillation at another frequency (the load mode under a 5 Hz

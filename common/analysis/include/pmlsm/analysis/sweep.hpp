@@ -134,6 +134,8 @@ struct RunVerdict {
   /// RMS of the compensation force over the tail's last window.
   double rest_compensation_rms_n = 0;
   bool non_finite = false;  ///< the plant diverged or a non-finite number in the trace
+  /// The load's sensor failed during the run (the filter went on with the motor's side alone).
+  bool sensor_failed = false;
   /// Tail at rest: the stretch at least limit_cycle_amplitude_m and not decaying. Moving tail:
   /// set by judge_against_pi_alone only.
   bool limit_cycle = false;
@@ -141,8 +143,8 @@ struct RunVerdict {
   bool slow = false;      ///< a free vibration settled later than the verdict allows
   bool residual = false;  ///< standstill: rest_stretch_peak_m over max_rest_stretch_peak_m
   bool chatter = false;   ///< standstill: rest_compensation_rms_n over max_rest_compensation_rms_n
-  /// "" when the run is clean; else its faults: "non-finite", "limit cycle", "saturated", "guard",
-  /// "slow", "residual", "chatter".
+  /// "" when the run is clean; else its faults: "non-finite", "sensor", "limit cycle", "saturated",
+  /// "guard", "slow", "residual", "chatter".
   std::string faults() const;
 };
 
