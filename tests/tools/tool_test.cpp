@@ -849,6 +849,29 @@ TEST(Commission, AFamilyIsCommissionedPlantByPlantAsOnePlantIs) {
   fs::remove_all(dir);
 }
 
+// With a load encoder the report holds the load's side: printed beside the motor side's fit, per
+// line in load_side.csv, and the load's velocity in samples.csv.
+TEST(Commission, ALoadEncoderAddsTheLoadsSideToTheReport) {
+  const fs::path dir = test::fresh_dir("pmlsm_tool", "commission_load_side");
+  const fs::path report = dir / "report";
+  test::ChildProcess p(
+      pmlsm_args(test_domain(128), {"commission", "--simulate", "--no-plots", "-c", source("configs/system.yaml"),
+                                    "--identification", source("configs/scenarios/identification.yaml"), "--set",
+                                    "sensors.load.kind=encoder", "--report", report.string()}),
+      (dir / "commission.log").string());
+  ASSERT_EQ(run_to_end(p), 0) << p.output();
+  EXPECT_NE(p.output().find("the load's side (its sensor against the motor's encoder, "), std::string::npos)
+      << p.output();
+  EXPECT_NE(p.output().find("anti-resonance 9.314 Hz (the motor side's fit 9.314 Hz"), std::string::npos) << p.output();
+  const std::vector<std::string> rows = csv_rows(report / "load_side.csv");
+  EXPECT_EQ(rows.size(), 195u);
+  std::ifstream samples(report / "samples.csv");
+  std::string header;
+  std::getline(samples, header);
+  EXPECT_EQ(header, "tick,excitation_n,force_n,velocity_mps,load_velocity_mps");
+  fs::remove_all(dir);
+}
+
 /// configs/scenarios/external.yaml lasting `duration_s`: a drive's run with nothing commanded by
 /// the scenario (commission commands the force).
 std::string drive_run_scenario(const fs::path& dir, double duration_s) {

@@ -156,11 +156,35 @@ FrequencyResponseMeasurement measure_on_live_drive(const dds::ParticipantOptions
 
 void write_samples_csv(const std::filesystem::path& path, const FrequencyResponseMeasurement& m) {
   std::ofstream csv(path);
-  csv << "tick,excitation_n,force_n,velocity_mps\n";
-  char line[128];
+  const bool load = m.has_load_sensor();
+  csv << "tick,excitation_n,force_n,velocity_mps" << (load ? ",load_velocity_mps" : "") << '\n';
+  char line[160];
   for (std::size_t i = 0; i < m.force_n().size(); ++i) {
-    std::snprintf(line, sizeof line, "%zu,%.9g,%.9g,%.9g\n", i, m.excitation_n()[i], m.force_n()[i],
-                  m.velocity_mps()[i]);
+    std::snprintf(line, sizeof line, "%zu,%.9g,%.9g,%.9g", i, m.excitation_n()[i], m.force_n()[i], m.velocity_mps()[i]);
+    csv << line;
+    if (load) {
+      std::snprintf(line, sizeof line, ",%.9g", m.load_velocity_mps()[i]);
+      csv << line;
+    }
+    csv << '\n';
+  }
+  if (!csv) throw std::runtime_error("cannot write " + path.string());
+}
+
+/// Per line, with a load sensor: Q = V_L / V_M, its coherence, the fitted corner (see
+/// frequency_response.hpp).
+void write_load_side_csv(const std::filesystem::path& path, const FrequencyResponseResult& r) {
+  std::ofstream csv(path);
+  csv << "frequency_hz,load_over_motor_db,load_over_motor_deg,coherence,model_db,model_deg\n";
+  const LoadSideFit& fit = *r.load_fit;
+  const double w = 2.0 * kPi * fit.anti_resonance_hz;
+  char line[200];
+  for (const LoadRatioPoint& p : r.load_points) {
+    const std::complex<double> s(0.0, 2.0 * kPi * p.frequency_hz);
+    const std::complex<double> model = fit.gain * (2.0 * fit.anti_resonance_damping * w * s + w * w) /
+                                       (s * s + 2.0 * fit.anti_resonance_damping * w * s + w * w);
+    std::snprintf(line, sizeof line, "%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", p.frequency_hz, db(p.ratio), degrees(p.ratio),
+                  p.coherence, db(model), degrees(model));
     csv << line;
   }
   if (!csv) throw std::runtime_error("cannot write " + path.string());
@@ -554,6 +578,7 @@ int commission(const CommissionOptions& o, Transcript& transcript) {
   const CommissionDecision d = decide(o, configured, result, time_domain, verification_csv, "", transcript);
   const FilterChain filters(d.filters);
   write_response_csv(dir / "response.csv", result, filters);
+  if (result.load_fit) write_load_side_csv(dir / "load_side.csv", result);
   if (o.plots) {
     write_bode_script(dir, result.fit, d.loop.margins, !filters.empty());
     if (run_gnuplot(dir / "bode.gp") != 0) throw std::runtime_error("gnuplot failed on " + (dir / "bode.gp").string());
