@@ -94,10 +94,10 @@ class BridgeHooks final : public node::DriveNodeHooks {
         "periods stepped %u, %s\n",
         node.name().c_str(), drive_.config().node_id, bus_.describe().c_str(), drive_.config().scaling.rated_force_n,
         drive_.config().scaling.increments_per_metre, drive_.periods_stepped(), drive::to_string(drive_.power_state()));
-    if (drive_.config().load_sensor != canopen::DriveLoadSensor::kNone) {
+    if (drive_.config().load_sensor != LoadSensorKind::kNone) {
       std::printf("%s: a sensor on the load in the drive's TPDO3: %s (%s)\n", node.name().c_str(),
-                  canopen::to_string(drive_.config().load_sensor),
-                  drive_.config().load_sensor == canopen::DriveLoadSensor::kEncoder ? "0x60E4:1" : "0x2003");
+                  to_string(drive_.config().load_sensor),
+                  drive_.config().load_sensor == LoadSensorKind::kEncoder ? "0x60E4:1" : "0x2003");
     }
   }
   void enable_at_start(node::DriveNode& node) override {
@@ -211,18 +211,17 @@ canopen::Cia402DriveConfig DriveBridgeComponent::checked_config() {
   // The filter expects the load's readings the system file declares: a master that does not
   // read them would have every run end with the sensor failed.
   const LoadSensorKind declared = rt_.cfg.params.load_sensor.kind;
-  if (declared != LoadSensorKind::kNone &&
-      std::strcmp(to_string(declared), canopen::to_string(drive_config.load_sensor)) != 0) {
+  if (declared != LoadSensorKind::kNone && declared != drive_config.load_sensor) {
     throw ConfigError(
         std::string("sensors.load.kind ") + to_string(declared) + " (the system file) but drive.load_sensor " +
-        canopen::to_string(drive_config.load_sensor) + " (" + opt_.can.canopen_path +
+        to_string(drive_config.load_sensor) + " (" + opt_.can.canopen_path +
         "): the master would not read the sensor; set --canopen-set drive.load_sensor=" + to_string(declared));
   }
   drive_config.reset_communication = !opt_.no_reset;
   drive_config.realtime = check_bridge_runtime(opt_, rt_);
   const canopen::BusLoad load = canopen::bus_load(
       canopen::bridge_cycle_frames(rt_.period_s, drive_config.drive_heartbeat_ms, drive_config.master_heartbeat_ms,
-                                   drive_config.load_sensor != canopen::DriveLoadSensor::kNone),
+                                   drive_config.load_sensor != LoadSensorKind::kNone),
       rig_.bitrate_bps, rt_.period_s);
   std::printf(
       "drive_bridge: bus load per %.0f ms cycle at %.0f kbit/s: %.1f %% (%.0f bits; %.1f %% with worst-case bit "

@@ -23,22 +23,6 @@ std::string hex(std::uint32_t value, int digits) {
 
 }  // namespace
 
-const char* to_string(DriveLoadSensor sensor) noexcept {
-  switch (sensor) {
-    case DriveLoadSensor::kNone: return "none";
-    case DriveLoadSensor::kEncoder: return "encoder";
-    case DriveLoadSensor::kAccelerometer: return "accelerometer";
-  }
-  return "none";
-}
-
-DriveLoadSensor drive_load_sensor_from_string(const std::string& name) {
-  for (const DriveLoadSensor s : {DriveLoadSensor::kNone, DriveLoadSensor::kEncoder, DriveLoadSensor::kAccelerometer}) {
-    if (name == to_string(s)) return s;
-  }
-  throw std::invalid_argument("must be one of none, encoder, accelerometer, got '" + name + "'");
-}
-
 void Cia402DriveConfig::validate() const {
   RangeCheck check;
   canopen::visit_parameters(*this, check);
@@ -312,12 +296,12 @@ void Cia402Drive::boot() {
     throw Cia402DriveError("0x6061 (modes of operation display) is " + std::to_string(mode_value) +
                            " after 0x6060 = 10: the drive did not enter cyclic synchronous torque");
   }
-  if (config_.load_sensor != DriveLoadSensor::kNone) enable_load_sensor();
+  if (config_.load_sensor != LoadSensorKind::kNone) enable_load_sensor();
   send(encode_nmt(NmtCommand::kStart, node_));
 }
 
 void Cia402Drive::enable_load_sensor() {
-  const bool encoder = config_.load_sensor == DriveLoadSensor::kEncoder;
+  const bool encoder = config_.load_sensor == LoadSensorKind::kEncoder;
   const PdoMapEntry wanted =
       encoder ? PdoMapEntry{kObjectAdditionalPositionActual, 1, 32} : PdoMapEntry{kObjectLoadAcceleration, 0, 32};
   const std::string name = std::string("drive.load_sensor ") + to_string(config_.load_sensor) + ": ";
@@ -410,9 +394,8 @@ void Cia402Drive::enable_and_wait() {
 
 drive::Measurement Cia402Drive::measurement() const {
   drive::Measurement m = scaling_.measurement(position_actual_, velocity_actual_, torque_actual_);
-  if (config_.load_sensor == DriveLoadSensor::kEncoder)
-    m.load_position_m = scaling_.increments_to_metres(load_reading_);
-  if (config_.load_sensor == DriveLoadSensor::kAccelerometer) {
+  if (config_.load_sensor == LoadSensorKind::kEncoder) m.load_position_m = scaling_.increments_to_metres(load_reading_);
+  if (config_.load_sensor == LoadSensorKind::kAccelerometer) {
     m.load_acceleration_mps2 = static_cast<double>(load_reading_) * kLoadAccelerationPerUnit;
   }
   return m;

@@ -162,7 +162,7 @@ TEST(Cia402Slave, ALoadSensorIsReadInTpdo3WhenTheMasterAsksForIt) {
     EXPECT_TRUE(std::isnan(m.load_position_m)) << "none asked for";
     EXPECT_EQ(r.to_master.tpdo3_frames, 0);
   }
-  for (const DriveLoadSensor kind : {DriveLoadSensor::kEncoder, DriveLoadSensor::kAccelerometer}) {
+  for (const LoadSensorKind kind : {LoadSensorKind::kEncoder, LoadSensorKind::kAccelerometer}) {
     SCOPED_TRACE(to_string(kind));
     Rig r;
     r.rig.master.load_sensor = kind;
@@ -174,7 +174,7 @@ TEST(Cia402Slave, ALoadSensorIsReadInTpdo3WhenTheMasterAsksForIt) {
       r.mass.load_acceleration_mps2 = -3.25 + 0.5 * k;
       d.apply(0.0);
       const drive::Measurement m = d.sample();
-      if (kind == DriveLoadSensor::kEncoder) {
+      if (kind == LoadSensorKind::kEncoder) {
         EXPECT_NEAR(m.load_position_m, r.mass.load_position_m, 1e-6) << k;  // one increment
         EXPECT_TRUE(std::isnan(m.load_acceleration_mps2));
       } else {
@@ -190,7 +190,7 @@ TEST(Cia402Slave, ALoadSensorIsReadInTpdo3WhenTheMasterAsksForIt) {
 // A drive whose TPDO3 does not map what the rig file says it has: the boot says what it maps.
 TEST(Cia402Slave, ALoadSensorTheDrivesTpdo3DoesNotMapIsRefusedAtBoot) {
   Rig r;
-  r.rig.master.load_sensor = DriveLoadSensor::kEncoder;
+  r.rig.master.load_sensor = LoadSensorKind::kEncoder;
   // The master's boot resets the drive's communication: the dictionary is built again without it.
   auto& pdos = r.device.pdos;
   pdos.erase(std::remove_if(pdos.begin(), pdos.end(), [](const PdoDefault& p) { return p.channel == "tpdo3"; }),

@@ -53,15 +53,10 @@
 #include "pmlsm/canopen/sdo.hpp"
 #include "pmlsm/canopen/sync.hpp"
 #include "pmlsm/drive/drive.hpp"
+#include "pmlsm/plant/load_sensor.hpp"
 #include "pmlsm/util/parameter_table.hpp"
 
 namespace pmlsm::canopen {
-
-/// A sensor on the drive's load, read through TPDO3 (drive.load_sensor).
-enum class DriveLoadSensor { kNone, kEncoder, kAccelerometer };
-const char* to_string(DriveLoadSensor sensor) noexcept;
-/// @throws std::invalid_argument listing the names ("must be one of none, encoder, accelerometer").
-DriveLoadSensor drive_load_sensor_from_string(const std::string& name);
 
 struct Cia402DriveConfig {
   int node_id = 1;
@@ -91,8 +86,9 @@ struct Cia402DriveConfig {
   std::uint8_t sync_overflow = 240;
   /// Cycles in one state while a move is expected before the walk is stuck.
   std::uint32_t enable_timeout_cycles = 200;
-  /// The drive's load sensor, read in TPDO3 (none: TPDO3 left as the drive has it).
-  DriveLoadSensor load_sensor = DriveLoadSensor::kNone;
+  /// The drive's load sensor (the system file's kinds), read in TPDO3 (none: TPDO3 left as the
+  /// drive has it).
+  LoadSensorKind load_sensor = LoadSensorKind::kNone;
   /// The ranges of visit_parameters, then check_relations().
   /// @throws std::invalid_argument naming the key (as the rig file writes it) and the value.
   void validate() const;
@@ -112,7 +108,7 @@ void visit_parameters(Config& m, Visitor& v) {
   v.integer("drive.node_id", m.node_id, node_id);
   visit_scaling_parameters(m.scaling, v);
   v.integer("drive.heartbeat_ms", m.drive_heartbeat_ms, {0.0, 65535.0, "0x1017: 0 (none) or 16 bits of milliseconds"});
-  v.choice("drive.load_sensor", m.load_sensor, &drive_load_sensor_from_string);
+  v.choice("drive.load_sensor", m.load_sensor, &load_sensor_kind_from_string);
   v.integer("master.node_id", m.master_node_id, node_id);
   v.integer("master.heartbeat_ms", m.master_heartbeat_ms, heartbeat);
   v.integer("master.heartbeat_timeout_ms", m.master_heartbeat_timeout_ms, heartbeat);
