@@ -178,7 +178,7 @@ class ControllerComponent final : public node::CycleComponent {
   Phase phase_ = Phase::kFeedback;
   std::uint64_t tick_ = 0;  ///< the tick in hand
   double velocity_mps_ = 0.0;
-  double load_stretch_m_ = std::numeric_limits<double>::quiet_NaN();  ///< x_M - x_L of a load encoder (NaN: none)
+  LoadWitness load_;      ///< the load sensor's reading of the tick, the standstill gate's witness
   double force_n_ = 0.0;  ///< the tick's force command, for the current loop
   int substep_ = 0;
 };
@@ -349,8 +349,7 @@ ControllerComponent::Update ControllerComponent::take_feedback() {
     velocity_mps_ = last_velocity_;
   }
   last_velocity_ = velocity_mps_;
-  // The standstill gate's witness of the load: a load encoder's count against the motor's.
-  load_stretch_m_ = node::load_stretch_m(feedback_);
+  load_ = node::load_witness(feedback_);
   if (!compensated_ || tick_ == 0) return as_work(answer(Compensation{}));
   phase_ = Phase::kCompensation;
   return as_work(compensate());
@@ -358,8 +357,8 @@ ControllerComponent::Update ControllerComponent::take_feedback() {
 
 ControllerComponent::Update ControllerComponent::answer(const Compensation& compensation) {
   const VelocityControllerOutput out =
-      external_ ? controller_->step_command(external_command(tick_), velocity_mps_, compensation, load_stretch_m_)
-                : controller_->step(tick_, velocity_mps_, compensation, load_stretch_m_);
+      external_ ? controller_->step_command(external_command(tick_), velocity_mps_, compensation, load_)
+                : controller_->step(tick_, velocity_mps_, compensation, load_);
   if (out.guard.tripped && !guard_reported_) {
     // Once: the compensation fades out and stays out; the controller goes on as PI alone.
     guard_reported_ = true;

@@ -22,12 +22,7 @@ static_assert(static_cast<int>(drive::PowerState::kSwitchOnDisabled) == power::P
 
 /// MotorFeedback's load fields as the drive's reading holds them: NaN in what the kind says is not
 /// measured, the saturation from the status bit.
-struct LoadReading {
-  double position_m;
-  double acceleration_mps2;
-  bool saturated;
-};
-LoadReading load_reading_of(const pmlsm_msgs::msg::MotorFeedback& in) {
+LoadSensorReading load_reading_of(const pmlsm_msgs::msg::MotorFeedback& in) {
   constexpr double kNotMeasured = std::numeric_limits<double>::quiet_NaN();
   return {in.load_sensor() == feedback_flags::LOAD_SENSOR_ENCODER ? in.load_position_m() : kNotMeasured,
           in.load_sensor() == feedback_flags::LOAD_SENSOR_ACCELEROMETER ? in.load_acceleration_mps2() : kNotMeasured,
@@ -112,7 +107,7 @@ void from_msg(const msg::MotorFeedback& in, TickRecord& rec) {
   rec.encoder_position_m = in.position_m();
   rec.motor_velocity_measured_mps = in.velocity_mps();
   rec.applied_force_n = in.applied_force_n();
-  const LoadReading load = load_reading_of(in);
+  const LoadSensorReading load = load_reading_of(in);
   rec.load_position_measured_m = load.position_m;
   rec.load_accel_measured_mps2 = load.acceleration_mps2;
   DriveTickStatus status;
@@ -124,13 +119,13 @@ void from_msg(const msg::MotorFeedback& in, KalmanInput& out) {
   out.motor_velocity_measured_mps = in.velocity_mps();
   out.thrust_previous_n = in.applied_force_n();
   out.motor_position_m = in.position_m();
-  const LoadReading load = load_reading_of(in);
+  const LoadSensorReading load = load_reading_of(in);
   out.load_position_m = load.position_m;
   out.load_accel_mps2 = load.acceleration_mps2;
   out.load_sensor_saturated = load.saturated;
 }
 
-double load_stretch_m(const msg::MotorFeedback& in) { return in.position_m() - load_reading_of(in).position_m; }
+LoadWitness load_witness(const msg::MotorFeedback& in) { return {in.position_m(), load_reading_of(in)}; }
 
 void from_msg(const msg::MotorFeedback& in, DriveTickStatus& out) {
   out.status = in.status();
@@ -260,7 +255,7 @@ void from_msg(const pmlsm_msgs::msg::MotorFeedback& in, drive::Measurement& out)
   out.i_q_a = in.i_q_a();
   out.thrust_force_n = in.thrust_force_n();
   out.applied_force_n = in.applied_force_n();
-  const LoadReading load = load_reading_of(in);
+  const LoadSensorReading load = load_reading_of(in);
   out.load_position_m = load.position_m;
   out.load_acceleration_mps2 = load.acceleration_mps2;
   out.load_sensor_saturated = load.saturated;

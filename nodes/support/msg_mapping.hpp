@@ -71,9 +71,9 @@ void from_msg(const pmlsm_msgs::msg::MotorFeedback& in, TickRecord& rec);
 void from_msg(const pmlsm_msgs::msg::MotorFeedback& in, KalmanInput& out);
 /// status, power_state, error_code: what RunValidity judges.
 void from_msg(const pmlsm_msgs::msg::MotorFeedback& in, DriveTickStatus& out);
-/// x_M - x_L from a load encoder's count and the motor's (position_m - load_position_m), the
-/// standstill gate's witness of the load; NaN without a load encoder.
-double load_stretch_m(const pmlsm_msgs::msg::MotorFeedback& in);
+/// The load sensor's reading with the motor's position (position_m), the standstill gate's
+/// witness of the load.
+LoadWitness load_witness(const pmlsm_msgs::msg::MotorFeedback& in);
 
 /// Every field but the stamp, from the drive loop's report of the tick.
 void to_msg(const drive::TickReport& report, pmlsm_msgs::msg::MotorFeedback& out);

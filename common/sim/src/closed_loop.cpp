@@ -68,8 +68,8 @@ TickRecord ClosedLoop::step(const Compensation& compensation) {
   rec.load_sensor_use = load_sensor_use(est);
   rec.load_sensor_fault = est.load_sensor_problem;
 
-  const VelocityControllerOutput control = controller_.step(tick_, feedback.velocity_mps, compensation,
-                                                            feedback.encoder_position_m - feedback.load.position_m);
+  const VelocityControllerOutput control =
+      controller_.step(tick_, feedback.velocity_mps, compensation, {feedback.encoder_position_m, feedback.load});
   rec.command_mps = control.command_mps;
   rec.v_ref_mps = control.v_ref_mps;
   rec.a_ref_mps2 = control.a_ref_mps2;

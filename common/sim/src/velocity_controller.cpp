@@ -13,7 +13,12 @@ VelocityController::VelocityController(const SystemParams& params, const Scenari
       force_filters_(params.force_command_filter_params()) {
   scenario_.validate(period_s_);
   if (params.compensator.guard_enabled) guard_.emplace(params.vibration_guard_params());
-  if (params.compensator.standstill_enabled) standstill_.emplace(params.standstill_gate_params());
+  if (params.compensator.standstill_enabled) {
+    standstill_.emplace(params.standstill_gate_params());
+    // The accelerometer is no witness for the gate (a 5 um swing's 0.03 m/s^2 at 9 Hz is its noise).
+    if (params.load_sensor.kind == LoadSensorKind::kEncoder)
+      load_monitor_.emplace(LoadSensorMonitorParams::of(params.load_sensor, period_s_));
+  }
   if (scenario_.input_shaper != ShaperKind::kNone) shaper_.emplace(params.input_shaper_params(scenario_.input_shaper));
 }
 
@@ -37,14 +42,15 @@ ExternalReferenceParams external_reference_params(const Scenario& scenario, doub
 }
 
 VelocityControllerOutput VelocityController::step(std::uint64_t tick, double motor_velocity_mps,
-                                                  const Compensation& compensation, double load_stretch_m) {
+                                                  const Compensation& compensation, const LoadWitness& load) {
   return step_command(scenario_.command_mps(static_cast<double>(tick) * period_s_), motor_velocity_mps, compensation,
-                      load_stretch_m);
+                      load);
 }
 
 VelocityControllerOutput VelocityController::step_command(double command_mps, double motor_velocity_mps,
-                                                          const Compensation& compensation, double load_stretch_m) {
+                                                          const Compensation& compensation, const LoadWitness& load) {
   VelocityControllerOutput out;
+  const std::uint64_t tick = steps_++;
   out.command_mps = shaper_ ? shaper_->step(command_mps) : command_mps;
   ReferenceSample ref;
   if (scenario_.use_reference_model) {
@@ -62,9 +68,16 @@ VelocityControllerOutput VelocityController::step_command(double command_mps, do
   x_ref_m_ += ref.velocity_mps * period_s_;
   // The guard's scale of the previous period (it judges what was applied), then its new look;
   // the standstill gate's of this period (a move opens it on its first tick).
-  if (standstill_)
+  if (standstill_) {
+    double load_stretch_m = std::numeric_limits<double>::quiet_NaN();
+    if (load_monitor_) {
+      const LoadSensorVerdict verdict = load_monitor_->judge(
+          tick, load.reading.position_m, load.reading.acceleration_mps2, load.reading.saturated, load.motor_position_m);
+      if (verdict.use) load_stretch_m = load.motor_position_m - load.reading.position_m;
+    }
     out.standstill = standstill_->step(
         {out.command_mps, ref.velocity_mps, motor_velocity_mps, compensation.force_n, load_stretch_m});
+  }
   const double scale = (guard_ ? guard_->output().scale : 1.0) * out.standstill.scale;
   out.compensation_applied_n = compensation_filters_.step(scale * compensation.force_n);
   if (guard_) {

@@ -7,6 +7,7 @@
 #include "pmlsm/analysis/compensated_run.hpp"
 #include "pmlsm/analysis/identification.hpp"
 #include "pmlsm/sim/metrics.hpp"
+#include "pmlsm/sim/velocity_controller.hpp"
 #include "test_support.hpp"
 #include <gtest/gtest.h>
 #include <cmath>
@@ -232,6 +233,47 @@ TEST(StandstillGate, WithALoadEncoderItWaitsForTheSwingOnTheStickyCorner) {
   EXPECT_LT(m.load_settling_time_s, 1.0);
   EXPECT_LT(0.5 * (stretch_max - stretch_min), 5e-6);
   EXPECT_LT(std::sqrt(comp2 / 200.0), 5.0);
+}
+
+// The controller judges the load encoder as the estimator does (the same LoadSensorMonitor on the
+// same readings): a count that stayed put while the motor travelled a millimetre has failed, and
+// at rest its constant stretch is no longer taken for a quiet load. The gate then judges the
+// motor's side alone, where a closed compensator's request is a swing's witness and reopens it;
+// a healthy encoder reading the same quiet stretch keeps it closed over the same request.
+TEST(StandstillGate, TheControllerTakesNoWitnessFromAnEncoderItFoundStuck) {
+  SystemParams p = test::shipped_params();
+  p.compensator.standstill_enabled = true;
+  p.load_sensor.kind = LoadSensorKind::kEncoder;
+  const Scenario at_rest = test::shipped_scenario("free_vibration");  // its command rests throughout
+  VelocityController seen(p, at_rest);
+  VelocityController stuck(p, at_rest);
+  ASSERT_NE(stuck.load_sensor_monitor(), nullptr);
+  const double period_s = p.timing.control_period_s;
+  std::uint64_t tick = 0;
+  LoadWitness load;
+  load.reading.position_m = 0.0;
+  for (; tick < 20; ++tick) {
+    load.motor_position_m = 0.1 * period_s * static_cast<double>(tick);  // 0.1 m/s, the count stays
+    stuck.step(tick, 0.1, {}, load);
+    seen.step(tick, 0.0, {}, {0.0, load.reading});
+  }
+  ASSERT_TRUE(stuck.load_sensor_monitor()->failed());
+  EXPECT_EQ(stuck.load_sensor_monitor()->fault(), LoadSensorFault::kStuck);
+  EXPECT_FALSE(seen.load_sensor_monitor()->failed());
+  // At rest for 1.5 s, both reading a constant stretch, the compensator asking 20 N throughout.
+  const Compensation request{20.0, 0.1};
+  VelocityControllerOutput seen_out, stuck_out;
+  for (const std::uint64_t end = tick + 1500; tick < end; ++tick) {
+    seen_out = seen.step(tick, 0.0, request, {0.0, load.reading});
+    stuck_out = stuck.step(tick, 0.0, request, load);
+  }
+  EXPECT_TRUE(seen_out.standstill.closed);
+  EXPECT_EQ(seen.standstill_gate()->counters().openings, 0u);
+  EXPECT_GE(stuck.standstill_gate()->counters().closings, 1u);
+  EXPECT_GE(stuck.standstill_gate()->counters().openings, 1u);  // the request reopened it
+  // The same controller without a gate has no monitor to run.
+  p.compensator.standstill_enabled = false;
+  EXPECT_EQ(VelocityController(p, at_rest).load_sensor_monitor(), nullptr);
 }
 
 }  // namespace

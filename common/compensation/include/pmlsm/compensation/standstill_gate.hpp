@@ -21,7 +21,9 @@
 //   open:     also a window with swing > wake_load_swing_m
 // so it never closes over a swing the motor's encoder cannot see, and reopens for one that grows;
 // the request while closed is then no witness (a compensator's offset at rest is no swing).
-// A window with a tick of no stretch (no encoder, a silent one) is judged on the motor alone.
+// A window with a tick of no stretch (no encoder, a silent one, a reading the controller's
+// LoadSensorMonitor refuses or a sensor it has failed: VelocityController's LoadWitness) is
+// judged on the motor alone.
 //
 // The last is for a heavy, soft load on sticky bearings: its swing (1.5 mm on 8 kg and 6,850 N/m
 // pulls 10 N) may not move a motor held by 30 N, so the motor is quiet while the load still

@@ -18,6 +18,8 @@
 #include "pmlsm/sim/scenario.hpp"
 #include "pmlsm/sim/system_params.hpp"
 #include "pmlsm/control/velocity_pi.hpp"
+#include "pmlsm/estimation/load_sensor_monitor.hpp"
+#include "pmlsm/plant/load_sensor.hpp"
 
 namespace pmlsm {
 
@@ -37,6 +39,17 @@ inline Compensation compensation_from_output(double force_n, double u_n) { retur
 inline Compensation clamped_compensation(double force_n, double force_limit_n) {
   return compensation_from_output(force_n, force_n / force_limit_n);
 }
+
+/// A tick's load sensor reading with the motor encoder's position of the same tick: the standstill
+/// gate's witness of the load (x_M - x_L of a load encoder), once the controller's own
+/// LoadSensorMonitor believes it. The monitor is the estimator's, on the same readings, so the
+/// two agree tick by tick without a word on the wire: a reading the filter refuses, or a sensor
+/// it has failed (a count stuck during a move, then a swing at rest it cannot see), is no
+/// witness either, and the gate judges the motor's side alone.
+struct LoadWitness {
+  double motor_position_m = std::numeric_limits<double>::quiet_NaN();
+  LoadSensorReading reading;  ///< NaN in what the sensor does not measure
+};
 
 struct VelocityControllerOutput {
   double command_mps = 0;  ///< the command c(t_k) into the reference model, after input shaping
@@ -58,13 +71,13 @@ class VelocityController {
  public:
   /// @throws std::invalid_argument from the parameters or the scenario.
   VelocityController(const SystemParams& params, const Scenario& scenario);
-  /// Tick k with the scenario's command c(t_k). `load_stretch_m`: x_M - x_L measured by a load
-  /// encoder against the motor's (NaN: none), the standstill gate's witness of the load.
+  /// Tick k with the scenario's command c(t_k); `load`: the load sensor's reading of the tick
+  /// (none: the gate judges the motor alone).
   VelocityControllerOutput step(std::uint64_t tick, double motor_velocity_mps, const Compensation& compensation,
-                                double load_stretch_m = std::numeric_limits<double>::quiet_NaN());
+                                const LoadWitness& load = {});
   /// A tick with a command from elsewhere (an external scenario: the setpoints' command).
   VelocityControllerOutput step_command(double command_mps, double motor_velocity_mps, const Compensation& compensation,
-                                        double load_stretch_m = std::numeric_limits<double>::quiet_NaN());
+                                        const LoadWitness& load = {});
   /// The live parameters (LiveParameters) at a tick boundary: the PI's gains and limit (its
   /// integral kept), each filter chain rebuilt from rest when its slots changed (unchanged
   /// chains keep their state), and the input shaper retimed when the loop's mode moved with the
@@ -80,6 +93,8 @@ class VelocityController {
   const VibrationGuard* guard() const { return guard_ ? &*guard_ : nullptr; }
   /// The standstill gate (nullptr when compensator.standstill.enabled is false).
   const StandstillGate* standstill_gate() const { return standstill_ ? &*standstill_ : nullptr; }
+  /// The judge of the load encoder's readings for the gate (nullptr without a gate or an encoder).
+  const LoadSensorMonitor* load_sensor_monitor() const { return load_monitor_ ? &*load_monitor_ : nullptr; }
 
  private:
   Scenario scenario_;
@@ -92,8 +107,10 @@ class VelocityController {
   VelocityPi velocity_;
   std::optional<VibrationGuard> guard_;
   std::optional<StandstillGate> standstill_;
-  FilterChain compensation_filters_;  ///< on the compensator's force, before the PI adds it
-  FilterChain force_filters_;         ///< on the PI's output, then the force limit again
+  std::optional<LoadSensorMonitor> load_monitor_;  ///< with a gate and a load encoder
+  std::uint64_t steps_ = 0;                        ///< the monitor's tick
+  FilterChain compensation_filters_;               ///< on the compensator's force, before the PI adds it
+  FilterChain force_filters_;                      ///< on the PI's output, then the force limit again
 };
 
 /// An external scenario's setpoint policy at the control period.
