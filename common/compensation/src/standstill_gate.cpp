@@ -25,6 +25,7 @@ void StandstillGateParams::validate() const {
 StandstillGate::StandstillGate(const StandstillGateParams& params)
     : params_((params.validate(), params)),
       settle_steps_(static_cast<std::uint64_t>(std::llround(params.settle_s / params.control_period_s))),
+      load_settle_steps_(static_cast<std::uint64_t>(std::llround(params.load_settle_s / params.control_period_s))),
       window_steps_(static_cast<std::uint32_t>(std::llround(params.window_s / params.control_period_s))),
       fade_per_step_(params.fade_s > 0 ? params.control_period_s / params.fade_s : 1.0) {}
 
@@ -71,11 +72,12 @@ StandstillGateOutput StandstillGate::step(const StandstillGateInput& in) noexcep
     in_window_ = closed_in_window_ = stretch_in_window_ = 0;
     sum_v2_ = sum_f2_ = 0;
     if (counters_.last_window_rms_mps > params_.wake_velocity_mps || load_moves ||
-        (closed_window && !load_seen && counters_.last_closed_force_n > params_.wake_force_n)) {
+        (params_.wake_on_request && closed_window && !load_seen &&
+         counters_.last_closed_force_n > params_.wake_force_n)) {
       // Woken: open for settle_s at least, as after a move, so the swing is damped, not sampled.
       open(false);
       at_rest_steps_ = 0;
-    } else if (!out_.closed && at_rest_steps_ >= settle_steps_ &&
+    } else if (!out_.closed && at_rest_steps_ >= (load_seen ? load_settle_steps_ : settle_steps_) &&
                counters_.last_window_rms_mps < params_.quiet_velocity_mps && load_quiet) {
       out_.closed = true;
       ++counters_.closings;

@@ -7,12 +7,13 @@
 // compensator asks to damp a swing.
 //
 //   at rest:  |c(t_k)| <= rest_velocity_mps and |V_ref(t_k)| <= rest_velocity_mps, for settle_s
+//             (load_settle_s while a load encoder is read: the load is judged itself)
 //   quiet:    a window of window_s with rms(v_M) < quiet_velocity_mps (the measured velocity)
 //   closed:   at rest and quiet; the scale ramps 1 -> 0 over fade_s
 //   open:     the reference leaves rest (scale 1 at once: a move needs its compensation from the
 //             first tick), or a window with rms(v_M) > wake_velocity_mps (a push on the load),
-//             or a window spent wholly closed in which the compensator's request has an rms
-//             over wake_force_n (the scale ramps back to 1 over fade_s)
+//             or, with wake_on_request, a window spent wholly closed in which the compensator's
+//             request has an rms over wake_force_n (the scale ramps back to 1 over fade_s)
 //
 // With an encoder on the load the gate judges the load itself: the measured stretch
 // s = x_M - x_L of the two counts (its offset does not matter: only its range over a window is
@@ -27,8 +28,11 @@
 //
 // The last is for a heavy, soft load on sticky bearings: its swing (1.5 mm on 8 kg and 6,850 N/m
 // pulls 10 N) may not move a motor held by 30 N, so the motor is quiet while the load still
-// swings. Closed, the request is a clean witness: no force reaches the motor, nothing chatters,
-// and the estimate keeps the swing (kalman.standstill_hold), so the compensator asks to damp it.
+// swings. Closed, the request is a witness: no force reaches the motor, and the estimate keeps
+// the swing (kalman.standstill_hold), so the compensator asks to damp it. It is off in the shipped
+// file: the request of a compensator at rest is also its offset and the estimate's friction
+// ambiguity (15-25 N rms over a quiet load), so it reopens the gate over and over and the chatter
+// is back (docs/results/2026-12-02-standstill-without-a-sensor.md).
 // step() never throws and does not allocate; a non-finite input is counted and treated as motion
 // (the gate opens).
 #pragma once
@@ -47,9 +51,11 @@ struct StandstillGateParams {
   double control_period_s = 0;
   double rest_velocity_mps = 0;   ///< |c| and |V_ref| at or below this: the reference at rest, >= 0
   double settle_s = 0;            ///< at rest this long before the gate may close, >= 0
+  double load_settle_s = 0;       ///< ... when the last window read a load encoder every tick, >= 0
   double window_s = 0;            ///< the quiet window, at least 2 periods
   double quiet_velocity_mps = 0;  ///< rms(v_M) of a window below this: quiet, > 0
   double wake_velocity_mps = 0;   ///< rms(v_M) of a window above this: pushed, > quiet_velocity_mps
+  bool wake_on_request = false;   ///< the request while closed may reopen the gate (wake_force_n)
   double wake_force_n = 0;        ///< the request's rms over a window spent closed above this: a swing, > 0
   double fade_s = 0;              ///< >= 0 (0: at once)
   double quiet_load_swing_m = 0;  ///< a load encoder's swing over a window at or below this: quiet, > 0
@@ -61,12 +67,15 @@ struct StandstillGateParams {
   static void declare(const std::string& at, Self& p, Visitor& v) {
     v.real(at + ".rest_velocity_mps", p.rest_velocity_mps, {0.0, 10.0, "0 (the command exactly zero) to 10 m/s"});
     v.real(at + ".settle_s", p.settle_s, {0.0, 3600.0, "0 (at once) to an hour at rest"});
+    v.real(at + ".load_settle_s", p.load_settle_s,
+           {0.0, 3600.0, "0 (at once) to an hour at rest, with a load encoder's witness"});
     v.real(at + ".window_s", p.window_s, {1e-3, 100.0, "1 ms to 100 s of quiet window"});
     v.real(at + ".quiet_velocity_mps", p.quiet_velocity_mps,
            {1e-6, 10.0, "1 um/s to 10 m/s of motor velocity (rms over the window)"});
     v.real(at + ".wake_velocity_mps", p.wake_velocity_mps,
            {1e-6, 10.0, "1 um/s to 10 m/s of motor velocity (rms over the window)"});
     v.real(at + ".fade_s", p.fade_s, {0.0, 60.0, "0 (at once) to a minute"});
+    v.flag(at + ".wake_on_request", p.wake_on_request);
     v.real(at + ".wake_force_n", p.wake_force_n,
            {1e-3, 1e5, "1 mN to 100 kN of requested compensation (rms over a window spent closed)"});
     v.real(at + ".quiet_load_swing_m", p.quiet_load_swing_m,
@@ -116,6 +125,7 @@ class StandstillGate {
   void open(bool at_once) noexcept;
   StandstillGateParams params_;
   std::uint64_t settle_steps_;
+  std::uint64_t load_settle_steps_;
   std::uint32_t window_steps_;
   double fade_per_step_;
   std::uint64_t at_rest_steps_ = 0;
