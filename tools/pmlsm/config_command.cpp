@@ -2,6 +2,8 @@
 //   pmlsm config reference [--kind system|canopen|ethercat] [-c FILE] [-o PAGE] [--check]   the generated reference
 //   pmlsm config check [--kind system|canopen|ethercat] [-c FILE] [--set K=V ...]   every check a program makes on
 //   loading it
+//   pmlsm config write [-c FILE] --set K=V ... -o OUT [--reason TEXT]   a copy of the system file with these
+//   values, each source "chosen: TEXT" (a nudged plant for a rig beside its simulation, a site's file)
 // `reference --check` compares PAGE with what it would write and exits 1 when they differ (the
 // ctest `config_reference` runs it on docs/configuration-reference.md).
 #include <cstdio>
@@ -28,6 +30,7 @@ struct ConfigCommandOptions {
   std::string out;              ///< the page ("": standard output)
   bool check = false;
   std::vector<std::string> set;
+  std::string reason = "set with pmlsm config write";
 };
 
 /// The shipped file of the kind, by its place in the source tree.
@@ -89,11 +92,19 @@ int run_check(const ConfigCommandOptions& o) {
   return kExitOk;
 }
 
+int run_write(const ConfigCommandOptions& o) {
+  if (o.set.empty()) throw UsageError("write: nothing to set (--set key.path=value ...)");
+  write_system_file_with(file_to_read(o), parse_overrides(o.set), "chosen: " + o.reason, o.out);
+  std::printf("wrote %s: %s with %zu value(s) set\n", o.out.c_str(), origin_of(o).c_str(), o.set.size());
+  return kExitOk;
+}
+
 }  // namespace
 
 void add_config_command(CLI::App& app, int& exit_code) {
-  CLI::App* cmd =
-      app.add_subcommand("config", "The system, CANopen and EtherCAT files: their generated references, their checks");
+  CLI::App* cmd = app.add_subcommand(
+      "config",
+      "The system, CANopen and EtherCAT files: their generated references, their checks, a copy with values set");
   cmd->require_subcommand(1);
   auto o = std::make_shared<ConfigCommandOptions>();
   const auto wrap = [&exit_code](const std::shared_ptr<ConfigCommandOptions>& options,
@@ -126,6 +137,14 @@ void add_config_command(CLI::App& app, int& exit_code) {
   add_file_options(*check);
   check->add_option("--set", o->set, "Override a parameter of the file: key.path=value")->take_all();
   check->callback(wrap(o, &run_check));
+  CLI::App* write =
+      cmd->add_subcommand("write", "A copy of the system file with values set, every check made before it is written");
+  write->add_option("-c,--config", o->config, "The system file (default: the shipped one)")->check(CLI::ExistingFile);
+  write->add_option("--set", o->set, "The value to set: key.path=value")->take_all()->required();
+  write->add_option("-o,--out", o->out, "The file to write")->required();
+  write->add_option("--reason", o->reason, "Why, written into each set value's source (\"chosen: REASON\")")
+      ->capture_default_str();
+  write->callback(wrap(o, &run_write));
 }
 
 }  // namespace pmlsm::tools
