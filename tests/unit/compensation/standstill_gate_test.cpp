@@ -202,6 +202,17 @@ AtRest at_rest(const std::vector<TickRecord>& trace) {
   return {std::sqrt(sum / 200.0), 0.5 * (high - low)};
 }
 
+// The shipped system on a soft load (6,850 N/m) of `load_mass_kg` with sticky bearings (30 N of
+// Coulomb friction, 45 N s/m): a corner of the family.
+SystemParams on_sticky_corner(double load_mass_kg) {
+  SystemParams p = test::shipped_params();
+  p.plant.mechanics.load_mass_kg = load_mass_kg;
+  p.plant.mechanics.spring_n_per_m = 6850.0;
+  p.plant.friction.coulomb_n = 30.0;
+  p.plant.friction.viscous_n_s_per_m = 45.0;
+  return p;
+}
+
 // The nominal free vibration with state feedback: without the gate the compensation chatters at
 // rest (29 N rms in the last 0.2 s); with the shipped gate none is left and the load settles as
 // before. On a light, soft load with sticky bearings (2 kg, 6,850 N/m, 30 N; the models as
@@ -221,13 +232,10 @@ TEST(StandstillGate, InTheLoopItEndsTheChatterAtRestAndKeepsTheSettling) {
   EXPECT_EQ(compute_metrics(with_gate, scenario, period).load_settling_time_s,
             compute_metrics(without, scenario, period).load_settling_time_s);
 
-  for (SystemParams* p : {&open, &gated}) {
-    p->plant.mechanics.load_mass_kg = 2.0;
-    p->plant.mechanics.spring_n_per_m = 6850.0;
-    p->plant.friction.coulomb_n = 30.0;
-    p->plant.friction.viscous_n_s_per_m = 45.0;
-    *p = with_identified_load(*p, commission_load(*p, test::shipped_scenario("identification"), {}));
-  }
+  gated = on_sticky_corner(2.0);
+  gated = with_identified_load(gated, commission_load(gated, test::shipped_scenario("identification"), {}));
+  open = gated;
+  open.compensator.standstill_enabled = false;
   const auto sticky_gated = run_with_compensator(gated, scenario, {CompensatorKind::kState, {}, false});
   const auto sticky_open = run_with_compensator(open, scenario, {CompensatorKind::kState, {}, false});
   std::printf("[ standstill ] 2 kg, 6850 N/m, 30 N: gated %.1f um, %.2f N rms; open %.1f um, %.2f N rms\n",
@@ -246,11 +254,7 @@ TEST(StandstillGate, InTheLoopItEndsTheChatterAtRestAndKeepsTheSettling) {
 // chatter back. Off in the shipped file: elsewhere the request is an offset, not a swing.
 TEST(StandstillGate, ItsWakeOnRequestTradesTheChatterForAHeavySoftLoadsSwing) {
   const Scenario scenario = test::shipped_scenario("free_vibration");
-  SystemParams quiet = test::shipped_params();
-  quiet.plant.mechanics.load_mass_kg = 8.0;
-  quiet.plant.mechanics.spring_n_per_m = 6850.0;
-  quiet.plant.friction.coulomb_n = 30.0;
-  quiet.plant.friction.viscous_n_s_per_m = 45.0;
+  const SystemParams quiet = on_sticky_corner(8.0);
   SystemParams woken = quiet;
   woken.compensator.standstill.wake_on_request = true;
   const AtRest q = at_rest(run_with_compensator(quiet, scenario, {CompensatorKind::kAccel, {}, false}));
@@ -267,11 +271,7 @@ TEST(StandstillGate, ItsWakeOnRequestTradesTheChatterForAHeavySoftLoadsSwing) {
 // open until the compensation has damped it, and closes over a load at rest.
 TEST(StandstillGate, WithALoadEncoderItWaitsForTheSwingOnTheStickyCorner) {
   const Scenario scenario = test::shipped_scenario("free_vibration");
-  SystemParams p = test::shipped_params();
-  p.plant.mechanics.load_mass_kg = 2.0;
-  p.plant.mechanics.spring_n_per_m = 6850.0;
-  p.plant.friction.coulomb_n = 30.0;
-  p.plant.friction.viscous_n_s_per_m = 45.0;
+  SystemParams p = on_sticky_corner(2.0);
   p = with_identified_load(p, commission_load(p, test::shipped_scenario("identification"), {}));
   p.compensator.standstill_enabled = true;
   p.load_sensor.kind = LoadSensorKind::kEncoder;
