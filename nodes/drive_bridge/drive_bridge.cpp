@@ -28,7 +28,6 @@
 // Exit codes as plant_sim's; a drive that cannot be booted or enabled: 1, with the reason.
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <memory>
 #include <optional>
 #include <string>
@@ -273,8 +272,9 @@ class EthercatHooks final : public node::DriveNodeHooks {
           offset ? "the compensation goes in as its torque offset 0x60B2"
                  : "0x60B2 (torque offset) is not mapped: the compensation does not reach it");
     }
-    if (std::strcmp(drive_.load_sensor(), "none") != 0) {
-      std::printf("%s: a sensor on the load in the drive's inputs: %s\n", node.name().c_str(), drive_.load_sensor());
+    if (const LoadSensorKind load = drive_.load_sensor(); load != LoadSensorKind::kNone) {
+      std::printf("%s: a sensor on the load in the drive's inputs: %s (%s)\n", node.name().c_str(), to_string(load),
+                  load == LoadSensorKind::kEncoder ? "0x60E4:1" : "0x2003");
     }
     if (drive_.sync0_start_ns() != 0) {
       std::printf("%s: the drive on SYNC0 (DC mode): every 1 ms, %u us into the cycle of the master's clock\n",

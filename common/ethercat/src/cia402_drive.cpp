@@ -411,10 +411,10 @@ drive::Measurement Cia402Drive::measurement() const {
   return m;
 }
 
-const char* Cia402Drive::load_sensor() const noexcept {
-  if (load_position_at_ >= 0) return "encoder (0x60E4:1)";
-  if (load_acceleration_at_ >= 0) return "accelerometer (0x2003)";
-  return "none";
+LoadSensorKind Cia402Drive::load_sensor() const noexcept {
+  if (load_position_at_ >= 0) return LoadSensorKind::kEncoder;
+  if (load_acceleration_at_ >= 0) return LoadSensorKind::kAccelerometer;
+  return LoadSensorKind::kNone;
 }
 
 drive::Measurement Cia402Drive::sample() {

@@ -195,7 +195,7 @@ TEST(EthercatLoadSensor, TheLoadsSensorReachesTheMasterThroughTheDrivesInputs) {
       s.load_sensor.bandwidth_hz = 1e5;  // the reading is the truth, to the unit
     });
     rig.boot_and_enable();
-    EXPECT_STREQ(rig.master.load_sensor(), encoder ? "encoder (0x60E4:1)" : "accelerometer (0x2003)");
+    EXPECT_EQ(rig.master.load_sensor(), encoder ? LoadSensorKind::kEncoder : LoadSensorKind::kAccelerometer);
     double widest_stretch_m = 0.0;
     for (int k = 0; k < 400; ++k) {
       const drive::Measurement m = rig.master.sample();
@@ -219,7 +219,7 @@ TEST(EthercatLoadSensor, TheLoadsSensorReachesTheMasterThroughTheDrivesInputs) {
   ModesRig rig(test::ShippedDrive::rig_config(), false,
                [](SystemParams& s) { s.load_sensor.kind = LoadSensorKind::kEncoder; });
   rig.boot_and_enable();
-  EXPECT_STREQ(rig.master.load_sensor(), "none");
+  EXPECT_EQ(rig.master.load_sensor(), LoadSensorKind::kNone);
   EXPECT_TRUE(std::isnan(rig.master.sample().load_position_m));
 }
 

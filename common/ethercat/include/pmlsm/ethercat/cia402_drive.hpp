@@ -64,6 +64,7 @@
 #include "pmlsm/drive/loop_statistics.hpp"
 #include "pmlsm/ethercat/link.hpp"
 #include "pmlsm/ethercat/master.hpp"
+#include "pmlsm/plant/load_sensor.hpp"
 #include "pmlsm/util/parameter_table.hpp"
 
 namespace pmlsm::ethercat {
@@ -227,8 +228,8 @@ class Cia402Drive final : public drive::Drive {
   const canopen::UnitScaling& scaling() const noexcept { return scaling_; }
   const SlaveInfo& slave() const noexcept { return slave_; }
   const ProcessDataLayout& layout() const noexcept { return layout_; }
-  /// The load's sensor the inputs carry: "encoder (0x60E4:1)", "accelerometer (0x2003)" or "none".
-  const char* load_sensor() const noexcept;
+  /// The load's sensor the inputs carry: an encoder (0x60E4:1 mapped), an accelerometer (0x2003) or none.
+  LoadSensorKind load_sensor() const noexcept;
   Master& master() noexcept { return master_; }
 
  private:
