@@ -47,6 +47,9 @@ struct CompensatorTuning {
   /// load mass over this one (compensator_gain_scale).
   double design_load_mass_kg = 0;
   double max_gain_scale = 0;  ///< the schedule's upper limit (the stiff PI's, not the load's)
+  /// K_a's factor when a load encoder is declared (sensors.load.kind: encoder): the fused a_L is
+  /// quiet enough for a stiffer law, which breaks a stuck motor free for a swing of micrometres.
+  double accel_load_encoder_gain_scale = 0;
   bool guard_enabled = false;
   VibrationGuardParams guard;
   bool standstill_enabled = false;
@@ -166,6 +169,8 @@ void visit_parameters(Params& p, Visitor& v) {
   auto& c = p.compensator;
   RnnCompensatorParams::declare("compensator.rnn", c.rnn, v, kRnnCompensator);
   AccelFeedbackParams::declare("compensator.acceleration_feedback", c.acceleration_feedback, v, kAccelFeedback);
+  v.real("compensator.acceleration_feedback.load_encoder_gain_scale", c.accel_load_encoder_gain_scale,
+         {1.0, 10.0, "K_a x1 (as without) to x10 with a load encoder"});
   v.real("compensator.design_load_mass_kg", c.design_load_mass_kg, {0.01, 1e4, "from a 10 g load to a 10 t one"});
   v.real("compensator.max_gain_scale", c.max_gain_scale, {1.0, 100.0, "1 (never above the tuned gains) to 100"});
   StateFeedbackParams::declare("compensator.state_feedback", c.state_feedback, v, kStateFeedback);
