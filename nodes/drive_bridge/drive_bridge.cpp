@@ -45,6 +45,9 @@ namespace {
 
 using namespace pmlsm;
 
+/// The CiA 402 object a drive reports a load sensor of this kind in (not none).
+const char* load_sensor_object(LoadSensorKind kind) { return kind == LoadSensorKind::kEncoder ? "0x60E4:1" : "0x2003"; }
+
 /// A drive's problems reported once each, whatever its bus: lost, a new error code, a walk stuck
 /// in one state.
 class ProblemReports {
@@ -95,8 +98,7 @@ class BridgeHooks final : public node::DriveNodeHooks {
         drive_.config().scaling.increments_per_metre, drive_.periods_stepped(), drive::to_string(drive_.power_state()));
     if (drive_.config().load_sensor != LoadSensorKind::kNone) {
       std::printf("%s: a sensor on the load in the drive's TPDO3: %s (%s)\n", node.name().c_str(),
-                  to_string(drive_.config().load_sensor),
-                  drive_.config().load_sensor == LoadSensorKind::kEncoder ? "0x60E4:1" : "0x2003");
+                  to_string(drive_.config().load_sensor), load_sensor_object(drive_.config().load_sensor));
     }
   }
   void enable_at_start(node::DriveNode& node) override {
@@ -274,7 +276,7 @@ class EthercatHooks final : public node::DriveNodeHooks {
     }
     if (const LoadSensorKind load = drive_.load_sensor(); load != LoadSensorKind::kNone) {
       std::printf("%s: a sensor on the load in the drive's inputs: %s (%s)\n", node.name().c_str(), to_string(load),
-                  load == LoadSensorKind::kEncoder ? "0x60E4:1" : "0x2003");
+                  load_sensor_object(load));
     }
     if (drive_.sync0_start_ns() != 0) {
       std::printf("%s: the drive on SYNC0 (DC mode): every 1 ms, %u us into the cycle of the master's clock\n",

@@ -154,9 +154,8 @@ std::size_t print_table(const SystemParams& nominal, const SweepFile& file, cons
       "in time, a standstill (the command at rest long enough up to the end) without residual oscillation\n"
       "(resid) or compensation chatter (chat), finite, no load sensor that failed (sensor)) and a cost\n"
       "(eq. 23) below PI alone's on the same plant; ratio: cost / PI's cost on that plant. A moving\n"
-      "reference's end is a limit cycle only beyond\n"
-      "PI alone's forced response there. PI alone (none) is the baseline: its faults are shown, not\n"
-      "judged.\n");
+      "reference's end is a limit cycle only beyond PI alone's forced response there. PI alone (none)\n"
+      "is the baseline: its faults are shown, not judged.\n");
   return failed;
 }
 
