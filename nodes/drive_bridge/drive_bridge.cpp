@@ -246,15 +246,21 @@ canopen::Cia402DriveConfig DriveBridgeComponent::checked_config() {
 class EthercatHooks final : public node::DriveNodeHooks {
  public:
   /// `capture` (nullptr: none) holds the run's frames, written to `capture_path`.
+  /// `declared`: the system file's sensors.load.kind, which the drive's inputs must carry.
   EthercatHooks(ethercat::Cia402Drive& drive, std::string link, ethercat::PcapngWriter* capture,
-                std::string capture_path)
-      : drive_(drive), link_(std::move(link)), capture_(capture), capture_path_(std::move(capture_path)) {
+                std::string capture_path, LoadSensorKind declared)
+      : drive_(drive),
+        link_(std::move(link)),
+        capture_(capture),
+        capture_path_(std::move(capture_path)),
+        declared_load_sensor_(declared) {
     drive_.master().capture_to(capture_);
   }
 
   void before_run(node::DriveNode& node) override {
     boot_began_ns_ = monotonic_ns();
     drive_.boot();
+    refuse_a_load_sensor_the_inputs_lack();
     drive_.start();
     const ethercat::SlaveInfo& s = drive_.slave();
     std::printf(
@@ -342,6 +348,21 @@ class EthercatHooks final : public node::DriveNodeHooks {
 
  private:
   double since_boot_ms() const { return static_cast<double>(monotonic_ns() - boot_began_ns_) * 1e-6; }
+  /// The filter expects the load's readings the system file declares: inputs that do not carry
+  /// them would have the run end with the sensor failed, so the boot stops (the mapping is known
+  /// only once the drive has it) and the slave goes back to INIT. @throws ConfigError
+  void refuse_a_load_sensor_the_inputs_lack() {
+    const LoadSensorKind carried = drive_.load_sensor();
+    if (declared_load_sensor_ == LoadSensorKind::kNone || declared_load_sensor_ == carried) return;
+    release();
+    throw ConfigError(std::string("sensors.load.kind ") + to_string(declared_load_sensor_) +
+                      " (the system file) but the drive's inputs (0x1C13's TxPDOs) carry " +
+                      (carried == LoadSensorKind::kNone
+                           ? std::string("no sensor on the load")
+                           : std::string(to_string(carried)) + " (" + load_sensor_object(carried) + ")") +
+                      ": the master would not read it; map " + load_sensor_object(declared_load_sensor_) +
+                      " in pdo.inputs (--ethercat-set)");
+  }
   /// The drive's slave out of OP (SAFEOP, INIT), once; its DC difference read before.
   void release() {
     if (released_ || drive_.lost() || !drive_.booted()) return;
@@ -380,6 +401,7 @@ class EthercatHooks final : public node::DriveNodeHooks {
   std::string link_;
   ethercat::PcapngWriter* capture_;
   std::string capture_path_;
+  LoadSensorKind declared_load_sensor_;
   std::uint64_t emergencies_reported_ = 0;
   bool capture_failed_ = false;
   ProblemReports reports_;
@@ -397,7 +419,8 @@ class EthercatBridgeComponent final : public node::DriveComponent {
         link_(node::open_master_link(opt_.ethercat)),
         capture_(node::open_ethercat_capture(opt_.ethercat)),
         drive_(drive_config_, *link_),
-        hooks_(drive_, node::describe_link(opt_.ethercat, true), capture_.get(), opt_.ethercat.capture_path),
+        hooks_(drive_, node::describe_link(opt_.ethercat, true), capture_.get(), opt_.ethercat.capture_path,
+               rt_.cfg.params.load_sensor.kind),
         node_("drive_bridge", opt_.common, opt_.drive, rt_, drive_, hooks_) {
     drive_with(node_);
   }

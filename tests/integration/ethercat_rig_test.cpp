@@ -1,6 +1,6 @@
 // The EtherCAT rig: drive_bridge --bus ethercat (our master) and virtual_drive --bus ethercat (the
 // simulated drive behind a virtual EtherCAT slave) exchanging EtherCAT over UDP on loopback, with
-// the rest of the system on DDS. Each test has its own DDS domain (offsets 113..119) and UDP port
+// the rest of the system on DDS. Each test has its own DDS domain (offsets 113..119, 66) and UDP port
 // (62xx: below DDS's port base and the ephemeral range).
 #include <gtest/gtest.h>
 
@@ -272,6 +272,61 @@ TEST(EthercatRig, ARunTheMasterEndsEarlyIsNoCleanRunForTheDriveEither) {
   EXPECT_NE(drive.output().find("took the drive out of OP after"), std::string::npos) << bridge.output();
   controller.wait_for(std::chrono::seconds(10));
   fs::remove_all(dir);
+}
+
+// A system file that declares a load encoder the drive's inputs do not carry: the bridge stops at
+// the boot (exit 2), names the object to map and leaves the slave in INIT, instead of a run whose
+// sensor is failed 10 ms in. With 0x60E4:1 mapped the same rig boots and names the sensor.
+TEST(EthercatRig, ALoadSensorTheDrivesInputsDoNotCarryStopsTheBoot) {
+  const fs::path dir = test::fresh_dir("pmlsm_ethercat_rig", "load_sensor_unmapped");
+  const std::string scenario = source("configs/scenarios/pulse.yaml");
+  const std::string domain = test_domain(66);
+  const std::vector<std::string> encoder{"--set", "sensors.load.kind=encoder"};
+  const auto with = [](std::vector<std::string> a, const std::vector<std::string>& more) {
+    a.insert(a.end(), more.begin(), more.end());
+    return a;
+  };
+  const std::vector<std::string> drive_args = with(ethercat_drive_args("6296"), encoder);
+  const std::vector<std::string> bridge_args = with(ethercat_bridge_args("6296"), encoder);
+  {
+    test::ChildProcess drive(node_args("virtual_drive", domain, scenario, drive_args),
+                             (dir / "unmapped_virtual_drive.log").string());
+    test::ChildProcess controller(node_args("controller", domain, scenario, encoder),
+                                  (dir / "unmapped_controller.log").string());
+    test::ChildProcess bridge(node_args("drive_bridge", domain, scenario, bridge_args),
+                              (dir / "unmapped_bridge.log").string());
+    const auto code = bridge.wait_for(std::chrono::seconds(60));
+    ASSERT_TRUE(code.has_value()) << bridge.output();
+    EXPECT_EQ(*code, 2) << bridge.output();
+    EXPECT_NE(bridge.output().find("sensors.load.kind encoder (the system file) but the drive's inputs (0x1C13's "
+                                   "TxPDOs) carry no sensor on the load"),
+              std::string::npos)
+        << bridge.output();
+    EXPECT_NE(bridge.output().find("map 0x60E4:1 in pdo.inputs"), std::string::npos) << bridge.output();
+    EXPECT_NE(bridge.output().find("the drive's slave released to INIT"), std::string::npos) << bridge.output();
+    EXPECT_EQ(bridge.output().find("operation enabled"), std::string::npos) << "nothing moved:\n" << bridge.output();
+  }
+  {
+    test::ChildProcess drive(node_args("virtual_drive", domain, scenario, drive_args),
+                             (dir / "mapped_virtual_drive.log").string());
+    test::ChildProcess controller(node_args("controller", domain, scenario, encoder),
+                                  (dir / "mapped_controller.log").string());
+    test::ChildProcess bridge(
+        node_args("drive_bridge", domain, scenario,
+                  with(bridge_args, {"--ethercat-set",
+                                     "pdo.inputs=[\"0x6041:0:16\", \"0x6077:0:16\", \"0x6074:0:16\", "
+                                     "\"0x606C:0:32\", \"0x6064:0:32\", \"0x2001:0:32\", \"0x60E4:1:32\"]"})),
+        (dir / "mapped_bridge.log").string());
+    EXPECT_TRUE(bridge.wait_for_output("a sensor on the load in the drive's inputs: encoder (0x60E4:1)",
+                                       std::chrono::seconds(60)))
+        << bridge.output();
+    EXPECT_TRUE(bridge.wait_for_output("operation enabled", std::chrono::seconds(30))) << bridge.output();
+    bridge.signal(SIGINT);
+    EXPECT_TRUE(bridge.wait_for(std::chrono::seconds(30)).has_value()) << bridge.output();
+    controller.signal(SIGINT);
+    controller.wait_for(std::chrono::seconds(30));
+  }
+  if (!HasFailure()) fs::remove_all(dir);
 }
 
 }  // namespace
