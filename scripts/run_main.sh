@@ -8,9 +8,8 @@
 # and (after a training run) out/training.png. The pulse PI + RNN run is also recorded
 # (out/pulse_pi_rnn.mcap, `pmlsm record`) and plotted from the recording (`pmlsm plot`).
 #
-# The RNN's weights: configs/rnn_weights.yaml, made by de_trainer with
-#   ./build/bin/de_trainer --train-set optimiser=cmaes seed=2 max_evaluations=2640 --out configs/rnn_weights.yaml
-# (README: why CMA-ES). With --train the weights are made again first with
+# The RNN's weights: configs/rnn_weights.yaml, made by de_trainer (docs/rnn.md gives the command
+# and why CMA-ES; the file's source says what it ran with). With --train the weights are made again first with
 # configs/training.yaml (the paper's DE, 52,000 closed-loop runs) into out/. PMLSM_DOMAIN picks the
 # DDS domain (default 42); other arguments go to the launcher (e.g. --arg clock=realtime).
 set -euo pipefail

@@ -61,6 +61,7 @@ class RnnCompensatorComponent final : public node::CycleComponent {
       rnn_.set_weights(file.weights);
       have_weights_ = true;
       std::printf("rnn_compensator: weights from %s: %s\n", opt_.weights_path.c_str(), gate_.last_log().c_str());
+      report_rest_output();
     }
   }
 
@@ -70,6 +71,14 @@ class RnnCompensatorComponent final : public node::CycleComponent {
                        have_weights_ ? "running" : "running, no weights yet");
   }
   Update update() override;
+  /// The set's force at rest (its biases' fixed point), which the network would hold a load with.
+  void report_rest_output() const {
+    std::printf("rnn_compensator: the network's output at rest u* = %.4f (%.1f N), %s\n", rnn_.rest_output(),
+                rnn_.rest_force_n(),
+                rnn_.params().remove_rest_output
+                    ? "taken out once the reference rests (compensator.rnn.remove_rest_output)"
+                    : "kept (compensator.rnn.remove_rest_output false)");
+  }
   std::chrono::duration<double> input_timeout() const override {
     return std::chrono::duration<double>(opt_.common.peer_timeout_s);
   }
@@ -117,6 +126,7 @@ RnnCompensatorComponent::Update RnnCompensatorComponent::update() {
     std::printf("rnn_compensator: %s (tick %llu)\n", gate_.last_log().c_str(), static_cast<unsigned long long>(tick));
     rnn_.set_weights(candidate.weights);
     have_weights_ = true;
+    report_rest_output();
   }
   CompensatorStep step;  // without weights: no force, the training error alone
   std::uint32_t mode_flags = 0;

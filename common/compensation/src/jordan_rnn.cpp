@@ -114,6 +114,21 @@ void JordanRnn::reset_state(double u) {
   std::fill(activations_.begin(), activations_.end(), 0.0);
 }
 
+std::optional<double> JordanRnn::rest_output() {
+  const double kept = state_unit_;
+  const std::vector<double> no_signal(external_input_count(), 0.0);
+  std::optional<double> found;
+  double u = 0.0;
+  for (int i = 0; i < kRestIterations && !found; ++i) {
+    state_unit_ = u;
+    const double next = forward(no_signal.data());
+    if (std::abs(next - u) <= 1e-12) found = next;
+    u = next;
+  }
+  reset_state(kept);
+  return found;
+}
+
 double JordanRnn::forward(const double* external_inputs) {
   const std::size_t m = external_input_count();
   for (std::size_t i = 0; i < m; ++i) activations_[i] = external_inputs[i];
@@ -183,6 +198,7 @@ void RnnCompensatorParams::validate() const {
 RnnCompensator::RnnCompensator(const RnnCompensatorParams& params)
     : params_((params.validate(), params)), net_(params_.layer_sizes) {
   inputs_.assign(net_.external_input_count(), 0.0);
+  no_signal_.assign(net_.external_input_count(), 0.0);
   grad_.assign(net_.parameter_count(), 0.0);
   dw_.assign(net_.parameter_count(), 0.0);
   next_dw_.assign(net_.parameter_count(), 0.0);
@@ -191,6 +207,7 @@ RnnCompensator::RnnCompensator(const RnnCompensatorParams& params)
 void RnnCompensator::set_weights(const std::vector<double>& w) {
   net_.set_weights(w);
   std::fill(dw_.begin(), dw_.end(), 0.0);
+  rest_output_ = net_.rest_output().value_or(0.0);
 }
 
 void RnnCompensator::set_learning(const RnnCompensatorParams& params) {
@@ -204,12 +221,21 @@ void RnnCompensator::set_learning(const RnnCompensatorParams& params) {
   if (params.gain_n != params_.gain_n) needs_restart("gain_n");
   if (params.period_s != params_.period_s) needs_restart("period_s");
   if (params.online_learning != params_.online_learning) needs_restart("online_learning");
+  if (params.remove_rest_output != params_.remove_rest_output) needs_restart("remove_rest_output");
   params_ = params;
+}
+
+double RnnCompensator::rest_share() const noexcept {
+  if (!params_.remove_rest_output || rest_ticks_ == 0) return 0.0;
+  const double rested_s = static_cast<double>(rest_ticks_) * params_.period_s - params_.rest_settle_s;
+  if (rested_s <= 0.0) return 0.0;
+  return params_.rest_fade_s > 0.0 ? std::min(1.0, rested_s / params_.rest_fade_s) : 1.0;
 }
 
 void RnnCompensator::reset() {
   net_.reset_state(0.0);
   u_prev2_ = 0.0;
+  rest_ticks_ = 0;
   std::fill(inputs_.begin(), inputs_.end(), 0.0);
   std::fill(dw_.begin(), dw_.end(), 0.0);
 }
@@ -271,7 +297,10 @@ CompensatorStep RnnCompensator::step(const CompensatorInput& in) {
   const double u_prev = net_.state_unit();  // u_n(k-1)
   const double u = net_.forward(inputs_.data());
   out.u_n = u;
-  out.force_n = params_.gain_n * params_.output_scale * u;
+  const bool at_rest =
+      std::abs(in.command_mps) <= params_.rest_velocity_mps && std::abs(in.v_ref_mps) <= params_.rest_velocity_mps;
+  rest_ticks_ = at_rest ? rest_ticks_ + 1 : 0;
+  out.force_n = params_.gain_n * params_.output_scale * (u - rest_share() * rest_output_);
   const double e = in.v_ref_mps - in.v_load_mps;
   out.training_error_mps = e;
 
@@ -305,6 +334,15 @@ CompensatorStep RnnCompensator::step(const CompensatorInput& in) {
   }
   u_prev2_ = u_prev;
   net_.commit_output();
+  if (params_.online_learning && params_.remove_rest_output) {
+    // The weights move, and u* with them: one pass of the fixed-point iteration a tick (from the
+    // last u*) follows it without a thousand passes in the loop.
+    const double kept = net_.state_unit();
+    net_.reset_state(rest_output_);
+    const double next = net_.forward(no_signal_.data());
+    if (std::isfinite(next)) rest_output_ = next;
+    net_.reset_state(kept);
+  }
   return out;
 }
 

@@ -64,7 +64,9 @@ KalmanParams SystemParams::kalman_params() const {
 RnnCompensatorParams SystemParams::rnn_compensator_params(bool online_learning) const {
   RnnCompensatorParams p = compensator.rnn;
   p.output_scale = compensator.rnn.output_scale * compensator_gain_scale();
+  if (load_sensor.kind == LoadSensorKind::kEncoder) p.output_scale *= compensator.rnn_load_encoder_gain_scale;
   p.period_s = timing.control_period_s;
+  p.rest_velocity_mps = compensator.standstill.rest_velocity_mps;
   p.online_learning = online_learning;
   return p;
 }

@@ -3,9 +3,11 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -284,8 +286,112 @@ TEST(RnnCompensator, SetWeightsValidatesAndKeepsOldWeights) {
   EXPECT_EQ(comp.weights(), good);
 }
 
+/// The fixed point of u = tanh(b + w_s u), found by iterating it here (the 3-1 network with no signal).
+double fixed_point(double bias, double state_weight) {
+  double u = 0;
+  for (int i = 0; i < 10000; ++i) u = std::tanh(bias + state_weight * u);
+  return u;
+}
+
+// A network's biases hold a load at rest with a force of their own: the fixed point u* of its state
+// unit with no signal. Once the reference has rested rest_settle_s, u* is taken out over
+// rest_fade_s; the tick the reference moves the network's force is whole again.
+TEST(RnnCompensator, TakesTheNetworksOutputAtRestOutOnceTheReferenceRests) {
+  RnnCompensatorParams p = base_params();
+  p.layer_sizes = {3, 1};
+  p.online_learning = false;
+  p.remove_rest_output = true;
+  p.rest_settle_s = 0.05;  // 50 ticks
+  p.rest_fade_s = 0.02;    // 20 ticks
+  p.rest_velocity_mps = 1e-3;
+  RnnCompensator comp(p);
+  comp.set_weights({0.8, -0.4, 0.6, 0.1});
+  const double u_rest = fixed_point(0.1, 0.6);
+  EXPECT_NEAR(comp.rest_output(), u_rest, 1e-10);
+  EXPECT_NEAR(comp.rest_force_n(), p.gain_n * u_rest, 1e-9);
+  ASSERT_GT(comp.rest_force_n(), 50.0) << "a network with a force of its own at rest";
+  RnnCompensatorParams kept_params = p;
+  kept_params.remove_rest_output = false;
+  RnnCompensator kept(kept_params);
+  kept.set_weights(comp.weights());
+  CompensatorInput rest;  // no signal, the command and V_ref at 0
+  for (int k = 1; k <= 100; ++k) {
+    const CompensatorStep out = comp.step(rest);
+    const CompensatorStep bare = kept.step(rest);
+    EXPECT_EQ(out.u_n, bare.u_n) << "the network itself is untouched";
+    EXPECT_EQ(bare.force_n, p.gain_n * bare.u_n);
+    // Tick k has rested k ticks: w = clamp((k T - settle) / fade, 0, 1).
+    const double share = std::clamp((k * 1e-3 - 0.05) / 0.02, 0.0, 1.0);
+    EXPECT_NEAR(out.force_n, p.gain_n * (out.u_n - share * u_rest), 1e-9) << "tick " << k;
+  }
+  EXPECT_NEAR(comp.step(rest).force_n, 0.0, 1e-9) << "at rest, nothing pushes the motor";
+  EXPECT_NEAR(kept.step(rest).force_n, p.gain_n * u_rest, 1e-9);
+  // Within rest_velocity_mps the reference still rests; beyond, the force is whole at once.
+  rest.v_ref_mps = 0.9e-3;
+  EXPECT_NEAR(comp.step(rest).force_n, 0.0, 1e-9);
+  rest.command_mps = 0.01;
+  const CompensatorStep moving = comp.step(rest);
+  EXPECT_EQ(moving.force_n, p.gain_n * moving.u_n);
+  // reset(): the rest is counted again from the start.
+  rest.command_mps = 0.0;
+  rest.v_ref_mps = 0.0;
+  comp.reset();
+  const CompensatorStep first = comp.step(rest);
+  EXPECT_EQ(first.force_n, p.gain_n * first.u_n);
+}
+
+// A network whose state unit oscillates with no signal has no output at rest: nothing is taken
+// out, and finding that out leaves its state unit as it was.
+TEST(RnnCompensator, ANetworkThatOscillatesWithNoSignalHasNoOutputAtRest) {
+  JordanRnn net({2, 1});
+  net.set_weights({0.0, -5.0, 1.0});  // u(k) = tanh(1 - 5 u(k-1)): a two-cycle near +-1
+  net.reset_state(0.25);
+  EXPECT_FALSE(net.rest_output().has_value());
+  EXPECT_EQ(net.state_unit(), 0.25);
+  JordanRnn settles({2, 1});
+  settles.set_weights({0.0, 0.6, 0.1});
+  ASSERT_TRUE(settles.rest_output().has_value());
+  EXPECT_NEAR(*settles.rest_output(), fixed_point(0.1, 0.6), 1e-10);
+
+  RnnCompensatorParams p = base_params();
+  p.layer_sizes = {2, 1};
+  p.online_learning = false;
+  p.remove_rest_output = true;
+  p.rest_velocity_mps = 1e-3;
+  RnnCompensator comp(p);
+  comp.set_weights({0.0, -5.0, 1.0});
+  EXPECT_EQ(comp.rest_output(), 0.0);
+  for (int k = 0; k < 100; ++k) {
+    const CompensatorStep out = comp.step({});
+    EXPECT_EQ(out.force_n, p.gain_n * out.u_n);
+  }
+}
+
+// With online learning the weights move, and u* with them: one pass of the fixed-point iteration
+// a tick follows it, so once the weights stop moving it is the new weights' output at rest.
+TEST(RnnCompensator, WithOnlineLearningTheOutputAtRestFollowsTheWeights) {
+  RnnCompensatorParams p = base_params();
+  p.remove_rest_output = true;
+  p.rest_velocity_mps = 1e-3;
+  RnnCompensator comp(p);
+  comp.set_weights(random_weights(91, 0.3, 7));
+  const double before = comp.rest_output();
+  for (int k = 0; k < 2000; ++k) comp.step({30.0 * std::sin(0.05 * k), 0.1, 0.1 + 0.05 * std::sin(0.02 * k)});
+  ASSERT_GT(comp.counters().updates, 500u);
+  for (int k = 0; k < 500; ++k) comp.step({0.0, 0.1, 0.1});  // inside the tolerance: no update
+  RnnCompensator fresh(p);
+  fresh.set_weights(comp.weights());
+  std::printf("[ rest output ] u* %.6f before learning, %.6f after (%.6f found afresh)\n", before, comp.rest_output(),
+              fresh.rest_output());
+  EXPECT_GT(std::abs(fresh.rest_output() - before), 1e-3) << "the learning moved u*";
+  EXPECT_NEAR(comp.rest_output(), fresh.rest_output(), 1e-9);
+}
+
 TEST(RnnCompensator, StepDoesNotAllocate) {
-  RnnCompensator comp(base_params());
+  RnnCompensatorParams p = base_params();
+  p.remove_rest_output = true;  // and the pass a tick that follows u* while learning
+  p.rest_velocity_mps = 1e-3;
+  RnnCompensator comp(p);
   comp.set_weights(random_weights(91, 0.5, 12));
   comp.step({1.0, 0.1, 0.0});
   const std::uint64_t before = pmlsm::test::allocations();

@@ -322,6 +322,41 @@ TEST(StandstillGate, WithALoadEncoderAccelerationFeedbackTakesTwiceItsGainAndSti
   EXPECT_GT(once.swing_m, 5e-6);
 }
 
+// The RNN with a load encoder on a heavy, soft load (8 kg, 6,850 N/m, 10 N, commissioned): s_o x
+// load_encoder_gain_scale (1.5) and its output at rest taken out once the reference rests. The
+// trapezoid's end then rests within the targets; the bare network keeps pushing the motor its
+// bearings hold with its biases' force (33 N rms: u* = 0.021 of G_n = 675 N, times s_o = 2.25, the
+// gain schedule's 1.5 and the encoder's 1.5).
+TEST(StandstillGate, WithALoadEncoderTheRnnLeavesASoftLoadAtRestWithoutAForceOfItsOwn) {
+  const Scenario scenario = test::shipped_scenario("trapezoid");
+  SystemParams p = test::shipped_params();
+  p.plant.mechanics.load_mass_kg = 8.0;
+  p.plant.mechanics.spring_n_per_m = 6850.0;
+  p.plant.friction.coulomb_n = 10.0;
+  p.plant.friction.viscous_n_s_per_m = 15.0;
+  p = with_identified_load(p, commission_load(p, test::shipped_scenario("identification"), {}));
+  p.load_sensor.kind = LoadSensorKind::kEncoder;
+  ASSERT_EQ(p.compensator.rnn_load_encoder_gain_scale, 1.5);
+  ASSERT_TRUE(p.compensator.rnn.remove_rest_output);
+  SystemParams no_sensor = p;
+  no_sensor.load_sensor.kind = LoadSensorKind::kNone;
+  EXPECT_DOUBLE_EQ(p.rnn_compensator_params(false).output_scale,
+                   1.5 * no_sensor.rnn_compensator_params(false).output_scale);
+  EXPECT_EQ(p.rnn_compensator_params(false).rest_velocity_mps, p.compensator.standstill.rest_velocity_mps);
+  SystemParams bare = p;
+  bare.compensator.rnn.remove_rest_output = false;
+  CompensatorSetup rnn{CompensatorKind::kRnn, test::shipped_rnn_weights(), false};
+  const AtRest shipped = at_rest(run_with_compensator(p, scenario, rnn));
+  const AtRest kept = at_rest(run_with_compensator(bare, scenario, rnn));
+  std::printf(
+      "[ standstill ] 8 kg, 6850 N/m, 10 N, load encoder, trapezoid, RNN: %.2f um, %.2f N rms; its output at rest "
+      "kept: %.2f um, %.2f N rms\n",
+      1e6 * shipped.swing_m, shipped.compensation_rms_n, 1e6 * kept.swing_m, kept.compensation_rms_n);
+  EXPECT_LT(shipped.swing_m, 5e-6);
+  EXPECT_LT(shipped.compensation_rms_n, 5.0);
+  EXPECT_GT(kept.compensation_rms_n, 5.0);
+}
+
 // The controller judges the load encoder as the estimator does (the same LoadSensorMonitor on the
 // same readings): a count that stayed put while the motor travelled a millimetre has failed, and
 // at rest its constant stretch is no longer taken for a quiet load. The gate then judges the

@@ -247,7 +247,8 @@ TEST(LiveParameters, EachNodesLiveKeysAreTheDeclarationsThatNameIt) {
   const std::string rnn = "compensator.rnn.";
   EXPECT_EQ(live_keys(SystemParams{}, "rnn_compensator"),
             (std::vector<std::string>{rnn + "output_scale", rnn + "learning_rate", rnn + "momentum",
-                                      rnn + "tolerance_mps", rnn + "kc_limit_mps", rnn + "du_deadband_per_s"}));
+                                      rnn + "tolerance_mps", rnn + "kc_limit_mps", rnn + "du_deadband_per_s",
+                                      rnn + "rest_settle_s", rnn + "rest_fade_s"}));
   EXPECT_TRUE(live_keys(SystemParams{}, "plant_sim").empty());
   EXPECT_TRUE(live_keys(SystemParams{}, "").empty());
 }

@@ -7,10 +7,18 @@
 // RnnCompensator wraps it into the component of Fig. 4: it keeps the history
 // of the normalised load acceleration, scales the output by G_n and, when
 // enabled, applies the extended back-propagation update (19) each tick.
+//
+// A network's biases give it an output at rest: with no signal its state unit settles on the
+// fixed point u* = N(0, ..., 0, u*) (the shipped set: u* = 0.021, 14 N of G_n). During a move
+// the velocity loop absorbs it (and a set searched on one direction of travel uses it as its
+// friction feed-forward), but once the motor sticks at rest nothing does: it pushes a held motor
+// with a steady 7-33 N. So, once the reference has rested for rest_settle_s, the force is
+//   F = G_n s_o (u_n - w u*),   w: 0 -> 1 over rest_fade_s, back to 0 the tick the reference moves.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -89,6 +97,13 @@ class JordanRnn {
   /// Sets the state unit (u_n(k-1)) and clears the stored activations.
   void reset_state(double u = 0.0);
 
+  /// The network's output at rest: the fixed point u* = N(0, ..., 0, u*) of its state unit with
+  /// every external input 0, iterated from 0 (at most kRestIterations forward passes, until a pass
+  /// moves it by 1e-12 or less); nullopt when it does not settle (a network that oscillates with
+  /// no signal has no output at rest). The state unit is kept; the stored activations are not.
+  std::optional<double> rest_output();
+  static constexpr int kRestIterations = 1000;
+
   /// d u_n / d w for the last forward(), state unit held fixed (one-step
   /// back-propagation, no back-propagation through time, as the paper's BP).
   /// Writes parameter_count() values in the flat weight order; no allocation.
@@ -122,6 +137,14 @@ struct RnnCompensatorParams {
   double tolerance_mps = 0;      ///< update only while |V_ref - V_load| > tolerance, >= 0
   double kc_limit_mps = 0;       ///< |k_c| clamp, > 0, and momentum * kc_limit_mps < 1
   double du_deadband_per_s = 0;  ///< |dU_n| below this: k_c undefined -> no update this tick, > 0
+  /// The network's output at rest taken out (above) once the reference has rested rest_settle_s;
+  /// false: the paper's bare network, its output at rest kept. Read at start.
+  bool remove_rest_output = false;
+  double rest_settle_s = 0;  ///< |c| and |V_ref| at or below rest_velocity_mps this long: at rest, >= 0
+  double rest_fade_s = 0;    ///< u* taken out over this long, >= 0 (0: at once)
+  /// The reference at rest: the standstill gate's compensator.standstill.rest_velocity_mps (the
+  /// system's; one definition of rest for both), >= 0.
+  double rest_velocity_mps = 0;
   /// @throws std::invalid_argument naming the first invalid parameter.
   void validate() const;
   /// Its own entries under `at` ("compensator.rnn"): the network's shape and scales (read at
@@ -144,6 +167,9 @@ struct RnnCompensatorParams {
     v.real(at + ".kc_limit_mps", p.kc_limit_mps, {1e-6, 1e3, "1 um/s to 1 km/s", live_at});
     v.real(at + ".du_deadband_per_s", p.du_deadband_per_s, {1e-6, 1e6, "1e-6 to 1e6 1/s", live_at});
     v.flag(at + ".on_reference_error", p.on_reference_error);
+    v.flag(at + ".remove_rest_output", p.remove_rest_output);
+    v.real(at + ".rest_settle_s", p.rest_settle_s, {0.0, 3600.0, "0 (at once) to an hour at rest", live_at});
+    v.real(at + ".rest_fade_s", p.rest_fade_s, {0.0, 60.0, "0 (at once) to a minute", live_at});
   }
 };
 
@@ -152,10 +178,11 @@ struct CompensatorInput {
   double v_ref_mps = 0;             ///< V_ref(k)
   double v_load_mps = 0;            ///< V_load(k) (estimated)
   double reference_accel_mps2 = 0;  ///< dV_ref/dt(k) (used when on_reference_error)
+  double command_mps = 0;           ///< c(k), the command into the reference model (rest)
 };
 
 struct CompensatorStep {
-  double force_n = 0;             ///< G_n u_n(k)
+  double force_n = 0;             ///< G_n s_o (u_n(k) - w u*)
   double u_n = 0;                 ///< network output u_n(k), |u_n| <= 1
   double training_error_mps = 0;  ///< e = V_ref - V_load
   double k_c_mps = 0;             ///< k_c (17) after the clamp; 0 when not computed this tick
@@ -189,7 +216,8 @@ class RnnCompensator {
   explicit RnnCompensator(const RnnCompensatorParams& params);
 
   /// Validates (throws std::invalid_argument, old weights kept), replaces the
-  /// weights and resets the momentum Delta w(n); the state unit is kept.
+  /// weights and resets the momentum Delta w(n); the state unit is kept. Finds the new
+  /// weights' output at rest (JordanRnn::rest_output: up to 1000 forward passes).
   void set_weights(const std::vector<double>& w);
   const std::vector<double>& weights() const { return net_.weights(); }
 
@@ -207,18 +235,29 @@ class RnnCompensator {
   /// the old settings kept.
   void set_learning(const RnnCompensatorParams& params);
 
+  /// u*, the network's output at rest (0 when it has none); with online learning it follows the
+  /// weights one forward pass a tick.
+  double rest_output() const { return rest_output_; }
+  /// G_n s_o u*: the force the network holds a load at rest with, before any is taken out.
+  double rest_force_n() const { return params_.gain_n * params_.output_scale * rest_output_; }
   const CompensatorCounters& counters() const { return counters_; }
   const RnnCompensatorParams& params() const { return params_; }
   const JordanRnn& network() const { return net_; }
 
  private:
+  /// w of F = G_n s_o (u_n - w u*): 0 until the reference has rested rest_settle_s, then up to 1
+  /// over rest_fade_s.
+  double rest_share() const noexcept;
   RnnCompensatorParams params_;
   JordanRnn net_;
-  std::vector<double> inputs_;   ///< s a_L(k), s a_L(k-1), ...: the external inputs
-  std::vector<double> grad_;     ///< d u_n / d w of this tick
-  std::vector<double> dw_;       ///< Delta w(n): the last applied update (momentum)
-  std::vector<double> next_dw_;  ///< Delta w(n+1) being formed
-  double u_prev2_ = 0.0;         ///< u_n(k-2), for dU_n of (18)
+  std::vector<double> inputs_;     ///< s a_L(k), s a_L(k-1), ...: the external inputs
+  std::vector<double> no_signal_;  ///< the external inputs at rest: zeros, never written
+  std::vector<double> grad_;       ///< d u_n / d w of this tick
+  std::vector<double> dw_;         ///< Delta w(n): the last applied update (momentum)
+  std::vector<double> next_dw_;    ///< Delta w(n+1) being formed
+  double u_prev2_ = 0.0;           ///< u_n(k-2), for dU_n of (18)
+  double rest_output_ = 0.0;       ///< u*
+  std::uint64_t rest_ticks_ = 0;   ///< ticks the reference has rested
   CompensatorCounters counters_;
 };
 

@@ -140,7 +140,7 @@ inline AccelFeedbackInput accel_feedback_input(const CompensatorView& view) {
 }
 /// The part of the view the RNN takes (the in-process loop and the node alike).
 inline CompensatorInput rnn_input(const CompensatorView& view) {
-  return {view.load_accel_mps2, view.v_ref_mps, view.v_load_mps, view.a_ref_mps2};
+  return {view.load_accel_mps2, view.v_ref_mps, view.v_load_mps, view.a_ref_mps2, view.command_mps};
 }
 /// The part of the view state feedback takes (the in-process loop and the node alike).
 inline StateFeedbackInput state_feedback_input(const CompensatorView& view) {

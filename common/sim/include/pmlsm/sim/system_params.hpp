@@ -50,6 +50,9 @@ struct CompensatorTuning {
   /// K_a's factor when a load encoder is declared (sensors.load.kind: encoder): the fused a_L is
   /// quiet enough for a stiffer law, which breaks a stuck motor free for a swing of micrometres.
   double accel_load_encoder_gain_scale = 0;
+  /// The RNN's s_o factor when a load encoder is declared: on the fused states its force damps the
+  /// last micrometres of a swing the motor's side alone leaves to decay.
+  double rnn_load_encoder_gain_scale = 0;
   bool guard_enabled = false;
   VibrationGuardParams guard;
   bool standstill_enabled = false;
@@ -168,6 +171,8 @@ void visit_parameters(Params& p, Visitor& v) {
   KalmanParams::declare("kalman", p.kalman, v);
   auto& c = p.compensator;
   RnnCompensatorParams::declare("compensator.rnn", c.rnn, v, kRnnCompensator);
+  v.real("compensator.rnn.load_encoder_gain_scale", c.rnn_load_encoder_gain_scale,
+         {1.0, 10.0, "s_o x1 (as without) to x10 with a load encoder"});
   AccelFeedbackParams::declare("compensator.acceleration_feedback", c.acceleration_feedback, v, kAccelFeedback);
   v.real("compensator.acceleration_feedback.load_encoder_gain_scale", c.accel_load_encoder_gain_scale,
          {1.0, 10.0, "K_a x1 (as without) to x10 with a load encoder"});
