@@ -1,6 +1,6 @@
 // The virtual rig: drive_bridge (the CiA 402 master) and virtual_drive (the simulated drive
 // behind a CiA 402 slave) on the UDP multicast CAN bus, with the rest of the system on DDS.
-// Each test has its own DDS domain and CAN port (offsets 45, 46, 48, 49, 70..72, 127; ports 62xx: below
+// Each test has its own DDS domain and CAN port (offsets 45, 46, 48, 49, 62, 70..72; ports 62xx: below
 // DDS's port base 7400 and Linux's ephemeral range 32768-60999, where a passing socket could hold one).
 #include <gtest/gtest.h>
 
@@ -372,7 +372,7 @@ TEST(VirtualRig, ALoadEncoderIsReadThroughTpdo3AndCostsWhatTheSimulatedDriveDoes
   if (HasFatalFailure()) return;
   ASSERT_EQ(load_system_params(config).load_sensor.kind, LoadSensorKind::kEncoder);
   RigAgainstSimulated r;
-  rig_against_simulated(dir, test_domain(127), "6250", "pulse", "state", config, canopen_config, r);
+  rig_against_simulated(dir, test_domain(62), "6250", "pulse", "state", config, canopen_config, r);
   if (HasFatalFailure()) return;
   expect_rig_matches(r);
   EXPECT_NE(test::read_file(dir / "rig_pulse_state.log").find("a sensor on the load in the drive's TPDO3: encoder"),
