@@ -20,6 +20,10 @@ void StandstillGateParams::validate() const {
     throw std::invalid_argument("wake_load_swing_m: must be above quiet_load_swing_m (" +
                                 format_value(quiet_load_swing_m) + " m), got " + format_value(wake_load_swing_m));
   }
+  if (!(wake_accel_swing_m > quiet_accel_swing_m)) {
+    throw std::invalid_argument("wake_accel_swing_m: must be above quiet_accel_swing_m (" +
+                                format_value(quiet_accel_swing_m) + " m), got " + format_value(wake_accel_swing_m));
+  }
 }
 
 StandstillGate::StandstillGate(const StandstillGateParams& params)
@@ -64,11 +68,14 @@ StandstillGateOutput StandstillGate::step(const StandstillGateInput& in) noexcep
     counters_.last_window_rms_mps = std::sqrt(sum_v2_ / static_cast<double>(in_window_));
     const bool closed_window = closed_in_window_ == in_window_;
     if (closed_window) counters_.last_closed_force_n = std::sqrt(sum_f2_ / static_cast<double>(in_window_));
-    // The load's own witness, when its encoder read every tick of the window.
+    // The load's own witness, when its sensor read every tick of the window.
     const bool load_seen = stretch_in_window_ == in_window_;
     if (load_seen) counters_.last_load_swing_m = 0.5 * (stretch_max_m_ - stretch_min_m_);
-    const bool load_quiet = !load_seen || counters_.last_load_swing_m <= params_.quiet_load_swing_m;
-    const bool load_moves = load_seen && counters_.last_load_swing_m > params_.wake_load_swing_m;
+    const double quiet_swing_m =
+        in.stretch_from_accelerometer ? params_.quiet_accel_swing_m : params_.quiet_load_swing_m;
+    const double wake_swing_m = in.stretch_from_accelerometer ? params_.wake_accel_swing_m : params_.wake_load_swing_m;
+    const bool load_quiet = !load_seen || counters_.last_load_swing_m <= quiet_swing_m;
+    const bool load_moves = load_seen && counters_.last_load_swing_m > wake_swing_m;
     in_window_ = closed_in_window_ = stretch_in_window_ = 0;
     sum_v2_ = sum_f2_ = 0;
     if (counters_.last_window_rms_mps > params_.wake_velocity_mps || load_moves ||

@@ -1,8 +1,13 @@
 #include "pmlsm/sim/velocity_controller.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace pmlsm {
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+}  // namespace
 
 VelocityController::VelocityController(const SystemParams& params, const Scenario& scenario)
     : scenario_(scenario),
@@ -15,9 +20,26 @@ VelocityController::VelocityController(const SystemParams& params, const Scenari
   if (params.compensator.guard_enabled) guard_.emplace(params.vibration_guard_params());
   if (params.compensator.standstill_enabled) {
     standstill_.emplace(params.standstill_gate_params());
-    // The accelerometer is no witness for the gate (a 5 um swing's 0.03 m/s^2 at 9 Hz is its noise).
-    if (params.load_sensor.kind == LoadSensorKind::kEncoder)
+    if (params.load_sensor.kind != LoadSensorKind::kNone) {
       load_monitor_.emplace(LoadSensorMonitorParams::of(params.load_sensor, period_s_));
+    }
+    if (params.load_sensor.kind == LoadSensorKind::kAccelerometer) {
+      // A load that swings on a motor its bearings hold is a mass on a spring: m_L a_L = k (x_M - x_L),
+      // so the stretch is (m_L / k) a_L, ringing at the load's own w_L = sqrt(k / m_L) (the filter's
+      // model). The reading's noise over its band (0.03 m/s^2 rms for 100 ug/sqrt(Hz) over 1 kHz) is
+      // micrometres of stretch; a low-pass at w_L with damping 0.5 (unit gain at w_L, its noise
+      // band 1.6 f_L) leaves 1-3 um of it on the family's loads and passes the swing whole: the
+      // gate judges it against its own thresholds (quiet_accel_swing_m, wake_accel_swing_m).
+      const double m_l = params.kalman.model.load_mass_kg;
+      const double k = params.kalman.model.spring_n_per_m;
+      BiquadParams witness;
+      witness.kind = FilterKind::kLowPass;
+      witness.frequency_hz = std::sqrt(k / m_l) / (2.0 * kPi);
+      witness.damping = 0.5;
+      witness.period_s = period_s_;
+      accel_witness_.emplace(witness);
+      stretch_per_accel_s2_ = m_l / k;
+    }
   }
   if (scenario_.input_shaper != ShaperKind::kNone) shaper_.emplace(params.input_shaper_params(scenario_.input_shaper));
 }
@@ -73,10 +95,13 @@ VelocityControllerOutput VelocityController::step_command(double command_mps, do
     if (load_monitor_) {
       const LoadSensorVerdict verdict = load_monitor_->judge(
           tick, load.reading.position_m, load.reading.acceleration_mps2, load.reading.saturated, load.motor_position_m);
-      if (verdict.use) load_stretch_m = load.motor_position_m - load.reading.position_m;
+      if (verdict.use) {
+        load_stretch_m = accel_witness_ ? stretch_per_accel_s2_ * accel_witness_->step(load.reading.acceleration_mps2)
+                                        : load.motor_position_m - load.reading.position_m;
+      }
     }
-    out.standstill = standstill_->step(
-        {out.command_mps, ref.velocity_mps, motor_velocity_mps, compensation.force_n, load_stretch_m});
+    out.standstill = standstill_->step({out.command_mps, ref.velocity_mps, motor_velocity_mps, compensation.force_n,
+                                        load_stretch_m, accel_witness_.has_value()});
   }
   const double scale = (guard_ ? guard_->output().scale : 1.0) * out.standstill.scale;
   out.compensation_applied_n = compensation_filters_.step(scale * compensation.force_n);

@@ -33,6 +33,8 @@ StandstillGateParams gate_params() {
   p.fade_s = 0.1;
   p.quiet_load_swing_m = 3e-6;
   p.wake_load_swing_m = 5e-6;
+  p.quiet_accel_swing_m = 5e-6;
+  p.wake_accel_swing_m = 8e-6;
   return p;
 }
 
@@ -91,10 +93,12 @@ TEST(StandstillGate, AMotorThatStillSwingsKeepsItOpen) {
 
 // `ticks` ticks at rest, the motor still, asking `request_n`, a load encoder reading a stretch
 // that swings `swing_m` at 10 Hz about 3 mm (the scales' offset: only the range counts).
-StandstillGateOutput load_swinging_for(StandstillGate& gate, int ticks, double swing_m, double request_n = 0.0) {
+StandstillGateOutput load_swinging_for(StandstillGate& gate, int ticks, double swing_m, double request_n = 0.0,
+                                       bool from_accelerometer = false) {
   StandstillGateOutput out;
   for (int k = 0; k < ticks; ++k) {
-    out = gate.step({0.0, 0.0, 0.0, request_n, 3e-3 + swing_m * std::sin(2 * M_PI * 10.0 * k * 1e-3)});
+    out = gate.step(
+        {0.0, 0.0, 0.0, request_n, 3e-3 + swing_m * std::sin(2 * M_PI * 10.0 * k * 1e-3), from_accelerometer});
   }
   return out;
 }
@@ -124,6 +128,20 @@ TEST(StandstillGate, WithALoadEncoderItClosesOnlyOverAQuietLoad) {
   ASSERT_TRUE(rest_for(blind, 500, 0.0).closed);
   for (int k = 0; k < 200; ++k) out = blind.step({0.0, 0.0, 0.0, 20.0});
   EXPECT_FALSE(out.closed);
+}
+
+// An accelerometer's witness is noisier (1-3 um of stretch): the gate judges it against its own,
+// wider thresholds (5 um quiet, 8 um wake) where an encoder's 4 um swing keeps it open.
+TEST(StandstillGate, AnAccelerometersWitnessIsJudgedAgainstItsOwnThresholds) {
+  StandstillGate encoder(gate_params());
+  EXPECT_FALSE(load_swinging_for(encoder, 1000, 4e-6).closed);
+  StandstillGate accelerometer(gate_params());
+  EXPECT_FALSE(load_swinging_for(accelerometer, 1000, 12e-6, 0.0, true).closed);
+  EXPECT_FALSE(load_swinging_for(accelerometer, 299, 4e-6, 0.0, true).closed);
+  EXPECT_TRUE(load_swinging_for(accelerometer, 1, 4e-6, 0.0, true).closed);
+  EXPECT_TRUE(load_swinging_for(accelerometer, 500, 7e-6, 0.0, true).closed) << "under the wake threshold";
+  EXPECT_FALSE(load_swinging_for(accelerometer, 100, 9e-6, 0.0, true).closed);
+  EXPECT_EQ(accelerometer.counters().openings, 1u);
 }
 
 TEST(StandstillGate, TheRequestReopensItOnlyWhenAskedAndASeenLoadSettlesSooner) {
@@ -170,6 +188,9 @@ TEST(StandstillGate, InvalidParametersAreNamed) {
   p = gate_params();
   p.wake_load_swing_m = 3e-6;
   EXPECT_NE(message(p).find("wake_load_swing_m: must be above quiet_load_swing_m"), std::string::npos);
+  p = gate_params();
+  p.wake_accel_swing_m = 4e-6;
+  EXPECT_NE(message(p).find("wake_accel_swing_m: must be above quiet_accel_swing_m"), std::string::npos);
   p = gate_params();
   p.window_s = 1e-3;
   EXPECT_NE(message(p).find("window_s: must be at least two periods"), std::string::npos);
@@ -355,6 +376,36 @@ TEST(StandstillGate, WithALoadEncoderTheRnnLeavesASoftLoadAtRestWithoutAForceOfI
   EXPECT_LT(shipped.swing_m, 5e-6);
   EXPECT_LT(shipped.compensation_rms_n, 5.0);
   EXPECT_GT(kept.compensation_rms_n, 5.0);
+}
+
+// With an accelerometer the controller witnesses the load's swing from the reading ((m_L / k) a_L
+// low-passed at the load's mode), so the gate no longer closes over a swing the stuck motor cannot
+// feel: state feedback's free vibration on a heavy, soft load (8 kg, 6,850 N/m, 10 N, commissioned)
+// ends within the accelerometer's targets (10 um, 5 N); with the witness's thresholds out of reach
+// (and settle_s's wait) the gate judges the motor alone, as before, and closes over 20 um.
+TEST(StandstillGate, WithAnAccelerometerItWaitsForTheSwingItWitnesses) {
+  const Scenario scenario = test::shipped_scenario("free_vibration");
+  SystemParams p = test::shipped_params();
+  p.plant.mechanics.load_mass_kg = 8.0;
+  p.plant.mechanics.spring_n_per_m = 6850.0;
+  p.plant.friction.coulomb_n = 10.0;
+  p.plant.friction.viscous_n_s_per_m = 15.0;
+  p = with_identified_load(p, commission_load(p, test::shipped_scenario("identification"), {}));
+  p.load_sensor.kind = LoadSensorKind::kAccelerometer;
+  ASSERT_TRUE(p.compensator.standstill_enabled);
+  SystemParams unwitnessed = p;
+  unwitnessed.compensator.standstill.quiet_accel_swing_m = 5e-3;
+  unwitnessed.compensator.standstill.wake_accel_swing_m = 1e-2;
+  unwitnessed.compensator.standstill.load_settle_s = unwitnessed.compensator.standstill.settle_s;
+  const AtRest witnessed = at_rest(run_with_compensator(p, scenario, {CompensatorKind::kState, {}, false}));
+  const AtRest motor_side = at_rest(run_with_compensator(unwitnessed, scenario, {CompensatorKind::kState, {}, false}));
+  std::printf(
+      "[ standstill ] 8 kg, 6850 N/m, 10 N, accelerometer, free vibration, state feedback: witnessed %.2f um, %.2f N "
+      "rms; the motor alone %.2f um, %.2f N rms\n",
+      1e6 * witnessed.swing_m, witnessed.compensation_rms_n, 1e6 * motor_side.swing_m, motor_side.compensation_rms_n);
+  EXPECT_LT(witnessed.swing_m, 10e-6);
+  EXPECT_LT(witnessed.compensation_rms_n, 5.0);
+  EXPECT_GT(motor_side.swing_m, 10e-6);
 }
 
 // The controller judges the load encoder as the estimator does (the same LoadSensorMonitor on the

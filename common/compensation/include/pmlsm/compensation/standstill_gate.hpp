@@ -22,6 +22,10 @@
 //   open:     also a window with swing > wake_load_swing_m
 // so it never closes over a swing the motor's encoder cannot see, and reopens for one that grows;
 // the request while closed is then no witness (a compensator's offset at rest is no swing).
+// An accelerometer on the load witnesses the stretch too: held by its bearings, the motor is a
+// wall for a mass on a spring, m_L a_L = k (x_M - x_L), and the controller low-passes the reading
+// at the load's mode (VelocityController); its noise leaves 1-3 um of stretch, so its swing is
+// judged against quiet_accel_swing_m and wake_accel_swing_m instead.
 // A window with a tick of no stretch (no encoder, a silent one, a reading the controller's
 // LoadSensorMonitor refuses or a sensor it has failed: VelocityController's LoadWitness) is
 // judged on the motor alone.
@@ -49,17 +53,19 @@ namespace pmlsm {
 /// one place they live: none has a default of its own here.
 struct StandstillGateParams {
   double control_period_s = 0;
-  double rest_velocity_mps = 0;   ///< |c| and |V_ref| at or below this: the reference at rest, >= 0
-  double settle_s = 0;            ///< at rest this long before the gate may close, >= 0
-  double load_settle_s = 0;       ///< ... when the last window read a load encoder every tick, >= 0
-  double window_s = 0;            ///< the quiet window, at least 2 periods
-  double quiet_velocity_mps = 0;  ///< rms(v_M) of a window below this: quiet, > 0
-  double wake_velocity_mps = 0;   ///< rms(v_M) of a window above this: pushed, > quiet_velocity_mps
-  bool wake_on_request = false;   ///< the request while closed may reopen the gate (wake_force_n)
-  double wake_force_n = 0;        ///< the request's rms over a window spent closed above this: a swing, > 0
-  double fade_s = 0;              ///< >= 0 (0: at once)
-  double quiet_load_swing_m = 0;  ///< a load encoder's swing over a window at or below this: quiet, > 0
-  double wake_load_swing_m = 0;   ///< ... above this: the load moves, open; > quiet_load_swing_m
+  double rest_velocity_mps = 0;    ///< |c| and |V_ref| at or below this: the reference at rest, >= 0
+  double settle_s = 0;             ///< at rest this long before the gate may close, >= 0
+  double load_settle_s = 0;        ///< ... when the last window read a load encoder every tick, >= 0
+  double window_s = 0;             ///< the quiet window, at least 2 periods
+  double quiet_velocity_mps = 0;   ///< rms(v_M) of a window below this: quiet, > 0
+  double wake_velocity_mps = 0;    ///< rms(v_M) of a window above this: pushed, > quiet_velocity_mps
+  bool wake_on_request = false;    ///< the request while closed may reopen the gate (wake_force_n)
+  double wake_force_n = 0;         ///< the request's rms over a window spent closed above this: a swing, > 0
+  double fade_s = 0;               ///< >= 0 (0: at once)
+  double quiet_load_swing_m = 0;   ///< a load encoder's swing over a window at or below this: quiet, > 0
+  double wake_load_swing_m = 0;    ///< ... above this: the load moves, open; > quiet_load_swing_m
+  double quiet_accel_swing_m = 0;  ///< an accelerometer's witness of the swing at or below this: quiet, > 0
+  double wake_accel_swing_m = 0;   ///< ... above this: open; > quiet_accel_swing_m
   /// @throws std::invalid_argument naming the parameter and its value.
   void validate() const;
   /// Its own entries under `at` ("compensator.standstill"); the period comes from the system.
@@ -82,6 +88,10 @@ struct StandstillGateParams {
            {1e-9, 1e-2, "1 nm to 10 mm of the load's swing against the motor (half the range over a window)"});
     v.real(at + ".wake_load_swing_m", p.wake_load_swing_m,
            {1e-9, 1e-2, "1 nm to 10 mm of the load's swing against the motor (half the range over a window)"});
+    v.real(at + ".quiet_accel_swing_m", p.quiet_accel_swing_m,
+           {1e-9, 1e-2, "1 nm to 10 mm of the swing an accelerometer witnesses (half the range over a window)"});
+    v.real(at + ".wake_accel_swing_m", p.wake_accel_swing_m,
+           {1e-9, 1e-2, "1 nm to 10 mm of the swing an accelerometer witnesses (half the range over a window)"});
   }
 };
 
@@ -92,6 +102,9 @@ struct StandstillGateInput {
   double compensation_force_n = 0;    ///< the compensator's request, before any scale
   /// The measured stretch x_M - x_L of a load encoder against the motor's (any offset; NaN: none).
   double load_stretch_m = std::numeric_limits<double>::quiet_NaN();
+  /// The stretch is an accelerometer's witness, (m_L / k) a_L low-passed at the load's mode: judged
+  /// against quiet_accel_swing_m and wake_accel_swing_m (its noise is micrometres of stretch).
+  bool stretch_from_accelerometer = false;
 };
 
 struct StandstillGateOutput {

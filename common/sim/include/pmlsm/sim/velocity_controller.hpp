@@ -41,7 +41,8 @@ inline Compensation clamped_compensation(double force_n, double force_limit_n) {
 }
 
 /// A tick's load sensor reading with the motor encoder's position of the same tick: the standstill
-/// gate's witness of the load (x_M - x_L of a load encoder), once the controller's own
+/// gate's witness of the load (x_M - x_L of a load encoder; (m_L / k) a_L of an accelerometer,
+/// low-passed at the load's mode), once the controller's own
 /// LoadSensorMonitor believes it. The monitor is the estimator's, on the same readings, so the
 /// two agree tick by tick without a word on the wire: a reading the filter refuses, or a sensor
 /// it has failed (a count stuck during a move, then a swing at rest it cannot see), is no
@@ -107,7 +108,9 @@ class VelocityController {
   VelocityPi velocity_;
   std::optional<VibrationGuard> guard_;
   std::optional<StandstillGate> standstill_;
-  std::optional<LoadSensorMonitor> load_monitor_;  ///< with a gate and a load encoder
+  std::optional<LoadSensorMonitor> load_monitor_;  ///< with a gate and a load sensor
+  std::optional<Biquad> accel_witness_;            ///< an accelerometer's reading, low-passed at w_L
+  double stretch_per_accel_s2_ = 0;                ///< m_L / k of the filter's model
   std::uint64_t steps_ = 0;                        ///< the monitor's tick
   FilterChain compensation_filters_;               ///< on the compensator's force, before the PI adds it
   FilterChain force_filters_;                      ///< on the PI's output, then the force limit again
