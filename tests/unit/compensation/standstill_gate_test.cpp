@@ -314,19 +314,26 @@ TEST(StandstillGate, WithALoadEncoderItWaitsForTheSwingOnTheStickyCorner) {
   EXPECT_LT(std::sqrt(comp2 / 200.0), 5.0);
 }
 
+// A soft load (6,850 N/m, 10 N of Coulomb friction, 15 N s/m) of `load_mass_kg`, commissioned (its
+// models identified), with `sensor` on it.
+SystemParams commissioned_soft_load(double load_mass_kg, LoadSensorKind sensor) {
+  SystemParams p = test::shipped_params();
+  p.plant.mechanics.load_mass_kg = load_mass_kg;
+  p.plant.mechanics.spring_n_per_m = 6850.0;
+  p.plant.friction.coulomb_n = 10.0;
+  p.plant.friction.viscous_n_s_per_m = 15.0;
+  p = with_identified_load(p, commission_load(p, test::shipped_scenario("identification"), {}));
+  p.load_sensor.kind = sensor;
+  return p;
+}
+
 // Acceleration feedback with a load encoder takes K_a x load_encoder_gain_scale (2): on a light,
 // soft load (2 kg, 6,850 N/m, 10 N of friction, commissioned) the trapezoid's end then rests within
 // the targets (5 um, 5 N), where the gain without a sensor leaves about 11 um: the law asks too
 // little of a motor its bearings hold for a swing of micrometres.
 TEST(StandstillGate, WithALoadEncoderAccelerationFeedbackTakesTwiceItsGainAndStillsASoftLoad) {
   const Scenario scenario = test::shipped_scenario("trapezoid");
-  SystemParams p = test::shipped_params();
-  p.plant.mechanics.load_mass_kg = 2.0;
-  p.plant.mechanics.spring_n_per_m = 6850.0;
-  p.plant.friction.coulomb_n = 10.0;
-  p.plant.friction.viscous_n_s_per_m = 15.0;
-  p = with_identified_load(p, commission_load(p, test::shipped_scenario("identification"), {}));
-  p.load_sensor.kind = LoadSensorKind::kEncoder;
+  SystemParams p = commissioned_soft_load(2.0, LoadSensorKind::kEncoder);
   ASSERT_EQ(p.compensator.accel_load_encoder_gain_scale, 2.0);
   SystemParams single = p;
   single.compensator.accel_load_encoder_gain_scale = 1.0;
@@ -350,13 +357,7 @@ TEST(StandstillGate, WithALoadEncoderAccelerationFeedbackTakesTwiceItsGainAndSti
 // gain schedule's 1.5 and the encoder's 1.5).
 TEST(StandstillGate, WithALoadEncoderTheRnnLeavesASoftLoadAtRestWithoutAForceOfItsOwn) {
   const Scenario scenario = test::shipped_scenario("trapezoid");
-  SystemParams p = test::shipped_params();
-  p.plant.mechanics.load_mass_kg = 8.0;
-  p.plant.mechanics.spring_n_per_m = 6850.0;
-  p.plant.friction.coulomb_n = 10.0;
-  p.plant.friction.viscous_n_s_per_m = 15.0;
-  p = with_identified_load(p, commission_load(p, test::shipped_scenario("identification"), {}));
-  p.load_sensor.kind = LoadSensorKind::kEncoder;
+  SystemParams p = commissioned_soft_load(8.0, LoadSensorKind::kEncoder);
   ASSERT_EQ(p.compensator.rnn_load_encoder_gain_scale, 1.5);
   ASSERT_TRUE(p.compensator.rnn.remove_rest_output);
   SystemParams no_sensor = p;
@@ -385,13 +386,7 @@ TEST(StandstillGate, WithALoadEncoderTheRnnLeavesASoftLoadAtRestWithoutAForceOfI
 // (and settle_s's wait) the gate judges the motor alone, as before, and closes over 20 um.
 TEST(StandstillGate, WithAnAccelerometerItWaitsForTheSwingItWitnesses) {
   const Scenario scenario = test::shipped_scenario("free_vibration");
-  SystemParams p = test::shipped_params();
-  p.plant.mechanics.load_mass_kg = 8.0;
-  p.plant.mechanics.spring_n_per_m = 6850.0;
-  p.plant.friction.coulomb_n = 10.0;
-  p.plant.friction.viscous_n_s_per_m = 15.0;
-  p = with_identified_load(p, commission_load(p, test::shipped_scenario("identification"), {}));
-  p.load_sensor.kind = LoadSensorKind::kAccelerometer;
+  SystemParams p = commissioned_soft_load(8.0, LoadSensorKind::kAccelerometer);
   ASSERT_TRUE(p.compensator.standstill_enabled);
   SystemParams unwitnessed = p;
   unwitnessed.compensator.standstill.quiet_accel_swing_m = 5e-3;
