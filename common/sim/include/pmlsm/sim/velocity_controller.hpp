@@ -94,7 +94,7 @@ class VelocityController {
   const VibrationGuard* guard() const { return guard_ ? &*guard_ : nullptr; }
   /// The standstill gate (nullptr when compensator.standstill.enabled is false).
   const StandstillGate* standstill_gate() const { return standstill_ ? &*standstill_ : nullptr; }
-  /// The judge of the load encoder's readings for the gate (nullptr without a gate or an encoder).
+  /// The judge of the load sensor's readings for the gate (nullptr without a gate or a load sensor).
   const LoadSensorMonitor* load_sensor_monitor() const { return load_monitor_ ? &*load_monitor_ : nullptr; }
 
  private:
