@@ -67,6 +67,7 @@ std::vector<double> JordanRnn::linear_chain_weights(const std::vector<int>& laye
 
 JordanRnn::JordanRnn(std::vector<int> layer_sizes) : sizes_(std::move(layer_sizes)) {
   weights_.assign(parameter_count(sizes_), 0.0);
+  no_signal_.assign(external_input_count(), 0.0);
   activation_offset_.resize(sizes_.size());
   weight_offset_.assign(sizes_.size(), 0);
   std::size_t a = 0, w = 0;
@@ -114,19 +115,22 @@ void JordanRnn::reset_state(double u) {
   std::fill(activations_.begin(), activations_.end(), 0.0);
 }
 
-std::optional<double> JordanRnn::rest_output() {
+double JordanRnn::output_with_no_signal(double state_unit) {
   const double kept = state_unit_;
-  const std::vector<double> no_signal(external_input_count(), 0.0);
-  std::optional<double> found;
+  state_unit_ = state_unit;
+  const double u = forward(no_signal_.data());
+  reset_state(kept);
+  return u;
+}
+
+std::optional<double> JordanRnn::rest_output() {
   double u = 0.0;
-  for (int i = 0; i < kRestIterations && !found; ++i) {
-    state_unit_ = u;
-    const double next = forward(no_signal.data());
-    if (std::abs(next - u) <= 1e-12) found = next;
+  for (int i = 0; i < kRestIterations; ++i) {
+    const double next = output_with_no_signal(u);
+    if (std::abs(next - u) <= 1e-12) return next;
     u = next;
   }
-  reset_state(kept);
-  return found;
+  return std::nullopt;
 }
 
 double JordanRnn::forward(const double* external_inputs) {
@@ -198,7 +202,6 @@ void RnnCompensatorParams::validate() const {
 RnnCompensator::RnnCompensator(const RnnCompensatorParams& params)
     : params_((params.validate(), params)), net_(params_.layer_sizes) {
   inputs_.assign(net_.external_input_count(), 0.0);
-  no_signal_.assign(net_.external_input_count(), 0.0);
   grad_.assign(net_.parameter_count(), 0.0);
   dw_.assign(net_.parameter_count(), 0.0);
   next_dw_.assign(net_.parameter_count(), 0.0);
@@ -337,11 +340,8 @@ CompensatorStep RnnCompensator::step(const CompensatorInput& in) {
   if (params_.online_learning && params_.remove_rest_output) {
     // The weights move, and u* with them: one pass of the fixed-point iteration a tick (from the
     // last u*) follows it without a thousand passes in the loop.
-    const double kept = net_.state_unit();
-    net_.reset_state(rest_output_);
-    const double next = net_.forward(no_signal_.data());
+    const double next = net_.output_with_no_signal(rest_output_);
     if (std::isfinite(next)) rest_output_ = next;
-    net_.reset_state(kept);
   }
   return out;
 }

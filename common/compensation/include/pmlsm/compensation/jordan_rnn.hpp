@@ -103,6 +103,10 @@ class JordanRnn {
   /// no signal has no output at rest). The state unit is kept; the stored activations are not.
   std::optional<double> rest_output();
   static constexpr int kRestIterations = 1000;
+  /// N(0, ..., 0, state_unit): one forward pass with every external input 0 from this state unit
+  /// (a step of rest_output()'s iteration). The state unit is kept; the stored activations are
+  /// not. No allocation.
+  double output_with_no_signal(double state_unit);
 
   /// d u_n / d w for the last forward(), state unit held fixed (one-step
   /// back-propagation, no back-propagation through time, as the paper's BP).
@@ -114,6 +118,7 @@ class JordanRnn {
   std::vector<std::size_t> activation_offset_;  ///< per layer, into activations_
   std::vector<std::size_t> weight_offset_;      ///< per layer (index 0 unused), into weights_
   std::vector<double> weights_;
+  std::vector<double> no_signal_;      ///< external_input_count() zeros, never written
   std::vector<double> activations_;    ///< all layers, inputs first, output last
   mutable std::vector<double> delta_;  ///< dU/dz per neuron (same layout as activations_)
   double state_unit_ = 0.0;
@@ -250,14 +255,13 @@ class RnnCompensator {
   double rest_share() const noexcept;
   RnnCompensatorParams params_;
   JordanRnn net_;
-  std::vector<double> inputs_;     ///< s a_L(k), s a_L(k-1), ...: the external inputs
-  std::vector<double> no_signal_;  ///< the external inputs at rest: zeros, never written
-  std::vector<double> grad_;       ///< d u_n / d w of this tick
-  std::vector<double> dw_;         ///< Delta w(n): the last applied update (momentum)
-  std::vector<double> next_dw_;    ///< Delta w(n+1) being formed
-  double u_prev2_ = 0.0;           ///< u_n(k-2), for dU_n of (18)
-  double rest_output_ = 0.0;       ///< u*
-  std::uint64_t rest_ticks_ = 0;   ///< ticks the reference has rested
+  std::vector<double> inputs_;    ///< s a_L(k), s a_L(k-1), ...: the external inputs
+  std::vector<double> grad_;      ///< d u_n / d w of this tick
+  std::vector<double> dw_;        ///< Delta w(n): the last applied update (momentum)
+  std::vector<double> next_dw_;   ///< Delta w(n+1) being formed
+  double u_prev2_ = 0.0;          ///< u_n(k-2), for dU_n of (18)
+  double rest_output_ = 0.0;      ///< u*
+  std::uint64_t rest_ticks_ = 0;  ///< ticks the reference has rested
   CompensatorCounters counters_;
 };
 
