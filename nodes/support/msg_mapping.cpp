@@ -156,7 +156,7 @@ void to_msg(const VelocityControllerOutput& control, double compensation_force_n
   out.compensation_force_n(compensation_force_n);
   out.velocity_error_mps(control.velocity_error_mps);
   out.saturated(control.saturated);
-  out.v_ref_mps(control.v_ref_mps);
+  out.v_ref_mps(control.v_ref_mps + control.position.correction_mps);
   out.x_ref_m(control.x_ref_m);
 }
 

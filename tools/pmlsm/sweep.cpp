@@ -57,7 +57,8 @@ void write_csv(const std::filesystem::path& path, const SweepFile& file, const S
   out << ",compensator,scenario,cost,cost_ratio_to_pi,settling_s,last_to_first_window_cost,"
          "tail_stretch_amplitude_mm,tail_decay_rate_per_s,tail_unforced_amplitude_mm,"
          "saturated_share,saturated_tail_share,tail_force_rms_n,tail_compensation_rms_n,"
-         "guard_trip_s,rest_tail,standstill,rest_stretch_peak_um,rest_compensation_rms_n,faults,passed\n";
+         "guard_trip_s,rest_tail,standstill,rest_stretch_peak_um,rest_compensation_rms_n,end_position_error_um,faults,"
+         "passed\n";
   for (const SweepRun& run : result.runs) {
     const PlantSample& plant = result.plants[run.plant];
     const RunVerdict& v = run.verdict;
@@ -79,7 +80,7 @@ void write_csv(const std::filesystem::path& path, const SweepFile& file, const S
         << num(v.saturated_share) << "," << num(v.saturated_tail_share) << "," << num(v.tail_force_rms_n) << ","
         << num(v.tail_compensation_rms_n) << "," << num(v.guard_trip_s) << "," << (v.rest_tail ? 1 : 0) << ","
         << (v.standstill ? 1 : 0) << "," << num(v.rest_stretch_peak_m * 1e6) << "," << num(v.rest_compensation_rms_n)
-        << ",\"" << v.faults() << "\"," << (run.passed ? 1 : 0) << "\n";
+        << "," << num(v.end_position_error_m * 1e6) << ",\"" << v.faults() << "\"," << (run.passed ? 1 : 0) << "\n";
   }
   if (!out) throw std::runtime_error("cannot write " + path.string());
 }

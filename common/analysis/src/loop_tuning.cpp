@@ -1,6 +1,8 @@
 #include "pmlsm/analysis/loop_tuning.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <complex>
 #include <stdexcept>
 
 #include "pmlsm/util/validate.hpp"
@@ -10,6 +12,7 @@ namespace pmlsm {
 namespace {
 
 constexpr double kDegreesPerRadian = 57.295779513082320876;
+constexpr double kRadiansPerTurn = 6.283185307179586477;
 /// A phase step between two lines smaller than this is a resolved crossing, not a mode's jump.
 constexpr double kResolvedStepDeg = 90.0;
 
@@ -110,6 +113,81 @@ std::optional<TunedGains> tune_velocity_pi(const std::vector<FrequencyPoint>& po
   tuned.kp_n_s_per_m = kp_n_s_per_m * tuned.gain_scale;
   tuned.ki_n_per_m = ki_n_per_m * tuned.gain_scale;
   return tuned;
+}
+
+std::vector<FrequencyPoint> position_loop_points(const std::vector<FrequencyPoint>& points,
+                                                 const std::vector<LoadRatioPoint>& load_points,
+                                                 PositionFeedback closes_on, double period_s,
+                                                 double velocity_gain_scale, const FilterChain* filters) {
+  std::vector<FrequencyPoint> out;
+  if (closes_on == PositionFeedback::kNone) return out;
+  out.reserve(points.size());
+  std::size_t next_load = 0;
+  for (const FrequencyPoint& p : points) {
+    std::complex<double> q = 1.0;
+    double coherence = p.coherence;
+    if (closes_on == PositionFeedback::kLoad) {
+      while (next_load < load_points.size() && load_points[next_load].frequency_hz < p.frequency_hz * (1 - 1e-9)) {
+        ++next_load;
+      }
+      if (next_load == load_points.size() || load_points[next_load].frequency_hz > p.frequency_hz * (1 + 1e-9)) {
+        continue;
+      }
+      q = load_points[next_load].ratio;
+      coherence = std::min(coherence, load_points[next_load].coherence);
+    }
+    const std::complex<double> l = velocity_gain_scale * p.open_loop() *
+                                   (filters != nullptr ? filters->response(p.frequency_hz) : std::complex<double>(1.0));
+    const std::complex<double> z_inv = std::polar(1.0, -kRadiansPerTurn * p.frequency_hz * period_s);
+    const std::complex<double> l_x = l / (1.0 + l) * q * period_s / (1.0 - z_inv);
+    FrequencyPoint x;
+    x.frequency_hz = p.frequency_hz;
+    x.plant = p.plant;
+    x.sensitivity = 1.0 / (1.0 + l_x);
+    x.coherence = coherence;
+    out.push_back(x);
+  }
+  return out;
+}
+
+LoopMargins position_loop_margins(const std::vector<FrequencyPoint>& position_points, double gain_per_s,
+                                  double min_coherence) {
+  LoopMargins m = loop_margins(position_points, gain_per_s, min_coherence);
+  if (m.gain_crossover_found) return m;
+  for (const FrequencyPoint& p : position_points) {
+    if (p.coherence < min_coherence) continue;
+    const std::complex<double> l = gain_per_s * p.open_loop();
+    if (std::abs(l) < 1.0) {
+      const double phase_deg = std::arg(l) * kDegreesPerRadian;
+      m.gain_crossover_found = true;
+      m.gain_crossover_hz = gain_per_s / kRadiansPerTurn;
+      m.phase_margin_deg = 180.0 + phase_deg;
+    }
+    break;
+  }
+  return m;
+}
+
+std::optional<std::pair<double, LoopMargins>> tune_position_gain(const std::vector<FrequencyPoint>& position_points,
+                                                                 const TuningTargets& targets, double min_coherence,
+                                                                 std::string& why) {
+  targets.validate();
+  constexpr double kMostPerS = 1000.0, kLeastPerS = 0.01;
+  const double steps = std::ceil(std::log(kMostPerS / kLeastPerS) / std::log(1.01));
+  for (double i = 0; i <= steps; ++i) {
+    const double gain = kMostPerS * std::pow(1.01, -i);
+    const LoopMargins m = position_loop_margins(position_points, gain, min_coherence);
+    if (m.gain_crossover_found && m.phase_crossover_found &&
+        m.phase_margin_deg >= targets.min_phase_margin_deg + targets.phase_allowance_deg &&
+        m.gain_margin_db >= targets.min_gain_margin_db + targets.gain_allowance_db) {
+      return std::make_pair(gain, m);
+    }
+  }
+  why = "no position gain from " + format_value(kLeastPerS) + " to " + format_value(kMostPerS) +
+        " 1/s gives a phase margin of " + format_value(targets.min_phase_margin_deg + targets.phase_allowance_deg) +
+        " deg and a gain margin of " + format_value(targets.min_gain_margin_db + targets.gain_allowance_db) +
+        " dB with its phase crossover in the measured band";
+  return std::nullopt;
 }
 
 std::optional<GainChoice> choose_gain_factor(const std::vector<GainTrial>& trials) {

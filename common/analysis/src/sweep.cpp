@@ -379,6 +379,10 @@ RunVerdict judge_run(const std::vector<TickRecord>& trace, const Scenario& scena
   out.last_to_first_window_cost = last_to_first_window_cost(
       trace, static_cast<std::size_t>(std::llround(scenario.cost_window_s / control_period_s)));
 
+  double x_ref_m = 0;
+  for (std::size_t k = 0; k + 1 < trace.size(); ++k) x_ref_m += trace[k].v_ref_mps * control_period_s;
+  out.end_position_error_m = x_ref_m - (trace.back().load_position_m - trace.front().load_position_m);
+
   const TailSpan span = tail_span(trace.size(), control_period_s, verdict);
   judge_tail_stretch(trace, span, control_period_s, verdict, out);
   judge_tail_forces(trace, span, force_limit_n, verdict, out);

@@ -313,6 +313,44 @@ void tune_compensator_gains(const VerificationBasis& basis, SystemParams& commis
   }
 }
 
+namespace {
+
+/// The position loop (position_loop.closes_on not none) judged from the same measurement at the
+/// velocity loop's gains it will run with: its margins at the configured K_x and the largest K_x the
+/// targets allow, printed; with --tune that K_x goes into `values`. Returns false when the
+/// configured K_x leaves the loop short of its margins and --tune does not replace it.
+bool judge_position_loop(const SystemParams& configured, const FrequencyResponseResult& result,
+                         const FilterChain& filters, const LoopVerdict& loop, bool tune,
+                         std::vector<std::pair<std::string, double>>& values, Transcript& transcript) {
+  const PositionLoopParams& position = configured.position_loop;
+  if (position.closes_on == PositionFeedback::kNone) return true;
+  const auto& targets = tuning_targets(configured);
+  const double min_coherence = frequency_response_params(configured).min_coherence;
+  const double velocity_scale = tune && loop.tuned ? loop.tuned->gain_scale : 1.0;
+  const std::vector<FrequencyPoint> points =
+      position_loop_points(result.points, result.load_points, position.closes_on, configured.timing.control_period_s,
+                           velocity_scale, &filters);
+  const LoopMargins configured_margins = position_loop_margins(points, position.gain_per_s, min_coherence);
+  say(transcript, "position loop on the %s's encoder at K_x %.4g 1/s: %s\n", to_string(position.closes_on),
+      position.gain_per_s, describe(configured_margins).c_str());
+  std::string why;
+  const auto tuned = tune_position_gain(points, targets, min_coherence, why);
+  if (!tuned) {
+    say(transcript, "position loop tuning (%.4g deg, %.4g dB): %s\n", targets.min_phase_margin_deg,
+        targets.min_gain_margin_db, why.c_str());
+  } else {
+    say(transcript, "position loop: the margins allow K_x up to %.4g 1/s: %s\n", tuned->first,
+        describe(tuned->second).c_str());
+    if (tune) {
+      values.emplace_back("position_loop.gain_per_s", tuned->first);
+      return true;
+    }
+  }
+  return margins_met(configured_margins, targets);
+}
+
+}  // namespace
+
 CommissionDecision decide(const CommissioningChoices& o, const SystemParams& configured,
                           const FrequencyResponseResult& result, const std::optional<IdentifiedLoad>& time_domain,
                           std::ostream& verification_csv, const std::string& row_prefix, Transcript& transcript) {
@@ -332,6 +370,13 @@ CommissionDecision decide(const CommissioningChoices& o, const SystemParams& con
   if (o.tune) {
     d.values.emplace_back("velocity_loop.kp_n_s_per_m", d.loop.tuned->kp_n_s_per_m);
     d.values.emplace_back("velocity_loop.ki_n_per_m", d.loop.tuned->ki_n_per_m);
+  }
+  if (!judge_position_loop(configured, result, filters, d.loop, o.tune, d.values, transcript)) {
+    say(transcript,
+        "commission: the position loop's gain leaves it short of its margins; nothing written "
+        "(--tune sets the gain the margins allow)\n");
+    d.exit_code = kExitVerdictFailed;
+    return d;
   }
   SystemParams commissioned = commissioned_system(configured, d.values, filters, result.fit, o.simulate);
   if (o.verify.empty()) {

@@ -237,6 +237,14 @@ void SystemParams::validate() const {
   validate_section("plant", [&] { plant.validate(); });
   validate_section("current_loop", [&] { current_controller_params().validate(); });
   validate_section("velocity_loop", [&] { velocity_pi_params().validate(); });
+  validate_section("position_loop", [&] {
+    position_loop.validate();
+    if (position_loop.closes_on == PositionFeedback::kLoad && load_sensor.kind != LoadSensorKind::kEncoder) {
+      throw std::invalid_argument(std::string("closes_on: load needs an encoder on the load (sensors.load.kind: "
+                                              "encoder), got sensors.load.kind ") +
+                                  to_string(load_sensor.kind));
+    }
+  });
   validate_section("reference_model", [&] { reference_model_params().validate(); });
   validate_section("kalman", [&] { kalman_params().validate(); });
   validate_section("compensator.rnn", [&] { rnn_compensator_params(true).validate(); });

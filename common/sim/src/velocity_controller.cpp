@@ -13,16 +13,18 @@ VelocityController::VelocityController(const SystemParams& params, const Scenari
     : scenario_(scenario),
       period_s_(params.timing.control_period_s),
       reference_(params.reference_model_params()),
+      position_(params.position_loop),
       velocity_(params.velocity_pi_params()),
       compensation_filters_(params.compensation_filter_params()),
       force_filters_(params.force_command_filter_params()) {
   scenario_.validate(period_s_);
   if (params.compensator.guard_enabled) guard_.emplace(params.vibration_guard_params());
+  const bool load_loop = params.position_loop.closes_on == PositionFeedback::kLoad;
+  if (params.load_sensor.kind != LoadSensorKind::kNone && (params.compensator.standstill_enabled || load_loop)) {
+    load_monitor_.emplace(LoadSensorMonitorParams::of(params.load_sensor, period_s_));
+  }
   if (params.compensator.standstill_enabled) {
     standstill_.emplace(params.standstill_gate_params());
-    if (params.load_sensor.kind != LoadSensorKind::kNone) {
-      load_monitor_.emplace(LoadSensorMonitorParams::of(params.load_sensor, period_s_));
-    }
     if (params.load_sensor.kind == LoadSensorKind::kAccelerometer) {
       // A load that swings on a motor its bearings hold is a mass on a spring: m_L a_L = k (x_M - x_L),
       // so the stretch is (m_L / k) a_L, ringing at the load's own w_L = sqrt(k / m_L) (the filter's
@@ -46,6 +48,7 @@ VelocityController::VelocityController(const SystemParams& params, const Scenari
 
 void VelocityController::retune(const SystemParams& params) {
   velocity_.set_params(params.velocity_pi_params());
+  position_.set_params(params.position_loop);
   const auto rebuild = [](FilterChain& chain, const FilterChainParams& wanted) {
     if (chain.params().slots != wanted.slots) chain = FilterChain(wanted);
   };
@@ -88,18 +91,24 @@ VelocityControllerOutput VelocityController::step_command(double command_mps, do
   out.a_ref_mps2 = ref.accel_mps2;
   out.x_ref_m = x_ref_m_;
   x_ref_m_ += ref.velocity_mps * period_s_;
-  // The guard's scale of the previous period (it judges what was applied), then its new look;
-  // the standstill gate's of this period (a move opens it on its first tick).
-  if (standstill_) {
-    double load_stretch_m = std::numeric_limits<double>::quiet_NaN();
-    if (load_monitor_) {
-      const LoadSensorVerdict verdict = load_monitor_->judge(
-          tick, load.reading.position_m, load.reading.acceleration_mps2, load.reading.saturated, load.motor_position_m);
-      if (verdict.use) {
+  // The load sensor's reading, once the monitor believes it: the position loop's and the gate's.
+  double load_position_m = std::numeric_limits<double>::quiet_NaN();
+  double load_stretch_m = std::numeric_limits<double>::quiet_NaN();
+  if (load_monitor_) {
+    const LoadSensorVerdict verdict = load_monitor_->judge(
+        tick, load.reading.position_m, load.reading.acceleration_mps2, load.reading.saturated, load.motor_position_m);
+    if (verdict.use) {
+      load_position_m = load.reading.position_m;
+      if (standstill_) {
         load_stretch_m = accel_witness_ ? stretch_per_accel_s2_ * accel_witness_->step(load.reading.acceleration_mps2)
                                         : load.motor_position_m - load.reading.position_m;
       }
     }
+  }
+  out.position = position_.step({out.x_ref_m, load.motor_position_m, load_position_m});
+  // The guard's scale of the previous period (it judges what was applied), then its new look;
+  // the standstill gate's of this period (a move opens it on its first tick).
+  if (standstill_) {
     out.standstill = standstill_->step({out.command_mps, ref.velocity_mps, motor_velocity_mps, compensation.force_n,
                                         load_stretch_m, accel_witness_.has_value()});
   }
@@ -109,13 +118,14 @@ VelocityControllerOutput VelocityController::step_command(double command_mps, do
     out.guard =
         guard_->step({motor_velocity_mps, ref.velocity_mps, out.compensation_applied_n, compensation.output_share});
   }
-  const VelocityPiOutput f = velocity_.step({ref.velocity_mps, motor_velocity_mps, out.compensation_applied_n});
+  const double followed_mps = ref.velocity_mps + out.position.correction_mps;
+  const VelocityPiOutput f = velocity_.step({followed_mps, motor_velocity_mps, out.compensation_applied_n});
   // The force command's filters, then the limit again (a filter may overshoot it).
   const double limit_n = velocity_.params().force_limit_n;
   const double filtered_n = force_filters_.step(f.force_n);
   out.force_n = std::clamp(filtered_n, -limit_n, limit_n);
   out.saturated = f.saturated || filtered_n != out.force_n;
-  out.velocity_error_mps = ref.velocity_mps - motor_velocity_mps;
+  out.velocity_error_mps = followed_mps - motor_velocity_mps;
   return out;
 }
 

@@ -15,6 +15,7 @@
 #include <utility>
 #include <vector>
 
+#include "pmlsm/analysis/compensated_run.hpp"
 #include "pmlsm/analysis/frequency_response_measurement.hpp"
 #include "pmlsm/sim/simulated_drive.hpp"
 #include "test_support.hpp"
@@ -141,6 +142,64 @@ TEST(LoopTuning, TheLoopMeasuredAgainAtTheTunedGainsHasThePredictedMargins) {
       "deg, %.2f dB\n",
       tuned->kp_n_s_per_m, tuned->after.phase_margin_deg, tuned->after.gain_margin_db, again.phase_margin_deg,
       again.gain_margin_db);
+}
+
+// The position loop on the load's encoder (a drive's dual loop), judged from the same measurement:
+// on the linear two-mass plant (no friction, no damping) its gain margin says where the loop on
+// the plant turns unstable. At the gain the targets allow the load's swing after a move dies
+// away; at 1.5 times the gain the measured margin says is critical, it grows.
+TEST(PositionLoopTuning, TheLoadSidesMarginSaysWhereTheDualLoopTurnsUnstable) {
+  SystemParams p = test::ideal_params();
+  p.load_sensor.kind = LoadSensorKind::kEncoder;
+  FrequencyResponseMeasurement m(frequency_response_params(p), p.velocity_pi_params());
+  SimulatedDriveBackend drive(p, PlantInitialCondition{});
+  run_measurement(drive, m, [](std::uint64_t, std::uint64_t) {});
+  ASSERT_EQ(m.phase(), MeasurementPhase::kDone) << m.abort_reason();
+  const FrequencyResponseResult r = evaluate_measurement(m);
+  ASSERT_FALSE(r.load_points.empty());
+  const double min_coherence = frequency_response_params(p).min_coherence;
+  const std::vector<FrequencyPoint> points =
+      position_loop_points(r.points, r.load_points, PositionFeedback::kLoad, p.timing.control_period_s);
+  std::string why;
+  const auto tuned = tune_position_gain(points, tuning_targets(p), min_coherence, why);
+  ASSERT_TRUE(tuned.has_value()) << why;
+  const double gain_per_s = tuned->first;
+  const LoopMargins& at_tuned = tuned->second;
+  // The phase turns through -180 deg at the load's mode on a held motor, sqrt(k / m_L).
+  const double anti_hz = anti_resonance_hz(p.plant.mechanics.load_mass_kg, p.plant.mechanics.spring_n_per_m);
+  EXPECT_NEAR(at_tuned.phase_crossover_hz, anti_hz, 0.02 * anti_hz);
+  EXPECT_GE(at_tuned.gain_margin_db, 9.0 - 1e-9);
+  const double critical_per_s = gain_per_s * std::pow(10.0, at_tuned.gain_margin_db / 20.0);
+
+  // The spring's swing over the last two 0.3 s windows of the trapezoid's second at rest.
+  const Scenario trapezoid = test::shipped_scenario("trapezoid");
+  const auto growth = [&](double gain) {
+    SystemParams run = p;
+    run.position_loop.closes_on = PositionFeedback::kLoad;
+    run.position_loop.gain_per_s = gain;
+    run.position_loop.max_correction_mps = 1.0;  // linear: never at the bound
+    const std::vector<TickRecord> trace = run_with_compensator(run, trapezoid, CompensatorSetup{});
+    const auto rms = [&](std::size_t from, std::size_t to) {
+      double mean = 0, square = 0;
+      for (std::size_t k = from; k < to; ++k) mean += trace[k].motor_position_m - trace[k].load_position_m;
+      mean /= static_cast<double>(to - from);
+      for (std::size_t k = from; k < to; ++k) {
+        const double d = trace[k].motor_position_m - trace[k].load_position_m - mean;
+        square += d * d;
+      }
+      return std::sqrt(square / static_cast<double>(to - from));
+    };
+    const std::size_t n = trace.size(), w = 300;
+    return rms(n - w, n) / rms(n - 2 * w, n - w);
+  };
+  const double at_allowed = growth(gain_per_s);
+  const double beyond = growth(1.5 * critical_per_s);
+  EXPECT_LT(at_allowed, 0.95) << "the swing at the allowed K_x " << gain_per_s << " 1/s does not die away";
+  EXPECT_GT(beyond, 1.02) << "the swing at 1.5 x the critical K_x " << critical_per_s << " 1/s does not grow";
+  std::printf(
+      "[ dual loop  ] nominal linear plant: K_x up to %.3f 1/s (gain margin %.2f dB at %.2f Hz, critical %.3f 1/s); "
+      "swing a 0.3 s window x%.3f at it, x%.3f at 1.5 x critical\n",
+      gain_per_s, at_tuned.gain_margin_db, at_tuned.phase_crossover_hz, critical_per_s, at_allowed, beyond);
 }
 
 // The commissioned factor of a compensator's gain: the cheapest that passes with the next step up

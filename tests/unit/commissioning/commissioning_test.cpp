@@ -97,6 +97,42 @@ TEST(Commissioning, TunesTheShippedLoopToItsTargetsAndWritesTheGainsAndTheModel)
   EXPECT_NEAR(r.fit.spring_n_per_m / shipped.plant.mechanics.spring_n_per_m, 1.0, 0.01);
 }
 
+// The position loop on the load's encoder judged from the same measurement (with a load encoder):
+// a K_x beyond its margins refused with nothing written, --tune writing the K_x they allow.
+TEST(Commissioning, JudgesTheDualLoopFromTheLoadSideAndWritesTheGainItsMarginsAllow) {
+  SystemParams p = test::shipped_params();
+  p.load_sensor.kind = LoadSensorKind::kEncoder;
+  p.position_loop.closes_on = PositionFeedback::kLoad;
+  p.position_loop.gain_per_s = 5.0;
+  p.validate();
+  std::string why;
+  const std::optional<FrequencyResponseResult> r = measured_response(p, why);
+  ASSERT_TRUE(r) << why;
+  CommissioningChoices choices;
+  choices.simulate = true;
+  std::ostringstream csv;
+  Transcript refused{{}, false};
+  const CommissionDecision too_fast = decide(choices, p, *r, std::nullopt, csv, "", refused);
+  EXPECT_EQ(too_fast.exit_code, kExitVerdictFailed) << refused.text;
+  EXPECT_FALSE(too_fast.commissioned);
+  EXPECT_NE(refused.text.find("position loop on the load's encoder at K_x 5 1/s"), std::string::npos) << refused.text;
+  EXPECT_NE(refused.text.find("the position loop's gain leaves it short of its margins; nothing written"),
+            std::string::npos)
+      << refused.text;
+
+  choices.tune = true;
+  Transcript tuned{{}, false};
+  const CommissionDecision d = decide(choices, p, *r, std::nullopt, csv, "", tuned);
+  ASSERT_EQ(d.exit_code, kExitOk) << tuned.text;
+  const double gain_per_s = as_map(d.values).at("position_loop.gain_per_s");
+  // Bounded by the load's mode on the velocity loop: well under one per second on the paper's plant.
+  EXPECT_GT(gain_per_s, 0.2);
+  EXPECT_LT(gain_per_s, 2.0);
+  ASSERT_TRUE(d.commissioned);
+  EXPECT_EQ(d.commissioned->position_loop.gain_per_s, gain_per_s);
+  EXPECT_NE(tuned.text.find("position loop: the margins allow K_x up to"), std::string::npos) << tuned.text;
+}
+
 TEST(Commissioning, RefusesTargetsNoGainMeetsAndWritesNothing) {
   SystemParams strict = test::shipped_params();
   set_parameter(strict, "commissioning.tuning.min_phase_margin_deg", "89");

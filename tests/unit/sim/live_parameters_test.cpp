@@ -1,12 +1,14 @@
 // Live parameters (pmlsm/sim/live_parameters.hpp): a change parsed by its entry's kind and checked
 // with the file's ranges and the components' checks, refused with the reason and the old value
-// kept, versioned; and the velocity controller taking it at a tick boundary with its integral kept.
+// kept, versioned; and the velocity controller taking it at a tick boundary with its integral kept,
+// and its position loop (a dual loop: its gain live, its fall back to the motor's encoder).
 #include "pmlsm/analysis/analysis_params.hpp"
 #include "pmlsm/sim/live_parameters.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -34,7 +36,7 @@ void expect_live_refused(LiveParameters& live, const std::string& key, const std
 
 TEST(LiveParameters, AChangeIsCheckedLikeTheFileVersionedAndKept) {
   LiveParameters live(test::shipped_params(), live_keys(SystemParams{}, "controller"));
-  EXPECT_EQ(live.keys().size(), 2u + 2u * 4u * 5u);
+  EXPECT_EQ(live.keys().size(), 4u + 2u * 4u * 5u);
   EXPECT_EQ(live.get("velocity_loop.kp_n_s_per_m").value, "10000");
   const LiveAnswer a = live.set("velocity_loop.kp_n_s_per_m", "12000");
   ASSERT_TRUE(a.accepted) << a.reason;
@@ -231,10 +233,12 @@ TEST(LiveParameters, TheCompensatorsTakeTheirGainsLive) {
 // entries that name it, in the table's order, and nobody else gets any.
 TEST(LiveParameters, EachNodesLiveKeysAreTheDeclarationsThatNameIt) {
   const std::vector<std::string> controller = live_keys(SystemParams{}, "controller");
-  ASSERT_EQ(controller.size(), 2u + 2u * 4u * 5u);
+  ASSERT_EQ(controller.size(), 4u + 2u * 4u * 5u);
   EXPECT_EQ(controller[0], "velocity_loop.kp_n_s_per_m");
   EXPECT_EQ(controller[1], "velocity_loop.ki_n_per_m");
-  EXPECT_EQ(controller[2], "filters.force_command.slot_1.kind");
+  EXPECT_EQ(controller[2], "position_loop.gain_per_s");
+  EXPECT_EQ(controller[3], "position_loop.max_correction_mps");
+  EXPECT_EQ(controller[4], "filters.force_command.slot_1.kind");
   EXPECT_EQ(controller.back(), "filters.compensation.slot_4.second_damping");
   EXPECT_EQ(live_keys(SystemParams{}, "accel_feedback"),
             std::vector<std::string>{"compensator.acceleration_feedback.gain_kg"});
@@ -353,6 +357,67 @@ TEST(FollowedParameters, TheOwnersChangesApplyAtTheTickItComputedWithThem) {
   EXPECT_EQ(mine.velocity_loop.kp_n_s_per_m, shipped.velocity_loop.kp_n_s_per_m);
   EXPECT_EQ(followed.offer(1, {{"velocity_loop.kp_n_s_per_m", "11000"}}), "");
   EXPECT_TRUE(followed.at_tick(1).changed);
+}
+
+// The position loop in the velocity controller: the PI follows V_ref + K_x (x_ref - x_L) from the
+// load's encoder, its gain taken live, and a load reading the controller's monitor refuses (here
+// NaN: a silent sensor) hands the loop to the motor's encoder without a step in the force.
+TEST(LiveParameters, TheDualLoopFollowsTheLoadTakesItsGainLiveAndFallsBackWithoutAStep) {
+  SystemParams p = test::shipped_params();
+  p.load_sensor.kind = LoadSensorKind::kEncoder;
+  p.position_loop.closes_on = PositionFeedback::kLoad;
+  p.position_loop.gain_per_s = 2.0;
+  p.validate();
+  LiveParameters live(p, live_keys(SystemParams{}, "controller"));
+  VelocityController controller(p, test::shipped_scenario("pulse"));
+  const double kp = p.velocity_loop.kp_n_s_per_m;
+  // At rest, the motor at 1 mm, the load held 30 um short of where it started (the scales'
+  // zeros differ): 2/s x 30 um = 60 um/s asked of the motor, K_p times it in force.
+  LoadWitness witness;
+  witness.motor_position_m = 1e-3;
+  witness.reading.position_m = 0.5;
+  controller.step_command(0.0, 0.0, {}, witness);
+  witness.reading.position_m = 0.5 - 30e-6;
+  VelocityControllerOutput out = controller.step_command(0.0, 0.0, {}, witness);
+  EXPECT_TRUE(out.position.on_load);
+  EXPECT_NEAR(out.position.correction_mps, 60e-6, 1e-12);
+  EXPECT_NEAR(out.force_n, kp * 60e-6 + p.velocity_loop.ki_n_per_m * p.timing.control_period_s * 60e-6, 1e-6);
+  ASSERT_TRUE(live.set("position_loop.gain_per_s", "4").accepted);
+  ASSERT_TRUE(live.take_pending());
+  controller.retune(live.params());
+  out = controller.step_command(0.0, 0.0, {}, witness);
+  EXPECT_NEAR(out.position.correction_mps, 120e-6, 1e-12);
+  EXPECT_FALSE(live.set("position_loop.closes_on", "motor").accepted)
+      << "the encoder a loop closes on is read at start";
+  // Silent: the motor's encoder from the same error on, and it follows the motor from there.
+  witness.reading.position_m = std::numeric_limits<double>::quiet_NaN();
+  out = controller.step_command(0.0, 0.0, {}, witness);
+  EXPECT_FALSE(out.position.on_load);
+  EXPECT_NEAR(out.position.correction_mps, 120e-6, 1e-12);
+  witness.motor_position_m += 10e-6;
+  out = controller.step_command(0.0, 0.0, {}, witness);
+  EXPECT_NEAR(out.position.position_error_m, 20e-6, 1e-12);
+  EXPECT_EQ(controller.position_loop().counters().switches_to_motor, 1u);
+  // The paper's loop (closes_on none) is not moved by either encoder.
+  VelocityController paper(test::shipped_params(), test::shipped_scenario("pulse"));
+  EXPECT_EQ(paper.step_command(0.0, 0.0, {}, witness).position.correction_mps, 0.0);
+}
+
+TEST(LiveParameters, ADualLoopWithoutALoadEncoderIsRefusedNamingTheSensor) {
+  SystemParams p = test::shipped_params();
+  p.position_loop.closes_on = PositionFeedback::kLoad;
+  for (const LoadSensorKind kind : {LoadSensorKind::kNone, LoadSensorKind::kAccelerometer}) {
+    p.load_sensor.kind = kind;
+    try {
+      p.validate();
+      ADD_FAILURE() << "closes_on load taken with sensors.load.kind " << to_string(kind);
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("closes_on: load needs an encoder on the load"), std::string::npos)
+          << e.what();
+    }
+  }
+  p.position_loop.closes_on = PositionFeedback::kMotor;
+  EXPECT_NO_THROW(p.validate());
 }
 
 }  // namespace

@@ -17,9 +17,11 @@
 #include <cstddef>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pmlsm/control/biquad.hpp"
+#include "pmlsm/control/position_loop.hpp"
 #include "pmlsm/analysis/frequency_response.hpp"
 #include "pmlsm/util/parameter_table.hpp"
 
@@ -83,6 +85,35 @@ struct TunedGains {
 std::optional<TunedGains> tune_velocity_pi(const std::vector<FrequencyPoint>& points, double kp_n_s_per_m,
                                            double ki_n_per_m, const TuningTargets& targets, double min_coherence,
                                            std::string& why, const FilterChain* filters = nullptr);
+
+/// The position loop's open loop (pmlsm/control/position_loop.hpp) per line at K_x = 1 s^-1, from
+/// the same measurement: the velocity loop's closed loop at its gains scaled by `velocity_gain_scale`
+/// with the force command's filters H, T' = s H L / (1 + s H L), times (closing on the load) the
+/// load's velocity over the motor's Q, times the tick's sum from velocity to position,
+/// T_s / (1 - e^(-j w T_s)):
+///   L_x = T' Q T_s / (1 - e^(-j w T_s)).
+/// Q (1 - S) is the load's velocity over the velocity loop's reference as line sums, well defined
+/// where the motor stands still and Q alone is not. As points whose open_loop() is L_x (their
+/// sensitivity 1 / (1 + L_x)) for loop_margins, each line's coherence the smaller of the motor's and
+/// the load's; the load's lines matched to the motor's by frequency. closes_on none: none.
+std::vector<FrequencyPoint> position_loop_points(const std::vector<FrequencyPoint>& points,
+                                                 const std::vector<LoadRatioPoint>& load_points,
+                                                 PositionFeedback closes_on, double period_s,
+                                                 double velocity_gain_scale = 1.0,
+                                                 const FilterChain* filters = nullptr);
+
+/// The position loop's margins at `gain_per_s` from position_loop_points(). Below the measured
+/// band T' and Q are 1 and the loop is the integrator K_x / (j w), its phase there above the lowest
+/// line's: a gain crossover below the band is taken at K_x / 2 pi with the lowest line's phase
+/// margin, a bound the true one exceeds.
+LoopMargins position_loop_margins(const std::vector<FrequencyPoint>& position_points, double gain_per_s,
+                                  double min_coherence);
+
+/// The largest K_x on a grid of 1 % steps from 1000 s^-1 down to 0.01 s^-1 whose margins meet the
+/// targets plus their allowances; nullopt and why when none does.
+std::optional<std::pair<double, LoopMargins>> tune_position_gain(const std::vector<FrequencyPoint>& position_points,
+                                                                 const TuningTargets& targets, double min_coherence,
+                                                                 std::string& why);
 
 /// A compensator's gain tried at one factor of its configured value: whether it passed the
 /// verdict (clean and cheaper than PI alone) on every scenario, and its mean cost over PI alone's.

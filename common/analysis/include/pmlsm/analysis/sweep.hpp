@@ -133,6 +133,10 @@ struct RunVerdict {
   double rest_stretch_peak_m = 0;
   /// RMS of the compensation force over the tail's last window.
   double rest_compensation_rms_n = 0;
+  /// Where the load ended against where it was sent: x_ref at the last tick (T sum of V_ref before
+  /// it, the controller's) less the load's travel from the first tick (measured, not judged; the
+  /// position loop's, position_loop.hpp, to close).
+  double end_position_error_m = 0;
   bool non_finite = false;  ///< the plant diverged or a non-finite number in the trace
   /// The load's sensor failed during the run (the filter went on with the motor's side alone).
   bool sensor_failed = false;

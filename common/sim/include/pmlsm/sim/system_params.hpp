@@ -14,6 +14,7 @@
 #include "pmlsm/control/biquad.hpp"
 #include "pmlsm/control/current_controller.hpp"
 #include "pmlsm/control/input_shaper.hpp"
+#include "pmlsm/control/position_loop.hpp"
 #include "pmlsm/compensation/jordan_rnn.hpp"
 #include "pmlsm/compensation/state_feedback.hpp"
 #include "pmlsm/estimation/kalman_filter.hpp"
@@ -100,6 +101,8 @@ struct SystemParams {
   PlantParams plant;
   CurrentControllerParams current_loop;  ///< period_s: timing; voltage limit and motor model: the plant
   VelocityPiParams velocity_loop;        ///< period_s: timing.control_period_s
+  /// Over the velocity loop, off by default; closes_on load needs a load encoder.
+  PositionLoopParams position_loop;
   ReferenceModelParams reference_model;  ///< period_s: timing.control_period_s
   KalmanParams kalman;                   ///< period_s: timing.control_period_s
   CompensatorTuning compensator;
@@ -163,6 +166,7 @@ void visit_parameters(Params& p, Visitor& v) {
   PlantParams::declare("plant", p.plant, v);
   CurrentControllerParams::declare("current_loop", p.current_loop, v);
   VelocityPiParams::declare("velocity_loop", p.velocity_loop, v, kController);
+  PositionLoopParams::declare("position_loop", p.position_loop, v, kController);
   ReferenceModelParams::declare("reference_model", p.reference_model, v);
   v.real("input_shaping.vibration_tolerance", p.input_shaping.vibration_tolerance,
          {1e-6, 0.25, "EI's residual vibration on its mode: above 0, at most a quarter of unshaped"});

@@ -14,6 +14,7 @@
 #include "pmlsm/control/biquad.hpp"
 #include "pmlsm/control/external_reference.hpp"
 #include "pmlsm/control/input_shaper.hpp"
+#include "pmlsm/control/position_loop.hpp"
 #include "pmlsm/control/reference_model.hpp"
 #include "pmlsm/sim/scenario.hpp"
 #include "pmlsm/sim/system_params.hpp"
@@ -40,13 +41,15 @@ inline Compensation clamped_compensation(double force_n, double force_limit_n) {
   return compensation_from_output(force_n, force_n / force_limit_n);
 }
 
-/// A tick's load sensor reading with the motor encoder's position of the same tick: the standstill
-/// gate's witness of the load (x_M - x_L of a load encoder; (m_L / k) a_L of an accelerometer,
-/// low-passed at the load's mode), once the controller's own
+/// A tick's load sensor reading with the motor encoder's position of the same tick: the position
+/// loop's feedback (position_loop.closes_on) and the standstill gate's witness of the load
+/// (x_M - x_L of a load encoder; (m_L / k) a_L of an accelerometer, low-passed at the load's
+/// mode), once the controller's own
 /// LoadSensorMonitor believes it. The monitor is the estimator's, on the same readings, so the
 /// two agree tick by tick without a word on the wire: a reading the filter refuses, or a sensor
 /// it has failed (a count stuck during a move, then a swing at rest it cannot see), is no
-/// witness either, and the gate judges the motor's side alone.
+/// witness either, and the gate judges the motor's side alone (the position loop closes on the
+/// motor's encoder).
 struct LoadWitness {
   double motor_position_m = std::numeric_limits<double>::quiet_NaN();
   LoadSensorReading reading;  ///< NaN in what the sensor does not measure
@@ -59,8 +62,10 @@ struct VelocityControllerOutput {
   /// x_ref,k = T sum_{j<k} V_ref,j: where the motor should be at this tick's start, from the
   /// controller's start (a drive closing position follows its motion) [m].
   double x_ref_m = 0;
-  double force_n = 0;  ///< force request after the limit
-  double velocity_error_mps = 0;
+  /// The position loop's (position_loop.closes_on; 0 without it): the PI follows V_ref + this.
+  PositionLoopOutput position;
+  double force_n = 0;             ///< force request after the limit
+  double velocity_error_mps = 0;  ///< the PI's: V_ref + the position loop's correction - v_M
   bool saturated = false;
   /// The compensation added: the request times the guard's and the standstill gate's scales.
   double compensation_applied_n = 0;
@@ -94,7 +99,9 @@ class VelocityController {
   const VibrationGuard* guard() const { return guard_ ? &*guard_ : nullptr; }
   /// The standstill gate (nullptr when compensator.standstill.enabled is false).
   const StandstillGate* standstill_gate() const { return standstill_ ? &*standstill_ : nullptr; }
-  /// The judge of the load sensor's readings for the gate (nullptr without a gate or a load sensor).
+  const PositionLoop& position_loop() const { return position_; }
+  /// The judge of the load sensor's readings for the gate and the position loop (nullptr without a
+  /// load sensor, or with neither a gate nor a position loop on the load).
   const LoadSensorMonitor* load_sensor_monitor() const { return load_monitor_ ? &*load_monitor_ : nullptr; }
 
  private:
@@ -105,10 +112,11 @@ class VelocityController {
   double last_command_mps_ = 0;  ///< without the reference model: c(t_{k-1})
   bool have_last_command_ = false;
   double x_ref_m_ = 0;  ///< x_ref of the next tick
+  PositionLoop position_;
   VelocityPi velocity_;
   std::optional<VibrationGuard> guard_;
   std::optional<StandstillGate> standstill_;
-  std::optional<LoadSensorMonitor> load_monitor_;  ///< with a gate and a load sensor
+  std::optional<LoadSensorMonitor> load_monitor_;  ///< with a load sensor and a gate or a load loop
   std::optional<Biquad> accel_witness_;            ///< an accelerometer's reading, low-passed at w_L
   double stretch_per_accel_s2_ = 0;                ///< m_L / k of the filter's model
   std::uint64_t steps_ = 0;                        ///< the monitor's tick
