@@ -146,6 +146,7 @@ AccelFeedbackParams SystemParams::accel_feedback_params() const {
   AccelFeedbackParams p = compensator.acceleration_feedback;
   p.gain_kg *= compensator_gain_scale();
   if (load_sensor.kind == LoadSensorKind::kEncoder) p.gain_kg *= compensator.accel_load_encoder_gain_scale;
+  if (load_sensor.kind == LoadSensorKind::kAccelerometer) p.gain_kg *= compensator.accel_accelerometer_gain_scale;
   p.force_limit_n = velocity_loop.force_limit_n;
   return p;
 }

@@ -350,6 +350,28 @@ TEST(StandstillGate, WithALoadEncoderAccelerationFeedbackTakesTwiceItsGainAndSti
   EXPECT_GT(once.swing_m, 5e-6);
 }
 
+// With an accelerometer on the load it takes K_a x accelerometer_gain_scale (2) as well: on a heavy,
+// soft load (8 kg, 6,850 N/m, 10 N of friction, commissioned) the trapezoid's end then rests within
+// the accelerometer's targets (10 um, 5 N), where the gain without a sensor leaves 18 um swinging and
+// 6 N of compensation at rest (the gate, witnessing the swing, stays open over it).
+TEST(StandstillGate, WithAnAccelerometerAccelerationFeedbackTakesTwiceItsGainAndStillsAHeavySoftLoad) {
+  const Scenario scenario = test::shipped_scenario("trapezoid");
+  SystemParams p = commissioned_soft_load(8.0, LoadSensorKind::kAccelerometer);
+  ASSERT_EQ(p.compensator.accel_accelerometer_gain_scale, 2.0);
+  SystemParams single = p;
+  single.compensator.accel_accelerometer_gain_scale = 1.0;
+  EXPECT_DOUBLE_EQ(p.accel_feedback_params().gain_kg, 2.0 * single.accel_feedback_params().gain_kg);
+  const AtRest twice = at_rest(run_with_compensator(p, scenario, {CompensatorKind::kAccel, {}, false}));
+  const AtRest once = at_rest(run_with_compensator(single, scenario, {CompensatorKind::kAccel, {}, false}));
+  std::printf(
+      "[ standstill ] 8 kg, 6850 N/m, 10 N, accelerometer, trapezoid: K_a x2 %.2f um, %.2f N rms; x1 %.2f um, %.2f N "
+      "rms\n",
+      1e6 * twice.swing_m, twice.compensation_rms_n, 1e6 * once.swing_m, once.compensation_rms_n);
+  EXPECT_LT(twice.swing_m, 10e-6);
+  EXPECT_LT(twice.compensation_rms_n, 5.0);
+  EXPECT_TRUE(once.swing_m > 10e-6 || once.compensation_rms_n > 5.0);
+}
+
 // The RNN with a load encoder on a heavy, soft load (8 kg, 6,850 N/m, 10 N, commissioned): s_o x
 // load_encoder_gain_scale (1.5) and its output at rest taken out once the reference rests. The
 // trapezoid's end then rests within the targets; the bare network keeps pushing the motor its

@@ -51,6 +51,9 @@ struct CompensatorTuning {
   /// K_a's factor when a load encoder is declared (sensors.load.kind: encoder): the fused a_L is
   /// quiet enough for a stiffer law, which breaks a stuck motor free for a swing of micrometres.
   double accel_load_encoder_gain_scale = 0;
+  /// K_a's factor with an accelerometer on the load (sensors.load.kind: accelerometer): a_L read,
+  /// not inferred from the motor's count, so the same stiffer law.
+  double accel_accelerometer_gain_scale = 0;
   /// The RNN's s_o factor when a load encoder is declared: on the fused states its force damps the
   /// last micrometres of a swing the motor's side alone leaves to decay.
   double rnn_load_encoder_gain_scale = 0;
@@ -180,6 +183,8 @@ void visit_parameters(Params& p, Visitor& v) {
   AccelFeedbackParams::declare("compensator.acceleration_feedback", c.acceleration_feedback, v, kAccelFeedback);
   v.real("compensator.acceleration_feedback.load_encoder_gain_scale", c.accel_load_encoder_gain_scale,
          {1.0, 10.0, "K_a x1 (as without) to x10 with a load encoder"});
+  v.real("compensator.acceleration_feedback.accelerometer_gain_scale", c.accel_accelerometer_gain_scale,
+         {1.0, 10.0, "K_a x1 (as without) to x10 with an accelerometer on the load"});
   v.real("compensator.design_load_mass_kg", c.design_load_mass_kg, {0.01, 1e4, "from a 10 g load to a 10 t one"});
   v.real("compensator.max_gain_scale", c.max_gain_scale, {1.0, 100.0, "1 (never above the tuned gains) to 100"});
   StateFeedbackParams::declare("compensator.state_feedback", c.state_feedback, v, kStateFeedback);
