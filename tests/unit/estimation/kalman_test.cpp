@@ -203,6 +203,47 @@ TEST(Kalman, ALoadEncodersCountMeasuresTheSpringOnAStuckMotor) {
   EXPECT_NEAR(offset_n, -k * scale_offset_m, 0.02 * k * scale_offset_m);
 }
 
+TEST(Kalman, AnAccelerometersBiasIsTakenOutOfItsReadings) {
+  // The motor held by its bearings, the load swinging 20 um at sqrt(k / m_L), an accelerometer
+  // reading its acceleration plus 20 mg (a MEMS part's uncalibrated bias): the readings integrate to
+  // the load's velocity, which stays bounded, so their mean is the bias. Left in, it reads as a
+  // steady 0.8 N on the spring.
+  const double bias_mps2 = 0.196;
+  const auto run = [&](double prior_s) {
+    KalmanParams p = test::shipped_params().kalman_params();
+    LoadSensorParams sensor = test::shipped_params().load_sensor;
+    sensor.kind = LoadSensorKind::kAccelerometer;
+    p.load_measurement = KalmanLoadMeasurement::of(sensor, p.period_s, 1e-6);
+    p.accelerometer_bias_prior_s = prior_s;
+    const double k = p.model.spring_n_per_m;
+    const double w = std::sqrt(k / p.model.load_mass_kg);
+    KalmanFilter kf(p);
+    double err2 = 0, sig2 = 0, bias = 0;
+    const int steps = 2000;
+    for (int i = 0; i < steps; ++i) {
+      const double x_l = 20e-6 * std::cos(w * i * p.period_s);
+      KalmanInput in{0.0, 0.0, 0.0};
+      in.load_accel_mps2 = -w * w * x_l + bias_mps2;
+      const KalmanEstimate e = kf.step(in);
+      if (i >= steps / 2) {
+        err2 += std::pow(e.spring_force_n - (-k * x_l), 2);
+        sig2 += std::pow(k * x_l, 2);
+      }
+      bias = e.accelerometer_bias_mps2;
+    }
+    return std::pair{std::sqrt(err2 / sig2), bias};
+  };
+  const auto [taken_out, bias] = run(test::shipped_params().kalman.accelerometer_bias_prior_s);
+  const auto [left_in, ignored] = run(1e6);
+  std::printf(
+      "[ kalman     ] 20 um swing on a stuck motor, accelerometer 20 mg off: F_s rms error %.1f %% (bias found "
+      "%.4f of %.4f m/s^2); left in %.1f %%\n",
+      100 * taken_out, bias, bias_mps2, 100 * left_in);
+  EXPECT_NEAR(bias, bias_mps2, 0.05 * bias_mps2);
+  EXPECT_LT(taken_out, 0.2);
+  EXPECT_GT(left_in, 2 * taken_out);
+}
+
 TEST(Kalman, WithoutALoadSensorTheLoadsReadingsChangeNothing) {
   // A filter declared without a load sensor ignores load readings it is given: step for step the
   // filter without them (the filter before the load's sensor existed).

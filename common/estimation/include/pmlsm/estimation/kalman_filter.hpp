@@ -67,7 +67,13 @@
 //   accelerometer  y_k = a_L,k,              h = [0 0 1/m_L]       ((36): a_L = F_s / m_L)
 // with the variance of the sensor's declaration (SystemParams::kalman_params): an encoder's two
 // counts, 2 (q^2 / 12 + sigma^2) / T^2; an accelerometer's white noise N^2 / (2 T) through its low
-// pass of gain g, times g / (2 - g). The bias, the low pass's lag and the latency are not modelled.
+// pass of gain g, times g / (2 - g). The low pass's lag and the latency are not modelled. The
+// accelerometer's bias is taken out of y before the update: the reading integrates to the load's
+// velocity, so over the readings since the first at t_0
+//   b_k = (T sum_{j<k} y_j - (v_L,k - v_L,0)) / (tau_b + t_k - t_0)
+// (the filter's v_L before this update; a prior of 0 worth tau_b = kalman.accelerometer_bias_prior_s
+// of readings, so the first ones hardly count). A MEMS part's 20 mg doubles acceleration feedback's
+// pulse cost when left in.
 // An encoder's count also measures the spring: with the motor's encoder, F_s = k (x_M - x_L)
 // up to the offset b between the two scales (their zeros, the spring's free length), so a second
 // scalar update takes
@@ -145,6 +151,8 @@ struct KalmanParams {
   KalmanStandstillHold standstill_hold;                               ///< off: the paper's filter
   double thrust_lag_s = 0;  ///< tau_i, the current loop's first-order lag; 0: thrust = command (the paper), >= 0
   KalmanLoadMeasurement load_measurement;  ///< none: the filter without a load sensor
+  /// tau_b: how many seconds of an accelerometer's readings its prior bias of 0 is worth (header).
+  double accelerometer_bias_prior_s = 0;
   void validate() const;
   /// Its own entries under `at` ("kalman"): the model of the mechanics with the plant's ranges,
   /// the noises and the optional inputs; the period comes from the system. Self: this, const or not.
@@ -156,6 +164,8 @@ struct KalmanParams {
     v.real(at + ".measurement_noise", p.measurement_noise,
            {1e-15, 1e6, "a variance: positive (the filter divides by it), up to 1e6"});
     v.real(at + ".thrust_lag_s", p.thrust_lag_s, {0.0, 1.0, "0 (thrust = command) to 1 s"});
+    v.real(at + ".accelerometer_bias_prior_s", p.accelerometer_bias_prior_s,
+           {1e-3, 1e6, "1 ms (the readings decide at once) to 1e6 s (the bias taken as 0)"});
     v.vector3(at + ".initial_covariance_diag", p.initial_covariance_diag, noise);
     v.flag(at + ".friction_input.enabled", p.friction_input.enabled);
     FrictionParams::declare(at + ".friction_input", p.friction_input.model, v);
@@ -193,6 +203,7 @@ struct KalmanEstimate {
   double load_innovation = 0;          ///< y - h x^- of the load's update (its unit: m/s or m/s^2)
   double stretch_innovation_n = 0;     ///< z - F_s^- of an encoder's spring update (0 without one)
   double stretch_offset_n = 0;         ///< b_k, the two scales' offset in spring-force units (encoder)
+  double accelerometer_bias_mps2 = 0;  ///< the accelerometer's bias as the filter takes it out
   LoadSensorFault load_sensor_problem = LoadSensorFault::kNone;  ///< why this tick's reading was not used
   bool load_sensor_failed = false;                               ///< the sensor failed (latched)
 };
@@ -257,6 +268,12 @@ class KalmanFilter {
     double first_n = 0, last_n = 0, sum_n = 0;
     double first_load_velocity_mps = 0, first_variance = 0;
   } stretch_;
+  /// The accelerometer's bias (see the header): its readings' sum since the first and the first's v_L.
+  struct AccelerometerBias {
+    bool started = false;
+    std::uint64_t periods = 0;
+    double sum_mps = 0, first_load_velocity_mps = 0;
+  } accel_bias_;
   /// The encoder's spring update of the step (see the header) into `out`.
   void stretch_update(double load_position_m, double motor_position_m, KalmanEstimate& out);
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero();
