@@ -182,20 +182,27 @@ void KalmanFilter::load_update(const KalmanInput& in, KalmanEstimate& out) {
                    in.motor_position_m, out);
     have_load_position_ = finite;
     if (finite) last_load_position_m_ = in.load_position_m;
-  } else if (verdict.use) {
+  } else {
     AccelerometerBias& b = accel_bias_;
-    if (!b.started) {
+    if (!b.started && verdict.use) {
       b.started = true;
       b.first_load_velocity_mps = x_(1);
     }
-    const double t_s = static_cast<double>(b.periods) * params_.period_s;
-    out.accelerometer_bias_mps2 =
-        (b.sum_mps - (x_(1) - b.first_load_velocity_mps)) / (params_.accelerometer_bias_prior_s + t_s);
-    b.sum_mps += in.load_accel_mps2 * params_.period_s;
-    ++b.periods;
-    const Eigen::RowVector3d h(0.0, 0.0, 1.0 / params_.model.load_mass_kg);
-    out.load_innovation = scalar_update(h, in.load_accel_mps2 - out.accelerometer_bias_mps2, m.variance);
-    out.load_measurement_used = true;
+    if (b.started) {
+      const double t_s = static_cast<double>(b.periods) * params_.period_s;
+      b.bias_mps2 = (b.sum_mps - (x_(1) - b.first_load_velocity_mps)) / (params_.accelerometer_bias_prior_s + t_s);
+      // A reading not believed counts as the filter's own a_L plus the bias so far, so the sum
+      // still integrates to the change of v_L over the gap.
+      const double reading_mps2 = verdict.use ? in.load_accel_mps2 : x_(2) / params_.model.load_mass_kg + b.bias_mps2;
+      b.sum_mps += reading_mps2 * params_.period_s;
+      ++b.periods;
+    }
+    out.accelerometer_bias_mps2 = b.bias_mps2;
+    if (verdict.use) {
+      const Eigen::RowVector3d h(0.0, 0.0, 1.0 / params_.model.load_mass_kg);
+      out.load_innovation = scalar_update(h, in.load_accel_mps2 - b.bias_mps2, m.variance);
+      out.load_measurement_used = true;
+    }
   }
   if (out.load_measurement_used) ++counters_.load_updates;
 }

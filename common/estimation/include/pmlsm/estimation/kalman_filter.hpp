@@ -72,8 +72,9 @@
 // velocity, so over the readings since the first at t_0
 //   b_k = (T sum_{j<k} y_j - (v_L,k - v_L,0)) / (tau_b + t_k - t_0)
 // (the filter's v_L before this update; a prior of 0 worth tau_b = kalman.accelerometer_bias_prior_s
-// of readings, so the first ones hardly count). A MEMS part's 20 mg doubles acceleration feedback's
-// pulse cost when left in.
+// of readings, so the first ones hardly count; a reading not believed counts as the filter's own
+// a_L + b, so the sum still spans the change of v_L). A MEMS part's 20 mg doubles acceleration
+// feedback's pulse cost when left in.
 // An encoder's count also measures the spring: with the motor's encoder, F_s = k (x_M - x_L)
 // up to the offset b between the two scales (their zeros, the spring's free length), so a second
 // scalar update takes
@@ -268,11 +269,12 @@ class KalmanFilter {
     double first_n = 0, last_n = 0, sum_n = 0;
     double first_load_velocity_mps = 0, first_variance = 0;
   } stretch_;
-  /// The accelerometer's bias (see the header): its readings' sum since the first and the first's v_L.
+  /// The accelerometer's bias (see the header): its readings' sum since the first (a reading not
+  /// believed counted as the filter's a_L plus the bias), the first's v_L, the bias now.
   struct AccelerometerBias {
     bool started = false;
     std::uint64_t periods = 0;
-    double sum_mps = 0, first_load_velocity_mps = 0;
+    double sum_mps = 0, first_load_velocity_mps = 0, bias_mps2 = 0;
   } accel_bias_;
   /// The encoder's spring update of the step (see the header) into `out`.
   void stretch_update(double load_position_m, double motor_position_m, KalmanEstimate& out);
