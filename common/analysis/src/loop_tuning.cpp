@@ -39,6 +39,13 @@ std::vector<LoopLine> loop_lines(const std::vector<FrequencyPoint>& points, doub
 
 double between(double a, double b, double t) { return a + (b - a) * t; }
 
+/// Both crossovers read and both margins at least the targets plus their allowances.
+bool meets_with_allowances(const LoopMargins& m, const TuningTargets& targets) {
+  return m.gain_crossover_found && m.phase_crossover_found &&
+         m.phase_margin_deg >= targets.min_phase_margin_deg + targets.phase_allowance_deg &&
+         m.gain_margin_db >= targets.min_gain_margin_db + targets.gain_allowance_db;
+}
+
 }  // namespace
 
 LoopMargins loop_margins(const std::vector<FrequencyPoint>& points, double gain_scale, double min_coherence,
@@ -95,9 +102,7 @@ std::optional<TunedGains> tune_velocity_pi(const std::vector<FrequencyPoint>& po
   for (double i = 0; i <= steps && !found; ++i) {
     const double scale = targets.max_gain_scale * std::pow(1.01, -i);
     const LoopMargins m = loop_margins(points, scale, min_coherence, filters);
-    if (m.gain_crossover_found && m.phase_crossover_found &&
-        m.phase_margin_deg >= targets.min_phase_margin_deg + targets.phase_allowance_deg &&
-        m.gain_margin_db >= targets.min_gain_margin_db + targets.gain_allowance_db) {
+    if (meets_with_allowances(m, targets)) {
       tuned.gain_scale = scale;
       tuned.after = m;
       found = true;
@@ -177,11 +182,7 @@ std::optional<std::pair<double, LoopMargins>> tune_position_gain(const std::vect
   for (double i = 0; i <= steps; ++i) {
     const double gain = kMostPerS * std::pow(1.01, -i);
     const LoopMargins m = position_loop_margins(position_points, gain, min_coherence);
-    if (m.gain_crossover_found && m.phase_crossover_found &&
-        m.phase_margin_deg >= targets.min_phase_margin_deg + targets.phase_allowance_deg &&
-        m.gain_margin_db >= targets.min_gain_margin_db + targets.gain_allowance_db) {
-      return std::make_pair(gain, m);
-    }
+    if (meets_with_allowances(m, targets)) return std::make_pair(gain, m);
   }
   why = "no position gain from " + format_value(kLeastPerS) + " to " + format_value(kMostPerS) +
         " 1/s gives a phase margin of " + format_value(targets.min_phase_margin_deg + targets.phase_allowance_deg) +

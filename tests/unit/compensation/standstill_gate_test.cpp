@@ -327,22 +327,31 @@ SystemParams commissioned_soft_load(double load_mass_kg, LoadSensorKind sensor) 
   return p;
 }
 
+/// Acceleration feedback on `p` over the trapezoid with K_a times its sensor's factor `scale` as
+/// shipped (2, checked) and at 1: the two rests.
+struct TwiceAndOnce {
+  AtRest twice, once;
+};
+TwiceAndOnce accel_feedback_at_rest(const SystemParams& p, double CompensatorTuning::*scale) {
+  EXPECT_EQ(p.compensator.*scale, 2.0);
+  SystemParams single = p;
+  single.compensator.*scale = 1.0;
+  EXPECT_DOUBLE_EQ(p.accel_feedback_params().gain_kg, 2.0 * single.accel_feedback_params().gain_kg);
+  const Scenario scenario = test::shipped_scenario("trapezoid");
+  const CompensatorSetup accel{CompensatorKind::kAccel, {}, false};
+  return {at_rest(run_with_compensator(p, scenario, accel)), at_rest(run_with_compensator(single, scenario, accel))};
+}
+
 // Acceleration feedback with a load encoder takes K_a x load_encoder_gain_scale (2): on a light,
 // soft load (2 kg, 6,850 N/m, 10 N of friction, commissioned) the trapezoid's end then rests within
 // the targets (5 um, 5 N), where the gain without a sensor leaves about 11 um: the law asks too
 // little of a motor its bearings hold for a swing of micrometres.
 TEST(StandstillGate, WithALoadEncoderAccelerationFeedbackTakesTwiceItsGainAndStillsASoftLoad) {
-  const Scenario scenario = test::shipped_scenario("trapezoid");
-  SystemParams p = commissioned_soft_load(2.0, LoadSensorKind::kEncoder);
-  ASSERT_EQ(p.compensator.accel_load_encoder_gain_scale, 2.0);
-  SystemParams single = p;
-  single.compensator.accel_load_encoder_gain_scale = 1.0;
-  EXPECT_DOUBLE_EQ(p.accel_feedback_params().gain_kg, 2.0 * single.accel_feedback_params().gain_kg);
+  const SystemParams p = commissioned_soft_load(2.0, LoadSensorKind::kEncoder);
   SystemParams no_sensor = p;
   no_sensor.load_sensor.kind = LoadSensorKind::kNone;
-  EXPECT_DOUBLE_EQ(no_sensor.accel_feedback_params().gain_kg, single.accel_feedback_params().gain_kg);
-  const AtRest twice = at_rest(run_with_compensator(p, scenario, {CompensatorKind::kAccel, {}, false}));
-  const AtRest once = at_rest(run_with_compensator(single, scenario, {CompensatorKind::kAccel, {}, false}));
+  EXPECT_DOUBLE_EQ(2.0 * no_sensor.accel_feedback_params().gain_kg, p.accel_feedback_params().gain_kg);
+  const auto [twice, once] = accel_feedback_at_rest(p, &CompensatorTuning::accel_load_encoder_gain_scale);
   std::printf("[ standstill ] 2 kg, 6850 N/m, 10 N, load encoder, trapezoid: K_a x2 %.2f um, %.2f N rms; x1 %.2f um\n",
               1e6 * twice.swing_m, twice.compensation_rms_n, 1e6 * once.swing_m);
   EXPECT_LT(twice.swing_m, 5e-6);
@@ -355,14 +364,8 @@ TEST(StandstillGate, WithALoadEncoderAccelerationFeedbackTakesTwiceItsGainAndSti
 // the accelerometer's targets (10 um, 5 N), where the gain without a sensor leaves 18 um swinging and
 // 6 N of compensation at rest (the gate, witnessing the swing, stays open over it).
 TEST(StandstillGate, WithAnAccelerometerAccelerationFeedbackTakesTwiceItsGainAndStillsAHeavySoftLoad) {
-  const Scenario scenario = test::shipped_scenario("trapezoid");
-  SystemParams p = commissioned_soft_load(8.0, LoadSensorKind::kAccelerometer);
-  ASSERT_EQ(p.compensator.accel_accelerometer_gain_scale, 2.0);
-  SystemParams single = p;
-  single.compensator.accel_accelerometer_gain_scale = 1.0;
-  EXPECT_DOUBLE_EQ(p.accel_feedback_params().gain_kg, 2.0 * single.accel_feedback_params().gain_kg);
-  const AtRest twice = at_rest(run_with_compensator(p, scenario, {CompensatorKind::kAccel, {}, false}));
-  const AtRest once = at_rest(run_with_compensator(single, scenario, {CompensatorKind::kAccel, {}, false}));
+  const SystemParams p = commissioned_soft_load(8.0, LoadSensorKind::kAccelerometer);
+  const auto [twice, once] = accel_feedback_at_rest(p, &CompensatorTuning::accel_accelerometer_gain_scale);
   std::printf(
       "[ standstill ] 8 kg, 6850 N/m, 10 N, accelerometer, trapezoid: K_a x2 %.2f um, %.2f N rms; x1 %.2f um, %.2f N "
       "rms\n",
