@@ -434,6 +434,16 @@ class EthercatBridgeComponent final : public node::DriveComponent {
           "drive.sync0: SYNC0 runs on the drive's clock, which a lockstep run does not follow: "
           "realtime only (--clock realtime)");
     }
+    // In csp the drive pulls its motor to 0x607A on its own encoder while our position loop pushes
+    // the velocity offset 0x60B1 towards the load's (or the motor's) position: two position loops
+    // in one axis, with neither's margins measured. csv follows V_ref plus our correction.
+    if (const PositionFeedback outer = rt_.cfg.params.position_loop.closes_on;
+        c.mode == canopen::kModeCyclicSynchronousPosition && outer != PositionFeedback::kNone) {
+      throw ConfigError(std::string("position_loop.closes_on ") + to_string(outer) +
+                        " (the system file) with drive.mode csp: the drive closes its own position loop on "
+                        "its encoder; run the dual loop with drive.mode csv or cst, or set "
+                        "position_loop.closes_on: none");
+    }
     return c;
   }
 

@@ -1,7 +1,7 @@
 // The EtherCAT rig: drive_bridge --bus ethercat (our master) and virtual_drive --bus ethercat (the
 // simulated drive behind a virtual EtherCAT slave) exchanging EtherCAT over UDP on loopback, with
-// the rest of the system on DDS. Each test has its own DDS domain (offsets 113..119, 66) and UDP port
-// (62xx: below DDS's port base and the ephemeral range).
+// the rest of the system on DDS. Each test has its own DDS domain (offsets 113..119, 66, 67) and
+// UDP port (62xx: below DDS's port base and the ephemeral range).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -326,6 +326,24 @@ TEST(EthercatRig, ALoadSensorTheDrivesInputsDoNotCarryStopsTheBoot) {
     controller.signal(SIGINT);
     controller.wait_for(std::chrono::seconds(30));
   }
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+// A dual loop over a drive in csp would be two position loops in one axis (the drive's on its
+// encoder, ours on the velocity offset): the bridge refuses it before the link opens (exit 2,
+// named), whichever encoder ours closes on.
+TEST(EthercatRig, ThePositionLoopOverADriveInPositionModeIsRefusedBeforeTheBoot) {
+  const fs::path dir = test::fresh_dir("pmlsm_ethercat_rig", "csp_dual_loop");
+  const std::string scenario = source("configs/scenarios/pulse.yaml");
+  std::vector<std::string> args = ethercat_bridge_args("6297");
+  for (const char* a : {"--ethercat-set", "drive.mode=csp", "--set", "position_loop.closes_on=motor"})
+    args.emplace_back(a);
+  test::ChildProcess bridge(node_args("drive_bridge", test_domain(67), scenario, args), (dir / "bridge.log").string());
+  ASSERT_EQ(bridge.wait_for(std::chrono::seconds(60)), std::optional<int>(2)) << bridge.output();
+  EXPECT_NE(bridge.output().find("position_loop.closes_on motor (the system file) with drive.mode csp"),
+            std::string::npos)
+      << bridge.output();
+  EXPECT_EQ(bridge.output().find("in OP"), std::string::npos) << "nothing booted:\n" << bridge.output();
   if (!HasFailure()) fs::remove_all(dir);
 }
 
