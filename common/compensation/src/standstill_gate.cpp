@@ -24,6 +24,14 @@ void StandstillGateParams::validate() const {
     throw std::invalid_argument("wake_accel_swing_m: must be above quiet_accel_swing_m (" +
                                 format_value(quiet_accel_swing_m) + " m), got " + format_value(wake_accel_swing_m));
   }
+  if (stretch_gain_n_per_m > 0 &&
+      !(load_period_s >= 2.0 * control_period_s && load_period_s <= StandstillGateParams::kMaxLoadPeriodS)) {
+    throw std::invalid_argument(
+        "load_period_s: the load's mode's period (the filter's model) must be two control "
+        "periods to " +
+        format_value(StandstillGateParams::kMaxLoadPeriodS) + " s for the push after the stretch, got " +
+        format_value(load_period_s));
+  }
 }
 
 StandstillGate::StandstillGate(const StandstillGateParams& params)
@@ -31,7 +39,35 @@ StandstillGate::StandstillGate(const StandstillGateParams& params)
       settle_steps_(static_cast<std::uint64_t>(std::llround(params.settle_s / params.control_period_s))),
       load_settle_steps_(static_cast<std::uint64_t>(std::llround(params.load_settle_s / params.control_period_s))),
       window_steps_(static_cast<std::uint32_t>(std::llround(params.window_s / params.control_period_s))),
-      fade_per_step_(params.fade_s > 0 ? params.control_period_s / params.fade_s : 1.0) {}
+      fade_per_step_(params.fade_s > 0 ? params.control_period_s / params.fade_s : 1.0),
+      centre_ring_(params.stretch_gain_n_per_m > 0
+                       ? static_cast<std::size_t>(std::llround(params.load_period_s / params.control_period_s))
+                       : 0) {}
+
+void StandstillGate::forget_stretch_centre() noexcept {
+  centre_next_ = centre_filled_ = 0;
+  centre_sum_m_ = 0;
+}
+
+double StandstillGate::stretch_push(const StandstillGateInput& in) noexcept {
+  if (centre_ring_.empty()) return 0.0;
+  if (!std::isfinite(in.load_stretch_m) || in.stretch_from_accelerometer) {
+    // The centre is a whole period of a load encoder's counts, or none.
+    forget_stretch_centre();
+    return 0.0;
+  }
+  if (centre_filled_ == centre_ring_.size()) centre_sum_m_ -= centre_ring_[centre_next_];
+  centre_ring_[centre_next_] = in.load_stretch_m;
+  centre_sum_m_ += in.load_stretch_m;
+  centre_next_ = (centre_next_ + 1) % centre_ring_.size();
+  centre_filled_ = std::min(centre_filled_ + 1, centre_ring_.size());
+  if (centre_filled_ < centre_ring_.size() || !motor_held_) return 0.0;
+  // load_stretch_m is x_M - x_L: the push is along x_L - x_M about the centre.
+  const double centre_m = centre_sum_m_ / static_cast<double>(centre_ring_.size());
+  ++counters_.stretch_push_steps;
+  return std::clamp(params_.stretch_gain_n_per_m * (centre_m - in.load_stretch_m), -params_.stretch_force_max_n,
+                    params_.stretch_force_max_n);
+}
 
 void StandstillGate::open(bool at_once) noexcept {
   if (out_.closed) ++counters_.openings;
@@ -52,8 +88,12 @@ StandstillGateOutput StandstillGate::step(const StandstillGateInput& in) noexcep
     open(true);
     in_window_ = closed_in_window_ = stretch_in_window_ = 0;
     sum_v2_ = sum_f2_ = 0;
+    out_.stretch_force_n = 0;
+    motor_held_ = false;
+    forget_stretch_centre();
     return out_;
   }
+  out_.stretch_force_n = stretch_push(in);
   sum_v2_ += in.motor_velocity_mps * in.motor_velocity_mps;
   if (std::isfinite(in.load_stretch_m)) {
     stretch_min_m_ = stretch_in_window_ == 0 ? in.load_stretch_m : std::min(stretch_min_m_, in.load_stretch_m);
@@ -66,6 +106,7 @@ StandstillGateOutput StandstillGate::step(const StandstillGateInput& in) noexcep
   }
   if (++in_window_ >= window_steps_) {
     counters_.last_window_rms_mps = std::sqrt(sum_v2_ / static_cast<double>(in_window_));
+    motor_held_ = counters_.last_window_rms_mps < params_.quiet_velocity_mps;
     const bool closed_window = closed_in_window_ == in_window_;
     if (closed_window) counters_.last_closed_force_n = std::sqrt(sum_f2_ / static_cast<double>(in_window_));
     // The load's own witness, when its sensor read every tick of the window.

@@ -80,6 +80,7 @@ VibrationGuardParams SystemParams::vibration_guard_params() const {
 StandstillGateParams SystemParams::standstill_gate_params() const {
   StandstillGateParams p = compensator.standstill;
   p.control_period_s = timing.control_period_s;
+  p.load_period_s = 2.0 * M_PI * std::sqrt(kalman.model.load_mass_kg / kalman.model.spring_n_per_m);
   return p;
 }
 

@@ -113,7 +113,11 @@ VelocityControllerOutput VelocityController::step_command(double command_mps, do
                                         load_stretch_m, accel_witness_.has_value()});
   }
   const double scale = (guard_ ? guard_->output().scale : 1.0) * out.standstill.scale;
-  out.compensation_applied_n = compensation_filters_.step(scale * compensation.force_n);
+  // The gate's push after a load encoder's stretch joins the request (added only when it acts, so a
+  // run without it is the same to the last bit, a -0 included).
+  const double request_n = out.standstill.stretch_force_n != 0.0 ? compensation.force_n + out.standstill.stretch_force_n
+                                                                 : compensation.force_n;
+  out.compensation_applied_n = compensation_filters_.step(scale * request_n);
   if (guard_) {
     out.guard =
         guard_->step({motor_velocity_mps, ref.velocity_mps, out.compensation_applied_n, compensation.output_share});

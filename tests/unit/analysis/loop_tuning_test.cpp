@@ -177,7 +177,8 @@ TEST(PositionLoopTuning, TheLoadSidesMarginSaysWhereTheDualLoopTurnsUnstable) {
     SystemParams run = p;
     run.position_loop.closes_on = PositionFeedback::kLoad;
     run.position_loop.gain_per_s = gain;
-    run.position_loop.max_correction_mps = 1.0;  // linear: never at the bound
+    run.position_loop.max_correction_mps = 1.0;             // linear: never at the bound
+    run.compensator.standstill.stretch_gain_n_per_m = 0.0;  // the loop alone: no push after the stretch at rest
     const std::vector<TickRecord> trace = run_with_compensator(run, trapezoid, CompensatorSetup{});
     const auto rms = [&](std::size_t from, std::size_t to) {
       double mean = 0, square = 0;

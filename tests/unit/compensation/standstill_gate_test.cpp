@@ -35,6 +35,7 @@ StandstillGateParams gate_params() {
   p.wake_load_swing_m = 5e-6;
   p.quiet_accel_swing_m = 5e-6;
   p.wake_accel_swing_m = 8e-6;
+  p.stretch_force_max_n = 20.0;  // the push off (stretch_gain_n_per_m 0) unless a test sets it
   return p;
 }
 
@@ -130,6 +131,65 @@ TEST(StandstillGate, WithALoadEncoderItClosesOnlyOverAQuietLoad) {
   EXPECT_FALSE(out.closed);
 }
 
+// With stretch_gain_n_per_m the gate pushes a held motor along a load encoder's stretch about its
+// centre, the mean over the last period of the load's mode: G (s_0 - s) of the gate's s = x_M - x_L,
+// bounded. Not before the motor has been quiet for a window and a whole period has been read, not
+// with the motor still moving, not on an accelerometer's witness, and a move forgets the centre.
+TEST(StandstillGate, WithALoadEncoderItPushesAHeldMotorAlongTheStretchAboutItsCentre) {
+  StandstillGateParams p = gate_params();
+  p.stretch_gain_n_per_m = 1e6;
+  p.load_period_s = 0.1;  // the helper's 10 Hz swing
+  StandstillGate gate(p);
+  const double swing_m = 10e-6;
+  const auto stretch_at = [&](int k) { return swing_m * std::sin(2 * M_PI * 10.0 * k * 1e-3); };
+  // The first window: the motor not yet judged held, no push.
+  StandstillGateOutput out = load_swinging_for(gate, 100, swing_m);
+  EXPECT_EQ(out.stretch_force_n, 0.0);
+  EXPECT_EQ(gate.counters().stretch_push_steps, 0u);
+  // From then on: -G times the swing about the 3 mm offset (the centre of a whole period).
+  double worst_error_n = 0;
+  for (int k = 100; k < 300; ++k) {
+    out = gate.step({0.0, 0.0, 0.0, 0.0, 3e-3 + stretch_at(k)});
+    worst_error_n = std::max(worst_error_n, std::fabs(out.stretch_force_n + 1e6 * stretch_at(k)));
+  }
+  EXPECT_LT(worst_error_n, 1e-6);
+  EXPECT_EQ(gate.counters().stretch_push_steps, 200u);
+  // A swing of 50 um: bounded at 20 N.
+  double largest_n = 0;
+  for (int k = 0; k < 200; ++k) {
+    largest_n =
+        std::max(largest_n, std::fabs(gate.step({0.0, 0.0, 0.0, 0.0, 3e-3 + 5.0 * stretch_at(k)}).stretch_force_n));
+  }
+  EXPECT_EQ(largest_n, 20.0);
+  // A move: no push at once, and after it a window and a whole period again.
+  EXPECT_EQ(gate.step({0.1, 0.1, 0.05, 0.0, 3e-3}).stretch_force_n, 0.0);
+  const std::uint64_t before_move = gate.counters().stretch_push_steps;
+  load_swinging_for(gate, 100, swing_m);
+  EXPECT_EQ(gate.counters().stretch_push_steps, before_move);
+  // The reading joins the centre first: s_0 = 3 mm + 10 um / 100, the push -G (10 um - 0.1 um).
+  EXPECT_NEAR(gate.step({0.0, 0.0, 0.0, 0.0, 3e-3 + swing_m}).stretch_force_n, -9.9, 1e-6);
+  // The motor moving (5 mm/s rms, not quiet): a compensator is at work, no push after that window.
+  for (int k = 0; k < 100; ++k) out = gate.step({0.0, 0.0, k % 2 == 0 ? 5e-3 : -5e-3, 0.0, 3e-3 + stretch_at(k)});
+  out = gate.step({0.0, 0.0, 0.0, 0.0, 3e-3 + stretch_at(100 + 25)});
+  EXPECT_EQ(out.stretch_force_n, 0.0);
+  // A tick without the encoder's reading (refused, failed): no push, and the centre read afresh.
+  load_swinging_for(gate, 200, swing_m);
+  EXPECT_NE(gate.step({0.0, 0.0, 0.0, 0.0, 3e-3 + swing_m}).stretch_force_n, 0.0);
+  EXPECT_EQ(gate.step({0.0, 0.0, 0.0, 0.0, std::numeric_limits<double>::quiet_NaN()}).stretch_force_n, 0.0);
+  const std::uint64_t before_gap = gate.counters().stretch_push_steps;
+  load_swinging_for(gate, 99, swing_m);
+  EXPECT_EQ(gate.counters().stretch_push_steps, before_gap);
+  EXPECT_NE(gate.step({0.0, 0.0, 0.0, 0.0, 3e-3 + swing_m}).stretch_force_n, 0.0);
+  // An accelerometer's witness: none.
+  StandstillGate witnessed(p);
+  out = load_swinging_for(witnessed, 500, swing_m, 0.0, true);
+  EXPECT_EQ(witnessed.counters().stretch_push_steps, 0u);
+  // Off (the gain 0): none, and no ring.
+  StandstillGate off(gate_params());
+  load_swinging_for(off, 500, swing_m);
+  EXPECT_EQ(off.counters().stretch_push_steps, 0u);
+}
+
 // An accelerometer's witness is noisier (1-3 um of stretch): the gate judges it against its own,
 // wider thresholds (5 um quiet, 8 um wake) where an encoder's 4 um swing keeps it open.
 TEST(StandstillGate, AnAccelerometersWitnessIsJudgedAgainstItsOwnThresholds) {
@@ -197,6 +257,13 @@ TEST(StandstillGate, InvalidParametersAreNamed) {
   p = gate_params();
   p.settle_s = -1;
   EXPECT_NE(message(p).find("settle_s"), std::string::npos);
+  p = gate_params();
+  p.stretch_gain_n_per_m = 1e6;
+  p.load_period_s = 3.0;
+  EXPECT_NE(message(p).find("load_period_s: the load's mode's period"), std::string::npos);
+  p.load_period_s = 0.1;
+  p.stretch_force_max_n = 0.0;
+  EXPECT_NE(message(p).find("stretch_force_max_n"), std::string::npos);
 }
 
 TEST(StandstillGate, IsOnInTheShippedFileAndTakesItsPeriodFromTheSystemsTiming) {
@@ -314,6 +381,41 @@ TEST(StandstillGate, WithALoadEncoderItWaitsForTheSwingOnTheStickyCorner) {
   EXPECT_LT(std::sqrt(comp2 / 200.0), 5.0);
 }
 
+// The push after the stretch (compensator.standstill.stretch_gain_n_per_m) on the heaviest, softest,
+// stickiest corner (8 kg, 6,850 N/m, 30 N of friction, commissioned) with a load encoder: the
+// motor creeps under acceleration feedback's force at rest and the trapezoid's end keeps a swing
+// of tens of micrometres and its chatter; pushed after the stretch the swing is gone before the
+// last 0.2 s and the gate closed over it. The move itself is the same (the push acts only at rest).
+TEST(StandstillGate, WithALoadEncoderThePushAfterTheStretchStillsTheStickiestCorner) {
+  const Scenario scenario = test::shipped_scenario("trapezoid");
+  SystemParams pushed = on_sticky_corner(8.0);
+  pushed = with_identified_load(pushed, commission_load(pushed, test::shipped_scenario("identification"), {}));
+  pushed.load_sensor.kind = LoadSensorKind::kEncoder;
+  ASSERT_GT(pushed.compensator.standstill.stretch_gain_n_per_m, 0.0);
+  SystemParams unpushed = pushed;
+  unpushed.compensator.standstill.stretch_gain_n_per_m = 0.0;
+  const CompensatorSetup accel{CompensatorKind::kAccel, {}, false};
+  const auto with_push = run_with_compensator(pushed, scenario, accel);
+  const auto without = run_with_compensator(unpushed, scenario, accel);
+  const AtRest a = at_rest(with_push);
+  const AtRest b = at_rest(without);
+  std::printf(
+      "[ standstill ] 8 kg, 6850 N/m, 30 N, load encoder, trapezoid, acceleration feedback: pushed %.2f um, %.2f N "
+      "rms; without the push %.2f um, %.2f N rms\n",
+      1e6 * a.swing_m, a.compensation_rms_n, 1e6 * b.swing_m, b.compensation_rms_n);
+  EXPECT_LT(a.swing_m, 5e-6);
+  EXPECT_LT(a.compensation_rms_n, 5.0);
+  EXPECT_GT(b.swing_m, 10e-6);
+  EXPECT_GT(b.compensation_rms_n, 5.0);
+  // Until the move's end the two runs are one (at rest before it the stretch is still: no push).
+  std::size_t move_end = 0;
+  while (move_end < with_push.size() && with_push[move_end].v_ref_mps == 0.0) ++move_end;
+  while (move_end < with_push.size() && with_push[move_end].v_ref_mps != 0.0) ++move_end;
+  ASSERT_LT(move_end, with_push.size() - 300);
+  ASSERT_GT(move_end, 100u);
+  for (std::size_t k = 0; k < move_end; ++k) ASSERT_EQ(with_push[k].force_command_n, without[k].force_command_n) << k;
+}
+
 // A soft load (6,850 N/m, 10 N of Coulomb friction, 15 N s/m) of `load_mass_kg`, commissioned (its
 // models identified), with `sensor` on it.
 SystemParams commissioned_soft_load(double load_mass_kg, LoadSensorKind sensor) {
@@ -347,7 +449,9 @@ TwiceAndOnce accel_feedback_at_rest(const SystemParams& p, double CompensatorTun
 // the targets (5 um, 5 N), where the gain without a sensor leaves about 11 um: the law asks too
 // little of a motor its bearings hold for a swing of micrometres.
 TEST(StandstillGate, WithALoadEncoderAccelerationFeedbackTakesTwiceItsGainAndStillsASoftLoad) {
-  const SystemParams p = commissioned_soft_load(2.0, LoadSensorKind::kEncoder);
+  SystemParams p = commissioned_soft_load(2.0, LoadSensorKind::kEncoder);
+  // The gain's own share: without the gate's push after the stretch, which stills both (below).
+  p.compensator.standstill.stretch_gain_n_per_m = 0.0;
   SystemParams no_sensor = p;
   no_sensor.load_sensor.kind = LoadSensorKind::kNone;
   EXPECT_DOUBLE_EQ(2.0 * no_sensor.accel_feedback_params().gain_kg, p.accel_feedback_params().gain_kg);

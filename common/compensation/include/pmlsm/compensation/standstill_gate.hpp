@@ -30,6 +30,19 @@
 // LoadSensorMonitor refuses or a sensor it has failed: VelocityController's LoadWitness) is
 // judged on the motor alone.
 //
+// With a load encoder the gate also pushes the motor after the load's swing (stretch_gain_n_per_m,
+// 0: off): a motor its bearings hold creeps at most (the friction's sign is steep but continuous
+// near rest, F_fr ~ c_h v_M), so the swing loses energy only through what the motor gives way,
+// dE/dt = -k s v_M with s = x_L - x_M. The compensators' laws, sized for moves, push a creeping
+// motor too little for that (a swing of 15-40 um on soft, sticky plants decays at 0.6 1/s); a push
+// along the stretch, F = G (s - s_0) bounded by stretch_force_max_n, lets the motor follow the
+// load and the swing decays at about (k + G) / (2 c_h). It acts only at rest, with the motor held
+// (the last window's rms(v_M) under quiet_velocity_mps: a compensator that still moves the motor
+// is left to damp the swing its way) and the load encoder read every tick of the last period of
+// the load's mode (load_period_s, from the filter's model); s_0, the two encoders' offset, is the
+// stretch's mean over that period (a whole period of the swing averages to its centre). The push
+// is part of the compensation: the gate's scale fades it with the rest when the load is quiet.
+//
 // The last is for a heavy, soft load on sticky bearings: its swing (1.5 mm on 8 kg and 6,850 N/m
 // pulls 10 N) may not move a motor held by 30 N, so the motor is quiet while the load still
 // swings. Closed, the request is a witness: no force reaches the motor, and the estimate keeps
@@ -44,6 +57,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include "pmlsm/util/parameter_table.hpp"
 
@@ -53,19 +67,22 @@ namespace pmlsm {
 /// one place they live: none has a default of its own here.
 struct StandstillGateParams {
   double control_period_s = 0;
-  double rest_velocity_mps = 0;    ///< |c| and |V_ref| at or below this: the reference at rest, >= 0
-  double settle_s = 0;             ///< at rest this long before the gate may close, >= 0
-  double load_settle_s = 0;        ///< ... when the last window read a load encoder every tick, >= 0
-  double window_s = 0;             ///< the quiet window, at least 2 periods
-  double quiet_velocity_mps = 0;   ///< rms(v_M) of a window below this: quiet, > 0
-  double wake_velocity_mps = 0;    ///< rms(v_M) of a window above this: pushed, > quiet_velocity_mps
-  bool wake_on_request = false;    ///< the request while closed may reopen the gate (wake_force_n)
-  double wake_force_n = 0;         ///< the request's rms over a window spent closed above this: a swing, > 0
-  double fade_s = 0;               ///< >= 0 (0: at once)
-  double quiet_load_swing_m = 0;   ///< a load encoder's swing over a window at or below this: quiet, > 0
-  double wake_load_swing_m = 0;    ///< ... above this: the load moves, open; > quiet_load_swing_m
-  double quiet_accel_swing_m = 0;  ///< an accelerometer's witness of the swing at or below this: quiet, > 0
-  double wake_accel_swing_m = 0;   ///< ... above this: open; > quiet_accel_swing_m
+  double rest_velocity_mps = 0;     ///< |c| and |V_ref| at or below this: the reference at rest, >= 0
+  double settle_s = 0;              ///< at rest this long before the gate may close, >= 0
+  double load_settle_s = 0;         ///< ... when the last window read a load encoder every tick, >= 0
+  double window_s = 0;              ///< the quiet window, at least 2 periods
+  double quiet_velocity_mps = 0;    ///< rms(v_M) of a window below this: quiet, > 0
+  double wake_velocity_mps = 0;     ///< rms(v_M) of a window above this: pushed, > quiet_velocity_mps
+  bool wake_on_request = false;     ///< the request while closed may reopen the gate (wake_force_n)
+  double wake_force_n = 0;          ///< the request's rms over a window spent closed above this: a swing, > 0
+  double fade_s = 0;                ///< >= 0 (0: at once)
+  double quiet_load_swing_m = 0;    ///< a load encoder's swing over a window at or below this: quiet, > 0
+  double wake_load_swing_m = 0;     ///< ... above this: the load moves, open; > quiet_load_swing_m
+  double quiet_accel_swing_m = 0;   ///< an accelerometer's witness of the swing at or below this: quiet, > 0
+  double wake_accel_swing_m = 0;    ///< ... above this: open; > quiet_accel_swing_m
+  double stretch_gain_n_per_m = 0;  ///< G of the push after a load encoder's stretch at rest, >= 0 (0: off)
+  double stretch_force_max_n = 0;   ///< the push's bound, > 0
+  double load_period_s = 0;         ///< the load's mode's period (the filter's model): the stretch's centre, > 0
   /// @throws std::invalid_argument naming the parameter and its value.
   void validate() const;
   /// Its own entries under `at` ("compensator.standstill"); the period comes from the system.
@@ -92,7 +109,12 @@ struct StandstillGateParams {
            {1e-9, 1e-2, "1 nm to 10 mm of the swing an accelerometer witnesses (half the range over a window)"});
     v.real(at + ".wake_accel_swing_m", p.wake_accel_swing_m,
            {1e-9, 1e-2, "1 nm to 10 mm of the swing an accelerometer witnesses (half the range over a window)"});
+    v.real(at + ".stretch_gain_n_per_m", p.stretch_gain_n_per_m,
+           {0.0, 1e9, "0 (no push) to 1 kN per um of the load encoder's stretch"});
+    v.real(at + ".stretch_force_max_n", p.stretch_force_max_n, {1e-3, 1e5, "1 mN to 100 kN of push"});
   }
+  /// The longest load_period_s: the centre's ring holds this many seconds of stretch.
+  static constexpr double kMaxLoadPeriodS = 2.0;
 };
 
 struct StandstillGateInput {
@@ -110,6 +132,9 @@ struct StandstillGateInput {
 struct StandstillGateOutput {
   double scale = 1.0;   ///< multiply the compensation force by this
   bool closed = false;  ///< closing or closed (the scale heads for 0)
+  /// The push after the stretch, G (x_L - x_M - s_0) bounded (0 when it does not act): add it to
+  /// the compensation's request, before the scale.
+  double stretch_force_n = 0;
 };
 
 struct StandstillGateCounters {
@@ -117,9 +142,10 @@ struct StandstillGateCounters {
   std::uint64_t rejected_inputs = 0;
   std::uint64_t closings = 0;
   std::uint64_t openings = 0;
-  double last_window_rms_mps = 0;  ///< rms(v_M) of the last full window
-  double last_closed_force_n = 0;  ///< the request's rms over the last window spent closed
-  double last_load_swing_m = 0;    ///< the load's swing of the last full window with a stretch every tick
+  double last_window_rms_mps = 0;        ///< rms(v_M) of the last full window
+  double last_closed_force_n = 0;        ///< the request's rms over the last window spent closed
+  double last_load_swing_m = 0;          ///< the load's swing of the last full window with a stretch every tick
+  std::uint64_t stretch_push_steps = 0;  ///< ticks the push after the stretch acted
 };
 
 class StandstillGate {
@@ -136,6 +162,9 @@ class StandstillGate {
 
  private:
   void open(bool at_once) noexcept;
+  /// The push after the stretch this tick (the centre's ring taken one reading on).
+  double stretch_push(const StandstillGateInput& in) noexcept;
+  void forget_stretch_centre() noexcept;
   StandstillGateParams params_;
   std::uint64_t settle_steps_;
   std::uint64_t load_settle_steps_;
@@ -147,6 +176,10 @@ class StandstillGate {
   std::uint32_t closed_in_window_ = 0;   ///< ticks of the window with the scale at 0
   std::uint32_t stretch_in_window_ = 0;  ///< ticks of the window with a finite stretch
   double stretch_min_m_ = 0, stretch_max_m_ = 0;
+  std::vector<double> centre_ring_;  ///< the last load period's stretch (sized at construction)
+  std::size_t centre_next_ = 0, centre_filled_ = 0;
+  double centre_sum_m_ = 0;
+  bool motor_held_ = false;  ///< the last full window at rest had rms(v_M) under quiet_velocity_mps
   StandstillGateOutput out_;
   StandstillGateCounters counters_;
 };
