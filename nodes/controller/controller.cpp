@@ -39,6 +39,7 @@
 #include "pmlsm/sim/closed_loop.hpp"
 #include "pmlsm/sim/live_parameters.hpp"
 #include "pmlsm/control/current_controller.hpp"
+#include "pmlsm/compensation/standstill_gate.hpp"
 #include "pmlsm/control/input_freshness.hpp"
 #include "pmlsm/sim/velocity_controller.hpp"
 
@@ -436,6 +437,14 @@ int ControllerComponent::finish(int exit_code) {
       static_cast<unsigned long long>(late.ticks_before_first), static_cast<unsigned long long>(late.episodes),
       static_cast<unsigned long long>(late.longest_gap_ticks),
       guard_reported_ ? ", taken out by the vibration guard" : "");
+  if (const StandstillGate* gate = controller_ ? controller_->standstill_gate() : nullptr) {
+    const StandstillGateCounters& g = gate->counters();
+    std::printf(
+        "controller: standstill gate closed %llu times, reopened %llu; pushed the motor after the load's stretch for "
+        "%llu ticks\n",
+        static_cast<unsigned long long>(g.closings), static_cast<unsigned long long>(g.openings),
+        static_cast<unsigned long long>(g.stretch_push_steps));
+  }
   return exit_code;
 }
 

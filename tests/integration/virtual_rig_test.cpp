@@ -375,8 +375,13 @@ TEST(VirtualRig, ALoadEncoderIsReadThroughTpdo3AndCostsWhatTheSimulatedDriveDoes
   rig_against_simulated(dir, test_domain(62), "6250", "pulse", "state", config, canopen_config, r);
   if (HasFatalFailure()) return;
   expect_rig_matches(r);
-  EXPECT_NE(test::read_file(dir / "rig_pulse_state.log").find("a sensor on the load in the drive's TPDO3: encoder"),
-            std::string::npos);
+  const std::string rig_log = test::read_file(dir / "rig_pulse_state.log");
+  EXPECT_NE(rig_log.find("a sensor on the load in the drive's TPDO3: encoder"), std::string::npos);
+  // The controller's standstill gate pushed the held motor after the load's stretch in the pulse's rests.
+  const std::string pushed = "pushed the motor after the load's stretch for ";
+  const std::size_t at = rig_log.find(pushed);
+  ASSERT_NE(at, std::string::npos) << rig_log;
+  EXPECT_GT(std::stoll(rig_log.substr(at + pushed.size())), 0) << rig_log;
   std::printf("%s%s", kRigTableHeader, r.line.c_str());
   fs::remove_all(dir);
 }
