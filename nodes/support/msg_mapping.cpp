@@ -198,6 +198,7 @@ void to_msg(const KalmanEstimate& estimate, std::uint64_t feedback_tick, msg::Es
   for (int i = 0; i < 3; ++i) p[static_cast<std::size_t>(i)] = estimate.covariance_diag(i);
   out.load_sensor_use(static_cast<std::uint8_t>(load_sensor_use(estimate)));
   out.load_sensor_fault(static_cast<std::uint8_t>(estimate.load_sensor_problem));
+  out.accelerometer_bias_mps2(estimate.accelerometer_bias_mps2);
 }
 
 void from_msg(const msg::EstimatedState& in, KalmanEstimate& out) {
@@ -212,6 +213,7 @@ void from_msg(const msg::EstimatedState& in, KalmanEstimate& out) {
   out.load_measurement_used = in.load_sensor_use() == estimate_flags::LOAD_SENSOR_USED;
   out.load_sensor_failed = in.load_sensor_use() == estimate_flags::LOAD_SENSOR_FAILED;
   out.load_sensor_problem = load_fault_of(in.load_sensor_fault());
+  out.accelerometer_bias_mps2 = in.accelerometer_bias_mps2();
 }
 
 void from_msg(const msg::EstimatedState& in, TickRecord& rec) {

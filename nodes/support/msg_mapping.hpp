@@ -23,6 +23,7 @@
 //   ForceCommand.v_ref_mps, x_ref_m    drive::ForceCommandIn::velocity_mps, position_m
 //   EstimatedState.v_motor_mps / v_load_mps / a_load_mps2  motor_velocity_mps /
 //                                load_velocity_mps / load_accel_mps2 (est_* in TickRecord)
+//   EstimatedState.accelerometer_bias_mps2  KalmanEstimate::accelerometer_bias_mps2
 //
 // None of these touches the Stamp: the caller stamps what it publishes (tick, times, run_id)
 // and reads the stamp of what it takes. They do not allocate: each runs once per tick.

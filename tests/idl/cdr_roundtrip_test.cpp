@@ -230,6 +230,7 @@ struct Fields<msg::EstimatedState> {
     v("covariance_diag", m.covariance_diag()...);
     v("load_sensor_use", m.load_sensor_use()...);
     v("load_sensor_fault", m.load_sensor_fault()...);
+    v("accelerometer_bias_mps2", m.accelerometer_bias_mps2()...);
   }
 };
 

@@ -268,6 +268,7 @@ msg::EstimatedState estimated_state(Sampler& s) {
   v.covariance_diag({diagonal[0], diagonal[1], diagonal[2]});
   v.load_sensor_use(s.u8("load_sensor_use"));
   v.load_sensor_fault(s.u8("load_sensor_fault"));
+  v.accelerometer_bias_mps2(s.real("accelerometer_bias_mps2"));
   return v;
 }
 

@@ -436,6 +436,7 @@ KalmanEstimate distinct_estimate() {
   e.input_force_n = 6.06;
   e.covariance_diag = Eigen::Vector3d(6.07, 6.08, 6.09);
   e.measurement_used = true;
+  e.accelerometer_bias_mps2 = 6.11;
   return e;
 }
 
@@ -453,6 +454,7 @@ TEST(MsgMapping, EstimatedStateFromTheKalmanEstimate) {
   EXPECT_EQ(m.covariance_diag()[0], 6.07);
   EXPECT_EQ(m.covariance_diag()[1], 6.08);
   EXPECT_EQ(m.covariance_diag()[2], 6.09);
+  EXPECT_EQ(m.accelerometer_bias_mps2(), 6.11);
   expect_stamp_untouched(m.stamp());
 }
 
@@ -496,6 +498,7 @@ TEST(MsgMapping, EstimatedStateRoundTrip) {
   EXPECT_EQ(back.innovation_mps, e.innovation_mps);
   EXPECT_EQ(back.input_force_n, e.input_force_n);
   EXPECT_EQ(back.covariance_diag, e.covariance_diag);
+  EXPECT_EQ(back.accelerometer_bias_mps2, e.accelerometer_bias_mps2);
   EXPECT_FALSE(back.measurement_used);  // not on the wire: left as it was
 }
 
