@@ -81,6 +81,9 @@ StandstillGateParams SystemParams::standstill_gate_params() const {
   StandstillGateParams p = compensator.standstill;
   p.control_period_s = timing.control_period_s;
   p.load_period_s = 2.0 * M_PI * std::sqrt(kalman.model.load_mass_kg / kalman.model.spring_n_per_m);
+  // The push after the stretch reads a load encoder's count: without one it is off, and the
+  // filter's model need not fit its ring.
+  if (load_sensor.kind != LoadSensorKind::kEncoder) p.stretch_gain_n_per_m = 0.0;
   return p;
 }
 

@@ -271,6 +271,13 @@ TEST(StandstillGate, IsOnInTheShippedFileAndTakesItsPeriodFromTheSystemsTiming) 
   EXPECT_TRUE(shipped.compensator.standstill_enabled);
   EXPECT_FALSE(shipped.compensator.standstill.wake_on_request);  // see the last test of the loop below
   EXPECT_EQ(shipped.standstill_gate_params().control_period_s, shipped.timing.control_period_s);
+  // The push after the stretch only with a load encoder, its centre over the filter's load period.
+  EXPECT_EQ(shipped.standstill_gate_params().stretch_gain_n_per_m, 0.0);
+  SystemParams encoder = shipped;
+  encoder.load_sensor.kind = LoadSensorKind::kEncoder;
+  EXPECT_EQ(encoder.standstill_gate_params().stretch_gain_n_per_m, 2e6);
+  EXPECT_NEAR(encoder.standstill_gate_params().load_period_s,
+              2 * M_PI * std::sqrt(shipped.kalman.model.load_mass_kg / shipped.kalman.model.spring_n_per_m), 1e-12);
 }
 
 // The last 0.2 s of a trace: the compensation's rms [N] and the spring stretch's swing, half its
