@@ -22,6 +22,8 @@ LoadSensorMonitorParams LoadSensorMonitorParams::of(const LoadSensorParams& sens
   p.kind = sensor.kind;
   p.period_s = period_s;
   p.window_ticks = static_cast<std::uint32_t>(std::max(1.0, std::ceil(sensor.fault_after_s / period_s - 1e-9)));
+  p.saturated_window_ticks =
+      static_cast<std::uint32_t>(std::max(1.0, std::ceil(sensor.saturated_fail_after_s / period_s - 1e-9)));
   p.resolution_m = sensor.resolution_m;
   p.max_speed_mps = sensor.max_speed_mps;
   p.stuck_travel_m = sensor.stuck_travel_m;
@@ -50,6 +52,16 @@ LoadSensorVerdict LoadSensorMonitor::judge(std::uint64_t tick, double position_m
              std::abs(value - last_value_) > params_.max_speed_mps * params_.period_s + params_.resolution_m) {
     problem = LoadSensorFault::kJumping;
   }
+  if (problem == LoadSensorFault::kSaturated) {
+    // At the rail: refused, failed only after saturated_window_ticks of it; the next reading off
+    // the rail starts the stuck test afresh (the rail's value repeats by nature).
+    ++rejected_;
+    have_last_ = false;
+    unchanged_ = 0;
+    if (++saturated_in_row_ >= params_.saturated_window_ticks) return fail(tick, problem);
+    return {false, problem};
+  }
+  saturated_in_row_ = 0;
   if (std::isfinite(value)) {
     // Stuck: the same reading tick after tick, while the motor travelled (encoder) or a noisy
     // part's reading should have changed (accelerometer).

@@ -1,7 +1,7 @@
 // The load sensor's judge (pmlsm/estimation/load_sensor_monitor.hpp) with the shipped window (10
 // ticks at 1 kHz): silent, saturated and jumping readings refused and, ten in a row, the sensor
-// failed; a count that sticks while the load moves failed within the window, a load at rest not;
-// and the Kalman filter back on the motor's side once the sensor failed.
+// failed (at the rail: 300 in a row); a count that sticks while the load moves failed within the window, a load at rest
+// not; and the Kalman filter back on the motor's side once the sensor failed.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -81,12 +81,25 @@ TEST(LoadSensorMonitor, ACountThatSticksWhileTheMotorTravelsFailsALoadAtRestDoes
 }
 
 TEST(LoadSensorMonitor, AnAccelerometerAtItsRailOrRepeatingItselfFails) {
+  // At the rail: refused at once, failed after saturated_fail_after_s (0.3 s) there in a row.
   LoadSensorMonitor railed(shipped(LoadSensorKind::kAccelerometer));
-  for (std::uint64_t k = 0; k < 9; ++k)
-    EXPECT_EQ(railed.judge(k, kNaN, 156.9, true, 0.0).problem, LoadSensorFault::kSaturated);
+  for (std::uint64_t k = 0; k < 299; ++k) {
+    const LoadSensorVerdict v = railed.judge(k, kNaN, 156.9, true, 0.0);
+    EXPECT_FALSE(v.use);
+    EXPECT_EQ(v.problem, LoadSensorFault::kSaturated);
+  }
   EXPECT_FALSE(railed.failed());
-  railed.judge(9, kNaN, 156.9, true, 0.0);
+  EXPECT_EQ(railed.rejected(), 299u);
+  railed.judge(299, kNaN, 156.9, true, 0.0);
   EXPECT_EQ(railed.fault(), LoadSensorFault::kSaturated);
+  EXPECT_EQ(railed.failed_at_tick(), 299u);
+  // A swing's peaks past the rail (17 ms at 28 g on a 16 g part), then live readings: used again,
+  // the rail's repeated value no sign of a stuck part.
+  LoadSensorMonitor peaked(shipped(LoadSensorKind::kAccelerometer));
+  for (std::uint64_t k = 0; k < 17; ++k) peaked.judge(k, kNaN, -156.9, true, 0.0);
+  EXPECT_TRUE(peaked.judge(17, kNaN, -150.0, false, 0.0).use);
+  EXPECT_TRUE(peaked.judge(18, kNaN, -140.0, false, 0.0).use);
+  EXPECT_FALSE(peaked.failed());
   LoadSensorMonitor repeating(shipped(LoadSensorKind::kAccelerometer));
   for (std::uint64_t k = 0; k <= 10; ++k) repeating.judge(k, kNaN, 0.25, false, 0.0);
   EXPECT_EQ(repeating.fault(), LoadSensorFault::kStuck) << "a live part's noise moves every tick";

@@ -28,6 +28,7 @@ LoadSensorParams none() {
   p.bandwidth_hz = 1000.0;
   p.range_mps2 = 156.9064;
   p.fault_after_s = 0.01;
+  p.saturated_fail_after_s = 0.3;
   p.max_speed_mps = 5.0;
   p.stuck_travel_m = 5e-4;
   return p;

@@ -42,9 +42,10 @@ struct LoadSensorParams {
   std::uint32_t latency_ticks = 0;            ///< L, both kinds
   std::uint64_t noise_seed = 0;
   // Judging its readings (pmlsm/estimation/load_sensor_monitor.hpp):
-  double fault_after_s = 0;   ///< bad this long in a row, or stuck over it: failed
-  double max_speed_mps = 0;   ///< an encoder's reading moving faster than this jumped
-  double stuck_travel_m = 0;  ///< an encoder's count unchanged while the motor travelled this far: stuck
+  double fault_after_s = 0;           ///< bad this long in a row, or stuck over it: failed
+  double saturated_fail_after_s = 0;  ///< an accelerometer at its rail this long in a row: failed
+  double max_speed_mps = 0;           ///< an encoder's reading moving faster than this jumped
+  double stuck_travel_m = 0;          ///< an encoder's count unchanged while the motor travelled this far: stuck
   /// The simulated part goes silent (NaN readings) from this time on, a cut cable to rehearse the
   /// failure with; 0: never.
   double silent_after_s = 0;
@@ -67,6 +68,7 @@ struct LoadSensorParams {
     v.integer(s + "latency_ticks", p.latency_ticks, {0.0, static_cast<double>(kMaxLatencyTicks), "0 to 16 ticks"});
     v.integer(s + "noise_seed", p.noise_seed, {0.0, 18446744073709551615.0, "a seed: any whole number of 64 bits"});
     v.real(s + "fault_after_s", p.fault_after_s, {1e-4, 1.0, "0.1 ms to 1 s"});
+    v.real(s + "saturated_fail_after_s", p.saturated_fail_after_s, {1e-4, 60.0, "0.1 ms to a minute at the rail"});
     v.real(s + "max_speed_mps", p.max_speed_mps, {1e-3, 1e3, "1 mm/s to 1 km/s"});
     v.real(s + "stuck_travel_m", p.stuck_travel_m, {1e-6, 1.0, "1 um to 1 m of the motor's travel"});
     v.real(s + "silent_after_s", p.silent_after_s, {0.0, 1e6, "0 (never) to 1e6 s into the run"});
