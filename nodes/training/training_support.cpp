@@ -66,7 +66,7 @@ msg::TrainingSetup make_setup(std::uint64_t run_id, const std::string& system_pa
   setup.run_id(run_id);
   const std::string system_text = read_text(system_path);
   // fastddsgen's serialiser neither checks nor truncates bounds loudly: check them here.
-  check_bound(system_path, system_text.size(), 32768);
+  check_bound(system_path, system_text.size(), 65536);
   check_bound(system_path + " (name)", system_path.size(), 256);
   setup.system_yaml(system_text);
   setup.system_origin(system_path);

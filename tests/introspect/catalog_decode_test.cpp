@@ -337,7 +337,7 @@ msg::TrainingSetup training_setup(Sampler& s) {
   msg::TrainingSetup v;
   v.stamp(stamp(s));
   v.run_id(s.u64("run_id"));
-  v.system_yaml(s.text<32768>("system_yaml"));
+  v.system_yaml(s.text<65536>("system_yaml"));
   v.system_origin(s.text<256>("system_origin"));
   v.system_overrides(s.texts<256>("system_overrides", 3));
   std::vector<msg::TrainingScenarioText> scenarios(2);

@@ -24,7 +24,7 @@ void StandstillGateParams::validate() const {
     throw std::invalid_argument("wake_accel_swing_m: must be above quiet_accel_swing_m (" +
                                 format_value(quiet_accel_swing_m) + " m), got " + format_value(wake_accel_swing_m));
   }
-  if (stretch_gain_n_per_m > 0 &&
+  if ((stretch_gain_n_per_m > 0 || accel_stretch_gain_n_per_m > 0) &&
       !(load_period_s >= 2.0 * control_period_s && load_period_s <= StandstillGateParams::kMaxLoadPeriodS)) {
     throw std::invalid_argument(
         "load_period_s: the load's mode's period (the filter's model) must be two control "
@@ -40,7 +40,7 @@ StandstillGate::StandstillGate(const StandstillGateParams& params)
       load_settle_steps_(static_cast<std::uint64_t>(std::llround(params.load_settle_s / params.control_period_s))),
       window_steps_(static_cast<std::uint32_t>(std::llround(params.window_s / params.control_period_s))),
       fade_per_step_(params.fade_s > 0 ? params.control_period_s / params.fade_s : 1.0),
-      centre_ring_(params.stretch_gain_n_per_m > 0
+      centre_ring_(params.stretch_gain_n_per_m > 0 || params.accel_stretch_gain_n_per_m > 0
                        ? static_cast<std::size_t>(std::llround(params.load_period_s / params.control_period_s))
                        : 0) {}
 
@@ -51,7 +51,19 @@ void StandstillGate::forget_stretch_centre() noexcept {
 
 double StandstillGate::stretch_push(const StandstillGateInput& in) noexcept {
   if (centre_ring_.empty()) return 0.0;
-  if (!std::isfinite(in.load_stretch_m) || in.stretch_from_accelerometer) {
+  if (in.stretch_from_accelerometer) {
+    // The band-passed stretch has no offset: the ring only counts a whole period of readings.
+    if (!std::isfinite(in.load_stretch_at_mode_m) || params_.accel_stretch_gain_n_per_m <= 0) {
+      forget_stretch_centre();
+      return 0.0;
+    }
+    centre_filled_ = std::min(centre_filled_ + 1, centre_ring_.size());
+    if (centre_filled_ < centre_ring_.size() || !motor_held_) return 0.0;
+    ++counters_.stretch_push_steps;
+    return std::clamp(-params_.accel_stretch_gain_n_per_m * in.load_stretch_at_mode_m,
+                      -params_.accel_stretch_force_max_n, params_.accel_stretch_force_max_n);
+  }
+  if (!std::isfinite(in.load_stretch_m) || params_.stretch_gain_n_per_m <= 0) {
     // The centre is a whole period of a load encoder's counts, or none.
     forget_stretch_centre();
     return 0.0;

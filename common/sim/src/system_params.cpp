@@ -84,6 +84,7 @@ StandstillGateParams SystemParams::standstill_gate_params() const {
   // The push after the stretch reads a load encoder's count: without one it is off, and the
   // filter's model need not fit its ring.
   if (load_sensor.kind != LoadSensorKind::kEncoder) p.stretch_gain_n_per_m = 0.0;
+  if (load_sensor.kind != LoadSensorKind::kAccelerometer) p.accel_stretch_gain_n_per_m = 0.0;
   return p;
 }
 

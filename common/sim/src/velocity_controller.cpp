@@ -40,6 +40,16 @@ VelocityController::VelocityController(const SystemParams& params, const Scenari
       witness.damping = 0.5;
       witness.period_s = period_s_;
       accel_witness_.emplace(witness);
+      // The gate's push reads the stretch at the mode without the low-pass's quarter-period lag:
+      // the reading less a full notch at w_L, 2 zeta w_L s / (s^2 + 2 zeta w_L s + w_L^2), unit gain
+      // and no phase at w_L, nothing at 0 Hz (the bias).
+      BiquadParams notch;
+      notch.kind = FilterKind::kNotch;
+      notch.frequency_hz = witness.frequency_hz;
+      notch.damping = 0.0;
+      notch.second_damping = params.compensator.standstill.accel_stretch_damping;
+      notch.period_s = period_s_;
+      accel_mode_notch_.emplace(notch);
       stretch_per_accel_s2_ = m_l / k;
     }
   }
@@ -94,14 +104,20 @@ VelocityControllerOutput VelocityController::step_command(double command_mps, do
   // The load sensor's reading, once the monitor believes it: the position loop's and the gate's.
   double load_position_m = std::numeric_limits<double>::quiet_NaN();
   double load_stretch_m = std::numeric_limits<double>::quiet_NaN();
+  double load_stretch_at_mode_m = std::numeric_limits<double>::quiet_NaN();
   if (load_monitor_) {
     const LoadSensorVerdict verdict = load_monitor_->judge(
         tick, load.reading.position_m, load.reading.acceleration_mps2, load.reading.saturated, load.motor_position_m);
     if (verdict.use) {
       load_position_m = load.reading.position_m;
       if (standstill_) {
-        load_stretch_m = accel_witness_ ? stretch_per_accel_s2_ * accel_witness_->step(load.reading.acceleration_mps2)
-                                        : load.motor_position_m - load.reading.position_m;
+        if (accel_witness_) {
+          const double a = load.reading.acceleration_mps2;
+          load_stretch_m = stretch_per_accel_s2_ * accel_witness_->step(a);
+          load_stretch_at_mode_m = stretch_per_accel_s2_ * (a - accel_mode_notch_->step(a));
+        } else {
+          load_stretch_m = load.motor_position_m - load.reading.position_m;
+        }
       }
     }
   }
@@ -110,10 +126,10 @@ VelocityControllerOutput VelocityController::step_command(double command_mps, do
   // the standstill gate's of this period (a move opens it on its first tick).
   if (standstill_) {
     out.standstill = standstill_->step({out.command_mps, ref.velocity_mps, motor_velocity_mps, compensation.force_n,
-                                        load_stretch_m, accel_witness_.has_value()});
+                                        load_stretch_m, accel_witness_.has_value(), load_stretch_at_mode_m});
   }
   const double scale = (guard_ ? guard_->output().scale : 1.0) * out.standstill.scale;
-  // The gate's push after a load encoder's stretch joins the request (added only when it acts, so a
+  // The gate's push after the load's stretch joins the request (added only when it acts, so a
   // run without it is the same to the last bit, a -0 included).
   const double request_n = out.standstill.stretch_force_n != 0.0 ? compensation.force_n + out.standstill.stretch_force_n
                                                                  : compensation.force_n;

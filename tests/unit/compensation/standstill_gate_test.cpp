@@ -14,6 +14,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace pmlsm {
@@ -35,7 +36,9 @@ StandstillGateParams gate_params() {
   p.wake_load_swing_m = 5e-6;
   p.quiet_accel_swing_m = 5e-6;
   p.wake_accel_swing_m = 8e-6;
-  p.stretch_force_max_n = 20.0;  // the push off (stretch_gain_n_per_m 0) unless a test sets it
+  p.stretch_force_max_n = 20.0;  // the pushes off (their gains 0) unless a test sets them
+  p.accel_stretch_damping = 0.7;
+  p.accel_stretch_force_max_n = 25.0;
   return p;
 }
 
@@ -190,6 +193,52 @@ TEST(StandstillGate, WithALoadEncoderItPushesAHeldMotorAlongTheStretchAboutItsCe
   EXPECT_EQ(off.counters().stretch_push_steps, 0u);
 }
 
+// With accel_stretch_gain_n_per_m the gate pushes a held motor against an accelerometer's stretch
+// at the load's mode (the controller's band-pass: no lag there, no offset), bounded by its own
+// accel_stretch_force_max_n: not before the motor has been quiet for a window and a whole period has
+// been read, not without that stretch, and a move or a tick without it starts the period again.
+TEST(StandstillGate, WithAnAccelerometerItPushesAHeldMotorAgainstTheStretchAtTheMode) {
+  StandstillGateParams p = gate_params();
+  p.accel_stretch_gain_n_per_m = 5e5;
+  p.load_period_s = 0.1;
+  StandstillGate gate(p);
+  const double swing_m = 10e-6;
+  const auto at_mode = [&](int k) { return swing_m * std::sin(2 * M_PI * 10.0 * k * 1e-3); };
+  const auto step = [&](int k, double scale) {
+    return gate.step({0.0, 0.0, 0.0, 0.0, 3e-3, true, scale * at_mode(k)}).stretch_force_n;
+  };
+  // The first window: the motor not yet judged held, no push.
+  for (int k = 0; k < 100; ++k) EXPECT_EQ(step(k, 1.0), 0.0) << k;
+  // From then on -G s, whatever the low-passed witness reads (its 3 mm are the bias: not pushed on).
+  double worst_error_n = 0;
+  for (int k = 100; k < 300; ++k) worst_error_n = std::max(worst_error_n, std::fabs(step(k, 1.0) + 5e5 * at_mode(k)));
+  EXPECT_LT(worst_error_n, 1e-9);
+  EXPECT_EQ(gate.counters().stretch_push_steps, 200u);
+  // A swing of 100 um: bounded at its own 25 N, not the encoder's push's 20 N.
+  double largest_n = 0;
+  for (int k = 0; k < 100; ++k) largest_n = std::max(largest_n, std::fabs(step(k, 10.0)));
+  EXPECT_EQ(largest_n, 25.0);
+  // A tick without the band-passed stretch (a refused reading): none, and a whole period again.
+  EXPECT_EQ(gate.step({0.0, 0.0, 0.0, 0.0, 3e-3, true}).stretch_force_n, 0.0);
+  const std::uint64_t before_gap = gate.counters().stretch_push_steps;
+  for (int k = 0; k < 99; ++k) EXPECT_EQ(step(k + 10, 1.0), 0.0);
+  EXPECT_EQ(gate.counters().stretch_push_steps, before_gap);
+  EXPECT_NE(step(109, 1.0), 0.0);
+  // A move: none at once, and after it a window and a period again.
+  EXPECT_EQ(gate.step({0.1, 0.1, 0.05, 0.0, 3e-3, true, swing_m}).stretch_force_n, 0.0);
+  for (int k = 0; k < 100; ++k) EXPECT_EQ(step(k + 10, 1.0), 0.0);
+  EXPECT_NE(step(110, 1.0), 0.0);
+  // A load encoder's count is not pushed on with this gain, nor this stretch with the encoder's.
+  StandstillGate encoder(p);
+  load_swinging_for(encoder, 500, swing_m);
+  EXPECT_EQ(encoder.counters().stretch_push_steps, 0u);
+  p.stretch_gain_n_per_m = 1e6;
+  p.accel_stretch_gain_n_per_m = 0.0;
+  StandstillGate only_encoder(p);
+  for (int k = 0; k < 500; ++k) only_encoder.step({0.0, 0.0, 0.0, 0.0, 3e-3, true, at_mode(k)});
+  EXPECT_EQ(only_encoder.counters().stretch_push_steps, 0u);
+}
+
 // An accelerometer's witness is noisier (1-3 um of stretch): the gate judges it against its own,
 // wider thresholds (5 um quiet, 8 um wake) where an encoder's 4 um swing keeps it open.
 TEST(StandstillGate, AnAccelerometersWitnessIsJudgedAgainstItsOwnThresholds) {
@@ -257,13 +306,21 @@ TEST(StandstillGate, InvalidParametersAreNamed) {
   p = gate_params();
   p.settle_s = -1;
   EXPECT_NE(message(p).find("settle_s"), std::string::npos);
-  p = gate_params();
-  p.stretch_gain_n_per_m = 1e6;
-  p.load_period_s = 3.0;
-  EXPECT_NE(message(p).find("load_period_s: the load's mode's period"), std::string::npos);
-  p.load_period_s = 0.1;
-  p.stretch_force_max_n = 0.0;
-  EXPECT_NE(message(p).find("stretch_force_max_n"), std::string::npos);
+  // Each push (a load encoder's, an accelerometer's): its period and its bound.
+  using Push = std::pair<double StandstillGateParams::*, double StandstillGateParams::*>;
+  for (const auto& [gain, bound] :
+       {Push{&StandstillGateParams::stretch_gain_n_per_m, &StandstillGateParams::stretch_force_max_n},
+        Push{&StandstillGateParams::accel_stretch_gain_n_per_m, &StandstillGateParams::accel_stretch_force_max_n}}) {
+    p = gate_params();
+    p.*gain = 1e6;
+    p.load_period_s = 3.0;
+    EXPECT_NE(message(p).find("load_period_s: the load's mode's period"), std::string::npos);
+    p.load_period_s = 0.1;
+    p.*bound = 0.0;
+    EXPECT_NE(message(p).find(bound == &StandstillGateParams::stretch_force_max_n ? "stretch_force_max_n"
+                                                                                  : "accel_stretch_force_max_n"),
+              std::string::npos);
+  }
 }
 
 TEST(StandstillGate, IsOnInTheShippedFileAndTakesItsPeriodFromTheSystemsTiming) {
@@ -276,6 +333,13 @@ TEST(StandstillGate, IsOnInTheShippedFileAndTakesItsPeriodFromTheSystemsTiming) 
   SystemParams encoder = shipped;
   encoder.load_sensor.kind = LoadSensorKind::kEncoder;
   EXPECT_EQ(encoder.standstill_gate_params().stretch_gain_n_per_m, 2e6);
+  EXPECT_EQ(encoder.standstill_gate_params().accel_stretch_gain_n_per_m, 0.0);
+  // The push after an accelerometer's stretch only with an accelerometer.
+  EXPECT_EQ(shipped.standstill_gate_params().accel_stretch_gain_n_per_m, 0.0);
+  SystemParams accelerometer = shipped;
+  accelerometer.load_sensor.kind = LoadSensorKind::kAccelerometer;
+  EXPECT_EQ(accelerometer.standstill_gate_params().accel_stretch_gain_n_per_m, 2e6);
+  EXPECT_EQ(accelerometer.standstill_gate_params().stretch_gain_n_per_m, 0.0);
   EXPECT_NEAR(encoder.standstill_gate_params().load_period_s,
               2 * M_PI * std::sqrt(shipped.kalman.model.load_mass_kg / shipped.kalman.model.spring_n_per_m), 1e-12);
 }
@@ -388,39 +452,60 @@ TEST(StandstillGate, WithALoadEncoderItWaitsForTheSwingOnTheStickyCorner) {
   EXPECT_LT(std::sqrt(comp2 / 200.0), 5.0);
 }
 
+// Acceleration feedback's trapezoid on the heaviest, softest, stickiest corner, commissioned, with `sensor` on the
+// load: the rest with the gate's push after the stretch (its gain `push_gain`, as shipped) and without it. The move
+// itself is the same to the bit (the push acts only at rest).
+void expect_the_push_stills_the_stickiest_corner(LoadSensorKind sensor, double StandstillGateParams::*push_gain,
+                                                 double swing_limit_m) {
+  const Scenario scenario = test::shipped_scenario("trapezoid");
+  SystemParams pushed = on_sticky_corner(8.0);
+  pushed = with_identified_load(pushed, commission_load(pushed, test::shipped_scenario("identification"), {}));
+  pushed.load_sensor.kind = sensor;
+  EXPECT_GT(pushed.compensator.standstill.*push_gain, 0.0);
+  SystemParams unpushed = pushed;
+  unpushed.compensator.standstill.*push_gain = 0.0;
+  const CompensatorSetup accel{CompensatorKind::kAccel, {}, false};
+  const auto with_push = run_with_compensator(pushed, scenario, accel);
+  const auto without = run_with_compensator(unpushed, scenario, accel);
+  std::size_t move_end = 0;
+  while (move_end < with_push.size() && with_push[move_end].v_ref_mps == 0.0) ++move_end;
+  while (move_end < with_push.size() && with_push[move_end].v_ref_mps != 0.0) ++move_end;
+  EXPECT_LT(move_end, with_push.size() - 300);
+  EXPECT_GT(move_end, 100u);
+  for (std::size_t k = 0; k < move_end && k < with_push.size(); ++k) {
+    EXPECT_EQ(with_push[k].force_command_n, without[k].force_command_n) << k;
+    if (with_push[k].force_command_n != without[k].force_command_n) break;
+  }
+  const AtRest a = at_rest(with_push);
+  const AtRest b = at_rest(without);
+  std::printf(
+      "[ standstill ] 8 kg, 6850 N/m, 30 N, %s, trapezoid, acceleration feedback: pushed %.2f um, %.2f N rms; "
+      "without the push %.2f um, %.2f N rms\n",
+      to_string(sensor), 1e6 * a.swing_m, a.compensation_rms_n, 1e6 * b.swing_m, b.compensation_rms_n);
+  // Pushed: within the sensor's target (`swing_limit_m`, 5 N); without: a swing and its chatter.
+  EXPECT_LT(a.swing_m, swing_limit_m);
+  EXPECT_LT(a.compensation_rms_n, 5.0);
+  EXPECT_GT(b.swing_m, 10e-6);
+  EXPECT_GT(b.compensation_rms_n, 5.0);
+}
+
 // The push after the stretch (compensator.standstill.stretch_gain_n_per_m) on the heaviest, softest,
 // stickiest corner (8 kg, 6,850 N/m, 30 N of friction, commissioned) with a load encoder: the
 // motor creeps under acceleration feedback's force at rest and the trapezoid's end keeps a swing
 // of tens of micrometres and its chatter; pushed after the stretch the swing is gone before the
-// last 0.2 s and the gate closed over it. The move itself is the same (the push acts only at rest).
+// last 0.2 s and the gate closed over it.
 TEST(StandstillGate, WithALoadEncoderThePushAfterTheStretchStillsTheStickiestCorner) {
-  const Scenario scenario = test::shipped_scenario("trapezoid");
-  SystemParams pushed = on_sticky_corner(8.0);
-  pushed = with_identified_load(pushed, commission_load(pushed, test::shipped_scenario("identification"), {}));
-  pushed.load_sensor.kind = LoadSensorKind::kEncoder;
-  ASSERT_GT(pushed.compensator.standstill.stretch_gain_n_per_m, 0.0);
-  SystemParams unpushed = pushed;
-  unpushed.compensator.standstill.stretch_gain_n_per_m = 0.0;
-  const CompensatorSetup accel{CompensatorKind::kAccel, {}, false};
-  const auto with_push = run_with_compensator(pushed, scenario, accel);
-  const auto without = run_with_compensator(unpushed, scenario, accel);
-  const AtRest a = at_rest(with_push);
-  const AtRest b = at_rest(without);
-  std::printf(
-      "[ standstill ] 8 kg, 6850 N/m, 30 N, load encoder, trapezoid, acceleration feedback: pushed %.2f um, %.2f N "
-      "rms; without the push %.2f um, %.2f N rms\n",
-      1e6 * a.swing_m, a.compensation_rms_n, 1e6 * b.swing_m, b.compensation_rms_n);
-  EXPECT_LT(a.swing_m, 5e-6);
-  EXPECT_LT(a.compensation_rms_n, 5.0);
-  EXPECT_GT(b.swing_m, 10e-6);
-  EXPECT_GT(b.compensation_rms_n, 5.0);
-  // Until the move's end the two runs are one (at rest before it the stretch is still: no push).
-  std::size_t move_end = 0;
-  while (move_end < with_push.size() && with_push[move_end].v_ref_mps == 0.0) ++move_end;
-  while (move_end < with_push.size() && with_push[move_end].v_ref_mps != 0.0) ++move_end;
-  ASSERT_LT(move_end, with_push.size() - 300);
-  ASSERT_GT(move_end, 100u);
-  for (std::size_t k = 0; k < move_end; ++k) ASSERT_EQ(with_push[k].force_command_n, without[k].force_command_n) << k;
+  expect_the_push_stills_the_stickiest_corner(LoadSensorKind::kEncoder, &StandstillGateParams::stretch_gain_n_per_m,
+                                              5e-6);
+}
+
+// With an accelerometer the gate pushes after the stretch it reads at the load's mode, (m_L / k) a_L
+// band-passed there: on the same corner acceleration feedback's trapezoid then ends within the
+// accelerometer's targets (10 um, 5 N), where without the push about 30 um swing on under 13 N of
+// chatter (the witness keeps the gate open over a law too weak to move the motor).
+TEST(StandstillGate, WithAnAccelerometerThePushAfterTheStretchAtTheModeStillsTheStickiestCorner) {
+  expect_the_push_stills_the_stickiest_corner(LoadSensorKind::kAccelerometer,
+                                              &StandstillGateParams::accel_stretch_gain_n_per_m, 10e-6);
 }
 
 // A soft load (6,850 N/m, 10 N of Coulomb friction, 15 N s/m) of `load_mass_kg`, commissioned (its
@@ -475,7 +560,9 @@ TEST(StandstillGate, WithALoadEncoderAccelerationFeedbackTakesTwiceItsGainAndSti
 // the accelerometer's targets (10 um, 5 N), where the gain without a sensor leaves 18 um swinging and
 // 6 N of compensation at rest (the gate, witnessing the swing, stays open over it).
 TEST(StandstillGate, WithAnAccelerometerAccelerationFeedbackTakesTwiceItsGainAndStillsAHeavySoftLoad) {
-  const SystemParams p = commissioned_soft_load(8.0, LoadSensorKind::kAccelerometer);
+  SystemParams p = commissioned_soft_load(8.0, LoadSensorKind::kAccelerometer);
+  // The gain's own share: without the gate's push after the stretch at the mode, which stills both.
+  p.compensator.standstill.accel_stretch_gain_n_per_m = 0.0;
   const auto [twice, once] = accel_feedback_at_rest(p, &CompensatorTuning::accel_accelerometer_gain_scale);
   std::printf(
       "[ standstill ] 8 kg, 6850 N/m, 10 N, accelerometer, trapezoid: K_a x2 %.2f um, %.2f N rms; x1 %.2f um, %.2f N "
@@ -524,6 +611,8 @@ TEST(StandstillGate, WithAnAccelerometerItWaitsForTheSwingItWitnesses) {
   const Scenario scenario = test::shipped_scenario("free_vibration");
   SystemParams p = commissioned_soft_load(8.0, LoadSensorKind::kAccelerometer);
   ASSERT_TRUE(p.compensator.standstill_enabled);
+  // The witness's own share: without the gate's push after the stretch at the mode, which stills both.
+  p.compensator.standstill.accel_stretch_gain_n_per_m = 0.0;
   SystemParams unwitnessed = p;
   unwitnessed.compensator.standstill.quiet_accel_swing_m = 5e-3;
   unwitnessed.compensator.standstill.wake_accel_swing_m = 1e-2;

@@ -42,6 +42,16 @@
 // the load's mode (load_period_s, from the filter's model); s_0, the two encoders' offset, is the
 // stretch's mean over that period (a whole period of the swing averages to its centre). The push
 // is part of the compensation: the gate's scale fades it with the rest when the load is quiet.
+// With an accelerometer it pushes after the stretch the reading gives at the load's mode
+// (accel_stretch_gain_n_per_m, 0: off): F = -G s_w bounded by accel_stretch_force_max_n, under the
+// same conditions (at rest, the motor held, a whole period of readings), where s_w is (m_L / k) a_L
+// band-passed at w_L by the controller (the reading less a full notch there, its poles' damping
+// accel_stretch_damping). The band-pass has no lag at the mode and no offset (a bias is the
+// reading's mean: no centre to find), and its noise is a band of about pi zeta f_L; the low-passed
+// witness the gate judges lags the swing by a quarter period at w_L, so a push after it would be
+// in quadrature with the swing. The band must ring down faster than the swing the push damps
+// (zeta w_L well over the swing's decay rate): a narrow one turns its phase over as the swing
+// decays and the push feeds it.
 //
 // The last is for a heavy, soft load on sticky bearings: its swing (1.5 mm on 8 kg and 6,850 N/m
 // pulls 10 N) may not move a motor held by 30 N, so the motor is quiet while the load still
@@ -67,22 +77,25 @@ namespace pmlsm {
 /// one place they live: none has a default of its own here.
 struct StandstillGateParams {
   double control_period_s = 0;
-  double rest_velocity_mps = 0;     ///< |c| and |V_ref| at or below this: the reference at rest, >= 0
-  double settle_s = 0;              ///< at rest this long before the gate may close, >= 0
-  double load_settle_s = 0;         ///< ... when the last window read a load encoder every tick, >= 0
-  double window_s = 0;              ///< the quiet window, at least 2 periods
-  double quiet_velocity_mps = 0;    ///< rms(v_M) of a window below this: quiet, > 0
-  double wake_velocity_mps = 0;     ///< rms(v_M) of a window above this: pushed, > quiet_velocity_mps
-  bool wake_on_request = false;     ///< the request while closed may reopen the gate (wake_force_n)
-  double wake_force_n = 0;          ///< the request's rms over a window spent closed above this: a swing, > 0
-  double fade_s = 0;                ///< >= 0 (0: at once)
-  double quiet_load_swing_m = 0;    ///< a load encoder's swing over a window at or below this: quiet, > 0
-  double wake_load_swing_m = 0;     ///< ... above this: the load moves, open; > quiet_load_swing_m
-  double quiet_accel_swing_m = 0;   ///< an accelerometer's witness of the swing at or below this: quiet, > 0
-  double wake_accel_swing_m = 0;    ///< ... above this: open; > quiet_accel_swing_m
-  double stretch_gain_n_per_m = 0;  ///< G of the push after a load encoder's stretch at rest, >= 0 (0: off)
-  double stretch_force_max_n = 0;   ///< the push's bound, > 0
-  double load_period_s = 0;         ///< the load's mode's period (the filter's model): the stretch's centre, > 0
+  double rest_velocity_mps = 0;           ///< |c| and |V_ref| at or below this: the reference at rest, >= 0
+  double settle_s = 0;                    ///< at rest this long before the gate may close, >= 0
+  double load_settle_s = 0;               ///< ... when the last window read a load encoder every tick, >= 0
+  double window_s = 0;                    ///< the quiet window, at least 2 periods
+  double quiet_velocity_mps = 0;          ///< rms(v_M) of a window below this: quiet, > 0
+  double wake_velocity_mps = 0;           ///< rms(v_M) of a window above this: pushed, > quiet_velocity_mps
+  bool wake_on_request = false;           ///< the request while closed may reopen the gate (wake_force_n)
+  double wake_force_n = 0;                ///< the request's rms over a window spent closed above this: a swing, > 0
+  double fade_s = 0;                      ///< >= 0 (0: at once)
+  double quiet_load_swing_m = 0;          ///< a load encoder's swing over a window at or below this: quiet, > 0
+  double wake_load_swing_m = 0;           ///< ... above this: the load moves, open; > quiet_load_swing_m
+  double quiet_accel_swing_m = 0;         ///< an accelerometer's witness of the swing at or below this: quiet, > 0
+  double wake_accel_swing_m = 0;          ///< ... above this: open; > quiet_accel_swing_m
+  double stretch_gain_n_per_m = 0;        ///< G of the push after a load encoder's stretch at rest, >= 0 (0: off)
+  double stretch_force_max_n = 0;         ///< the push's bound, > 0
+  double accel_stretch_gain_n_per_m = 0;  ///< G of the push after an accelerometer's stretch at the mode, >= 0 (0: off)
+  double accel_stretch_damping = 0;       ///< the damping of that stretch's band-pass at w_L, > 0
+  double accel_stretch_force_max_n = 0;   ///< that push's bound, > 0
+  double load_period_s = 0;               ///< the load's mode's period (the filter's model): the stretch's centre, > 0
   /// @throws std::invalid_argument naming the parameter and its value.
   void validate() const;
   /// Its own entries under `at` ("compensator.standstill"); the period comes from the system.
@@ -112,6 +125,11 @@ struct StandstillGateParams {
     v.real(at + ".stretch_gain_n_per_m", p.stretch_gain_n_per_m,
            {0.0, 1e9, "0 (no push) to 1 kN per um of the load encoder's stretch"});
     v.real(at + ".stretch_force_max_n", p.stretch_force_max_n, {1e-3, 1e5, "1 mN to 100 kN of push"});
+    v.real(at + ".accel_stretch_gain_n_per_m", p.accel_stretch_gain_n_per_m,
+           {0.0, 1e9, "0 (no push) to 1 kN per um of the accelerometer's stretch at the load's mode"});
+    v.real(at + ".accel_stretch_damping", p.accel_stretch_damping,
+           {1e-2, 2.0, "0.01 (a narrow band about w_L) to 2 (a wide one)"});
+    v.real(at + ".accel_stretch_force_max_n", p.accel_stretch_force_max_n, {1e-3, 1e5, "1 mN to 100 kN of push"});
   }
   /// The longest load_period_s: the centre's ring holds this many seconds of stretch.
   static constexpr double kMaxLoadPeriodS = 2.0;
@@ -127,13 +145,17 @@ struct StandstillGateInput {
   /// The stretch is an accelerometer's witness, (m_L / k) a_L low-passed at the load's mode: judged
   /// against quiet_accel_swing_m and wake_accel_swing_m (its noise is micrometres of stretch).
   bool stretch_from_accelerometer = false;
+  /// An accelerometer's (m_L / k) a_L band-passed at the load's mode: x_M - x_L there with no lag
+  /// and no offset (NaN: none), what the push after an accelerometer's stretch reads.
+  double load_stretch_at_mode_m = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct StandstillGateOutput {
   double scale = 1.0;   ///< multiply the compensation force by this
   bool closed = false;  ///< closing or closed (the scale heads for 0)
-  /// The push after the stretch, G (x_L - x_M - s_0) bounded (0 when it does not act): add it to
-  /// the compensation's request, before the scale.
+  /// The push after the stretch, G (x_L - x_M - s_0) of a load encoder's or -G s_w of an
+  /// accelerometer's, bounded (0 when it does not act): add it to the compensation's request,
+  /// before the scale.
   double stretch_force_n = 0;
 };
 

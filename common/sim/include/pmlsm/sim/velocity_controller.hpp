@@ -118,6 +118,7 @@ class VelocityController {
   std::optional<StandstillGate> standstill_;
   std::optional<LoadSensorMonitor> load_monitor_;  ///< with a load sensor and a gate or a load loop
   std::optional<Biquad> accel_witness_;            ///< an accelerometer's reading, low-passed at w_L
+  std::optional<Biquad> accel_mode_notch_;         ///< a full notch at w_L: the reading less it, band-passed
   double stretch_per_accel_s2_ = 0;                ///< m_L / k of the filter's model
   std::uint64_t steps_ = 0;                        ///< the monitor's tick
   FilterChain compensation_filters_;               ///< on the compensator's force, before the PI adds it
