@@ -198,7 +198,8 @@ class StandstillGate {
   std::uint32_t closed_in_window_ = 0;   ///< ticks of the window with the scale at 0
   std::uint32_t stretch_in_window_ = 0;  ///< ticks of the window with a finite stretch
   double stretch_min_m_ = 0, stretch_max_m_ = 0;
-  std::vector<double> centre_ring_;  ///< the last load period's stretch (sized at construction)
+  /// The last load period's stretch (sized at construction); an accelerometer's push counts its fill only.
+  std::vector<double> centre_ring_;
   std::size_t centre_next_ = 0, centre_filled_ = 0;
   double centre_sum_m_ = 0;
   bool motor_held_ = false;  ///< the last full window at rest had rms(v_M) under quiet_velocity_mps
