@@ -35,12 +35,12 @@ using test::source_path;
 
 using test::system_text;
 const std::string& pulse_text() {
-  static const std::string text = read_text("configs/scenarios/pulse.yaml");
-  return text;
+  static const std::string kText = read_text("configs/scenarios/pulse.yaml");
+  return kText;
 }
 const std::string& free_vibration_text() {
-  static const std::string text = read_text("configs/scenarios/free_vibration.yaml");
-  return text;
+  static const std::string kText = read_text("configs/scenarios/free_vibration.yaml");
+  return kText;
 }
 
 std::string system_error(const std::vector<Edit>& edits, const std::vector<ConfigOverride>& overrides = {}) {
@@ -333,7 +333,9 @@ TEST(ConfigRejects, MalformedYamlAndNonMappingTopLevel) {
       {"scalar", "42\n"},
       {"empty", ""},
   };
-  for (const auto& [what, text] : texts) {
+  for (const auto& entry : texts) {
+    const std::string& what = entry.first;
+    const std::string& text = entry.second;
     SCOPED_TRACE(what);
     const std::string expected = what.rfind("parse error", 0) == 0 ? "YAML parse error" : "top level must be a mapping";
     expect_names(error_of([&] { parse_system_params(text, kOrigin); }), kOrigin, {expected});
