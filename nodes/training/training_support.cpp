@@ -23,11 +23,15 @@ std::string read_text(const std::string& path) {
 }
 
 namespace {
-void check_bound(const std::string& what, std::size_t size, std::size_t bound) {
-  if (size > bound) {
-    throw ConfigError(what + ": " + std::to_string(size) + " characters, TrainingSetup carries at most " +
-                      std::to_string(bound));
+/// `text` into a bounded string of TrainingSetup: the bound is the field's type (the IDL's), and
+/// fastddsgen's fixed_string truncates past it without a word, so a longer text is refused here.
+template <std::size_t kBound>
+void put_text(const std::string& what, const std::string& text, eprosima::fastrtps::fixed_string<kBound>& field) {
+  if (text.size() > kBound) {
+    throw ConfigError(what + ": " + std::to_string(text.size()) + " characters, TrainingSetup carries at most " +
+                      std::to_string(kBound));
   }
+  field = text;
 }
 
 using Assignments = std::vector<std::pair<std::string, double>>;
@@ -39,9 +43,7 @@ void put_assignments(const Assignments& assignments, const std::string& what, As
   for (const auto& [key, value] : assignments) {
     char number[32];
     std::snprintf(number, sizeof number, "%.17g", value);
-    const std::string item = key + "=" + number;
-    check_bound(what + " " + key, item.size(), 256);
-    out.push_back(item);
+    put_text(what + " " + key, key + "=" + number, out.emplace_back());
   }
 }
 
@@ -64,25 +66,17 @@ msg::TrainingSetup make_setup(std::uint64_t run_id, const std::string& system_pa
                               const std::vector<std::string>& system_overrides, const TrainingParams& training) {
   msg::TrainingSetup setup;
   setup.run_id(run_id);
-  const std::string system_text = read_text(system_path);
-  // fastddsgen's serialiser neither checks nor truncates bounds loudly: check them here.
-  check_bound(system_path, system_text.size(), 65536);
-  check_bound(system_path + " (name)", system_path.size(), 256);
-  setup.system_yaml(system_text);
-  setup.system_origin(system_path);
+  put_text(system_path, read_text(system_path), setup.system_yaml());
+  put_text(system_path + " (name)", system_path, setup.system_origin());
   if (system_overrides.size() > 64) throw ConfigError("--set: at most 64 overrides reach remote workers");
   for (const auto& o : system_overrides) {
-    check_bound("--set " + o, o.size(), 256);
-    setup.system_overrides().push_back(o);
+    put_text("--set " + o, o, setup.system_overrides().emplace_back());
   }
   if (training.scenarios.size() > 8) throw ConfigError("scenarios: at most 8 reach remote workers");
   for (const TrainingScenario& s : training.scenarios) {
     msg::TrainingScenarioText text;
-    const std::string yaml = read_text(s.file);
-    check_bound(s.file, yaml.size(), 8192);
-    check_bound(s.file + " (name)", s.file.size(), 256);
-    text.yaml(yaml);
-    text.origin(s.file);
+    put_text(s.file, read_text(s.file), text.yaml());
+    put_text(s.file + " (name)", s.file, text.origin());
     text.weight(s.weight);
     setup.scenarios().push_back(text);
   }
@@ -90,8 +84,7 @@ msg::TrainingSetup make_setup(std::uint64_t run_id, const std::string& system_pa
   if (training.plants.size() > 32) throw ConfigError("plants: at most 32 reach remote workers");
   for (const PlantVariant& plant : training.plants) {
     msg::TrainingPlantText text;
-    check_bound("plants " + plant.name + " (name)", plant.name.size(), 64);
-    text.name(plant.name);
+    put_text("plants " + plant.name + " (name)", plant.name, text.name());
     put_assignments(plant.values, "plants " + plant.name, text.moves());
     text.weight(plant.weight);
     put_assignments(plant.models, "plants " + plant.name + " models", text.models());
